@@ -1,0 +1,1 @@
+"""Software emulators of the cell's devices; they speak the devices' wire protocols."""

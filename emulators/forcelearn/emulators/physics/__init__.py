@@ -1,0 +1,1 @@
+"""Pure physics shared by the emulators: cell pose, contact environments, tool load."""

@@ -1,0 +1,87 @@
+"""The physical cell shared by every emulator: where the tool is and what it touches.
+
+One :class:`CellPhysics` object is handed to both the robot-controller emulator
+and the JR3 emulator. The robot emulator writes the pose the robot *reached*
+(:meth:`CellPhysics.set_pose`); the sensor emulator reads the true wrench that
+pose produces (:meth:`CellPhysics.true_wrench`). Neither emulator knows the
+other, and this module knows nothing of wires.
+
+Frames and units
+----------------
+* World frame: robot base, z up, gravity (0, 0, -9.81) m/s². Positions in mm.
+* Tool pose: the tool centre point (the roller's contact point), orientation a
+  unit quaternion (w, x, y, z) mapping sensor frame to world frame.
+* Wrench: (Fx, Fy, Fz, Mx, My, Mz) in N and N·m, expressed in the sensor frame,
+  the external load acting on the sensor (contact reaction + tool weight).
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Protocol
+
+import numpy as np
+
+from forcelearn.devices import Pose
+
+
+class ContactEnvironment(Protocol):
+    """A surface the tool can press on."""
+
+    def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
+        """Return the reaction force (3,) in N, world frame, on a tool at ``position_mm``."""
+        ...
+
+
+class NoContact:
+    """Free space: never any contact force."""
+
+    def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
+        """Return zero force, whatever the position."""
+        return np.zeros(3)
+
+
+class CellPhysics:
+    """Pose of the tool plus the environment it presses on; thread-safe.
+
+    Args:
+        environment: the contact environment (default: free space).
+        pose: the initial tool pose.
+    """
+
+    def __init__(self, environment: ContactEnvironment | None = None, pose: Pose | None = None):
+        self._lock = threading.Lock()
+        self.environment: ContactEnvironment = environment or NoContact()
+        self._pose = pose or Pose(0.0, 0.0, 0.0)
+
+    @property
+    def pose(self) -> Pose:
+        """The pose the robot has reached."""
+        with self._lock:
+            return self._pose
+
+    def set_pose(self, pose: Pose) -> None:
+        """Record the pose the robot has reached (called by the robot emulator)."""
+        with self._lock:
+            self._pose = pose
+
+    def true_wrench(self) -> np.ndarray:
+        """Return the noise-free wrench (6,) in the sensor frame, N and N·m."""
+        pose = self.pose
+        force_world = self.environment.contact_force_world_n(pose.position_mm)
+        rotation = quaternion_to_matrix(pose.quaternion)
+        wrench = np.zeros(6)
+        wrench[:3] = rotation.T @ force_world
+        return wrench
+
+
+def quaternion_to_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
+    """Return the 3x3 rotation matrix of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )

@@ -1,0 +1,72 @@
+"""The ``forcelearn`` command line: one argparse parser, one subcommand per module.
+
+Each subcommand lives in its own module, which exposes ``add_arguments(parser)``
+and ``run(args) -> int``; this file only lists them, so the command modules are
+imported lazily and a broken optional part never stops ``forcelearn --version``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Sequence
+from importlib import metadata
+
+from forcelearn.errors import ForcelearnError
+
+# name -> (module implementing it, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "bench": ("forcelearn.tools.bench", "print speed figures of the learner, link and sensor"),
+}
+
+
+def version() -> str:
+    """Return the installed distribution's version string."""
+    try:
+        return metadata.version("forcelearn")
+    except metadata.PackageNotFoundError:  # running from a bare source tree
+        return "0+unknown"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Build the top-level parser with every subcommand attached."""
+    parser = argparse.ArgumentParser(
+        prog="forcelearn",
+        description="Learned force control of position-controlled robots (SRV over BOXES).",
+    )
+    parser.add_argument("--version", action="version", version=f"forcelearn {version()}")
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (module_name, help_text) in COMMANDS.items():
+        module = importlib.import_module(module_name)
+        command = sub.add_parser(name, help=help_text, description=help_text)
+        module.add_arguments(command)
+        command.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the process exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.WARNING - 10 * min(args.verbose, 2),
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args._run(args) or 0)
+    except ForcelearnError as exc:
+        print(f"forcelearn {args.command}: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"forcelearn {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,103 @@
+"""What the core needs from a cell's devices: small value types and two Protocols.
+
+The trainer and the tasks know the robot and the force sensor only through
+:class:`Robot` and :class:`ForceSensor`; the computer-link and JR3 drivers in
+``forcelearn.drivers`` satisfy them, whether the far end of the wire is a real
+device or an emulator. This module imports nothing else of forcelearn but its
+errors, so drivers may depend on it without depending on learning.
+
+Frames and units: world frame of the robot base, x/y/z in millimetres,
+orientation as a unit quaternion (w, x, y, z). Forces in newtons, moments in
+newton-metres, times in seconds (``time.monotonic`` clock).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+IDENTITY_QUATERNION: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A Cartesian tool pose: position in mm, orientation as quaternion (w, x, y, z)."""
+
+    x_mm: float
+    y_mm: float
+    z_mm: float
+    quaternion: tuple[float, float, float, float] = IDENTITY_QUATERNION
+
+    @property
+    def position_mm(self) -> np.ndarray:
+        """Position as a float array (x, y, z) in mm."""
+        return np.array([self.x_mm, self.y_mm, self.z_mm], dtype=float)
+
+    def moved(self, dx_mm: float = 0.0, dy_mm: float = 0.0, dz_mm: float = 0.0) -> Pose:
+        """Return this pose translated by (dx, dy, dz) mm, orientation kept."""
+        return Pose(self.x_mm + dx_mm, self.y_mm + dy_mm, self.z_mm + dz_mm, self.quaternion)
+
+
+@dataclass(frozen=True)
+class WrenchSample:
+    """One paired force/moment sample from a 6-axis sensor.
+
+    ``wrench`` is (Fx, Fy, Fz, Mx, My, Mz) in N and N·m, sensor frame;
+    ``timestamp_s`` is the host's monotonic receive time; ``counter`` is the
+    sensor's frame counter; ``saturated`` flags axes near full scale.
+    """
+
+    wrench: np.ndarray
+    timestamp_s: float
+    counter: int
+    saturated: tuple[bool, ...] = field(default=(False,) * 6)
+
+    @property
+    def force_n(self) -> np.ndarray:
+        """The force part (Fx, Fy, Fz) in N."""
+        return self.wrench[:3]
+
+    @property
+    def moment_nm(self) -> np.ndarray:
+        """The moment part (Mx, My, Mz) in N·m."""
+        return self.wrench[3:]
+
+
+@runtime_checkable
+class Robot(Protocol):
+    """A position-controlled robot reached through a driver."""
+
+    def read_pose(self) -> Pose:
+        """Return the pose the robot is at now."""
+        ...
+
+    def move_to(self, pose: Pose) -> None:
+        """Move to an absolute pose and return when the controller has accepted it."""
+        ...
+
+    def stop(self) -> None:
+        """Stop all motion at once; safe to call at any time."""
+        ...
+
+    def close(self) -> None:
+        """Stop the robot and release the link; safe to call twice."""
+        ...
+
+
+@runtime_checkable
+class ForceSensor(Protocol):
+    """A 6-axis force/torque sensor reached through a driver."""
+
+    def read(self) -> WrenchSample:
+        """Return the next fresh sample (raises ``SensorStale`` if none arrives in time)."""
+        ...
+
+    def zero_offsets(self) -> None:
+        """Store the present reading as the sensor's offset."""
+        ...
+
+    def close(self) -> None:
+        """Stop streaming and release the bus; safe to call twice."""
+        ...

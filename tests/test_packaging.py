@@ -1,0 +1,66 @@
+"""The distribution holds every code folder, and the console script answers."""
+
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import forcelearn.cli
+
+ROOT = Path(__file__).resolve().parents[1]
+CODE_FOLDERS = ("src", "drivers", "emulators", "tools")
+
+
+def _modules_in(folder: str) -> set[str]:
+    base = ROOT / folder
+    return {p.relative_to(base).as_posix() for p in base.rglob("*.py")}
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("wheel")
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
+         "--quiet", "-w", str(out), str(ROOT)],
+        check=True,
+    )
+    (path,) = out.glob("forcelearn-*.whl")
+    return path
+
+
+@pytest.mark.parametrize("folder", CODE_FOLDERS)
+def test_wheel_contains_every_module_of_each_code_folder(wheel: Path, folder: str) -> None:
+    """A module missing from the wheel would be missing on every user's machine."""
+    names = set(zipfile.ZipFile(wheel).namelist())
+    expected = _modules_in(folder)
+    assert expected, f"{folder}/ holds no modules"
+    missing = sorted(m for m in expected if m not in names)
+    assert not missing, f"wheel lacks {missing}"
+
+
+def test_wheel_declares_the_console_script(wheel: Path) -> None:
+    """The `forcelearn` command is declared as an entry point of the wheel."""
+    with zipfile.ZipFile(wheel) as zf:
+        (entry,) = [n for n in zf.namelist() if n.endswith("entry_points.txt")]
+        text = zf.read(entry).decode()
+    assert "forcelearn = forcelearn.cli:main" in text
+
+
+def test_version_flag_prints_the_installed_version(capsys: pytest.CaptureFixture[str]) -> None:
+    """`forcelearn --version` prints the distribution version and exits 0."""
+    with pytest.raises(SystemExit) as stop:
+        forcelearn.cli.main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.strip() == f"forcelearn {forcelearn.cli.version()}"
+
+
+def test_console_script_runs_in_a_subprocess() -> None:
+    """The installed entry point resolves (catches a broken package assembly)."""
+    done = subprocess.run(
+        [sys.executable, "-c", "import sys, forcelearn.cli; sys.exit(forcelearn.cli.main(['--help']))"],
+        capture_output=True, text=True, check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "bench" in done.stdout

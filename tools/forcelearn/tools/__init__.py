@@ -1,0 +1,1 @@
+"""Tools around the controller: benchmarks, figure makers, the calibration tool."""

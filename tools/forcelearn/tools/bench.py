@@ -1,0 +1,30 @@
+"""``forcelearn bench NAME``: speed benchmarks that print figures (never timed tests).
+
+Each benchmark lives in its own module exposing ``add_arguments(parser)`` and
+``run(args) -> int``; this table lists them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+# name -> (module, one-line help)
+BENCHMARKS: dict[str, tuple[str, str]] = {
+    "learner": ("forcelearn.tools.bench_learner", "SRV learner steps/s (act + learn, 2-D grid)"),
+}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Attach one sub-parser per benchmark."""
+    sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
+    for name, (module_name, help_text) in BENCHMARKS.items():
+        module = importlib.import_module(module_name)
+        bench = sub.add_parser(name, help=help_text, description=help_text)
+        module.add_arguments(bench)
+        bench.set_defaults(_bench=module.run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the chosen benchmark."""
+    return int(args._bench(args) or 0)
