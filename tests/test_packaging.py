@@ -14,12 +14,14 @@ CODE_FOLDERS = ("src", "drivers", "emulators", "tools")
 
 
 def _modules_in(folder: str) -> set[str]:
+    """Return the wheel-relative paths of the Python files under a code folder."""
     base = ROOT / folder
     return {p.relative_to(base).as_posix() for p in base.rglob("*.py")}
 
 
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Build the wheel once for this module."""
     out = tmp_path_factory.mktemp("wheel")
     subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
@@ -59,7 +61,8 @@ def test_version_flag_prints_the_installed_version(capsys: pytest.CaptureFixture
 def test_console_script_runs_in_a_subprocess() -> None:
     """The installed entry point resolves (catches a broken package assembly)."""
     done = subprocess.run(
-        [sys.executable, "-c", "import sys, forcelearn.cli; sys.exit(forcelearn.cli.main(['--help']))"],
+        [sys.executable, "-c",
+         "import sys, forcelearn.cli; sys.exit(forcelearn.cli.main(['--help']))"],
         capture_output=True, text=True, check=False,
     )
     assert done.returncode == 0, done.stderr
