@@ -1,0 +1,100 @@
+"""The JR3-to-CAN adapter's opcode map, as a named and versioned table.
+
+Every frame on the bus carries an 11-bit identifier ``opcode + node_id``
+(node id 1..127), except SYNC, which is broadcast on the bare opcode. The
+adapter firmware has changed its opcodes over time, so the codec never uses
+a literal opcode: it looks the message kind up in an :class:`OpcodeMap`.
+
+========================  ======  ===============  =====================================
+kind                      opcode  direction        payload (little-endian)
+========================  ======  ===============  =====================================
+``sync``                  0x080   host -> all      none; id is exactly 0x080
+``ack``                   0x100   sensor -> host   u8 status [+ 3 x u16 full scales]
+``start_sync``            0x180   host -> sensor   u16 cut-off (0.01 Hz)
+``start_async``           0x200   host -> sensor   u16 cut-off (0.01 Hz) + u32 period (us)
+``stop``                  0x280   host -> sensor   none
+``zero_offsets``          0x300   host -> sensor   none
+``set_filter``            0x380   host -> sensor   u16 cut-off (0.01 Hz)
+``get_state``             0x400   host -> sensor   none
+``get_force_full_scales`` 0x480   host -> sensor   none (answered by a 7-byte ACK)
+``get_moment_full_scales``0x500   host -> sensor   none (answered by a 7-byte ACK)
+``reset``                 0x580   host -> sensor   none
+``forces``                0x600   sensor -> host   3 x i16 Fx Fy Fz + u16 frame counter
+``moments``               0x680   sensor -> host   3 x i16 Mx My Mz + u16 frame counter
+``bootup``                0x700   sensor -> host   none (the host must initialise again)
+========================  ======  ===============  =====================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from functools import cache
+
+NODE_ID_BITS = 0x7F
+"""Low 7 bits of an identifier carry the node id; the opcode is a multiple of 0x80."""
+
+
+@dataclass(frozen=True)
+class OpcodeMap:
+    """One firmware version's opcodes (11-bit, multiples of 0x80)."""
+
+    name: str
+    version: str
+    sync: int
+    ack: int
+    start_sync: int
+    start_async: int
+    stop: int
+    zero_offsets: int
+    set_filter: int
+    get_state: int
+    get_force_full_scales: int
+    get_moment_full_scales: int
+    reset: int
+    forces: int
+    moments: int
+    bootup: int
+
+    def __post_init__(self) -> None:
+        codes = self.by_kind()
+        for kind, code in codes.items():
+            if code & NODE_ID_BITS or not 0 < code <= 0x780:
+                raise ValueError(f"opcode map {self.version}: {kind}={code:#x} is not 0x80..0x780")
+        if len(set(codes.values())) != len(codes):
+            raise ValueError(f"opcode map {self.version}: two kinds share an opcode")
+
+    def by_kind(self) -> dict[str, int]:
+        """Return ``{kind: opcode}`` for every message kind."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.type == "int"}
+
+
+@cache
+def kind_of_opcode(opcodes: OpcodeMap) -> dict[int, str]:
+    """Return the reverse table ``{opcode: kind}`` of a map (cached per map)."""
+    return {code: kind for kind, code in opcodes.by_kind().items()}
+
+
+JR3_MBED_2023_12 = OpcodeMap(
+    name="jr3-mbed-firmware CAN layer",
+    version="2023-12",
+    sync=0x080,
+    ack=0x100,
+    start_sync=0x180,
+    start_async=0x200,
+    stop=0x280,
+    zero_offsets=0x300,
+    set_filter=0x380,
+    get_state=0x400,
+    get_force_full_scales=0x480,
+    get_moment_full_scales=0x500,
+    reset=0x580,
+    forces=0x600,
+    moments=0x680,
+    bootup=0x700,
+)
+"""The December 2023 opcode map of the open JR3-to-CAN adapter firmware."""
+
+OPCODE_MAPS: dict[str, OpcodeMap] = {JR3_MBED_2023_12.version: JR3_MBED_2023_12}
+"""Known opcode maps by version string; add older firmware maps here."""
+
+DEFAULT_OPCODES = JR3_MBED_2023_12

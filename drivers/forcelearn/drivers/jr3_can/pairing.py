@@ -1,0 +1,93 @@
+"""Pure pairing of force and moment frames, and gap counting across the 16-bit wrap.
+
+A force frame and a moment frame form one sample only when their frame
+counters match. Frames whose partner never comes are counted as unpaired;
+samples missing between two paired counters (modulo 65536) are counted as
+dropped. No clock, no bus: the listener feeds frames in arrival order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from forcelearn.drivers.jr3_can.codec import COUNTER_MODULUS, Forces, Moments
+
+
+def counter_gap(previous: int, current: int) -> int:
+    """Return how many counters lie strictly between two paired counters (wrap-aware).
+
+    ``counter_gap(65534, 1) == 2`` (65535 and 0 are missing); a repeated counter
+    gives -1 (a duplicate, not a gap).
+    """
+    return (current - previous) % COUNTER_MODULUS - 1
+
+
+@dataclass(frozen=True, slots=True)
+class Pair:
+    """A matched force/moment pair: six raw counts and their counter; ``dropped`` before it."""
+
+    raw: tuple[int, int, int, int, int, int]
+    counter: int
+    dropped: int
+
+
+class Pairer:
+    """Match frames by counter and count what is lost; one instance per stream.
+
+    Attributes:
+        unpaired: frames discarded because no partner with the same counter came.
+        dropped: sample counters skipped between consecutive pairs (wrap-aware).
+        duplicates: pairs whose counter repeated the previous one (discarded).
+    """
+
+    def __init__(self) -> None:
+        self.unpaired = 0
+        self.dropped = 0
+        self.duplicates = 0
+        self._forces: Forces | None = None
+        self._moments: Moments | None = None
+        self._last_counter: int | None = None
+
+    def restart(self) -> None:
+        """Forget pending frames and the last counter (after a bootup the counter restarts)."""
+        self.unpaired += (self._forces is not None) + (self._moments is not None)
+        self._forces = self._moments = None
+        self._last_counter = None
+
+    def push(self, frame: Forces | Moments) -> Pair | None:
+        """Add one frame; return the pair it completes, or None."""
+        if isinstance(frame, Forces):
+            mine, other = "_forces", self._moments
+        else:
+            mine, other = "_moments", self._forces
+        if other is not None and other.counter == frame.counter:
+            forces, moments = (frame, other) if isinstance(frame, Forces) else (other, frame)
+            self._forces = self._moments = None
+            return self._complete(forces, moments)
+        if getattr(self, mine) is not None:
+            self.unpaired += 1
+        if other is not None and self._is_older(other.counter, frame.counter):
+            # the partner of the older frame can no longer come before this one
+            self.unpaired += 1
+            if isinstance(frame, Forces):
+                self._moments = None
+            else:
+                self._forces = None
+        setattr(self, mine, frame)
+        return None
+
+    @staticmethod
+    def _is_older(counter: int, than: int) -> bool:
+        return 0 < (than - counter) % COUNTER_MODULUS < COUNTER_MODULUS // 2
+
+    def _complete(self, forces: Forces, moments: Moments) -> Pair | None:
+        dropped = 0
+        if self._last_counter is not None:
+            gap = counter_gap(self._last_counter, forces.counter)
+            if gap < 0:
+                self.duplicates += 1
+                return None
+            dropped = gap
+        self._last_counter = forces.counter
+        self.dropped += dropped
+        return Pair((*forces.raw, *moments.raw), forces.counter, dropped)

@@ -1,0 +1,59 @@
+"""Raw 16-bit counts <-> physical units, and the wire units of cut-off and period.
+
+JR3 scaling: 16384 counts = full scale of the axis. Forces: full scale in N,
+``F = raw * FS / 16384``. Moments: the adapter reports full scales in dN*m, so
+``M = raw * FS_dNm / (16384 * 10)``; this module keeps moment full scales in
+N*m (``FS_dNm / 10``) so that one formula serves all six axes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+COUNTS_PER_FULL_SCALE = 16384
+NEAR_SATURATION_COUNTS = 26214
+"""The JR3 DSP's "near saturation" level, about 1.6 x full scale."""
+INT16_MIN, INT16_MAX = -32768, 32767
+DNM_PER_NM = 10.0
+
+
+def full_scales_from_wire(
+    forces_n: tuple[int, int, int], moments_dnm: tuple[int, int, int]
+) -> np.ndarray:
+    """Return the six full scales (N, N, N, N*m, N*m, N*m) from the adapter's ACK values."""
+    return np.array([*forces_n, *(m / DNM_PER_NM for m in moments_dnm)], dtype=float)
+
+
+def full_scales_to_wire(
+    full_scales: np.ndarray,
+) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
+    """Return the adapter's (forces N, moments dN*m) uint16 values for six full scales."""
+    fs = np.asarray(full_scales, dtype=float)
+    forces = tuple(round(float(v)) for v in fs[:3])
+    moments = tuple(round(float(v) * DNM_PER_NM) for v in fs[3:])
+    return forces, moments  # type: ignore[return-value]
+
+
+def counts_to_wrench(raw: np.ndarray, full_scales: np.ndarray) -> np.ndarray:
+    """Return (Fx..Mz) in N and N*m from six raw counts and six full scales."""
+    scale = np.asarray(full_scales, dtype=float) / COUNTS_PER_FULL_SCALE
+    return np.asarray(raw, dtype=float) * scale
+
+
+def wrench_to_counts(wrench: np.ndarray, full_scales: np.ndarray) -> np.ndarray:
+    """Return six int16 counts (rounded, clipped to the int16 range) for a wrench."""
+    counts = np.rint(np.asarray(wrench, dtype=float) * COUNTS_PER_FULL_SCALE / full_scales)
+    return np.clip(counts, INT16_MIN, INT16_MAX).astype(np.int64)
+
+
+def cutoff_to_wire(cutoff_hz: float) -> int:
+    """Return a cut-off in Hz as the adapter's uint16 in 0.01 Hz (0.01..655.35 Hz)."""
+    value = round(cutoff_hz * 100)
+    if not 1 <= value <= 0xFFFF:
+        raise ValueError(f"cutoff_hz={cutoff_hz} is outside 0.01..655.35 Hz")
+    return value
+
+
+def cutoff_from_wire(cutoff_centi_hz: int) -> float:
+    """Return the adapter's cut-off (0.01 Hz units) in Hz."""
+    return cutoff_centi_hz / 100.0

@@ -1,0 +1,74 @@
+"""Pairing by counter, unpaired frames and gap counting across the 16-bit wrap."""
+
+from __future__ import annotations
+
+from forcelearn.drivers.jr3_can.codec import Forces, Moments
+from forcelearn.drivers.jr3_can.pairing import Pairer, counter_gap
+
+
+def _f(counter: int) -> Forces:
+    return Forces((counter % 100, 2, 3), counter)
+
+
+def _m(counter: int) -> Moments:
+    return Moments((4, 5, 6), counter)
+
+
+def test_counter_gap_handles_the_wrap() -> None:
+    """65534 -> 1 skips 65535 and 0; consecutive counters skip nothing; a repeat is -1."""
+    assert counter_gap(65534, 1) == 2
+    assert counter_gap(65535, 0) == 0
+    assert counter_gap(10, 11) == 0
+    assert counter_gap(7, 7) == -1
+
+
+def test_pairs_only_matching_counters_in_either_order() -> None:
+    """A pair forms from equal counters whichever frame comes first."""
+    pairer = Pairer()
+    assert pairer.push(_f(1)) is None
+    pair = pairer.push(_m(1))
+    assert pair is not None and pair.raw == (1, 2, 3, 4, 5, 6) and pair.counter == 1
+    assert pairer.push(_m(2)) is None
+    pair = pairer.push(_f(2))
+    assert pair is not None and pair.counter == 2 and pair.dropped == 0
+
+
+def test_mismatched_counters_do_not_pair_and_are_counted() -> None:
+    """A force frame whose moment frame was lost is discarded when the next counter comes."""
+    pairer = Pairer()
+    pairer.push(_f(1))
+    assert pairer.push(_m(2)) is None
+    assert pairer.unpaired == 1
+    pair = pairer.push(_f(2))
+    assert pair is not None and pair.counter == 2
+
+
+def test_dropped_samples_counted_across_the_wrap() -> None:
+    """Pairs 65533, 65534, then 1, 2: two samples (65535, 0) were dropped."""
+    pairer = Pairer()
+    counters = [65533, 65534, 1, 2]
+    pairs = [pairer.push(_f(c)) or pairer.push(_m(c)) for c in counters]
+    assert [p.counter for p in pairs if p] == counters
+    assert [p.dropped for p in pairs if p] == [0, 0, 2, 0]
+    assert pairer.dropped == 2
+
+
+def test_duplicate_counter_is_discarded() -> None:
+    """A repeated pair is counted as duplicate and not returned."""
+    pairer = Pairer()
+    pairer.push(_f(5))
+    pairer.push(_m(5))
+    pairer.push(_f(5))
+    assert pairer.push(_m(5)) is None
+    assert pairer.duplicates == 1
+
+
+def test_restart_forgets_the_counter() -> None:
+    """After a bootup the counter restarts at 0 without being called a gap."""
+    pairer = Pairer()
+    pairer.push(_f(900))
+    pairer.push(_m(900))
+    pairer.restart()
+    pairer.push(_f(0))
+    pair = pairer.push(_m(0))
+    assert pair is not None and pair.dropped == 0 and pairer.dropped == 0
