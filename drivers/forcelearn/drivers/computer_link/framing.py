@@ -1,0 +1,203 @@
+"""Link-layer framing of the computer link: pure, bytes in, frames out.
+
+This module is the only place that knows the byte layout of a frame; a site
+holding the real ADLP-10 specification replaces it (and ``messages``) and keeps
+the driver and the emulator. See docs/computer-link.md.
+
+Data frame (``payload`` bytes carried transparently)::
+
+    +-----+-----+-----------------------+-----+-----+--------+--------+
+    | DLE | STX | payload, DLE doubled  | DLE | ETX | CRC lo | CRC hi |
+    | 10  | 02  | 1..MAX_PAYLOAD bytes  | 10  | 03  |        |        |
+    +-----+-----+-----------------------+-----+-----+--------+--------+
+
+The CRC is CRC-16/ARC (polynomial 0x8005 reflected, initial value 0) over the
+unstuffed payload followed by the ETX byte, sent low byte first and *not*
+stuffed. Link-control sequences are two bytes: DLE ACK (10 06), DLE NAK
+(10 15), DLE ENQ (10 05).
+
+:func:`decode` never raises on bad input: garbage before a frame is skipped, a
+frame whose check fails (or that is cut short by a new DLE STX, or that holds
+an illegal DLE pair, or that grows past ``MAX_PAYLOAD``) comes out as
+:class:`BadFrame` so the receiver can answer DLE NAK, and decoding resumes at
+the next DLE.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import NamedTuple
+
+DLE = 0x10
+STX = 0x02
+ETX = 0x03
+ENQ = 0x05
+ACK = 0x06
+NAK = 0x15
+
+MAX_PAYLOAD = 250
+"""Largest payload in bytes (before stuffing); longer frames are rejected."""
+
+
+def _crc16_table() -> tuple[int, ...]:
+    table = []
+    for byte in range(256):
+        crc = byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+        table.append(crc)
+    return tuple(table)
+
+
+_CRC_TABLE = _crc16_table()
+
+
+def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
+    """Return the CRC-16/ARC of ``data`` (check value of b"123456789" is 0xBB3D).
+
+    ``crc`` continues a previous computation, so ``crc16(b, crc16(a))`` equals
+    ``crc16(a + b)``.
+    """
+    for byte in bytes(data):
+        crc = (crc >> 8) ^ _CRC_TABLE[(crc ^ byte) & 0xFF]
+    return crc
+
+
+class Control(enum.Enum):
+    """A two-byte link-control sequence."""
+
+    ACK = ACK
+    NAK = NAK
+    ENQ = ENQ
+
+    @property
+    def wire(self) -> bytes:
+        """The bytes on the wire: DLE followed by the control byte."""
+        return bytes((DLE, self.value))
+
+
+@dataclass(frozen=True)
+class DataFrame:
+    """A data frame whose check passed; ``payload`` is the unstuffed application data."""
+
+    payload: bytes
+
+
+@dataclass(frozen=True)
+class BadFrame:
+    """Bytes that started a frame but failed it; answer DLE NAK. ``reason`` says why."""
+
+    reason: str
+
+
+Frame = DataFrame | Control | BadFrame
+
+
+class Decoded(NamedTuple):
+    """Result of :func:`decode`: drop ``consumed`` bytes, then handle ``frame`` if any.
+
+    ``frame is None`` means more bytes are needed (``consumed`` may still be
+    positive when leading garbage was skipped).
+    """
+
+    consumed: int
+    frame: Frame | None
+
+
+def encode(payload: bytes) -> bytes:
+    """Return the wire bytes of a data frame carrying ``payload`` (1..MAX_PAYLOAD bytes)."""
+    if not 0 < len(payload) <= MAX_PAYLOAD:
+        raise ValueError(f"payload must be 1..{MAX_PAYLOAD} bytes, got {len(payload)}")
+    crc = crc16(bytes((ETX,)), crc16(payload))
+    stuffed = payload.replace(b"\x10", b"\x10\x10")
+    return b"\x10\x02" + stuffed + b"\x10\x03" + crc.to_bytes(2, "little")
+
+
+_CONTROLS = {c.value: c for c in Control}
+
+
+def decode(buffer: bytes | bytearray) -> Decoded:
+    """Decode the first frame in ``buffer``; see :class:`Decoded` for the result."""
+    size = len(buffer)
+    start = buffer.find(DLE)
+    while start >= 0:
+        if start + 1 >= size:
+            return Decoded(start, None)
+        kind = buffer[start + 1]
+        if kind in _CONTROLS:
+            return Decoded(start + 2, _CONTROLS[kind])
+        if kind == STX:
+            return _decode_data(buffer, start)
+        start = buffer.find(DLE, start + 1)  # a stray DLE: not a frame start
+    return Decoded(size, None)
+
+
+def _decode_data(buffer: bytes | bytearray, start: int) -> Decoded:
+    """Decode a data frame whose DLE STX is at ``start``."""
+    size = len(buffer)
+    payload = bytearray()
+    i = start + 2
+    while i < size:
+        byte = buffer[i]
+        if byte != DLE:
+            payload.append(byte)
+            i += 1
+        elif i + 1 >= size:
+            return Decoded(start, None)
+        elif buffer[i + 1] == DLE:
+            payload.append(DLE)
+            i += 2
+        elif buffer[i + 1] == ETX:
+            return _check(buffer, start, i + 2, bytes(payload))
+        elif buffer[i + 1] == STX:
+            return Decoded(i, BadFrame("frame cut short by a new DLE STX"))
+        else:
+            return Decoded(i + 1, BadFrame(f"illegal DLE 0x{buffer[i + 1]:02X} inside a frame"))
+        if len(payload) > MAX_PAYLOAD:
+            return Decoded(start + 2, BadFrame(f"frame longer than {MAX_PAYLOAD} bytes"))
+    return Decoded(start, None)
+
+
+def _check(buffer: bytes | bytearray, start: int, crc_at: int, payload: bytes) -> Decoded:
+    """Verify the CRC that follows DLE ETX at ``crc_at``."""
+    if crc_at + 2 > len(buffer):
+        return Decoded(start, None)
+    if not payload:
+        return Decoded(crc_at + 2, BadFrame("empty frame"))
+    received = int.from_bytes(buffer[crc_at : crc_at + 2], "little")
+    expected = crc16(bytes((ETX,)), crc16(payload))
+    if received != expected:
+        return Decoded(crc_at + 2, BadFrame(f"CRC 0x{received:04X} != 0x{expected:04X}"))
+    return Decoded(crc_at + 2, DataFrame(payload))
+
+
+class FrameReader:
+    """Accumulate received bytes and hand out whole frames (pure, no I/O).
+
+    Not thread-safe; each reader belongs to one receiving loop.
+    """
+
+    def __init__(self) -> None:
+        self._buffer = bytearray()
+
+    def feed(self, data: bytes) -> list[Frame]:
+        """Add ``data`` and return every frame now complete, in order."""
+        self._buffer += data
+        frames: list[Frame] = []
+        while self._buffer:
+            consumed, frame = decode(self._buffer)
+            del self._buffer[:consumed]
+            if frame is None:
+                break
+            frames.append(frame)
+        return frames
+
+    def clear(self) -> None:
+        """Forget any partial frame (after a reconnect)."""
+        self._buffer.clear()
+
+    @property
+    def pending(self) -> int:
+        """Bytes held back waiting for the rest of a frame."""
+        return len(self._buffer)
