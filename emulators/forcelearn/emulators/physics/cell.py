@@ -13,16 +13,20 @@ Frames and units
   unit quaternion (w, x, y, z) mapping sensor frame to world frame.
 * Wrench: (Fx, Fy, Fz, Mx, My, Mz) in N and N·m, expressed in the sensor frame,
   the external load acting on the sensor (contact reaction + tool weight).
+  Moments are taken about the sensor origin: the contact force acts at the
+  tool's contact point, the weight at its centre of mass (see :mod:`.tool`).
+* The paper's task: the tool presses the sponge along Y (see :mod:`.sponge`).
 """
 
 from __future__ import annotations
 
 import threading
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from forcelearn.devices import Pose
+from forcelearn.emulators.physics.tool import POINT_TOOL, ToolParams, contact_wrench, gravity_wrench
 
 
 class ContactEnvironment(Protocol):
@@ -30,6 +34,15 @@ class ContactEnvironment(Protocol):
 
     def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
         """Return the reaction force (3,) in N, world frame, on a tool at ``position_mm``."""
+        ...
+
+
+@runtime_checkable
+class PoseObserver(Protocol):
+    """An environment that changes with where the tool has been (e.g. counts passes)."""
+
+    def observe_pose(self, position_mm: np.ndarray) -> None:
+        """Note the tool position (mm) the robot has reached."""
         ...
 
 
@@ -45,13 +58,22 @@ class CellPhysics:
     """Pose of the tool plus the environment it presses on; thread-safe.
 
     Args:
-        environment: the contact environment (default: free space).
+        environment: the contact environment (default: free space). If it is a
+            :class:`PoseObserver`, every reached pose is reported to it.
         pose: the initial tool pose.
+        tool: the tool's mass and geometry (default: a massless point tool, so
+            the wrench is the contact force alone).
     """
 
-    def __init__(self, environment: ContactEnvironment | None = None, pose: Pose | None = None):
+    def __init__(
+        self,
+        environment: ContactEnvironment | None = None,
+        pose: Pose | None = None,
+        tool: ToolParams | None = None,
+    ):
         self._lock = threading.Lock()
         self.environment: ContactEnvironment = environment or NoContact()
+        self.tool = tool or POINT_TOOL
         self._pose = pose or Pose(0.0, 0.0, 0.0)
 
     @property
@@ -64,15 +86,21 @@ class CellPhysics:
         """Record the pose the robot has reached (called by the robot emulator)."""
         with self._lock:
             self._pose = pose
+            if isinstance(self.environment, PoseObserver):
+                self.environment.observe_pose(pose.position_mm)
 
     def true_wrench(self) -> np.ndarray:
-        """Return the noise-free wrench (6,) in the sensor frame, N and N·m."""
-        pose = self.pose
-        force_world = self.environment.contact_force_world_n(pose.position_mm)
+        """Return the noise-free wrench (6,) in the sensor frame, N and N·m.
+
+        Contact force and moment about the sensor origin plus the tool's weight.
+        """
+        with self._lock:
+            pose = self._pose
+            force_world = self.environment.contact_force_world_n(pose.position_mm)
         rotation = quaternion_to_matrix(pose.quaternion)
-        wrench = np.zeros(6)
-        wrench[:3] = rotation.T @ force_world
-        return wrench
+        return contact_wrench(self.tool, rotation, force_world) + gravity_wrench(
+            self.tool, rotation
+        )
 
 
 def quaternion_to_matrix(q: tuple[float, float, float, float]) -> np.ndarray:

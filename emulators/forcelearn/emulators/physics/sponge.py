@@ -1,0 +1,178 @@
+"""The sponge of the paper's §5: a soft strip the roller presses along Y while moving down Z.
+
+Description
+-----------
+A strip of foam occupies the half-space ``y <= surface_y(z)`` for
+``z_bottom_mm <= z <= z_top_mm``. The roller at the tool centre point presses
+into it along -Y; the sponge pushes back along its outward normal (mostly +Y).
+Both the surface position and the stiffness vary along Z, the direction of
+travel, so holding Y constant while stepping -5 mm in Z gives ramps and waves
+in force, and the learner must learn a Y trajectory.
+
+Rubbing changes the material: after ``n`` completed passes the stiffness is
+scaled by ``1 - softening * (1 - exp(-n / softening_passes))`` and the surface
+has sunk by a permanent set ``set_mm * (1 - exp(-n / set_passes))``. A trial
+that starts from the same pose therefore meets a smaller initial contact
+force as passes accumulate, as in the paper's Fig. 14.
+
+Force law (quasi-static, no friction, no rate dependence)
+----------------------------------------------------------
+=================  ==========================================================
+penetration d      ``surface_y(z) - y`` in mm (0 outside the strip)
+normal force       ``k(z) * d`` N for ``d <= thickness_mm``; beyond, the rigid
+                   backing adds ``backing_n_per_mm * (d - thickness_mm)``
+direction          outward normal ``(0, 1, -surface_y'(z))``, normalised
+=================  ==========================================================
+
+Defaults and why
+----------------
+``stiffness_n_per_mm = 2.0``: the paper's desired 2 kgf (19.61 N) is then
+reached at about 10 mm of compression (a quarter of a 40 mm sponge), so a
+position step of a few mm changes the force by several newtons, fine enough
+for the learner and coarse enough to matter. Stiffness varies +-15 % over a
+120 mm wavelength; the surface tilts 3 mm per 100 mm and waves +-1 mm over
+80 mm, so over the paper's 20 steps of -5 mm (100 mm) the force at fixed Y
+drifts by several newtons. Softening 30 % and a 2 mm set (time constants of
+150 and 100 passes) make the initial force of a trial that starts 4 mm deep
+fall from about 9 N to about 4 N over the paper's ~240 repetitions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SpongeParams:
+    """Every parameter of the sponge; lengths in mm, stiffness in N/mm."""
+
+    surface_y_mm: float = 0.0
+    """Surface Y at ``z_top_mm`` before any pass."""
+    z_top_mm: float = 20.0
+    """Upper end of the strip (the trajectory starts below it)."""
+    z_bottom_mm: float = -120.0
+    """Lower end of the strip."""
+    thickness_mm: float = 40.0
+    """Foam thickness; beyond it the tool meets the rigid backing."""
+    surface_slope: float = 0.03
+    """dY/d(-Z) of the surface: mm of surface rise per mm travelled down."""
+    waviness_mm: float = 1.0
+    """Amplitude of the surface waviness."""
+    waviness_wavelength_mm: float = 80.0
+    """Wavelength of the surface waviness along Z."""
+    stiffness_n_per_mm: float = 2.0
+    """Mean stiffness k0 of the fresh foam."""
+    stiffness_variation: float = 0.15
+    """Relative amplitude of the stiffness variation along Z."""
+    stiffness_wavelength_mm: float = 120.0
+    """Wavelength of the stiffness variation along Z."""
+    backing_n_per_mm: float = 200.0
+    """Stiffness of the rigid backing met beyond ``thickness_mm``."""
+    softening: float = 0.30
+    """Fraction of stiffness lost after many passes."""
+    softening_passes: float = 150.0
+    """Passes for the softening to reach 63 % of its final value."""
+    set_mm: float = 2.0
+    """Final permanent set (the surface sinks by this much)."""
+    set_passes: float = 100.0
+    """Passes for the set to reach 63 % of its final value."""
+
+    def __post_init__(self) -> None:
+        positive = ("thickness_mm", "waviness_wavelength_mm", "stiffness_n_per_mm",
+                    "stiffness_wavelength_mm", "backing_n_per_mm", "softening_passes",
+                    "set_passes")
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise ValueError(f"sponge {name} must be > 0, got {getattr(self, name)}")
+        if self.z_bottom_mm >= self.z_top_mm:
+            raise ValueError("sponge z_bottom_mm must be below z_top_mm")
+        if not 0 <= self.softening < 1 or not 0 <= self.stiffness_variation < 1:
+            raise ValueError("sponge softening and stiffness_variation must be in [0, 1)")
+
+
+def surface_y_mm(params: SpongeParams, passes: float, z_mm: float) -> float:
+    """Return the surface Y (mm) at height ``z_mm`` after ``passes`` passes."""
+    travelled = params.z_top_mm - z_mm
+    wave = params.waviness_mm * np.sin(2 * np.pi * travelled / params.waviness_wavelength_mm)
+    sunk = params.set_mm * (1 - np.exp(-passes / params.set_passes))
+    return float(params.surface_y_mm + params.surface_slope * travelled + wave - sunk)
+
+
+def _surface_slope_dy_dz(params: SpongeParams, z_mm: float) -> float:
+    travelled = params.z_top_mm - z_mm
+    k = 2 * np.pi / params.waviness_wavelength_mm
+    return float(-params.surface_slope - params.waviness_mm * k * np.cos(k * travelled))
+
+
+def stiffness_n_per_mm(params: SpongeParams, passes: float, z_mm: float) -> float:
+    """Return the foam stiffness (N/mm) at height ``z_mm`` after ``passes`` passes."""
+    travelled = params.z_top_mm - z_mm
+    variation = params.stiffness_variation * np.cos(
+        2 * np.pi * travelled / params.stiffness_wavelength_mm
+    )
+    softened = 1 - params.softening * (1 - np.exp(-passes / params.softening_passes))
+    return float(params.stiffness_n_per_mm * (1 + variation) * softened)
+
+
+def penetration_mm(params: SpongeParams, passes: float, position_mm: np.ndarray) -> float:
+    """Return how deep (mm, >= 0) the tool point is in the sponge; 0 off the strip."""
+    _, y, z = position_mm
+    if not params.z_bottom_mm <= z <= params.z_top_mm:
+        return 0.0
+    return max(0.0, surface_y_mm(params, passes, z) - float(y))
+
+
+def contact_force_n(params: SpongeParams, passes: float, position_mm: np.ndarray) -> np.ndarray:
+    """Return the sponge's reaction force (3,) in N, world frame, on a tool point (mm)."""
+    depth = penetration_mm(params, passes, position_mm)
+    if depth <= 0.0:
+        return np.zeros(3)
+    z = float(position_mm[2])
+    normal_n = stiffness_n_per_mm(params, passes, z) * min(depth, params.thickness_mm)
+    normal_n += params.backing_n_per_mm * max(0.0, depth - params.thickness_mm)
+    direction = np.array([0.0, 1.0, -_surface_slope_dy_dz(params, z)])
+    return normal_n * direction / np.linalg.norm(direction)
+
+
+class Sponge:
+    """A sponge that counts its passes; a ``ContactEnvironment`` for :class:`CellPhysics`.
+
+    A pass is counted each time the tool, having been in contact, leaves the
+    sponge (pulls out of it or runs off either end of the strip). The robot
+    emulator reports poses through :meth:`observe_pose`; :meth:`finish_pass`
+    counts one by hand. ``state_dict``/``load_state_dict`` save and restore it.
+    Not thread-safe on its own: :class:`CellPhysics` serialises calls.
+    """
+
+    def __init__(self, params: SpongeParams | None = None, passes: int = 0) -> None:
+        self.params = params or SpongeParams()
+        self.passes = passes
+        self._touched = False
+
+    def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
+        """Return the reaction force (3,) in N, world frame, at the present pass count."""
+        return contact_force_n(self.params, self.passes, position_mm)
+
+    def observe_pose(self, position_mm: np.ndarray) -> None:
+        """Note where the tool is; completes a pass when it leaves the sponge after contact."""
+        in_contact = penetration_mm(self.params, self.passes, position_mm) > 0.0
+        if in_contact:
+            self._touched = True
+        elif self._touched:
+            self.finish_pass()
+
+    def finish_pass(self) -> None:
+        """Count one pass now."""
+        self.passes += 1
+        self._touched = False
+
+    def state_dict(self) -> dict[str, int | bool]:
+        """Return the state to checkpoint (plain ints and bools)."""
+        return {"passes": self.passes, "touched": self._touched}
+
+    def load_state_dict(self, state: dict[str, int | bool]) -> None:
+        """Restore a state from :meth:`state_dict`."""
+        self.passes = int(state["passes"])
+        self._touched = bool(state["touched"])
