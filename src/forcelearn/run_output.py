@@ -1,0 +1,86 @@
+"""The run directory: summary.json, trials.csv and step logs, written atomically.
+
+``summary.json`` holds at least: task, seed, trials, phase_switch_trial,
+converged_trial (null when not reached), final_force_rms_n, final_mean_r,
+steps, wall_s, steps_per_s.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from forcelearn.atomic import atomic_write_bytes
+from forcelearn.trainer import TrialLog, TrialRecord
+
+FINAL_WINDOW = 50
+"""Trials over which the final force RMS and mean r are taken (median)."""
+
+
+def _json_safe(value: Any) -> Any:
+    """Replace NaN and infinities (not valid JSON) by None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def write_summary(folder: Path, summary: Mapping[str, Any]) -> Path:
+    """Write summary.json atomically; returns its path."""
+    path = folder / "summary.json"
+    text = json.dumps(_json_safe(dict(summary)), indent=2, sort_keys=False) + "\n"
+    atomic_write_bytes(path, text.encode())
+    return path
+
+
+def _csv_bytes(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> bytes:
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    return buffer.getvalue().encode()
+
+
+def write_trials(folder: Path, records: Sequence[TrialRecord]) -> Path:
+    """Write trials.csv (one row per trial) atomically; returns its path."""
+    header = [f.name for f in dataclasses.fields(TrialRecord)]
+    rows = [[getattr(r, h) for h in header] for r in records]
+    path = folder / "trials.csv"
+    atomic_write_bytes(path, _csv_bytes(header, rows))
+    return path
+
+
+def write_step_log(path: Path, log: TrialLog) -> Path:
+    """Write one trial's per-step log as CSV atomically."""
+    header = list(log.rows[0]) if log.rows else ["step"]
+    rows = [[row.get(h, "") for h in header] for row in log.rows]
+    atomic_write_bytes(path, _csv_bytes(header, rows))
+    return path
+
+
+def final_figures(records: Sequence[TrialRecord], window: int = FINAL_WINDOW) -> dict[str, float]:
+    """Median force RMS and mean r over the last ``window`` trials."""
+    tail = records[-window:]
+    if not tail:
+        return {"final_force_rms_n": math.nan, "final_mean_r": math.nan}
+
+    def median(values: list[float]) -> float:
+        ordered = sorted(v for v in values if math.isfinite(v))
+        if not ordered:
+            return math.nan
+        mid = len(ordered) // 2
+        return ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid])
+
+    return {
+        "final_force_rms_n": median([r.force_rms_n for r in tail]),
+        "final_mean_r": median([r.mean_r for r in tail]),
+    }

@@ -1,0 +1,1 @@
+"""Learning tasks: inputs → box, the evaluation r, failure, the path to follow."""
