@@ -101,9 +101,12 @@ class Request:
 
 @dataclass(frozen=True)
 class Reply:
-    """A decoded reply: ``error`` is OK or the controller's code, with ``reason``."""
+    """A reply: ``error`` is OK or the controller's code, with ``reason``.
 
-    command: Command
+    ``command`` is a :class:`Command` (a raw int only when answering an unknown code).
+    """
+
+    command: Command | int
     transaction: int
     error: int
     body: bytes = b""

@@ -1,0 +1,107 @@
+"""Configuration of the computer-link driver: port, timing, retries and client-side limits.
+
+Frozen dataclasses, validated on construction; :meth:`LinkConfig.from_dict`
+reads the ``[robot]`` table of a TOML file and names any bad key.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import serial
+
+from forcelearn.errors import ConfigError
+
+POLL_S = 0.01
+"""Read slice of the serial port (s); timeouts are kept to within about this."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Limits checked by the driver before a command leaves the PC (mm, mm/s).
+
+    The controller may not enforce them; a command outside them raises
+    ``SafetyStop`` and no byte is sent.
+    """
+
+    workspace_min_mm: tuple[float, float, float] = (300.0, -800.0, -200.0)
+    """Lower corner of the allowed box of tool positions, base frame."""
+    workspace_max_mm: tuple[float, float, float] = (1500.0, 800.0, 1400.0)
+    """Upper corner of the allowed box of tool positions, base frame."""
+    max_step_mm: float = 10.0
+    """Largest distance between one commanded position and the next."""
+    max_speed_mm_s: float = 250.0
+    """Largest speed SET_SPEED may request (250 mm/s: ISO 10218 reduced speed)."""
+
+    def __post_init__(self) -> None:
+        for axis in range(3):
+            if not self.workspace_min_mm[axis] < self.workspace_max_mm[axis]:
+                raise ConfigError(
+                    f"limits.workspace_min_mm[{axis}] must be below limits.workspace_max_mm[{axis}]"
+                )
+        for name in ("max_step_mm", "max_speed_mm_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"limits.{name} must be a positive number, got {value!r}")
+
+
+@dataclass(frozen=True)
+class LinkConfig:
+    """Everything the driver needs to reach one controller.
+
+    Timing (s) and retry counts are the protocol's (docs/computer-link.md).
+    """
+
+    url: str
+    """Port for ``serial.serial_for_url``: /dev/ttyS0, COM3, a pty path, socket://127.0.0.1:P."""
+    baudrate: int = 9600
+    bytesize: int = serial.EIGHTBITS
+    parity: str = serial.PARITY_NONE
+    stopbits: float = serial.STOPBITS_ONE
+    ack_timeout_s: float = 1.0
+    """Wait for DLE ACK after sending a request before sending DLE ENQ."""
+    reply_timeout_s: float = 1.0
+    """Wait for the reply frame after DLE ACK before sending DLE ENQ."""
+    nak_retries: int = 3
+    """Retransmissions of a request (after DLE NAK or a lost request), and DLE NAKs we send."""
+    enq_retries: int = 3
+    """DLE ENQs per transaction before giving up with LinkTimeout."""
+    limits: Limits = field(default_factory=Limits)
+
+    def __post_init__(self) -> None:
+        if not self.url:
+            raise ConfigError("url must name a port, e.g. /dev/ttyS0 or socket://127.0.0.1:5001")
+        if self.baudrate <= 0:
+            raise ConfigError(f"baudrate must be positive, got {self.baudrate}")
+        if self.parity not in serial.PARITY_NAMES:
+            raise ConfigError(f"parity must be one of {sorted(serial.PARITY_NAMES)}")
+        for name in ("ack_timeout_s", "reply_timeout_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ConfigError(f"{name} must be a positive number of seconds, got {value!r}")
+        for name in ("nak_retries", "enq_retries"):
+            if not 0 <= getattr(self, name) <= 10:
+                raise ConfigError(f"{name} must be 0..10, got {getattr(self, name)!r}")
+
+    @classmethod
+    def from_dict(cls, table: dict[str, Any]) -> LinkConfig:
+        """Build from a TOML table; ``limits`` is a sub-table. Unknown keys are errors."""
+        known = {f.name for f in fields(cls)}
+        unknown = set(table) - known
+        if unknown:
+            raise ConfigError(f"unknown robot link key(s): {', '.join(sorted(unknown))}")
+        values = dict(table)
+        if "limits" in values:
+            limit_keys = {f.name for f in fields(Limits)}
+            bad = set(values["limits"]) - limit_keys
+            if bad:
+                raise ConfigError(f"unknown limits key(s): {', '.join(sorted(bad))}")
+            limits = {
+                k: tuple(v) if isinstance(v, list) else v for k, v in values["limits"].items()
+            }
+            values["limits"] = Limits(**limits)
+        if "url" not in values:
+            raise ConfigError("url is required")
+        return cls(**values)

@@ -1,0 +1,211 @@
+"""ABB robot over the computer link: a ``forcelearn.devices.Robot`` driven through pyserial.
+
+::
+
+    with ComputerLinkRobot(LinkConfig(url="/dev/ttyS0", baudrate=19200)) as robot:
+        robot.move_to(robot.read_pose().moved(dz_mm=-1.0))
+
+Every call blocks for at most the documented retries times the configured
+timeouts and raises typed errors: ``SafetyStop`` (a client-side limit refused
+the command, nothing was sent), ``RobotFault`` (the controller refused, with
+its code), ``LinkTimeout``, ``ProtocolError`` or ``LinkError``. Calls are
+serialised by a lock, so several threads may share one driver. Leaving the
+``with`` block (or :meth:`close`) stops the robot and closes the port.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import warnings
+
+import numpy as np
+import serial
+
+from forcelearn.devices import Pose
+from forcelearn.drivers.computer_link import messages as m
+from forcelearn.drivers.computer_link.config import POLL_S, LinkConfig
+from forcelearn.drivers.computer_link.link import Link
+from forcelearn.errors import ForcelearnError, LinkError, SafetyStop
+
+log = logging.getLogger(__name__)
+
+
+class ComputerLinkRobot:
+    """Driver of one robot controller on one serial link (satisfies ``Robot``).
+
+    Opening the link identifies the controller (``ProtocolError`` if it speaks
+    another protocol version) and reads the pose, which becomes the reference
+    for the step limit.
+    """
+
+    def __init__(self, config: LinkConfig) -> None:
+        self.config = config
+        self._lock = threading.RLock()
+        self._port: serial.SerialBase | None = None
+        self._link: Link | None = None
+        self._reference: Pose | None = None
+        self.controller_model = ""
+        self._open()
+
+    def _open(self) -> None:
+        cfg = self.config
+        try:
+            self._port = serial.serial_for_url(
+                cfg.url,
+                baudrate=cfg.baudrate,
+                bytesize=cfg.bytesize,
+                parity=cfg.parity,
+                stopbits=cfg.stopbits,
+                timeout=min(POLL_S, cfg.ack_timeout_s),
+                write_timeout=cfg.ack_timeout_s,
+            )
+        except (serial.SerialException, OSError) as exc:
+            raise LinkError(f"cannot open robot link {cfg.url}: {exc}") from exc
+        self._link = Link(self._port, cfg)
+        try:
+            _, self.controller_model = self._link.probe_protocol()
+            self._reference = self._read_position_locked()[0]
+        except ForcelearnError:
+            self._close_port()
+            raise
+        log.info("robot link open on %s: %s", cfg.url, self.controller_model)
+
+    def reconnect(self) -> None:
+        """Close the port and open it again (after a LinkError), re-reading the pose."""
+        with self._lock:
+            self._close_port()
+            self._open()
+
+    def _require_link(self) -> Link:
+        if self._link is None:
+            raise LinkError("robot link is closed; open a new ComputerLinkRobot")
+        return self._link
+
+    # -- reading ---------------------------------------------------------------------------
+
+    def _read_position_locked(self) -> tuple[Pose, tuple[float, ...]]:
+        reply = self._require_link().transact(m.Command.READ_POSITION)
+        position = m.parse_position(reply.body)
+        return Pose(*position.xyz_mm, position.quaternion), position.joints_deg
+
+    def read_pose(self) -> Pose:
+        """Return the pose the robot is at now (mm, quaternion w x y z)."""
+        with self._lock:
+            return self._read_position_locked()[0]
+
+    def read_joints_deg(self) -> tuple[float, ...]:
+        """Return the six joint angles in degrees."""
+        with self._lock:
+            return self._read_position_locked()[1]
+
+    def read_status(self) -> m.Status:
+        """Return moving / in-position flags, the last error code and the move count."""
+        with self._lock:
+            return m.parse_status(self._require_link().transact(m.Command.READ_STATUS).body)
+
+    # -- commanding ------------------------------------------------------------------------
+
+    def move_to(self, pose: Pose) -> None:
+        """Move to an absolute pose; returns when the controller has accepted it."""
+        norm = math.sqrt(sum(c * c for c in pose.quaternion))
+        if not abs(norm - 1.0) <= 1e-6:
+            raise ValueError(f"pose quaternion must be unit length, its norm is {norm:.6f}")
+        body = m.pose_body((pose.x_mm, pose.y_mm, pose.z_mm), pose.quaternion)
+        with self._lock:
+            self._check_target(pose)
+            self._command(m.Command.MOVE_TO, body, pose)
+
+    def move_by(self, dx_mm: float = 0.0, dy_mm: float = 0.0, dz_mm: float = 0.0) -> None:
+        """Move by an increment from the last commanded position, orientation kept."""
+        with self._lock:
+            reference = self._reference_locked()
+            target = reference.moved(dx_mm, dy_mm, dz_mm)
+            self._check_target(target)
+            self._command(m.Command.MOVE_BY, m.increment_body((dx_mm, dy_mm, dz_mm)), target)
+
+    def set_speed(self, speed_mm_s: float) -> None:
+        """Set the speed of later moves, mm/s (refused above ``limits.max_speed_mm_s``)."""
+        limit = self.config.limits.max_speed_mm_s
+        if not (math.isfinite(speed_mm_s) and 0 < speed_mm_s <= limit):
+            raise SafetyStop(
+                f"refused speed {speed_mm_s} mm/s: allowed 0..{limit} (limits.max_speed_mm_s); "
+                "nothing was sent"
+            )
+        with self._lock:
+            self._require_link().transact(m.Command.SET_SPEED, m.speed_body(speed_mm_s))
+
+    def stop(self) -> None:
+        """Stop all motion at once."""
+        with self._lock:
+            self._require_link().transact(m.Command.STOP)
+            self._reference = None  # where it stopped is known only by reading it
+
+    def _reference_locked(self) -> Pose:
+        if self._reference is None:
+            self._reference = self._read_position_locked()[0]
+        return self._reference
+
+    def _check_target(self, target: Pose) -> None:
+        """Raise SafetyStop if ``target`` breaks a client-side limit (nothing is sent)."""
+        limits = self.config.limits
+        position = target.position_mm
+        low, high = np.asarray(limits.workspace_min_mm), np.asarray(limits.workspace_max_mm)
+        if not np.all(np.isfinite(position)) or np.any(position < low) or np.any(position > high):
+            raise SafetyStop(
+                f"refused target {np.round(position, 3).tolist()} mm: outside the workspace box "
+                f"{list(low)}..{list(high)} (limits.workspace_*_mm); nothing was sent"
+            )
+        step = float(np.linalg.norm(position - self._reference_locked().position_mm))
+        if step > limits.max_step_mm:
+            raise SafetyStop(
+                f"refused a step of {step:.3f} mm: more than limits.max_step_mm = "
+                f"{limits.max_step_mm} mm; nothing was sent"
+            )
+
+    def _command(self, command: m.Command, body: bytes, target: Pose) -> None:
+        try:
+            self._require_link().transact(command, body)
+        except LinkError:
+            self._reference = None  # it may or may not have moved
+            raise
+        self._reference = target
+
+    # -- lifetime --------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Stop the robot (best effort) and close the port; safe to call twice."""
+        with self._lock:
+            if self._link is None:
+                return
+            try:
+                self.stop()
+            except ForcelearnError as exc:
+                log.warning("could not stop the robot while closing the link: %s", exc)
+            finally:
+                self._close_port()
+
+    def _close_port(self) -> None:
+        self._link = None
+        if self._port is not None:
+            try:
+                self._port.close()
+            except (serial.SerialException, OSError) as exc:
+                log.warning("closing %s failed: %s", self.config.url, exc)
+            self._port = None
+
+    def __enter__(self) -> ComputerLinkRobot:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        if getattr(self, "_link", None) is not None:
+            warnings.warn(
+                f"ComputerLinkRobot on {self.config.url} was not closed; "
+                "use it as a context manager so the robot is stopped",
+                ResourceWarning,
+                stacklevel=2,
+            )

@@ -1,0 +1,160 @@
+"""One request/reply transaction of the computer link, with the documented retries.
+
+The PC is the master: it sends one request and waits for its reply before the
+next. For each transaction (docs/computer-link.md, "Retries"):
+
+1. Unread input is discarded (the previous transaction is over), then the
+   request frame is sent with a new transaction number.
+2. DLE ACK: wait ``reply_timeout_s`` for the reply. DLE NAK: retransmit the
+   same frame. A reply frame is taken as its own acknowledgement.
+3. Nothing within the timeout: send DLE ENQ (the controller repeats its last
+   reply, or DLE NAK if it has none). A repeated reply to an *earlier*
+   request proves this one was lost: retransmit it.
+4. A damaged reply: answer DLE NAK; the controller sends it again.
+5. Every intact frame from the controller is answered with DLE ACK; replies
+   with another transaction number are stale and ignored.
+
+Retransmissions and NAKs sent are each capped at ``nak_retries``, ENQs at
+``enq_retries``; then :class:`LinkError` / :class:`LinkTimeout`. A
+retransmitted request keeps its transaction number, so the controller never
+executes it twice.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import secrets
+import threading
+import time
+
+import serial
+
+from forcelearn.drivers.computer_link import framing
+from forcelearn.drivers.computer_link import messages as m
+from forcelearn.drivers.computer_link.config import LinkConfig
+from forcelearn.errors import LinkError, LinkTimeout, ProtocolError, RobotFault
+
+log = logging.getLogger(__name__)
+
+_ACK = framing.Control.ACK.wire
+_NAK = framing.Control.NAK.wire
+_ENQ = framing.Control.ENQ.wire
+
+
+class Link:
+    """Transactions over an open pyserial port; thread-safe (one at a time).
+
+    After the port fails, every call raises :class:`LinkError` until the owner
+    replaces the link: a lost link is reported, never silently reopened.
+    """
+
+    def __init__(self, port: serial.SerialBase, config: LinkConfig) -> None:
+        self._port = port
+        self._config = config
+        self._reader = framing.FrameReader()
+        self._pending: collections.deque[framing.Frame] = collections.deque()
+        self._lock = threading.Lock()
+        self._transaction = secrets.randbelow(0x10000)
+        self._broken: str | None = None
+
+    def transact(self, command: m.Command, body: bytes = b"") -> m.Reply:
+        """Send one request, return its OK reply; RobotFault if the controller refused it."""
+        with self._lock:
+            if self._broken:
+                raise LinkError(f"link is down ({self._broken}); reconnect before commanding")
+            try:
+                reply = self._transact(command, body)
+            except serial.SerialException as exc:
+                self._broken = str(exc)
+                raise LinkError(
+                    f"link to {self._config.url} lost ({exc}); the last command may or may "
+                    "not have executed: reconnect, then read the position"
+                ) from exc
+        if reply.error != m.ErrorCode.OK:
+            raise RobotFault(reply.error, reply.reason)
+        return reply
+
+    def _transact(self, command: m.Command, body: bytes) -> m.Reply:
+        cfg = self._config
+        self._transaction = (self._transaction + 1) & 0xFFFF
+        tns = self._transaction
+        wire = framing.encode(m.encode_request(command, tns, body))
+        self._port.reset_input_buffer()
+        self._reader.clear()
+        self._pending.clear()
+        self._port.write(wire)
+        retransmits = naks_sent = enqs = 0
+        acked = enq_sent = False
+        deadline = time.monotonic() + cfg.ack_timeout_s
+        while True:
+            frame = self._next_frame(deadline)
+            resend = False
+            if frame is None:
+                if enqs >= cfg.enq_retries:
+                    raise LinkTimeout(
+                        f"no {'reply' if acked else 'ACK'} to {command.name} (transaction "
+                        f"{tns}) after {enqs} ENQ: check the cable, baud rate and that the "
+                        "controller is in computer-link mode; the command may have executed"
+                    )
+                enqs += 1
+                enq_sent = True
+                self._port.write(_ENQ)
+            elif frame is framing.Control.ACK:
+                acked = True
+            elif frame is framing.Control.NAK:
+                resend = True
+            elif isinstance(frame, framing.BadFrame):
+                if naks_sent >= cfg.nak_retries:
+                    raise LinkError(
+                        f"reply to {command.name} damaged {naks_sent + 1} times ({frame.reason}): "
+                        "check for line noise and matching serial settings"
+                    )
+                naks_sent += 1
+                self._port.write(_NAK)
+            elif isinstance(frame, framing.DataFrame):
+                self._port.write(_ACK)
+                reply = m.decode_reply(frame.payload)
+                if reply.transaction == tns and reply.command == command:
+                    return reply
+                log.debug("stale reply to transaction %d ignored", reply.transaction)
+                resend = enq_sent  # the controller's last reply predates our request
+            else:
+                log.debug("unexpected %s from the controller ignored", frame)
+            if resend:
+                if retransmits >= cfg.nak_retries:
+                    raise LinkError(
+                        f"{command.name} rejected or lost {retransmits + 1} times: check for "
+                        "line noise and matching serial settings"
+                    )
+                retransmits += 1
+                acked = enq_sent = False
+                self._port.write(wire)
+            # A new wait starts after anything we sent and after DLE ACK; a stale or
+            # unexpected frame leaves the running deadline alone.
+            if frame is None or resend or frame is framing.Control.ACK or (
+                isinstance(frame, framing.BadFrame)
+            ):
+                timeout = cfg.reply_timeout_s if acked else cfg.ack_timeout_s
+                deadline = time.monotonic() + timeout
+
+    def _next_frame(self, deadline: float) -> framing.Frame | None:
+        """Return the next received frame, or None at the deadline."""
+        while not self._pending:
+            if time.monotonic() >= deadline:
+                return None
+            data = self._port.read(max(1, self._port.in_waiting))
+            if data:
+                self._pending.extend(self._reader.feed(data))
+        return self._pending.popleft()
+
+    def probe_protocol(self) -> tuple[tuple[int, int], str]:
+        """IDENTIFY the controller; ProtocolError if it speaks another major version."""
+        version, model = m.parse_identify(self.transact(m.Command.IDENTIFY).body)
+        if version[0] != m.PROTOCOL_VERSION[0]:
+            raise ProtocolError(
+                f"controller speaks link protocol {version[0]}.{version[1]}, this driver "
+                f"{m.PROTOCOL_VERSION[0]}.{m.PROTOCOL_VERSION[1]}: update the driver or the "
+                "framing/message modules"
+            )
+        return version, model

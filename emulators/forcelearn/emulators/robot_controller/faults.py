@@ -1,0 +1,100 @@
+"""Fault injection for the robot-controller emulator: a hook, not a fork of the code.
+
+Each :class:`Fault` fires with a probability, at most ``limit`` times
+(``Fault(1.0, limit=1)`` is "exactly the next one"). Randomness comes from a
+seeded ``numpy.random.Generator`` so a failing run can be replayed.
+
+=================  ===========================================================
+fault              effect
+=================  ===========================================================
+corrupt_byte       each byte received or sent has one random bit pattern XORed
+drop_request       a received request frame is ignored, as if lost on the wire
+drop_reply         a reply frame is not sent (the request *was* executed)
+delay_ack          the controller sleeps ``ack_delay_s`` before its DLE ACK
+drop_connection    after executing a request, hang up instead of answering
+=================  ===========================================================
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Fault:
+    """Fire with ``probability`` (0..1), at most ``limit`` times (None: no limit)."""
+
+    probability: float = 0.0
+    limit: int | None = None
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.probability <= 1.0:
+            raise ValueError(f"fault probability must be in 0..1, got {self.probability}")
+        if self.limit is not None and self.limit < 0:
+            raise ValueError(f"fault limit must be >= 0, got {self.limit}")
+
+
+@dataclass(frozen=True)
+class FaultConfig:
+    """Which faults the emulator injects; the default injects none."""
+
+    corrupt_byte: Fault = field(default_factory=Fault)
+    drop_request: Fault = field(default_factory=Fault)
+    drop_reply: Fault = field(default_factory=Fault)
+    delay_ack: Fault = field(default_factory=Fault)
+    drop_connection: Fault = field(default_factory=Fault)
+    ack_delay_s: float = 0.5
+    seed: int = 0
+
+
+class FaultInjector:
+    """Decides, call by call, whether a fault fires; counts what fired. Thread-safe."""
+
+    def __init__(self, config: FaultConfig | None = None) -> None:
+        self.config = config or FaultConfig()
+        self._rng = np.random.default_rng(self.config.seed)
+        self._lock = threading.Lock()
+        self.fired: Counter[str] = Counter()
+
+    def _fires(self, name: str) -> bool:
+        fault: Fault = getattr(self.config, name)
+        if fault.probability == 0.0:
+            return False
+        with self._lock:
+            if fault.limit is not None and self.fired[name] >= fault.limit:
+                return False
+            if fault.probability < 1.0 and self._rng.random() >= fault.probability:
+                return False
+            self.fired[name] += 1
+            return True
+
+    def corrupt(self, data: bytes) -> bytes:
+        """Return ``data`` with each byte damaged with the corrupt_byte probability."""
+        if self.config.corrupt_byte.probability == 0.0:
+            return data
+        out = bytearray(data)
+        for i in range(len(out)):
+            if self._fires("corrupt_byte"):
+                with self._lock:
+                    out[i] ^= int(self._rng.integers(1, 256))
+        return bytes(out)
+
+    def drop_request(self) -> bool:
+        """True if the request just received is to be lost."""
+        return self._fires("drop_request")
+
+    def drop_reply(self) -> bool:
+        """True if the reply about to be sent is to be lost."""
+        return self._fires("drop_reply")
+
+    def ack_delay_s(self) -> float:
+        """Seconds to wait before the next DLE ACK (0 when the fault does not fire)."""
+        return self.config.ack_delay_s if self._fires("delay_ack") else 0.0
+
+    def drop_connection(self) -> bool:
+        """True if the controller should hang up now."""
+        return self._fires("drop_connection")

@@ -1,0 +1,175 @@
+"""Kinematic model behind the emulated robot controller: limits and a Cartesian servo.
+
+The arm is a simplified six-axis arm in the spirit of the IRB 2000 (not its
+exact geometry): a base joint, a two-link planar shoulder/elbow, and a
+spherical wrist. Positions are of the tool centre point in the base frame.
+
+==========  ========================================================  ============
+joint       meaning                                                   default range
+==========  ========================================================  ============
+J1          base yaw, ``atan2(y, x)``                                 -170..170 deg
+J2          upper arm from vertical, positive leaning out             -70..110 deg
+J3          elbow, relative to the upper arm; 0 is stretched out     -165..-5 deg
+J4, J5, J6  wrist: Z-Y-Z Euler angles of the tool orientation         J5 0..180 deg
+==========  ========================================================  ============
+
+A target is refused (and the robot does not move) when it lies outside the
+workspace box, is out of reach of the two links, breaks a joint range, or its
+quaternion is not unit length (within 1e-3).
+
+The servo either reaches a target at once (``lag_s == 0``, the paper's cell),
+or follows it as a first-order lag with time constant ``lag_s``, its speed
+capped by the commanded speed (mm/s). Orientation follows by normalised
+linear interpolation with the same fraction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from forcelearn.devices import Pose
+from forcelearn.emulators.physics.cell import quaternion_to_matrix
+
+TOOL_DOWN = (0.0, 1.0, 0.0, 0.0)
+"""Quaternion (w, x, y, z) of a tool pointing straight down (180 deg about x)."""
+
+QUATERNION_TOLERANCE = 1e-3
+
+HOME = Pose(900.0, 0.0, 600.0, TOOL_DOWN)
+"""Default power-up pose: 900 mm out, 600 mm up, tool down."""
+
+
+@dataclass(frozen=True)
+class ArmConfig:
+    """Geometry, limits and servo settings of the emulated arm (mm, deg, s)."""
+
+    home: Pose = HOME
+    """Pose at power-up; written into the shared physics when the emulator starts."""
+    workspace_min_mm: tuple[float, float, float] = (300.0, -800.0, -200.0)
+    workspace_max_mm: tuple[float, float, float] = (1500.0, 800.0, 1400.0)
+    shoulder_height_mm: float = 750.0
+    upper_arm_mm: float = 710.0
+    forearm_mm: float = 850.0
+    joint_limits_deg: tuple[tuple[float, float], ...] = field(
+        default=((-170, 170), (-70, 110), (-165, -5), (-180, 180), (0, 180), (-180, 180))
+    )
+    max_speed_mm_s: float = 1000.0
+    default_speed_mm_s: float = 100.0
+    lag_s: float = 0.0
+    """First-order time constant; 0 reaches every target in one step."""
+    in_position_mm: float = 0.01
+
+    def __post_init__(self) -> None:
+        for axis in range(3):
+            if self.workspace_min_mm[axis] >= self.workspace_max_mm[axis]:
+                raise ValueError(f"workspace_min_mm[{axis}] must be below workspace_max_mm")
+        if self.lag_s < 0 or not 0 < self.default_speed_mm_s <= self.max_speed_mm_s:
+            raise ValueError("lag_s must be >= 0 and 0 < default_speed_mm_s <= max_speed_mm_s")
+        if len(self.joint_limits_deg) != 6:
+            raise ValueError("joint_limits_deg needs six (low, high) pairs")
+
+
+def joint_angles_deg(config: ArmConfig, pose: Pose) -> tuple[float, ...] | None:
+    """Return (J1..J6) in degrees for ``pose``, or None if the links cannot reach it."""
+    x, y, z = pose.x_mm, pose.y_mm, pose.z_mm
+    j1 = math.atan2(y, x)
+    r = math.hypot(x, y)
+    h = z - config.shoulder_height_mm
+    a, b = config.upper_arm_mm, config.forearm_mm
+    cos_elbow = (r * r + h * h - a * a - b * b) / (2 * a * b)
+    if not -1.0 <= cos_elbow <= 1.0:
+        return None
+    j3 = -math.acos(cos_elbow)  # elbow up
+    upper_from_horizontal = math.atan2(h, r) - math.atan2(b * math.sin(j3), a + b * math.cos(j3))
+    j2 = math.pi / 2 - upper_from_horizontal
+    wrist = _zyz_euler(pose.quaternion)
+    return (math.degrees(j1), math.degrees(j2), math.degrees(j3), *wrist)
+
+
+def _zyz_euler(q: tuple[float, float, float, float]) -> tuple[float, float, float]:
+    """Z-Y-Z Euler angles (deg) of a quaternion (w, x, y, z); J4 = 0 when J5 is 0 or 180."""
+    r = quaternion_to_matrix(q)
+    beta = math.acos(max(-1.0, min(1.0, r[2, 2])))
+    if math.sin(beta) < 1e-9:
+        return 0.0, math.degrees(beta), math.degrees(math.atan2(r[1, 0], r[1, 1]))
+    alpha = math.atan2(r[1, 2], r[0, 2])
+    gamma = math.atan2(r[2, 1], -r[2, 0])
+    return math.degrees(alpha), math.degrees(beta), math.degrees(gamma)
+
+
+def check_target(config: ArmConfig, pose: Pose) -> tuple[str, str] | None:
+    """Return (kind, reason) if ``pose`` must be refused, else None.
+
+    ``kind`` is "orientation", "workspace" or "joint".
+    """
+    norm = math.sqrt(sum(c * c for c in pose.quaternion))
+    if not all(math.isfinite(c) for c in (pose.x_mm, pose.y_mm, pose.z_mm, norm)):
+        return "workspace", "target has a non-finite coordinate"
+    if abs(norm - 1.0) > QUATERNION_TOLERANCE:
+        return "orientation", f"quaternion norm {norm:.4f} is not 1"
+    position = pose.position_mm
+    low, high = np.asarray(config.workspace_min_mm), np.asarray(config.workspace_max_mm)
+    if np.any(position < low) or np.any(position > high):
+        return "workspace", f"target {np.round(position, 3).tolist()} mm is outside the workspace"
+    joints = joint_angles_deg(config, pose)
+    if joints is None:
+        return "joint", "target is out of reach of the arm"
+    for number, (angle, (lo, hi)) in enumerate(zip(joints, config.joint_limits_deg, strict=True)):
+        if not lo - 1e-9 <= angle <= hi + 1e-9:
+            return "joint", f"J{number + 1} would be {angle:.1f} deg, outside {lo}..{hi}"
+    return None
+
+
+class Servo:
+    """Cartesian position servo; call :meth:`advance` with the time to move it.
+
+    Not thread-safe: owned by the controller, which holds the lock.
+    """
+
+    def __init__(self, config: ArmConfig, now_s: float) -> None:
+        self.config = config
+        self.pose = config.home
+        self.target = config.home
+        self.speed_mm_s = config.default_speed_mm_s
+        self._time_s = now_s
+
+    @property
+    def moving(self) -> bool:
+        """True while the pose has not reached the target."""
+        return self.pose != self.target
+
+    def command(self, target: Pose, now_s: float) -> None:
+        """Set a new (already checked) target."""
+        self.advance(now_s)
+        self.target = target
+        if self.config.lag_s == 0:
+            self.pose = target
+
+    def stop(self, now_s: float) -> None:
+        """Hold the present pose."""
+        self.advance(now_s)
+        self.target = self.pose
+
+    def advance(self, now_s: float) -> None:
+        """Move the pose toward the target over the time since the last call."""
+        dt = max(0.0, now_s - self._time_s)
+        self._time_s = now_s
+        if not self.moving or dt == 0:
+            return
+        error = self.target.position_mm - self.pose.position_mm
+        distance = float(np.linalg.norm(error))
+        if distance <= self.config.in_position_mm:
+            self.pose = self.target
+            return
+        fraction = 1.0 - math.exp(-dt / self.config.lag_s)
+        fraction = min(fraction, self.speed_mm_s * dt / distance)
+        position = self.pose.position_mm + fraction * error
+        q0, q1 = np.asarray(self.pose.quaternion), np.asarray(self.target.quaternion)
+        if np.dot(q0, q1) < 0:
+            q1 = -q1
+        q = q0 + fraction * (q1 - q0)
+        q = q / np.linalg.norm(q)
+        self.pose = Pose(*(float(c) for c in position), tuple(float(c) for c in q))

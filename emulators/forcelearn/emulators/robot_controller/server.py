@@ -1,0 +1,140 @@
+"""The emulated robot controller as a running server: transport + engine + faults.
+
+Start it in-process (this is what tests and the emulated cell use)::
+
+    with RobotControllerEmulator("pty", physics=cell_physics) as emu:
+        robot = ComputerLinkRobot(LinkConfig(url=emu.url))
+        ...
+        assert emu.move_count == 1
+
+or from a shell: ``python -m forcelearn.emulators.robot_controller --transport pty``
+(prints the path to open).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import Literal
+
+from forcelearn.devices import Pose
+from forcelearn.drivers.computer_link import framing
+from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.robot_controller.controller import ControllerEngine
+from forcelearn.emulators.robot_controller.faults import FaultConfig, FaultInjector
+from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+from forcelearn.emulators.robot_controller.transport import PtyEndpoint, TcpEndpoint
+
+log = logging.getLogger(__name__)
+
+POLL_S = 0.005
+"""Longest wait of the server loop (s): bounds stop latency and servo tick period."""
+
+
+class RobotControllerEmulator:
+    """A robot controller speaking the computer-link protocol on a pty or loopback TCP.
+
+    Args:
+        transport: "pty" (``url`` is a path) or "tcp" (``url`` is ``socket://127.0.0.1:PORT``).
+        config: arm geometry, limits, servo settings.
+        physics: shared cell physics; the emulator writes every reached pose into it.
+        faults: fault injection settings (default: none).
+        port: TCP port (0 picks a free one); ignored for "pty".
+    """
+
+    def __init__(
+        self,
+        transport: Literal["pty", "tcp"] = "pty",
+        *,
+        config: ArmConfig | None = None,
+        physics: CellPhysics | None = None,
+        faults: FaultConfig | None = None,
+        port: int = 0,
+    ) -> None:
+        if transport not in ("pty", "tcp"):
+            raise ValueError(f"transport must be 'pty' or 'tcp', got {transport!r}")
+        self.engine = ControllerEngine(config, physics)
+        self.faults = FaultInjector(faults)
+        self._endpoint = PtyEndpoint() if transport == "pty" else TcpEndpoint(port)
+        self._reader = framing.FrameReader()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    @property
+    def url(self) -> str:
+        """What the driver opens: a pty path or ``socket://127.0.0.1:PORT``."""
+        return self._endpoint.url
+
+    @property
+    def move_count(self) -> int:
+        """Moves the robot has executed (a retransmitted command never counts twice)."""
+        return self.engine.move_count
+
+    @property
+    def pose(self) -> Pose:
+        """The pose the robot has reached."""
+        return self.engine.pose
+
+    def start(self) -> str:
+        """Start serving in a daemon thread; returns :attr:`url`."""
+        if self._thread is None:
+            self._thread = threading.Thread(
+                target=self._serve, name="robot-controller-emulator", daemon=True
+            )
+            self._thread.start()
+            log.info("robot controller emulator serving on %s", self.url)
+        return self.url
+
+    def stop(self) -> None:
+        """Stop serving, join the thread and release the transport; safe to call twice."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            if self._thread.is_alive():  # pragma: no cover - would be a bug in _serve
+                log.error("emulator thread did not stop within 5 s")
+        self._thread = None
+        self._endpoint.close()
+
+    def __enter__(self) -> RobotControllerEmulator:
+        self.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()
+
+    def _serve(self) -> None:
+        generation = self._endpoint.generation
+        while not self._stop.is_set():
+            data = self._endpoint.read(POLL_S)
+            if self._endpoint.generation != generation:
+                generation = self._endpoint.generation
+                self._reader.clear()
+            self.engine.tick()
+            if data:
+                for frame in self._reader.feed(self.faults.corrupt(data)):
+                    if self._answer(frame):
+                        break
+
+    def _answer(self, frame: framing.Frame) -> bool:
+        """Answer one frame through the fault hooks; True if the connection was dropped."""
+        if isinstance(frame, framing.DataFrame) and self.faults.drop_request():
+            log.info("fault: request dropped")
+            return False
+        out = bytearray()
+        for answer in self.engine.handle(frame):
+            if answer.kind == "ack":
+                delay = self.faults.ack_delay_s()
+                if delay and self._stop.wait(delay):
+                    return True
+            if answer.executed and self.faults.drop_connection():
+                log.info("fault: connection dropped after executing a request")
+                self._endpoint.hang_up()
+                self._reader.clear()
+                return True
+            if answer.kind == "reply" and self.faults.drop_reply():
+                log.info("fault: reply dropped")
+                continue
+            out += self.faults.corrupt(answer.wire)
+        if out:
+            self._endpoint.write(bytes(out))
+        return False

@@ -1,0 +1,185 @@
+"""Byte transports the emulated controller listens on: a pseudo-terminal or loopback TCP.
+
+Both offer the same small interface, used by one server thread only:
+``url`` (what a client passes to ``serial.serial_for_url``), ``read(timeout_s)``
+(bytes, ``b""`` on timeout or while no client is connected), ``write(data)``,
+``hang_up()``, ``close()``, and ``generation``, a counter that changes whenever
+a connection begins or ends (the server then drops any half-received frame).
+
+* :class:`PtyEndpoint`: the client opens ``url``, a symlink to the pty's slave
+  side. The emulator keeps its own slave descriptor open so the pty survives
+  clients that close it; ``hang_up`` replaces the pty (the old one reports a
+  hang-up to its client) and repoints the symlink.
+* :class:`TcpEndpoint`: listens on 127.0.0.1 only. One client at a time: a
+  second connection while one is served is closed at once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import logging
+import os
+import select
+import socket
+import tempfile
+import tty
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+_QUICKACK: int | None = getattr(socket, "TCP_QUICKACK", None)  # Linux only
+
+
+class PtyEndpoint:
+    """The controller's end of a pseudo-terminal; ``url`` is the path clients open."""
+
+    def __init__(self) -> None:
+        self._dir = tempfile.TemporaryDirectory(prefix="forcelearn-robot-")
+        self._link = Path(self._dir.name) / "robot-tty"
+        self._master = -1
+        self._slave = -1
+        self.generation = 0
+        self._open_pty()
+
+    def _open_pty(self) -> None:
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        os.set_blocking(self._master, False)
+        tmp = self._link.with_suffix(".new")
+        tmp.unlink(missing_ok=True)
+        tmp.symlink_to(os.ttyname(self._slave))
+        tmp.replace(self._link)
+
+    @property
+    def url(self) -> str:
+        """Path of the symlink to the pty slave (stable across hang-ups)."""
+        return str(self._link)
+
+    def read(self, timeout_s: float) -> bytes:
+        """Return the bytes the client wrote, waiting at most ``timeout_s``."""
+        ready, _, _ = select.select([self._master], [], [], timeout_s)
+        if not ready:
+            return b""
+        try:
+            return os.read(self._master, 4096)
+        except BlockingIOError:
+            return b""
+        except OSError as exc:  # EIO: no slave open (cannot happen while we hold one)
+            if exc.errno != errno.EIO:
+                raise
+            return b""
+
+    def write(self, data: bytes) -> None:
+        """Send ``data`` to the client (dropped if the pty buffer stays full for 1 s)."""
+        view = memoryview(data)
+        while view:
+            _, ready, _ = select.select([], [self._master], [], 1.0)
+            if not ready:
+                log.warning("pty output full, %d bytes dropped", len(view))
+                return
+            view = view[os.write(self._master, view) :]
+
+    def hang_up(self) -> None:
+        """Drop the connection: the client sees a hang-up, new clients get a new pty."""
+        self._close_fds()
+        self._open_pty()
+        self.generation += 1
+
+    def _close_fds(self) -> None:
+        for fd in (self._master, self._slave):
+            if fd >= 0:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self._master = self._slave = -1
+
+    def close(self) -> None:
+        """Release the pty and its symlink; safe to call twice."""
+        self._close_fds()
+        self._dir.cleanup()
+
+
+class TcpEndpoint:
+    """A TCP listener on 127.0.0.1 serving one client at a time."""
+
+    def __init__(self, port: int = 0) -> None:
+        self._listener = socket.create_server(("127.0.0.1", port))
+        self._listener.setblocking(False)
+        self._client: socket.socket | None = None
+        self.generation = 0
+
+    @property
+    def url(self) -> str:
+        """``socket://127.0.0.1:PORT`` for ``serial.serial_for_url``."""
+        return f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
+
+    @property
+    def connected(self) -> bool:
+        """True while a client is being served."""
+        return self._client is not None
+
+    def read(self, timeout_s: float) -> bytes:
+        """Accept or serve the client; return its bytes, waiting at most ``timeout_s``."""
+        watch = [self._listener] + ([self._client] if self._client else [])
+        ready, _, _ = select.select(watch, [], [], timeout_s)
+        if self._listener in ready:
+            self._accept()
+        if self._client is None or self._client not in ready:
+            return b""
+        try:
+            data = self._client.recv(4096)
+        except (BlockingIOError, InterruptedError):
+            return b""
+        except OSError as exc:
+            log.info("client connection failed: %s", exc)
+            data = b""
+        if not data:
+            log.info("client disconnected")
+            self.hang_up()
+            return data
+        if _QUICKACK is not None:
+            # The driver's lone DLE ACK is followed by its next request; without an
+            # immediate TCP ACK, Nagle's algorithm on the client holds that request
+            # until our delayed ACK fires (~40 ms). Quick-ack mode is not sticky.
+            with contextlib.suppress(OSError):
+                self._client.setsockopt(socket.IPPROTO_TCP, _QUICKACK, 1)
+        return data
+
+    def _accept(self) -> None:
+        try:
+            conn, peer = self._listener.accept()
+        except BlockingIOError:
+            return
+        if self._client is not None:
+            log.warning("refused a second client %s: one client at a time", peer)
+            conn.close()
+            return
+        conn.setblocking(True)
+        conn.settimeout(1.0)
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._client = conn
+        self.generation += 1
+        log.info("client connected from %s", peer)
+
+    def write(self, data: bytes) -> None:
+        """Send ``data`` to the client, if one is connected."""
+        if self._client is None:
+            return
+        try:
+            self._client.sendall(data)
+        except OSError as exc:
+            log.info("client lost while sending: %s", exc)
+            self.hang_up()
+
+    def hang_up(self) -> None:
+        """Close the client connection; the next client may connect."""
+        if self._client is not None:
+            with contextlib.suppress(OSError):
+                self._client.close()
+            self._client = None
+            self.generation += 1
+
+    def close(self) -> None:
+        """Close the client and the listener; safe to call twice."""
+        self.hang_up()
+        self._listener.close()
