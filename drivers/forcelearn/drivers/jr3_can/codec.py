@@ -201,32 +201,45 @@ def _check_u16(name: str, value: int) -> None:
         raise ValueError(f"{name}={value} does not fit a uint16 (0..65535)")
 
 
-def _payload(message: Message) -> bytes:
-    """Return the little-endian payload of a message."""
-    match message:
-        case Ack(status=status, full_scales=None):
-            if not 0 <= status <= 0xFF:
-                raise ValueError(f"ACK status={status} does not fit a byte")
-            return bytes((status,))
-        case Ack(status=status, full_scales=scales):
-            for value in scales:
-                _check_u16("full scale", value)
-            return _ACK_FULL.pack(status, *scales)
-        case StartSync(cutoff_centi_hz=c) | SetFilter(cutoff_centi_hz=c):
-            _check_u16("cutoff_centi_hz", c)
-            return _U16.pack(c)
-        case StartAsync(cutoff_centi_hz=c, period_us=p):
-            _check_u16("cutoff_centi_hz", c)
-            if not 0 <= p <= 0xFFFFFFFF:
-                raise ValueError(f"period_us={p} does not fit a uint32")
-            return _U16_U32.pack(c, p)
-        case Forces(raw=raw, counter=n) | Moments(raw=raw, counter=n):
-            if any(not -32768 <= v <= 32767 for v in raw):
-                raise ValueError(f"raw counts {raw} do not fit int16")
-            _check_u16("counter", n)
-            return _AXES.pack(*raw, n)
-        case _:
-            return b""
+def _ack_payload(message: Ack) -> bytes:
+    if not 0 <= message.status <= 0xFF:
+        raise ValueError(f"ACK status={message.status} does not fit a byte")
+    if message.full_scales is None:
+        return bytes((message.status,))
+    for value in message.full_scales:
+        _check_u16("full scale", value)
+    return _ACK_FULL.pack(message.status, *message.full_scales)
+
+
+def _cutoff_payload(message: StartSync | SetFilter) -> bytes:
+    _check_u16("cutoff_centi_hz", message.cutoff_centi_hz)
+    return _U16.pack(message.cutoff_centi_hz)
+
+
+def _start_async_payload(message: StartAsync) -> bytes:
+    _check_u16("cutoff_centi_hz", message.cutoff_centi_hz)
+    if not 0 <= message.period_us <= 0xFFFFFFFF:
+        raise ValueError(f"period_us={message.period_us} does not fit a uint32")
+    return _U16_U32.pack(message.cutoff_centi_hz, message.period_us)
+
+
+def _axes_payload(message: Forces | Moments) -> bytes:
+    try:
+        return _AXES.pack(*message.raw, message.counter)
+    except struct.error as exc:
+        raise ValueError(f"raw counts {message.raw} or counter {message.counter} do not fit "
+                         "int16 / uint16") from exc
+
+
+_PAYLOAD = {
+    "ack": _ack_payload,
+    "start_sync": _cutoff_payload,
+    "set_filter": _cutoff_payload,
+    "start_async": _start_async_payload,
+    "forces": _axes_payload,
+    "moments": _axes_payload,
+}
+"""Kinds with a payload -> their packer; every other kind has none."""
 
 
 def encode(message: Message, node_id: int, opcodes: OpcodeMap = DEFAULT_OPCODES) -> Frame:
@@ -239,7 +252,8 @@ def encode(message: Message, node_id: int, opcodes: OpcodeMap = DEFAULT_OPCODES)
         return Frame(opcode, b"")
     if not 1 <= node_id <= NODE_ID_BITS:
         raise ValueError(f"node_id={node_id} is not 1..127")
-    return Frame(opcode + node_id, _payload(message))
+    packer = _PAYLOAD.get(message.kind)
+    return Frame(opcode + node_id, b"" if packer is None else packer(message))  # type: ignore[operator]
 
 
 def decode(

@@ -73,8 +73,25 @@ class CellPhysics:
     ):
         self._lock = threading.Lock()
         self.environment: ContactEnvironment = environment or NoContact()
-        self.tool = tool or POINT_TOOL
+        self._tool = tool or POINT_TOOL
         self._pose = pose or Pose(0.0, 0.0, 0.0)
+        self._rotation, self._gravity = self._orientation_terms(self._pose)
+
+    @property
+    def tool(self) -> ToolParams:
+        """The tool on the sensor (mass, centre of mass, contact point)."""
+        return self._tool
+
+    @tool.setter
+    def tool(self, tool: ToolParams) -> None:
+        with self._lock:
+            self._tool = tool
+            self._rotation, self._gravity = self._orientation_terms(self._pose)
+
+    def _orientation_terms(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
+        """Rotation matrix and tool-weight wrench of a pose (cached: the sensor's hot path)."""
+        rotation = quaternion_to_matrix(pose.quaternion)
+        return rotation, gravity_wrench(self.tool, rotation)
 
     @property
     def pose(self) -> Pose:
@@ -84,8 +101,10 @@ class CellPhysics:
 
     def set_pose(self, pose: Pose) -> None:
         """Record the pose the robot has reached (called by the robot emulator)."""
+        terms = self._orientation_terms(pose)
         with self._lock:
             self._pose = pose
+            self._rotation, self._gravity = terms
             if isinstance(self.environment, PoseObserver):
                 self.environment.observe_pose(pose.position_mm)
 
@@ -95,12 +114,11 @@ class CellPhysics:
         Contact force and moment about the sensor origin plus the tool's weight.
         """
         with self._lock:
-            pose = self._pose
+            pose, rotation, gravity = self._pose, self._rotation, self._gravity
             force_world = self.environment.contact_force_world_n(pose.position_mm)
-        rotation = quaternion_to_matrix(pose.quaternion)
-        return contact_wrench(self.tool, rotation, force_world) + gravity_wrench(
-            self.tool, rotation
-        )
+        if not force_world.any():
+            return gravity.copy()
+        return contact_wrench(self.tool, rotation, force_world) + gravity
 
 
 def quaternion_to_matrix(q: tuple[float, float, float, float]) -> np.ndarray:

@@ -39,6 +39,7 @@ fall from about 9 N to about 4 N over the paper's ~240 repetitions.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,24 +96,24 @@ class SpongeParams:
 def surface_y_mm(params: SpongeParams, passes: float, z_mm: float) -> float:
     """Return the surface Y (mm) at height ``z_mm`` after ``passes`` passes."""
     travelled = params.z_top_mm - z_mm
-    wave = params.waviness_mm * np.sin(2 * np.pi * travelled / params.waviness_wavelength_mm)
-    sunk = params.set_mm * (1 - np.exp(-passes / params.set_passes))
+    wave = params.waviness_mm * math.sin(2 * math.pi * travelled / params.waviness_wavelength_mm)
+    sunk = params.set_mm * (1 - math.exp(-passes / params.set_passes))
     return float(params.surface_y_mm + params.surface_slope * travelled + wave - sunk)
 
 
 def _surface_slope_dy_dz(params: SpongeParams, z_mm: float) -> float:
     travelled = params.z_top_mm - z_mm
-    k = 2 * np.pi / params.waviness_wavelength_mm
-    return float(-params.surface_slope - params.waviness_mm * k * np.cos(k * travelled))
+    k = 2 * math.pi / params.waviness_wavelength_mm
+    return float(-params.surface_slope - params.waviness_mm * k * math.cos(k * travelled))
 
 
 def stiffness_n_per_mm(params: SpongeParams, passes: float, z_mm: float) -> float:
     """Return the foam stiffness (N/mm) at height ``z_mm`` after ``passes`` passes."""
     travelled = params.z_top_mm - z_mm
-    variation = params.stiffness_variation * np.cos(
-        2 * np.pi * travelled / params.stiffness_wavelength_mm
+    variation = params.stiffness_variation * math.cos(
+        2 * math.pi * travelled / params.stiffness_wavelength_mm
     )
-    softened = 1 - params.softening * (1 - np.exp(-passes / params.softening_passes))
+    softened = 1 - params.softening * (1 - math.exp(-passes / params.softening_passes))
     return float(params.stiffness_n_per_mm * (1 + variation) * softened)
 
 

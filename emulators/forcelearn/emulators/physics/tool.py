@@ -50,15 +50,20 @@ POINT_TOOL = ToolParams(mass_kg=0.0, com_mm=(0.0, 0.0, 0.0), contact_point_mm=(0
 """A massless tool touching at the sensor origin (no gravity, no moments)."""
 
 
+def _wrench(point_mm: tuple[float, float, float], force: np.ndarray) -> np.ndarray:
+    """Return (F, r x F) for a force (3,) in N acting at ``point_mm`` (written out: hot path)."""
+    rx, ry, rz = (c / MM_PER_M for c in point_mm)
+    fx, fy, fz = (float(v) for v in force)
+    return np.array([fx, fy, fz, ry * fz - rz * fy, rz * fx - rx * fz, rx * fy - ry * fx])
+
+
 def gravity_wrench(tool: ToolParams, rotation: np.ndarray) -> np.ndarray:
     """Return the tool's weight as a wrench (6,) in the sensor frame, N and N*m."""
     force = rotation.T @ np.array([0.0, 0.0, -tool.mass_kg * STANDARD_GRAVITY_M_S2])
-    moment = np.cross(np.asarray(tool.com_mm) / MM_PER_M, force)
-    return np.concatenate([force, moment])
+    return _wrench(tool.com_mm, force)
 
 
 def contact_wrench(tool: ToolParams, rotation: np.ndarray, force_world_n: np.ndarray) -> np.ndarray:
     """Return a contact force at the tool's contact point as a sensor-frame wrench (6,)."""
     force = rotation.T @ np.asarray(force_world_n, dtype=float)
-    moment = np.cross(np.asarray(tool.contact_point_mm) / MM_PER_M, force)
-    return np.concatenate([force, moment])
+    return _wrench(tool.contact_point_mm, force)

@@ -1,0 +1,312 @@
+"""The JR3 force/torque sensor over a JR3-to-CAN adapter, on any python-can bus.
+
+Satisfies :class:`forcelearn.devices.ForceSensor`. The bus is injected (socketcan,
+pcan, kvaser, slcan, virtual...); the driver never shuts it down. Two ways to
+read:
+
+* **sync** (default): :meth:`Jr3CanSensor.read` sends SYNC and receives in the
+  caller's thread until the matching force/moment pair arrives; emulated runs
+  go as fast as the host and the emulator can.
+* **async**: the adapter streams every ``period_us``; a ``can.Notifier`` thread
+  feeds :class:`~.listener.Jr3Listener`, which calls ``on_sample`` callbacks
+  (e.g. the force filter) for every paired sample; :meth:`read` returns the
+  newest fresh one.
+
+Initialisation (on :meth:`initialise`, on entering ``with``, and again on the
+first read after a bootup frame): get state, start sync or async with the
+cut-off, read the full scales unless configured, wait ``zero_settle_s`` and
+zero the offsets if configured. :meth:`close` sends stop and is idempotent.
+
+Errors: :class:`SensorTimeout` (no ACK), :class:`SensorStale` (no sample in
+``stale_timeout_s``), :class:`SensorBusError` (python-can errors, converted with
+``raise ... from``), :class:`SensorError` (the adapter refuses a command).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from types import TracebackType
+
+import can
+import numpy as np
+
+from forcelearn.devices import WrenchSample
+from forcelearn.drivers.jr3_can import codec
+from forcelearn.drivers.jr3_can.config import Jr3Config
+from forcelearn.drivers.jr3_can.listener import Jr3Listener, Jr3Stats, SampleCallback
+from forcelearn.drivers.jr3_can.scaling import cutoff_to_wire, full_scales_from_wire
+from forcelearn.errors import SensorBusError, SensorError, SensorStale, SensorTimeout
+
+log = logging.getLogger(__name__)
+
+NOTIFIER_POLL_S = 0.05
+STOP_ACK_TIMEOUT_S = 0.1
+
+
+class Jr3CanSensor:
+    """A JR3 sensor behind a JR3-to-CAN adapter.
+
+    Args:
+        bus: an open python-can bus (owned by the caller).
+        config: node id, mode, cut-off, timeouts, optional full scales and log.
+        on_sample: called with every paired sample (from the Notifier thread in
+            async mode, from the reading thread in sync mode); keep it short.
+    """
+
+    def __init__(
+        self,
+        bus: can.BusABC,
+        config: Jr3Config | None = None,
+        *,
+        on_sample: SampleCallback | None = None,
+    ) -> None:
+        self.bus = bus
+        self.config = config or Jr3Config()
+        writer = can.Logger(self.config.log_path) if self.config.log_path else None
+        self._listener = Jr3Listener(
+            self.config.node_id, self.config.opcodes, self.config.near_saturation_counts, writer
+        )
+        if on_sample is not None:
+            self._listener.callbacks.append(on_sample)
+        self._command_lock = threading.Lock()
+        self._full_scales: np.ndarray | None = None
+        self._cutoff_hz = self.config.cutoff_hz
+        self._initialised = False
+        self._closed = False
+        self._last_seq = 0
+        self._notifier: can.Notifier | None = None
+        if self.config.mode == "async":
+            self._notifier = can.Notifier(bus, [self._listener], timeout=NOTIFIER_POLL_S)
+
+    # ---- properties -----------------------------------------------------
+    @property
+    def full_scales(self) -> np.ndarray | None:
+        """The six full scales in use (N, N, N, N*m, N*m, N*m), once initialised."""
+        return None if self._full_scales is None else self._full_scales.copy()
+
+    @property
+    def cutoff_hz(self) -> float:
+        """The adapter's low-pass cut-off last acknowledged (Hz)."""
+        return self._cutoff_hz
+
+    @property
+    def stats(self) -> Jr3Stats:
+        """A snapshot of the receive counts (samples, dropped, rejected, bootups...)."""
+        return self._listener.stats()
+
+    def add_sample_callback(self, callback: Callable[[WrenchSample], None]) -> None:
+        """Call ``callback`` with every paired sample from now on."""
+        self._listener.callbacks.append(callback)
+
+    # ---- commands -------------------------------------------------------
+    def initialise(self) -> None:
+        """Run the host initialisation sequence (see the module docstring)."""
+        self._check_open()
+        cfg = self.config
+        with self._listener.cond:
+            self._listener.bootup_pending = False
+        self._initialised = False
+        state = self._command(codec.GetState())
+        log.info("JR3 node %d state: %s", cfg.node_id,
+                 "ready" if state.ready else "not initialised")
+        cutoff = cutoff_to_wire(self._cutoff_hz)
+        start: codec.Message = codec.StartSync(cutoff)
+        if cfg.mode == "async":
+            start = codec.StartAsync(cutoff, cfg.period_us)
+        if not self._command(start).ready:
+            raise SensorError(
+                f"JR3 node {cfg.node_id} refused to start {cfg.mode} mode: check the sensor "
+                "cable to the adapter and power-cycle the adapter"
+            )
+        if cfg.full_scales is not None:
+            full_scales = np.asarray(cfg.full_scales, dtype=float)
+        else:
+            forces = self._command(codec.GetForceFullScales()).full_scales
+            moments = self._command(codec.GetMomentFullScales()).full_scales
+            if forces is None or moments is None:
+                raise SensorError(
+                    f"JR3 node {cfg.node_id} answered a full-scale query without full scales: "
+                    "set jr3.full_scales in the configuration or update the adapter firmware"
+                )
+            full_scales = full_scales_from_wire(forces, moments)
+        self._full_scales = full_scales
+        self._listener.set_full_scales(full_scales)
+        if cfg.zero_on_init:
+            time.sleep(cfg.zero_settle_s)
+            self._command(codec.ZeroOffsets())
+        self._initialised = True
+        log.info("JR3 node %d initialised: %s mode, cut-off %.2f Hz, full scales %s",
+                 cfg.node_id, cfg.mode, self._cutoff_hz, full_scales.tolist())
+
+    def zero_offsets(self) -> None:
+        """Store the present reading as the offset (tool in free space, not touching)."""
+        self._ensure_initialised()
+        self._command(codec.ZeroOffsets())
+
+    def set_cutoff(self, cutoff_hz: float) -> None:
+        """Change the adapter's low-pass cut-off (Hz); returns once acknowledged."""
+        wire = cutoff_to_wire(cutoff_hz)
+        self._ensure_initialised()
+        self._command(codec.SetFilter(wire))
+        self._cutoff_hz = wire / 100.0
+
+    def reset(self) -> None:
+        """Reset the adapter; the next read initialises it again."""
+        self._command(codec.Reset())
+        self._initialised = False
+
+    # ---- reading --------------------------------------------------------
+    def read(self) -> WrenchSample:
+        """Return the next fresh sample (sync: one per SYNC sent).
+
+        Raises:
+            SensorStale: no sample within ``stale_timeout_s``.
+            SensorTimeout, SensorError, SensorBusError: see the module docstring.
+        """
+        for _attempt in range(2):
+            self._ensure_initialised()
+            sample = self._next_sample()
+            if sample is not None:
+                return sample
+        raise SensorStale(
+            f"JR3 node {self.config.node_id} rebooted twice while reading: check the adapter's "
+            "power supply"
+        )
+
+    def _next_sample(self) -> WrenchSample | None:
+        """Wait for a sample newer than the last read; None if a bootup interrupts."""
+        lst = self._listener
+        cfg = self.config
+        if cfg.mode == "sync":
+            with lst.cond:
+                self._last_seq = lst.seq
+            self._send(codec.Sync())
+        else:
+            with lst.cond:
+                fresh = lst.latest is not None and (
+                    time.monotonic() - lst.latest.timestamp_s < cfg.stale_timeout_s
+                )
+                if not fresh:
+                    self._last_seq = lst.seq
+        got = self._wait_for(lambda: lst.seq > self._last_seq or lst.bootup_pending,
+                             cfg.stale_timeout_s)
+        with lst.cond:
+            if lst.bootup_pending:
+                return None
+            if not got:
+                raise SensorStale(
+                    f"no sample from JR3 node {cfg.node_id} within {cfg.stale_timeout_s} s: "
+                    "check the adapter is powered and streaming; stop the robot"
+                )
+            self._last_seq = lst.seq
+            return lst.latest
+
+    # ---- plumbing -------------------------------------------------------
+    def _ensure_initialised(self) -> None:
+        self._check_open()
+        with self._listener.cond:
+            bootup = self._listener.bootup_pending
+        if bootup or not self._initialised:
+            self.initialise()
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise SensorError("the JR3 sensor is closed; create a new one")
+        if self._listener.bus_error is not None:
+            raise SensorBusError(
+                f"CAN bus failed: {self._listener.bus_error}; check the adapter and restart"
+            ) from self._listener.bus_error
+
+    def _send(self, message: codec.Message) -> None:
+        frame = codec.encode(message, self.config.node_id, self.config.opcodes)
+        msg = can.Message(arbitration_id=frame.arbitration_id, data=frame.data,
+                          is_extended_id=False, is_rx=False)
+        try:
+            self.bus.send(msg)
+        except can.CanError as exc:
+            raise SensorBusError(
+                f"could not send {message.kind} to JR3 node {self.config.node_id}: {exc}; "
+                "check the CAN interface is up (bitrate 1 Mbit/s) and the bus terminated"
+            ) from exc
+        self._listener.log_frame(msg)
+
+    def _command(self, message: codec.Message, timeout_s: float | None = None) -> codec.Ack:
+        """Send one command and return its ACK (one command in flight at a time)."""
+        lst = self._listener
+        timeout_s = self.config.ack_timeout_s if timeout_s is None else timeout_s
+        with self._command_lock:
+            with lst.cond:
+                lst.acks.clear()
+            self._send(message)
+            if not self._wait_for(lambda: bool(lst.acks), timeout_s):
+                raise SensorTimeout(
+                    f"no ACK to {message.kind} from JR3 node {self.config.node_id} within "
+                    f"{timeout_s} s: check power, node id, bitrate and wiring"
+                )
+            with lst.cond:
+                return lst.acks.popleft()
+
+    def _wait_for(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
+        """Wait until ``predicate()`` (checked under the listener's lock) or the timeout.
+
+        With a Notifier (async) this waits on the condition; without one (sync)
+        it receives from the bus in this thread and feeds the listener.
+        """
+        lst = self._listener
+        deadline = time.monotonic() + timeout_s
+        while True:
+            with lst.cond:
+                if predicate():
+                    return True
+                if lst.bus_error is not None:
+                    self._check_open()
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                if self._notifier is not None:
+                    lst.cond.wait(remaining)
+                    continue
+            try:
+                msg = self.bus.recv(remaining)
+            except can.CanError as exc:
+                raise SensorBusError(
+                    f"CAN receive failed: {exc}; check the CAN interface and restart"
+                ) from exc
+            if msg is not None:
+                lst.on_message_received(msg)
+
+    # ---- life cycle -----------------------------------------------------
+    def close(self) -> None:
+        """Send stop (best effort), stop the Notifier and the log; safe to call twice."""
+        if self._closed:
+            return
+        try:
+            if self._initialised and self._listener.bus_error is None:
+                self._command(codec.Stop(), min(self.config.ack_timeout_s, STOP_ACK_TIMEOUT_S))
+        except SensorError as exc:
+            log.warning("JR3 node %d: stop not acknowledged on close (%s)",
+                        self.config.node_id, exc)
+        finally:
+            self._closed = True
+            if self._notifier is not None:
+                self._notifier.stop(timeout=1.0)
+            self._listener.stop()
+
+    def __enter__(self) -> Jr3CanSensor:
+        try:
+            self.initialise()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()

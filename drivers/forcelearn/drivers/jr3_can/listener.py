@@ -1,0 +1,173 @@
+"""Bus frames in, paired wrench samples out: the driver's ``can.Listener``.
+
+Fed by a ``can.Notifier`` thread (async mode) or by the caller's own receive
+loop (sync mode). Everything it learns is kept under one condition variable:
+ACKs in arrival order, the latest sample and a sequence number, a pending
+bootup, a bus error. It never raises out of ``on_message_received``: bad
+frames are counted in :class:`Jr3Stats` and logged.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import Counter, deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import can
+import numpy as np
+
+from forcelearn.devices import WrenchSample
+from forcelearn.drivers.jr3_can import codec
+from forcelearn.drivers.jr3_can.opcodes import OpcodeMap
+from forcelearn.drivers.jr3_can.pairing import Pairer
+from forcelearn.drivers.jr3_can.scaling import COUNTS_PER_FULL_SCALE
+
+log = logging.getLogger(__name__)
+
+SampleCallback = Callable[[WrenchSample], None]
+
+
+@dataclass
+class Jr3Stats:
+    """Counts of what the driver received (a snapshot copy is handed out)."""
+
+    frames: int = 0
+    samples: int = 0
+    dropped_samples: int = 0
+    unpaired_frames: int = 0
+    duplicate_samples: int = 0
+    samples_before_full_scales: int = 0
+    bootups: int = 0
+    error_frames: int = 0
+    other_nodes: int = 0
+    rejected: Counter[str] = field(default_factory=Counter)
+
+    @property
+    def rejected_total(self) -> int:
+        """All malformed frames, whatever the reason."""
+        return sum(self.rejected.values())
+
+
+class Jr3Listener(can.Listener):
+    """Decode, pair and scale the frames of one adapter node."""
+
+    def __init__(
+        self,
+        node_id: int,
+        opcodes: OpcodeMap,
+        near_saturation_counts: int,
+        writer: can.Listener | None = None,
+    ) -> None:
+        self.node_id = node_id
+        self.opcodes = opcodes
+        self.near_saturation_counts = near_saturation_counts
+        self.writer = writer
+        self.writer_lock = threading.Lock()
+        self.cond = threading.Condition()
+        self.callbacks: list[SampleCallback] = []
+        self.acks: deque[codec.Ack] = deque()
+        self.latest: WrenchSample | None = None
+        self.seq = 0
+        self.bootup_pending = False
+        self.bus_error: Exception | None = None
+        self._scale: np.ndarray | None = None
+        self._pairer = Pairer()
+        self._stats = Jr3Stats()
+
+    def set_full_scales(self, full_scales: np.ndarray | None) -> None:
+        """Use these six full scales (N, N*m) from now on; None stops scaling."""
+        with self.cond:
+            self._scale = None if full_scales is None else (
+                np.asarray(full_scales, dtype=float) / COUNTS_PER_FULL_SCALE
+            )
+
+    def stats(self) -> Jr3Stats:
+        """Return a snapshot of the counts."""
+        with self.cond:
+            s = self._stats
+            s.dropped_samples = self._pairer.dropped
+            s.unpaired_frames = self._pairer.unpaired
+            s.duplicate_samples = self._pairer.duplicates
+            return Jr3Stats(**{**s.__dict__, "rejected": Counter(s.rejected)})
+
+    def log_frame(self, msg: can.Message) -> None:
+        """Write one frame (received or sent) to the traffic log, if any."""
+        if self.writer is not None:
+            with self.writer_lock:
+                self.writer.on_message_received(msg)
+
+    def on_message_received(self, msg: can.Message) -> None:
+        """Handle one received frame; never raises for bad frames."""
+        self.log_frame(msg)
+        sample: WrenchSample | None = None
+        with self.cond:
+            self._stats.frames += 1
+            if msg.is_error_frame:
+                self._stats.error_frames += 1
+                log.warning("CAN error frame received (bus trouble: check wiring/termination)")
+                return
+            result = codec.decode(msg.arbitration_id, msg.data, is_extended_id=msg.is_extended_id,
+                                  opcodes=self.opcodes)
+            if isinstance(result, codec.Rejected) or msg.is_remote_frame:
+                reason = "REMOTE_FRAME" if msg.is_remote_frame else result.reason.name
+                self._stats.rejected[reason] += 1
+                log.debug("rejected frame id=%#x data=%s: %s", msg.arbitration_id,
+                          bytes(msg.data).hex(), reason)
+                return
+            message = result.message
+            if result.node_id != self.node_id:
+                self._stats.other_nodes += 1
+                return
+            if isinstance(message, codec.Forces | codec.Moments):
+                sample = self._pair(message)
+            elif isinstance(message, codec.Ack):
+                self.acks.append(message)
+                self.cond.notify_all()
+            elif isinstance(message, codec.Bootup):
+                log.warning("JR3 adapter node %d sent bootup: it will be initialised again",
+                            self.node_id)
+                self._stats.bootups += 1
+                self._pairer.restart()
+                self.bootup_pending = True
+                self.cond.notify_all()
+        if sample is not None:
+            for callback in self.callbacks:
+                callback(sample)
+
+    def _pair(self, frame: codec.Forces | codec.Moments) -> WrenchSample | None:
+        pair = self._pairer.push(frame)
+        if pair is None:
+            return None
+        if self._scale is None:
+            self._stats.samples_before_full_scales += 1
+            return None
+        raw = np.array(pair.raw, dtype=float)
+        limit = self.near_saturation_counts
+        sample = WrenchSample(
+            wrench=raw * self._scale,
+            timestamp_s=time.monotonic(),
+            counter=pair.counter,
+            saturated=tuple(bool(abs(v) >= limit) for v in pair.raw),
+        )
+        self._stats.samples += 1
+        self.latest = sample
+        self.seq += 1
+        self.cond.notify_all()
+        return sample
+
+    def on_error(self, exc: Exception) -> None:
+        """Keep a bus error from the Notifier thread for the next public call."""
+        log.error("CAN bus error in the receive thread: %s", exc)
+        with self.cond:
+            self.bus_error = exc
+            self.cond.notify_all()
+
+    def stop(self) -> None:
+        """Flush and close the traffic log (called by the Notifier on stop)."""
+        if self.writer is not None:
+            with self.writer_lock:
+                self.writer.stop()
+                self.writer = None

@@ -1,0 +1,268 @@
+"""A JR3-to-CAN adapter node on a python-can bus, answering the host like the real one.
+
+The node reuses the driver's codec, so it speaks exactly the protocol the
+driver expects, and differs from the device only in what is behind the wire:
+the shared :class:`~forcelearn.emulators.physics.cell.CellPhysics` and a
+:class:`~.sensor_model.SensorModel`. One thread receives commands and, in
+async mode, emits a sample every period; ``close()`` stops and joins it.
+
+============================  ===============================================
+command                       answer
+============================  ===============================================
+get state                     ACK, status 0 once started, 1 after (re)boot
+start sync / start async      ACK 0 and enter the mode (ACK 1 if cut-off or
+                              period is 0)
+stop, set filter, zero        ACK 0 (zero stores the present reading)
+get force / moment scales     7-byte ACK: 3 x uint16 (N / dN*m)
+reset                         ACK 0, then reboot: bootup frame, counter 0,
+                              offsets cleared, idle and not initialised
+SYNC (sync mode only)         one force frame and one moment frame
+============================  ===============================================
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+import numpy as np
+
+from forcelearn.drivers.jr3_can import codec
+from forcelearn.drivers.jr3_can.codec import Ack, Decoded, Frame
+from forcelearn.drivers.jr3_can.opcodes import DEFAULT_OPCODES, OpcodeMap
+from forcelearn.drivers.jr3_can.scaling import cutoff_from_wire, full_scales_to_wire
+from forcelearn.emulators.jr3.faults import FaultConfig, FrameHook, apply_faults
+from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
+from forcelearn.emulators.physics.cell import CellPhysics
+
+log = logging.getLogger(__name__)
+
+POLL_S = 0.02
+"""Longest the thread blocks on the bus, so ``close()`` returns promptly."""
+JOIN_TIMEOUT_S = 2.0
+
+
+@dataclass
+class NodeStats:
+    """What the node has done (counts)."""
+
+    commands: int = 0
+    rejected: int = 0
+    samples: int = 0
+    frames_lost: int = 0
+    bootups: int = 0
+    rejected_by_reason: dict[str, int] = field(default_factory=dict)
+
+
+class Jr3EmulatorNode:
+    """An emulated JR3 adapter on a CAN bus.
+
+    Args:
+        physics: the shared cell; each sample reads ``physics.true_wrench()``.
+        bus: the bus to use (not shut down by the node); default: a new
+            ``virtual`` bus on ``channel``, shut down on close.
+        channel: virtual channel name when no bus is given.
+        node_id: the adapter's node id (1..127).
+        model: the sensor model (full scales, noise, bias, drift).
+        faults: wire faults; change them at run time with :meth:`set_faults`.
+        seed: seed of the node's ``numpy.random.Generator``.
+        initial_counter: first frame counter (tests start near the 16-bit wrap).
+        frame_hook: called on each outgoing frame after the faults.
+        opcodes: the opcode map to speak.
+    """
+
+    def __init__(
+        self,
+        physics: CellPhysics,
+        *,
+        bus: can.BusABC | None = None,
+        channel: str = "forcelearn-jr3",
+        node_id: int = 1,
+        model: SensorModelParams | None = None,
+        faults: FaultConfig | None = None,
+        seed: int | None = 0,
+        initial_counter: int = 0,
+        frame_hook: FrameHook | None = None,
+        opcodes: OpcodeMap = DEFAULT_OPCODES,
+    ) -> None:
+        if not 1 <= node_id <= 127:
+            raise ValueError(f"node_id={node_id} is not 1..127")
+        self.physics = physics
+        self.node_id = node_id
+        self.opcodes = opcodes
+        self.faults = faults or FaultConfig()
+        self.frame_hook = frame_hook
+        self.rng = np.random.default_rng(seed)
+        self.model = SensorModel(model or SensorModelParams(), self.rng)
+        self.stats = NodeStats()
+        self.mode = "idle"  # idle | sync | async
+        self.initialised = False
+        self.cutoff_hz = 0.0
+        self.period_us = 0
+        self.counter = initial_counter & 0xFFFF
+        self._owns_bus = bus is None
+        self.bus = bus if bus is not None else can.Bus(interface="virtual", channel=channel)
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._next_emit = 0.0
+        self._thread = threading.Thread(target=self._run, name=f"jr3-emulator-{node_id}",
+                                        daemon=True)
+        self._closed = False
+        self._thread.start()
+
+    # ---- public control -------------------------------------------------
+    def set_faults(self, faults: FaultConfig) -> None:
+        """Change the wire faults now (e.g. go silent)."""
+        with self._lock:
+            self.faults = faults
+
+    def inject_bootup(self) -> None:
+        """Reboot now: send a bootup frame, clear offsets, go idle and uninitialised."""
+        with self._lock:
+            self._reboot()
+
+    def state_dict(self) -> dict[str, Any]:
+        """Return what a bit-identical resume needs: model (rng, bias, offset) and counter."""
+        with self._lock:
+            return {"model": self.model.state_dict(), "counter": self.counter}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a state from :meth:`state_dict`."""
+        with self._lock:
+            self.model.load_state_dict(state["model"])
+            self.counter = int(state["counter"]) & 0xFFFF
+
+    def close(self) -> None:
+        """Stop the thread (joined) and shut down the bus if the node made it; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        self._thread.join(JOIN_TIMEOUT_S)
+        if self._thread.is_alive():
+            log.warning("JR3 emulator thread did not stop within %.1f s", JOIN_TIMEOUT_S)
+        if self._owns_bus:
+            self.bus.shutdown()
+
+    def __enter__(self) -> Jr3EmulatorNode:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ---- thread ---------------------------------------------------------
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            timeout = POLL_S
+            if self.mode == "async":
+                timeout = min(POLL_S, max(0.0, self._next_emit - time.monotonic()))
+            try:
+                msg = self.bus.recv(timeout)
+            except can.CanError:
+                if self._stop.is_set():
+                    return
+                log.exception("JR3 emulator: bus receive failed; stopping the node")
+                return
+            with self._lock:
+                if msg is not None:
+                    self._handle(msg)
+                if self.mode == "async" and time.monotonic() >= self._next_emit:
+                    self._emit_sample(self.period_us * 1e-6)
+                    period_s = self.period_us * 1e-6
+                    # keep the schedule, but never burst to catch up after a stall
+                    self._next_emit = max(self._next_emit + period_s, time.monotonic())
+
+    def _handle(self, msg: can.Message) -> None:
+        if msg.is_error_frame or msg.is_remote_frame:
+            return
+        result = codec.decode(msg.arbitration_id, msg.data, is_extended_id=msg.is_extended_id,
+                              opcodes=self.opcodes)
+        if not isinstance(result, Decoded):
+            self.stats.rejected += 1
+            key = result.reason.name
+            self.stats.rejected_by_reason[key] = self.stats.rejected_by_reason.get(key, 0) + 1
+            return
+        message = result.message
+        if isinstance(message, codec.Sync):
+            if self.mode == "sync":
+                self._emit_sample(self.model.params.sync_sample_period_s)
+            return
+        if result.node_id != self.node_id or message.kind in ("ack", "forces", "moments",
+                                                              "bootup"):
+            return
+        self.stats.commands += 1
+        self._answer(message)
+
+    def _answer(self, message: codec.Message) -> None:
+        forces, moments = full_scales_to_wire(np.asarray(self.model.params.full_scales))
+        match message:
+            case codec.GetState():
+                self._send(Ack(0 if self.initialised else 1))
+            case codec.StartSync(cutoff_centi_hz=c) if c > 0:
+                self._start("sync", c, 0)
+            case codec.StartAsync(cutoff_centi_hz=c, period_us=p) if c > 0 and p > 0:
+                self._start("async", c, p)
+            case codec.StartSync() | codec.StartAsync():
+                self._send(Ack(1))
+            case codec.Stop():
+                self.mode = "idle"
+                self._send(Ack(0))
+            case codec.SetFilter(cutoff_centi_hz=c):
+                self.cutoff_hz = cutoff_from_wire(c)
+                self._send(Ack(0))
+            case codec.ZeroOffsets():
+                self.model.zero(self.physics.true_wrench())
+                self._send(Ack(0))
+            case codec.GetForceFullScales():
+                self._send(Ack(0, forces))
+            case codec.GetMomentFullScales():
+                self._send(Ack(0, moments))
+            case codec.Reset():
+                self._send(Ack(0))
+                self._reboot()
+
+    def _start(self, mode: str, cutoff_centi_hz: int, period_us: int) -> None:
+        self.mode = mode
+        self.cutoff_hz = cutoff_from_wire(cutoff_centi_hz)
+        self.period_us = period_us
+        self.initialised = True
+        self._next_emit = time.monotonic()
+        self._send(Ack(0))
+
+    def _reboot(self) -> None:
+        self.stats.bootups += 1
+        self.mode = "idle"
+        self.initialised = False
+        self.counter = 0
+        self.model.power_cycle()
+        self._send(codec.Bootup())
+
+    def _emit_sample(self, dt_s: float) -> None:
+        raw = self.model.measure(self.physics.true_wrench(), dt_s)
+        self._send(codec.Forces((raw[0], raw[1], raw[2]), self.counter))
+        self._send(codec.Moments((raw[3], raw[4], raw[5]), self.counter))
+        self.counter = (self.counter + 1) & 0xFFFF
+        self.stats.samples += 1
+        limit = self.faults.bootup_after_samples
+        if limit is not None and self.stats.samples % limit == 0:
+            self._reboot()
+
+    def _send(self, message: codec.Message) -> None:
+        frame: Frame | None = codec.encode(message, self.node_id, self.opcodes)
+        frame = apply_faults(frame, self.faults, self.rng)
+        if frame is not None and self.frame_hook is not None:
+            frame = self.frame_hook(frame)
+        if frame is None:
+            self.stats.frames_lost += 1
+            return
+        msg = can.Message(arbitration_id=frame.arbitration_id, data=frame.data,
+                          is_extended_id=False)
+        try:
+            self.bus.send(msg)
+        except can.CanError:
+            self.stats.frames_lost += 1
+            log.warning("JR3 emulator: could not send %s", message.kind, exc_info=True)
