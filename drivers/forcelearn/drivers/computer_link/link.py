@@ -65,7 +65,9 @@ class Link:
                 raise LinkError(f"link is down ({self._broken}); reconnect before commanding")
             try:
                 reply = self._transact(command, body)
-            except serial.SerialException as exc:
+            except LinkError:  # LinkTimeout is also an OSError (TimeoutError): keep it as is
+                raise
+            except (serial.SerialException, OSError) as exc:  # pyserial leaks raw OSError
                 self._broken = str(exc)
                 raise LinkError(
                     f"link to {self._config.url} lost ({exc}); the last command may or may "

@@ -35,6 +35,8 @@ from forcelearn.errors import ProtocolError
 log = logging.getLogger(__name__)
 
 MODEL = "forcelearn S3 controller emulator"
+VERSION = m.PROTOCOL_VERSION
+"""Link protocol version this emulator speaks (reported by IDENTIFY)."""
 _REFUSAL_CODE = {
     "workspace": m.ErrorCode.OUT_OF_WORKSPACE,
     "joint": m.ErrorCode.JOINT_LIMIT,
@@ -160,7 +162,7 @@ class ControllerEngine:
         """Body of the read-only replies."""
         servo = self._servo
         if cmd is m.Command.IDENTIFY:
-            return m.identify_body(m.PROTOCOL_VERSION, MODEL)
+            return m.identify_body(VERSION, MODEL)
         if cmd is m.Command.READ_POSITION:
             pose = servo.pose
             joints = joint_angles_deg(self.config, pose) or (float("nan"),) * 6

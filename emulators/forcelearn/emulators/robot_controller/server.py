@@ -59,6 +59,8 @@ class RobotControllerEmulator:
         self._reader = framing.FrameReader()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self.bytes_received = 0
+        """Bytes received from clients so far (tests use it to prove nothing was sent)."""
 
     @property
     def url(self) -> str:
@@ -111,6 +113,7 @@ class RobotControllerEmulator:
                 self._reader.clear()
             self.engine.tick()
             if data:
+                self.bytes_received += len(data)
                 for frame in self._reader.feed(self.faults.corrupt(data)):
                     if self._answer(frame):
                         break

@@ -82,8 +82,11 @@ class PtyEndpoint:
 
     def hang_up(self) -> None:
         """Drop the connection: the client sees a hang-up, new clients get a new pty."""
-        self._close_fds()
-        self._open_pty()
+        old = (self._master, self._slave)
+        self._open_pty()  # repoint the symlink first, so a client reconnecting at once
+        for fd in old:  # after seeing the hang-up finds the new pty
+            with contextlib.suppress(OSError):
+                os.close(fd)
         self.generation += 1
 
     def _close_fds(self) -> None:

@@ -1,0 +1,50 @@
+"""Fixtures: an emulated controller on each transport and a driver factory with short timeouts."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack
+
+import pytest
+
+from forcelearn.drivers.computer_link import ComputerLinkRobot, LinkConfig
+from forcelearn.emulators.robot_controller import RobotControllerEmulator
+
+TRANSPORTS = ("pty", "tcp")
+
+# Short timeouts keep fault tests quick; far above loopback round trips (< 1 ms).
+FAST = {"ack_timeout_s": 0.05, "reply_timeout_s": 0.05}
+
+
+@pytest.fixture(params=TRANSPORTS)
+def transport(request: pytest.FixtureRequest) -> str:
+    """Each driver test runs once over a real pty and once over socket://127.0.0.1."""
+    return request.param
+
+
+@pytest.fixture
+def make_emulator(transport: str) -> Iterator[Callable[..., RobotControllerEmulator]]:
+    """Start emulators on the current transport; all are stopped at teardown."""
+    with ExitStack() as stack:
+
+        def make(**kwargs: object) -> RobotControllerEmulator:
+            return stack.enter_context(RobotControllerEmulator(transport, **kwargs))
+
+        yield make
+
+
+@pytest.fixture
+def emulator(make_emulator: Callable[..., RobotControllerEmulator]) -> RobotControllerEmulator:
+    """A fault-free emulated controller."""
+    return make_emulator()
+
+
+@pytest.fixture
+def connect() -> Iterator[Callable[..., ComputerLinkRobot]]:
+    """Open drivers with fast timeouts; all are closed at teardown."""
+    with ExitStack() as stack:
+
+        def open_robot(url: str, **kwargs: object) -> ComputerLinkRobot:
+            return stack.enter_context(ComputerLinkRobot(LinkConfig(url=url, **(FAST | kwargs))))
+
+        yield open_robot
