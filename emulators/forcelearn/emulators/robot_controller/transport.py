@@ -125,12 +125,15 @@ class TcpEndpoint:
         """Accept or serve the client; return its bytes, waiting at most ``timeout_s``."""
         watch = [self._listener] + ([self._client] if self._client else [])
         ready, _, _ = select.select(watch, [], [], timeout_s)
-        if self._listener in ready:
+        client = self._client
+        data = self._receive(client) if client is not None and client in ready else b""
+        if self._listener in ready:  # after _receive, so a client that left frees its place
             self._accept()
-        if self._client is None or self._client not in ready:
-            return b""
+        return data
+
+    def _receive(self, client: socket.socket) -> bytes:
         try:
-            data = self._client.recv(4096)
+            data = client.recv(4096)
         except (BlockingIOError, InterruptedError):
             return b""
         except OSError as exc:
@@ -145,7 +148,7 @@ class TcpEndpoint:
             # immediate TCP ACK, Nagle's algorithm on the client holds that request
             # until our delayed ACK fires (~40 ms). Quick-ack mode is not sticky.
             with contextlib.suppress(OSError):
-                self._client.setsockopt(socket.IPPROTO_TCP, _QUICKACK, 1)
+                client.setsockopt(socket.IPPROTO_TCP, _QUICKACK, 1)
         return data
 
     def _accept(self) -> None:
