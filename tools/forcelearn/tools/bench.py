@@ -12,6 +12,7 @@ import importlib
 # name -> (module, one-line help)
 BENCHMARKS: dict[str, tuple[str, str]] = {
     "learner": ("forcelearn.tools.bench_learner", "SRV learner steps/s (act + learn, 2-D grid)"),
+    "link": ("forcelearn.tools.bench_link", "computer-link move round trip p50/p99 over a pty"),
 }
 
 
