@@ -91,7 +91,7 @@ class Link:
         deadline = time.monotonic() + cfg.ack_timeout_s
         while True:
             frame = self._next_frame(deadline)
-            resend = False
+            resend = fresh_ack = False
             if frame is None:
                 if enqs >= cfg.enq_retries:
                     raise LinkTimeout(
@@ -103,6 +103,7 @@ class Link:
                 enq_sent = True
                 self._port.write(_ENQ)
             elif frame is framing.Control.ACK:
+                fresh_ack = not acked
                 acked = True
             elif frame is framing.Control.NAK:
                 resend = True
@@ -132,11 +133,9 @@ class Link:
                 retransmits += 1
                 acked = enq_sent = False
                 self._port.write(wire)
-            # A new wait starts after anything we sent and after DLE ACK; a stale or
-            # unexpected frame leaves the running deadline alone.
-            if frame is None or resend or frame is framing.Control.ACK or (
-                isinstance(frame, framing.BadFrame)
-            ):
+            # A new wait starts after anything we sent and after the first DLE ACK of a
+            # transmission; repeated ACKs, stale or unexpected frames leave it running.
+            if frame is None or resend or fresh_ack or isinstance(frame, framing.BadFrame):
                 timeout = cfg.reply_timeout_s if acked else cfg.ack_timeout_s
                 deadline = time.monotonic() + timeout
 
