@@ -100,3 +100,13 @@ def test_random_corruption_never_moves_twice(make_emulator, connect) -> None:
             assert emulator.move_count - before == 1
     assert emulator.faults.fired["corrupt_byte"] > 10
     assert succeeded > 40
+
+
+def test_retransmissions_stop_at_the_documented_count(emulator, connect) -> None:
+    """A controller that loses every request sees exactly 1 + nak_retries copies, then LinkError."""
+    robot = connect(emulator.url, nak_retries=2, enq_retries=3)
+    _armed(emulator, "drop_request", Fault(1.0))
+    with pytest.raises(LinkError, match="lost 3 times"):
+        robot.move_by(dz_mm=1.0)
+    assert emulator.faults.fired["drop_request"] == 3
+    assert emulator.move_count == 0
