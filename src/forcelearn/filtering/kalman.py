@@ -1,0 +1,181 @@
+"""Kalman filter of the normal contact force, on filterpy's ``KalmanFilter``.
+
+Model (one axis, sample period ``dt``)
+--------------------------------------
+=============  ==========================================================
+state x        (force N, force rate N/s)
+transition F   [[1, dt], [0, 1]]: the force changes at a constant rate
+process Q      filterpy's discrete white-noise model, ``var`` = q in
+               (N/s^2)^2: how fast the rate of the force may wander
+measurement H  [1, 0]: the sensor reads the force
+noise R        the sensor's noise variance on that axis in N^2, from the
+               calibration tool once it has measured it, from config before
+=============  ==========================================================
+
+A missing sample (a counter gap, or ``update(None)``) is a predict only.
+
+Steps. A contact force jumps when the roller meets the sponge or the robot
+steps; a constant-rate model would follow the jump only slowly. When the
+innovation exceeds ``jump_gate_sigma`` standard deviations, the filter restarts
+at the measurement (rate 0, variance R), so a step is followed with no delay.
+The old track is kept for one sample: if the next measurement lies within the
+gate of the old track and outside the new one's, the jump was a single wild
+sample and the old track is resumed, so one outlier costs one output sample
+and never moves the estimate afterwards.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.common import Q_discrete_white_noise
+from filterpy.kalman import KalmanFilter
+
+from forcelearn.devices import WrenchSample
+from forcelearn.errors import ConfigError
+
+COUNTER_MODULUS = 1 << 16
+MAX_PREDICT_GAP = 1000
+"""Longer gaps (in samples) restart the filter instead of predicting through them."""
+
+
+@dataclass(frozen=True)
+class ForceFilterConfig:
+    """Parameters of the force filter (units in the names).
+
+    Attributes:
+        sample_period_s: time between sensor samples (the async period, or
+            the control loop's sampling in sync mode).
+        measurement_variance_n2: R, the sensor's noise variance on the axis.
+            Default (0.2 N)^2, the emulated JR3's; the calibration tool measures it.
+        rate_noise_var: q of the discrete white-noise model, (N/s^2)^2.
+        jump_gate_sigma: innovation, in standard deviations, that signals a step.
+        axis: which wrench component is the normal force (1 = Fy, the sponge's).
+        sign: +1 or -1, so that pressing harder reads larger.
+    """
+
+    sample_period_s: float = 0.001
+    measurement_variance_n2: float = 0.04
+    rate_noise_var: float = 5.0e4
+    jump_gate_sigma: float = 5.0
+    axis: int = 1
+    sign: float = 1.0
+
+    def __post_init__(self) -> None:
+        for key in ("sample_period_s", "measurement_variance_n2", "rate_noise_var",
+                    "jump_gate_sigma"):
+            if not getattr(self, key) > 0:
+                raise ConfigError(f"filter.{key}={getattr(self, key)}: must be > 0")
+        if self.axis not in range(6) or self.sign not in (1.0, -1.0):
+            raise ConfigError("filter.axis must be 0..5 and filter.sign +1 or -1")
+
+
+class ForceFilter:
+    """Filter one force axis sample by sample; thread-safe (the driver calls from its thread)."""
+
+    def __init__(self, config: ForceFilterConfig | None = None) -> None:
+        self.config = config or ForceFilterConfig()
+        dt = self.config.sample_period_s
+        self._kf = KalmanFilter(dim_x=2, dim_z=1)
+        self._kf.F = np.array([[1.0, dt], [0.0, 1.0]])
+        self._kf.H = np.array([[1.0, 0.0]])
+        self._kf.Q = Q_discrete_white_noise(dim=2, dt=dt, var=self.config.rate_noise_var)
+        self._lock = threading.Lock()
+        self.set_measurement_variance(self.config.measurement_variance_n2)
+        self.reset()
+
+    # ---- state ----------------------------------------------------------
+    def reset(self) -> None:
+        """Forget everything: the next measurement starts the filter."""
+        with self._lock:
+            self._started = False
+            self._last_counter: int | None = None
+            self._fallback: tuple[np.ndarray, np.ndarray] | None = None
+            self.jumps = 0
+
+    def set_measurement_variance(self, variance_n2: float) -> None:
+        """Set R (N^2), e.g. from the calibration tool's measured noise variance."""
+        if not variance_n2 > 0:
+            raise ValueError(f"measurement variance must be > 0 N^2, got {variance_n2}")
+        with self._lock:
+            self._kf.R = np.array([[variance_n2]])
+
+    @property
+    def force_n(self) -> float:
+        """The filtered force in N (nan before the first measurement)."""
+        with self._lock:
+            return float(self._kf.x[0, 0]) if self._started else math.nan
+
+    @property
+    def rate_n_per_s(self) -> float:
+        """The filtered force rate in N/s (nan before the first measurement)."""
+        with self._lock:
+            return float(self._kf.x[1, 0]) if self._started else math.nan
+
+    # ---- stepping -------------------------------------------------------
+    def update(self, measurement_n: float | None) -> float:
+        """Advance one sample period; ``None`` means the sample is missing (predict only).
+
+        Returns the filtered force in N (nan until the first measurement).
+        """
+        with self._lock:
+            return self._step(measurement_n)
+
+    def on_sample(self, sample: WrenchSample) -> None:
+        """Driver callback: filter the configured axis, predicting through counter gaps."""
+        z = self.config.sign * float(sample.wrench[self.config.axis])
+        with self._lock:
+            if self._last_counter is not None:
+                gap = (sample.counter - self._last_counter) % COUNTER_MODULUS - 1
+                if gap > MAX_PREDICT_GAP:
+                    self._started = False
+                else:
+                    for _ in range(max(gap, 0)):
+                        self._step(None)
+            self._last_counter = sample.counter
+            self._step(z)
+
+    def _step(self, z: float | None) -> float:
+        kf = self._kf
+        if not self._started:
+            if z is None:
+                return math.nan
+            self._restart(z)
+            return z
+        kf.predict()
+        fallback, self._fallback = self._fallback, None
+        if fallback is not None:
+            fallback = self._predicted(*fallback)
+        if z is None:
+            return float(kf.x[0, 0])
+        if not self._within_gate(z, kf.x, kf.P):
+            if fallback is not None and self._within_gate(z, *fallback):
+                kf.x, kf.P = fallback  # the jump was one wild sample: resume the old track
+            else:
+                self.jumps += 1
+                self._fallback = (kf.x.copy(), kf.P.copy())
+                self._restart(z)
+                return z
+        kf.update(np.array([[z]]))
+        return float(kf.x[0, 0])
+
+    def _within_gate(self, z: float, x: np.ndarray, p: np.ndarray) -> bool:
+        sigma = math.sqrt(float(p[0, 0] + self._kf.R[0, 0]))
+        return abs(z - float(x[0, 0])) <= self.config.jump_gate_sigma * sigma
+
+    def _predicted(self, x: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return a (state, covariance) pair moved one period ahead."""
+        f, q = self._kf.F, self._kf.Q
+        return f @ x, f @ p @ f.T + q
+
+    def _restart(self, z: float) -> None:
+        kf = self._kf
+        r = float(kf.R[0, 0])
+        dt = self.config.sample_period_s
+        kf.x = np.array([[z], [0.0]])
+        # rate unknown: allow a change of one noise sigma per sample period
+        kf.P = np.diag([r, r / dt**2])
+        self._started = True
