@@ -134,6 +134,19 @@ def test_sync_stepping_gives_one_sample_per_sync(
     assert (stats.samples, stats.dropped_samples, stats.unpaired_frames) == (50, 0, 0)
 
 
+def test_read_many_pipelines_syncs_and_returns_consecutive_samples(
+    make_node: NodeFactory, make_sensor: SensorFactory
+) -> None:
+    """read_many(200, window=4) returns exactly 200 consecutive samples, one per SYNC sent."""
+    node = make_node(initial_counter=65500)
+    sensor = make_sensor()
+    samples = sensor.read_many(200, window=4)
+    counters = [s.counter for s in samples]
+    assert counters == [(65500 + i) % 65536 for i in range(200)]
+    assert node.stats.samples == 200
+    assert sensor.read().counter == (65500 + 200) % 65536
+
+
 def test_saturation_is_flagged_near_full_scale(
     make_node: NodeFactory, make_sensor: SensorFactory, physics: CellPhysics
 ) -> None:

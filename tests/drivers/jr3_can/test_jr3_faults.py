@@ -89,6 +89,31 @@ def test_unpaired_frames_never_make_a_sample(
     assert sensor.stats.unpaired_frames == 1 and sensor.stats.dropped_samples == 1
 
 
+def test_read_many_replaces_lost_pairs(make_node: NodeFactory, make_sensor: SensorFactory) -> None:
+    """With 5 % of frames lost, read_many(300) still returns 300 samples and counts the gaps."""
+    make_node(seed=2, faults=FaultConfig(drop_probability=0.05))
+    sensor = make_sensor()
+    samples = sensor.read_many(300, window=4)
+    counters = np.array([s.counter for s in samples])
+    assert len(samples) == 300 and np.all(np.diff(counters) >= 1)
+    assert sensor.stats.dropped_samples == counters[-1] - counters[0] + 1 - 300 > 0
+
+
+def test_read_many_asks_again_when_the_last_pair_is_lost(
+    make_node: NodeFactory, make_sensor: SensorFactory
+) -> None:
+    """The 10th pair lost with nothing after it to reveal the gap: one more SYNC fetches #11."""
+
+    def lose_9(frame: Frame) -> Frame | None:
+        is_sample = frame.arbitration_id >> 7 in (0x600 >> 7, 0x680 >> 7)
+        return None if is_sample and frame.data[6:8] == (9).to_bytes(2, "little") else frame
+
+    make_node(frame_hook=lose_9)
+    sensor = make_sensor()
+    counters = [s.counter for s in sensor.read_many(10, window=4)]
+    assert counters == [0, 1, 2, 3, 4, 5, 6, 7, 8, 10]
+
+
 @pytest.mark.parametrize("mode", ["sync", "async"])
 def test_silent_adapter_raises_sensor_stale(
     make_node: NodeFactory, make_sensor: SensorFactory, mode: str
@@ -174,3 +199,17 @@ def test_garbage_frames_from_another_node_do_not_disturb(
     assert counters == list(range(counters[0], counters[0] + 20))
     assert stats.rejected_total + stats.other_nodes > 150
     assert stats.rejected["EXTENDED_ID"] == 1
+
+
+def test_read_many_from_a_silent_adapter_raises_sensor_stale(
+    make_node: NodeFactory, make_sensor: SensorFactory
+) -> None:
+    """read_many does not wait forever on a dead adapter: SensorStale after about the stale time."""
+    node = make_node()
+    sensor = make_sensor(stale_timeout_s=0.05)
+    sensor.read()
+    node.set_faults(FaultConfig(silent=True))
+    t0 = time.monotonic()
+    with pytest.raises(SensorStale):
+        sensor.read_many(10)
+    assert time.monotonic() - t0 < 1.0

@@ -176,6 +176,56 @@ class Jr3CanSensor:
             "power supply"
         )
 
+    def read_many(self, count: int, window: int = 4) -> list[WrenchSample]:
+        """Return ``count`` consecutive fresh samples (e.g. to average per robot step).
+
+        Sync mode keeps up to ``window`` SYNCs in flight, so the adapter (or the
+        emulator) works while the host pairs the previous answer; a lost pair
+        is noticed by its counter gap and replaced. Async mode reads one by one.
+
+        Raises:
+            SensorStale: no sample for ``stale_timeout_s``; SensorError etc. as :meth:`read`.
+        """
+        if count < 0 or window < 1:
+            raise ValueError(f"count={count} must be >= 0 and window={window} >= 1")
+        if self.config.mode == "async":
+            return [self.read() for _ in range(count)]
+        self._ensure_initialised()
+        lst = self._listener
+        out: list[WrenchSample] = []
+        dropped_before = lst.dropped_samples
+        lst.callbacks.append(out.append)
+        try:
+            sent = presumed_lost = 0
+            waited_once = False
+            while len(out) < count:
+                lost = lst.dropped_samples - dropped_before + presumed_lost
+                while sent - len(out) - lost < min(window, count - len(out)):
+                    self._send(codec.Sync())
+                    sent += 1
+                have = len(out)
+                if self._wait_for(lambda n=have: len(out) > n or lst.bootup_pending,
+                                  self.config.stale_timeout_s / 2):
+                    waited_once = False
+                elif not waited_once:  # the last pairs in flight were lost: ask again
+                    waited_once = True
+                    presumed_lost = sent - len(out) - (lst.dropped_samples - dropped_before)
+                else:
+                    raise SensorStale(
+                        f"no sample from JR3 node {self.config.node_id} within "
+                        f"{self.config.stale_timeout_s} s: check the adapter; stop the robot"
+                    )
+                if lst.bootup_pending:
+                    raise SensorStale(
+                        f"JR3 node {self.config.node_id} rebooted during read_many; "
+                        "read again (it re-initialises)"
+                    )
+        finally:
+            lst.callbacks.remove(out.append)
+        with lst.cond:
+            self._last_seq = lst.seq
+        return out[:count]
+
     def _next_sample(self) -> WrenchSample | None:
         """Wait for a sample newer than the last read; None if a bootup interrupts."""
         lst = self._listener

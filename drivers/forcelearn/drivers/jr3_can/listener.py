@@ -84,6 +84,11 @@ class Jr3Listener(can.Listener):
                 np.asarray(full_scales, dtype=float) / COUNTS_PER_FULL_SCALE
             )
 
+    @property
+    def dropped_samples(self) -> int:
+        """Samples lost between paired counters so far (cheap; no snapshot)."""
+        return self._pairer.dropped
+
     def stats(self) -> Jr3Stats:
         """Return a snapshot of the counts."""
         with self.cond:
