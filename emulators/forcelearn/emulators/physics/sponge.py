@@ -34,7 +34,7 @@ for the learner and coarse enough to matter. Stiffness varies +-15 % over a
 80 mm, so over the paper's 20 steps of -5 mm (100 mm) the force at fixed Y
 drifts by several newtons. Softening 30 % and a 2 mm set (time constants of
 150 and 100 passes) make the initial force of a trial that starts 4 mm deep
-fall from about 9 N to about 4 N over the paper's ~240 repetitions.
+fall from 8.6 N to 3.6 N over the paper's ~240 repetitions.
 """
 
 from __future__ import annotations
