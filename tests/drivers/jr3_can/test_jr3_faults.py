@@ -8,12 +8,14 @@ from collections.abc import Callable
 import can
 import numpy as np
 import pytest
+from can.interfaces.virtual import VirtualBus
 
 from forcelearn.devices import WrenchSample
 from forcelearn.drivers.jr3_can.codec import Frame
+from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3 import FaultConfig, Jr3EmulatorNode
-from forcelearn.errors import SensorStale
+from forcelearn.errors import SensorBusError, SensorStale
 
 NodeFactory = Callable[..., Jr3EmulatorNode]
 SensorFactory = Callable[..., Jr3CanSensor]
@@ -213,3 +215,33 @@ def test_read_many_from_a_silent_adapter_raises_sensor_stale(
     with pytest.raises(SensorStale):
         sensor.read_many(10)
     assert time.monotonic() - t0 < 1.0
+
+
+class _FailingBus(VirtualBus):
+    """A virtual bus whose receive fails on demand, as a pulled USB adapter does."""
+
+    fail = False
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        if self.fail:
+            raise can.CanOperationError("adapter unplugged")
+        return super()._recv_internal(timeout)
+
+
+def test_receive_thread_bus_error_surfaces_as_sensor_bus_error(
+    make_node: NodeFactory, channel: str
+) -> None:
+    """A CanError in the Notifier thread is kept and raised from the next read, with its cause."""
+    make_node()
+    bus = _FailingBus(channel=channel)
+    sensor = Jr3CanSensor(bus, Jr3Config(mode="async", ack_timeout_s=0.2, stale_timeout_s=0.1))
+    try:
+        sensor.read()
+        bus.fail = True
+        with pytest.raises(SensorBusError) as info:
+            for _ in range(50):
+                sensor.read()
+        assert isinstance(info.value.__cause__, can.CanError)
+    finally:
+        sensor.close()
+        bus.shutdown()

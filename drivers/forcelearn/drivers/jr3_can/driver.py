@@ -266,6 +266,8 @@ class Jr3CanSensor:
         if self._closed:
             raise SensorError("the JR3 sensor is closed; create a new one")
         if self._listener.bus_error is not None:
+            if self._notifier is not None:  # its thread would spin on the failing bus
+                self._notifier.stop(timeout=1.0)
             raise SensorBusError(
                 f"CAN bus failed: {self._listener.bus_error}; check the adapter and restart"
             ) from self._listener.bus_error
@@ -311,14 +313,15 @@ class Jr3CanSensor:
             with lst.cond:
                 if predicate():
                     return True
-                if lst.bus_error is not None:
-                    self._check_open()
+                failed = lst.bus_error is not None
                 remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    return False
-                if self._notifier is not None:
+                if not failed and remaining > 0 and self._notifier is not None:
                     lst.cond.wait(remaining)
                     continue
+            if failed:
+                self._check_open()  # raises SensorBusError (outside the lock)
+            if remaining <= 0:
+                return False
             try:
                 msg = self.bus.recv(remaining)
             except can.CanError as exc:

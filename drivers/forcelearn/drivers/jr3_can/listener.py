@@ -164,10 +164,11 @@ class Jr3Listener(can.Listener):
         return sample
 
     def on_error(self, exc: Exception) -> None:
-        """Keep a bus error from the Notifier thread for the next public call."""
-        log.error("CAN bus error in the receive thread: %s", exc)
+        """Keep the first bus error from the Notifier thread for the next public call."""
         with self.cond:
-            self.bus_error = exc
+            if self.bus_error is None:
+                log.error("CAN bus error in the receive thread: %s", exc)
+                self.bus_error = exc
             self.cond.notify_all()
 
     def stop(self) -> None:
