@@ -85,8 +85,14 @@ class TrialLog:
     rows: list[dict[str, float]] = field(default_factory=list)
 
 
-def run_trial(learner: SRVLearner, task: EpisodicTask, index: int) -> tuple[TrialRecord, TrialLog]:
-    """Run one trial (S3-S8 per step until the path ends or a step fails); no phase update."""
+def run_trial(
+    learner: SRVLearner, task: EpisodicTask, index: int, learn: bool = True
+) -> tuple[TrialRecord, TrialLog]:
+    """Run one trial (S3-S8 per step until the path ends or a step fails); no phase update.
+
+    With ``learn=False`` the learner acts with its mean μ (no search) and learns
+    nothing: an evaluation of the learned policy that leaves the learner as it was.
+    """
     phase = learner.phase.name.lower()
     x = task.reset()
     log = TrialLog(index, phase)
@@ -94,9 +100,10 @@ def run_trial(learner: SRVLearner, task: EpisodicTask, index: int) -> tuple[Tria
     errors: list[float] = []
     failed = False
     for k in range(task.steps_per_trial):
-        action = learner.act(x)
+        action = learner.act(x, explore=learn)
         outcome = task.step(action.output)
-        learner.learn(action, outcome.r)
+        if learn:
+            learner.learn(action, outcome.r)
         rs.append(outcome.r)
         errors.append(outcome.force_error_n)
         row = {
@@ -124,6 +131,21 @@ def run_trial(learner: SRVLearner, task: EpisodicTask, index: int) -> tuple[Tria
         start_force_n=float(task.start_force_n),
     )
     return record, log
+
+
+def criterion_trial(records: Sequence[TrialRecord], success_trials: int) -> int | None:
+    """Return the trial whose success first completed ``success_trials`` successes in a row.
+
+    The global criterion, measured on the records whatever the phase, so runs
+    that never had a generalized phase (the specialized-only ablation) can be
+    compared with two-phase runs.
+    """
+    run = 0
+    for record in records:
+        run = 0 if record.failed else run + 1
+        if run == success_trials:
+            return record.index
+    return None
 
 
 def converged_trial(

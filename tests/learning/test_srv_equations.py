@@ -9,7 +9,8 @@ from forcelearn.learning import Action, BoxGrid, Dimension, Phase, SRVLearner, S
 
 def small_learner(**overrides: object) -> SRVLearner:
     """A 2-D 20 x 30 grid, d = (2, 3), γ = 0.5, two outputs, V0 = 1, W0 = 0."""
-    params = SRVParams(extent=(2, 3), gamma=0.5, **overrides)  # type: ignore[arg-type]
+    settings = {"initial_prediction": 1.0, **overrides}
+    params = SRVParams(extent=(2, 3), gamma=0.5, **settings)  # type: ignore[arg-type]
     grid = BoxGrid([Dimension("u", 0.0, 20.0, 20), Dimension("v", 0.0, 30.0, 30)])
     return SRVLearner(grid, n_outputs=2, params=params, rng=1)
 

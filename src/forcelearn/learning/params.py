@@ -34,12 +34,12 @@ class SRVParams:
     """d_i, neighbourhood extent per input dimension in boxes (§4: d1 = d2 = 5)."""
     success_trials: int = 10
     """N, the global criterion: consecutive successful trials to end the generalized phase."""
-    sigma_min: float = 0.05
+    sigma_min: float = 0.01
     """s(r̂ <= 0): exploration floor in action units (not in the paper)."""
     sigma_max: float = 0.5
     """s(r̂ >= 1): exploration at a failing prediction, action units (not in the paper)."""
-    initial_prediction: float = 1.0
-    """V at S1: r̂ of an untried box; 1 = the failure threshold (not in the paper)."""
+    initial_prediction: float = 0.5
+    """V at S1: r̂ of an untried box, half the failure threshold (not in the paper)."""
     initial_mean: float = 0.0
     """W at S1: μ of an untried box, action units (not in the paper)."""
     generalized_phase: bool = True

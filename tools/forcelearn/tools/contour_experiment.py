@@ -19,9 +19,16 @@ from forcelearn.errors import ConfigError
 from forcelearn.learning import SRVLearner, SRVParams
 from forcelearn.run_output import final_figures
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
-from forcelearn.trainer import TrainingResult, TrialRecord, converged_trial, train
+from forcelearn.trainer import (
+    TrainingResult,
+    TrialRecord,
+    converged_trial,
+    criterion_trial,
+    run_trial,
+    train,
+)
 
-DEFAULT_TRIALS = 2000
+DEFAULT_TRIALS = 4000
 
 
 @dataclass(frozen=True)
@@ -77,12 +84,14 @@ def run_contour(
     started = time.perf_counter()
     result = train(learner, task, config.trials, on_trial=on_trial)
     wall_s = time.perf_counter() - started
+    greedy, _ = run_trial(learner, task, len(result.records), learn=False)
     summary: dict[str, Any] = {
         "task": "contour",
         "mode": "two-phase" if config.learner.generalized_phase else "specialized-only",
         "seed": config.seed,
         "trials": len(result.records),
         "phase_switch_trial": result.switch_trial,
+        "criterion_trial": criterion_trial(result.records, config.learner.success_trials),
         "converged_trial": converged_trial(
             result.records, task.steps_per_trial, task.desired_force_n
         ),
@@ -93,6 +102,8 @@ def run_contour(
             else None
         ),
         "failures": sum(r.failed for r in result.records),
+        "greedy_steps": greedy.steps,
+        "greedy_force_rms_n": greedy.force_rms_n,
         "steps": result.steps,
         "wall_s": round(wall_s, 3),
         "steps_per_s": round(result.steps / wall_s, 1) if wall_s > 0 else None,

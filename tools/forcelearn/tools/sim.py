@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="two-link arm tracks force along a circular surface (paper §4)",
         description="Learn contour force tracking with the two-link arm of paper §4.",
     )
-    contour.add_argument("--trials", type=int, help="number of trials (default 2000)")
+    contour.add_argument("--trials", type=int, help="number of trials (default 4000)")
     contour.add_argument("--seed", type=int, help="random seed (default 0)")
     contour.add_argument(
         "--specialized-only", action="store_true", help="skip the generalized phase (ablation)"
