@@ -179,9 +179,11 @@ class Jr3CanSensor:
     def read_many(self, count: int, window: int = 4) -> list[WrenchSample]:
         """Return ``count`` consecutive fresh samples (e.g. to average per robot step).
 
-        Sync mode keeps up to ``window`` SYNCs in flight, so the adapter (or the
-        emulator) works while the host pairs the previous answer; a lost pair
-        is noticed by its counter gap and replaced. Async mode reads one by one.
+        Sync mode sends SYNCs in batches of up to ``window`` and sends the next
+        batch when every answer of the last one is in (or known lost by its
+        counter gap); batching saves a thread hand-over per sample on emulated
+        runs. Keep ``window`` small on a real adapter (its transmit queue is
+        short). Async mode reads one by one.
 
         Raises:
             SensorStale: no sample for ``stale_timeout_s``; SensorError etc. as :meth:`read`.
@@ -200,9 +202,10 @@ class Jr3CanSensor:
             waited_once = False
             while len(out) < count:
                 lost = lst.dropped_samples - dropped_before + presumed_lost
-                while sent - len(out) - lost < min(window, count - len(out)):
-                    self._send(codec.Sync())
-                    sent += 1
+                if sent - len(out) - lost <= 0:  # batch drained: send the next batch
+                    for _ in range(min(window, count - len(out))):
+                        self._send(codec.Sync())
+                        sent += 1
                 have = len(out)
                 if self._wait_for(lambda n=have: len(out) > n or lst.bootup_pending,
                                   self.config.stale_timeout_s / 2):

@@ -28,6 +28,7 @@ from forcelearn.drivers.jr3_can.scaling import COUNTS_PER_FULL_SCALE
 log = logging.getLogger(__name__)
 
 SampleCallback = Callable[[WrenchSample], None]
+_NOT_SATURATED = (False,) * 6
 
 
 @dataclass
@@ -149,13 +150,15 @@ class Jr3Listener(can.Listener):
         if self._scale is None:
             self._stats.samples_before_full_scales += 1
             return None
-        raw = np.array(pair.raw, dtype=float)
         limit = self.near_saturation_counts
+        saturated = _NOT_SATURATED
+        if max(pair.raw) >= limit or min(pair.raw) <= -limit:
+            saturated = tuple(abs(v) >= limit for v in pair.raw)
         sample = WrenchSample(
-            wrench=raw * self._scale,
+            wrench=np.array(pair.raw, dtype=float) * self._scale,
             timestamp_s=time.monotonic(),
             counter=pair.counter,
-            saturated=tuple(bool(abs(v) >= limit) for v in pair.raw),
+            saturated=saturated,
         )
         self._stats.samples += 1
         self.latest = sample

@@ -151,10 +151,16 @@ class Sponge:
         self.params = params or SpongeParams()
         self.passes = passes
         self._touched = False
+        self._memo_key: tuple[float, ...] | None = None
+        self._memo_force = np.zeros(3)
 
     def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
         """Return the reaction force (3,) in N, world frame, at the present pass count."""
-        return contact_force_n(self.params, self.passes, position_mm)
+        key = (self.passes, *(float(c) for c in position_mm))
+        if key != self._memo_key:  # the sensor asks thousands of times per pose
+            self._memo_key = key
+            self._memo_force = contact_force_n(self.params, self.passes, position_mm)
+        return self._memo_force.copy()
 
     def observe_pose(self, position_mm: np.ndarray) -> None:
         """Note where the tool is; completes a pass when it leaves the sponge after contact."""
