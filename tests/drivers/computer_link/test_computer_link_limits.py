@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
 
 from forcelearn.devices import Pose
@@ -15,6 +17,25 @@ TIGHT = Limits(
     max_step_mm=5.0,
     max_speed_mm_s=100.0,
 )
+
+
+def settled_bytes_received(emulator, quiet_s: float = 0.05, limit_s: float = 2.0) -> int:
+    """Wait until the emulator's byte count stops changing (the driver's trailing DLE ACK).
+
+    The driver acknowledges each reply after it has read it, so the last ACK of
+    the previous call may still be on its way when the test takes its baseline.
+    """
+    deadline = time.monotonic() + limit_s
+    count = emulator.bytes_received
+    quiet_since = time.monotonic()
+    while time.monotonic() < deadline:
+        time.sleep(0.005)
+        now = emulator.bytes_received
+        if now != count:
+            count, quiet_since = now, time.monotonic()
+        elif time.monotonic() - quiet_since >= quiet_s:
+            return count
+    raise AssertionError("the emulator kept receiving bytes for 2 s")
 
 
 @pytest.mark.parametrize(
@@ -33,10 +54,10 @@ def test_command_outside_a_limit_is_refused_before_any_byte_is_sent(
 ) -> None:
     """SafetyStop names the limit; the controller receives nothing and does not move."""
     robot = connect(emulator.url, limits=TIGHT)
-    received = emulator.bytes_received
+    received = settled_bytes_received(emulator)
     with pytest.raises(SafetyStop, match=match):
         command(robot)
-    assert emulator.bytes_received == received
+    assert settled_bytes_received(emulator) == received
     assert emulator.move_count == 0
 
 
@@ -53,10 +74,10 @@ def test_step_limit_is_measured_from_the_last_commanded_position(emulator, conne
 def test_non_unit_quaternion_is_a_value_error(emulator, connect) -> None:
     """A malformed orientation is a bad argument, refused before sending."""
     robot = connect(emulator.url)
-    received = emulator.bytes_received
+    received = settled_bytes_received(emulator)
     with pytest.raises(ValueError, match="unit length"):
         robot.move_to(Pose(900.0, 0.0, 600.0, (1.0, 1.0, 0.0, 0.0)))
-    assert emulator.bytes_received == received
+    assert settled_bytes_received(emulator) == received
 
 
 def test_link_config_from_dict_builds_and_names_bad_keys() -> None:
