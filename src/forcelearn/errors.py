@@ -19,6 +19,7 @@ driver boundary with ``raise ... from``.
      │    ├── SensorStale                  no sample within the watchdog time
      │    └── SensorBusError               the CAN bus itself failed
      └── SafetyStop                        a safety limit stopped the robot
+          └── ForceLimitExceeded           the contact force passed safety.max_force_n
 """
 
 from __future__ import annotations
@@ -75,3 +76,7 @@ class SensorBusError(SensorError):
 
 class SafetyStop(ForcelearnError):
     """A safety limit (force, step, workspace, stale sensor) stopped the robot."""
+
+
+class ForceLimitExceeded(SafetyStop):
+    """The measured contact force passed the configured maximum; the robot retracts."""

@@ -1,0 +1,165 @@
+"""A cell: a robot, a force sensor and the force filter, with the force limit on every reading.
+
+The cell is what the trainer's tasks move and read. It knows the devices only
+through the :class:`~forcelearn.devices.Robot` and
+:class:`~forcelearn.devices.ForceSensor` protocols, so an emulated cell and a
+real one are the same object with other drivers inside.
+
+Safety, always on:
+
+* every motion goes through the robot driver, which refuses a step above its
+  limit or a target outside its workspace before any byte is sent;
+* every reading goes through the sensor driver, whose watchdog raises
+  ``SensorStale`` when samples stop;
+* :meth:`Cell.measure_force_n` raises :class:`~forcelearn.errors.ForceLimitExceeded`
+  when the filtered force, or any single sample, passes ``max_force_n``;
+* any device error stops the robot (best effort) before it propagates.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from forcelearn.devices import ForceSensor, Pose, Robot, WrenchSample
+from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded
+from forcelearn.filtering import ForceFilter
+
+log = logging.getLogger(__name__)
+
+WrenchCompensation = Callable[[np.ndarray, Pose], np.ndarray]
+"""Maps a measured wrench (sensor frame, N and N·m) and the pose to a compensated one."""
+
+
+class Cell:
+    """A robot + force sensor + force filter, guarded by a force limit.
+
+    Args:
+        robot: the robot driver.
+        sensor: the force/torque sensor driver.
+        force_filter: the Kalman filter of the normal force (its config picks
+            the axis and sign of the normal force).
+        max_force_n: normal force (N) above which motion stops and the trial fails.
+        samples_per_step: sensor samples read (and filtered) after each move.
+        compensation: optional bias and tool-gravity compensation (calibration).
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        sensor: ForceSensor,
+        force_filter: ForceFilter,
+        max_force_n: float,
+        samples_per_step: int = 5,
+        compensation: WrenchCompensation | None = None,
+    ):
+        if not (math.isfinite(max_force_n) and max_force_n > 0):
+            raise ConfigError(f"max_force_n must be a finite number > 0, got {max_force_n!r}")
+        if samples_per_step < 1:
+            raise ConfigError(f"samples_per_step must be >= 1, got {samples_per_step}")
+        self.robot = robot
+        self.sensor = sensor
+        self.force_filter = force_filter
+        self.max_force_n = float(max_force_n)
+        self.samples_per_step = int(samples_per_step)
+        self.compensation = compensation
+        self._pose: Pose | None = None
+
+    @property
+    def pose(self) -> Pose:
+        """The last pose commanded or read (reads the robot if none yet)."""
+        if self._pose is None:
+            self._pose = self._guarded(self.robot.read_pose)
+        return self._pose
+
+    def read_pose(self) -> Pose:
+        """Read the robot's pose now."""
+        self._pose = self._guarded(self.robot.read_pose)
+        return self._pose
+
+    def move_to(self, pose: Pose) -> None:
+        """Move to ``pose`` (driver limits apply); stops the robot on any device error."""
+        self._pose = None
+        self._guarded(self.robot.move_to, pose)
+        self._pose = pose
+
+    def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False) -> int:
+        """Move to ``target`` in straight steps of at most ``max_step_mm``; returns the count.
+
+        Steps are planned 1 % under the limit, so rounding never asks the driver
+        for a step it must refuse. With ``guard_force`` (moves that may meet
+        contact) one sample is read after every intermediate step, so the force
+        limit stops the robot on the way, not only at the target.
+        """
+        start = self.pose
+        distance = float(np.linalg.norm(target.position_mm - start.position_mm))
+        count = max(1, math.ceil(distance / (0.99 * max_step_mm)))
+        for i in range(1, count + 1):
+            f = i / count
+            self.move_to(
+                Pose(
+                    start.x_mm + f * (target.x_mm - start.x_mm),
+                    start.y_mm + f * (target.y_mm - start.y_mm),
+                    start.z_mm + f * (target.z_mm - start.z_mm),
+                    target.quaternion,
+                )
+            )
+            if guard_force and i < count:
+                self.measure_force_n(1)
+        return count
+
+    def reset_filter(self) -> None:
+        """Forget the filter's track (at the start of a trial)."""
+        self.force_filter.reset()
+
+    def measure_force_n(self, samples: int | None = None) -> float:
+        """Read ``samples`` sensor samples through the filter; return the normal force (N).
+
+        Raises:
+            ForceLimitExceeded: a sample or the filtered force passed ``max_force_n``
+                (the robot has been stopped).
+            SensorStale: no sample arrived in the watchdog time (robot stopped).
+        """
+        count = samples or self.samples_per_step
+        read_many = getattr(self.sensor, "read_many", None)  # batched SYNCs where offered
+        if read_many is not None:
+            batch = self._guarded(read_many, count)
+        else:
+            batch = [self._guarded(self.sensor.read) for _ in range(count)]
+        peak = -math.inf
+        for raw in batch:
+            sample = self._compensated(raw)
+            self.force_filter.on_sample(sample)
+            config = self.force_filter.config
+            peak = max(peak, config.sign * float(sample.wrench[config.axis]))
+        force = self.force_filter.force_n
+        if max(peak, force) > self.max_force_n:
+            self.stop()
+            raise ForceLimitExceeded(
+                f"contact force {max(peak, force):.2f} N passed safety.max_force_n = "
+                f"{self.max_force_n} N; the robot was stopped"
+            )
+        return force
+
+    def stop(self) -> None:
+        """Stop the robot now (best effort: a failing link is logged, not raised)."""
+        try:
+            self.robot.stop()
+        except ForcelearnError as exc:
+            log.error("could not stop the robot: %s", exc)
+
+    def _compensated(self, sample: WrenchSample) -> WrenchSample:
+        if self.compensation is None:
+            return sample
+        wrench = self.compensation(sample.wrench, self.pose)
+        return WrenchSample(wrench, sample.timestamp_s, sample.counter, sample.saturated)
+
+    def _guarded(self, call, *args):
+        try:
+            return call(*args)
+        except ForcelearnError:
+            self.stop()
+            raise

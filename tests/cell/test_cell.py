@@ -1,0 +1,135 @@
+"""The Cell's guards, against small fakes: force limit, device errors, stepped moves."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from forcelearn.cell import Cell
+from forcelearn.devices import Pose, WrenchSample
+from forcelearn.errors import ConfigError, ForceLimitExceeded, LinkTimeout, SensorStale
+from forcelearn.filtering import ForceFilter, ForceFilterConfig
+
+
+class FakeRobot:
+    """Records moves and stops; can be told to fail."""
+
+    def __init__(self) -> None:
+        self.pose = Pose(0.0, 0.0, 0.0)
+        self.moves: list[Pose] = []
+        self.stops = 0
+        self.fail_next = False
+
+    def read_pose(self) -> Pose:
+        """Return the last pose."""
+        return self.pose
+
+    def move_to(self, pose: Pose) -> None:
+        """Record the move, or raise a link timeout when told to."""
+        if self.fail_next:
+            raise LinkTimeout("no ACK")
+        self.moves.append(pose)
+        self.pose = pose
+
+    def stop(self) -> None:
+        """Count stops."""
+        self.stops += 1
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+class FakeSensor:
+    """Returns scripted normal forces on Fy (sign +1); can go stale."""
+
+    def __init__(self, forces: list[float]) -> None:
+        self.forces = list(forces)
+        self.counter = 0
+        self.stale = False
+
+    def read(self) -> WrenchSample:
+        """Return the next scripted sample."""
+        if self.stale:
+            raise SensorStale("no sample")
+        self.counter += 1
+        value = self.forces.pop(0) if self.forces else 0.0
+        return WrenchSample(np.array([0.0, value, 0, 0, 0, 0]), 0.0, self.counter)
+
+    def zero_offsets(self) -> None:
+        """Nothing to zero."""
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def make_cell(forces: list[float], max_force_n: float = 50.0) -> tuple[Cell, FakeRobot, FakeSensor]:
+    """A cell over the fakes with a filter on +Fy."""
+    robot, sensor = FakeRobot(), FakeSensor(forces)
+    cell = Cell(
+        robot,
+        sensor,
+        ForceFilter(ForceFilterConfig(axis=1, sign=1.0)),
+        max_force_n,
+        samples_per_step=3,
+    )
+    return cell, robot, sensor
+
+
+def test_force_within_the_limit_is_filtered_and_returned() -> None:
+    """Three samples near 10 N give a filtered force near 10 N; the robot is not stopped."""
+    cell, robot, _ = make_cell([10.0, 10.1, 9.9])
+    assert cell.measure_force_n() == pytest.approx(10.0, abs=0.2)
+    assert robot.stops == 0
+
+
+def test_a_single_sample_over_the_limit_stops_the_robot() -> None:
+    """One spike above max_force_n is enough: ForceLimitExceeded, robot stopped."""
+    cell, robot, _ = make_cell([10.0, 80.0, 10.0])
+    with pytest.raises(ForceLimitExceeded, match="max_force_n"):
+        cell.measure_force_n()
+    assert robot.stops == 1
+
+
+def test_a_stale_sensor_stops_the_robot() -> None:
+    """SensorStale propagates after the robot was stopped."""
+    cell, robot, sensor = make_cell([])
+    sensor.stale = True
+    with pytest.raises(SensorStale):
+        cell.measure_force_n()
+    assert robot.stops == 1
+
+
+def test_a_link_error_during_a_move_stops_the_robot() -> None:
+    """Any device error on a move stops the robot before it propagates."""
+    cell, robot, _ = make_cell([])
+    robot.fail_next = True
+    with pytest.raises(LinkTimeout):
+        cell.move_to(Pose(1.0, 0.0, 0.0))
+    assert robot.stops == 1
+
+
+def test_long_moves_are_cut_into_steps_under_the_limit() -> None:
+    """A 95 mm move with a 10 mm limit takes 10 steps, none over 10 mm, ending on target."""
+    cell, robot, _ = make_cell([])
+    count = cell.move_in_steps(Pose(0.0, 95.0, 0.0), max_step_mm=10.0)
+    assert count == 10 and len(robot.moves) == 10
+    positions = [Pose(0, 0, 0).position_mm] + [p.position_mm for p in robot.moves]
+    steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
+    assert steps.max() <= 10.0
+    assert robot.moves[-1].y_mm == pytest.approx(95.0)
+
+
+@pytest.mark.parametrize("limit", [0.0, -1.0, float("inf"), float("nan")])
+def test_the_force_limit_cannot_be_switched_off(limit: float) -> None:
+    """A zero, negative, infinite or NaN force limit is refused."""
+    with pytest.raises(ConfigError):
+        make_cell([], max_force_n=limit)
+
+
+def test_guarded_long_moves_check_the_force_after_every_intermediate_step() -> None:
+    """Pressing 40 mm in 10 mm steps stops at the step where the force passes the limit."""
+    cell, robot, _ = make_cell([5.0, 30.0, 70.0, 90.0], max_force_n=50.0)
+    with pytest.raises(ForceLimitExceeded):
+        cell.move_in_steps(Pose(0.0, -40.0, 0.0), max_step_mm=10.0, guard_force=True)
+    assert len(robot.moves) == 3  # stopped after the third step, never reached the target
+    assert robot.stops == 1

@@ -1,0 +1,84 @@
+"""The emulated cell through the real drivers: config, start force, the safety paths."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from forcelearn.emulators.jr3.faults import FaultConfig
+from forcelearn.errors import ConfigError, SensorStale
+from forcelearn.tasks.surface import SurfaceTask
+from forcelearn.tools.cell_config import load_cell_config
+from forcelearn.tools.cell_session import CellSession
+
+
+@pytest.fixture()
+def session():
+    """An emulated cell with the default config, closed after the test."""
+    with CellSession(load_cell_config(), seed=1) as opened:
+        yield opened
+
+
+def test_default_config_is_the_emulated_cell_with_section_5_values() -> None:
+    """No file: emulated robot and sensor, γ = 0.8, specialized α = 1, 19.61 N."""
+    config = load_cell_config()
+    assert config.robot_emulated and config.sensor_emulated
+    assert config.learner.gamma == 0.8 and config.learner.alpha_specialized == 1.0
+    assert config.task.desired_force_n == pytest.approx(19.6133)
+    assert config.sensor.stale_timeout_s == config.safety.stale_sensor_s
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("[safety]\nmax_force_n = 0\n", "safety.max_force_n"),
+        ("[safety]\nmax_force_n = inf\n", "cannot be switched off"),
+        ("[safety]\nstale_sensor_s = -1\n", "safety.stale_sensor_s"),
+        ("[robot]\nlimits = 1\n", "set the limits in \\[safety\\]"),
+        ("[sensor]\nnode = 3\n", "sensor.node"),
+        ("[emulator.sponge]\nstiffness = 3\n", "emulator.sponge.stiffness"),
+        ("[task]\nretract_y_mm = 0\n", "retract_y_mm"),
+    ],
+)
+def test_bad_cell_configs_name_the_key(tmp_path: Path, text: str, message: str) -> None:
+    """Each bad key or value is a ConfigError that names it; limits cannot be disabled."""
+    path = tmp_path / "cell.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message):
+        load_cell_config(path)
+
+
+def test_reset_presses_into_the_sponge_and_measures_the_start_force(session) -> None:
+    """The start pose gives a plausible contact force through pty, CAN and the filter."""
+    config = session.config
+    task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
+    assert task.reset().tolist() == [0.0]
+    assert 5.0 < task.start_force_n < 20.0
+    pose = session.robot_emulator.pose
+    assert (pose.y_mm, pose.z_mm) == pytest.approx(config.task.start_mm[1:])
+
+
+def test_pressing_past_the_force_limit_fails_the_step_and_retracts(session) -> None:
+    """A 40 mm-deep command meets the backing: limit hit on the way, trial failed, pulled out."""
+    config = session.config
+    task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
+    task.reset()
+    outcome = task.step(np.array([config.task.start_mm[1] - 40.0]))
+    assert outcome.failed and outcome.extras["limit_hit"] == 1.0
+    assert session.robot_emulator.pose.y_mm == pytest.approx(config.task.retract_y_mm)
+    assert session.sponge is not None and session.sponge.passes == 1
+
+
+def test_a_silent_sensor_stops_the_robot_and_raises_stale(session) -> None:
+    """When the adapter goes silent the watchdog raises SensorStale and motion stops."""
+    config = session.config
+    task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
+    task.reset()
+    moves = session.robot_emulator.move_count
+    session.sensor_emulator.set_faults(FaultConfig(silent=True))
+    with pytest.raises(SensorStale):
+        task.step(np.array([config.task.start_mm[1]]))
+    assert session.robot_emulator.move_count == moves + 1  # the step's move, nothing after
+    assert not session.robot.read_status().moving

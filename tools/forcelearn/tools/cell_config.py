@@ -1,0 +1,206 @@
+"""The cell configuration: one TOML file describes a real or an emulated cell and its run.
+
+Tables (every key optional; defaults are the emulated cell and the paper's §5):
+
+=============  ===============================================================
+table          holds
+=============  ===============================================================
+``[robot]``    computer link: ``url``, ``baudrate``, ``bytesize``, ``parity``,
+               ``stopbits``, ``ack_timeout_s``, ``reply_timeout_s``,
+               ``nak_retries``, ``enq_retries`` (``url = "emulated"`` starts the
+               robot-controller emulator on a pty)
+``[sensor]``   CAN bus: ``interface``, ``channel``, ``bitrate``; JR3 adapter:
+               ``node_id``, ``mode``, ``cutoff_hz``, ``period_us``, ``full_scales``,
+               ``ack_timeout_s``, ``opcodes_version``, ``log_path``
+               (``interface = "emulated"`` starts the JR3 emulator on the
+               in-process virtual bus)
+``[filter]``   the Kalman force filter; ``axis`` and ``sign`` pick the normal force
+``[safety]``   ``max_force_n``, ``max_step_mm``, ``workspace_min_mm``,
+               ``workspace_max_mm``, ``stale_sensor_s``: always on, never off
+``[task]``     the §5 surface task (:class:`SurfaceTaskSpec`)
+``[learner]``  SRV hyperparameters (§5 values as defaults)
+``[run]``      ``trials``, ``seed``
+``[emulator]`` physics of the emulated cell: ``[emulator.sponge]``,
+               ``[emulator.sensor]``, ``[emulator.arm]`` (ignored on a real cell)
+``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``
+=============  ===============================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from forcelearn.config import build, check_sections, read_toml
+from forcelearn.drivers.computer_link.config import Limits, LinkConfig
+from forcelearn.drivers.jr3_can.config import Jr3Config
+from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.physics.sponge import SpongeParams
+from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+from forcelearn.errors import ConfigError
+from forcelearn.filtering import ForceFilterConfig
+from forcelearn.learning import SRVParams
+from forcelearn.tasks.surface import SurfaceTaskSpec
+
+EMULATED = "emulated"
+
+SECTION_LEARNER_DEFAULTS: dict[str, Any] = {
+    "gamma": 0.8,  # γ, §5
+    "alpha_generalized": 0.5,  # α, §5 generalized
+    "beta_generalized": 0.5,  # β, §5 generalized
+    "alpha_specialized": 1.0,  # α, §5 specialized
+    "beta_specialized": 0.5,  # β, §5 specialized
+    "extent": (3,),  # d, one input (not given in §5)
+    "success_trials": 10,  # N, §5
+}
+"""The paper's §5 values for the learner (the §4 ones are SRVParams' own defaults)."""
+
+
+@dataclass(frozen=True)
+class SafetyLimits:
+    """Limits on every path that moves the robot; they cannot be switched off.
+
+    Units in the names. The computer-link driver enforces the step and the
+    workspace before any byte is sent; the sensor driver raises ``SensorStale``
+    after ``stale_sensor_s`` without a sample; the cell retracts and fails the
+    trial above ``max_force_n``.
+    """
+
+    max_force_n: float = 60.0
+    """Largest normal force before the cell retracts (3 x the §5 target)."""
+    max_step_mm: float = 10.0
+    workspace_min_mm: tuple[float, float, float] = (700.0, -60.0, -130.0)
+    workspace_max_mm: tuple[float, float, float] = (1100.0, 60.0, 700.0)
+    stale_sensor_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("max_force_n", "max_step_mm", "stale_sensor_s"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ConfigError(
+                    f"safety.{name} = {value!r}: must be a finite number > 0; safety limits "
+                    "cannot be switched off"
+                )
+        Limits(tuple(self.workspace_min_mm), tuple(self.workspace_max_mm), self.max_step_mm)
+
+
+@dataclass(frozen=True)
+class BusConfig:
+    """Which python-can bus reaches the JR3 adapter."""
+
+    interface: str = EMULATED
+    channel: str = "forcelearn-jr3"
+    bitrate: int = 1_000_000
+
+
+@dataclass(frozen=True)
+class EmulatorConfig:
+    """Physics and device models of the emulated cell."""
+
+    sponge: SpongeParams = field(default_factory=SpongeParams)
+    sensor: SensorModelParams = field(default_factory=SensorModelParams)
+    arm: ArmConfig = field(default_factory=ArmConfig)
+
+
+@dataclass(frozen=True)
+class CellConfig:
+    """Everything ``forcelearn run`` and ``forcelearn check`` need."""
+
+    robot: LinkConfig = field(default_factory=lambda: LinkConfig(url=EMULATED))
+    bus: BusConfig = field(default_factory=BusConfig)
+    sensor: Jr3Config = field(default_factory=lambda: Jr3Config(zero_on_init=True))
+    filter: ForceFilterConfig = field(default_factory=lambda: ForceFilterConfig(axis=1, sign=-1.0))
+    safety: SafetyLimits = field(default_factory=SafetyLimits)
+    task: SurfaceTaskSpec = field(default_factory=SurfaceTaskSpec)
+    learner: SRVParams = field(default_factory=lambda: SRVParams(**SECTION_LEARNER_DEFAULTS))
+    emulator: EmulatorConfig = field(default_factory=EmulatorConfig)
+    calibration_file: Path | None = None
+    trials: int = 300
+    seed: int = 0
+    source: Path | None = None
+
+    @property
+    def robot_emulated(self) -> bool:
+        """True when the robot link goes to the built-in emulator."""
+        return self.robot.url == EMULATED
+
+    @property
+    def sensor_emulated(self) -> bool:
+        """True when the sensor bus goes to the built-in emulator."""
+        return self.bus.interface == EMULATED
+
+
+_BUS_KEYS = {"interface", "channel", "bitrate"}
+
+
+def load_cell_config(path: str | Path | None = None) -> CellConfig:
+    """Read a cell config (or return the emulated default); errors name the key."""
+    data = read_toml(path) if path else {}
+    check_sections(
+        data,
+        {
+            "robot",
+            "sensor",
+            "filter",
+            "safety",
+            "task",
+            "learner",
+            "run",
+            "emulator",
+            "calibration",
+        },
+    )
+    safety = build(SafetyLimits, data.get("safety"), "safety")
+    limits = Limits(safety.workspace_min_mm, safety.workspace_max_mm, safety.max_step_mm)
+    robot_table = {"url": EMULATED, **data.get("robot", {})}
+    if "limits" in robot_table:
+        raise ConfigError("robot.limits: set the limits in [safety] (one place for all limits)")
+    robot = replace(build(LinkConfig, robot_table, "robot"), limits=limits)
+
+    sensor_table = dict(data.get("sensor", {}))
+    bus = build(
+        BusConfig, {k: sensor_table.pop(k) for k in list(sensor_table) if k in _BUS_KEYS}, "sensor"
+    )
+    if "stale_timeout_s" in sensor_table:
+        raise ConfigError("sensor.stale_timeout_s: set safety.stale_sensor_s instead")
+    sensor_table.setdefault("zero_on_init", True)
+    sensor = build(Jr3Config, {**sensor_table, "stale_timeout_s": safety.stale_sensor_s}, "sensor")
+
+    filter_table = {"axis": 1, "sign": -1.0, **data.get("filter", {})}
+    emulator_table = data.get("emulator", {})
+    check_sections(emulator_table, {"sponge", "sensor", "arm"})
+    emulator = EmulatorConfig(
+        sponge=build(SpongeParams, emulator_table.get("sponge"), "emulator.sponge"),
+        sensor=build(SensorModelParams, emulator_table.get("sensor"), "emulator.sensor"),
+        arm=build(ArmConfig, emulator_table.get("arm"), "emulator.arm"),
+    )
+    run = dict(data.get("run", {}))
+    unknown = sorted(set(run) - {"trials", "seed"})
+    if unknown:
+        raise ConfigError(f"unknown key(s) {['run.' + k for k in unknown]}; known: trials, seed")
+    calibration = dict(data.get("calibration", {}))
+    if set(calibration) - {"file"}:
+        raise ConfigError("[calibration] takes one key, file")
+    calibration_file = None
+    if "file" in calibration:
+        calibration_file = Path(calibration["file"])
+        if not calibration_file.is_absolute() and path is not None:
+            calibration_file = Path(path).parent / calibration_file
+    return CellConfig(
+        robot=robot,
+        bus=bus,
+        sensor=sensor,
+        filter=build(ForceFilterConfig, filter_table, "filter"),
+        safety=safety,
+        task=build(SurfaceTaskSpec, data.get("task"), "task"),
+        learner=build(
+            SRVParams, {**SECTION_LEARNER_DEFAULTS, **data.get("learner", {})}, "learner"
+        ),
+        emulator=emulator,
+        calibration_file=calibration_file,
+        trials=int(run.get("trials", 300)),
+        seed=int(run.get("seed", 0)),
+        source=Path(path) if path else None,
+    )

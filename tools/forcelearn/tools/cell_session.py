@@ -1,0 +1,156 @@
+"""Open a cell as its config says: real devices, or the built-in emulators behind real drivers.
+
+An emulated cell starts, in this process, the robot-controller emulator on a
+pseudo-terminal and the JR3 emulator on a private ``virtual`` CAN channel, both
+reading one :class:`CellPhysics` with the sponge; the drivers then connect to
+them exactly as they would to the devices (pyserial on the pty path,
+python-can on the bus). The trainer gets the same :class:`~forcelearn.cell.Cell`
+either way.
+
+``CellSession.emulator_state()`` / ``load_emulator_state()`` checkpoint what a
+bit-identical resume needs (sponge wear, sensor noise generator, bias,
+offsets, frame counter).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import uuid
+from dataclasses import replace
+from typing import Any
+
+import can
+
+from forcelearn.cell import Cell
+from forcelearn.drivers.computer_link import ComputerLinkRobot
+from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
+from forcelearn.emulators.jr3.node import Jr3EmulatorNode
+from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.physics.sponge import Sponge
+from forcelearn.emulators.physics.tool import ToolParams
+from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
+from forcelearn.errors import ForcelearnError, LinkError, SensorBusError
+from forcelearn.filtering import ForceFilter
+from forcelearn.tools.cell_config import CellConfig
+
+log = logging.getLogger(__name__)
+
+
+class CellSession:
+    """The devices of one cell, opened together and closed together (a context manager).
+
+    Args:
+        config: the cell configuration.
+        seed: seed of the emulated sensor's noise (ignored on a real cell).
+    """
+
+    def __init__(self, config: CellConfig, seed: int = 0):
+        self.config = config
+        self.physics: CellPhysics | None = None
+        self.sponge: Sponge | None = None
+        self.robot_emulator: RobotControllerEmulator | None = None
+        self.sensor_emulator: Jr3EmulatorNode | None = None
+        self._bus: can.BusABC | None = None
+        self.robot: ComputerLinkRobot | None = None
+        self.sensor: Jr3CanSensor | None = None
+        self.cell: Cell | None = None
+        self._stack = contextlib.ExitStack()
+        try:
+            self._open(seed)
+        except BaseException:
+            self.close()
+            raise
+
+    def _open(self, seed: int) -> None:
+        cfg = self.config
+        if cfg.robot_emulated or cfg.sensor_emulated:
+            self.sponge = Sponge(cfg.emulator.sponge)
+            self.physics = CellPhysics(self.sponge, cfg.emulator.arm.home, ToolParams())
+        robot_config = cfg.robot
+        if cfg.robot_emulated:
+            self.robot_emulator = RobotControllerEmulator(
+                "pty", config=cfg.emulator.arm, physics=self.physics
+            )
+            self._stack.callback(self.robot_emulator.stop)
+            robot_config = replace(robot_config, url=self.robot_emulator.start())
+        channel = cfg.bus.channel
+        if cfg.sensor_emulated:
+            channel = f"{cfg.bus.channel}-{uuid.uuid4().hex[:8]}"
+            self.sensor_emulator = Jr3EmulatorNode(
+                self.physics,  # type: ignore[arg-type]
+                channel=channel,
+                node_id=cfg.sensor.node_id,
+                model=cfg.emulator.sensor,
+                seed=seed,
+            )
+            self._stack.callback(self.sensor_emulator.close)
+            self._bus = can.Bus(interface="virtual", channel=channel)
+        else:
+            try:
+                self._bus = can.Bus(
+                    interface=cfg.bus.interface, channel=cfg.bus.channel, bitrate=cfg.bus.bitrate
+                )
+            except (can.CanError, OSError, ValueError, ImportError) as exc:
+                raise SensorBusError(
+                    f"cannot open CAN interface {cfg.bus.interface!r} channel "
+                    f"{cfg.bus.channel!r} at {cfg.bus.bitrate} bit/s: {exc}; check the "
+                    "adapter is plugged in, the interface name and the channel "
+                    "(e.g. socketcan/can0, pcan/PCAN_USBBUS1, slcan/<serial port>)"
+                ) from exc
+        self._stack.callback(self._bus.shutdown)
+        try:
+            self.robot = ComputerLinkRobot(robot_config)
+        except LinkError as exc:
+            raise LinkError(
+                f"{exc}; check [robot] url (port name), baudrate and framing, that the "
+                "controller is on and its computer link enabled"
+            ) from exc
+        self._stack.callback(self.robot.close)
+        self.sensor = Jr3CanSensor(self._bus, cfg.sensor)
+        self._stack.callback(self.sensor.close)
+        try:
+            self.sensor.initialise()
+        except ForcelearnError as exc:
+            raise type(exc)(
+                f"{exc}; check [sensor] node_id ({cfg.sensor.node_id}), the bus bitrate and "
+                "that the JR3 adapter is powered"
+            ) from exc
+        self.cell = Cell(
+            self.robot,
+            self.sensor,
+            ForceFilter(cfg.filter),
+            max_force_n=cfg.safety.max_force_n,
+            samples_per_step=cfg.task.samples_per_step,
+        )
+
+    @property
+    def emulated(self) -> bool:
+        """True when any device is emulated."""
+        return self.physics is not None
+
+    def emulator_state(self) -> dict[str, Any]:
+        """What the emulators must restore for a bit-identical resume (JSON-able)."""
+        state: dict[str, Any] = {}
+        if self.sponge is not None:
+            state["sponge"] = self.sponge.state_dict()
+        if self.sensor_emulator is not None:
+            state["jr3"] = self.sensor_emulator.state_dict()
+        return state
+
+    def load_emulator_state(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`emulator_state` (after the drivers' initialisation)."""
+        if self.sponge is not None and "sponge" in state:
+            self.sponge.load_state_dict(state["sponge"])
+        if self.sensor_emulator is not None and "jr3" in state:
+            self.sensor_emulator.load_state_dict(state["jr3"])
+
+    def close(self) -> None:
+        """Stop the robot, release the devices, stop the emulators; safe to call twice."""
+        self._stack.close()
+
+    def __enter__(self) -> CellSession:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
