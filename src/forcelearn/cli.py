@@ -18,6 +18,7 @@ from forcelearn.errors import ForcelearnError
 
 # name -> (module implementing it, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
+    "run": ("forcelearn.tools.run_command", "learn force tracking on the cell (paper §5)"),
     "sim": ("forcelearn.tools.sim", "run a simulated task (paper §4 contour tracking)"),
     "bench": ("forcelearn.tools.bench", "print speed figures of the learner, link and sensor"),
 }

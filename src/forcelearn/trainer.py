@@ -186,7 +186,7 @@ def train(
     task: EpisodicTask,
     trials: int,
     keep_logs: Sequence[int] = (),
-    on_trial: Callable[[TrialRecord, SRVLearner], Any] | None = None,
+    on_trial: Callable[[TrialRecord, TrialLog, SRVLearner], Any] | None = None,
     result: TrainingResult | None = None,
 ) -> TrainingResult:
     """Run ``trials`` trials (S3-S9) and update the phase schedule after each (global criterion).
@@ -196,7 +196,8 @@ def train(
         task: the episodic task.
         trials: how many trials to run.
         keep_logs: trial indices whose step logs are kept besides first, switch and last.
-        on_trial: called after each trial (progress bars, checkpoints).
+        on_trial: called after each trial with its record, step log and the learner
+            (progress bars, checkpoints); the phase schedule is already updated.
         result: a result to continue (resumed runs); a new one by default.
     """
     result = result or TrainingResult()
@@ -215,5 +216,5 @@ def train(
             result.logs[index] = log
         result.last_log = log
         if on_trial is not None:
-            on_trial(record, learner)
+            on_trial(record, log, learner)
     return result

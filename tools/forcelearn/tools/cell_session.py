@@ -135,7 +135,7 @@ class CellSession:
         if self.sponge is not None:
             state["sponge"] = self.sponge.state_dict()
         if self.sensor_emulator is not None:
-            state["jr3"] = self.sensor_emulator.state_dict()
+            state["jr3"] = _jsonable(self.sensor_emulator.state_dict())
         return state
 
     def load_emulator_state(self, state: dict[str, Any]) -> None:
@@ -154,3 +154,14 @@ class CellSession:
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+
+
+def _jsonable(value: Any) -> Any:
+    """Turn numpy arrays and scalars inside nested dicts/lists into plain Python values."""
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return value

@@ -21,6 +21,7 @@ from forcelearn.run_output import final_figures
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
 from forcelearn.trainer import (
     TrainingResult,
+    TrialLog,
     TrialRecord,
     converged_trial,
     criterion_trial,
@@ -76,7 +77,8 @@ class ContourRun:
 
 
 def run_contour(
-    config: ContourConfig, on_trial: Callable[[TrialRecord, SRVLearner], Any] | None = None
+    config: ContourConfig,
+    on_trial: Callable[[TrialRecord, TrialLog, SRVLearner], Any] | None = None,
 ) -> ContourRun:
     """Run the §4 experiment as configured and return everything it produced."""
     task = ContourTask(TwoLinkContourCell(config.geometry), config.task)

@@ -19,7 +19,7 @@ from forcelearn.learning import SRVLearner, save_learner
 from forcelearn.run_output import write_step_log, write_summary, write_trials
 from forcelearn.tools import figures_contour
 from forcelearn.tools.contour_experiment import load_config, run_contour
-from forcelearn.trainer import TrialRecord
+from forcelearn.trainer import TrialLog, TrialRecord
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
 
     bar = tqdm(total=config.trials, unit="trial", disable=args.no_progress, dynamic_ncols=True)
 
-    def progress(record: TrialRecord, learner: SRVLearner) -> None:
+    def progress(record: TrialRecord, log: TrialLog, learner: SRVLearner) -> None:
         bar.update(1)
         if record.index % 10 == 0 or record.index == config.trials - 1:
             bar.set_postfix(

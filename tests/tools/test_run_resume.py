@@ -1,0 +1,182 @@
+"""`forcelearn run` end to end on the emulated cell: outputs, Ctrl-C, SIGKILL and resume."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from forcelearn.cli import main
+from forcelearn.errors import StateFileError
+from forcelearn.learning import load_learner
+
+TRIALS = 24
+SUMMARY_KEYS = {
+    "task",
+    "seed",
+    "trials",
+    "phase_switch_trial",
+    "converged_trial",
+    "final_force_rms_n",
+    "final_mean_r",
+    "steps",
+    "wall_s",
+    "steps_per_s",
+}
+TIMING_KEYS = {"wall_s", "steps_per_s"}
+
+
+def run_cli(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+    """Run the forcelearn CLI in a child process."""
+    code = "import sys; from forcelearn.cli import main; sys.exit(main(sys.argv[1:]))"
+    return subprocess.run(
+        [sys.executable, "-c", code, *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )
+
+
+def trials_done(out: Path) -> int:
+    """Trials in the checkpoint of a run directory (0 when there is none yet)."""
+    path = out / "checkpoint.npz"
+    if not path.exists():
+        return 0
+    try:
+        return len(load_learner(path)[1]["records"])
+    except StateFileError:  # pragma: no cover - the file is replaced atomically
+        return 0
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A complete run of TRIALS trials with seed 5."""
+    out = tmp_path_factory.mktemp("whole") / "run"
+    done = run_cli(
+        "run", "--trials", str(TRIALS), "--seed", "5", "--out", str(out), "--no-progress"
+    )
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+def test_run_writes_summary_trials_logs_checkpoint_and_figures(uninterrupted: Path) -> None:
+    """The run directory holds every promised output."""
+    summary = json.loads((uninterrupted / "summary.json").read_text())
+    assert set(summary) >= SUMMARY_KEYS
+    assert summary["task"] == "surface" and summary["trials"] == TRIALS
+    lines = (uninterrupted / "trials.csv").read_text().splitlines()
+    assert len(lines) == TRIALS + 1
+    for name in (
+        "steps_first.csv",
+        "steps_mid.csv",
+        "steps_final.csv",
+        "checkpoint.npz",
+        "fig12_positions.png",
+        "fig13_contact_force.png",
+        "fig14_initial_force.png",
+    ):
+        assert (uninterrupted / name).exists(), name
+
+
+def test_sigkill_mid_run_then_resume_ends_bit_identical(
+    uninterrupted: Path, tmp_path: Path
+) -> None:
+    """A run killed with SIGKILL and resumed equals the uninterrupted run bit for bit."""
+    out = tmp_path / "run"
+    code = "import sys; from forcelearn.cli import main; sys.exit(main(sys.argv[1:]))"
+    child = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            code,
+            "run",
+            "--trials",
+            str(TRIALS),
+            "--seed",
+            "5",
+            "--out",
+            str(out),
+            "--no-progress",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 90.0
+        while trials_done(out) < TRIALS // 2 and time.monotonic() < deadline:
+            assert child.poll() is None, "the run ended before it could be killed"
+            time.sleep(0.01)
+        os.kill(child.pid, signal.SIGKILL)
+        child.wait(timeout=10)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait(timeout=10)
+    killed_at = trials_done(out)
+    assert TRIALS // 2 <= killed_at < TRIALS
+    resumed = run_cli("run", "--resume", str(out), "--no-progress")
+    assert resumed.returncode == 0, resumed.stderr
+    assert (out / "trials.csv").read_text() == (uninterrupted / "trials.csv").read_text()
+    for name in ("steps_final.csv", "steps_mid.csv", "steps_first.csv"):
+        assert (out / name).read_text() == (uninterrupted / name).read_text(), name
+    whole, whole_meta = load_learner(uninterrupted / "checkpoint.npz")
+    again, again_meta = load_learner(out / "checkpoint.npz")
+    assert np.array_equal(whole.weights, again.weights)
+    assert np.array_equal(whole.predictions, again.predictions)
+    assert whole.rng.bit_generator.state == again.rng.bit_generator.state
+    assert whole_meta["emulator"] == again_meta["emulator"]
+    a = json.loads((uninterrupted / "summary.json").read_text())
+    b = json.loads((out / "summary.json").read_text())
+    assert {k: v for k, v in a.items() if k not in TIMING_KEYS} == {
+        k: v for k, v in b.items() if k not in TIMING_KEYS
+    }
+
+
+def test_ctrl_c_stops_and_leaves_a_resumable_checkpoint(tmp_path: Path) -> None:
+    """SIGINT mid-run: exit 130, the robot stopped, the checkpoint whole and resumable."""
+    out = tmp_path / "run"
+    code = "import sys; from forcelearn.cli import main; sys.exit(main(sys.argv[1:]))"
+    child = subprocess.Popen(
+        [sys.executable, "-c", code, "run", "--trials", "200", "--out", str(out), "--no-progress"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 90.0
+        while trials_done(out) < 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        child.send_signal(signal.SIGINT)
+        _, err = child.communicate(timeout=30)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait(timeout=10)
+    assert child.returncode == 130, err
+    assert "--resume" in err
+    done = trials_done(out)
+    assert done >= 3
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["trials"] == done  # outputs written for the whole trials, nothing partial
+    resumed = run_cli("run", "--resume", str(out), "--trials", str(done + 2), "--no-progress")
+    assert resumed.returncode == 0, resumed.stderr
+    assert json.loads((out / "summary.json").read_text())["trials"] == done + 2
+
+
+def test_resume_and_new_run_refuse_the_wrong_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--resume on an empty folder, or a new run over an old one, fail with what to do."""
+    assert main(["run", "--resume", str(tmp_path), "--no-progress"]) == 1
+    assert "nothing to resume" in capsys.readouterr().err
+    (tmp_path / "checkpoint.npz").write_bytes(b"x")
+    assert main(["run", "--out", str(tmp_path), "--no-progress"]) == 1
+    assert "already holds a run" in capsys.readouterr().err

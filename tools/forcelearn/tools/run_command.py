@@ -1,0 +1,80 @@
+"""``forcelearn run``: learn force tracking on the cell (paper §5), emulated by default.
+
+With no ``--config`` the built-in emulated cell starts in-process: the
+robot-controller emulator on a pty and the JR3 emulator on a virtual CAN bus,
+reached through the real drivers. ``--config site.toml`` runs the same
+controller on a real cell. Ctrl-C stops the robot; the last whole trial is
+checkpointed, and ``--resume DIR`` continues from it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from tqdm import tqdm
+
+from forcelearn.learning import SRVLearner
+from forcelearn.tools.surface_run import execute, prepare_run
+from forcelearn.trainer import TrialRecord
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``forcelearn run``."""
+    parser.add_argument("--config", type=Path, help="cell config TOML (default: emulated cell)")
+    parser.add_argument("--trials", type=int, help="total trials of the run (default 300)")
+    parser.add_argument("--seed", type=int, help="random seed (default 0)")
+    parser.add_argument("--out", type=Path, help="run directory (default runs/surface-<time>)")
+    parser.add_argument("--resume", type=Path, metavar="DIR", help="continue the run in DIR")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run or resume the surface experiment and write its run directory."""
+    if args.resume and (args.config or args.out or args.seed is not None):
+        print(
+            "forcelearn run: --resume takes the run's own config, seed and folder; "
+            "give only --resume DIR (and optionally --trials)",
+            file=sys.stderr,
+        )
+        return 2
+    if args.trials is not None and args.trials < 1:
+        print("forcelearn run: --trials must be >= 1", file=sys.stderr)
+        return 2
+    out = args.resume or args.out or Path("runs") / time.strftime("surface-%Y%m%d-%H%M%S")
+    surface_run, checkpoint = prepare_run(
+        args.config, out, args.trials, args.seed, resume=args.resume is not None
+    )
+    done = len(surface_run.result.records) if checkpoint is None else None
+    bar = tqdm(
+        total=surface_run.trials,
+        unit="trial",
+        disable=args.no_progress,
+        dynamic_ncols=True,
+        initial=done or 0,
+    )
+
+    def progress(record: TrialRecord, learner: SRVLearner) -> None:
+        if bar.n < record.index:
+            bar.update(record.index - bar.n)
+        bar.update(1)
+        bar.set_postfix(
+            phase=record.phase[:4], steps=record.steps, rms_n=f"{record.force_rms_n:.2f}"
+        )
+
+    try:
+        with bar:
+            summary = execute(surface_run, checkpoint, on_trial=progress)
+    except KeyboardInterrupt:
+        print(
+            f"\nforcelearn run: interrupted; the robot was stopped and the last whole trial "
+            f"is saved. Continue with: forcelearn run --resume {out}",
+            file=sys.stderr,
+        )
+        return 130
+    print(json.dumps(summary, indent=2))
+    print(f"run directory: {out}")
+    return 0

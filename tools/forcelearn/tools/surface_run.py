@@ -1,0 +1,264 @@
+"""Paper §5 on a cell: the trial loop with a checkpoint after every trial, and resume.
+
+The run directory holds:
+
+=====================  ==========================================================
+``checkpoint.npz``     the learner plus, in its metadata, everything else a resume
+                       needs: trial records, kept step logs, per-trial Y traces,
+                       the emulators' state (sponge wear, sensor noise generator,
+                       bias, offsets). One file, written atomically after every
+                       trial, so a run killed at any instant resumes from a whole
+                       trial.
+``config.toml``        the cell config the run started with (resume reads it)
+``summary.json``       task, seed, trials, phase_switch_trial, criterion_trial,
+                       converged_trial, final_force_rms_n, final_mean_r, steps,
+                       wall_s, steps_per_s, ...
+``trials.csv``         one row per trial
+``steps_*.csv``        step logs: first trial, mid-way, phase switch, last trial
+``fig12..14*.png``     the paper's Figs. 12-14
+=====================  ==========================================================
+
+A resumed run re-opens the cell, restores the learner (with its random
+generator) and, on an emulated cell, the emulators' state, then continues with
+the next trial: it ends bit-identical to an uninterrupted run with the same seed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import shutil
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from forcelearn.errors import ForcelearnError, StateFileError
+from forcelearn.learning import SRVLearner, load_learner, save_learner
+from forcelearn.run_output import final_figures, write_step_log, write_summary, write_trials
+from forcelearn.tasks.surface import SurfaceTask
+from forcelearn.tools.cell_config import CellConfig, load_cell_config
+from forcelearn.tools.cell_session import CellSession
+from forcelearn.trainer import (
+    TrainingResult,
+    TrialLog,
+    TrialRecord,
+    converged_trial,
+    criterion_trial,
+    train,
+)
+
+log = logging.getLogger(__name__)
+
+CHECKPOINT = "checkpoint.npz"
+CONFIG_COPY = "config.toml"
+RUN_STATE_VERSION = 1
+
+
+@dataclasses.dataclass
+class SurfaceRun:
+    """Where a run stands: its config, target trial count, results so far and traces."""
+
+    config: CellConfig
+    trials: int
+    seed: int
+    out: Path
+    result: TrainingResult = dataclasses.field(default_factory=TrainingResult)
+    traces: list[dict[str, list[float]]] = dataclasses.field(default_factory=list)
+    """Per trial: the mean Y (y of μ) and the searched Y command of every step, mm."""
+    wall_s: float = 0.0
+
+    @property
+    def mid_trial(self) -> int:
+        """The trial whose step log stands for 'mid-way' in Fig. 13."""
+        return self.trials // 2
+
+
+def _log_to_json(trial_log: TrialLog | None) -> dict[str, Any] | None:
+    if trial_log is None:
+        return None
+    return {"index": trial_log.index, "phase": trial_log.phase, "rows": trial_log.rows}
+
+
+def _log_from_json(data: dict[str, Any] | None) -> TrialLog | None:
+    if data is None:
+        return None
+    return TrialLog(int(data["index"]), str(data["phase"]), list(data["rows"]))
+
+
+def _run_state(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any]:
+    result = run.result
+    return {
+        "run_state_version": RUN_STATE_VERSION,
+        "task": "surface",
+        "seed": run.seed,
+        "trials_target": run.trials,
+        "records": [dataclasses.asdict(r) for r in result.records],
+        "switch_trial": result.switch_trial,
+        "switch_log": _log_to_json(result.switch_log),
+        "first_log": _log_to_json(result.first_log),
+        "last_log": _log_to_json(result.last_log),
+        "logs": {str(k): _log_to_json(v) for k, v in result.logs.items()},
+        "steps": result.steps,
+        "traces": run.traces,
+        "wall_s": run.wall_s,
+        "emulator": emulator_state,
+    }
+
+
+def _restore(run: SurfaceRun, state: dict[str, Any]) -> None:
+    if state.get("run_state_version") != RUN_STATE_VERSION or state.get("task") != "surface":
+        raise StateFileError(
+            f"{run.out / CHECKPOINT} is not a surface-run checkpoint of version "
+            f"{RUN_STATE_VERSION}; start a new run in another folder"
+        )
+    result = run.result
+    result.records = [TrialRecord(**r) for r in state["records"]]
+    result.switch_trial = state["switch_trial"]
+    result.switch_log = _log_from_json(state["switch_log"])
+    result.first_log = _log_from_json(state["first_log"])
+    result.last_log = _log_from_json(state["last_log"])
+    result.logs = {int(k): _log_from_json(v) for k, v in state["logs"].items()}  # type: ignore[misc]
+    result.steps = int(state["steps"])
+    run.traces = state["traces"]
+    run.wall_s = float(state["wall_s"])
+
+
+def prepare_run(
+    config_path: Path | None, out: Path, trials: int | None, seed: int | None, resume: bool
+) -> tuple[SurfaceRun, Path | None]:
+    """Set up a new run directory, or read the one to resume; returns the run and checkpoint."""
+    if resume:
+        if not (out / CHECKPOINT).exists():
+            raise StateFileError(
+                f"nothing to resume in {out}: no {CHECKPOINT} (runs write it after their first "
+                "trial); start a new run with --out"
+            )
+        copy = out / CONFIG_COPY
+        config = load_cell_config(copy if copy.exists() else None)
+        _, metadata = load_learner(out / CHECKPOINT)
+        run = SurfaceRun(
+            config, trials or int(metadata["trials_target"]), int(metadata["seed"]), out
+        )
+        return run, out / CHECKPOINT
+    if (out / CHECKPOINT).exists():
+        raise StateFileError(
+            f"{out} already holds a run; resume it with --resume {out} or choose another --out"
+        )
+    config = load_cell_config(config_path)
+    out.mkdir(parents=True, exist_ok=True)
+    if config_path is not None:
+        shutil.copyfile(config_path, out / CONFIG_COPY)
+    run = SurfaceRun(
+        config,
+        trials if trials is not None else config.trials,
+        seed if seed is not None else config.seed,
+        out,
+    )
+    return run, None
+
+
+def execute(
+    run: SurfaceRun,
+    checkpoint: Path | None,
+    on_trial: Callable[[TrialRecord, SRVLearner], Any] | None = None,
+) -> dict[str, Any]:
+    """Open the cell and run (or continue) the trials; checkpoint after each; return the summary.
+
+    Ctrl-C (KeyboardInterrupt) or any device error stops the robot; the last
+    whole trial is already on disk, and the outputs are written for the trials
+    done before the exception propagates.
+    """
+    config = run.config
+    started = time.perf_counter()
+    wall_before = run.wall_s
+    with CellSession(config, seed=run.seed) as session:
+        assert session.cell is not None
+        task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
+        if checkpoint is not None:
+            learner, state = load_learner(checkpoint, output=task.output_map())
+            _restore(run, state)
+            session.load_emulator_state(state["emulator"])
+        else:
+            learner = SRVLearner(
+                task.grid, 1, config.learner, rng=run.seed, output=task.output_map()
+            )
+
+        def after_trial(record: TrialRecord, trial_log: TrialLog, lrn: SRVLearner) -> None:
+            run.traces.append(
+                {
+                    "mean_y_mm": [
+                        task.output_map()(row["mean_0"], None).item()  # type: ignore[arg-type]
+                        for row in trial_log.rows
+                    ],
+                    "command_y_mm": [row["command_0"] for row in trial_log.rows],
+                }
+            )
+            run.wall_s = wall_before + time.perf_counter() - started
+            save_learner(
+                lrn, run.out / CHECKPOINT, metadata=_run_state(run, session.emulator_state())
+            )
+            if on_trial is not None:
+                on_trial(record, lrn)
+
+        remaining = run.trials - len(run.result.records)
+        try:
+            if remaining > 0:
+                train(
+                    learner,
+                    task,
+                    remaining,
+                    keep_logs=(run.mid_trial,),
+                    on_trial=after_trial,
+                    result=run.result,
+                )
+        except (KeyboardInterrupt, ForcelearnError):
+            session.cell.stop()
+            write_outputs(run, learner)
+            raise
+        task.retract()
+    return write_outputs(run, learner)
+
+
+def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
+    """The run's summary.json content."""
+    result, config = run.result, run.config
+    return {
+        "task": "surface",
+        "seed": run.seed,
+        "trials": len(result.records),
+        "phase_switch_trial": result.switch_trial,
+        "criterion_trial": criterion_trial(result.records, config.learner.success_trials),
+        "converged_trial": converged_trial(
+            result.records, config.task.steps_per_trial, config.task.desired_force_n
+        ),
+        **final_figures(result.records),
+        "failures": sum(r.failed for r in result.records),
+        "desired_force_n": config.task.desired_force_n,
+        "emulated": config.robot_emulated and config.sensor_emulated,
+        "steps": result.steps,
+        "wall_s": round(run.wall_s, 3),
+        "steps_per_s": round(result.steps / run.wall_s, 1) if run.wall_s > 0 else None,
+    }
+
+
+def write_outputs(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
+    """Write summary.json, trials.csv, the step logs and the figures; return the summary."""
+    from forcelearn.tools import figures_surface
+
+    summary = summary_of(run, learner)
+    write_summary(run.out, summary)
+    write_trials(run.out, run.result.records)
+    result = run.result
+    named = {
+        "first": result.first_log,
+        "switch": result.switch_log,
+        "final": result.last_log,
+        "mid": result.logs.get(run.mid_trial),
+    }
+    for name, trial_log in named.items():
+        if trial_log is not None:
+            write_step_log(run.out / f"steps_{name}.csv", trial_log)
+    if result.records:
+        figures_surface.write_all(run, run.out)
+    return summary
