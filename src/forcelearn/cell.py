@@ -24,7 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from forcelearn.devices import ForceSensor, Pose, Robot, WrenchSample
+from forcelearn.devices import BatchForceSensor, ForceSensor, Pose, Robot, WrenchSample
 from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded
 from forcelearn.filtering import ForceFilter
 
@@ -124,9 +124,8 @@ class Cell:
             SensorStale: no sample arrived in the watchdog time (robot stopped).
         """
         count = samples or self.samples_per_step
-        read_many = getattr(self.sensor, "read_many", None)  # batched SYNCs where offered
-        if read_many is not None:
-            batch = self._guarded(read_many, count)
+        if isinstance(self.sensor, BatchForceSensor):  # one window of SYNCs in flight
+            batch = self._guarded(self.sensor.read_many, count, count)
         else:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
         peak = -math.inf

@@ -87,6 +87,15 @@ class Robot(Protocol):
 
 
 @runtime_checkable
+class BatchForceSensor(Protocol):
+    """A force sensor that can read several consecutive samples in one exchange."""
+
+    def read_many(self, count: int, window: int) -> list[WrenchSample]:
+        """Return ``count`` consecutive fresh samples, up to ``window`` requested at once."""
+        ...
+
+
+@runtime_checkable
 class ForceSensor(Protocol):
     """A 6-axis force/torque sensor reached through a driver."""
 

@@ -82,3 +82,28 @@ def test_a_silent_sensor_stops_the_robot_and_raises_stale(session) -> None:
         task.step(np.array([config.task.start_mm[1]]))
     assert session.robot_emulator.move_count == moves + 1  # the step's move, nothing after
     assert not session.robot.read_status().moving
+
+
+def test_a_step_over_the_limit_is_refused_before_it_reaches_the_robot(session) -> None:
+    """A 30 mm jump is refused by the driver: SafetyStop, the emulator never moved."""
+    from forcelearn.errors import SafetyStop
+
+    moves = session.robot_emulator.move_count
+    pose = session.cell.read_pose()
+    with pytest.raises(SafetyStop, match="max_step_mm"):
+        session.cell.move_to(pose.moved(dz_mm=-30.0))
+    assert session.robot_emulator.move_count == moves
+
+
+def test_a_target_outside_the_workspace_is_refused(session) -> None:
+    """Stepping out of the [safety] workspace box is refused before any byte is sent."""
+    from forcelearn.errors import SafetyStop
+
+    high = session.config.safety.workspace_max_mm
+    pose = session.cell.read_pose()
+    target = pose.moved(dz_mm=high[2] - pose.z_mm + 5.0)
+    moves = session.robot_emulator.move_count
+    with pytest.raises(SafetyStop, match="workspace"):
+        session.cell.move_in_steps(target, session.config.safety.max_step_mm)
+    assert session.robot_emulator.pose.z_mm <= high[2]
+    assert session.robot_emulator.move_count >= moves  # stopped at the edge, never past it

@@ -180,3 +180,47 @@ def test_resume_and_new_run_refuse_the_wrong_folder(
     (tmp_path / "checkpoint.npz").write_bytes(b"x")
     assert main(["run", "--out", str(tmp_path), "--no-progress"]) == 1
     assert "already holds a run" in capsys.readouterr().err
+
+
+def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The JR3 goes silent after trial 3: SensorStale ends the run, robot stopped, 3 trials kept."""
+    from forcelearn.emulators.jr3.faults import FaultConfig
+    from forcelearn.errors import SensorStale
+    from forcelearn.tools import surface_run
+
+    sessions = []
+    stops: list[bool] = []
+    stops_before_close: list[int] = []
+
+    class RecordingSession(surface_run.CellSession):
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+            sessions.append(self)
+            robot = self.robot
+            original_stop = robot.stop
+
+            def counted_stop() -> None:
+                stops.append(True)
+                original_stop()
+
+            robot.stop = counted_stop  # type: ignore[method-assign]
+
+        def close(self) -> None:
+            stops_before_close.append(len(stops))
+            super().close()
+
+    monkeypatch.setattr(surface_run, "CellSession", RecordingSession)
+
+    def silence_after_three(record: object, learner: object) -> None:
+        if record.index == 2:  # type: ignore[attr-defined]
+            sessions[0].sensor_emulator.set_faults(FaultConfig(silent=True))
+
+    out = tmp_path / "run"
+    run, checkpoint = surface_run.prepare_run(None, out, 10, 3, resume=False)
+    with pytest.raises(SensorStale):
+        surface_run.execute(run, checkpoint, on_trial=silence_after_three)
+    assert stops_before_close[0] >= 1, "the run did not stop the robot before closing"
+    assert trials_done(out) == 3
+    assert json.loads((out / "summary.json").read_text())["trials"] == 3
