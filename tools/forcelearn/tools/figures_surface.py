@@ -19,24 +19,41 @@ def _save(fig: Figure, path: Path) -> Path:
 
 
 def plot_positions(run: SurfaceRun, path: Path) -> Path:
-    """Fig. 12: mean (solid) and searched (dashed) Y commands, step after step, over the run."""
-    fig = Figure(figsize=(8, 3.8))
-    ax = fig.subplots()
-    mean, searched, edges = [], [], [0]
-    for trace in run.traces:
-        mean += trace["mean_y_mm"]
-        searched += trace["command_y_mm"]
-        edges.append(len(mean))
-    steps = np.arange(1, len(mean) + 1)
-    ax.plot(steps, searched, "--", lw=0.6, color="tab:orange", label="searched Y command")
-    ax.plot(steps, mean, "-", lw=1.0, color="tab:blue", label="mean Y (μ)")
-    if run.result.switch_trial is not None and run.result.switch_trial + 1 < len(edges):
-        ax.axvline(
-            edges[run.result.switch_trial + 1], color="tab:red", ls=":", label="phase switch"
+    """Fig. 12: mean (solid) and searched (dashed) Y commands, and the search width over trials."""
+    fig = Figure(figsize=(8, 6))
+    top, bottom = fig.subplots(2, 1)
+    traces = run.traces
+    picks = sorted({0, run.mid_trial, len(traces) - 1} & set(range(len(traces))))
+    for index in picks:
+        trace = traces[index]
+        steps = np.arange(1, len(trace["mean_y_mm"]) + 1)
+        line = top.plot(
+            steps, trace["mean_y_mm"], "-", marker=".", label=f"trial {index + 1}: mean"
         )
-    ax.set_xlabel("control step (all trials in order)")
-    ax.set_ylabel("Y position command (mm)")
-    ax.legend(fontsize=8, loc="lower left")
+        top.plot(
+            steps,
+            trace["command_y_mm"],
+            "--",
+            color=line[0].get_color(),
+            lw=0.8,
+            label=f"trial {index + 1}: searched",
+        )
+    top.set_xlabel("step")
+    top.set_ylabel("Y command (mm)")
+    top.legend(fontsize=7, ncol=2)
+    width = [
+        float(np.sqrt(np.mean(np.square(np.subtract(t["command_y_mm"], t["mean_y_mm"])))))
+        if t["mean_y_mm"]
+        else np.nan
+        for t in traces
+    ]
+    bottom.plot(np.arange(1, len(width) + 1), width, ".", ms=3)
+    if run.result.switch_trial is not None:
+        bottom.axvline(run.result.switch_trial + 1, color="tab:red", ls=":", label="phase switch")
+        bottom.legend(fontsize=8)
+    bottom.set_yscale("log")
+    bottom.set_xlabel("trial")
+    bottom.set_ylabel("search width: RMS of\nsearched − mean Y (mm)")
     return _save(fig, path)
 
 
