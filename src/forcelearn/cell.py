@@ -96,6 +96,8 @@ class Cell:
         """
         start = self.pose
         distance = float(np.linalg.norm(target.position_mm - start.position_mm))
+        if distance == 0.0 and target.quaternion == start.quaternion:
+            return 0  # already there: send nothing
         count = max(1, math.ceil(distance / (0.99 * max_step_mm)))
         for i in range(1, count + 1):
             f = i / count

@@ -133,3 +133,11 @@ def test_guarded_long_moves_check_the_force_after_every_intermediate_step() -> N
         cell.move_in_steps(Pose(0.0, -40.0, 0.0), max_step_mm=10.0, guard_force=True)
     assert len(robot.moves) == 3  # stopped after the third step, never reached the target
     assert robot.stops == 1
+
+
+def test_a_move_to_where_the_robot_already_is_sends_nothing() -> None:
+    """No command leaves for a zero-length move with the same orientation."""
+    cell, robot, _ = make_cell([])
+    cell.move_to(Pose(1.0, 2.0, 3.0))
+    assert cell.move_in_steps(Pose(1.0, 2.0, 3.0), max_step_mm=10.0) == 0
+    assert len(robot.moves) == 1

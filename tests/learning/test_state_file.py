@@ -139,3 +139,17 @@ def test_inconsistent_shapes_are_refused(tmp_path: Path) -> None:
     with pytest.raises(StateFileError, match="do not fit the grid"):
         load_learner(path)
     assert json.loads(str(arrays["params_json"]))["success_trials"] == 3
+
+
+def test_extra_arrays_are_saved_beside_the_learner(tmp_path: Path) -> None:
+    """Caller arrays round-trip exactly and never collide with the learner's keys."""
+    from forcelearn.learning import load_extra_arrays
+
+    path = tmp_path / "learner.npz"
+    history = np.random.default_rng(0).normal(size=(7, 20))
+    save_learner(trained_learner(), path, arrays={"history": history, "weights": np.arange(3)})
+    extras = load_extra_arrays(path)
+    assert np.array_equal(extras["history"], history)
+    assert extras["weights"].tolist() == [0, 1, 2]
+    learner, _ = load_learner(path)
+    assert np.array_equal(learner.weights, trained_learner().weights)

@@ -51,7 +51,7 @@ def trials_done(out: Path) -> int:
     if not path.exists():
         return 0
     try:
-        return len(load_learner(path)[1]["records"])
+        return int(load_learner(path)[1]["trials_done"])
     except StateFileError:  # pragma: no cover - the file is replaced atomically
         return 0
 

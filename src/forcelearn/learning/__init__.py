@@ -5,7 +5,7 @@ from forcelearn.learning.exploration import AffineOutput, IdentityOutput, sigma_
 from forcelearn.learning.params import SRVParams
 from forcelearn.learning.phase import Phase, PhaseSchedule
 from forcelearn.learning.srv import Action, SRVLearner
-from forcelearn.learning.state_file import load_learner, save_learner
+from forcelearn.learning.state_file import load_extra_arrays, load_learner, save_learner
 
 __all__ = [
     "Action",
@@ -18,6 +18,7 @@ __all__ = [
     "PhaseSchedule",
     "SRVLearner",
     "SRVParams",
+    "load_extra_arrays",
     "load_learner",
     "neighbourhood_kernel",
     "save_learner",

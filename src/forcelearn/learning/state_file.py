@@ -20,6 +20,7 @@ switch_trial             trial of the phase switch, −1 if none yet
 params_json              the :class:`SRVParams` as JSON
 rng_json                 the generator's bit-generator state as JSON
 metadata_json            caller's metadata (run id, trainer state...) as JSON
+extra_<name>             caller's arrays saved alongside (optional; e.g. run history)
 =======================  ==========================================================
 
 The output map is code, not state: pass it again to :func:`load_learner`.
@@ -48,12 +49,19 @@ FORMAT_VERSION = 1
 
 
 def save_learner(
-    learner: SRVLearner, path: str | os.PathLike[str], metadata: Mapping[str, Any] | None = None
+    learner: SRVLearner,
+    path: str | os.PathLike[str],
+    metadata: Mapping[str, Any] | None = None,
+    arrays: Mapping[str, np.ndarray] | None = None,
 ) -> None:
-    """Write the learner's whole state to ``path`` atomically (temp file, then rename)."""
+    """Write the learner's whole state to ``path`` atomically (temp file, then rename).
+
+    ``arrays`` (numeric or string arrays, no objects) are stored beside it as
+    ``extra_<name>``; read them back with :func:`load_extra_arrays`.
+    """
     grid = learner.grid
     schedule = learner.schedule
-    arrays: dict[str, np.ndarray] = {
+    content: dict[str, np.ndarray] = {
         "format": np.array(FORMAT),
         "format_version": np.array(FORMAT_VERSION, dtype=np.int64),
         "grid_names": np.array([d.name for d in grid.dimensions]),
@@ -73,8 +81,10 @@ def save_learner(
         "rng_json": np.array(json.dumps(learner.rng.bit_generator.state)),
         "metadata_json": np.array(json.dumps(dict(metadata or {}))),
     }
+    for name, values in (arrays or {}).items():
+        content[f"extra_{name}"] = np.asarray(values)
     with atomic_writer(path) as handle:
-        np.savez(handle, **arrays)
+        np.savez(handle, **content)
 
 
 def load_learner(
@@ -104,6 +114,17 @@ def load_learner(
         raise StateFileError(
             f"{os.fspath(path)!r} is damaged: {type(exc).__name__}: {exc}; "
             "restore it from a backup or start a new run"
+        ) from exc
+
+
+def load_extra_arrays(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
+    """Return the ``arrays`` saved with :func:`save_learner` (without their prefix)."""
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            return {k[len("extra_"):]: archive[k] for k in archive.files if k.startswith("extra_")}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise StateFileError(
+            f"{os.fspath(path)!r} is not a readable learner state ({exc})"
         ) from exc
 
 

@@ -33,8 +33,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from forcelearn.errors import ForcelearnError, StateFileError
-from forcelearn.learning import SRVLearner, load_learner, save_learner
+from forcelearn.learning import SRVLearner, load_extra_arrays, load_learner, save_learner
 from forcelearn.run_output import final_figures, write_step_log, write_summary, write_trials
 from forcelearn.tasks.surface import SurfaceTask
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
@@ -52,7 +54,7 @@ log = logging.getLogger(__name__)
 
 CHECKPOINT = "checkpoint.npz"
 CONFIG_COPY = "config.toml"
-RUN_STATE_VERSION = 1
+RUN_STATE_VERSION = 2
 
 
 @dataclasses.dataclass
@@ -86,6 +88,37 @@ def _log_from_json(data: dict[str, Any] | None) -> TrialLog | None:
     return TrialLog(int(data["index"]), str(data["phase"]), list(data["rows"]))
 
 
+_RECORD_FIELDS = [f.name for f in dataclasses.fields(TrialRecord)]
+
+
+def _history_arrays(run: SurfaceRun) -> dict[str, np.ndarray]:
+    """The growing history as arrays (cheap to save every trial, exact on reload)."""
+    records = run.result.records
+    arrays = {
+        f"record_{name}": np.array([getattr(r, name) for r in records]) for name in _RECORD_FIELDS
+    }
+    steps = run.config.task.steps_per_trial
+    for key in ("mean_y_mm", "command_y_mm"):
+        table = np.full((len(run.traces), steps), np.nan)
+        for i, trace in enumerate(run.traces):
+            table[i, : len(trace[key])] = trace[key]
+        arrays[f"trace_{key}"] = table
+    arrays["trace_length"] = np.array([len(t["mean_y_mm"]) for t in run.traces], dtype=np.int64)
+    return arrays
+
+
+def _history_from_arrays(run: SurfaceRun, arrays: dict[str, np.ndarray]) -> None:
+    count = len(arrays["record_index"])
+    run.result.records = [
+        TrialRecord(**{name: arrays[f"record_{name}"][i].item() for name in _RECORD_FIELDS})
+        for i in range(count)
+    ]
+    run.traces = [
+        {key: arrays[f"trace_{key}"][i, :length].tolist() for key in ("mean_y_mm", "command_y_mm")}
+        for i, length in enumerate(arrays["trace_length"].tolist())
+    ]
+
+
 def _run_state(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any]:
     result = run.result
     return {
@@ -93,34 +126,32 @@ def _run_state(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any
         "task": "surface",
         "seed": run.seed,
         "trials_target": run.trials,
-        "records": [dataclasses.asdict(r) for r in result.records],
+        "trials_done": len(result.records),
         "switch_trial": result.switch_trial,
         "switch_log": _log_to_json(result.switch_log),
         "first_log": _log_to_json(result.first_log),
         "last_log": _log_to_json(result.last_log),
         "logs": {str(k): _log_to_json(v) for k, v in result.logs.items()},
         "steps": result.steps,
-        "traces": run.traces,
         "wall_s": run.wall_s,
         "emulator": emulator_state,
     }
 
 
-def _restore(run: SurfaceRun, state: dict[str, Any]) -> None:
+def _restore(run: SurfaceRun, state: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
     if state.get("run_state_version") != RUN_STATE_VERSION or state.get("task") != "surface":
         raise StateFileError(
             f"{run.out / CHECKPOINT} is not a surface-run checkpoint of version "
             f"{RUN_STATE_VERSION}; start a new run in another folder"
         )
     result = run.result
-    result.records = [TrialRecord(**r) for r in state["records"]]
+    _history_from_arrays(run, arrays)
     result.switch_trial = state["switch_trial"]
     result.switch_log = _log_from_json(state["switch_log"])
     result.first_log = _log_from_json(state["first_log"])
     result.last_log = _log_from_json(state["last_log"])
     result.logs = {int(k): _log_from_json(v) for k, v in state["logs"].items()}  # type: ignore[misc]
     result.steps = int(state["steps"])
-    run.traces = state["traces"]
     run.wall_s = float(state["wall_s"])
 
 
@@ -177,7 +208,7 @@ def execute(
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
         if checkpoint is not None:
             learner, state = load_learner(checkpoint, output=task.output_map())
-            _restore(run, state)
+            _restore(run, state, load_extra_arrays(checkpoint))
             session.load_emulator_state(state["emulator"])
         else:
             learner = SRVLearner(
@@ -196,7 +227,10 @@ def execute(
             )
             run.wall_s = wall_before + time.perf_counter() - started
             save_learner(
-                lrn, run.out / CHECKPOINT, metadata=_run_state(run, session.emulator_state())
+                lrn,
+                run.out / CHECKPOINT,
+                metadata=_run_state(run, session.emulator_state()),
+                arrays=_history_arrays(run),
             )
             if on_trial is not None:
                 on_trial(record, lrn)
