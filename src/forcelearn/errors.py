@@ -10,6 +10,7 @@ driver boundary with ``raise ... from``.
     ForcelearnError
      ├── ConfigError (ValueError)          a config key or value is wrong
      ├── StateFileError                    a learned-state file is damaged or of another version
+     ├── CalibrationError                  a calibration could not be made; no file was written
      ├── LinkError                         robot computer link
      │    ├── LinkTimeout (TimeoutError)   no ACK / reply within the timeout, retries spent
      │    ├── ProtocolError                a reply that breaks the link protocol
@@ -35,6 +36,10 @@ class ConfigError(ForcelearnError, ValueError):
 
 class StateFileError(ForcelearnError):
     """A learned-state file cannot be read: damaged, truncated or of another format version."""
+
+
+class CalibrationError(ForcelearnError):
+    """A calibration could not be made (poses ill-conditioned, a device failed midway)."""
 
 
 class LinkError(ForcelearnError):
