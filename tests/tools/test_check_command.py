@@ -1,0 +1,138 @@
+"""``forcelearn check`` against emulated devices: through slcan, on the built-in cell, failures."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from forcelearn.cli import main
+from forcelearn.drivers.computer_link.messages import Status
+from forcelearn.drivers.jr3_can.listener import Jr3Stats
+from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.errors import SafetyStop
+from forcelearn.tools.cell_config import EmulatorConfig, load_cell_config
+from forcelearn.tools.check_command import check_session
+from forcelearn.tools.emulated_cell import EmulatedCell
+
+
+@pytest.fixture(autouse=True)
+def _no_adapter_reset_wait(monkeypatch: pytest.MonkeyPatch) -> None:
+    """python-can's slcan waits 2 s after opening (Arduino resets); the pty needs none."""
+    monkeypatch.setenv("CAN_CONFIG", '{"sleep_after_open": 0}')
+
+
+@pytest.fixture
+def cell() -> Iterator[EmulatedCell]:
+    """The emulated cell as ``forcelearn emulate`` serves it, in this process."""
+    with EmulatedCell(load_cell_config(), seed=4) as emulated:
+        yield emulated
+
+
+def _site(tmp_path: Path, cell: EmulatedCell, **replace_text: str) -> Path:
+    text = cell.site_config()
+    for old, new in replace_text.items():
+        text = text.replace(old, new)
+    path = tmp_path / "site.toml"
+    path.write_text(text)
+    return path
+
+
+def _axis(out: str, name: str) -> tuple[float, float]:
+    match = re.search(rf"^\s+{name}\s+(\S+)\s+(\S+)", out, re.MULTILINE)
+    assert match, f"no {name} line in:\n{out}"
+    return float(match.group(1)), float(match.group(2))
+
+
+def test_check_through_slcan_reports_the_devices_and_never_moves_the_robot(
+    tmp_path: Path, cell: EmulatedCell, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Identity, pose, six means and noises, a rate; zero moves and real slcan traffic."""
+    assert main(["check", "--config", str(_site(tmp_path, cell)), "--seconds", "0.3"]) == 0
+    out = capsys.readouterr().out
+    assert "controller 'forcelearn S3 controller emulator'" in out
+    assert "pose x 900.00  y 0.00  z 600.00 mm" in out
+    assert "interface slcan" in out and out.rstrip().endswith("the robot was not moved")
+    rate = float(re.search(r"(\d+) samples/s", out).group(1))  # type: ignore[union-attr]
+    assert rate > 100
+    for axis, noise in zip(("Fx", "Fy", "Fz"), (0.2, 0.2, 0.2), strict=True):
+        mean, std = _axis(out, axis)
+        assert abs(mean) < 0.3 and std == pytest.approx(noise, rel=0.3)
+    assert cell.robot.move_count == 0
+    assert cell.robot.pose.position_mm.tolist() == [900.0, 0.0, 600.0]
+    assert cell.adapter.model.frames_sent > 100  # the SYNCs really went through the adapter
+
+
+def test_check_honours_the_emulated_cells_node_id_and_noise(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An emulated JR3 on node 7 with 1 N noise is reported as such through slcan."""
+    base = load_cell_config()
+    noisy = SensorModelParams(noise_std=(1.0, 1.0, 1.0, 0.02, 0.02, 0.02))
+    config = replace(
+        base,
+        sensor=replace(base.sensor, node_id=7),
+        emulator=EmulatorConfig(sensor=noisy),
+    )
+    with EmulatedCell(config, seed=1) as cell:
+        assert "node_id = 7" in cell.site_config()
+        assert main(["check", "--config", str(_site(tmp_path, cell)), "--seconds", "0.3"]) == 0
+    out = capsys.readouterr().out
+    assert "JR3 node 7 initialised" in out
+    assert _axis(out, "Fy")[1] == pytest.approx(1.0, rel=0.2)
+
+
+def test_check_without_config_checks_the_built_in_emulated_cell(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """No --config: the in-process emulators are checked and pass."""
+    assert main(["check", "--seconds", "0.2"]) == 0
+    out = capsys.readouterr().out
+    assert "built-in emulated cell" in out and "0 moves since power-up" in out
+
+
+@pytest.mark.parametrize(
+    ("change", "device", "hint"),
+    [
+        ({"robot-tty": "no-such-tty"}, "robot link", "check [robot] url"),
+        ({"slcan-tty": "no-such-tty"}, "sensor", "the channel"),
+        ({"node_id = 1": "node_id = 9"}, "sensor", "node_id (9)"),
+        ({"bitrate = 1000000": "bitrate = 500000"}, "sensor", "bitrate"),
+    ],
+    ids=["robot-port", "can-port", "node-id", "bitrate"],
+)
+def test_each_failure_names_the_device_and_what_to_check(
+    tmp_path: Path,
+    cell: EmulatedCell,
+    capsys: pytest.CaptureFixture[str],
+    change: dict[str, str],
+    device: str,
+    hint: str,
+) -> None:
+    """A wrong port, node id or bitrate: exit 1, the device named, the key to check."""
+    site = _site(tmp_path, cell, **change)
+    assert main(["check", "--config", str(site), "--seconds", "0.2"]) == 1
+    out = capsys.readouterr().out
+    failure = next(line for line in out.splitlines() if line.startswith("FAILED"))
+    assert f"FAILED  {device}:" in failure and hint in failure
+    assert cell.robot.move_count == 0
+
+
+def test_a_move_counter_that_changes_during_the_check_fails_it() -> None:
+    """If anything moves the robot while check reads the sensor, check raises SafetyStop."""
+    statuses = iter([Status(False, True, 0, 3), Status(False, True, 0, 4)])
+    robot = SimpleNamespace(
+        controller_model="stub",
+        read_pose=lambda: SimpleNamespace(x_mm=0.0, y_mm=0.0, z_mm=0.0, quaternion=(1, 0, 0, 0)),
+        read_status=lambda: next(statuses),
+    )
+    sample = SimpleNamespace(wrench=(0.0,) * 6)
+    sensor = SimpleNamespace(full_scales=None, cutoff_hz=125.0, stats=Jr3Stats(),
+                             read_many=lambda count: [sample] * count)
+    session = SimpleNamespace(robot=robot, sensor=sensor, config=load_cell_config())
+    with pytest.raises(SafetyStop, match="from 3 to 4"):
+        check_session(session, 0.01, lambda line: None)  # type: ignore[arg-type]

@@ -1,0 +1,128 @@
+"""``forcelearn emulate`` in its own process, and ``forcelearn check`` in another reaching it."""
+
+from __future__ import annotations
+
+import os
+import queue
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from forcelearn.tools.cell_config import load_cell_config
+
+STARTUP_S = 20.0
+STOP_S = 10.0
+
+
+class Emulator:
+    """A ``forcelearn emulate`` subprocess whose stdout lines are read by a thread."""
+
+    def __init__(self, *args: str) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "forcelearn.cli", "emulate", *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        self.lines: queue.Queue[str] = queue.Queue()
+        self.seen: list[str] = []
+        threading.Thread(target=self._pump, daemon=True).start()
+
+    def _pump(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:  # ends when the process closes its stdout
+            self.lines.put(line.rstrip("\n"))
+
+    def wait_for(self, pattern: str, timeout_s: float) -> re.Match[str]:
+        """Return the first new line matching ``pattern``; fail after ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        while (left := deadline - time.monotonic()) > 0:
+            try:
+                line = self.lines.get(timeout=left)
+            except queue.Empty:
+                break
+            self.seen.append(line)
+            if match := re.search(pattern, line):
+                return match
+        pytest.fail(f"no line matching {pattern!r} within {timeout_s} s; got {self.seen}")
+
+    def stop(self, sig: int = signal.SIGTERM) -> int:
+        """Send ``sig``, wait (bounded) and return the exit status."""
+        self.process.send_signal(sig)
+        return self.process.wait(timeout=STOP_S)
+
+    def kill(self) -> None:
+        """Make sure the process is gone: terminate, then kill, waits bounded."""
+        if self.process.poll() is None:
+            self.process.terminate()
+            try:
+                self.process.wait(timeout=STOP_S)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait(timeout=STOP_S)
+        if self.process.stdout is not None:
+            self.process.stdout.close()
+
+
+@pytest.fixture
+def spawn() -> Iterator[Callable[..., Emulator]]:
+    """Start emulators; every one is gone after the test, even when it fails."""
+    started: list[Emulator] = []
+
+    def start(*args: str) -> Emulator:
+        emulator = Emulator(*args)
+        started.append(emulator)
+        return emulator
+
+    yield start
+    for emulator in started:
+        emulator.kill()
+
+
+def test_check_in_another_process_reaches_the_emulated_cell_through_slcan(
+    spawn: Callable[..., Emulator], tmp_path: Path
+) -> None:
+    """Emulate prints two ptys and writes a site config; check passes through them, no move."""
+    site = tmp_path / "site.toml"
+    emulator = spawn("--write-config", str(site), "--seed", "2")
+    robot = emulator.wait_for(r"^robot link \(computer link, pty\): (\S+)$", STARTUP_S).group(1)
+    slcan = emulator.wait_for(r"^JR3 sensor \(slcan CAN adapter.*\): (\S+)$", STARTUP_S).group(1)
+    emulator.wait_for(r"^site config written to", STARTUP_S)
+    config = load_cell_config(site)
+    assert (config.robot.url, config.bus.interface, config.bus.channel) == (robot, "slcan", slcan)
+    assert Path(robot).exists() and Path(slcan).exists()
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}  # real slcan open
+    checked = subprocess.run(
+        [sys.executable, "-m", "forcelearn.cli", "check", "--config", str(site),
+         "--seconds", "0.5"],
+        capture_output=True, text=True, timeout=60, env=env,
+    )
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+    assert f"channel {slcan}" in checked.stdout
+    assert "controller 'forcelearn S3 controller emulator'" in checked.stdout
+    samples = int(re.search(r"(\d+) samples in", checked.stdout).group(1))  # type: ignore[union-attr]
+    assert samples > 50
+
+    assert emulator.stop(signal.SIGTERM) == 0
+    summary = emulator.wait_for(r"stopping: (\d+) robot moves executed, (\d+) JR3 samples", 1.0)
+    assert int(summary.group(1)) == 0
+    assert int(summary.group(2)) >= samples
+    assert not Path(robot).exists() and not Path(slcan).exists()  # ptys released
+
+
+def test_ctrl_c_stops_the_emulator_cleanly(spawn: Callable[..., Emulator]) -> None:
+    """SIGINT (Ctrl-C) ends the process with status 0 after releasing its ptys."""
+    emulator = spawn()
+    slcan = emulator.wait_for(r"^JR3 sensor .*: (\S+)$", STARTUP_S).group(1)
+    emulator.wait_for(r'^channel = "', STARTUP_S)  # the snippet is printed: fully up
+    assert emulator.stop(signal.SIGINT) == 0
+    emulator.wait_for(r"stopping: 0 robot moves", 1.0)
+    assert not Path(slcan).exists()

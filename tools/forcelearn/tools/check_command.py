@@ -1,0 +1,143 @@
+"""``forcelearn check``: open both devices of a cell and report on them, without moving the robot.
+
+On site, run this first. It opens the robot link and the CAN bus as the config
+says (:class:`~forcelearn.tools.cell_session.CellSession`), identifies the
+controller, reads the pose and status, initialises the JR3 adapter and reads
+samples for ``--seconds`` (1 s): mean and noise (standard deviation) per
+axis, and the sample rate achieved. It sends no motion command: only
+IDENTIFY, READ_POSITION, READ_STATUS, and the STOP every close sends; it
+reads the controller's move counter before and after and fails if it changed.
+
+Each failure names the device and what to check (port, baud, bus, bitrate,
+node id) and exits with status 1. With no ``--config`` it checks the built-in
+emulated cell.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from forcelearn.drivers.computer_link import messages
+from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
+from forcelearn.errors import LinkError, SafetyStop, SensorError
+from forcelearn.tools.cell_config import CellConfig, load_cell_config
+from forcelearn.tools.cell_session import CellSession
+
+AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+UNITS = ("N", "N", "N", "N*m", "N*m", "N*m")
+BATCH = 20
+"""Samples per read_many call while sampling (a 20 ms slice at 1 kHz)."""
+
+Printer = Callable[[str], None]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``forcelearn check``."""
+    parser.add_argument("--config", type=Path, help="cell config TOML (default: emulated cell)")
+    parser.add_argument(
+        "--seconds", type=float, default=1.0, help="how long to read the sensor, s (1.0)"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="emulated sensor noise seed (0)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check the cell; 0 if both devices answered as expected, 1 otherwise."""
+    if not 0 < args.seconds <= 60:
+        print("forcelearn check: --seconds must be in (0, 60]")
+        return 2
+    config = load_cell_config(args.config)
+    source = args.config or "built-in emulated cell"
+    print(f"forcelearn check: {source}")
+    print(f"  robot   {_describe_robot(config)}")
+    print(f"  sensor  {_describe_bus(config)}")
+    try:
+        with CellSession(config, seed=args.seed) as session:
+            check_session(session, args.seconds, print)
+    except LinkError as exc:
+        print(f"FAILED  robot link: {exc}")
+        return 1
+    except SensorError as exc:
+        print(f"FAILED  sensor: {exc}")
+        return 1
+    except SafetyStop as exc:
+        print(f"FAILED  {exc}")
+        return 1
+    print("OK      both devices answer; the robot was not moved")
+    return 0
+
+
+def check_session(session: CellSession, seconds: float, say: Printer) -> None:
+    """Report on an open session's robot and sensor; raises the device's typed error."""
+    robot, sensor = session.robot, session.sensor
+    if robot is None or sensor is None:
+        raise ValueError("check_session needs an open CellSession")
+    major, minor = messages.PROTOCOL_VERSION
+    say(f"  robot   controller {robot.controller_model!r}, computer link {major}.x "
+        f"(this driver speaks {major}.{minor})")
+    pose = robot.read_pose()
+    say(f"  robot   pose x {pose.x_mm:.2f}  y {pose.y_mm:.2f}  z {pose.z_mm:.2f} mm, "
+        f"quaternion (w x y z) {' '.join(f'{q:.4f}' for q in pose.quaternion)}")
+    before = robot.read_status()
+    say(f"  robot   {'MOVING' if before.moving else 'still'}, last error {before.last_error}, "
+        f"{before.move_count} moves since power-up")
+    _check_sensor(sensor, session.config, seconds, say)
+    after = robot.read_status()
+    if after.move_count != before.move_count:
+        raise SafetyStop(
+            f"the controller's move counter went from {before.move_count} to "
+            f"{after.move_count} during the check: something else commands this robot; "
+            "stop and find it before running"
+        )
+
+
+def _check_sensor(sensor: Jr3CanSensor, config: CellConfig, seconds: float, say: Printer) -> None:
+    cfg = config.sensor
+    scales = sensor.full_scales
+    say(f"  sensor  JR3 node {cfg.node_id} initialised: {cfg.mode} mode, cut-off "
+        f"{sensor.cutoff_hz:g} Hz, offsets {'zeroed' if cfg.zero_on_init else 'as stored'}")
+    if scales is not None:
+        say(f"  sensor  full scales {' '.join(f'{s:g}' for s in scales[:3])} N, "
+            f"{' '.join(f'{s:g}' for s in scales[3:])} N*m")
+    stats_before = sensor.stats
+    samples = []
+    start = time.monotonic()
+    while time.monotonic() - start < seconds:
+        samples += sensor.read_many(BATCH)
+    elapsed = time.monotonic() - start
+    stats = sensor.stats
+    wrench = np.array([s.wrench for s in samples])
+    mean, noise = wrench.mean(axis=0), wrench.std(axis=0)
+    say(f"  sensor  {len(samples)} samples in {elapsed:.2f} s: {len(samples) / elapsed:.0f} "
+        f"samples/s; dropped {stats.dropped_samples - stats_before.dropped_samples}, "
+        f"bootups {stats.bootups - stats_before.bootups}, "
+        f"rejected frames {stats.rejected_total - stats_before.rejected_total}")
+    say("          axis        mean   noise (std)")
+    for name, unit, m, n in zip(AXES, UNITS, mean, noise, strict=True):
+        say(f"          {name}  {m:>+10.3f}  {n:>10.3f}  {unit}")
+    axis, sign = config.filter.axis, config.filter.sign
+    say(f"  sensor  normal force ({'+' if sign > 0 else '-'}{AXES[axis]}, [filter] axis "
+        f"{axis}): mean {sign * mean[axis]:+.3f} N, noise {noise[axis]:.3f} N")
+    if config.calibration_file is not None:
+        state = "found" if config.calibration_file.is_file() else "MISSING"
+        say(f"  sensor  calibration file {config.calibration_file}: {state}")
+
+
+def _describe_robot(config: CellConfig) -> str:
+    robot = config.robot
+    if config.robot_emulated:
+        return "built-in robot-controller emulator on a pty"
+    return (f"port {robot.url} at {robot.baudrate} baud, {robot.bytesize}"
+            f"{robot.parity}{robot.stopbits:g}")
+
+
+def _describe_bus(config: CellConfig) -> str:
+    bus = config.bus
+    if config.sensor_emulated:
+        return "built-in JR3 emulator on a virtual CAN bus"
+    return (f"CAN interface {bus.interface}, channel {bus.channel}, {bus.bitrate} bit/s, "
+            f"JR3 node {config.sensor.node_id}")
