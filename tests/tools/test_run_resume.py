@@ -224,3 +224,24 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
     assert stops_before_close[0] >= 1, "the run did not stop the robot before closing"
     assert trials_done(out) == 3
     assert json.loads((out / "summary.json").read_text())["trials"] == 3
+
+
+def test_an_ended_but_unsaved_trial_is_rolled_back_before_outputs() -> None:
+    """Interrupted between a trial's end and its checkpoint: outputs match the checkpoint."""
+    from forcelearn.tools.cell_config import load_cell_config
+    from forcelearn.tools.surface_run import SurfaceRun
+    from forcelearn.trainer import TrialLog, TrialRecord
+
+    run = SurfaceRun(load_cell_config(), trials=10, seed=0, out=Path("."))
+    for i in range(3):
+        run.result.records.append(TrialRecord(i, "generalized", 20, False, 0.1, 0.5, 9.0))
+        run.traces.append({"mean_y_mm": [1.0], "command_y_mm": [1.1]})
+        run.result.steps += 20
+        run.result.last_log = TrialLog(i, "generalized")
+        if i < 2:
+            run.mark_saved()
+    run.result.switch_trial, run.result.switch_log = 2, run.result.last_log
+    run.rollback_to_saved()
+    assert len(run.result.records) == len(run.traces) == 2
+    assert run.result.steps == 40 and run.result.last_log.index == 1
+    assert run.result.switch_trial is None and run.result.switch_log is None

@@ -69,6 +69,25 @@ class SurfaceRun:
     traces: list[dict[str, list[float]]] = dataclasses.field(default_factory=list)
     """Per trial: the mean Y (y of μ) and the searched Y command of every step, mm."""
     wall_s: float = 0.0
+    saved: tuple[int, int, TrialLog | None] = (0, 0, None)
+    """(trials, steps, last log) as of the last checkpoint written."""
+
+    def mark_saved(self) -> None:
+        """Remember what the checkpoint on disk holds."""
+        self.saved = (len(self.result.records), self.result.steps, self.result.last_log)
+
+    def rollback_to_saved(self) -> None:
+        """Forget a trial that ended but was not checkpointed (interrupted in between)."""
+        trials, steps, last_log = self.saved
+        result = self.result
+        del result.records[trials:]
+        del self.traces[trials:]
+        result.steps, result.last_log = steps, last_log
+        result.logs = {k: v for k, v in result.logs.items() if k < trials}
+        if result.switch_trial is not None and result.switch_trial >= trials:
+            result.switch_trial, result.switch_log = None, None
+        if trials == 0:
+            result.first_log = None
 
     @property
     def mid_trial(self) -> int:
@@ -210,6 +229,7 @@ def execute(
             learner, state = load_learner(checkpoint, output=task.output_map())
             _restore(run, state, load_extra_arrays(checkpoint))
             session.load_emulator_state(state["emulator"])
+            run.mark_saved()
         else:
             learner = SRVLearner(
                 task.grid, 1, config.learner, rng=run.seed, output=task.output_map()
@@ -232,6 +252,7 @@ def execute(
                 metadata=_run_state(run, session.emulator_state()),
                 arrays=_history_arrays(run),
             )
+            run.mark_saved()
             if on_trial is not None:
                 on_trial(record, lrn)
 
@@ -248,6 +269,7 @@ def execute(
                 )
         except (KeyboardInterrupt, ForcelearnError):
             session.cell.stop()
+            run.rollback_to_saved()
             write_outputs(run, learner)
             raise
         task.retract()
