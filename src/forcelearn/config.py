@@ -36,13 +36,18 @@ def build(cls: type[T], table: Mapping[str, Any] | None, section: str) -> T:
         )
     for key, value in table.items():
         if isinstance(value, list):
-            table[key] = tuple(value)
+            table[key] = _tuples(value)
     try:
         return cls(**table)
     except ConfigError as exc:
         raise ConfigError(f"[{section}] {exc}") from exc
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"[{section}] invalid value: {exc}") from exc
+
+
+def _tuples(value: Any) -> Any:
+    """TOML arrays (nested too) as tuples, so frozen configs compare equal to their defaults."""
+    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
 
 
 def check_sections(data: Mapping[str, Any], allowed: set[str]) -> None:

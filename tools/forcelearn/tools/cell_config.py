@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Any
 
 from forcelearn.config import build, check_sections, read_toml
+from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link.config import Limits, LinkConfig
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
@@ -135,6 +136,15 @@ class CellConfig:
 _BUS_KEYS = {"interface", "channel", "bitrate"}
 
 
+def _with_home_pose(arm: dict[str, Any] | None) -> dict[str, Any] | None:
+    """``[emulator.arm.home]`` (x_mm, y_mm, z_mm, quaternion) as a Pose."""
+    if not arm or "home" not in arm:
+        return arm
+    if not isinstance(arm["home"], dict):
+        raise ConfigError("emulator.arm.home: a table with x_mm, y_mm, z_mm, quaternion")
+    return {**arm, "home": build(Pose, arm["home"], "emulator.arm.home")}
+
+
 def load_cell_config(path: str | Path | None = None) -> CellConfig:
     """Read a cell config (or return the emulated default); errors name the key."""
     data = read_toml(path) if path else {}
@@ -174,7 +184,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
     emulator = EmulatorConfig(
         sponge=build(SpongeParams, emulator_table.get("sponge"), "emulator.sponge"),
         sensor=build(SensorModelParams, emulator_table.get("sensor"), "emulator.sensor"),
-        arm=build(ArmConfig, emulator_table.get("arm"), "emulator.arm"),
+        arm=build(ArmConfig, _with_home_pose(emulator_table.get("arm")), "emulator.arm"),
     )
     run = dict(data.get("run", {}))
     unknown = sorted(set(run) - {"trials", "seed"})

@@ -1,0 +1,90 @@
+"""The example configs: the emulated one is the built-in default key for key; the real one loads."""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from forcelearn.devices import Pose
+from forcelearn.drivers.computer_link.config import LinkConfig
+from forcelearn.drivers.jr3_can.config import Jr3Config
+from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.physics.sponge import SpongeParams
+from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+from forcelearn.errors import ConfigError
+from forcelearn.filtering import ForceFilterConfig
+from forcelearn.learning import SRVParams
+from forcelearn.tasks.surface import SurfaceTaskSpec
+from forcelearn.tools.cell_config import BusConfig, SafetyLimits, load_cell_config
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+EMULATED = EXAMPLES / "emulated-cell.toml"
+REAL = EXAMPLES / "real-cell.toml"
+
+NOT_IN_TOML = {"limits", "stale_timeout_s", "full_scales", "log_path"}
+"""Fields a file cannot or must not set: limits come from [safety], None defaults stay unset."""
+TABLES: dict[str, tuple[type, ...]] = {
+    "robot": (LinkConfig,),
+    "sensor": (BusConfig, Jr3Config),
+    "filter": (ForceFilterConfig,),
+    "safety": (SafetyLimits,),
+    "task": (SurfaceTaskSpec,),
+    "learner": (SRVParams,),
+    "emulator.sponge": (SpongeParams,),
+    "emulator.sensor": (SensorModelParams,),
+    "emulator.arm": (ArmConfig,),
+    "emulator.arm.home": (Pose,),
+}
+
+
+def test_the_emulated_example_is_exactly_the_built_in_default() -> None:
+    """Loading examples/emulated-cell.toml gives the same CellConfig as no file at all."""
+    assert replace(load_cell_config(EMULATED), source=None) == load_cell_config()
+
+
+@pytest.mark.parametrize("table", sorted(TABLES))
+def test_the_emulated_example_shows_every_parameter(table: str) -> None:
+    """Each field of each table is written out (a new field must be added to the example)."""
+    data = tomllib.loads(EMULATED.read_text())
+    for part in table.split("."):
+        data = data[part]
+    fields = {f.name for cls in TABLES[table] for f in dataclasses.fields(cls) if f.init}
+    missing = sorted(fields - NOT_IN_TOML - set(data))
+    assert not missing, f"examples/emulated-cell.toml lacks [{table}] {missing}: add them"
+
+
+def test_a_changed_emulated_example_is_no_longer_the_default(tmp_path: Path) -> None:
+    """The equality above is not vacuous: one changed physical value breaks it."""
+    changed = tmp_path / "cell.toml"
+    changed.write_text(EMULATED.read_text().replace("y_mm = 0.0", "y_mm = 1.0"))
+    config = load_cell_config(changed)
+    assert config.emulator.arm.home.y_mm == 1.0
+    assert replace(config, source=None) != load_cell_config()
+
+
+def test_the_real_cell_example_loads_as_a_real_cell() -> None:
+    """Serial port, slcan on a USB adapter at 1 Mbit/s, normal force axis, limits, calibration."""
+    config = load_cell_config(REAL)
+    assert not config.robot_emulated and not config.sensor_emulated
+    assert (config.robot.url, config.robot.baudrate) == ("/dev/ttyS0", 9600)
+    assert (config.bus.interface, config.bus.channel, config.bus.bitrate) == (
+        "slcan", "/dev/ttyACM0", 1_000_000
+    )
+    assert config.sensor.node_id == 1 and (config.filter.axis, config.filter.sign) == (1, -1.0)
+    assert config.safety.max_force_n == 60.0 and config.robot.limits.max_step_mm == 10.0
+    assert config.calibration_file == EXAMPLES / "calibration.toml"
+
+
+@pytest.mark.parametrize(
+    "text", ["[emulator.arm]\nhome = 3\n", "[emulator.arm.home]\nx_mm = 900.0\nw = 1\n"]
+)
+def test_a_bad_home_pose_is_an_error_naming_the_key(tmp_path: Path, text: str) -> None:
+    """[emulator.arm.home] must be a table of Pose fields; anything else names the key."""
+    path = tmp_path / "cell.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=r"emulator\.arm\.home"):
+        load_cell_config(path)
