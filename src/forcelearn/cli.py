@@ -21,6 +21,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("forcelearn.tools.run_command", "learn force tracking on the cell (paper §5)"),
     "sim": ("forcelearn.tools.sim", "run a simulated task (paper §4 contour tracking)"),
     "bench": ("forcelearn.tools.bench", "print speed figures of the learner, link and sensor"),
+    "calibrate": ("forcelearn.tools.calibrate", "measure sensor bias, noise and tool load"),
     "check": ("forcelearn.tools.check_command", "check a cell's devices without moving the robot"),
     "emulate": ("forcelearn.tools.emulate_command", "serve the emulated cell on two ptys (slcan)"),
 }
