@@ -10,6 +10,12 @@ either way.
 ``CellSession.emulator_state()`` / ``load_emulator_state()`` checkpoint what a
 bit-identical resume needs (sponge wear, sensor noise generator, bias,
 offsets, frame counter).
+
+When the config names a calibration file (``[calibration] file``), it is read
+before any device opens; the Kalman filter takes R from the noise variance of
+its axis, and the cell subtracts bias and tool gravity from every sample. If
+the sensor zeroes on opening, the bias is re-derived for the zeroing pose
+(:meth:`~forcelearn.calibration.Calibration.rezeroed`).
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from typing import Any
 
 import can
 
+from forcelearn.calibration import Calibration, load_calibration
 from forcelearn.cell import Cell
 from forcelearn.drivers.computer_link import ComputerLinkRobot
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
@@ -55,6 +62,7 @@ class CellSession:
         self.robot: ComputerLinkRobot | None = None
         self.sensor: Jr3CanSensor | None = None
         self.cell: Cell | None = None
+        self.calibration: Calibration | None = None
         self._stack = contextlib.ExitStack()
         try:
             self._open(seed)
@@ -64,6 +72,8 @@ class CellSession:
 
     def _open(self, seed: int) -> None:
         cfg = self.config
+        if cfg.calibration_file is not None:
+            self.calibration = load_calibration(cfg.calibration_file)
         if cfg.robot_emulated or cfg.sensor_emulated:
             self.sponge = Sponge(cfg.emulator.sponge)
             self.physics = CellPhysics(self.sponge, cfg.emulator.arm.home, ToolParams())
@@ -123,6 +133,25 @@ class CellSession:
             max_force_n=cfg.safety.max_force_n,
             samples_per_step=cfg.task.samples_per_step,
         )
+        if self.calibration is not None:
+            self._apply_calibration(self.calibration, self.robot, self.cell)
+
+    def _apply_calibration(self, calibration: Calibration, robot: ComputerLinkRobot,
+                           cell: Cell) -> None:
+        """Give the filter R from the measured noise; install bias and gravity compensation."""
+        cfg = self.config
+        if cfg.sensor.zero_on_init:  # zeroed just now, at the pose the robot is in
+            calibration = calibration.rezeroed(robot.read_pose().quaternion)
+        measured_at = calibration.sensor.cutoff_hz
+        if measured_at and abs(measured_at - cfg.sensor.cutoff_hz) > 0.01:
+            log.warning("the calibration measured the noise at a %.2f Hz cut-off, the sensor "
+                        "runs at %.2f Hz: R may be wrong; calibrate again", measured_at,
+                        cfg.sensor.cutoff_hz)
+        self.calibration = calibration
+        cell.force_filter.set_measurement_variance(calibration.noise_variance(cfg.filter.axis))
+        cell.compensation = calibration.compensation
+        log.info("calibration %s applied: R = %.4g, tool %.3f kg", cfg.calibration_file,
+                 calibration.noise_variance(cfg.filter.axis), calibration.tool.mass_kg)
 
     @property
     def emulated(self) -> bool:
