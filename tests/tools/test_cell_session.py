@@ -107,3 +107,14 @@ def test_a_target_outside_the_workspace_is_refused(session) -> None:
         session.cell.move_in_steps(target, session.config.safety.max_step_mm)
     assert session.robot_emulator.pose.z_mm <= high[2]
     assert session.robot_emulator.move_count >= moves  # stopped at the edge, never past it
+
+
+def test_the_watchdog_is_longer_only_for_the_in_process_emulated_sensor(tmp_path: Path) -> None:
+    """Emulated sensor: 1 s unless set; a real bus keeps 0.1 s; an explicit value always wins."""
+    assert load_cell_config().sensor.stale_timeout_s == 1.0
+    real = tmp_path / "real.toml"
+    real.write_text('[sensor]\ninterface = "socketcan"\nchannel = "can0"\n')
+    assert load_cell_config(real).sensor.stale_timeout_s == 0.1
+    explicit = tmp_path / "explicit.toml"
+    explicit.write_text("[safety]\nstale_sensor_s = 0.2\n")
+    assert load_cell_config(explicit).sensor.stale_timeout_s == 0.2

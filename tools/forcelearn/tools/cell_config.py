@@ -46,6 +46,13 @@ from forcelearn.learning import SRVParams
 from forcelearn.tasks.surface import SurfaceTaskSpec
 
 EMULATED = "emulated"
+EMULATED_STALE_SENSOR_S = 1.0
+"""Stale-sensor watchdog of the in-process emulated sensor when the file sets none, s.
+
+On a real sensor silence is a fault and 0.1 s is the default. In emulation the
+sensor is a thread of this process, so its only "silence" is a stall of the
+host (a loaded CI machine): a longer watchdog keeps such stalls from stopping
+runs or from re-sending SYNCs, which would change the emulated noise sequence."""
 
 SECTION_LEARNER_DEFAULTS: dict[str, Any] = {
     "gamma": 0.8,  # γ, §5
@@ -75,6 +82,7 @@ class SafetyLimits:
     workspace_min_mm: tuple[float, float, float] = (700.0, -60.0, -130.0)
     workspace_max_mm: tuple[float, float, float] = (1100.0, 60.0, 700.0)
     stale_sensor_s: float = 0.1
+    """Watchdog on a real sensor, s (the emulated cell uses EMULATED_STALE_SENSOR_S)."""
 
     def __post_init__(self) -> None:
         for name in ("max_force_n", "max_step_mm", "stale_sensor_s"):
@@ -173,6 +181,8 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
     bus = build(
         BusConfig, {k: sensor_table.pop(k) for k in list(sensor_table) if k in _BUS_KEYS}, "sensor"
     )
+    if bus.interface == EMULATED and "stale_sensor_s" not in data.get("safety", {}):
+        safety = replace(safety, stale_sensor_s=EMULATED_STALE_SENSOR_S)
     if "stale_timeout_s" in sensor_table:
         raise ConfigError("sensor.stale_timeout_s: set safety.stale_sensor_s instead")
     sensor_table.setdefault("zero_on_init", True)
