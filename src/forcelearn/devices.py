@@ -40,6 +40,21 @@ class Pose:
         return Pose(self.x_mm + dx_mm, self.y_mm + dy_mm, self.z_mm + dz_mm, self.quaternion)
 
 
+def quaternion_to_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
+    """Return the 3x3 rotation matrix (sensor/tool frame to world) of a quaternion (w, x, y, z).
+
+    The quaternion is normalised first, so a slightly off-unit one still gives a rotation.
+    """
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
 @dataclass(frozen=True)
 class WrenchSample:
     """One paired force/moment sample from a 6-axis sensor.

@@ -46,11 +46,23 @@ def _readings(tool: ToolParams, quaternions, noise: np.ndarray, rng) -> np.ndarr
     ])
 
 
-def test_rotation_and_gravity_agree_with_the_emulator_physics() -> None:
-    """Core and emulator compute the same rotation and the same gravity (g = 9.80665)."""
+def test_rotation_is_proper_and_maps_known_axes() -> None:
+    """The one quaternion_to_matrix is orthonormal; tool-down and 90° about z map as expected."""
     rng = np.random.default_rng(3)
     for q in _random_quaternions(rng, 20):
-        assert np.allclose(quaternion_to_matrix(q), emulator_rotation(q), atol=1e-12)
+        r = quaternion_to_matrix(q)
+        assert np.allclose(r @ r.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(r) == pytest.approx(1.0)
+    down = quaternion_to_matrix((0.0, 1.0, 0.0, 0.0))  # 180° about x: the tool points down
+    assert np.allclose(down @ [0, 0, 1], [0, 0, -1]) and np.allclose(down @ [0, 1, 0], [0, -1, 0])
+    half = np.sqrt(0.5)
+    assert np.allclose(quaternion_to_matrix((half, 0.0, 0.0, half)) @ [1, 0, 0], [0, 1, 0])
+
+
+def test_gravity_agrees_with_the_emulator_physics() -> None:
+    """Core gravity in the sensor frame equals the emulator's tool weight per kg (g = 9.80665)."""
+    rng = np.random.default_rng(3)
+    for q in _random_quaternions(rng, 20):
         expected = gravity_wrench(ToolParams(1.0, (0.0, 0.0, 0.0)), emulator_rotation(q))[:3]
         assert np.allclose(gravity_in_sensor(q), expected, atol=1e-12)
     assert CORE_GRAVITY == STANDARD_GRAVITY_M_S2

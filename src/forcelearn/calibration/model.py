@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from forcelearn.devices import Pose
+from forcelearn.devices import Pose, quaternion_to_matrix
 
 FORMAT_VERSION = 1
 """Version of the calibration file format this code writes and reads."""
@@ -28,18 +28,6 @@ AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 Vec3 = tuple[float, float, float]
 Vec6 = tuple[float, float, float, float, float, float]
 Quaternion = tuple[float, float, float, float]
-
-
-def quaternion_to_matrix(q: Quaternion) -> np.ndarray:
-    """Return the 3x3 rotation (sensor -> world) of a quaternion (w, x, y, z), normalised."""
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def gravity_in_sensor(q: Quaternion) -> np.ndarray:

@@ -25,7 +25,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from forcelearn.devices import Pose
+from forcelearn.devices import Pose, quaternion_to_matrix
 from forcelearn.emulators.physics.tool import POINT_TOOL, ToolParams, contact_wrench, gravity_wrench
 
 
@@ -119,15 +119,3 @@ class CellPhysics:
         if not force_world.any():
             return gravity.copy()
         return contact_wrench(self.tool, rotation, force_world) + gravity
-
-
-def quaternion_to_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
-    """Return the 3x3 rotation matrix of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
