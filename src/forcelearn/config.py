@@ -50,6 +50,17 @@ def _tuples(value: Any) -> Any:
     return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
 
 
+def read_run_table(data: Mapping[str, Any], default_trials: int) -> tuple[int, int]:
+    """Return (trials, seed) from the ``[run]`` table; an unknown key is named."""
+    run = dict(data.get("run", {}))
+    unknown = sorted(set(run) - {"trials", "seed"})
+    if unknown:
+        raise ConfigError(
+            f"unknown key(s) {['run.' + k for k in unknown]}; known: run.trials, run.seed"
+        )
+    return int(run.get("trials", default_trials)), int(run.get("seed", 0))
+
+
 def check_sections(data: Mapping[str, Any], allowed: set[str]) -> None:
     """Refuse top-level tables this config does not know, naming them."""
     unknown = sorted(set(data) - allowed)

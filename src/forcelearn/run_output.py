@@ -12,6 +12,7 @@ import dataclasses
 import io
 import json
 import math
+import statistics
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -67,6 +68,14 @@ def write_step_log(path: Path, log: TrialLog) -> Path:
     return path
 
 
+def median_range(values: Sequence[float], fmt: str = "{:.0f}") -> str:
+    """Format values as 'median (min–max)' for the study reports."""
+    return (
+        f"{fmt.format(statistics.median(values))} "
+        f"({fmt.format(min(values))}–{fmt.format(max(values))})"
+    )
+
+
 def final_figures(records: Sequence[TrialRecord], window: int = FINAL_WINDOW) -> dict[str, float]:
     """Median force RMS and mean r over the last ``window`` trials."""
     tail = records[-window:]
@@ -74,11 +83,8 @@ def final_figures(records: Sequence[TrialRecord], window: int = FINAL_WINDOW) ->
         return {"final_force_rms_n": math.nan, "final_mean_r": math.nan}
 
     def median(values: list[float]) -> float:
-        ordered = sorted(v for v in values if math.isfinite(v))
-        if not ordered:
-            return math.nan
-        mid = len(ordered) // 2
-        return ordered[mid] if len(ordered) % 2 else 0.5 * (ordered[mid - 1] + ordered[mid])
+        finite = [v for v in values if math.isfinite(v)]
+        return statistics.median(finite) if finite else math.nan
 
     return {
         "final_force_rms_n": median([r.force_rms_n for r in tail]),

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from forcelearn.config import build, check_sections, read_toml
+from forcelearn.config import build, check_sections, read_run_table, read_toml
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link.config import Limits, LinkConfig
 from forcelearn.drivers.jr3_can.config import Jr3Config
@@ -46,6 +46,8 @@ from forcelearn.learning import SRVParams
 from forcelearn.tasks.surface import SurfaceTaskSpec
 
 EMULATED = "emulated"
+DEFAULT_TRIALS = 300
+"""Trials of a run when neither the config nor the command line says."""
 EMULATED_STALE_SENSOR_S = 1.0
 """Stale-sensor watchdog of the in-process emulated sensor when the file sets none, s.
 
@@ -126,7 +128,7 @@ class CellConfig:
     learner: SRVParams = field(default_factory=lambda: SRVParams(**SECTION_LEARNER_DEFAULTS))
     emulator: EmulatorConfig = field(default_factory=EmulatorConfig)
     calibration_file: Path | None = None
-    trials: int = 300
+    trials: int = DEFAULT_TRIALS
     seed: int = 0
     source: Path | None = None
 
@@ -196,10 +198,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         sensor=build(SensorModelParams, emulator_table.get("sensor"), "emulator.sensor"),
         arm=build(ArmConfig, _with_home_pose(emulator_table.get("arm")), "emulator.arm"),
     )
-    run = dict(data.get("run", {}))
-    unknown = sorted(set(run) - {"trials", "seed"})
-    if unknown:
-        raise ConfigError(f"unknown key(s) {['run.' + k for k in unknown]}; known: trials, seed")
+    trials, seed = read_run_table(data, DEFAULT_TRIALS)
     calibration = dict(data.get("calibration", {}))
     if set(calibration) - {"file"}:
         raise ConfigError("[calibration] takes one key, file")
@@ -220,7 +219,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         ),
         emulator=emulator,
         calibration_file=calibration_file,
-        trials=int(run.get("trials", 300)),
-        seed=int(run.get("seed", 0)),
+        trials=trials,
+        seed=seed,
         source=Path(path) if path else None,
     )

@@ -13,9 +13,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from forcelearn.config import build, check_sections, read_toml
+from forcelearn.config import build, check_sections, read_run_table, read_toml
 from forcelearn.emulators.physics.two_link_arm import ContourGeometry, TwoLinkContourCell
-from forcelearn.errors import ConfigError
 from forcelearn.learning import SRVLearner, SRVParams
 from forcelearn.run_output import final_figures
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
@@ -49,18 +48,13 @@ def load_config(
     """Read a contour config file (or the defaults) and apply command-line overrides."""
     data = read_toml(path) if path else {}
     check_sections(data, {"learner", "task", "geometry", "run"})
-    run = dict(data.get("run", {}))
-    unknown = sorted(set(run) - {"trials", "seed"})
-    if unknown:
-        raise ConfigError(
-            f"unknown key(s) {['run.' + k for k in unknown]}; known: run.trials, run.seed"
-        )
+    trials, seed = read_run_table(data, DEFAULT_TRIALS)
     config = ContourConfig(
         learner=build(SRVParams, data.get("learner"), "learner"),
         task=build(ContourTaskSpec, data.get("task"), "task"),
         geometry=build(ContourGeometry, data.get("geometry"), "geometry"),
-        trials=int(run.get("trials", DEFAULT_TRIALS)),
-        seed=int(run.get("seed", 0)),
+        trials=trials,
+        seed=seed,
     )
     return replace(config, **{k: v for k, v in (overrides or {}).items() if v is not None})
 

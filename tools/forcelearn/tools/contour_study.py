@@ -25,6 +25,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from forcelearn.learning import SRVParams
+from forcelearn.run_output import median_range
 from forcelearn.tools.contour_experiment import DEFAULT_TRIALS, ContourConfig, run_contour
 from forcelearn.tools.figures_contour import moving_average
 
@@ -54,13 +55,6 @@ def _one(job: tuple[str, int, int]) -> dict[str, Any]:
     }
 
 
-def _range(values: list[float], fmt: str = "{:.0f}") -> str:
-    return (
-        f"{fmt.format(statistics.median(values))} ({fmt.format(min(values))}–"
-        f"{fmt.format(max(values))})"
-    )
-
-
 def _table(runs: list[dict[str, Any]], trials: int) -> list[str]:
     to_criterion = [r["summary"]["criterion_trial"] for r in runs]
     converged = [r["summary"]["converged_trial"] for r in runs]
@@ -74,15 +68,15 @@ def _table(runs: list[dict[str, Any]], trials: int) -> list[str]:
         "| figure | median (range) |",
         "|---|---|",
         f"| seeds reaching the global criterion | {len(reached)} / {len(runs)} |",
-        f"| trials to the global criterion (never = {trials}) | {_range(counted)} |",
+        f"| trials to the global criterion (never = {trials}) | {median_range(counted)} |",
         f"| seeds converged (10 complete trials, force RMS ≤ 0.05 N) | "
         f"{sum(c is not None for c in converged)} / {len(runs)} |",
-        f"| trials to convergence (never = {trials}) | {_range(conv_counted)} |",
-        f"| final force RMS, median of the last 50 trials (N) | {_range(final, '{:.3f}')} |",
+        f"| trials to convergence (never = {trials}) | {median_range(conv_counted)} |",
+        f"| final force RMS, median of the last 50 trials (N) | {median_range(final, '{:.3f}')} |",
         f"| force RMS of the learned policy without search (μ only), N | "
-        f"{_range([r['greedy'] for r in runs], '{:.3f}')} |",
-        f"| failed trials | {_range(failures)} |",
-        f"| controller steps per second | {_range(rates)} |",
+        f"{median_range([r['greedy'] for r in runs], '{:.3f}')} |",
+        f"| failed trials | {median_range(failures)} |",
+        f"| controller steps per second | {median_range(rates)} |",
     ]
 
 

@@ -225,21 +225,20 @@ def execute(
     with CellSession(config, seed=run.seed) as session:
         assert session.cell is not None
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
+        output = task.output_map()
         if checkpoint is not None:
-            learner, state = load_learner(checkpoint, output=task.output_map())
+            learner, state = load_learner(checkpoint, output=output)
             _restore(run, state, load_extra_arrays(checkpoint))
             session.load_emulator_state(state["emulator"])
             run.mark_saved()
         else:
-            learner = SRVLearner(
-                task.grid, 1, config.learner, rng=run.seed, output=task.output_map()
-            )
+            learner = SRVLearner(task.grid, 1, config.learner, rng=run.seed, output=output)
 
         def after_trial(record: TrialRecord, trial_log: TrialLog, lrn: SRVLearner) -> None:
             run.traces.append(
                 {
                     "mean_y_mm": [
-                        task.output_map()(row["mean_0"], None).item()  # type: ignore[arg-type]
+                        output(np.array([row["mean_0"]]), None).item()  # type: ignore[arg-type]
                         for row in trial_log.rows
                     ],
                     "command_y_mm": [row["command_0"] for row in trial_log.rows],

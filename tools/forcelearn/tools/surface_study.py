@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import shutil
-import statistics
 import sys
 import tempfile
 import time
@@ -21,6 +20,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from forcelearn.run_output import median_range
 from forcelearn.tools.surface_run import execute, prepare_run
 
 PAPER_REPETITIONS = 237
@@ -30,13 +30,6 @@ def _one(job: tuple[int, int, str]) -> dict[str, Any]:
     seed, trials, folder = job
     run, checkpoint = prepare_run(None, Path(folder) / f"seed{seed}", trials, seed, resume=False)
     return execute(run, checkpoint)
-
-
-def _median_range(values: list[float], fmt: str) -> str:
-    return (
-        f"{fmt.format(statistics.median(values))} "
-        f"({fmt.format(min(values))}–{fmt.format(max(values))})"
-    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -84,15 +77,15 @@ def main(argv: list[str] | None = None) -> int:
         "|---|---|",
         f"| seeds converged | {sum(c is not None for c in converged)} / {len(summaries)} |",
         f"| trials to converge (paper: ~{PAPER_REPETITIONS}) | "
-        f"{_median_range([budget if c is None else c for c in converged], '{:.0f}')} |",
+        f"{median_range([budget if c is None else c for c in converged], '{:.0f}')} |",
         f"| trials to the global criterion | "
-        f"{_median_range([budget if c is None else c for c in reached], '{:.0f}')} |",
+        f"{median_range([budget if c is None else c for c in reached], '{:.0f}')} |",
         f"| final force RMS, median of the last 50 trials (N) | "
-        f"{_median_range([s['final_force_rms_n'] for s in summaries], '{:.3f}')} |",
-        f"| failed trials | {_median_range([s['failures'] for s in summaries], '{:.0f}')} |",
-        f"| wall time per run (s) | {_median_range([s['wall_s'] for s in summaries], '{:.1f}')} |",
+        f"{median_range([s['final_force_rms_n'] for s in summaries], '{:.3f}')} |",
+        f"| failed trials | {median_range([s['failures'] for s in summaries], '{:.0f}')} |",
+        f"| wall time per run (s) | {median_range([s['wall_s'] for s in summaries], '{:.1f}')} |",
         f"| controller steps per second through the wire stack | "
-        f"{_median_range([s['steps_per_s'] for s in summaries], '{:.0f}')} |",
+        f"{median_range([s['steps_per_s'] for s in summaries], '{:.0f}')} |",
         "",
         "Seed 0's run: Y commands (Fig. 12), contact force at the first trial, mid-way",
         "and at the end (Fig. 13), initial contact force as the sponge wears (Fig. 14).",
