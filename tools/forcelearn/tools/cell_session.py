@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import uuid
 from dataclasses import replace
 from typing import Any
 
@@ -35,11 +34,16 @@ from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge
-from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
 from forcelearn.errors import ForcelearnError, LinkError, SensorBusError
 from forcelearn.filtering import ForceFilter
 from forcelearn.tools.cell_config import CellConfig
+from forcelearn.tools.emulated_cell import (
+    emulated_jr3,
+    emulated_physics,
+    emulated_robot,
+    private_channel,
+)
 
 log = logging.getLogger(__name__)
 
@@ -75,25 +79,15 @@ class CellSession:
         if cfg.calibration_file is not None:
             self.calibration = load_calibration(cfg.calibration_file)
         if cfg.robot_emulated or cfg.sensor_emulated:
-            self.sponge = Sponge(cfg.emulator.sponge)
-            self.physics = CellPhysics(self.sponge, cfg.emulator.arm.home, ToolParams())
+            self.sponge, self.physics = emulated_physics(cfg)
         robot_config = cfg.robot
         if cfg.robot_emulated:
-            self.robot_emulator = RobotControllerEmulator(
-                "pty", config=cfg.emulator.arm, physics=self.physics
-            )
+            self.robot_emulator = emulated_robot(cfg, self.physics)  # type: ignore[arg-type]
             self._stack.callback(self.robot_emulator.stop)
             robot_config = replace(robot_config, url=self.robot_emulator.start())
-        channel = cfg.bus.channel
         if cfg.sensor_emulated:
-            channel = f"{cfg.bus.channel}-{uuid.uuid4().hex[:8]}"
-            self.sensor_emulator = Jr3EmulatorNode(
-                self.physics,  # type: ignore[arg-type]
-                channel=channel,
-                node_id=cfg.sensor.node_id,
-                model=cfg.emulator.sensor,
-                seed=seed,
-            )
+            channel = private_channel(cfg)
+            self.sensor_emulator = emulated_jr3(cfg, self.physics, channel, seed)  # type: ignore[arg-type]
             self._stack.callback(self.sensor_emulator.close)
             self._bus = can.Bus(interface="virtual", channel=channel)
         else:
@@ -136,22 +130,30 @@ class CellSession:
         if self.calibration is not None:
             self._apply_calibration(self.calibration, self.robot, self.cell)
 
-    def _apply_calibration(self, calibration: Calibration, robot: ComputerLinkRobot,
-                           cell: Cell) -> None:
+    def _apply_calibration(
+        self, calibration: Calibration, robot: ComputerLinkRobot, cell: Cell
+    ) -> None:
         """Give the filter R from the measured noise; install bias and gravity compensation."""
         cfg = self.config
         if cfg.sensor.zero_on_init:  # zeroed just now, at the pose the robot is in
             calibration = calibration.rezeroed(robot.read_pose().quaternion)
         measured_at = calibration.sensor.cutoff_hz
         if measured_at and abs(measured_at - cfg.sensor.cutoff_hz) > 0.01:
-            log.warning("the calibration measured the noise at a %.2f Hz cut-off, the sensor "
-                        "runs at %.2f Hz: R may be wrong; calibrate again", measured_at,
-                        cfg.sensor.cutoff_hz)
+            log.warning(
+                "the calibration measured the noise at a %.2f Hz cut-off, the sensor "
+                "runs at %.2f Hz: R may be wrong; calibrate again",
+                measured_at,
+                cfg.sensor.cutoff_hz,
+            )
         self.calibration = calibration
         cell.force_filter.set_measurement_variance(calibration.noise_variance(cfg.filter.axis))
         cell.compensation = calibration.compensation
-        log.info("calibration %s applied: R = %.4g, tool %.3f kg", cfg.calibration_file,
-                 calibration.noise_variance(cfg.filter.axis), calibration.tool.mass_kg)
+        log.info(
+            "calibration %s applied: R = %.4g, tool %.3f kg",
+            cfg.calibration_file,
+            calibration.noise_variance(cfg.filter.axis),
+            calibration.tool.mass_kg,
+        )
 
     @property
     def emulated(self) -> bool:

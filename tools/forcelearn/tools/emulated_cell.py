@@ -30,6 +30,35 @@ from forcelearn.tools.cell_config import CellConfig
 log = logging.getLogger(__name__)
 
 
+def emulated_physics(config: CellConfig) -> tuple[Sponge, CellPhysics]:
+    """The sponge and the one physics object both emulators read (robot at its home pose)."""
+    sponge = Sponge(config.emulator.sponge)
+    return sponge, CellPhysics(sponge, config.emulator.arm.home, ToolParams())
+
+
+def emulated_robot(config: CellConfig, physics: CellPhysics) -> RobotControllerEmulator:
+    """The robot-controller emulator on a pty (not yet serving: call ``start()``)."""
+    return RobotControllerEmulator("pty", config=config.emulator.arm, physics=physics)
+
+
+def private_channel(config: CellConfig) -> str:
+    """A ``virtual`` CAN channel name no other cell in this process uses."""
+    return f"{config.bus.channel}-{uuid.uuid4().hex[:8]}"
+
+
+def emulated_jr3(
+    config: CellConfig, physics: CellPhysics, channel: str, seed: int
+) -> Jr3EmulatorNode:
+    """The JR3 adapter emulator on the ``virtual`` CAN ``channel``."""
+    return Jr3EmulatorNode(
+        physics,
+        channel=channel,
+        node_id=config.sensor.node_id,
+        model=config.emulator.sensor,
+        seed=seed,
+    )
+
+
 class EmulatedCell:
     """Robot controller + JR3 behind an slcan adapter, one physics; a context manager.
 
@@ -41,22 +70,13 @@ class EmulatedCell:
 
     def __init__(self, config: CellConfig, seed: int = 0) -> None:
         self.config = config
-        self.sponge = Sponge(config.emulator.sponge)
-        self.physics = CellPhysics(self.sponge, config.emulator.arm.home, ToolParams())
+        self.sponge, self.physics = emulated_physics(config)
         self._stack = contextlib.ExitStack()
-        channel = f"forcelearn-emulate-{uuid.uuid4().hex[:8]}"
         try:
-            self.robot = RobotControllerEmulator(
-                "pty", config=config.emulator.arm, physics=self.physics
-            )
+            self.robot = emulated_robot(config, self.physics)
             self._stack.callback(self.robot.stop)
-            self.sensor = Jr3EmulatorNode(
-                self.physics,
-                channel=channel,
-                node_id=config.sensor.node_id,
-                model=config.emulator.sensor,
-                seed=seed,
-            )
+            channel = private_channel(config)
+            self.sensor = emulated_jr3(config, self.physics, channel, seed)
             self._stack.callback(self.sensor.close)
             self.adapter = SlcanAdapterEmulator(channel=channel, bus_bitrate=config.bus.bitrate)
             self._stack.callback(self.adapter.stop)
