@@ -24,8 +24,18 @@ def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Build the wheel once for this module."""
     out = tmp_path_factory.mktemp("wheel")
     subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation",
-         "--quiet", "-w", str(out), str(ROOT)],
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "wheel",
+            "--no-deps",
+            "--no-build-isolation",
+            "--quiet",
+            "-w",
+            str(out),
+            str(ROOT),
+        ],
         check=True,
     )
     (path,) = out.glob("forcelearn-*.whl")
@@ -61,9 +71,35 @@ def test_version_flag_prints_the_installed_version(capsys: pytest.CaptureFixture
 def test_console_script_runs_in_a_subprocess() -> None:
     """The installed entry point resolves (catches a broken package assembly)."""
     done = subprocess.run(
-        [sys.executable, "-c",
-         "import sys, forcelearn.cli; sys.exit(forcelearn.cli.main(['--help']))"],
-        capture_output=True, text=True, check=False,
+        [
+            sys.executable,
+            "-c",
+            "import sys, forcelearn.cli; sys.exit(forcelearn.cli.main(['--help']))",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
     )
     assert done.returncode == 0, done.stderr
     assert "bench" in done.stdout
+
+
+def test_only_the_chosen_subcommand_module_is_imported() -> None:
+    """`--version` imports no command module; `sim ...` imports sim but not run's."""
+    probe = (
+        "import sys, forcelearn.cli as c\n"
+        "try:\n    c.main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
+        "print(sorted(m for m in sys.modules if m.startswith('forcelearn.tools.')))"
+    )
+    version = subprocess.run(
+        [sys.executable, "-c", probe, "--version"], capture_output=True, text=True, check=True
+    )
+    assert version.stdout.strip().splitlines()[-1] == "[]"
+    helped = subprocess.run(
+        [sys.executable, "-c", probe, "sim", "contour", "--help"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    loaded = helped.stdout.strip().splitlines()[-1]
+    assert "forcelearn.tools.sim'" in loaded and "run_command" not in loaded
