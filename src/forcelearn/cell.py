@@ -8,7 +8,10 @@ real one are the same object with other drivers inside.
 Safety, always on:
 
 * every motion goes through the robot driver, which refuses a step above its
-  limit or a target outside its workspace before any byte is sent;
+  limit or a target outside its workspace before any byte is sent, and every
+  move is waited for: the cell reads the force only once the robot reports in
+  position and has settled (``NotInPosition`` after ``move_timeout_s``, robot
+  stopped);
 * every reading goes through the sensor driver, whose watchdog raises
   ``SensorStale`` when samples stop;
 * :meth:`Cell.measure_force_n` raises :class:`~forcelearn.errors.ForceLimitExceeded`
@@ -45,6 +48,8 @@ class Cell:
         max_force_n: normal force (N) above which motion stops and the trial fails.
         samples_per_step: sensor samples read (and filtered) after each move.
         compensation: optional bias and tool-gravity compensation (calibration).
+        move_timeout_s: longest wait (robot's time) for a move to be in position.
+        settle_s: dwell in position before the force is measured, s.
     """
 
     def __init__(
@@ -55,7 +60,13 @@ class Cell:
         max_force_n: float,
         samples_per_step: int = 5,
         compensation: WrenchCompensation | None = None,
+        move_timeout_s: float = 10.0,
+        settle_s: float = 0.05,
     ):
+        if not (math.isfinite(move_timeout_s) and move_timeout_s > 0):
+            raise ConfigError(f"move_timeout_s must be a finite number > 0, got {move_timeout_s!r}")
+        if not (math.isfinite(settle_s) and settle_s >= 0):
+            raise ConfigError(f"settle_s must be a finite number >= 0, got {settle_s!r}")
         if not (math.isfinite(max_force_n) and max_force_n > 0):
             raise ConfigError(f"max_force_n must be a finite number > 0, got {max_force_n!r}")
         if samples_per_step < 1:
@@ -66,6 +77,10 @@ class Cell:
         self.max_force_n = float(max_force_n)
         self.samples_per_step = int(samples_per_step)
         self.compensation = compensation
+        self.move_timeout_s = float(move_timeout_s)
+        self.settle_s = float(settle_s)
+        self.time_s = 0.0
+        """The robot's clock (s) at the end of the last wait: the cell's time."""
         self._pose: Pose | None = None
 
     @property
@@ -80,19 +95,36 @@ class Cell:
         self._pose = self._guarded(self.robot.read_pose)
         return self._pose
 
-    def move_to(self, pose: Pose) -> None:
-        """Move to ``pose`` (driver limits apply); stops the robot on any device error."""
+    def sync(self) -> Pose:
+        """Take the robot's commanded target as the cell's pose and read its clock.
+
+        Called at the start of every trial, so a run resumed on a cell that
+        was restored elsewhere starts from what the controller holds.
+        """
+        self._pose = self._guarded(self.robot.read_target)
+        self.time_s = self._guarded(self.robot.wait_in_position, self.move_timeout_s, 0.0)
+        return self._pose
+
+    def move_to(self, pose: Pose, settle: bool = True) -> None:
+        """Move to ``pose`` and wait until the robot is there (and settled, if ``settle``).
+
+        Driver limits apply; stops the robot on any device error.
+        """
         self._pose = None
         self._guarded(self.robot.move_to, pose)
         self._pose = pose
+        self.time_s = self._guarded(
+            self.robot.wait_in_position, self.move_timeout_s, self.settle_s if settle else 0.0
+        )
 
     def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False) -> int:
         """Move to ``target`` in straight steps of at most ``max_step_mm``; returns the count.
 
         Steps are planned 1 % under the limit, so rounding never asks the driver
-        for a step it must refuse. With ``guard_force`` (moves that may meet
-        contact) one sample is read after every intermediate step, so the force
-        limit stops the robot on the way, not only at the target.
+        for a step it must refuse. Each step is waited for; only the last one
+        settles. With ``guard_force`` (moves that may meet contact) one sample
+        is read after every intermediate step, so the force limit stops the
+        robot on the way, not only at the target.
         """
         start = self.pose
         distance = float(np.linalg.norm(target.position_mm - start.position_mm))
@@ -107,7 +139,8 @@ class Cell:
                     start.y_mm + f * (target.y_mm - start.y_mm),
                     start.z_mm + f * (target.z_mm - start.z_mm),
                     target.quaternion,
-                )
+                ),
+                settle=i == count,
             )
             if guard_force and i < count:
                 self.measure_force_n(1)

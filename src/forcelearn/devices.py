@@ -92,6 +92,17 @@ class Robot(Protocol):
         """Move to an absolute pose and return when the controller has accepted it."""
         ...
 
+    def read_target(self) -> Pose:
+        """Return the target the controller is moving to (the reference for relative moves)."""
+        ...
+
+    def wait_in_position(self, timeout_s: float, settle_s: float = 0.0) -> float:
+        """Wait until the robot reports in position and has settled; return the robot's time (s).
+
+        Raises ``NotInPosition`` (robot stopped) when ``timeout_s`` of the robot's time passes.
+        """
+        ...
+
     def stop(self) -> None:
         """Stop all motion at once; safe to call at any time."""
         ...

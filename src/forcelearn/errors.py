@@ -14,7 +14,8 @@ driver boundary with ``raise ... from``.
      ├── LinkError                         robot computer link
      │    ├── LinkTimeout (TimeoutError)   no ACK / reply within the timeout, retries spent
      │    ├── ProtocolError                a reply that breaks the link protocol
-     │    └── RobotFault                   the controller answered with an error code
+     │    ├── RobotFault                   the controller answered with an error code
+     │    └── NotInPosition (TimeoutError) a move did not reach its target in time; stopped
      ├── SensorError                       force/torque sensor
      │    ├── SensorTimeout (TimeoutError) no ACK from the sensor adapter
      │    ├── SensorStale                  no sample within the watchdog time
@@ -61,6 +62,10 @@ class RobotFault(LinkError):
         super().__init__(f"robot controller error {code}: {reason}")
         self.code = code
         self.reason = reason
+
+
+class NotInPosition(LinkError, TimeoutError):
+    """A commanded move was not reported in position within its time; the robot was stopped."""
 
 
 class SensorError(ForcelearnError):

@@ -74,6 +74,8 @@ class TrialRecord:
     mean_r: float
     force_rms_n: float
     start_force_n: float
+    cell_time_s: float = math.nan
+    """Time the trial held the cell (the robot's clock), s; NaN for pure simulations."""
 
 
 @dataclass
@@ -129,6 +131,7 @@ def run_trial(
         mean_r=float(np.mean(rs)) if rs else math.nan,
         force_rms_n=float(np.sqrt(np.mean(np.square(errors)))) if errors else math.nan,
         start_force_n=float(task.start_force_n),
+        cell_time_s=float(getattr(task, "trial_cell_time_s", math.nan)),
     )
     return record, log
 

@@ -27,7 +27,7 @@ from forcelearn.tools.cell_session import CellSession
 
 SEEDS = range(*(int(v) for v in os.environ.get("FORCELEARN_CALIBRATION_SEEDS", "0:5").split(":")))
 """Seeds of the accuracy test; FORCELEARN_CALIBRATION_SEEDS=5:25 measures 20 more."""
-FAST = CalibrationPlan(record_s=0.5, samples_per_pose=200, settle_s=0.0, settle_timeout_s=5.0)
+FAST = CalibrationPlan(record_s=0.5, samples_per_pose=800, settle_s=0.2, settle_timeout_s=5.0)
 """Short recordings: the test budget, not the site's (5 s and 500 samples there)."""
 
 
@@ -40,8 +40,8 @@ class TruthLog:
         self.zeros: list[int] = []
         measure, zero = model.measure, model.zero
 
-        def logged_measure(true_wrench: np.ndarray, dt_s: float) -> list[int]:
-            counts = measure(true_wrench, dt_s)
+        def logged_measure(true_wrench: np.ndarray, dt_s: float, cutoff_hz: float = 0) -> list[int]:
+            counts = measure(true_wrench, dt_s, cutoff_hz)
             self.rows.append(np.concatenate([model.bias - model.offset, true_wrench]))
             return counts
 

@@ -7,7 +7,13 @@ import pytest
 
 from forcelearn.cell import Cell
 from forcelearn.devices import Pose, WrenchSample
-from forcelearn.errors import ConfigError, ForceLimitExceeded, LinkTimeout, SensorStale
+from forcelearn.errors import (
+    ConfigError,
+    ForceLimitExceeded,
+    LinkTimeout,
+    NotInPosition,
+    SensorStale,
+)
 from forcelearn.filtering import ForceFilter, ForceFilterConfig
 
 
@@ -19,6 +25,9 @@ class FakeRobot:
         self.moves: list[Pose] = []
         self.stops = 0
         self.fail_next = False
+        self.waits: list[float] = []
+        self.never_in_position = False
+        self.time_s = 0.0
 
     def read_pose(self) -> Pose:
         """Return the last pose."""
@@ -30,6 +39,19 @@ class FakeRobot:
             raise LinkTimeout("no ACK")
         self.moves.append(pose)
         self.pose = pose
+
+    def read_target(self) -> Pose:
+        """The target is where the fake is (it arrives at once)."""
+        return self.pose
+
+    def wait_in_position(self, timeout_s: float, settle_s: float = 0.0) -> float:
+        """Count waits; the fake's clock runs 0.5 s per wait, plus the settle time."""
+        self.waits.append(settle_s)
+        if self.never_in_position:
+            self.stop()
+            raise NotInPosition("fake robot never arrives")
+        self.time_s += 0.5 + settle_s
+        return self.time_s
 
     def stop(self) -> None:
         """Count stops."""
@@ -141,3 +163,29 @@ def test_a_move_to_where_the_robot_already_is_sends_nothing() -> None:
     cell.move_to(Pose(1.0, 2.0, 3.0))
     assert cell.move_in_steps(Pose(1.0, 2.0, 3.0), max_step_mm=10.0) == 0
     assert len(robot.moves) == 1
+
+
+def test_every_move_is_waited_for_and_only_the_last_step_settles() -> None:
+    """Each step waits for in-position; the dwell before measuring comes once, at the end."""
+    cell, robot, _ = make_cell([])
+    cell.move_in_steps(Pose(0.0, 25.0, 0.0), max_step_mm=10.0)
+    assert robot.waits == [0.0, 0.0, cell.settle_s]
+    assert cell.time_s == robot.time_s  # the cell's time is the robot's clock
+
+
+def test_a_move_that_never_arrives_stops_the_robot_and_raises() -> None:
+    """NotInPosition from the wait propagates after the robot was stopped; no force is read."""
+    cell, robot, sensor = make_cell([10.0])
+    robot.never_in_position = True
+    with pytest.raises(NotInPosition):
+        cell.move_to(Pose(0.0, 5.0, 0.0))
+    assert robot.stops >= 1
+    assert sensor.counter == 0
+
+
+def test_sync_takes_the_controllers_target_as_the_pose() -> None:
+    """sync() reads the commanded target, so a resumed run starts where the controller is."""
+    cell, robot, _ = make_cell([])
+    robot.pose = Pose(3.0, 4.0, 5.0)
+    assert cell.sync() == Pose(3.0, 4.0, 5.0)
+    assert cell.pose == Pose(3.0, 4.0, 5.0)

@@ -18,7 +18,7 @@ from forcelearn.errors import StateFileError
 from forcelearn.learning import load_learner
 
 TRIALS = 24
-TIMING_KEYS = {"wall_s", "steps_per_s"}
+TIMING_KEYS = {"wall_s", "steps_per_s", "realtime_factor"}
 
 
 def run_cli(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:

@@ -58,6 +58,8 @@ class SurfaceTaskSpec:
     """Largest |Y command − start Y|, mm (keeps the roller off the sponge's backing)."""
     samples_per_step: int = 3
     """Sensor samples filtered after each move (0.2 N noise → ~0.12 N on their mean)."""
+    settle_s: float = 0.05
+    """Dwell in position before the force is measured, s (the robot's clock)."""
 
     def __post_init__(self) -> None:
         if self.steps_per_trial < 1 or self.input_parts < 1 or self.samples_per_step < 1:
@@ -65,6 +67,8 @@ class SurfaceTaskSpec:
         for name in ("desired_force_n", "tolerance_n", "output_scale_mm", "max_offset_mm"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"task.{name} must be > 0")
+        if not (math.isfinite(self.settle_s) and self.settle_s >= 0):
+            raise ConfigError("task.settle_s must be a finite number >= 0")
         if self.z_step_mm == 0:
             raise ConfigError("task.z_step_mm must not be 0")
         if self.retract_y_mm <= self.start_mm[1] + self.max_offset_mm:
@@ -113,6 +117,7 @@ class SurfaceTask:
         self.grid = spec.grid()
         self.start_force_n = math.nan
         self._step = 0
+        self._trial_start_s = 0.0
 
     def output_map(self) -> SurfaceYOutput:
         """The output function y this task expects the learner to use."""
@@ -127,9 +132,20 @@ class SurfaceTask:
             Pose(pose.x_mm, self.spec.retract_y_mm, pose.z_mm, pose.quaternion), self.max_step_mm
         )
 
+    @property
+    def trial_cell_time_s(self) -> float:
+        """Cell time (the robot's clock, s) since the present trial began."""
+        return self.cell.time_s - self._trial_start_s
+
     def reset(self) -> np.ndarray:
-        """Retract, travel clear of the sponge to above the start, press in, measure the force."""
+        """Retract, travel clear of the sponge to above the start, press in, measure the force.
+
+        Starts from the controller's commanded target (:meth:`Cell.sync`), so a
+        resumed run starts exactly as the uninterrupted one would.
+        """
         start = self.spec.start_pose()
+        self.cell.sync()
+        self._trial_start_s = self.cell.time_s
         self.retract()
         self.cell.move_in_steps(
             Pose(start.x_mm, self.spec.retract_y_mm, start.z_mm, start.quaternion),

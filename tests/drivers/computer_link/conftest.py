@@ -9,6 +9,7 @@ import pytest
 
 from forcelearn.drivers.computer_link import ComputerLinkRobot, LinkConfig
 from forcelearn.emulators.robot_controller import RobotControllerEmulator
+from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 
 TRANSPORTS = ("pty", "tcp")
 
@@ -24,10 +25,15 @@ def transport(request: pytest.FixtureRequest) -> str:
 
 @pytest.fixture
 def make_emulator(transport: str) -> Iterator[Callable[..., RobotControllerEmulator]]:
-    """Start emulators on the current transport; all are stopped at teardown."""
+    """Start emulators on the current transport; all are stopped at teardown.
+
+    Protocol tests get an instant arm unless they pass a ``config`` (motion in
+    time is tested with the realistic defaults where it matters).
+    """
     with ExitStack() as stack:
 
         def make(**kwargs: object) -> RobotControllerEmulator:
+            kwargs.setdefault("config", ArmConfig(instant=True))
             return stack.enter_context(RobotControllerEmulator(transport, **kwargs))
 
         yield make

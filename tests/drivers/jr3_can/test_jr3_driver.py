@@ -157,7 +157,8 @@ def test_saturation_is_flagged_near_full_scale(
     assert sensor.read().saturated == (False, False, True, False, False, False)
     physics.tool = ToolParams(mass_kg=3.0 * 400.0 / 9.80665, com_mm=(0.0, 0.0, 0.0))
     physics.set_pose(Pose(0.0, 0.0, 0.0))
-    assert sensor.read().wrench[2] == pytest.approx(-32768 * 400.0 / 16384)
+    # the adapter's low-pass follows the new load within a few samples, then the int16 clips
+    assert sensor.read_many(10, 10)[-1].wrench[2] == pytest.approx(-32768 * 400.0 / 16384)
 
 
 def test_no_adapter_raises_sensor_timeout(make_sensor: SensorFactory) -> None:

@@ -115,8 +115,7 @@ def test_drop_and_corrupt_probabilities(wire: tuple[Jr3EmulatorNode, can.BusABC]
 
 
 def test_same_seed_same_samples_and_state_resume() -> None:
-    """Two nodes with one seed send identical counts; a restored node continues identically."""
-    physics = CellPhysics()
+    """Two nodes, one seed: identical counts; a restored node (and clock) continues alike."""
 
     def run(node: Jr3EmulatorNode, host: can.BusABC, n: int) -> list[tuple[int, ...]]:
         out = []
@@ -127,14 +126,16 @@ def test_same_seed_same_samples_and_state_resume() -> None:
 
     runs = []
     for _ in range(2):
+        physics = CellPhysics()
         channel = f"jr3-seed-{os.getpid()}-{next(_numbers)}"
         with Jr3EmulatorNode(physics, channel=channel, node_id=NODE, seed=42) as node, \
                 can.Bus(interface="virtual", channel=channel) as host:
             _ask(host, codec.StartSync(12500))
             first = run(node, host, 20)
-            state = node.state_dict()
+            state, clock = node.state_dict(), physics.clock.state_dict()
             second = run(node, host, 20)
             node.load_state_dict(state)
+            physics.clock.load_state_dict(clock)
             assert run(node, host, 20) == second
             runs.append(first + second)
     assert runs[0] == runs[1]

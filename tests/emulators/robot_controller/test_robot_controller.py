@@ -12,7 +12,7 @@ from forcelearn.drivers.computer_link import messages as m
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.robot_controller.controller import ControllerEngine
 from forcelearn.emulators.robot_controller.faults import Fault, FaultConfig, FaultInjector
-from forcelearn.emulators.robot_controller.kinematics import HOME
+from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig
 
 ACK, NAK, ENQ = framing.Control.ACK, framing.Control.NAK, framing.Control.ENQ
 
@@ -34,7 +34,7 @@ def _reply(answer) -> m.Reply:
 @pytest.fixture
 def engine() -> ControllerEngine:
     """A fresh controller engine at its home pose, with its own physics."""
-    return ControllerEngine(physics=CellPhysics())
+    return ControllerEngine(ArmConfig(instant=True), physics=CellPhysics())
 
 
 def test_request_is_acked_then_answered_and_moves_the_physics(engine) -> None:

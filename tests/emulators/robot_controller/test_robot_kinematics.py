@@ -1,4 +1,4 @@
-"""Kinematic model of the emulated arm: joint angles, refusals, servo."""
+"""Kinematic model of the emulated arm: joint angles, refusals, settings."""
 
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ from forcelearn.emulators.robot_controller.kinematics import (
     HOME,
     TOOL_DOWN,
     ArmConfig,
-    Servo,
     check_target,
     joint_angles_deg,
 )
@@ -71,37 +70,6 @@ def test_joint_range_refuses_a_reachable_target() -> None:
     assert refusal[0] == "joint"
     assert "J2" in refusal[1]
     assert check_target(CONFIG, Pose(350, 0, 1350, TOOL_DOWN)) is None
-
-
-def test_one_step_servo_reaches_the_target_at_once() -> None:
-    """With lag 0 the pose equals the target right after the command."""
-    servo = Servo(CONFIG, now_s=0.0)
-    target = HOME.moved(dz_mm=-50)
-    servo.command(target, now_s=0.0)
-    assert servo.pose == target
-    assert not servo.moving
-
-
-def test_lagging_servo_is_capped_by_speed_then_converges() -> None:
-    """First-order lag: never faster than the commanded speed, arrives eventually, stop holds."""
-    servo = Servo(ArmConfig(lag_s=0.05), now_s=0.0)
-    servo.speed_mm_s = 100.0
-    servo.command(HOME.moved(dx_mm=50), now_s=0.0)
-    servo.advance(0.1)
-    assert servo.pose.x_mm - HOME.x_mm == pytest.approx(10.0)  # speed-limited: 100 mm/s x 0.1 s
-    assert servo.moving
-    t = 0.1
-    while servo.moving and t < 5.0:
-        t += 0.01
-        servo.advance(t)
-    assert servo.pose == HOME.moved(dx_mm=50)
-    servo.command(HOME, now_s=t)
-    servo.advance(t + 0.05)
-    servo.stop(t + 0.05)
-    held = servo.pose
-    servo.advance(t + 1.0)
-    assert servo.pose == held
-    assert held.x_mm > HOME.x_mm
 
 
 def test_arm_config_rejects_inconsistent_settings() -> None:

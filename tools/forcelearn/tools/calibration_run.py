@@ -42,7 +42,7 @@ from forcelearn.calibration import (
     fit_tool_load,
 )
 from forcelearn.devices import Pose
-from forcelearn.errors import CalibrationError, ForcelearnError
+from forcelearn.errors import CalibrationError, ForcelearnError, NotInPosition
 from forcelearn.tools.calibration_plan import CalibrationPlan, NamedPose, slerp_steps
 from forcelearn.tools.cell_session import CellSession
 
@@ -52,7 +52,6 @@ READ_CHUNK = 50
 """Samples per read_many call while recording (and per settling block)."""
 SETTLE_SIGMAS = 4.0
 """Two block means closer than this many standard errors, on every axis, count as settled."""
-IN_POSITION_POLL_S = 0.02
 
 Ask = Callable[[str], str]
 
@@ -208,19 +207,14 @@ class Calibrator:
                 self.cell.measure_force_n(1)  # the force limit watches the turn
 
     def _wait_settled_robot(self) -> None:
-        """Wait until the controller reports in position, then dwell ``settle_s``."""
-        deadline = time.monotonic() + self.plan.settle_timeout_s
-        read_status = getattr(self.robot, "read_status", None)
-        while read_status is not None:
-            status = read_status()
-            if status.in_position and not status.moving:
-                break
-            if time.monotonic() > deadline:
-                raise CalibrationError(
-                    f"the robot was not in position within {self.plan.settle_timeout_s} s"
-                )
-            time.sleep(IN_POSITION_POLL_S)
-        time.sleep(self.plan.settle_s)
+        """Wait until the robot reports in position, then dwell ``settle_s`` (robot's clock)."""
+        try:
+            self.robot.wait_in_position(self.plan.settle_timeout_s, self.plan.settle_s)
+        except NotInPosition as exc:
+            raise CalibrationError(
+                f"the robot was not in position within {self.plan.settle_timeout_s} s "
+                f"(plan settle_timeout_s): {exc}"
+            ) from exc
 
     def _settle_reading(self, std: np.ndarray) -> None:
         """Read blocks until two consecutive means agree within SETTLE_SIGMAS standard errors."""

@@ -20,8 +20,11 @@ table          holds
 ``[task]``     the §5 surface task (:class:`SurfaceTaskSpec`)
 ``[learner]``  SRV hyperparameters (§5 values as defaults)
 ``[run]``      ``trials``, ``seed``
-``[emulator]`` physics of the emulated cell: ``[emulator.sponge]``,
-               ``[emulator.sensor]``, ``[emulator.arm]`` (ignored on a real cell)
+``[emulator]`` ``time_scale`` (0: as fast as possible; 1: real time), ``profile``
+               ("realistic", or "ideal": no time on wires, instant arm, no
+               relaxation, no adapter filter); physics of the emulated cell:
+               ``[emulator.sponge]``, ``[emulator.sensor]``, ``[emulator.arm]``
+               (ignored on a real cell)
 ``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``
 =============  ===============================================================
 """
@@ -31,7 +34,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from forcelearn.config import build, check_sections, read_run_table, read_toml
 from forcelearn.devices import Pose
@@ -85,9 +88,11 @@ class SafetyLimits:
     workspace_max_mm: tuple[float, float, float] = (1100.0, 60.0, 700.0)
     stale_sensor_s: float = 0.1
     """Watchdog on a real sensor, s (the emulated cell uses EMULATED_STALE_SENSOR_S)."""
+    move_timeout_s: float = 10.0
+    """Longest wait for a move to be reported in position (robot's clock), s."""
 
     def __post_init__(self) -> None:
-        for name in ("max_force_n", "max_step_mm", "stale_sensor_s"):
+        for name in ("max_force_n", "max_step_mm", "stale_sensor_s", "move_timeout_s"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ConfigError(
@@ -106,13 +111,46 @@ class BusConfig:
     bitrate: int = 1_000_000
 
 
+PROFILES = ("realistic", "ideal")
+
+
 @dataclass(frozen=True)
 class EmulatorConfig:
-    """Physics and device models of the emulated cell."""
+    """Pace, time profile, physics and device models of the emulated cell."""
 
     sponge: SpongeParams = field(default_factory=SpongeParams)
     sensor: SensorModelParams = field(default_factory=SensorModelParams)
     arm: ArmConfig = field(default_factory=ArmConfig)
+    time_scale: float = 0.0
+    """0: as fast as possible (simulated time only); 1.0: real time; any factor between."""
+    profile: Literal["realistic", "ideal"] = "realistic"
+    """"ideal": wires cost no time, the arm is instant, no relaxation, no adapter filter."""
+
+    def __post_init__(self) -> None:
+        if self.profile not in PROFILES:
+            raise ConfigError(f"emulator.profile = {self.profile!r}: one of {list(PROFILES)}")
+        scale = self.time_scale
+        if not (isinstance(scale, int | float) and math.isfinite(scale) and scale >= 0):
+            raise ConfigError(
+                f"emulator.time_scale = {scale!r}: a number >= 0 (0: as fast as possible, "
+                "1: real time)"
+            )
+
+    @property
+    def ideal(self) -> bool:
+        """True for the zero-time profile."""
+        return self.profile == "ideal"
+
+    def effective(self) -> EmulatorConfig:
+        """The models with the profile applied (the ideal profile switches time off)."""
+        if not self.ideal:
+            return self
+        return replace(
+            self,
+            sponge=replace(self.sponge, relaxation_ratio=0.0),
+            sensor=replace(self.sensor, emulate_filter=False),
+            arm=replace(self.arm, instant=True, reply_latency_s=0.0),
+        )
 
 
 @dataclass(frozen=True)
@@ -191,12 +229,18 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
     sensor = build(Jr3Config, {**sensor_table, "stale_timeout_s": safety.stale_sensor_s}, "sensor")
 
     filter_table = {"axis": 1, "sign": -1.0, **data.get("filter", {})}
-    emulator_table = data.get("emulator", {})
-    check_sections(emulator_table, {"sponge", "sensor", "arm"})
-    emulator = EmulatorConfig(
-        sponge=build(SpongeParams, emulator_table.get("sponge"), "emulator.sponge"),
-        sensor=build(SensorModelParams, emulator_table.get("sensor"), "emulator.sensor"),
-        arm=build(ArmConfig, _with_home_pose(emulator_table.get("arm")), "emulator.arm"),
+    emulator_table = dict(data.get("emulator", {}))
+    check_sections(emulator_table, {"sponge", "sensor", "arm", "time_scale", "profile"})
+    pace = {k: emulator_table.pop(k) for k in ("time_scale", "profile") if k in emulator_table}
+    emulator = build(
+        EmulatorConfig,
+        {
+            **pace,
+            "sponge": build(SpongeParams, emulator_table.get("sponge"), "emulator.sponge"),
+            "sensor": build(SensorModelParams, emulator_table.get("sensor"), "emulator.sensor"),
+            "arm": build(ArmConfig, _with_home_pose(emulator_table.get("arm")), "emulator.arm"),
+        },
+        "emulator",
     )
     trials, seed = read_run_table(data, DEFAULT_TRIALS)
     calibration = dict(data.get("calibration", {}))

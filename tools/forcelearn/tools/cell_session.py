@@ -8,8 +8,9 @@ python-can on the bus). The trainer gets the same :class:`~forcelearn.cell.Cell`
 either way.
 
 ``CellSession.emulator_state()`` / ``load_emulator_state()`` checkpoint what a
-bit-identical resume needs (sponge wear, sensor noise generator, bias,
-offsets, frame counter).
+bit-identical resume needs (the simulated clock, the arm's motion and the
+link's wire timelines, sponge wear and relaxation, sensor noise generator,
+filter state, bias, offsets, frame counter, the bus timeline).
 
 When the config names a calibration file (``[calibration] file``), it is read
 before any device opens; the Kalman filter takes R from the noise variance of
@@ -126,6 +127,8 @@ class CellSession:
             ForceFilter(cfg.filter),
             max_force_n=cfg.safety.max_force_n,
             samples_per_step=cfg.task.samples_per_step,
+            move_timeout_s=cfg.safety.move_timeout_s,
+            settle_s=cfg.task.settle_s,
         )
         if self.calibration is not None:
             self._apply_calibration(self.calibration, self.robot, self.cell)
@@ -163,6 +166,12 @@ class CellSession:
     def emulator_state(self) -> dict[str, Any]:
         """What the emulators must restore for a bit-identical resume (JSON-able)."""
         state: dict[str, Any] = {}
+        if self.physics is not None:
+            state["clock"] = self.physics.clock.state_dict()
+            if self.physics.motion is not None:
+                state["motion"] = self.physics.motion.state_dict()
+        if self.robot_emulator is not None:
+            state["link"] = self.robot_emulator.engine.state_dict()
         if self.sponge is not None:
             state["sponge"] = self.sponge.state_dict()
         if self.sensor_emulator is not None:
@@ -171,6 +180,14 @@ class CellSession:
 
     def load_emulator_state(self, state: dict[str, Any]) -> None:
         """Restore :meth:`emulator_state` (after the drivers' initialisation)."""
+        if self.physics is not None:
+            if "clock" in state:
+                self.physics.clock.load_state_dict(state["clock"])
+            if self.physics.motion is not None and "motion" in state:
+                self.physics.motion.load_state_dict(state["motion"])
+                self.physics.set_pose(self.physics.motion.pose)
+        if self.robot_emulator is not None and "link" in state:
+            self.robot_emulator.engine.load_state_dict(state["link"])
         if self.sponge is not None and "sponge" in state:
             self.sponge.load_state_dict(state["sponge"])
         if self.sensor_emulator is not None and "jr3" in state:

@@ -9,8 +9,11 @@ end of the wires, so another process connects exactly as on site:
   (LAWICEL) USB-CAN adapter on a second pseudo-terminal (python-can's
   ``slcan`` interface opens its path).
 
-Both read one :class:`CellPhysics` with the sponge, built from the config's
-``[emulator]`` tables as the in-process emulated cell builds it.
+Both read one :class:`CellPhysics` with the sponge and the cell's one
+:class:`~forcelearn.emulators.clock.SimClock`, built from the config's
+``[emulator]`` tables (with its ``profile`` applied) as the in-process emulated
+cell builds it. The robot's serial line costs the time of the ``[robot]``
+settings (baud rate and framing), the CAN bus that of ``[sensor] bitrate``.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import contextlib
 import logging
 import uuid
 
+from forcelearn.emulators.clock import SimClock, serial_char_time_s
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge
@@ -32,13 +36,28 @@ log = logging.getLogger(__name__)
 
 def emulated_physics(config: CellConfig) -> tuple[Sponge, CellPhysics]:
     """The sponge and the one physics object both emulators read (robot at its home pose)."""
-    sponge = Sponge(config.emulator.sponge)
-    return sponge, CellPhysics(sponge, config.emulator.arm.home, ToolParams())
+    emulator = config.emulator.effective()
+    sponge = Sponge(emulator.sponge)
+    clock = SimClock(emulator.time_scale)
+    return sponge, CellPhysics(sponge, emulator.arm.home, ToolParams(), clock=clock)
+
+
+def link_char_time_s(config: CellConfig) -> float:
+    """Seconds per character of the emulated robot link (0 in the ideal profile)."""
+    if config.emulator.ideal:
+        return 0.0
+    robot = config.robot
+    return serial_char_time_s(robot.baudrate, robot.bytesize, robot.parity, robot.stopbits)
 
 
 def emulated_robot(config: CellConfig, physics: CellPhysics) -> RobotControllerEmulator:
     """The robot-controller emulator on a pty (not yet serving: call ``start()``)."""
-    return RobotControllerEmulator("pty", config=config.emulator.arm, physics=physics)
+    return RobotControllerEmulator(
+        "pty",
+        config=config.emulator.effective().arm,
+        physics=physics,
+        char_time_s=link_char_time_s(config),
+    )
 
 
 def private_channel(config: CellConfig) -> str:
@@ -54,8 +73,9 @@ def emulated_jr3(
         physics,
         channel=channel,
         node_id=config.sensor.node_id,
-        model=config.emulator.sensor,
+        model=config.emulator.effective().sensor,
         seed=seed,
+        bitrate=None if config.emulator.ideal else config.bus.bitrate,
     )
 
 

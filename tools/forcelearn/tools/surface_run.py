@@ -54,7 +54,7 @@ log = logging.getLogger(__name__)
 
 CHECKPOINT = "checkpoint.npz"
 CONFIG_COPY = "config.toml"
-RUN_STATE_VERSION = 2
+RUN_STATE_VERSION = 3
 
 
 @dataclasses.dataclass
@@ -278,6 +278,7 @@ def execute(
 def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
     """The run's summary.json content."""
     result, config = run.result, run.config
+    cell_time = float(sum(r.cell_time_s for r in result.records))
     return {
         "task": "surface",
         "seed": run.seed,
@@ -294,6 +295,9 @@ def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
         "steps": result.steps,
         "wall_s": round(run.wall_s, 3),
         "steps_per_s": round(result.steps / run.wall_s, 1) if run.wall_s > 0 else None,
+        "cell_time_s": round(cell_time, 3),
+        "realtime_factor": round(cell_time / run.wall_s, 1) if run.wall_s > 0 else None,
+        "profile": config.emulator.profile if config.robot_emulated else None,
     }
 
 

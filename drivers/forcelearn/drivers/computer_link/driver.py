@@ -11,6 +11,17 @@ the command, nothing was sent), ``RobotFault`` (the controller refused, with
 its code), ``LinkTimeout``, ``ProtocolError`` or ``LinkError``. Calls are
 serialised by a lock, so several threads may share one driver. Leaving the
 ``with`` block (or :meth:`close`) stops the robot and closes the port.
+
+A move returns when the controller has *accepted* it; :meth:`wait_in_position`
+then polls READ_STATUS back to back (each poll costs its bytes' time on the
+line, ~35 ms at 9600 baud) until the robot reports in position, and holds
+there for a settle time. Both are measured on the controller's clock (the
+status reply carries it), so a wait lasts the same on a real and an emulated
+cell; a wall-clock guard ends a wait on a controller whose clock stands still.
+
+The reference for relative moves and for the step limit is always the
+target the controller will apply (READ_TARGET after opening, a stop, a
+reconnect or any link error), never a pose the robot has merely reached.
 """
 
 from __future__ import annotations
@@ -18,6 +29,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+import time
 import warnings
 
 import numpy as np
@@ -27,7 +39,7 @@ from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import messages as m
 from forcelearn.drivers.computer_link.config import POLL_S, LinkConfig
 from forcelearn.drivers.computer_link.link import Link
-from forcelearn.errors import ForcelearnError, LinkError, SafetyStop
+from forcelearn.errors import ForcelearnError, LinkError, NotInPosition, SafetyStop
 
 log = logging.getLogger(__name__)
 
@@ -66,14 +78,19 @@ class ComputerLinkRobot:
         self._link = Link(self._port, cfg)
         try:
             _, self.controller_model = self._link.probe_protocol()
-            self._reference = self._read_position_locked()[0]
+            self._reference = self._read_target_locked()
         except ForcelearnError:
             self._close_port()
             raise
         log.info("robot link open on %s: %s", cfg.url, self.controller_model)
 
     def reconnect(self) -> None:
-        """Close the port and open it again (after a LinkError), re-reading the pose."""
+        """Close the port and open it again (after a LinkError); the reference is re-read.
+
+        The reference becomes the controller's commanded target (READ_TARGET),
+        so a relative move after a lost link adds to what the controller will
+        apply, never to where the robot happened to be.
+        """
         with self._lock:
             self._close_port()
             self._open()
@@ -101,9 +118,59 @@ class ComputerLinkRobot:
             return self._read_position_locked()[1]
 
     def read_status(self) -> m.Status:
-        """Return moving / in-position flags, the last error code and the move count."""
+        """Return moving / in-position flags, last error, move count and controller time (s)."""
         with self._lock:
             return m.parse_status(self._require_link().transact(m.Command.READ_STATUS).body)
+
+    def _read_target_locked(self) -> Pose:
+        xyz, quaternion = m.parse_pose(self._require_link().transact(m.Command.READ_TARGET).body)
+        return Pose(*xyz, quaternion)
+
+    def read_target(self) -> Pose:
+        """Return the target the controller is moving to (mm, quaternion w x y z)."""
+        with self._lock:
+            self._reference = self._read_target_locked()
+            return self._reference
+
+    def wait_in_position(self, timeout_s: float, settle_s: float = 0.0) -> float:
+        """Poll until the robot is in position and has stayed so for ``settle_s``.
+
+        Both times are on the controller's clock. Returns the controller time
+        (s) at the end of the wait.
+
+        Raises:
+            NotInPosition: not in position (and settled) within ``timeout_s``
+                of controller time; the robot has been stopped.
+        """
+        if not (math.isfinite(timeout_s) and timeout_s > 0 and settle_s >= 0):
+            raise ValueError(f"need timeout_s > 0 and settle_s >= 0, got {timeout_s}, {settle_s}")
+        with self._lock:
+            wall_limit = time.monotonic() + timeout_s + 10.0
+            first = status = self.read_status()
+            since: float | None = None
+            while True:
+                if status.in_position and not status.moving:
+                    since = status.time_s if since is None else since
+                    if status.time_s - since >= settle_s:
+                        return status.time_s
+                else:
+                    since = None
+                waited = status.time_s - first.time_s
+                if waited > timeout_s or time.monotonic() > wall_limit:
+                    self._stop_after_timeout()
+                    raise NotInPosition(
+                        f"the robot did not report in position within {timeout_s} s "
+                        f"(waited {waited:.3f} s of controller time, {status}); it was "
+                        "stopped: check the speed, the in-position band, obstacles and "
+                        "robot.move_timeout_s"
+                    )
+                status = self.read_status()
+
+    def _stop_after_timeout(self) -> None:
+        try:
+            self.stop()
+        except ForcelearnError as exc:
+            log.error("could not stop the robot after a move timed out: %s", exc)
 
     # -- commanding ------------------------------------------------------------------------
 
@@ -137,14 +204,14 @@ class ComputerLinkRobot:
             self._require_link().transact(m.Command.SET_SPEED, m.speed_body(speed_mm_s))
 
     def stop(self) -> None:
-        """Stop all motion at once."""
+        """Stop all motion at once (the controller brakes; its rest point is the new target)."""
         with self._lock:
+            self._reference = None  # re-read from the controller before the next move
             self._require_link().transact(m.Command.STOP)
-            self._reference = None  # where it stopped is known only by reading it
 
     def _reference_locked(self) -> Pose:
         if self._reference is None:
-            self._reference = self._read_position_locked()[0]
+            self._reference = self._read_target_locked()
         return self._reference
 
     def _check_target(self, target: Pose) -> None:
@@ -168,7 +235,7 @@ class ComputerLinkRobot:
         try:
             self._require_link().transact(command, body)
         except LinkError:
-            self._reference = None  # it may or may not have moved
+            self._reference = None  # accepted or not: READ_TARGET tells before the next move
             raise
         self._reference = target
 

@@ -23,8 +23,16 @@ SET_SPEED      0x05  speed mm/s (f32)                (none)
 STOP           0x06  (none)                          (none)
 READ_STATUS    0x07  (none)                          flags u8 (bit0 moving, bit1 in
                                                      position), last error u8,
-                                                     move count u32
+                                                     move count u32, controller
+                                                     time s (f64)
+READ_TARGET    0x08  (none)                          commanded target: x y z mm,
+                                                     qw qx qy qz (7 f32)
 =============  ====  ==============================  ====================================
+
+Version 2.0 added the controller's clock to READ_STATUS (so a wait for the
+robot is bounded in the controller's time, identical on a real and an
+emulated cell) and READ_TARGET, the target MOVE_BY adds to: the driver's
+reference for relative moves and limit checks after a stop or a lost link.
 
 Floats are IEEE-754 single precision (``f32``), so positions travel with about
 0.1 µm resolution at 2 m. Swapping this module (with ``framing``) for the real
@@ -40,7 +48,7 @@ from dataclasses import dataclass
 
 from forcelearn.errors import ProtocolError
 
-PROTOCOL_VERSION = (1, 0)
+PROTOCOL_VERSION = (2, 0)
 REPLY_BIT = 0x80
 MAX_REASON = 200
 
@@ -49,7 +57,7 @@ _POSE = struct.Struct("<7f")
 _POSITION = struct.Struct("<13f")
 _INCREMENT = struct.Struct("<3f")
 _SPEED = struct.Struct("<f")
-_STATUS = struct.Struct("<BBI")
+_STATUS = struct.Struct("<BBId")
 
 
 class Command(enum.IntEnum):
@@ -62,6 +70,7 @@ class Command(enum.IntEnum):
     SET_SPEED = 0x05
     STOP = 0x06
     READ_STATUS = 0x07
+    READ_TARGET = 0x08
 
 
 class ErrorCode(enum.IntEnum):
@@ -87,6 +96,7 @@ _BODY_SIZE = {
     Command.SET_SPEED: _SPEED.size,
     Command.STOP: 0,
     Command.READ_STATUS: 0,
+    Command.READ_TARGET: 0,
 }
 
 
@@ -130,6 +140,8 @@ class Status:
     in_position: bool
     last_error: int
     move_count: int
+    time_s: float = 0.0
+    """The controller's clock, s since its power-up."""
 
 
 def encode_request(command: Command, transaction: int, body: bytes = b"") -> bytes:
@@ -234,13 +246,15 @@ def status_body(status: Status) -> bytes:
     flags = (STATUS_MOVING if status.moving else 0) | (
         STATUS_IN_POSITION if status.in_position else 0
     )
-    return _STATUS.pack(flags, status.last_error, status.move_count & 0xFFFFFFFF)
+    return _STATUS.pack(flags, status.last_error, status.move_count & 0xFFFFFFFF, status.time_s)
 
 
 def parse_status(body: bytes) -> Status:
     """Inverse of :func:`status_body`."""
-    flags, last_error, count = _unpack(_STATUS, body)
-    return Status(bool(flags & STATUS_MOVING), bool(flags & STATUS_IN_POSITION), last_error, count)
+    flags, last_error, count, time_s = _unpack(_STATUS, body)
+    return Status(
+        bool(flags & STATUS_MOVING), bool(flags & STATUS_IN_POSITION), last_error, count, time_s
+    )
 
 
 def identify_body(version: tuple[int, int], model: str) -> bytes:

@@ -18,11 +18,22 @@ reset                         ACK 0, then reboot: bootup frame, counter 0,
                               offsets cleared, idle and not initialised
 SYNC (sync mode only)         one force frame and one moment frame
 ============================  ===============================================
+
+Time (simulated, on the cell's clock, ``physics.clock``): every frame on the
+bus occupies it for its bits at ``bitrate`` (worst-case stuffing), one after
+the other; a frame from the host starts when the host is ready (the clock's
+present time) and the bus is free, and the node's answers follow it. A SYNC
+latches a sample when it has arrived, but never sooner than one internal
+sample period after the previous sample; the physics is advanced to that
+instant first, so the sample sees the robot and the sponge as they are then.
+The clock ends at the last bit of the answer. Async streaming is paced by the
+host's wall clock (the cell uses sync mode, which is deterministic).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from dataclasses import dataclass, field
@@ -35,6 +46,7 @@ from forcelearn.drivers.jr3_can import codec
 from forcelearn.drivers.jr3_can.codec import Ack, Decoded, Frame
 from forcelearn.drivers.jr3_can.opcodes import DEFAULT_OPCODES, OpcodeMap
 from forcelearn.drivers.jr3_can.scaling import cutoff_from_wire, full_scales_to_wire
+from forcelearn.emulators.clock import Wire, can_frame_time_s
 from forcelearn.emulators.jr3.faults import FaultConfig, FrameHook, apply_faults
 from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
@@ -73,6 +85,7 @@ class Jr3EmulatorNode:
         initial_counter: first frame counter (tests start near the 16-bit wrap).
         frame_hook: called on each outgoing frame after the faults.
         opcodes: the opcode map to speak.
+        bitrate: the bus bitrate for frame times, bit/s (None: frames cost no time).
     """
 
     def __init__(
@@ -88,6 +101,7 @@ class Jr3EmulatorNode:
         initial_counter: int = 0,
         frame_hook: FrameHook | None = None,
         opcodes: OpcodeMap = DEFAULT_OPCODES,
+        bitrate: float | None = 1_000_000,
     ) -> None:
         if not 1 <= node_id <= 127:
             raise ValueError(f"node_id={node_id} is not 1..127")
@@ -104,6 +118,11 @@ class Jr3EmulatorNode:
         self.cutoff_hz = 0.0
         self.period_us = 0
         self.counter = initial_counter & 0xFFFF
+        self.clock = physics.clock
+        self.bitrate = bitrate
+        self.bus_wire = Wire(self.clock)
+        """The CAN bus as a timeline: frames never overlap."""
+        self.last_sample_s = -math.inf
         self._owns_bus = bus is None
         self.bus = bus if bus is not None else can.Bus(interface="virtual", channel=channel)
         self._lock = threading.RLock()
@@ -128,13 +147,22 @@ class Jr3EmulatorNode:
     def state_dict(self) -> dict[str, Any]:
         """Return what a bit-identical resume needs: model (rng, bias, offset) and counter."""
         with self._lock:
-            return {"model": self.model.state_dict(), "counter": self.counter}
+            return {
+                "model": self.model.state_dict(),
+                "counter": self.counter,
+                "bus": self.bus_wire.state_dict(),
+                "last_sample_s": self.last_sample_s if math.isfinite(self.last_sample_s) else None,
+            }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore a state from :meth:`state_dict`."""
         with self._lock:
             self.model.load_state_dict(state["model"])
             self.counter = int(state["counter"]) & 0xFFFF
+            if "bus" in state:
+                self.bus_wire.load_state_dict(state["bus"])
+            last = state.get("last_sample_s")
+            self.last_sample_s = -math.inf if last is None else float(last)
 
     def close(self) -> None:
         """Stop the thread (joined) and shut down the bus if the node made it; idempotent."""
@@ -171,14 +199,19 @@ class Jr3EmulatorNode:
                 if msg is not None:
                     self._handle(msg)
                 if self.mode == "async" and time.monotonic() >= self._next_emit:
-                    self._emit_sample(self.period_us * 1e-6)
+                    self._emit_sample()
                     period_s = self.period_us * 1e-6
                     # keep the schedule, but never burst to catch up after a stall
                     self._next_emit = max(self._next_emit + period_s, time.monotonic())
 
+    def _frame_time_s(self, data_bytes: int) -> float:
+        return 0.0 if self.bitrate is None else can_frame_time_s(data_bytes, self.bitrate)
+
     def _handle(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
             return
+        _, arrived = self.bus_wire.transmit(self._frame_time_s(len(msg.data)))
+        self.clock.advance_to(arrived)
         result = codec.decode(msg.arbitration_id, msg.data, is_extended_id=msg.is_extended_id,
                               opcodes=self.opcodes)
         if not isinstance(result, Decoded):
@@ -189,13 +222,15 @@ class Jr3EmulatorNode:
         message = result.message
         if isinstance(message, codec.Sync):
             if self.mode == "sync":
-                self._emit_sample(self.model.params.sync_sample_period_s)
+                self._emit_sample()
+            self.clock.hold()
             return
         if result.node_id != self.node_id or message.kind in ("ack", "forces", "moments",
                                                               "bootup"):
             return
         self.stats.commands += 1
         self._answer(message)
+        self.clock.hold()
 
     def _answer(self, message: codec.Message) -> None:
         forces, moments = full_scales_to_wire(np.asarray(self.model.params.full_scales))
@@ -215,6 +250,7 @@ class Jr3EmulatorNode:
                 self.cutoff_hz = cutoff_from_wire(c)
                 self._send(Ack(0))
             case codec.ZeroOffsets():
+                self.physics.advance_to(self.clock.now_s)
                 self.model.zero(self.physics.true_wrench())
                 self._send(Ack(0))
             case codec.GetForceFullScales():
@@ -241,8 +277,16 @@ class Jr3EmulatorNode:
         self.model.power_cycle()
         self._send(codec.Bootup())
 
-    def _emit_sample(self, dt_s: float) -> None:
-        raw = self.model.measure(self.physics.true_wrench(), dt_s)
+    def _emit_sample(self) -> None:
+        period = self.model.params.sync_sample_period_s
+        if self.mode == "async":  # streamed samples are period_us apart in the cell's time
+            period = max(period, self.period_us * 1e-6)
+        t = max(self.clock.now_s, self.last_sample_s + period)
+        dt = period if not math.isfinite(self.last_sample_s) else t - self.last_sample_s
+        self.last_sample_s = t
+        self.clock.advance_to(t)
+        self.physics.advance_to(t)
+        raw = self.model.measure(self.physics.true_wrench(), dt, self.cutoff_hz)
         self._send(codec.Forces((raw[0], raw[1], raw[2]), self.counter))
         self._send(codec.Moments((raw[3], raw[4], raw[5]), self.counter))
         self.counter = (self.counter + 1) & 0xFFFF
@@ -259,6 +303,8 @@ class Jr3EmulatorNode:
         if frame is None:
             self.stats.frames_lost += 1
             return
+        _, end = self.bus_wire.transmit(self._frame_time_s(len(frame.data)))
+        self.clock.advance_to(end)
         msg = can.Message(arbitration_id=frame.arbitration_id, data=frame.data,
                           is_extended_id=False)
         try:

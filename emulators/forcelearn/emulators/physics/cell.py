@@ -1,10 +1,15 @@
 """The physical cell shared by every emulator: where the tool is and what it touches.
 
 One :class:`CellPhysics` object is handed to both the robot-controller emulator
-and the JR3 emulator. The robot emulator writes the pose the robot *reached*
-(:meth:`CellPhysics.set_pose`); the sensor emulator reads the true wrench that
-pose produces (:meth:`CellPhysics.true_wrench`). Neither emulator knows the
-other, and this module knows nothing of wires.
+and the JR3 emulator, with the cell's one :class:`~forcelearn.emulators.clock.SimClock`.
+The robot emulator commands the arm's :class:`~.arm_motion.ArmMotion`
+(:attr:`CellPhysics.motion`); whoever needs the present state first calls
+:meth:`CellPhysics.advance_to` with the simulated time, which moves the arm
+and lets the environment (the sponge's relaxation) evolve on the motion's
+tick grid. The sensor emulator then reads the true wrench
+(:meth:`CellPhysics.true_wrench`). Without a motion model (tests, tools) a
+pose can be written directly with :meth:`CellPhysics.set_pose`. Neither
+emulator knows the other, and this module knows nothing of wires.
 
 Frames and units
 ----------------
@@ -26,6 +31,8 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from forcelearn.devices import Pose, quaternion_to_matrix
+from forcelearn.emulators.clock import SimClock
+from forcelearn.emulators.physics.arm_motion import ArmMotion
 from forcelearn.emulators.physics.tool import POINT_TOOL, ToolParams, contact_wrench, gravity_wrench
 
 
@@ -46,6 +53,15 @@ class PoseObserver(Protocol):
         ...
 
 
+@runtime_checkable
+class TimedEnvironment(Protocol):
+    """An environment with a state that changes in time (e.g. a relaxing sponge)."""
+
+    def evolve(self, position_mm: np.ndarray, dt_s: float) -> None:
+        """Advance ``dt_s`` seconds during which the tool moved to ``position_mm``."""
+        ...
+
+
 class NoContact:
     """Free space: never any contact force."""
 
@@ -63,6 +79,7 @@ class CellPhysics:
         pose: the initial tool pose.
         tool: the tool's mass and geometry (default: a massless point tool, so
             the wrench is the contact force alone).
+        clock: the cell's simulated clock (default: a new one).
     """
 
     def __init__(
@@ -70,12 +87,44 @@ class CellPhysics:
         environment: ContactEnvironment | None = None,
         pose: Pose | None = None,
         tool: ToolParams | None = None,
+        clock: SimClock | None = None,
     ):
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()
         self.environment: ContactEnvironment = environment or NoContact()
+        self.clock = clock or SimClock()
+        self.motion: ArmMotion | None = None
         self._tool = tool or POINT_TOOL
         self._pose = pose or Pose(0.0, 0.0, 0.0)
         self._rotation, self._gravity = self._orientation_terms(self._pose)
+
+    def attach_motion(self, motion: ArmMotion) -> None:
+        """Let ``motion`` move the tool from now on (its pose is published at once)."""
+        with self._lock:
+            self.motion = motion
+            self.set_pose(motion.pose)
+
+    def advance_to(self, t_s: float | None = None) -> None:
+        """Bring the arm and the environment to simulated time ``t_s`` (default: the clock's now).
+
+        Never goes back: a time before the present state is ignored.
+        """
+        t = self.clock.now_s if t_s is None else t_s
+        with self._lock:
+            motion = self.motion
+            if motion is None:
+                return
+            timed = self.environment if isinstance(self.environment, TimedEnvironment) else None
+
+            def on_tick(dt_s: float) -> None:
+                pose = motion.pose
+                if pose != self._pose:
+                    self.set_pose(pose)
+                if timed is not None:
+                    timed.evolve(self._pose.position_mm, dt_s)
+
+            motion.advance_to(t, on_tick)
+            if motion.pose != self._pose:  # an instant arm moves between ticks
+                self.set_pose(motion.pose)
 
     @property
     def tool(self) -> ToolParams:
@@ -100,11 +149,11 @@ class CellPhysics:
             return self._pose
 
     def set_pose(self, pose: Pose) -> None:
-        """Record the pose the robot has reached (called by the robot emulator)."""
-        terms = self._orientation_terms(pose)
+        """Record the pose the tool has reached (by the motion model, or directly in tests)."""
         with self._lock:
+            if pose.quaternion != self._pose.quaternion:
+                self._rotation, self._gravity = self._orientation_terms(pose)
             self._pose = pose
-            self._rotation, self._gravity = terms
             if isinstance(self.environment, PoseObserver):
                 self.environment.observe_pose(pose.position_mm)
 

@@ -15,14 +15,22 @@ has sunk by a permanent set ``set_mm * (1 - exp(-n / set_passes))``. A trial
 that starts from the same pose therefore meets a smaller initial contact
 force as passes accumulate, as in the paper's Fig. 14.
 
-Force law (quasi-static, no friction, no rate dependence)
-----------------------------------------------------------
+Force law (no friction; the foam is viscoelastic)
+--------------------------------------------------
 =================  ==========================================================
-penetration d      ``surface_y(z) - y`` in mm (0 outside the strip)
-normal force       ``k(z) * d`` N for ``d <= thickness_mm``; beyond, the rigid
-                   backing adds ``backing_n_per_mm * (d - thickness_mm)``
+penetration d      ``surface_y(z) - y`` in mm (0 outside the strip); the foam
+                   part is ``d_f = min(d, thickness_mm)``
+normal force       ``k(z) * max(0, d_f + relaxation_ratio * q)`` N; beyond the
+                   foam the rigid backing adds ``backing_n_per_mm * (d - thickness_mm)``
+relaxing part q    a standard linear solid: ``dq/dt = dd_f/dt - q / relaxation_time_s``
+                   (mm); a step indentation first meets ``(1 + ratio) k`` and
+                   relaxes to ``k`` with time constant ``relaxation_time_s``
 direction          outward normal ``(0, 1, -surface_y'(z))``, normalised
 =================  ==========================================================
+
+Time enters only through :meth:`Sponge.evolve`, called by the cell physics
+on its motion grid (``q`` is integrated exactly for a depth that changes
+linearly within a tick). Without calls to it the sponge is quasi-static.
 
 Defaults and why
 ----------------
@@ -35,6 +43,11 @@ for the learner and coarse enough to matter. Stiffness varies +-15 % over a
 drifts by several newtons. Softening 30 % and a 2 mm set (time constants of
 150 and 100 passes) make the initial force of a trial that starts 4 mm deep
 fall from 8.6 N to 3.6 N over the paper's ~240 repetitions.
+
+``relaxation_ratio = 0.25`` and ``relaxation_time_s = 0.4`` (assumption: flexible
+polyurethane foam loses a fifth to a third of a step's force within a second
+or two): a force read 0.1-0.3 s after a 1 mm step is still 10-20 % of the
+step's force above its relaxed value. ``relaxation_ratio = 0`` turns time off.
 """
 
 from __future__ import annotations
@@ -79,11 +92,15 @@ class SpongeParams:
     """Final permanent set (the surface sinks by this much)."""
     set_passes: float = 100.0
     """Passes for the set to reach 63 % of its final value."""
+    relaxation_ratio: float = 0.25
+    """Extra stiffness of a fresh indentation, as a fraction of k (0: no relaxation)."""
+    relaxation_time_s: float = 0.4
+    """Time constant of the stress relaxation, s."""
 
     def __post_init__(self) -> None:
         positive = ("thickness_mm", "waviness_wavelength_mm", "stiffness_n_per_mm",
                     "stiffness_wavelength_mm", "backing_n_per_mm", "softening_passes",
-                    "set_passes")
+                    "set_passes", "relaxation_time_s")
         for name in positive:
             if not getattr(self, name) > 0:
                 raise ValueError(f"sponge {name} must be > 0, got {getattr(self, name)}")
@@ -91,6 +108,8 @@ class SpongeParams:
             raise ValueError("sponge z_bottom_mm must be below z_top_mm")
         if not 0 <= self.softening < 1 or not 0 <= self.stiffness_variation < 1:
             raise ValueError("sponge softening and stiffness_variation must be in [0, 1)")
+        if not 0 <= self.relaxation_ratio <= 10:
+            raise ValueError("sponge relaxation_ratio must be in [0, 10]")
 
 
 def surface_y_mm(params: SpongeParams, passes: float, z_mm: float) -> float:
@@ -125,13 +144,19 @@ def penetration_mm(params: SpongeParams, passes: float, position_mm: np.ndarray)
     return max(0.0, surface_y_mm(params, passes, z) - float(y))
 
 
-def contact_force_n(params: SpongeParams, passes: float, position_mm: np.ndarray) -> np.ndarray:
-    """Return the sponge's reaction force (3,) in N, world frame, on a tool point (mm)."""
+def contact_force_n(
+    params: SpongeParams, passes: float, position_mm: np.ndarray, relaxing_mm: float = 0.0
+) -> np.ndarray:
+    """Return the sponge's reaction force (3,) in N, world frame, on a tool point (mm).
+
+    ``relaxing_mm`` is the standard linear solid's relaxing part q (0: relaxed).
+    """
     depth = penetration_mm(params, passes, position_mm)
     if depth <= 0.0:
         return np.zeros(3)
     z = float(position_mm[2])
-    normal_n = stiffness_n_per_mm(params, passes, z) * min(depth, params.thickness_mm)
+    foam_mm = max(0.0, min(depth, params.thickness_mm) + params.relaxation_ratio * relaxing_mm)
+    normal_n = stiffness_n_per_mm(params, passes, z) * foam_mm
     normal_n += params.backing_n_per_mm * max(0.0, depth - params.thickness_mm)
     direction = np.array([0.0, 1.0, -_surface_slope_dy_dz(params, z)])
     return normal_n * direction / np.linalg.norm(direction)
@@ -151,16 +176,40 @@ class Sponge:
         self.params = params or SpongeParams()
         self.passes = passes
         self._touched = False
+        self.relaxing_mm = 0.0
+        """The relaxing part q of the standard linear solid, mm."""
+        self._foam_mm = 0.0
         self._memo_key: tuple[float, ...] | None = None
         self._memo_force = np.zeros(3)
 
     def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
         """Return the reaction force (3,) in N, world frame, at the present pass count."""
-        key = (self.passes, *(float(c) for c in position_mm))
+        key = (self.passes, self.relaxing_mm, *(float(c) for c in position_mm))
         if key != self._memo_key:  # the sensor asks thousands of times per pose
             self._memo_key = key
-            self._memo_force = contact_force_n(self.params, self.passes, position_mm)
+            self._memo_force = contact_force_n(
+                self.params, self.passes, position_mm, self.relaxing_mm
+            )
         return self._memo_force.copy()
+
+    def evolve(self, position_mm: np.ndarray, dt_s: float) -> None:
+        """Advance the relaxation over ``dt_s`` during which the tool moved to ``position_mm``.
+
+        The foam depth is taken to change linearly over the interval (exact
+        for the standard linear solid under a ramp).
+        """
+        p = self.params
+        foam = min(penetration_mm(p, self.passes, position_mm), p.thickness_mm)
+        change, self._foam_mm = foam - self._foam_mm, foam
+        if p.relaxation_ratio == 0.0 or dt_s <= 0.0:
+            self.relaxing_mm = 0.0
+            return
+        keep = math.exp(-dt_s / p.relaxation_time_s)
+        self.relaxing_mm = self.relaxing_mm * keep + change * (p.relaxation_time_s / dt_s) * (
+            1.0 - keep
+        )
+        if foam == 0.0 and self.relaxing_mm > 0.0:
+            self.relaxing_mm = 0.0  # out of contact the foam recovers freely
 
     def observe_pose(self, position_mm: np.ndarray) -> None:
         """Note where the tool is; completes a pass when it leaves the sponge after contact."""
@@ -175,11 +224,18 @@ class Sponge:
         self.passes += 1
         self._touched = False
 
-    def state_dict(self) -> dict[str, int | bool]:
-        """Return the state to checkpoint (plain ints and bools)."""
-        return {"passes": self.passes, "touched": self._touched}
+    def state_dict(self) -> dict[str, int | bool | float]:
+        """Return the state to checkpoint (plain numbers)."""
+        return {
+            "passes": self.passes,
+            "touched": self._touched,
+            "relaxing_mm": self.relaxing_mm,
+            "foam_mm": self._foam_mm,
+        }
 
-    def load_state_dict(self, state: dict[str, int | bool]) -> None:
+    def load_state_dict(self, state: dict[str, int | bool | float]) -> None:
         """Restore a state from :meth:`state_dict`."""
         self.passes = int(state["passes"])
         self._touched = bool(state["touched"])
+        self.relaxing_mm = float(state.get("relaxing_mm", 0.0))
+        self._foam_mm = float(state.get("foam_mm", 0.0))

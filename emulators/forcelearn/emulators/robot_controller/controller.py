@@ -10,23 +10,34 @@ itself) and nothing else of the driver. Rules, as in docs/computer-link.md:
   it is **never executed twice**;
 * DLE ENQ or DLE NAK from the PC asks for the last reply again (DLE NAK if
   there is none yet); DLE ACK needs no answer.
+
+Time (simulated, on the cell's :class:`~forcelearn.emulators.clock.SimClock`):
+a frame from the PC occupies the PC-to-controller wire for its bytes at the
+line's character time, starting when the PC is ready (the clock's present
+time) and the wire is free; the PC's DLE ACK of a reply starts when that
+reply has arrived, and does not move the clock (the PC does not wait for it);
+it is reserved on the wire with the reply, so when this thread happens to
+read it changes nothing.
+A request is executed when its last byte has arrived; the DLE ACK follows at
+once and the reply ``reply_latency_s`` later, each taking its bytes' time on
+the controller-to-PC wire. The clock then stands at the end of the answer.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import framing
 from forcelearn.drivers.computer_link import messages as m
+from forcelearn.emulators.clock import Wire, serial_char_time_s
+from forcelearn.emulators.physics.arm_motion import ArmMotion
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.robot_controller.kinematics import (
     ArmConfig,
-    Servo,
     check_target,
     joint_angles_deg,
 )
@@ -57,62 +68,87 @@ class ControllerEngine:
     """Protocol engine and robot state of one emulated controller; thread-safe.
 
     Args:
-        config: arm geometry, limits and servo settings.
-        physics: shared cell physics; receives every pose the robot reaches.
-        clock: monotonic clock in seconds (injectable for tests).
+        config: arm geometry, limits, motion settings and reply latency.
+        physics: shared cell physics with the cell's clock; the engine gives it
+            an :class:`ArmMotion` if it has none.
+        char_time_s: seconds per character on the serial line (0: the wire
+            costs no time).
     """
 
     def __init__(
         self,
         config: ArmConfig | None = None,
         physics: CellPhysics | None = None,
-        clock: Callable[[], float] = time.monotonic,
+        char_time_s: float = serial_char_time_s(9600),
     ) -> None:
         self.config = config or ArmConfig()
         self.physics = physics or CellPhysics(pose=self.config.home)
-        self._clock = clock
+        self.clock = self.physics.clock
+        if self.physics.motion is None:
+            self.physics.attach_motion(ArmMotion(self.config.motion_params(), self.config.home))
+        self.motion: ArmMotion = self.physics.motion  # type: ignore[assignment]
+        self.char_time_s = float(char_time_s)
+        self.rx_wire = Wire(self.clock)
+        """PC-to-controller direction of the serial line."""
+        self.tx_wire = Wire(self.clock)
+        """Controller-to-PC direction of the serial line."""
         self._lock = threading.RLock()
-        self._servo = Servo(self.config, clock())
-        self.physics.set_pose(self._servo.pose)
         self._last_request: bytes | None = None
         self._last_reply: bytes | None = None
         self._last_error = 0
+        self.never_in_position = False
+        """Fault: READ_STATUS never reports in position (a robot that cannot settle)."""
         self.move_count = 0
         """Moves executed (accepted MOVE_TO / MOVE_BY); retransmissions never count."""
 
     @property
     def pose(self) -> Pose:
-        """The pose the robot has reached."""
+        """The pose the robot has reached by the clock's present time."""
         with self._lock:
-            self.tick()
-            return self._servo.pose
+            self.physics.advance_to()
+            return self.motion.pose
 
-    def tick(self) -> None:
-        """Advance the servo to now and publish the reached pose to the physics."""
-        with self._lock:
-            before = self._servo.pose
-            self._servo.advance(self._clock())
-            if self._servo.pose != before:
-                self.physics.set_pose(self._servo.pose)
+    def handle(self, frame: framing.Frame, wire_bytes: int | None = None) -> list[Answer]:
+        """Return what to send in answer to one received frame; advance the clock.
 
-    def handle(self, frame: framing.Frame) -> list[Answer]:
-        """Return what to send in answer to one received frame."""
+        ``wire_bytes`` is the frame's length on the wire (default: its encoded length).
+        """
         with self._lock:
-            if isinstance(frame, framing.BadFrame):
-                log.debug("NAK: %s", frame.reason)
-                return [Answer("nak", framing.Control.NAK.wire)]
-            if isinstance(frame, framing.Control):
-                if frame is framing.Control.ACK:
-                    return []
-                return [self._repeat()]
-            ack = Answer("ack", framing.Control.ACK.wire)
-            if frame.payload == self._last_request and self._last_reply is not None:
-                log.debug("duplicate request, reply repeated, not executed")
-                return [ack, self._repeat()]
-            reply, executed = self._execute(frame.payload)
-            self._last_request = frame.payload
-            self._last_reply = framing.encode(m.encode_reply(reply))
-            return [ack, Answer("reply", self._last_reply, executed)]
+            size = _wire_size(frame) if wire_bytes is None else wire_bytes
+            if frame is framing.Control.ACK:  # the PC's ACK of a reply: reserved with the reply
+                return []
+            _, arrived = self.rx_wire.transmit(size * self.char_time_s)
+            self.clock.advance_to(arrived)
+            answers = self._answers(frame)
+            self._schedule(answers, arrived)
+            return answers
+
+    def _schedule(self, answers: list[Answer], arrived_s: float) -> None:
+        """Put the answers on the controller-to-PC wire; move the clock to their end."""
+        for answer in answers:
+            ready = arrived_s if answer.kind != "reply" else arrived_s + self.config.reply_latency_s
+            size = 2 if answer.kind != "reply" else _nominal_size(answer.wire)
+            _, end = self.tx_wire.transmit(size * self.char_time_s, ready)
+            self.clock.advance_to(end)
+            if answer.kind == "reply":  # the PC acknowledges it at once (link rule 5)
+                self.rx_wire.transmit(len(framing.Control.ACK.wire) * self.char_time_s, end)
+
+    def _answers(self, frame: framing.Frame) -> list[Answer]:
+        if isinstance(frame, framing.BadFrame):
+            log.debug("NAK: %s", frame.reason)
+            return [Answer("nak", framing.Control.NAK.wire)]
+        if isinstance(frame, framing.Control):
+            if frame is framing.Control.ACK:
+                return []
+            return [self._repeat()]
+        ack = Answer("ack", framing.Control.ACK.wire)
+        if frame.payload == self._last_request and self._last_reply is not None:
+            log.debug("duplicate request, reply repeated, not executed")
+            return [ack, self._repeat()]
+        reply, executed = self._execute(frame.payload)
+        self._last_request = frame.payload
+        self._last_reply = framing.encode(m.encode_reply(reply))
+        return [ack, Answer("reply", self._last_reply, executed)]
 
     def _repeat(self) -> Answer:
         if self._last_reply is None:
@@ -129,20 +165,21 @@ class ControllerEngine:
             if header[0] not in {int(c) for c in m.Command}:
                 error = m.ErrorCode.UNKNOWN_COMMAND
             return self._refuse(header[0], header[1], error, str(exc)), False
-        self.tick()
-        now = self._clock()
+        now = self.clock.now_s
+        self.physics.advance_to(now)
+        motion = self.motion
         cmd, tns = request.command, request.transaction
         if cmd in (m.Command.MOVE_TO, m.Command.MOVE_BY):
             if cmd is m.Command.MOVE_TO:
                 xyz, quaternion = m.parse_pose(request.body)
                 target = Pose(*xyz, quaternion)
             else:
-                target = self._servo.target.moved(*m.parse_increment(request.body))
+                target = motion.target.moved(*m.parse_increment(request.body))
             refusal = check_target(self.config, target)
             if refusal is not None:
                 return self._refuse(cmd, tns, _REFUSAL_CODE[refusal[0]], refusal[1]), False
-            self._servo.command(target, now)
-            self.physics.set_pose(self._servo.pose)
+            motion.command(target, now)
+            self.physics.advance_to(now)  # an instant arm is there at once
             self.move_count += 1
             self._last_error = 0
             return m.Reply(cmd, tns, m.ErrorCode.OK), True
@@ -151,29 +188,64 @@ class ControllerEngine:
             if not 0 < speed <= self.config.max_speed_mm_s:
                 reason = f"speed {speed} mm/s outside 0..{self.config.max_speed_mm_s}"
                 return self._refuse(cmd, tns, m.ErrorCode.BAD_SPEED, reason), False
-            self._servo.speed_mm_s = speed
+            motion.speed_mm_s = speed
             return m.Reply(cmd, tns, m.ErrorCode.OK), False
         if cmd is m.Command.STOP:
-            self._servo.stop(now)
+            motion.stop(now)
             return m.Reply(cmd, tns, m.ErrorCode.OK), False
-        return m.Reply(cmd, tns, m.ErrorCode.OK, body=self._read(cmd)), False
+        return m.Reply(cmd, tns, m.ErrorCode.OK, body=self._read(cmd, now)), False
 
-    def _read(self, cmd: m.Command) -> bytes:
+    def _read(self, cmd: m.Command, now_s: float) -> bytes:
         """Body of the read-only replies."""
-        servo = self._servo
+        motion = self.motion
         if cmd is m.Command.IDENTIFY:
             return m.identify_body(VERSION, MODEL)
-        if cmd is m.Command.READ_POSITION:
-            pose = servo.pose
+        if cmd in (m.Command.READ_POSITION, m.Command.READ_TARGET):
+            pose = motion.pose if cmd is m.Command.READ_POSITION else motion.target
+            if cmd is m.Command.READ_TARGET:
+                return m.pose_body((pose.x_mm, pose.y_mm, pose.z_mm), pose.quaternion)
             joints = joint_angles_deg(self.config, pose) or (float("nan"),) * 6
             xyz = (pose.x_mm, pose.y_mm, pose.z_mm)
             return m.position_body(m.Position(xyz, pose.quaternion, joints))
-        in_position = not servo.moving
+        in_position = motion.in_position and not self.never_in_position
         return m.status_body(
-            m.Status(servo.moving, in_position, self._last_error, self.move_count)
+            m.Status(motion.moving, in_position, self._last_error, self.move_count, now_s)
         )
+
+    def state_dict(self) -> dict[str, Any]:
+        """The link's wire timelines (the motion is the physics' to save)."""
+        with self._lock:
+            return {"rx": self.rx_wire.state_dict(), "tx": self.tx_wire.state_dict()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        with self._lock:
+            self.rx_wire.load_state_dict(state["rx"])
+            self.tx_wire.load_state_dict(state["tx"])
 
     def _refuse(self, code: int, tns: int, error: m.ErrorCode, reason: str) -> m.Reply:
         log.info("refused command 0x%02X: %s", code, reason)
         self._last_error = int(error)
         return m.Reply(code, tns, error, reason=reason)
+
+
+_FRAME_OVERHEAD = 6
+"""DLE STX, DLE ETX and the two check bytes around a payload."""
+
+
+def _wire_size(frame: framing.Frame) -> int:
+    """Bytes a received frame is charged on the wire (nominal; 2 for control or damaged frames).
+
+    DLE stuffing (one more byte per 0x10 in the payload) is not charged: it
+    depends on the transaction number, which a driver starts at random, and
+    the clock must not (about one byte in 256; under 1 % of the line's time).
+    """
+    if isinstance(frame, framing.DataFrame):
+        return len(frame.payload) + _FRAME_OVERHEAD
+    return 2
+
+
+def _nominal_size(wire: bytes) -> int:
+    """The nominal size of an encoded data frame: its payload unstuffed, plus the overhead."""
+    body = wire[2:-4]
+    return len(body) - body.count(b"\x10\x10") + _FRAME_OVERHEAD

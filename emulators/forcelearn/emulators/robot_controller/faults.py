@@ -12,6 +12,8 @@ drop_request       a received request frame is ignored, as if lost on the wire
 drop_reply         a reply frame is not sent (the request *was* executed)
 delay_ack          the controller sleeps ``ack_delay_s`` before its DLE ACK
 drop_connection    after executing a request, hang up instead of answering
+stall_fraction     every move stops at this fraction of its way (never in position)
+never_in_position  READ_STATUS never reports in position
 =================  ===========================================================
 """
 
@@ -48,6 +50,8 @@ class FaultConfig:
     delay_ack: Fault = field(default_factory=Fault)
     drop_connection: Fault = field(default_factory=Fault)
     ack_delay_s: float = 0.5
+    stall_fraction: float | None = None
+    never_in_position: bool = False
     seed: int = 0
 
 

@@ -1,4 +1,4 @@
-"""Kinematic model behind the emulated robot controller: limits and a Cartesian servo.
+"""Kinematic model behind the emulated robot controller: geometry, limits and motion settings.
 
 The arm is a simplified six-axis arm in the spirit of the IRB 2000 (not its
 exact geometry): a base joint, a two-link planar shoulder/elbow, and a
@@ -17,10 +17,11 @@ A target is refused (and the robot does not move) when it lies outside the
 workspace box, is out of reach of the two links, breaks a joint range, or its
 quaternion is not unit length (within 1e-3).
 
-The servo either reaches a target at once (``lag_s == 0``, the paper's cell),
-or follows it as a first-order lag with time constant ``lag_s``, its speed
-capped by the commanded speed (mm/s). Orientation follows by normalised
-linear interpolation with the same fraction.
+How the tool moves in time (speed and acceleration limits, start delay,
+servo lag, in-position band) is the shared physics' :class:`ArmMotion`; the
+defaults and their sources are in :mod:`forcelearn.emulators.physics.arm_motion`.
+``instant = True`` reaches every target the moment it is commanded (the
+"ideal" profile, today's studies' fast path).
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from forcelearn.devices import Pose
-from forcelearn.emulators.physics.cell import quaternion_to_matrix
+from forcelearn.devices import Pose, quaternion_to_matrix
+from forcelearn.emulators.physics.arm_motion import MotionParams
 
 TOOL_DOWN = (0.0, 1.0, 0.0, 0.0)
 """Quaternion (w, x, y, z) of a tool pointing straight down (180 deg about x)."""
@@ -58,18 +59,45 @@ class ArmConfig:
     )
     max_speed_mm_s: float = 1000.0
     default_speed_mm_s: float = 100.0
-    lag_s: float = 0.0
-    """First-order time constant; 0 reaches every target in one step."""
-    in_position_mm: float = 0.01
+    """TCP speed of moves until SET_SPEED changes it."""
+    accel_mm_s2: float = 1000.0
+    start_delay_s: float = 0.05
+    """Time from accepting a move to the start of motion (path planning)."""
+    lag_s: float = 0.03
+    """Servo lag: first-order time constant of the tool behind the planned path."""
+    in_position_mm: float = 0.1
+    rotation_speed_deg_s: float = 60.0
+    tick_s: float = 0.004
+    """The controller's interpolation period."""
+    instant: bool = False
+    """Reach every target the moment it is accepted (the "ideal" profile)."""
+    reply_latency_s: float = 0.005
+    """Time from the end of a request on the wire to the start of the reply (assumption)."""
 
     def __post_init__(self) -> None:
         for axis in range(3):
             if self.workspace_min_mm[axis] >= self.workspace_max_mm[axis]:
                 raise ValueError(f"workspace_min_mm[{axis}] must be below workspace_max_mm")
-        if self.lag_s < 0 or not 0 < self.default_speed_mm_s <= self.max_speed_mm_s:
-            raise ValueError("lag_s must be >= 0 and 0 < default_speed_mm_s <= max_speed_mm_s")
+        if not 0 < self.default_speed_mm_s <= self.max_speed_mm_s:
+            raise ValueError("need 0 < default_speed_mm_s <= max_speed_mm_s")
+        if not (math.isfinite(self.reply_latency_s) and self.reply_latency_s >= 0):
+            raise ValueError("reply_latency_s must be >= 0")
         if len(self.joint_limits_deg) != 6:
             raise ValueError("joint_limits_deg needs six (low, high) pairs")
+        self.motion_params()  # validates the motion settings
+
+    def motion_params(self) -> MotionParams:
+        """The shared physics' motion settings of this arm."""
+        return MotionParams(
+            speed_mm_s=self.default_speed_mm_s,
+            accel_mm_s2=self.accel_mm_s2,
+            start_delay_s=self.start_delay_s,
+            lag_s=self.lag_s,
+            in_position_mm=self.in_position_mm,
+            rotation_speed_deg_s=self.rotation_speed_deg_s,
+            tick_s=self.tick_s,
+            instant=self.instant,
+        )
 
 
 def joint_angles_deg(config: ArmConfig, pose: Pose) -> tuple[float, ...] | None:
@@ -121,55 +149,3 @@ def check_target(config: ArmConfig, pose: Pose) -> tuple[str, str] | None:
         if not lo - 1e-9 <= angle <= hi + 1e-9:
             return "joint", f"J{number + 1} would be {angle:.1f} deg, outside {lo}..{hi}"
     return None
-
-
-class Servo:
-    """Cartesian position servo; call :meth:`advance` with the time to move it.
-
-    Not thread-safe: owned by the controller, which holds the lock.
-    """
-
-    def __init__(self, config: ArmConfig, now_s: float) -> None:
-        self.config = config
-        self.pose = config.home
-        self.target = config.home
-        self.speed_mm_s = config.default_speed_mm_s
-        self._time_s = now_s
-
-    @property
-    def moving(self) -> bool:
-        """True while the pose has not reached the target."""
-        return self.pose != self.target
-
-    def command(self, target: Pose, now_s: float) -> None:
-        """Set a new (already checked) target."""
-        self.advance(now_s)
-        self.target = target
-        if self.config.lag_s == 0:
-            self.pose = target
-
-    def stop(self, now_s: float) -> None:
-        """Hold the present pose."""
-        self.advance(now_s)
-        self.target = self.pose
-
-    def advance(self, now_s: float) -> None:
-        """Move the pose toward the target over the time since the last call."""
-        dt = max(0.0, now_s - self._time_s)
-        self._time_s = now_s
-        if not self.moving or dt == 0:
-            return
-        error = self.target.position_mm - self.pose.position_mm
-        distance = float(np.linalg.norm(error))
-        if distance <= self.config.in_position_mm:
-            self.pose = self.target
-            return
-        fraction = 1.0 - math.exp(-dt / self.config.lag_s)
-        fraction = min(fraction, self.speed_mm_s * dt / distance)
-        position = self.pose.position_mm + fraction * error
-        q0, q1 = np.asarray(self.pose.quaternion), np.asarray(self.target.quaternion)
-        if np.dot(q0, q1) < 0:
-            q1 = -q1
-        q = q0 + fraction * (q1 - q0)
-        q = q / np.linalg.norm(q)
-        self.pose = Pose(*(float(c) for c in position), tuple(float(c) for c in q))

@@ -19,6 +19,7 @@ from typing import Literal
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import framing
+from forcelearn.emulators.clock import serial_char_time_s
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.robot_controller.controller import ControllerEngine
 from forcelearn.emulators.robot_controller.faults import FaultConfig, FaultInjector
@@ -28,7 +29,7 @@ from forcelearn.emulators.robot_controller.transport import PtyEndpoint, TcpEndp
 log = logging.getLogger(__name__)
 
 POLL_S = 0.005
-"""Longest wait of the server loop (s): bounds stop latency and servo tick period."""
+"""Longest wait of the server loop (s): bounds stop latency (motion runs on simulated time)."""
 
 
 class RobotControllerEmulator:
@@ -40,6 +41,9 @@ class RobotControllerEmulator:
         physics: shared cell physics; the emulator writes every reached pose into it.
         faults: fault injection settings (default: none).
         port: TCP port (0 picks a free one); ignored for "pty".
+        char_time_s: seconds per character on the emulated serial line
+            (default: 9600 baud 8N1; 0: the wire costs no time). The pty or
+            socket itself is as fast as the host; only simulated time counts.
     """
 
     def __init__(
@@ -50,11 +54,14 @@ class RobotControllerEmulator:
         physics: CellPhysics | None = None,
         faults: FaultConfig | None = None,
         port: int = 0,
+        char_time_s: float = serial_char_time_s(9600),
     ) -> None:
         if transport not in ("pty", "tcp"):
             raise ValueError(f"transport must be 'pty' or 'tcp', got {transport!r}")
-        self.engine = ControllerEngine(config, physics)
+        self.engine = ControllerEngine(config, physics, char_time_s)
         self.faults = FaultInjector(faults)
+        self.engine.motion.stall_fraction = self.faults.config.stall_fraction
+        self.engine.never_in_position = self.faults.config.never_in_position
         self._endpoint = PtyEndpoint() if transport == "pty" else TcpEndpoint(port)
         self._reader = framing.FrameReader()
         self._stop = threading.Event()
@@ -111,7 +118,6 @@ class RobotControllerEmulator:
             if self._endpoint.generation != generation:
                 generation = self._endpoint.generation
                 self._reader.clear()
-            self.engine.tick()
             if data:
                 self.bytes_received += len(data)
                 for frame in self._reader.feed(self.faults.corrupt(data)):
@@ -139,5 +145,6 @@ class RobotControllerEmulator:
                 continue
             out += self.faults.corrupt(answer.wire)
         if out:
+            self.engine.clock.hold()  # real-time pace, if one is set
             self._endpoint.write(bytes(out))
         return False

@@ -1,0 +1,302 @@
+"""How the emulated arm's tool moves in time: planner, servo lag and in-position band.
+
+A path planner with speed and acceleration limits, a servo that lags behind
+it, and an in-position band.
+
+Description
+-----------
+A command is taken by the controller at once (it becomes the *commanded
+target*) but motion starts ``start_delay_s`` later, the time the controller
+spends planning the path. The planner moves a reference point along the
+straight segment from where the reference is to the target with a
+trapezoidal speed profile: acceleration ``accel_mm_s2`` up to ``speed_mm_s``,
+then braking so as to stop on the target. Orientation turns in step with the
+position (normalised linear interpolation); a pure rotation takes
+``angle / rotation_speed_deg_s``. The tool follows the reference through a
+first-order servo lag of time constant ``lag_s``. The robot is *in position*
+when the reference has stopped on the commanded target and the tool is within
+``in_position_mm`` of it (and within 0.1 deg of its orientation).
+
+A new command while moving starts a new segment from the present reference,
+keeping the part of the speed that points the new way. STOP brakes along the
+present segment at ``accel_mm_s2`` and makes the rest point the target.
+
+Time advances on a fixed grid of ``tick_s`` (the controller's interpolation
+period), so the motion does not depend on how often anyone looks at it.
+
+Units: mm, s, degrees; poses in the robot base frame.
+
+Defaults and where they come from
+---------------------------------
+=======================  ==========  ========================================================
+parameter                default     source
+=======================  ==========  ========================================================
+speed_mm_s               100         assumption: a computer-link MoveL at v100, the
+                                     speed data the paper's era used for contact work
+accel_mm_s2              1000        assumption: about 0.1 g, a smooth TCP ramp for a
+                                     large arm (IRB 2000 class) under a fine-point MoveL
+start_delay_s            0.05        assumption: the S4 controller plans a received
+                                     move before it starts (tens of ms)
+lag_s                    0.03        assumption: position servo tracking lag of a
+                                     1990s industrial arm (a few tens of ms)
+in_position_mm           0.1         assumption: a "fine" stop point's band
+rotation_speed_deg_s     60          assumption: reorientation speed of the tool
+tick_s                   0.004       assumption: interpolation period (IRC5 and EGM
+                                     run at 4 ms)
+=======================  ==========  ========================================================
+
+With these, a 5 mm step takes about 0.05 + 0.12 + 0.1 s (delay, travel, lag)
+before the robot reports in position.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+from forcelearn.devices import Pose
+
+_SNAP_MM = 1e-4
+"""Below this distance the lagging tool is taken to have reached the reference."""
+_ORIENTATION_BAND_DEG = 0.1
+
+
+@dataclass(frozen=True)
+class MotionParams:
+    """Speed, acceleration, delay, lag and in-position band of the arm (mm, s, deg)."""
+
+    speed_mm_s: float = 100.0
+    accel_mm_s2: float = 1000.0
+    start_delay_s: float = 0.05
+    lag_s: float = 0.03
+    in_position_mm: float = 0.1
+    rotation_speed_deg_s: float = 60.0
+    tick_s: float = 0.004
+    instant: bool = False
+    """Reach every target the instant it is commanded (the "ideal" profile)."""
+
+    def __post_init__(self) -> None:
+        for name in ("speed_mm_s", "accel_mm_s2", "rotation_speed_deg_s", "tick_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"arm {name} must be a positive number, got {value!r}")
+        for name in ("start_delay_s", "lag_s", "in_position_mm"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"arm {name} must be >= 0, got {value!r}")
+
+
+def _nlerp(q0: tuple[float, ...], q1: tuple[float, ...], f: float) -> tuple[float, ...]:
+    """Normalised linear interpolation of unit quaternions (the short way)."""
+    if sum(a * b for a, b in zip(q0, q1, strict=True)) < 0:
+        q1 = tuple(-c for c in q1)
+    q = [a + f * (b - a) for a, b in zip(q0, q1, strict=True)]
+    norm = math.sqrt(sum(c * c for c in q))
+    return tuple(c / norm for c in q)
+
+
+def _angle_deg(q0: tuple[float, ...], q1: tuple[float, ...]) -> float:
+    """Rotation angle between two unit quaternions, degrees."""
+    dot = abs(sum(a * b for a, b in zip(q0, q1, strict=True)))
+    norm = math.sqrt(sum(c * c for c in q0)) * math.sqrt(sum(c * c for c in q1))
+    return math.degrees(2.0 * math.acos(min(1.0, dot / norm)))
+
+
+class ArmMotion:
+    """The tool's motion in simulated time (pure: no clock, no threads; the caller advances it).
+
+    Args:
+        params: speed, acceleration, delay, lag and band.
+        pose: where the tool is at power-up (at rest).
+    """
+
+    def __init__(self, params: MotionParams, pose: Pose) -> None:
+        self.params = params
+        self.speed_mm_s = params.speed_mm_s
+        self._lag_keep = math.exp(-params.tick_s / params.lag_s) if params.lag_s > 0 else 0.0
+        self.tick_index = 0
+        self.target = pose
+        """The commanded target (what MOVE_BY adds to, what in-position compares with)."""
+        self.stall_fraction: float | None = None
+        """Fault: every segment stops at this fraction of its length (a robot that stops short)."""
+        self._pending: deque[tuple[int, Pose]] = deque()
+        self._set_rest(pose)
+
+    def _set_rest(self, pose: Pose) -> None:
+        self._tool = [pose.x_mm, pose.y_mm, pose.z_mm]
+        self._tool_q = tuple(pose.quaternion)
+        self._ref = list(self._tool)
+        self._ref_q = self._tool_q
+        self._seg_start = list(self._tool)
+        self._seg_start_q = self._tool_q
+        self._seg_goal = pose
+        self._seg_length = 0.0
+        self._seg_end = 0.0
+        self._s = 0.0
+        self._v = 0.0
+
+    # ---- what the controller sees ------------------------------------------------------
+    @property
+    def time_s(self) -> float:
+        """The simulated time the motion has been advanced to, s."""
+        return self.tick_index * self.params.tick_s
+
+    @property
+    def pose(self) -> Pose:
+        """Where the tool is (mm, quaternion w x y z)."""
+        return Pose(*self._tool, self._tool_q)  # type: ignore[arg-type]
+
+    @property
+    def moving(self) -> bool:
+        """True while a command is pending, the path runs, or the tool lags beyond the band."""
+        if self._pending or self._s < self._seg_end or self._v > 0:
+            return True
+        return math.dist(self._tool, self._ref) > self.params.in_position_mm
+
+    @property
+    def in_position(self) -> bool:
+        """True when at rest within the band of the commanded target."""
+        if self._pending or self._s < self._seg_end or self._v > 0:
+            return False
+        t = self.target
+        error = math.dist(self._tool, (t.x_mm, t.y_mm, t.z_mm))
+        return (
+            error <= self.params.in_position_mm
+            and _angle_deg(self._tool_q, t.quaternion) <= _ORIENTATION_BAND_DEG
+        )
+
+    def _at_rest(self) -> bool:
+        return self._v == 0.0 and self._s >= self._seg_end and self._tool == self._ref and (
+            self._tool_q == self._ref_q
+        )
+
+    # ---- commands ----------------------------------------------------------------------
+    def command(self, target: Pose, t_s: float) -> None:
+        """Take a new target at simulated time ``t_s`` (motion starts after the delay)."""
+        self.advance_to(t_s)
+        self.target = target
+        if self.params.instant:
+            self._pending.clear()
+            self._set_rest(target)
+            return
+        start_tick = math.ceil((t_s + self.params.start_delay_s) / self.params.tick_s - 1e-9)
+        self._pending.append((max(start_tick, self.tick_index), target))
+
+    def stop(self, t_s: float) -> None:
+        """Brake to rest along the present segment; the rest point becomes the target."""
+        self.advance_to(t_s)
+        self._pending.clear()
+        brake = self._v * self._v / (2.0 * self.params.accel_mm_s2)
+        self._seg_end = min(self._seg_end, self._s + brake)
+        self.target = self._point_at(self._seg_end)
+
+    # ---- time --------------------------------------------------------------------------
+    def advance_to(self, t_s: float, on_tick: Any = None) -> None:
+        """Advance to the last tick at or before ``t_s``; ``on_tick(dt_s)`` after each tick.
+
+        At rest with nothing pending the ticks are skipped in one jump and
+        ``on_tick`` is called once with the whole span.
+        """
+        tick = self.params.tick_s
+        last = math.floor(t_s / tick + 1e-9)
+        while self.tick_index < last:
+            if not self._pending and self._at_rest():
+                span = last - self.tick_index
+                self.tick_index = last
+                if on_tick is not None:
+                    on_tick(span * tick)
+                return
+            self.tick_index += 1
+            self._step(tick)
+            if on_tick is not None:
+                on_tick(tick)
+
+    def _step(self, dt: float) -> None:
+        while self._pending and self._pending[0][0] <= self.tick_index:
+            self._start_segment(self._pending.popleft()[1])
+        p = self.params
+        if self._s < self._seg_end:
+            remaining = self._seg_end - self._s
+            v = min(self._v + p.accel_mm_s2 * dt, self.speed_mm_s,
+                    math.sqrt(2.0 * p.accel_mm_s2 * remaining))
+            self._s = min(self._seg_end, self._s + v * dt)
+            self._v = 0.0 if self._s >= self._seg_end else v
+        else:
+            self._v = 0.0
+        ref = self._point_at(self._s)
+        self._ref = [ref.x_mm, ref.y_mm, ref.z_mm]
+        self._ref_q = ref.quaternion
+        gain = 1.0 - self._lag_keep
+        tool = [a + gain * (b - a) for a, b in zip(self._tool, self._ref, strict=True)]
+        if math.dist(tool, self._ref) < _SNAP_MM and self._s >= self._seg_end:
+            tool, self._tool_q = list(self._ref), self._ref_q
+        else:
+            self._tool_q = _nlerp(self._tool_q, self._ref_q, gain)
+        self._tool = tool
+
+    def _start_segment(self, goal: Pose) -> None:
+        start, start_q = list(self._ref), self._ref_q
+        old_dir = self._direction()
+        distance = math.dist(start, (goal.x_mm, goal.y_mm, goal.z_mm))
+        turn = _angle_deg(start_q, goal.quaternion)
+        length = max(distance, turn * self.speed_mm_s / self.params.rotation_speed_deg_s)
+        self._seg_start, self._seg_start_q, self._seg_goal = start, start_q, goal
+        self._seg_length = length
+        self._s = 0.0
+        self._seg_end = length if self.stall_fraction is None else length * self.stall_fraction
+        new_dir = self._direction()
+        carry = sum(a * b for a, b in zip(old_dir, new_dir, strict=True))
+        self._v = self._v * carry if carry > 0 else 0.0
+
+    def _direction(self) -> tuple[float, float, float]:
+        goal = self._seg_goal
+        delta = [g - s for g, s in zip((goal.x_mm, goal.y_mm, goal.z_mm), self._seg_start,
+                                       strict=True)]
+        norm = math.sqrt(sum(c * c for c in delta))
+        if norm == 0.0:
+            return (0.0, 0.0, 0.0)
+        return (delta[0] / norm, delta[1] / norm, delta[2] / norm)
+
+    def _point_at(self, s: float) -> Pose:
+        f = 1.0 if self._seg_length == 0.0 else s / self._seg_length
+        goal = self._seg_goal
+        xyz = [a + f * (b - a) for a, b in zip(self._seg_start, (goal.x_mm, goal.y_mm, goal.z_mm),
+                                               strict=True)]
+        q = goal.quaternion if f >= 1.0 else _nlerp(self._seg_start_q, goal.quaternion, f)
+        return Pose(*xyz, q)  # type: ignore[arg-type]
+
+    # ---- checkpoint --------------------------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        """Everything a bit-identical resume needs (JSON-able)."""
+        def pose(p: Pose) -> list[float]:
+            return [p.x_mm, p.y_mm, p.z_mm, *p.quaternion]
+
+        return {
+            "tick_index": self.tick_index,
+            "speed_mm_s": self.speed_mm_s,
+            "target": pose(self.target),
+            "pending": [[tick, pose(p)] for tick, p in self._pending],
+            "tool": [*self._tool, *self._tool_q],
+            "ref": [*self._ref, *self._ref_q],
+            "seg_start": [*self._seg_start, *self._seg_start_q],
+            "seg_goal": pose(self._seg_goal),
+            "seg": [self._seg_length, self._seg_end, self._s, self._v],
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        def pose(v: list[float]) -> Pose:
+            return Pose(v[0], v[1], v[2], tuple(v[3:7]))  # type: ignore[arg-type]
+
+        self.tick_index = int(state["tick_index"])
+        self.speed_mm_s = float(state["speed_mm_s"])
+        self.target = pose(state["target"])
+        self._pending = deque((int(t), pose(p)) for t, p in state["pending"])
+        tool, ref, start = state["tool"], state["ref"], state["seg_start"]
+        self._tool, self._tool_q = list(tool[:3]), tuple(tool[3:7])
+        self._ref, self._ref_q = list(ref[:3]), tuple(ref[3:7])
+        self._seg_start, self._seg_start_q = list(start[:3]), tuple(start[3:7])
+        self._seg_goal = pose(state["seg_goal"])
+        self._seg_length, self._seg_end, self._s, self._v = (float(x) for x in state["seg"])
