@@ -51,6 +51,8 @@ class BatchAction:
     """Indices of the members that acted, shape (M,)."""
     box: np.ndarray
     """Flat (unpadded) box index per member, shape (M,)."""
+    padded: np.ndarray
+    """Index of each member's input box in the padded weight rows, shape (M,)."""
     prediction: np.ndarray
     """r̂ per member, shape (M,)."""
     sigma: np.ndarray
@@ -111,7 +113,7 @@ class BatchedSRVLearner:
         ]
         shape = grid.shape
         pad = tuple(max(p.extent[i] for p in params) for i in range(grid.ndim))
-        self._pad = pad
+        self._pad = np.array(pad)
         self._padded_shape = tuple(n + 2 * d for n, d in zip(shape, pad, strict=True))
         n_padded = int(np.prod(self._padded_shape))
         self._n_padded = n_padded
@@ -175,6 +177,10 @@ class BatchedSRVLearner:
 
     def box_index(self, x: np.ndarray) -> np.ndarray:
         """Return the flat box of each input row of ``x`` (M, ndim), as BoxGrid.index does."""
+        return self._box_indices(x) @ self._grid_strides
+
+    def _box_indices(self, x: np.ndarray) -> np.ndarray:
+        """Per-dimension box indices (M, ndim) of the inputs ``x``."""
         f = (x - self._lows) / self._spans
         outside = (f < 0.0) | (f > 1.0) | np.isnan(f)
         if outside.any():
@@ -187,12 +193,7 @@ class BatchedSRVLearner:
                     "out_of_range='clamp' to use the edge box"
                 )
             f = np.clip(f, 0.0, 1.0)
-        i = np.minimum((f * self._parts).astype(np.int64), self._parts - 1)
-        return i @ self._grid_strides
-
-    def _padded_index(self, members: np.ndarray, box: np.ndarray) -> np.ndarray:
-        unravelled = np.stack(np.unravel_index(box, self.grid.shape), axis=-1) + self._pad
-        return members * self._n_padded + unravelled @ self._padded_strides
+        return np.minimum((f * self._parts).astype(np.int64), self._parts - 1)
 
     def _draw(self, members: np.ndarray) -> np.ndarray:
         n = self.n_outputs
@@ -212,15 +213,17 @@ class BatchedSRVLearner:
         With ``explore=False`` the actions are the means μ and no normals are used.
         """
         members = np.asarray(members, dtype=np.int64)
-        box = self.box_index(x)
+        indices = self._box_indices(x)
+        box = indices @ self._grid_strides
+        padded = members * self._n_padded + (indices + self._pad) @ self._padded_strides
         r_hat = self._predictions[members * self.grid.n_boxes + box]
         clipped = np.clip(r_hat, 0.0, 1.0)
         smin, smax = self._sigma_min[members], self._sigma_max[members]
         sigma = smin + (smax - smin) * clipped
-        mu = self._weights[:, self._padded_index(members, box)].T
+        mu = self._weights[:, padded].T
         a = mu + sigma[:, None] * self._draw(members) if explore else mu.copy()
         y = np.asarray(self.output(a, x), dtype=float)
-        return BatchAction(members, box, r_hat, sigma, mu, a, y)
+        return BatchAction(members, box, padded, r_hat, sigma, mu, a, y)
 
     def learn(self, step: BatchAction, r: np.ndarray) -> None:
         """Steps S7-S8 for the members of ``step``: eq. (1), eq. (2), and eq. (3) if generalized."""
@@ -233,7 +236,7 @@ class BatchedSRVLearner:
         self._predictions[members * self.grid.n_boxes + step.box] += self._beta[members] * (
             r - r_hat
         )
-        centre = self._padded_index(members, step.box)
+        centre = step.padded
         gen = self._generalized[members]
         if gen.any():
             g = np.flatnonzero(gen)

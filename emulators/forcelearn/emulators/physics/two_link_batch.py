@@ -50,12 +50,10 @@ class TwoLinkContourCells:
         theta = self.theta_deg[arms]
         t1 = np.radians(theta[:, 0])
         t12 = t1 + np.radians(theta[:, 1])
-        return np.column_stack(
-            [
-                g.link1_m * np.cos(t1) + g.link2_m * np.cos(t12),
-                g.link1_m * np.sin(t1) + g.link2_m * np.sin(t12),
-            ]
-        )
+        tip = np.empty((theta.shape[0], 2))
+        tip[:, 0] = g.link1_m * np.cos(t1) + g.link2_m * np.cos(t12)
+        tip[:, 1] = g.link1_m * np.sin(t1) + g.link2_m * np.sin(t12)
+        return tip
 
     def force_n(self, tip_m: np.ndarray) -> np.ndarray:
         """Return the normal force (M,) in N on tips (M, 2) m (zero out of contact)."""
