@@ -41,7 +41,7 @@ def test_set_keys_resolve_and_values_take_the_default_type() -> None:
 
 def test_a_bad_key_is_named_with_the_valid_ones(capsys: pytest.CaptureFixture[str]) -> None:
     """An unknown --set key fails before any run, naming it and listing the keys."""
-    with pytest.raises(ConfigError, match="unknown --set key 'gama'.*learner.gamma"):
+    with pytest.raises(ConfigError, match=r"unknown --set key 'gama'.*learner\.gamma"):
         parse_sets(ContourConfig(), ["gama=0.8"])
     with pytest.raises(ConfigError, match="cannot read 'x'"):
         parse_sets(ContourConfig(), ["gamma=x"])
@@ -143,3 +143,30 @@ def test_a_dask_local_cluster_gives_the_local_table(tmp_path: Path) -> None:
         )
     assert remote.ran == 8
     assert _table(remote.rows) == _table(local.rows)
+
+
+def test_surface_study_applies_the_override_to_the_emulated_cell_run(tmp_path: Path) -> None:
+    """A §5 run through the study adapter sees its --set value (here the desired force)."""
+    out = tmp_path / "surface"
+    code = main(
+        [
+            "study",
+            "surface",
+            "--seeds",
+            "1",
+            "--trials",
+            "2",
+            "--set",
+            "task.desired_force_n=15",
+            "--workers",
+            "1",
+            "--out",
+            str(out),
+            "--no-progress",
+        ]
+    )
+    assert code == 0
+    with (out / "runs.csv").open() as handle:
+        (row,) = list(csv.DictReader(handle))
+    assert row["task.desired_force_n"] == "15.0" and float(row["desired_force_n"]) == 15.0
+    assert row["trials"] == "2" and row["task"] == "surface"
