@@ -96,8 +96,10 @@ def make_chunks(
     chunks = []
     total = len(specs)
     for members in groups.values():
-        share = math.ceil(slots * len(members) / total) if total else 1
-        size = max(1, min(batch, math.ceil(len(members) / share)))
+        # Chunks in multiples of the slots, so the last round keeps every slot busy.
+        share = max(1, math.ceil(slots * len(members) / total))
+        rounds = math.ceil(len(members) / (share * batch))
+        size = max(1, math.ceil(len(members) / (share * rounds)))
         chunks += [members[i : i + size] for i in range(0, len(members), size)]
     return chunks
 
