@@ -20,6 +20,10 @@ from forcelearn.errors import ForcelearnError
 COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("forcelearn.tools.run_command", "learn force tracking on the cell (paper §5)"),
     "sim": ("forcelearn.tools.sim", "run a simulated task (paper §4 contour tracking)"),
+    "study": (
+        "forcelearn.tools.study_command",
+        "sweep settings x seeds on local cores or a Dask cluster",
+    ),
     "bench": ("forcelearn.tools.bench", "print speed figures of the learner, link and sensor"),
     "calibrate": ("forcelearn.tools.calibrate", "measure sensor bias, noise and tool load"),
     "check": ("forcelearn.tools.check_command", "check a cell's devices without moving the robot"),

@@ -11,6 +11,7 @@ driver boundary with ``raise ... from``.
      ├── ConfigError (ValueError)          a config key or value is wrong
      ├── StateFileError                    a learned-state file is damaged or of another version
      ├── CalibrationError                  a calibration could not be made; no file was written
+ ├── StudyError                        a study cannot run: folder conflict, cluster unreachable
      ├── LinkError                         robot computer link
      │    ├── LinkTimeout (TimeoutError)   no ACK / reply within the timeout, retries spent
      │    ├── ProtocolError                a reply that breaks the link protocol
@@ -37,6 +38,10 @@ class ConfigError(ForcelearnError, ValueError):
 
 class StateFileError(ForcelearnError):
     """A learned-state file cannot be read: damaged, truncated or of another format version."""
+
+
+class StudyError(ForcelearnError):
+    """A study cannot run as asked: its folder holds another study, or the cluster is missing."""
 
 
 class CalibrationError(ForcelearnError):

@@ -12,6 +12,10 @@ import importlib
 # name -> (module, one-line help)
 BENCHMARKS: dict[str, tuple[str, str]] = {
     "learner": ("forcelearn.tools.bench_learner", "SRV learner steps/s (act + learn, 2-D grid)"),
+    "contour": (
+        "forcelearn.tools.bench_contour",
+        "§4 contour simulation controller steps/s, single or batched seeds",
+    ),
     "link": ("forcelearn.tools.bench_link", "computer-link move round trip p50/p99 over a pty"),
     "jr3": ("forcelearn.tools.bench_jr3", "JR3 sync-mode paired samples/s, virtual CAN bus"),
 }

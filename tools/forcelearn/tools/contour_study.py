@@ -1,69 +1,65 @@
 """The phase ablation of paper §4: two-phase against specialized-only learning, over seeds.
 
-Runs every mode for each seed with the default budget and writes
-``docs/results/contour.md`` (one table per mode) and ``docs/results/contour.png``
-(median learning curves). A run that never reaches the global criterion counts
-as the whole budget in the median of trials to the criterion.
+A thin call of the study runner behind ``forcelearn study contour`` (the same
+batched runs, the same resumable folder ``--study-dir``), with the five modes
+as explicit grid points; then writes ``docs/results/contour.md`` (one table per
+mode) and ``docs/results/contour.png`` (median learning curves). A run that never
+reaches the global criterion counts as the whole budget in the median of trials
+to the criterion.
 
 Usage::
 
-    python -m forcelearn.tools.contour_study [--seeds 10] [--trials 4000] [--jobs 2]
+    python -m forcelearn.tools.contour_study [--seeds 10] [--trials 4000] [--workers 2]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from forcelearn.learning import SRVParams
 from forcelearn.run_output import median_range
-from forcelearn.tools.contour_experiment import DEFAULT_TRIALS, ContourConfig, run_contour
+from forcelearn.tools.contour_experiment import DEFAULT_TRIALS
 from forcelearn.tools.figures_contour import moving_average
+from forcelearn.tools.study_grid import Value, format_value
+from forcelearn.tools.study_runner import load_curves, run_study
+from forcelearn.tools.study_tasks import get_task
 
-DEFAULT = SRVParams()
-PLAIN = replace(DEFAULT, sigma_min=0.05, initial_prediction=1.0)
-MODES: dict[str, SRVParams] = {
-    "two-phase": DEFAULT,
-    "specialized-only": replace(DEFAULT, generalized_phase=False),
-    "specialized-only, α = 0.5 (control)": replace(
-        DEFAULT, generalized_phase=False, alpha_specialized=0.5
-    ),
-    "two-phase, plain s(r̂) and V0": PLAIN,
-    "specialized-only, plain s(r̂) and V0": replace(PLAIN, generalized_phase=False),
+MODE_KEYS = (
+    "learner.generalized_phase",
+    "learner.alpha_specialized",
+    "learner.sigma_min",
+    "learner.initial_prediction",
+)
+"""The grid keys of the ablation; each mode sets all four."""
+MODES: dict[str, tuple[bool, float, float, float]] = {
+    "two-phase": (True, 0.1, 0.01, 0.5),
+    "specialized-only": (False, 0.1, 0.01, 0.5),
+    "specialized-only, α = 0.5 (control)": (False, 0.5, 0.01, 0.5),
+    "two-phase, plain s(r̂) and V0": (True, 0.1, 0.05, 1.0),
+    "specialized-only, plain s(r̂) and V0": (False, 0.1, 0.05, 1.0),
 }
 
 
-def _one(job: tuple[str, int, int]) -> dict[str, Any]:
-    mode, seed, trials = job
-    config = ContourConfig(learner=MODES[mode], trials=trials, seed=seed)
-    done = run_contour(config)
-    return {
-        "mode": mode,
-        "summary": done.summary,
-        "steps": np.array([r.steps for r in done.result.records]),
-        "force_rms": np.array([r.force_rms_n for r in done.result.records]),
-        "greedy": done.summary["greedy_force_rms_n"],
-    }
+def _point(mode: str) -> dict[str, Value]:
+    return dict(zip(MODE_KEYS, MODES[mode], strict=True))
 
 
 def _table(runs: list[dict[str, Any]], trials: int) -> list[str]:
-    to_criterion = [r["summary"]["criterion_trial"] for r in runs]
-    converged = [r["summary"]["converged_trial"] for r in runs]
-    final = [r["summary"]["final_force_rms_n"] for r in runs]
-    failures = [r["summary"]["failures"] for r in runs]
+    to_criterion = [r["criterion_trial"] for r in runs]
+    converged = [r["converged_trial"] for r in runs]
+    final = [r["final_force_rms_n"] for r in runs]
+    failures = [r["failures"] for r in runs]
     reached = [t for t in to_criterion if t is not None]
     counted = [t if t is not None else trials for t in to_criterion]
     conv_counted = [t if t is not None else trials for t in converged]
-    rates = [r["summary"]["steps_per_s"] for r in runs]
     return [
         "| figure | median (range) |",
         "|---|---|",
@@ -74,9 +70,8 @@ def _table(runs: list[dict[str, Any]], trials: int) -> list[str]:
         f"| trials to convergence (never = {trials}) | {median_range(conv_counted)} |",
         f"| final force RMS, median of the last 50 trials (N) | {median_range(final, '{:.3f}')} |",
         f"| force RMS of the learned policy without search (μ only), N | "
-        f"{median_range([r['greedy'] for r in runs], '{:.3f}')} |",
+        f"{median_range([r['greedy_force_rms_n'] for r in runs], '{:.3f}')} |",
         f"| failed trials | {median_range(failures)} |",
-        f"| controller steps per second | {median_range(rates)} |",
     ]
 
 
@@ -84,8 +79,8 @@ def _plot(results: dict[str, list[dict[str, Any]]], path: Path) -> None:
     fig = Figure(figsize=(8, 6))
     top, bottom = fig.subplots(2, 1, sharex=True)
     for mode, runs in results.items():
-        steps = np.median(np.stack([r["steps"] for r in runs]), axis=0)
-        rms = np.median(np.stack([r["force_rms"] for r in runs]), axis=0)
+        steps = np.median(np.stack([r["steps_curve"] for r in runs]), axis=0)
+        rms = np.median(np.stack([r["force_rms_curve"] for r in runs]), axis=0)
         line = top.plot(moving_average(steps), label=mode)[0]
         bottom.plot(moving_average(rms), color=line.get_color(), label=mode)
     top.set_ylabel("steps completed\n(median of seeds, 10-trial avg)")
@@ -100,34 +95,49 @@ def _plot(results: dict[str, list[dict[str, Any]]], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the study and write the report and plot."""
+    """Run (or resume) the study and write the report and plot."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--trials", type=int, default=DEFAULT_TRIALS)
-    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--workers", type=int, help="local processes (default: all cores)")
+    parser.add_argument("--scheduler", help="Dask scheduler address (forcelearn[cluster])")
     parser.add_argument("--out", type=Path, default=Path("docs/results"))
+    parser.add_argument("--study-dir", type=Path, default=Path("runs/study-contour-ablation"))
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    jobs = [(mode, seed, args.trials) for mode in MODES for seed in range(args.seeds)]
+    command = (
+        f"python -m forcelearn.tools.contour_study --seeds {args.seeds} --trials {args.trials}"
+    )
     started = time.perf_counter()
-    results: dict[str, list[dict[str, Any]]] = {mode: [] for mode in MODES}
-    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for i, run in enumerate(pool.map(_one, jobs), 1):
-            results[run["mode"]].append(run)
-            s = run["summary"]
-            print(
-                f"[{i}/{len(jobs)}] {run['mode']:<40} seed {s['seed']}: criterion "
-                f"{s['criterion_trial']}, converged {s['converged_trial']}, final RMS "
-                f"{s['final_force_rms_n']:.3f} N",
-                file=sys.stderr,
-                flush=True,
-            )
+    outcome = run_study(
+        get_task("contour"),
+        args.study_dir,
+        args.trials,
+        range(args.seeds),
+        [_point(mode) for mode in MODES],
+        workers=args.workers,
+        scheduler=args.scheduler,
+        command=command,
+    )
     wall = time.perf_counter() - started
+    results: dict[str, list[dict[str, Any]]] = {}
+    for mode, values in MODES.items():
+        wanted = [format_value(v) for v in values]
+        results[mode] = [r for r in outcome.rows if [r[k] for k in MODE_KEYS] == wanted]
+        for row in results[mode]:
+            curves = load_curves(args.study_dir, row["run_id"])
+            row["steps_curve"], row["force_rms_curve"] = curves["steps"], curves["force_rms_n"]
+    where = (
+        f"{wall:.0f} s on this 2-core machine, {outcome.ran} runs batched over "
+        f"{args.workers or os.cpu_count()} processes"
+        if outcome.ran
+        else "reused from the study folder"
+    )
     lines = [
         "# Contour tracking (paper §4): two-phase against specialized-only learning",
         "",
-        f"Made by `python -m forcelearn.tools.contour_study --seeds {args.seeds} "
-        f"--trials {args.trials}` ({wall:.0f} s on this machine, {args.jobs} processes).",
+        f"Made by `{command}` ({where}; the runs are "
+        f"`forcelearn study contour` runs, tables in `{args.study_dir}`).",
         f"Seeds 0–{args.seeds - 1}, {args.trials} trials each, the paper's §4 parameters",
         "(γ = 0.9, d = 5, α = β = 0.5 generalized, α = 0.1 / β = 0.5 specialized, N = 10).",
         "Default open choices: s(r̂) = 0.01 + 0.49·clip(r̂, 0, 1), V0 = 0.5, W0 = 0, output",
@@ -142,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
         lines += [f"## {mode}", "", *_table(runs, args.trials), ""]
 
     def to_criterion(mode: str) -> list[int]:
-        found = [r["summary"]["criterion_trial"] for r in results[mode]]
+        found = [r["criterion_trial"] for r in results[mode]]
         return [args.trials if t is None else t for t in found]
 
     two = to_criterion("two-phase")

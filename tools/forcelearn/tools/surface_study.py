@@ -1,35 +1,32 @@
 """Paper §5 over seeds: `forcelearn run` with the defaults on the emulated cell, 10 seeds.
 
-Writes ``docs/results/surface.md`` (trials to the global criterion and to
-convergence, final force RMS, wall time, steps per second) and copies the
-figures of the first seed's run next to it.
+A thin call of the study runner behind ``forcelearn study surface`` (one
+emulated-cell run per seed, resumable in ``--study-dir``); writes
+``docs/results/surface.md`` (trials to the global criterion and to convergence,
+final force RMS, wall time, steps per second) and the figures of seed 0, run
+once more into a scratch folder (runs are deterministic, so it is the same run).
 
 Usage::
 
-    python -m forcelearn.tools.surface_study [--seeds 10] [--trials 300] [--jobs 2]
+    python -m forcelearn.tools.surface_study [--seeds 10] [--trials 300] [--workers 2]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import sys
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
-from typing import Any
 
 from forcelearn.run_output import median_range
+from forcelearn.tools.study_runner import run_study
+from forcelearn.tools.study_tasks import get_task
 from forcelearn.tools.surface_run import execute, prepare_run
 
 PAPER_REPETITIONS = 237
-
-
-def _one(job: tuple[int, int, str]) -> dict[str, Any]:
-    seed, trials, folder = job
-    run, checkpoint = prepare_run(None, Path(folder) / f"seed{seed}", trials, seed, resume=False)
-    return execute(run, checkpoint)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,24 +34,30 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--trials", type=int, default=300)
-    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--workers", type=int, help="local processes (default: all cores)")
+    parser.add_argument("--scheduler", help="Dask scheduler address (forcelearn[cluster])")
     parser.add_argument("--out", type=Path, default=Path("docs/results"))
+    parser.add_argument("--study-dir", type=Path, default=Path("runs/study-surface"))
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
+    command = (
+        f"python -m forcelearn.tools.surface_study --seeds {args.seeds} --trials {args.trials}"
+    )
+    outcome = run_study(
+        get_task("surface"),
+        args.study_dir,
+        args.trials,
+        range(args.seeds),
+        [{}],
+        workers=args.workers,
+        scheduler=args.scheduler,
+        command=command,
+    )
+    summaries = outcome.rows
     with tempfile.TemporaryDirectory() as folder:
-        jobs = [(seed, args.trials, folder) for seed in range(args.seeds)]
-        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-            summaries = []
-            for summary in pool.map(_one, jobs):
-                summaries.append(summary)
-                print(
-                    f"seed {summary['seed']}: criterion {summary['criterion_trial']}, "
-                    f"converged {summary['converged_trial']}, final RMS "
-                    f"{summary['final_force_rms_n']:.3f} N, {summary['steps_per_s']} steps/s",
-                    file=sys.stderr,
-                    flush=True,
-                )
+        run, checkpoint = prepare_run(None, Path(folder) / "seed0", args.trials, 0, resume=False)
+        execute(run, checkpoint)
         for name in ("fig12_positions.png", "fig13_contact_force.png", "fig14_initial_force.png"):
             shutil.copyfile(Path(folder) / "seed0" / name, args.out / f"surface_{name}")
     wall = time.perf_counter() - started
@@ -64,8 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     lines = [
         "# Force tracking on the sponge (paper §5), emulated cell",
         "",
-        f"Made by `python -m forcelearn.tools.surface_study --seeds {args.seeds} --trials "
-        f"{args.trials}` ({wall:.0f} s, {args.jobs} runs in parallel on a 2-core machine).",
+        f"Made by `{command}` ({wall:.0f} s, {args.workers or os.cpu_count()} runs in "
+        "parallel on a 2-core machine; the runs are `forcelearn study surface` runs).",
         "Each seed is a whole `forcelearn run` with the defaults: the robot-controller",
         "emulator on a pty and the JR3 emulator on a virtual CAN bus, reached through the",
         "real drivers; desired force 2 kgf = 19.61 N, 20 steps of −5 mm, γ = 0.8,",
