@@ -205,7 +205,7 @@ def decode_robot(data: bytes, version: Version) -> RobotMessage:
         feedback=_pose(fb.cartesian) if fb.HasField("cartesian") else None,
         planned=_pose(pb.planned.cartesian) if pb.planned.HasField("cartesian") else None,
         joints_deg=tuple(fb.joints.joints),
-        time_s=fb.time.sec + fb.time.usec * 1e-6 if fb.HasField("time") else None,
+        time_s=(fb.time.sec * 1_000_000 + fb.time.usec) / 1e6 if fb.HasField("time") else None,
         motor=MotorState(pb.motorState.state),
         mci=MciState(pb.mciState.state),
         rapid=RapidState(pb.rapidExecState.state),
