@@ -332,7 +332,7 @@ class EgmRobotDriver:
         if not np.all(np.isfinite(position)) or np.any(position < low) or np.any(position > high):
             raise SafetyStop(
                 f"refused target {np.round(position, 3).tolist()} mm: outside the workspace box "
-                f"{list(low)}..{list(high)} (limits.workspace_*_mm); nothing was sent"
+                f"{low.tolist()}..{high.tolist()} (limits.workspace_*_mm); nothing was sent"
             )
         reference = self._guidance.target
         assert reference is not None

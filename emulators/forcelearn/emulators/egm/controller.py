@@ -36,6 +36,9 @@ from forcelearn.errors import ProtocolError
 
 log = logging.getLogger(__name__)
 
+HOME = Pose(900.0, 0.0, 600.0, (0.0, 1.0, 0.0, 0.0))
+"""Start pose when no physics is given: 900 mm out, 600 mm up, tool down (as the S3 emulator)."""
+
 CONVERGENCE_MM = 1.0
 """EGMActPose convergence default (±1 mm, manual p.58): sets mciConvergenceMet."""
 

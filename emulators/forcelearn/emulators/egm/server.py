@@ -44,7 +44,7 @@ import time
 from dataclasses import dataclass, field
 
 from forcelearn.emulators.clock import SimClock
-from forcelearn.emulators.egm.controller import EgmControllerConfig, EgmControllerModel
+from forcelearn.emulators.egm.controller import HOME, EgmControllerConfig, EgmControllerModel
 from forcelearn.emulators.egm.faults import EgmFaultConfig, EgmFaultInjector
 from forcelearn.emulators.egm.servo import MotionModel
 from forcelearn.emulators.physics.cell import CellPhysics
@@ -71,7 +71,7 @@ class EgmControllerEmulator:
     Args:
         remote_port: the PC's UDP port (the driver's ``port``).
         remote_host: the PC's address (loopback only in tests).
-        physics: shared cell physics (default: a fresh one at the default pose).
+        physics: shared cell physics (default: a fresh one at ``controller.HOME``).
         clock: the cell's simulated clock (default: a new one, as fast as possible).
         config: controller settings (version, sample rate, CommTimeout, servo).
         faults: fault injection (default: none).
@@ -100,7 +100,7 @@ class EgmControllerEmulator:
         if not lockstep and self.clock.time_scale <= 0:
             raise ValueError("lockstep=False paces cycles to wall time: needs clock.time_scale > 0")
         self.config = config or EgmControllerConfig()
-        self.physics = physics or CellPhysics()
+        self.physics = physics or CellPhysics(pose=HOME)
         self.model = EgmControllerModel(self.config, self.physics, self.clock.now_s, motion)
         self.faults = EgmFaultInjector(faults)
         self.lockstep = lockstep
