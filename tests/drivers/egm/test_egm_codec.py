@@ -125,3 +125,14 @@ def test_config_errors_name_the_key() -> None:
     ]:
         with pytest.raises(ConfigError, match=key):
             EgmConfig.from_dict(table)
+
+
+def test_the_example_egm_cell_config_loads() -> None:
+    """examples/egm-cell.toml's [robot] table is a valid EgmConfig."""
+    import tomllib
+    from pathlib import Path
+
+    path = Path(__file__).parents[3] / "examples" / "egm-cell.toml"
+    config = EgmConfig.from_dict(tomllib.loads(path.read_text())["robot"])
+    assert (config.version, config.port, config.lockstep) == ("rw6", 6510, False)
+    assert config.limits.max_step_mm == 10.0

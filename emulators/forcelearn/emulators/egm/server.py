@@ -263,9 +263,9 @@ class EgmControllerEmulator:
         replies = []
         while not self._stop.is_set():
             remaining = due_wall_s - time.monotonic()
-            if remaining <= 0:
-                break
-            reply = self._receive(min(remaining, POLL_S))
+            reply = self._receive(min(max(remaining, 0.0), POLL_S))
             if reply is not None:
-                replies.append(reply)
+                replies.append(reply)  # drain what has arrived even when behind time
+            elif remaining <= 0:
+                break
         return replies[-1:]  # the latest one wins
