@@ -15,8 +15,10 @@ driver boundary with ``raise ... from``.
      ├── LinkError                         robot computer link
      │    ├── LinkTimeout (TimeoutError)   no ACK / reply within the timeout, retries spent
      │    ├── ProtocolError                a reply that breaks the link protocol
+     │    │    └── EgmVersionMismatch      EGM datagrams of the other RobotWare egm.proto
      │    ├── RobotFault                   the controller answered with an error code
-     │    └── NotInPosition (TimeoutError) a move did not reach its target in time; stopped
+     │    ├── NotInPosition (TimeoutError) a move did not reach its target in time; stopped
+     │    └── GuidanceStopped              the EGM controller is not (or no longer) guided
      ├── SensorError                       force/torque sensor
      │    ├── SensorTimeout (TimeoutError) no ACK from the sensor adapter
      │    ├── SensorStale                  no sample within the watchdog time
@@ -71,6 +73,28 @@ class RobotFault(LinkError):
 
 class NotInPosition(LinkError, TimeoutError):
     """A commanded move was not reported in position within its time; the robot was stopped."""
+
+
+class EgmVersionMismatch(ProtocolError):
+    """EGM datagrams carry fields of the other RobotWare's ``egm.proto`` than the one configured.
+
+    RW6 and RW7 differ on the wire (``EgmMeasuredForce.force`` is field 1 in RW6,
+    field 2 in RW7): a parser built from the wrong file reads no force or a wrong
+    one without failing. A subclass of :class:`ProtocolError` because the peer
+    speaks another protocol version; its own class so the message can say which
+    key to change (``robot.version``).
+    """
+
+
+class GuidanceStopped(LinkError):
+    """The EGM controller does not follow the PC (motors, EGM or RAPID stopped; a restart).
+
+    Motors off, EGM stopped or in error, RAPID stopped, or a new session
+    (controller restart) dropped the target.
+
+    Its own class because the link itself may be fine (datagrams still flow); the
+    operator must restart the RAPID program (``ForcelearnEGM``) before moving again.
+    """
 
 
 class SensorError(ForcelearnError):

@@ -1,0 +1,455 @@
+"""ABB robot over Externally Guided Motion (EGM): a ``forcelearn.devices.Robot`` over UDP.
+
+::
+
+    with open_egm_robot(EgmConfig(host="192.168.125.10", version="rw6")) as robot:
+        robot.move_to(robot.read_pose().moved(dz_mm=-1.0))
+        robot.wait_in_position(timeout_s=2.0, settle_s=0.05)
+
+The PC is the UDP server: the driver binds ``host:port`` and the controller
+sends an EgmRobot every sample period; each fresh one is answered with an
+EgmSensor whose planned pose ramps toward the last accepted target
+(:mod:`.guidance`). ``move_to`` only sets the target: it is checked against the
+client-side limits first (``SafetyStop``, and no datagram ever carries a
+refused target). Two modes:
+
+* **real** (``lockstep = False``): a receive thread answers every message at
+  once with the latest planned pose, as abb_libegm does; the controller's
+  clock runs on its own.
+* **lockstep** (the emulated cell): nothing answers between calls; calls that
+  let time pass (:meth:`EgmRobotDriver.wait_in_position`,
+  :meth:`EgmRobotDriver.dwell`) answer the held message and read the next
+  one, so the controller cycles spent between two host actions are fixed by
+  the traffic alone (docs/egm.md, "Lockstep").
+
+Errors: ``SafetyStop`` (limit, nothing sent), ``LinkTimeout`` (the controller
+fell silent for ``watchdog_s``, feedback is stale, or not in position in
+time), ``GuidanceStopped`` (motors off, EGM stopped, RAPID stopped, or a
+controller restart dropped the target), ``EgmVersionMismatch``,
+``ProtocolError``, ``LinkError`` (socket).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import socket
+import threading
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from forcelearn.devices import Pose
+from forcelearn.drivers.egm import codec
+from forcelearn.drivers.egm.config import EgmConfig
+from forcelearn.drivers.egm.guidance import EgmStats, Guidance
+from forcelearn.errors import (
+    ForcelearnError,
+    GuidanceStopped,
+    LinkError,
+    LinkTimeout,
+    ProtocolError,
+    SafetyStop,
+)
+
+log = logging.getLogger(__name__)
+
+POLL_S = 0.05
+"""Receive slice of the real-mode thread (s): bounds how long close() waits for it."""
+MAX_DATAGRAM = 65535
+
+
+@dataclass(frozen=True)
+class EgmStatus:
+    """The controller's state as of its latest message, and the driver's counters."""
+
+    motor: codec.MotorState
+    mci: codec.MciState
+    rapid: codec.RapidState
+    convergence_met: bool | None
+    utilization_pct: float | None
+    measured_force: tuple[float, ...] | None
+    in_position: bool
+    controller_time_s: float
+    seqno: int
+    stats: EgmStats
+
+
+class EgmRobotDriver:
+    """Driver of one robot over one EGM UDP channel (satisfies ``Robot`` once a session runs).
+
+    Constructing it binds the socket (``port`` tells which, when 0 was asked);
+    :meth:`wait_for_session` then waits for the controller's first message.
+    :func:`open_egm_robot` does both.
+    """
+
+    def __init__(self, config: EgmConfig) -> None:
+        self.config = config
+        self._lock = threading.RLock()
+        self._fresh = threading.Condition(self._lock)
+        self._guidance = Guidance(config)
+        self._failure: ForcelearnError | None = None
+        self._pending: tuple[str, int] | None = None  # lockstep: address of an unanswered message
+        self._fresh_count = 0  # fresh messages taken so far
+        self._last_rx_s = 0.0  # host monotonic time of the latest fresh message (staleness)
+        self._closed = threading.Event()
+        self._thread: threading.Thread | None = None
+        try:
+            self._sock: socket.socket | None = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self._sock.bind((config.host, config.port))
+        except OSError as exc:
+            raise LinkError(f"cannot bind EGM UDP {config.host}:{config.port}: {exc}") from exc
+        self.port: int = self._sock.getsockname()[1]
+        if not config.lockstep:
+            self._sock.settimeout(POLL_S)
+            self._thread = threading.Thread(target=self._serve, name="egm-driver", daemon=True)
+            self._thread.start()
+        log.info("EGM driver listening on %s:%d (%s)", config.host, self.port, config.version)
+
+    # -- receiving --------------------------------------------------------------------------
+
+    def _serve(self) -> None:
+        """Real mode: answer every fresh message at once (runs in the receive thread)."""
+        sock = self._sock
+        assert sock is not None
+        while not self._closed.is_set():
+            try:
+                data, address = sock.recvfrom(MAX_DATAGRAM)
+            except TimeoutError:
+                continue
+            except OSError as exc:
+                if not self._closed.is_set():
+                    with self._lock:
+                        self._failure = LinkError(f"EGM socket failed: {exc}")
+                        self._fresh.notify_all()
+                return
+            with self._lock:
+                if self._failure is not None:
+                    continue  # a version mismatch stays fatal: never answer
+                try:
+                    fresh = self._take(data, address)
+                    if fresh:
+                        sock.sendto(self._guidance.reply(), address)
+                except (ProtocolError, OSError) as exc:
+                    self._failure = exc if isinstance(exc, ProtocolError) else LinkError(str(exc))
+                    log.error("EGM guidance stopped answering: %s", exc)
+                self._fresh.notify_all()
+
+    def _take(self, data: bytes, address: tuple[str, int]) -> bool:
+        fresh = self._guidance.on_datagram(data)
+        if fresh:
+            self._fresh_count += 1
+            self._last_rx_s = time.monotonic()
+        return fresh
+
+    def _next_message(self) -> None:
+        """Let one controller cycle pass: answer (lockstep) and wait for the next fresh message."""
+        watchdog = self.config.watchdog_s
+        if not self.config.lockstep:
+            seen = self._fresh_count
+            deadline = time.monotonic() + watchdog
+            while self._fresh_count == seen:
+                remaining = deadline - time.monotonic()
+                if self._failure is not None:
+                    raise self._failure
+                if remaining <= 0:
+                    raise LinkTimeout(self._silence(watchdog))
+                self._fresh.wait(remaining)
+            return
+        sock = self._require_socket()
+        if self._pending is not None:
+            self._send(self._guidance.reply(), self._pending)
+            self._pending = None
+        deadline = time.monotonic() + watchdog
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise LinkTimeout(self._silence(watchdog))
+            sock.settimeout(remaining)
+            try:
+                data, address = sock.recvfrom(MAX_DATAGRAM)
+            except TimeoutError:
+                continue
+            except OSError as exc:
+                raise LinkError(f"EGM socket failed: {exc}") from exc
+            if self._take(data, address):
+                self._pending = address
+                return
+
+    def _silence(self, watchdog: float) -> str:
+        return (
+            f"no EgmRobot from the controller for {watchdog} s (robot.watchdog_s): is the RAPID "
+            f"program running, and does its UDP Unicast Device point at this PC, port {self.port}?"
+        )
+
+    def _send(self, datagram: bytes, address: tuple[str, int]) -> None:
+        try:
+            self._require_socket().sendto(datagram, address)
+        except OSError as exc:
+            raise LinkError(f"cannot send EgmSensor to {address}: {exc}") from exc
+
+    def _require_socket(self) -> socket.socket:
+        if self._sock is None:
+            raise LinkError("EGM driver is closed; open a new one")
+        return self._sock
+
+    def _check(self) -> None:
+        self._require_socket()
+        if self._failure is not None:
+            raise self._failure
+
+    # -- session ----------------------------------------------------------------------------
+
+    def wait_for_session(self, timeout_s: float | None = None) -> Pose:
+        """Wait (first_message_timeout_s) for the controller's first message; return its pose."""
+        limit = self.config.first_message_timeout_s if timeout_s is None else timeout_s
+        deadline = time.monotonic() + limit
+        with self._lock:
+            while self._guidance.latest is None:
+                self._check()
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise LinkTimeout(self._silence(limit))
+                if self.config.lockstep:
+                    self._receive_first(remaining)
+                else:
+                    self._fresh.wait(remaining)
+            self._check()
+            assert self._guidance.target is not None
+            return self._guidance.target
+
+    def _receive_first(self, remaining: float) -> None:
+        sock = self._require_socket()
+        sock.settimeout(remaining)
+        try:
+            data, address = sock.recvfrom(MAX_DATAGRAM)
+        except TimeoutError:
+            return
+        except OSError as exc:
+            raise LinkError(f"EGM socket failed: {exc}") from exc
+        if self._take(data, address):
+            self._pending = address
+
+    # -- reading ----------------------------------------------------------------------------
+
+    def _latest(self) -> codec.RobotMessage:
+        self._check()
+        latest = self._guidance.latest
+        if latest is None:
+            raise LinkError("no EGM session yet: call wait_for_session() (or open_egm_robot)")
+        if not self.config.lockstep:
+            age = time.monotonic() - self._last_rx_s
+            if age > self.config.stale_after_s:
+                raise LinkTimeout(
+                    f"stale EGM feedback: the latest EgmRobot is {age:.3f} s old "
+                    f"(robot.stale_after_s = {self.config.stale_after_s})"
+                )
+        return latest
+
+    def read_pose(self) -> Pose:
+        """Return the controller's feedback pose (mm, quaternion w x y z)."""
+        with self._lock:
+            feedback = self._latest().feedback
+            assert feedback is not None  # a session starts only with one; decode keeps it
+            return feedback
+
+    def read_joints_deg(self) -> tuple[float, ...]:
+        """Return the joint angles of the latest feedback, degrees (empty if not sent)."""
+        with self._lock:
+            return self._latest().joints_deg
+
+    def read_status(self) -> EgmStatus:
+        """Return the controller's states, the in-position flag and the traffic counters."""
+        with self._lock:
+            m = self._latest()
+            return EgmStatus(
+                motor=m.motor,
+                mci=m.mci,
+                rapid=m.rapid,
+                convergence_met=m.convergence_met,
+                utilization_pct=m.utilization_pct,
+                measured_force=m.measured_force,
+                in_position=self._guidance.in_position(),
+                controller_time_s=self._guidance.controller_time_s(),
+                seqno=m.seqno,
+                stats=self._guidance.stats,
+            )
+
+    @property
+    def stats(self) -> EgmStats:
+        """Traffic counters (received, replies, missed, duplicates, out of order, sessions)."""
+        with self._lock:
+            return self._guidance.stats
+
+    @property
+    def target(self) -> Pose | None:
+        """The last accepted target."""
+        with self._lock:
+            return self._guidance.target
+
+    # -- commanding -------------------------------------------------------------------------
+
+    def move_to(self, pose: Pose) -> None:
+        """Set a new target; the planned pose ramps to it at the set speed.
+
+        Returns at once: use :meth:`wait_in_position` to know when it is reached.
+        """
+        norm = math.sqrt(sum(c * c for c in pose.quaternion))
+        if not abs(norm - 1.0) <= 1e-6:
+            raise ValueError(f"pose quaternion must be unit length, its norm is {norm:.6f}")
+        with self._lock:
+            self._latest()
+            self._guidance.require_running()
+            self._check_target(pose)
+            self._guidance.target = pose
+
+    def move_by(self, dx_mm: float = 0.0, dy_mm: float = 0.0, dz_mm: float = 0.0) -> None:
+        """Move the target by an increment, orientation kept."""
+        with self._lock:
+            self._latest()
+            assert self._guidance.target is not None
+            self.move_to(self._guidance.target.moved(dx_mm, dy_mm, dz_mm))
+
+    def set_speed(self, speed_mm_s: float) -> None:
+        """Set the ramp speed of the planned pose, mm/s (refused above limits.max_speed_mm_s)."""
+        limit = self.config.limits.max_speed_mm_s
+        if not (math.isfinite(speed_mm_s) and 0 < speed_mm_s <= limit):
+            raise SafetyStop(
+                f"refused speed {speed_mm_s} mm/s: allowed 0..{limit} (limits.max_speed_mm_s); "
+                "nothing was sent"
+            )
+        with self._lock:
+            self._guidance.speed_mm_s = speed_mm_s
+
+    def _check_target(self, target: Pose) -> None:
+        """Raise SafetyStop if ``target`` breaks a client-side limit (it is never sent)."""
+        limits = self.config.limits
+        position = target.position_mm
+        low, high = np.asarray(limits.workspace_min_mm), np.asarray(limits.workspace_max_mm)
+        if not np.all(np.isfinite(position)) or np.any(position < low) or np.any(position > high):
+            raise SafetyStop(
+                f"refused target {np.round(position, 3).tolist()} mm: outside the workspace box "
+                f"{low.tolist()}..{high.tolist()} (limits.workspace_*_mm); nothing was sent"
+            )
+        reference = self._guidance.target
+        assert reference is not None
+        step = float(np.linalg.norm(position - reference.position_mm))
+        if step > limits.max_step_mm:
+            raise SafetyStop(
+                f"refused a step of {step:.3f} mm: more than limits.max_step_mm = "
+                f"{limits.max_step_mm} mm; nothing was sent"
+            )
+
+    def stop(self) -> None:
+        """Hold the present feedback pose (target and planned pose both become it)."""
+        with self._lock:
+            self._check()
+            self._guidance.hold()
+
+    # -- waiting (lets controller time pass) ------------------------------------------------
+
+    def wait_in_position(self, timeout_s: float, settle_s: float = 0.0) -> Pose:
+        """Wait until in position for ``settle_s`` of controller time; return the feedback pose.
+
+        Both times are the controller's (its feedBack.time): ``LinkTimeout`` if
+        not in position within ``timeout_s``, ``GuidanceStopped`` if guidance
+        stops or the controller starts a new session meanwhile.
+        """
+        if not (timeout_s > 0 and settle_s >= 0):
+            raise ValueError(f"need timeout_s > 0 and settle_s >= 0, got {timeout_s}, {settle_s}")
+        with self._lock:
+            return self._wait(timeout_s, settle_s, until_in_position=True)
+
+    def dwell(self, duration_s: float) -> Pose:
+        """Let ``duration_s`` of controller time pass while guiding; return the feedback pose."""
+        if not duration_s >= 0:
+            raise ValueError(f"duration_s must be >= 0, got {duration_s}")
+        with self._lock:
+            return self._wait(duration_s, 0.0, until_in_position=False)
+
+    def _wait(self, span_s: float, settle_s: float, until_in_position: bool) -> Pose:
+        guidance = self._guidance
+        self._latest()
+        session = guidance.session
+        start = guidance.controller_time_s()
+        wall_deadline = time.monotonic() + span_s + self.config.watchdog_s + 1.0
+        settled_since: float | None = None
+        while True:
+            self._check()
+            if guidance.session != session:
+                raise GuidanceStopped(
+                    "the controller started a new EGM session (seqno 0: a restart) during the "
+                    "wait; the target was dropped and the robot held where it is"
+                )
+            guidance.require_running()
+            now = guidance.controller_time_s()
+            if until_in_position:
+                if guidance.in_position():
+                    settled_since = now if settled_since is None else settled_since
+                    if now - settled_since >= settle_s - 1e-9:
+                        return self.read_pose()
+                else:
+                    settled_since = None
+            if now - start >= span_s - 1e-9:
+                if not until_in_position:
+                    return self.read_pose()
+                raise LinkTimeout(
+                    f"not in position within {span_s} s of controller time: feedback "
+                    f"{self.read_pose()}, target {guidance.target}"
+                )
+            if time.monotonic() > wall_deadline:
+                raise LinkTimeout(f"controller time did not advance {span_s} s in wall time")
+            self._next_message()
+
+    # -- lifetime ---------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Hold the pose (best effort: one last answer in lockstep) and release the socket.
+
+        Safe to call twice. The controller then sees silence and ends guidance
+        after its CommTimeout.
+        """
+        with self._lock:
+            if self._sock is None:
+                return
+            if self._guidance.latest is not None:
+                self._guidance.hold()
+                if self._pending is not None and self._failure is None:
+                    with contextlib.suppress(ForcelearnError):
+                        self._send(self._guidance.reply(), self._pending)
+                    self._pending = None
+            self._closed.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5 * POLL_S + 1.0)
+        with self._lock:
+            if self._sock is not None:
+                self._sock.close()
+                self._sock = None
+
+    def __enter__(self) -> EgmRobotDriver:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        if getattr(self, "_sock", None) is not None:
+            warnings.warn(
+                f"EgmRobotDriver on port {self.port} was not closed; use it as a context manager",
+                ResourceWarning,
+                stacklevel=2,
+            )
+
+
+def open_egm_robot(config: EgmConfig, timeout_s: float | None = None) -> EgmRobotDriver:
+    """Bind, wait for the controller's first message and return the ready driver."""
+    driver = EgmRobotDriver(config)
+    try:
+        driver.wait_for_session(timeout_s)
+    except BaseException:
+        driver.close()
+        raise
+    return driver

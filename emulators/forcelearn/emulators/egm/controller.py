@@ -1,0 +1,200 @@
+r"""The controller's side of EGM pose guidance as pure state: times in, datagrams out (no I/O).
+
+It reuses the driver's codec (the protocol itself) and nothing else of the
+driver. One :class:`EgmControllerModel` is one robot running
+``rapid/ForcelearnEGM.modx`` (EGMActPose \\StreamStart + EGMRunPose):
+
+* every cycle :meth:`EgmControllerModel.robot_datagram` advances the motion
+  model to the cycle's time, publishes the reached pose to the shared
+  ``CellPhysics`` and returns the EgmRobot (seqno +1 per message, 0 at the
+  start of a session; feedBack.time and header.tm from the simulated clock);
+* :meth:`EgmControllerModel.apply_sensor` takes an EgmSensor's planned pose
+  at the cycle that reads it; a pose outside the workspace box, or with a
+  non-unit quaternion, puts EGM in MCI_ERROR and holds the robot (the real
+  controller stops with a motion error);
+* **CommTimeout**: when no EgmSensor has been read for ``comm_timeout_s``,
+  guidance ends: the robot holds, MCI_STOPPED and RAPID_STOPPED are reported
+  (EGMRunPose raised ERR_UDPUC_COMM and the program stopped), the stream goes
+  on (\\StreamStart), and EgmSensor datagrams are ignored until
+  :meth:`EgmControllerModel.restart` (the operator restarts the program:
+  a new session, seqno 0).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from forcelearn.devices import Pose
+from forcelearn.drivers.egm import codec
+from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
+from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.errors import ProtocolError
+
+log = logging.getLogger(__name__)
+
+HOME = Pose(900.0, 0.0, 600.0, (0.0, 1.0, 0.0, 0.0))
+"""Start pose when no physics is given: 900 mm out, 600 mm up, tool down (as the S3 emulator)."""
+
+CONVERGENCE_MM = 1.0
+"""EGMActPose convergence default (±1 mm, manual p.58): sets mciConvergenceMet."""
+
+
+@dataclass(frozen=True)
+class EgmControllerConfig:
+    """Settings of the emulated controller (s, mm, mm/s)."""
+
+    version: codec.Version = "rw7"
+    """Which egm.proto it speaks."""
+    sample_period_s: float = 0.004
+    """EGMActPose \\SampleRate: 4 ms default, multiples of 4 ms."""
+    comm_timeout_s: float = 1.0
+    """EGMSetupUC \\CommTimeout (the manual states no default; 1 s is an assumption)."""
+    servo: ServoParams = field(default_factory=ServoParams)
+    workspace_min_mm: tuple[float, float, float] = (300.0, -800.0, -200.0)
+    workspace_max_mm: tuple[float, float, float] = (1500.0, 800.0, 1400.0)
+    max_speed_mm_s: float = 1000.0
+    """TCP speed that counts as 100 % utilizationRate (assumption)."""
+    send_measured_force: bool = True
+    """Send measuredForce (the physics' true wrench as the controller's estimate)."""
+
+    def __post_init__(self) -> None:
+        if self.version not in codec.VERSIONS:
+            raise ValueError(f"version must be one of {codec.VERSIONS}, got {self.version!r}")
+        ticks = self.sample_period_s / 0.004
+        if self.sample_period_s <= 0 or abs(ticks - round(ticks)) > 1e-9:
+            raise ValueError(f"sample_period_s must be a multiple of 0.004 s, got "
+                             f"{self.sample_period_s}")
+        if not (math.isfinite(self.comm_timeout_s) and self.comm_timeout_s > 0):
+            raise ValueError(f"comm_timeout_s must be > 0, got {self.comm_timeout_s}")
+
+
+class EgmControllerModel:
+    """One emulated controller's EGM state. Not thread-safe: the server owns it.
+
+    Args:
+        config: controller settings.
+        physics: shared cell physics; its pose is the start pose and receives every
+            reached pose.
+        t_s: simulated time of power-up.
+        motion: the arm's motion model (default: :class:`LagServo` from ``config.servo``).
+    """
+
+    def __init__(
+        self,
+        config: EgmControllerConfig,
+        physics: CellPhysics,
+        t_s: float = 0.0,
+        motion: MotionModel | None = None,
+    ) -> None:
+        self.config = config
+        self.physics = physics
+        self.motion: MotionModel = motion or LagServo(config.servo, physics.pose, t_s)
+        self.pose = physics.pose
+        self.planned = physics.pose
+        """The planned pose in effect (the latest EgmSensor read)."""
+        self.mci = codec.MciState.RUNNING
+        self.rapid = codec.RapidState.RUNNING
+        self.sessions = 1
+        self.targets_read = 0
+        """EgmSensor planned poses taken (not counting ignored or refused ones)."""
+        self.ignored = 0
+        """EgmSensor datagrams ignored (unreadable, or guidance not running)."""
+        self._seqno = 0
+        self._last_read_s = t_s
+        self._last_pose_s = (t_s, physics.pose)
+
+    @property
+    def running(self) -> bool:
+        """True while EGM guidance runs (MCI_RUNNING)."""
+        return self.mci is codec.MciState.RUNNING
+
+    def restart(self, t_s: float) -> None:
+        """Start a new session at ``t_s`` (seqno 0), holding the robot where it is."""
+        self._hold(t_s)
+        self.mci, self.rapid = codec.MciState.RUNNING, codec.RapidState.RUNNING
+        self._seqno = 0
+        self._last_read_s = t_s
+        self.sessions += 1
+        log.info("EGM session %d starts at %.3f s", self.sessions, t_s)
+
+    def _hold(self, t_s: float) -> None:
+        self.pose = self.motion.advance_to(t_s)
+        hold = getattr(self.motion, "hold", None)
+        if hold is not None:
+            hold(t_s)
+        else:
+            self.motion.command(self.pose, t_s - self.config.servo.control_lag_s)
+        self.planned = self.pose
+
+    def apply_sensor(self, datagram: bytes, t_s: float) -> None:
+        """Read one EgmSensor at the cycle of time ``t_s``."""
+        if not self.running:
+            self.ignored += 1
+            return
+        try:
+            message = codec.decode_sensor(datagram, self.config.version)
+        except ProtocolError as exc:
+            log.info("EgmSensor ignored: %s", exc)
+            self.ignored += 1
+            return
+        self._last_read_s = t_s
+        target = message.planned
+        if target is None:
+            return  # header only: the controller keeps the last planned pose
+        refusal = self._refusal(target)
+        if refusal:
+            log.warning("EGM motion error at %.3f s: %s", t_s, refusal)
+            self._hold(t_s)
+            self.mci = codec.MciState.ERROR
+            return
+        self.planned = target
+        self.motion.command(target, t_s)
+        self.targets_read += 1
+
+    def _refusal(self, pose: Pose) -> str | None:
+        position = pose.position_mm
+        norm = math.sqrt(sum(c * c for c in pose.quaternion))
+        if not (np.all(np.isfinite(position)) and abs(norm - 1.0) <= 1e-3):
+            return f"planned pose {pose} is not finite or its quaternion not unit length"
+        low = np.asarray(self.config.workspace_min_mm)
+        high = np.asarray(self.config.workspace_max_mm)
+        if np.any(position < low) or np.any(position > high):
+            return f"planned position {np.round(position, 3).tolist()} mm is outside the workspace"
+        return None
+
+    def robot_datagram(self, t_s: float) -> bytes:
+        """Advance to the cycle at ``t_s`` and return its EgmRobot datagram."""
+        if self.running and t_s - self._last_read_s >= self.config.comm_timeout_s - 1e-9:
+            log.warning("EGM comm timeout at %.3f s: no EgmSensor for %.3f s", t_s,
+                        t_s - self._last_read_s)
+            self._hold(t_s)
+            self.mci, self.rapid = codec.MciState.STOPPED, codec.RapidState.STOPPED
+        self.pose = self.motion.advance_to(t_s)
+        self.physics.set_pose(self.pose)
+        t0, p0 = self._last_pose_s
+        speed = float(np.linalg.norm(self.pose.position_mm - p0.position_mm)) / max(t_s - t0, 1e-9)
+        self._last_pose_s = (t_s, self.pose)
+        force = None
+        if self.config.send_measured_force:
+            force = tuple(float(v) for v in self.physics.true_wrench())
+        gap = float(np.linalg.norm(self.pose.position_mm - self.planned.position_mm))
+        message = codec.RobotMessage(
+            seqno=self._seqno,
+            tm_ms=round(t_s * 1000),
+            feedback=self.pose,
+            planned=self.planned,
+            time_s=t_s,
+            motor=codec.MotorState.ON,
+            mci=self.mci,
+            rapid=self.rapid,
+            convergence_met=gap <= CONVERGENCE_MM,
+            utilization_pct=min(100.0, 100.0 * speed / self.config.max_speed_mm_s),
+            measured_force=force,
+            fc_active=False if force is not None else None,
+        )
+        self._seqno = (self._seqno + 1) & 0xFFFFFFFF
+        return codec.encode_robot(message, self.config.version)

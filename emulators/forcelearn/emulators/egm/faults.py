@@ -1,0 +1,85 @@
+"""Fault injection for the EGM controller emulator: a hook, not a fork of the code.
+
+Each :class:`Fault` fires with a probability, at most ``limit`` times
+(``Fault(1.0, limit=1)`` is "exactly the next one"); randomness comes from a
+seeded ``numpy.random.Generator``, so a failing run can be replayed.
+
+===============  ===============================================================
+fault            effect (per controller cycle)
+===============  ===============================================================
+lose             the cycle's EgmRobot is never sent (the PC sees a seqno gap)
+duplicate        the cycle's EgmRobot is sent twice
+reorder          the cycle's EgmRobot is held back and sent after the next one
+lose_reply       the PC's EgmSensor is lost: the controller keeps the last one
+late_reply       the PC's EgmSensor arrives after the next cycle has started: the
+                 controller uses it one cycle late (the last one meanwhile)
+restart          the controller restarts guidance: a new session, seqno 0
+===============  ===============================================================
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+FAULT_NAMES = ("lose", "duplicate", "reorder", "lose_reply", "late_reply", "restart")
+
+
+@dataclass(frozen=True)
+class Fault:
+    """Fire with ``probability`` (0..1), at most ``limit`` times (None: no limit)."""
+
+    probability: float = 0.0
+    limit: int | None = None
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.probability <= 1.0:
+            raise ValueError(f"fault probability must be in 0..1, got {self.probability}")
+        if self.limit is not None and self.limit < 0:
+            raise ValueError(f"fault limit must be >= 0, got {self.limit}")
+
+
+@dataclass(frozen=True)
+class EgmFaultConfig:
+    """Which faults the emulator injects; the default injects none.
+
+    ``after_cycles``: no fault fires during the first cycles of the emulator
+    (so a driver can open cleanly before the faults begin).
+    """
+
+    lose: Fault = field(default_factory=Fault)
+    duplicate: Fault = field(default_factory=Fault)
+    reorder: Fault = field(default_factory=Fault)
+    lose_reply: Fault = field(default_factory=Fault)
+    late_reply: Fault = field(default_factory=Fault)
+    restart: Fault = field(default_factory=Fault)
+    after_cycles: int = 0
+    seed: int = 0
+
+
+class EgmFaultInjector:
+    """Decides, cycle by cycle, whether a fault fires; counts what fired. Thread-safe."""
+
+    def __init__(self, config: EgmFaultConfig | None = None) -> None:
+        self.config = config or EgmFaultConfig()
+        self._rng = np.random.default_rng(self.config.seed)
+        self._lock = threading.Lock()
+        self.fired: Counter[str] = Counter()
+        self.cycle = 0
+        """The emulator's cycle count, set by the emulator before it asks."""
+
+    def fires(self, name: str) -> bool:
+        """True if fault ``name`` (one of :data:`FAULT_NAMES`) fires now."""
+        fault: Fault = getattr(self.config, name)
+        if fault.probability == 0.0 or self.cycle < self.config.after_cycles:
+            return False
+        with self._lock:
+            if fault.limit is not None and self.fired[name] >= fault.limit:
+                return False
+            if fault.probability < 1.0 and self._rng.random() >= fault.probability:
+                return False
+            self.fired[name] += 1
+            return True

@@ -1,0 +1,138 @@
+"""EGM codec: golden bytes for RW6 and RW7, round trips, version evidence, broken datagrams."""
+
+from __future__ import annotations
+
+import pytest
+
+from forcelearn.devices import Pose
+from forcelearn.drivers.egm import codec
+from forcelearn.drivers.egm.config import EgmConfig
+from forcelearn.errors import ConfigError, EgmVersionMismatch, ProtocolError
+
+DOWN = (0.0, 1.0, 0.0, 0.0)
+ROBOT = codec.RobotMessage(
+    seqno=7,
+    tm_ms=28,
+    feedback=Pose(900.0, 0.0, 600.0, DOWN),
+    planned=Pose(900.0, 0.0, 599.5, DOWN),
+    time_s=0.028,
+    motor=codec.MotorState.ON,
+    mci=codec.MciState.RUNNING,
+    rapid=codec.RapidState.RUNNING,
+    convergence_met=True,
+    utilization_pct=5.0,
+    measured_force=(0.0, -2.5, 0.0, 0.0, 0.0, 0.0),
+    fc_active=False,
+)
+SENSOR = codec.SensorMessage(3, 28, Pose(900.0, 0.0, 599.5, DOWN))
+
+# header 0a 06 | seqno 08 07 | tm 10 1c | mtype DATA 18 02
+HEADER = "0a060807101c1802"
+BODY = (
+    "124d12430a1b090000000000208c40110000000000000000190000000000c08240122409000000000000"
+    "000011000000000000f03f1900000000000000002100000000000000002206080010e0da011a4512430a"
+    "1b090000000000208c40110000000000000000190000000000bc8240122409000000000000000011000000"
+    "000000f03f190000000000000000210000000000000000220208012a0208033001420208024a"
+)
+UTILIZATION = "510000000000001440"  # field 10, fixed64: 5.0
+GOLDEN = {
+    # RW6 measuredForce: 4a 36, then six doubles as field 1 (09 + 8 bytes each)
+    "rw6": HEADER + BODY + "36" + "09" + "0000000000000000" + "09" + "00000000000004c0"
+    + ("09" + "0000000000000000") * 4 + UTILIZATION,
+    # RW7 measuredForce: 4a 38, fcActive=false (08 00), then six doubles as field 2 (11 ...)
+    "rw7": HEADER + BODY + "38" + "0800" + "11" + "0000000000000000" + "11" + "00000000000004c0"
+    + ("11" + "0000000000000000") * 4 + UTILIZATION,
+}
+GOLDEN_SENSOR = (
+    "0a060803101c1803124512430a1b090000000000208c40110000000000000000190000000000bc8240"
+    "122409000000000000000011000000000000f03f190000000000000000210000000000000000"
+)
+
+
+@pytest.mark.parametrize("version", codec.VERSIONS)
+def test_robot_message_golden_bytes_and_round_trip(version: codec.Version) -> None:
+    """Robot message golden bytes and round trip."""
+    data = codec.encode_robot(ROBOT, version)
+    assert data.hex() == GOLDEN[version]
+    decoded = codec.decode_robot(data, version)
+    rw6_view = ROBOT.__class__(**{**ROBOT.__dict__, "fc_active": None})  # RW6 has no fcActive
+    expected = ROBOT if version == "rw7" else rw6_view
+    assert decoded == expected
+
+
+@pytest.mark.parametrize("version", codec.VERSIONS)
+def test_sensor_message_golden_bytes_and_round_trip(version: codec.Version) -> None:
+    """Sensor message golden bytes and round trip."""
+    data = codec.encode_sensor(SENSOR, version)
+    assert data.hex() == GOLDEN_SENSOR  # the fields guidance uses are the same in RW6 and RW7
+    assert codec.decode_sensor(data, version) == SENSOR
+
+
+def test_a_parser_of_the_other_version_misreads_force_silently() -> None:
+    """Why the driver checks the version: protobuf itself raises nothing."""
+    rw7_data = codec.encode_robot(ROBOT, "rw7")
+    misread = codec.decode_robot(rw7_data, "rw6")
+    assert misread.measured_force == ()  # force lost without any error
+    rw6_data = codec.encode_robot(ROBOT, "rw6")
+    assert codec.decode_robot(rw6_data, "rw7").measured_force == ()
+
+
+@pytest.mark.parametrize(("sent", "configured"), [("rw6", "rw7"), ("rw7", "rw6")])
+def test_version_mismatch_is_detected_from_the_wire(
+    sent: codec.Version, configured: codec.Version
+) -> None:
+    """Version mismatch is detected from the wire."""
+    data = codec.encode_robot(ROBOT, sent)
+    assert codec.detect_version(data) == sent
+    codec.check_version(data, sent)
+    with pytest.raises(EgmVersionMismatch, match=f"robot.version = '{sent}'"):
+        codec.check_version(data, configured)
+
+
+def test_a_message_without_version_evidence_is_accepted_by_both() -> None:
+    """A message without version evidence is accepted by both."""
+    plain = ROBOT.__class__(**{**ROBOT.__dict__, "measured_force": None, "fc_active": None})
+    data = codec.encode_robot(plain, "rw6")
+    assert codec.detect_version(data) is None
+    for version in codec.VERSIONS:
+        codec.check_version(data, version)
+
+
+def test_broken_datagrams_raise_protocol_error() -> None:
+    """Broken datagrams raise protocol error."""
+    data = codec.encode_robot(ROBOT, "rw7")
+    with pytest.raises(ProtocolError):
+        codec.decode_robot(data[:-3], "rw7")
+    with pytest.raises(ProtocolError):
+        list(codec.wire_fields(data[:-3]))
+    with pytest.raises(ProtocolError, match="mtype"):
+        codec.decode_robot(codec.encode_sensor(SENSOR, "rw7"), "rw7")
+    with pytest.raises(ProtocolError, match="header"):
+        codec.decode_robot(b"", "rw7")
+
+
+def test_config_errors_name_the_key() -> None:
+    """Config errors name the key."""
+    assert EgmConfig.from_dict({"kind": "egm", "port": 0, "version": "rw6"}).version == "rw6"
+    for table, key in [
+        ({"prot": 1}, "prot"),
+        ({"port": 70000}, "robot.port"),
+        ({"version": "rw5"}, "robot.version"),
+        ({"sample_period_s": 0.005}, "robot.sample_period_s"),
+        ({"watchdog_s": 0}, "robot.watchdog_s"),
+        ({"limits": {"max_step": 1}}, "max_step"),
+        ({"speed_mm_s": 500.0}, "robot.limits.max_speed_mm_s"),
+    ]:
+        with pytest.raises(ConfigError, match=key):
+            EgmConfig.from_dict(table)
+
+
+def test_the_example_egm_cell_config_loads() -> None:
+    """examples/egm-cell.toml's [robot] table is a valid EgmConfig."""
+    import tomllib
+    from pathlib import Path
+
+    path = Path(__file__).parents[3] / "examples" / "egm-cell.toml"
+    config = EgmConfig.from_dict(tomllib.loads(path.read_text())["robot"])
+    assert (config.version, config.port, config.lockstep) == ("rw6", 6510, False)
+    assert config.limits.max_step_mm == 10.0
