@@ -336,7 +336,7 @@ class NetFtSensor:
         self._streaming = sample_count == 0
 
     def _drain(self) -> None:
-        """Drop datagrams left over from an earlier request (late or duplicated ones)."""
+        """Account for and drop datagrams left over from the last request (late or repeated)."""
         self._sock.settimeout(0.0)
         while True:
             try:
@@ -346,6 +346,11 @@ class NetFtSensor:
             self._stats.stale_drained += 1
             if self._log is not None:
                 self._log.write("rx", data, time.monotonic())
+            record = protocol.decode_record(data)
+            if isinstance(record, protocol.Rejected):
+                self._stats.rejected[record.reason] += 1
+            else:  # a late or repeated record of the last request: account for it
+                self._tracker.push(record.rdt_sequence, record.ft_sequence)
 
     def _send(self, request: protocol.Request) -> None:
         data = protocol.encode_request(request)
