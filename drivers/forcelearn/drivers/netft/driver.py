@@ -381,8 +381,8 @@ class NetFtSensor:
             return
         self._closed = True
         try:
-            self._sock.send(protocol.encode_request(protocol.Request(protocol.Command.STOP, 0)))
-        except OSError as exc:
+            self._send(protocol.Request(protocol.Command.STOP, 0))
+        except SensorBusError as exc:
             log.warning("Net F/T: stop not sent on close (%s)", exc)
         finally:
             self._sock.close()
