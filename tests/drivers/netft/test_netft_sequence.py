@@ -53,3 +53,22 @@ def test_new_request_restarts_rdt_and_ft_going_back_is_a_reboot() -> None:
     acc = t.push(1, 1)
     assert acc.verdict is Verdict.NEW and acc.reboot
     assert t.reboots == 1 and t.lost == 0
+
+
+def test_stragglers_of_the_last_request_are_accounted_there() -> None:
+    """After a new start, a copy or a late record of the last request is not a new record."""
+    t = SequenceTracker()
+    t.new_request()
+    for rdt in (1, 2, 4):  # 3 late, 4 will be repeated
+        t.push(rdt, 10 + rdt)
+    t.finish(4)
+    assert t.lost == 1
+    t.new_request()
+    assert t.push(3, 13).verdict is Verdict.OUT_OF_ORDER  # late: its ft is in the range
+    assert t.push(4, 14).verdict is Verdict.DUPLICATE  # the same (rdt, ft) pair again
+    acc = t.push(1, 15)
+    assert acc.verdict is Verdict.NEW and not acc.reboot
+    assert (t.lost, t.out_of_order, t.duplicates, t.reboots) == (0, 1, 1, 0)
+    t.new_request()
+    rebooted = t.push(1, 2)  # ft far below: the box restarted
+    assert rebooted.verdict is Verdict.NEW and rebooted.reboot

@@ -188,6 +188,8 @@ class NetFtEmulator:
         self.model = NetFtSensorModel(self.params, self.rng)
         self.stats = EmulatorStats()
         self.ft_sequence = 0
+        self.boot_s = 0.0
+        """Simulated time of the last (re)boot; ``ft_sequence`` counts internal samples since."""
         self.last_sample_s: float | None = None
         self._records_since_boot = 0
         self._lock = threading.RLock()
@@ -266,7 +268,7 @@ class NetFtEmulator:
         """What a bit-identical resume needs: model (rng, biases), sequences, last sample time."""
         with self._lock:
             return {"model": self.model.state_dict(), "ft_sequence": self.ft_sequence,
-                    "last_sample_s": self.last_sample_s,
+                    "boot_s": self.boot_s, "last_sample_s": self.last_sample_s,
                     "records_since_boot": self._records_since_boot}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -274,6 +276,7 @@ class NetFtEmulator:
         with self._lock:
             self.model.load_state_dict(state["model"])
             self.ft_sequence = int(state["ft_sequence"])
+            self.boot_s = float(state["boot_s"])
             last = state["last_sample_s"]
             self.last_sample_s = None if last is None else float(last)
             self._records_since_boot = int(state["records_since_boot"])
@@ -381,7 +384,9 @@ class NetFtEmulator:
             dt = 0.0 if self.last_sample_s is None else t - self.last_sample_s
             counts = self.model.measure(self.physics.true_wrench(), dt)
             self.last_sample_s = t
-            self.ft_sequence = (self.ft_sequence + 1) % protocol.SEQUENCE_MODULUS
+            # the box samples at its internal rate (here = the RDT rate) streaming or not
+            ft = round((t - self.boot_s) * self.rdt_rate_hz)
+            self.ft_sequence = ft % protocol.SEQUENCE_MODULUS
             seq = first_seq + i
             records.append(Record(seq, self.ft_sequence, self.faults.status, counts))
             times[seq] = t
@@ -427,6 +432,8 @@ class NetFtEmulator:
         self.stats.reboots += 1
         self._stream_to = None
         self.ft_sequence = 0
+        self.boot_s = self.clock.now_s if self.last_sample_s is None else max(
+            self.clock.now_s, self.last_sample_s)
         self._records_since_boot = 0
         self.model.power_cycle()
         log.info("netft emulator: rebooted")
