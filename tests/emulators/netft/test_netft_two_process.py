@@ -49,3 +49,13 @@ def test_driver_reads_a_box_in_another_process(box: dict, source: str) -> None:
     assert stats.lost == stats.duplicates == stats.out_of_order == 0
     fy = np.array([s.wrench[1] for s in samples])
     assert 5.0 < fy.mean() < 30.0  # the tool pressed into the sponge pushes back along +Y
+
+
+def test_bench_netft_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    """``forcelearn bench netft`` runs a tiny configuration and prints both figures."""
+    from forcelearn.cli import main
+
+    assert main(["bench", "netft", "--records", "300", "--seconds", "0.05",
+                 "--repeats", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "as fast as possible" in out and "p99" in out

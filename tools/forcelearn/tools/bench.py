@@ -14,6 +14,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "learner": ("forcelearn.tools.bench_learner", "SRV learner steps/s (act + learn, 2-D grid)"),
     "link": ("forcelearn.tools.bench_link", "computer-link move round trip p50/p99 over a pty"),
     "jr3": ("forcelearn.tools.bench_jr3", "JR3 sync-mode paired samples/s, virtual CAN bus"),
+    "netft": ("forcelearn.tools.bench_netft", "Net F/T records/s and p99 latency, loopback UDP"),
 }
 
 

@@ -40,6 +40,7 @@ import socket
 import socketserver
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
@@ -158,6 +159,7 @@ class NetFtEmulator:
         rdt_rate_hz: the RDT output rate (``comrdtrate``).
         filter_index: the low-pass selection reported (``setuserfilter``; not modelled).
         records_hook: called with each request's records after the faults.
+        on_send: called with each record just before it is sent (benchmarks time it).
     """
 
     def __init__(
@@ -174,6 +176,7 @@ class NetFtEmulator:
         rdt_rate_hz: float = DEFAULT_RDT_RATE_HZ,
         filter_index: int = 0,
         records_hook: RecordsHook | None = None,
+        on_send: Callable[[Record], None] | None = None,
     ) -> None:
         if not 0 < rdt_rate_hz <= 10_000:
             raise ValueError(f"rdt_rate_hz={rdt_rate_hz} must be in (0, 10000]")
@@ -182,6 +185,7 @@ class NetFtEmulator:
         self.params = model or NetFtModelParams()
         self.faults = faults or NetFtFaults()
         self.records_hook = records_hook
+        self.on_send = on_send
         self.rdt_rate_hz = float(rdt_rate_hz)
         self.filter_index = filter_index
         self.rng = np.random.default_rng(seed)
@@ -419,6 +423,8 @@ class NetFtEmulator:
                 self.clock.advance_to(t)
                 self.clock.hold()
                 held_at = t
+            if self.on_send is not None:
+                self.on_send(record)
             try:
                 self._udp.sendto(protocol.encode_record(record), address)
             except OSError:
