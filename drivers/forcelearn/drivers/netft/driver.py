@@ -163,9 +163,9 @@ class NetFtSensor:
             self._send(protocol.Request(protocol.Command.SET_BIAS, 0))
         if cfg.mode == "stream":
             self._start(0)
-        log.info("Net F/T at %s: %g counts/%s, %g counts/%s (%s), RDT rate %s Hz",
+        log.info("Net F/T at %s: %g counts/%s, %g counts/%s (%s), RDT rate %s Hz, filter %s",
                  cfg.host, cal.counts_per_force, cal.force_unit, cal.counts_per_torque,
-                 cal.torque_unit, cal.source, cal.rdt_rate_hz)
+                 cal.torque_unit, cal.source, cal.rdt_rate_hz, cal.filter_index)
 
     def zero_offsets(self) -> None:
         """Send "set software bias": the present load reads zero from now on (tool free!)."""
