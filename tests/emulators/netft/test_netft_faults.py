@@ -10,7 +10,7 @@ from netft_support import config_for, start
 from forcelearn.drivers.netft import NetFtSensor
 from forcelearn.drivers.netft.protocol import Record
 from forcelearn.emulators.netft import NetFtEmulator, NetFtFaults
-from forcelearn.errors import SensorFault, SensorStale
+from forcelearn.errors import SensorBusError, SensorFault, SensorStale
 
 
 def rewrite(order: list[int]):
@@ -61,7 +61,7 @@ def test_random_faults_match_the_emulators_own_count() -> None:
 
 def test_a_silent_box_raises_sensor_stale(emulator: NetFtEmulator) -> None:
     """No record for two requests in a row is SensorStale (the robot must stop)."""
-    with NetFtSensor(config_for(emulator, stale_timeout_s=0.05)) as sensor:
+    with NetFtSensor(config_for(emulator, stale_timeout_s=0.1)) as sensor:
         sensor.read()
         emulator.set_faults(NetFtFaults(silent=True))
         with pytest.raises(SensorStale, match="two requests"):
@@ -91,7 +91,7 @@ def test_a_masked_status_bit_is_ignored(emulator: NetFtEmulator) -> None:
 def test_a_reboot_restarts_the_sequence_and_loses_the_bias() -> None:
     """Reboot after 10 records: the burst ends short, ft_sequence restarts, SensorStale says so."""
     with start(faults=NetFtFaults(reboot_after_records=10)) as emu, \
-            NetFtSensor(config_for(emu, stale_timeout_s=0.05)) as sensor:
+            NetFtSensor(config_for(emu, stale_timeout_s=0.2)) as sensor:
         sensor.zero_offsets()
         sensor.read_many(4)
         with pytest.raises(SensorStale, match="rebooted"):
@@ -135,3 +135,15 @@ def test_malformed_requests_are_ignored_by_the_box(emulator: NetFtEmulator) -> N
             sensor.read()  # synchronises: requests are handled in order
     assert emulator.stats.rejected == 2
     assert emulator.stats.records_generated == 1
+
+
+def test_no_calibration_service_is_a_bus_error(emulator: NetFtEmulator) -> None:
+    """Nobody listening on the calibration port: SensorBusError naming host and port."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        closed_port = probe.getsockname()[1]  # bound, never listening: connections refused
+        for source, key in (("tcp", "tcp_port"), ("http", "http_port")):
+            config = config_for(emulator, calibration_source=source, **{key: closed_port})
+            with pytest.raises(SensorBusError, match=f"127.0.0.1:{closed_port}"), \
+                    NetFtSensor(config):
+                pass
