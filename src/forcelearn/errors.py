@@ -22,7 +22,9 @@ driver boundary with ``raise ... from``.
      ├── SensorError                       force/torque sensor
      │    ├── SensorTimeout (TimeoutError) no ACK from the sensor adapter
      │    ├── SensorStale                  no sample within the watchdog time
-     │    └── SensorBusError               the CAN bus itself failed
+     │    ├── SensorBusError               the CAN bus or the sensor's network failed
+     │    ├── SensorProtocolError          the sensor sent bytes or values its protocol forbids
+     │    └── SensorFault                  the sensor reported an error in its status word
      └── SafetyStop                        a safety limit stopped the robot
           └── ForceLimitExceeded           the contact force passed safety.max_force_n
 """
@@ -110,7 +112,23 @@ class SensorStale(SensorError):
 
 
 class SensorBusError(SensorError):
-    """The CAN bus or its interface reported an error."""
+    """The CAN bus, the sensor's network or their interface reported an error."""
+
+
+class SensorProtocolError(SensorError):
+    """The sensor sent bytes or values its protocol does not allow (e.g. zero counts per unit).
+
+    A sensor error, not a :class:`ProtocolError` (which is the robot link's), so
+    that ``except SensorError`` still catches every failure of the sensor path.
+    """
+
+
+class SensorFault(SensorError):
+    """The sensor flagged an error in its status word; ``status`` is the raw word."""
+
+    def __init__(self, status: int, reason: str) -> None:
+        super().__init__(reason)
+        self.status = status
 
 
 class SafetyStop(ForcelearnError):

@@ -1,0 +1,460 @@
+"""An emulated ATI Net F/T box on loopback: RDT over UDP, READCALINFO over TCP, netftapi2.xml.
+
+The emulator reuses the driver's pure codec (:mod:`forcelearn.drivers.netft.protocol`),
+so it speaks exactly the bytes a box does, and differs from one only in what
+is behind the wire: the shared :class:`~forcelearn.emulators.physics.cell.CellPhysics`
+and a :class:`~.sensor_model.NetFtSensorModel`. Every server binds 127.0.0.1.
+
+==========================  =================================================
+request (UDP)               answer
+==========================  =================================================
+start, sample count N > 0   N records (``rdt_sequence`` 1..N), then silence
+start, sample count 0       records at the RDT rate (wall-time paced) until a
+                            new command
+stop                        nothing; streaming stops
+set software bias           nothing; the present reading becomes zero
+anything else               counted in ``stats.rejected``, ignored
+==========================  =================================================
+
+Time
+----
+A finite request is answered on the cell's :class:`~forcelearn.emulators.clock.SimClock`:
+record i is sampled at ``t_i = t_0 + i / rdt_rate_hz`` with
+``t_0 = max(clock.now_s, last sample + period)``; for each, the physics is
+moved to ``t_i`` (``physics.advance_to(t_i)``, if the physics has that method:
+it is being added to ``CellPhysics``; until then the pose is whatever the robot
+emulator last set) and ``physics.true_wrench()`` is read. The clock is moved to
+the last record's time and :meth:`SimClock.hold` paces the answer (in slices of
+about 1 ms of simulated time when a pace is set). So a burst costs the simulated
+time a real box would spend, whatever the host's speed. Infinite streaming
+(sample count 0, for ``check``) is paced by the wall clock instead.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import html
+import logging
+import socket
+import socketserver
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from typing import Any
+
+import numpy as np
+
+from forcelearn.drivers.netft import protocol
+from forcelearn.drivers.netft.protocol import Command, Record
+from forcelearn.emulators.clock import SimClock
+from forcelearn.emulators.netft.faults import FaultCounts, NetFtFaults, RecordsHook, apply_faults
+from forcelearn.emulators.netft.sensor_model import NetFtModelParams, NetFtSensorModel
+from forcelearn.emulators.physics.cell import CellPhysics
+
+log = logging.getLogger(__name__)
+
+HOST = "127.0.0.1"
+DEFAULT_RDT_RATE_HZ = 7000.0
+"""The Net F/T's maximum RDT output rate (manual §10: "up to 7000 Hz"); the factory
+setting of a given box may be lower: ``forcelearn check`` prints the box's ``comrdtrate``."""
+POLL_S = 0.02
+"""Longest the UDP thread blocks while idle, so ``close()`` returns promptly."""
+STREAM_POLL_S = 0.001
+PACE_SLICE_S = 0.001
+"""With a pace set, a burst is released in slices of this much simulated time."""
+MAX_STREAM_CATCH_UP = 256
+"""Records sent at once while streaming; after a longer host stall the schedule skips ahead."""
+JOIN_TIMEOUT_S = 2.0
+
+
+@dataclass
+class EmulatorStats:
+    """What the emulator did (counts)."""
+
+    requests: int = 0
+    rejected: int = 0
+    records_generated: int = 0
+    records_sent: int = 0
+    bias_commands: int = 0
+    reboots: int = 0
+    calinfo_requests: int = 0
+    http_requests: int = 0
+    faults: FaultCounts = field(default_factory=FaultCounts)
+
+
+def _bind(kind: int, port: int | None, default: int) -> socket.socket:
+    """Bind a socket on 127.0.0.1: ``port`` exactly, or None = ``default`` where free, else any."""
+    sock = socket.socket(socket.AF_INET, kind)
+    if kind == socket.SOCK_STREAM:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((HOST, default if port is None else port))
+    except OSError as exc:
+        if port is not None or exc.errno != errno.EADDRINUSE:
+            sock.close()
+            raise
+        log.info("port %d is taken; the emulated Net F/T uses a free one", default)
+        sock.bind((HOST, 0))
+    return sock
+
+
+class _CalInfoHandler(socketserver.BaseRequestHandler):
+    def handle(self) -> None:
+        emulator: NetFtEmulator = self.server.emulator  # type: ignore[attr-defined]
+        self.request.settimeout(1.0)
+        data = b""
+        with contextlib.suppress(OSError):
+            while len(data) < protocol.CALINFO_REQUEST_SIZE:
+                chunk = self.request.recv(protocol.CALINFO_REQUEST_SIZE - len(data))
+                if not chunk:
+                    break
+                data += chunk
+            if protocol.is_calinfo_request(data):
+                emulator.stats.calinfo_requests += 1
+                self.request.sendall(protocol.encode_calinfo_reply(emulator.calinfo))
+
+
+class _XmlHandler(BaseHTTPRequestHandler):
+    def do_GET(self) -> None:
+        emulator: NetFtEmulator = self.server.emulator  # type: ignore[attr-defined]
+        emulator.stats.http_requests += 1
+        if self.path != protocol.CALIBRATION_XML_PATH:
+            self.send_error(404)
+            return
+        body = emulator.netftapi2_xml()
+        self.send_response(200)
+        self.send_header("Content-Type", "text/xml")
+        self.send_header("Content-Length", str(len(body)))
+        self.end_headers()
+        self.wfile.write(body)
+
+    def log_message(self, format: str, *args: Any) -> None:
+        log.debug("netft http: " + format, *args)
+
+
+class _TcpServer(socketserver.ThreadingTCPServer):
+    daemon_threads = True
+    allow_reuse_address = True
+
+
+class _HttpServer(ThreadingHTTPServer):
+    daemon_threads = True
+
+
+class NetFtEmulator:
+    """An emulated Net F/T box serving on 127.0.0.1.
+
+    Args:
+        physics: the shared cell; each record reads ``physics.true_wrench()``.
+        clock: the cell's simulated clock (default: a new one, as fast as possible).
+        model: the transducer and calibration (counts per unit, units, noise...).
+        faults: wire faults; change them at run time with :meth:`set_faults`.
+        seed: seed of the emulator's ``numpy.random.Generator``.
+        rdt_port, tcp_port: None = the box's port (49152, 49151) where free, else
+            any free one; 0 = any free port; else exactly that port.
+        http_port: the web server's port (0 = any free one; a box uses 80).
+        rdt_rate_hz: the RDT output rate (``comrdtrate``).
+        filter_index: the low-pass selection reported (``setuserfilter``; not modelled).
+        records_hook: called with each request's records after the faults.
+        on_send: called with each record just before it is sent (benchmarks time it).
+    """
+
+    def __init__(
+        self,
+        physics: CellPhysics,
+        clock: SimClock | None = None,
+        *,
+        model: NetFtModelParams | None = None,
+        faults: NetFtFaults | None = None,
+        seed: int | None = 0,
+        rdt_port: int | None = None,
+        tcp_port: int | None = None,
+        http_port: int = 0,
+        rdt_rate_hz: float = DEFAULT_RDT_RATE_HZ,
+        filter_index: int = 0,
+        records_hook: RecordsHook | None = None,
+        on_send: Callable[[Record], None] | None = None,
+    ) -> None:
+        if not 0 < rdt_rate_hz <= 10_000:
+            raise ValueError(f"rdt_rate_hz={rdt_rate_hz} must be in (0, 10000]")
+        self.physics = physics
+        self.clock = clock or SimClock()
+        self.params = model or NetFtModelParams()
+        self.faults = faults or NetFtFaults()
+        self.records_hook = records_hook
+        self.on_send = on_send
+        self.rdt_rate_hz = float(rdt_rate_hz)
+        self.filter_index = filter_index
+        self.rng = np.random.default_rng(seed)
+        self.model = NetFtSensorModel(self.params, self.rng)
+        self.stats = EmulatorStats()
+        self.ft_sequence = 0
+        self.boot_s = 0.0
+        """Simulated time of the last (re)boot; ``ft_sequence`` counts internal samples since."""
+        self.last_sample_s: float | None = None
+        self._records_since_boot = 0
+        self._lock = threading.RLock()
+        self._stream_to: tuple[str, int] | None = None
+        self._stream_wall0 = 0.0
+        self._stream_t0 = 0.0
+        self._stream_sent = 0
+        force_code = {n: c for c, (n, _) in protocol.FORCE_UNITS.items()}[self.params.force_unit]
+        torque_code = {n: c for c, (n, _) in protocol.TORQUE_UNITS.items()}[self.params.torque_unit]
+        self.calinfo = protocol.CalInfo(force_code, torque_code, self.params.counts_per_force,
+                                        self.params.counts_per_torque)
+        """What READCALINFO answers (a test may replace it with nonsense)."""
+        self.xml_fields: dict[str, str] = {
+            "prodname": "forcelearn emulated Net F/T",
+            "cfgcpf": str(self.params.counts_per_force),
+            "cfgcpt": str(self.params.counts_per_torque),
+            "scfgfu": self.params.force_unit,
+            "scfgtu": self.params.torque_unit,
+            "cfgmr": ";".join(f"{r:g}" for r in self._ranges_in_units()),
+            "comrdtrate": f"{self.rdt_rate_hz:g}",
+            "setuserfilter": str(filter_index),
+            "runrate": f"{self.rdt_rate_hz:g}",
+        }
+        """The elements of netftapi2.xml (a test may change them)."""
+        self._udp = _bind(socket.SOCK_DGRAM, rdt_port, protocol.RDT_PORT)
+        tcp_sock = _bind(socket.SOCK_STREAM, tcp_port, protocol.CALIBRATION_TCP_PORT)
+        self._tcp = _TcpServer(tcp_sock.getsockname(), _CalInfoHandler, bind_and_activate=False)
+        self._tcp.socket.close()
+        self._tcp.socket = tcp_sock
+        self._tcp.server_activate()
+        self._tcp.emulator = self  # type: ignore[attr-defined]
+        self._http = _HttpServer((HOST, http_port), _XmlHandler)
+        self._http.emulator = self  # type: ignore[attr-defined]
+        self._stop = threading.Event()
+        self._closed = False
+        self._threads = [
+            threading.Thread(target=self._serve_udp, name="netft-emulator-udp", daemon=True),
+            threading.Thread(target=self._tcp.serve_forever, args=(POLL_S,),
+                             name="netft-emulator-tcp", daemon=True),
+            threading.Thread(target=self._http.serve_forever, args=(POLL_S,),
+                             name="netft-emulator-http", daemon=True),
+        ]
+        for thread in self._threads:
+            thread.start()
+
+    # ---- addresses ------------------------------------------------------
+    @property
+    def host(self) -> str:
+        """Where every server listens (always loopback)."""
+        return HOST
+
+    @property
+    def ports(self) -> dict[str, int]:
+        """The bound ports: ``rdt_port`` (UDP), ``tcp_port`` (READCALINFO), ``http_port``."""
+        return {"rdt_port": self._udp.getsockname()[1],
+                "tcp_port": self._tcp.server_address[1],
+                "http_port": self._http.server_address[1]}
+
+    # ---- public control -------------------------------------------------
+    def set_faults(self, faults: NetFtFaults) -> None:
+        """Change the wire faults now."""
+        with self._lock:
+            self.faults = faults
+
+    def inject_reboot(self) -> None:
+        """Reboot now: streaming stops, ``ft_sequence`` restarts, the software bias is lost."""
+        with self._lock:
+            self._reboot()
+
+    def netftapi2_xml(self) -> bytes:
+        """The body of ``/netftapi2.xml`` from :attr:`xml_fields`."""
+        inner = "".join(f"<{k}>{html.escape(v)}</{k}>" for k, v in self.xml_fields.items())
+        return f'<?xml version="1.0" encoding="utf-8"?><netft>{inner}</netft>'.encode()
+
+    def state_dict(self) -> dict[str, Any]:
+        """What a bit-identical resume needs: model (rng, biases), sequences, last sample time."""
+        with self._lock:
+            return {"model": self.model.state_dict(), "ft_sequence": self.ft_sequence,
+                    "boot_s": self.boot_s, "last_sample_s": self.last_sample_s,
+                    "records_since_boot": self._records_since_boot}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        with self._lock:
+            self.model.load_state_dict(state["model"])
+            self.ft_sequence = int(state["ft_sequence"])
+            self.boot_s = float(state["boot_s"])
+            last = state["last_sample_s"]
+            self.last_sample_s = None if last is None else float(last)
+            self._records_since_boot = int(state["records_since_boot"])
+
+    def close(self) -> None:
+        """Stop every server and join the threads; idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        self._tcp.shutdown()
+        self._http.shutdown()
+        for thread in self._threads:
+            thread.join(JOIN_TIMEOUT_S)
+            if thread.is_alive():
+                log.warning("%s did not stop within %.1f s", thread.name, JOIN_TIMEOUT_S)
+        self._udp.close()
+        self._tcp.server_close()
+        self._http.server_close()
+
+    def __enter__(self) -> NetFtEmulator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ---- UDP ------------------------------------------------------------
+    def _serve_udp(self) -> None:
+        while not self._stop.is_set():
+            self._udp.settimeout(STREAM_POLL_S if self._stream_to else POLL_S)
+            try:
+                data, address = self._udp.recvfrom(2048)
+            except TimeoutError:
+                data, address = b"", None
+            except OSError:
+                if not self._stop.is_set():
+                    log.exception("netft emulator: UDP receive failed; stopping")
+                return
+            if address is not None:
+                self._handle(data, address)
+            if self._stream_to is not None:
+                self._stream_due()
+
+    def _handle(self, data: bytes, address: tuple[str, int]) -> None:
+        request = protocol.decode_request(data)
+        with self._lock:
+            if isinstance(request, protocol.Rejected):
+                self.stats.rejected += 1
+                return
+            self.stats.requests += 1
+            if request.command == Command.SET_BIAS:
+                self.stats.bias_commands += 1
+                self.model.set_software_bias(self.physics.true_wrench())
+                return
+            self._stream_to = None  # any other command takes precedence over the last
+            if request.command == Command.STOP:
+                return
+            if request.command != Command.START_REALTIME:
+                self.stats.rejected += 1
+                return
+            if request.sample_count == 0:
+                self._stream_to = address
+                self._stream_wall0 = time.monotonic()
+                self._stream_t0 = self._next_sample_time()
+                self._stream_sent = 0
+                return
+            records, times = self._generate(1, request.sample_count, self._next_sample_time())
+        self._send(records, times, address, pace=True)
+
+    def _stream_due(self) -> None:
+        period = 1.0 / self.rdt_rate_hz
+        with self._lock:
+            if self._stream_to is None:
+                return
+            address = self._stream_to
+            due = int((time.monotonic() - self._stream_wall0) * self.rdt_rate_hz) + 1
+            if due - self._stream_sent > MAX_STREAM_CATCH_UP:  # never burst after a stall
+                self._stream_sent = due - MAX_STREAM_CATCH_UP
+            n = due - self._stream_sent
+            if n <= 0:
+                return
+            first = self._stream_sent + 1
+            records, times = self._generate(first, n, self._stream_t0 + (first - 1) * period)
+            self._stream_sent = due
+        self._send(records, times, address, pace=False)
+
+    def _next_sample_time(self) -> float:
+        now = self.clock.now_s
+        if self.last_sample_s is None:
+            return now
+        return max(now, self.last_sample_s + 1.0 / self.rdt_rate_hz)
+
+    def _generate(self, first_seq: int, n: int, t0: float) -> tuple[list[Record], dict[int, float]]:
+        """Sample ``n`` records (sequence ``first_seq``...) from ``t0``; apply the faults."""
+        period = 1.0 / self.rdt_rate_hz
+        advance = getattr(self.physics, "advance_to", None)
+        records: list[Record] = []
+        times: dict[int, float] = {}
+        for i in range(n):
+            if self.faults.silent:
+                break
+            t = t0 + i * period
+            if advance is not None:
+                advance(t)
+            dt = 0.0 if self.last_sample_s is None else t - self.last_sample_s
+            counts = self.model.measure(self.physics.true_wrench(), dt)
+            self.last_sample_s = t
+            # the box samples at its internal rate (here = the RDT rate) streaming or not
+            ft = round((t - self.boot_s) * self.rdt_rate_hz)
+            self.ft_sequence = ft % protocol.SEQUENCE_MODULUS
+            seq = first_seq + i
+            records.append(Record(seq, self.ft_sequence, self.faults.status, counts))
+            times[seq] = t
+            self.stats.records_generated += 1
+            self._records_since_boot += 1
+            limit = self.faults.reboot_after_records
+            if limit is not None and self._records_since_boot >= limit:
+                self._reboot()
+                break
+        out = apply_faults(records, self.faults, self.rng, self.stats.faults)
+        if self.records_hook is not None:
+            out = self.records_hook(out)
+        if records:
+            times[0] = times[records[-1].rdt_sequence]  # the clock's end: the last sampled
+        return out, times
+
+    def _send(self, records: list[Record], times: dict[int, float],
+              address: tuple[str, int], *, pace: bool) -> None:
+        if not times:
+            return
+        paced = pace and self.clock.time_scale > 0
+        held_at = -1.0
+        if not paced:
+            self.clock.advance_to(times[0])
+            if pace:
+                self.clock.hold()
+        for record in records:
+            t = times.get(record.rdt_sequence, times[0])
+            if paced and t - held_at >= PACE_SLICE_S:
+                self.clock.advance_to(t)
+                self.clock.hold()
+                held_at = t
+            if self.on_send is not None:
+                self.on_send(record)
+            try:
+                self._udp.sendto(protocol.encode_record(record), address)
+            except OSError:
+                log.debug("netft emulator: send to %s failed", address, exc_info=True)
+                continue
+            self.stats.records_sent += 1
+        if paced:
+            self.clock.advance_to(times[0])
+
+    def _reboot(self) -> None:
+        self.stats.reboots += 1
+        self._stream_to = None
+        self.ft_sequence = 0
+        self.boot_s = self.clock.now_s if self.last_sample_s is None else max(
+            self.clock.now_s, self.last_sample_s)
+        self._records_since_boot = 0
+        self.model.power_cycle()
+        log.info("netft emulator: rebooted")
+
+    def _ranges_in_units(self) -> list[float]:
+        f = protocol.FORCE_UNIT_SI[self.params.force_unit]
+        t = protocol.TORQUE_UNIT_SI[self.params.torque_unit]
+        return [r / (f if i < 3 else t) for i, r in enumerate(self.params.ranges)]
+
+
+def start_emulated_netft(physics: CellPhysics, clock: SimClock | None = None, seed: int = 0,
+                         **options: Any) -> NetFtEmulator:
+    """Start an emulated Net F/T on loopback (the factory the emulated cell will call).
+
+    ``options`` are :class:`NetFtEmulator`'s keywords (model, faults, ports, rate...).
+    Connect a driver with ``NetFtConfig(host=emulator.host, **emulator.ports)``.
+    """
+    return NetFtEmulator(physics, clock, seed=seed, **options)
