@@ -32,7 +32,8 @@ def test_move_and_wait_in_position_moves_the_emulated_robot(
     assert isinstance(robot, Robot)
     assert robot.read_pose() == HOME
     robot.move_by(dz_mm=-5.0)
-    reached = robot.wait_in_position(timeout_s=1.0, settle_s=0.02)
+    robot.wait_in_position(timeout_s=1.0, settle_s=0.02)
+    reached = robot.read_pose()
     assert abs(reached.z_mm - 595.0) <= robot.config.in_position_mm
     assert emu.physics.pose == reached
     status = robot.read_status()
@@ -48,7 +49,8 @@ def run_sequence(make: MakePair) -> tuple[float, int, list[Pose]]:
     poses = []
     for dz in (-3.0, 2.0, -1.0):
         robot.move_by(dz_mm=dz)
-        poses.append(robot.wait_in_position(timeout_s=1.0, settle_s=0.01))
+        robot.wait_in_position(timeout_s=1.0, settle_s=0.01)
+        poses.append(robot.read_pose())
     poses.append(robot.dwell(0.05))
     return emu.clock.now_s, emu.cycles, poses
 
@@ -84,7 +86,8 @@ def test_stop_holds_the_pose(egm_pair: MakePair) -> None:
     robot.stop()
     held = robot.target
     assert held is not None and 592.0 < held.z_mm < 600.0
-    reached = robot.wait_in_position(timeout_s=1.0, settle_s=0.05)
+    robot.wait_in_position(timeout_s=1.0, settle_s=0.05)
+    reached = robot.read_pose()
     assert np.linalg.norm(reached.position_mm - held.position_mm) <= 0.2
     assert reached.z_mm > 595.0
 
@@ -157,7 +160,8 @@ def test_real_mode_answers_from_a_thread_and_detects_stale_feedback(egm_pair: Ma
     """Lockstep = False: every message is answered at once; silence makes the feedback stale."""
     robot, emu = egm_pair(driver={"lockstep": False, "stale_after_s": 0.02, "watchdog_s": 1.0})
     robot.move_by(dy_mm=3.0)
-    reached = robot.wait_in_position(timeout_s=2.0, settle_s=0.02)
+    robot.wait_in_position(timeout_s=2.0, settle_s=0.02)
+    reached = robot.read_pose()
     assert abs(reached.y_mm - 3.0) <= 0.2
     emu.stop()
     time.sleep(0.05)  # longer than stale_after_s: what is measured is the age, not a duration

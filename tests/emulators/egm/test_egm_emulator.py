@@ -187,7 +187,8 @@ def test_two_processes_driver_and_emulator(tmp_path: object) -> None:
             assert line.startswith("EGM ") and int(line.split()[1]) > 0
             start = robot.wait_for_session(30.0)
             robot.move_by(dx_mm=2.0)
-            reached = robot.wait_in_position(timeout_s=1.0, settle_s=0.02)
+            robot.wait_in_position(timeout_s=1.0, settle_s=0.02)
+            reached = robot.read_pose()
             assert abs(reached.x_mm - start.x_mm - 2.0) <= robot.config.in_position_mm
         finally:
             process.terminate()

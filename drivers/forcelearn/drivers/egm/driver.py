@@ -51,6 +51,7 @@ from forcelearn.errors import (
     GuidanceStopped,
     LinkError,
     LinkTimeout,
+    NotInPosition,
     ProtocolError,
     SafetyStop,
 )
@@ -351,17 +352,26 @@ class EgmRobotDriver:
 
     # -- waiting (lets controller time pass) ------------------------------------------------
 
-    def wait_in_position(self, timeout_s: float, settle_s: float = 0.0) -> Pose:
-        """Wait until in position for ``settle_s`` of controller time; return the feedback pose.
+    def wait_in_position(self, timeout_s: float, settle_s: float = 0.0) -> float:
+        """Wait until in position for ``settle_s`` of controller time; return that time (s).
 
-        Both times are the controller's (its feedBack.time): ``LinkTimeout`` if
-        not in position within ``timeout_s``, ``GuidanceStopped`` if guidance
-        stops or the controller starts a new session meanwhile.
+        Both times are the controller's (its feedBack.time): ``NotInPosition``
+        (the pose held) if not in position within ``timeout_s``,
+        ``GuidanceStopped`` if guidance stops or the controller starts a new
+        session meanwhile.
         """
         if not (timeout_s > 0 and settle_s >= 0):
             raise ValueError(f"need timeout_s > 0 and settle_s >= 0, got {timeout_s}, {settle_s}")
         with self._lock:
-            return self._wait(timeout_s, settle_s, until_in_position=True)
+            self._wait(timeout_s, settle_s, until_in_position=True)
+            return self._guidance.controller_time_s()
+
+    def read_target(self) -> Pose:
+        """Return the target the planned pose ramps to (the reference for relative moves)."""
+        with self._lock:
+            self._latest()
+            target = self._guidance.target
+            return target if target is not None else self.read_pose()
 
     def dwell(self, duration_s: float) -> Pose:
         """Let ``duration_s`` of controller time pass while guiding; return the feedback pose."""
@@ -396,7 +406,8 @@ class EgmRobotDriver:
             if now - start >= span_s - 1e-9:
                 if not until_in_position:
                     return self.read_pose()
-                raise LinkTimeout(
+                self._guidance.hold()
+                raise NotInPosition(
                     f"not in position within {span_s} s of controller time: feedback "
                     f"{self.read_pose()}, target {guidance.target}"
                 )
