@@ -20,6 +20,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "jr3": ("forcelearn.tools.bench_jr3", "JR3 sync-mode paired samples/s, virtual CAN bus"),
     "egm": ("forcelearn.tools.bench_egm", "EGM 4 ms loop period, jitter and reply latency, UDP"),
     "netft": ("forcelearn.tools.bench_netft", "Net F/T records/s and p99 latency, loopback UDP"),
+    "cell": ("forcelearn.tools.bench_cell", "§5 run on the emulated cell: cell time / wall time"),
 }
 
 

@@ -57,12 +57,19 @@ def run(args: argparse.Namespace) -> int:
         initial=done or 0,
     )
 
+    cell_s = sum(r.cell_time_s for r in surface_run.result.records)
+
     def progress(record: TrialRecord, learner: SRVLearner) -> None:
+        nonlocal cell_s
+        cell_s += record.cell_time_s
         if bar.n < record.index:
             bar.update(record.index - bar.n)
         bar.update(1)
         bar.set_postfix(
-            phase=record.phase[:4], steps=record.steps, rms_n=f"{record.force_rms_n:.2f}"
+            phase=record.phase[:4],
+            steps=record.steps,
+            rms_n=f"{record.force_rms_n:.2f}",
+            cell=_clock(cell_s),
         )
 
     try:
@@ -78,3 +85,9 @@ def run(args: argparse.Namespace) -> int:
     print(json.dumps(summary, indent=2))
     print(f"run directory: {out}")
     return 0
+
+
+def _clock(seconds: float) -> str:
+    """Cell time as h:mm:ss (the robot's clock; what the run would hold a real cell)."""
+    whole = int(seconds)
+    return f"{whole // 3600}:{whole % 3600 // 60:02d}:{whole % 60:02d}"
