@@ -1,5 +1,4 @@
-"""The emulated cell on its simulated clock: results that do not depend on the host, and a
-controller that learns whatever the cell's timing.
+"""The emulated cell on its simulated clock: host-independent results, learning at any timing.
 
 Each run here goes through the real drivers (a pty and a virtual CAN bus) to
 the emulators, as ``forcelearn run`` does.
