@@ -29,9 +29,12 @@ import numpy as np
 
 from forcelearn.devices import BatchForceSensor, ForceSensor, Pose, Robot, WrenchSample
 from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded
-from forcelearn.filtering import ForceFilter
+from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
 
 log = logging.getLogger(__name__)
+
+SYNC_WINDOW = 16
+"""Samples requested at once from a batch sensor (a real adapter's transmit queue is short)."""
 
 WrenchCompensation = Callable[[np.ndarray, Pose], np.ndarray]
 """Maps a measured wrench (sensor frame, N and N·m) and the pose to a compensated one."""
@@ -44,7 +47,8 @@ class Cell:
         robot: the robot driver.
         sensor: the force/torque sensor driver.
         force_filter: the Kalman filter of the normal force (its config picks
-            the axis and sign of the normal force).
+            the axis and sign of the normal force); a move-aware filter is
+            told of every move the cell makes.
         max_force_n: normal force (N) above which motion stops and the trial fails.
         samples_per_step: sensor samples read (and filtered) after each move.
         compensation: optional bias and tool-gravity compensation (calibration).
@@ -56,7 +60,7 @@ class Cell:
         self,
         robot: Robot,
         sensor: ForceSensor,
-        force_filter: ForceFilter,
+        force_filter: ForceFilter | MoveAwareForceFilter,
         max_force_n: float,
         samples_per_step: int = 5,
         compensation: WrenchCompensation | None = None,
@@ -113,6 +117,9 @@ class Cell:
         self._pose = None
         self._guarded(self.robot.move_to, pose)
         self._pose = pose
+        on_move = getattr(self.force_filter, "on_move", None)
+        if on_move is not None:
+            on_move()  # the force may change by anything: the filter starts over its prior
         self.time_s = self._guarded(
             self.robot.wait_in_position, self.move_timeout_s, self.settle_s if settle else 0.0
         )
@@ -159,16 +166,19 @@ class Cell:
             SensorStale: no sample arrived in the watchdog time (robot stopped).
         """
         count = samples or self.samples_per_step
-        if isinstance(self.sensor, BatchForceSensor):  # one window of SYNCs in flight
-            batch = self._guarded(self.sensor.read_many, count, count)
+        if isinstance(self.sensor, BatchForceSensor):  # windows of SYNCs in flight
+            batch = self._guarded(self.sensor.read_many, count, min(count, SYNC_WINDOW))
         else:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
-        peak = -math.inf
-        for raw in batch:
-            sample = self._compensated(raw)
-            self.force_filter.on_sample(sample)
-            config = self.force_filter.config
-            peak = max(peak, config.sign * float(sample.wrench[config.axis]))
+        samples = [self._compensated(raw) for raw in batch]
+        config = self.force_filter.config
+        peak = max(config.sign * float(s.wrench[config.axis]) for s in samples)
+        on_burst = getattr(self.force_filter, "on_burst", None)
+        if on_burst is not None:
+            on_burst(samples)
+        else:
+            for sample in samples:
+                self.force_filter.on_sample(sample)
         force = self.force_filter.force_n
         if max(peak, force) > self.max_force_n:
             self.stop()

@@ -51,7 +51,11 @@ def test_a_plain_constant_rate_filter_would_fail_the_bound() -> None:
 
 def test_missing_samples_are_predicted_along_the_ramp() -> None:
     """On a 100 N/s ramp, 20 missing samples are bridged by prediction, not held flat."""
-    kf = ForceFilter(ForceFilterConfig(measurement_variance_n2=1e-4, jump_gate_sigma=1e9))
+    kf = ForceFilter(
+        ForceFilterConfig(
+            sample_period_s=0.001, measurement_variance_n2=1e-4, jump_gate_sigma=1e9
+        )
+    )
     for i in range(500):
         kf.update(100.0 * i * 1e-3)
     for _ in range(20):
@@ -61,7 +65,11 @@ def test_missing_samples_are_predicted_along_the_ramp() -> None:
 
 def test_counter_gaps_across_the_wrap_become_predictions() -> None:
     """Counters 65000..65535, 0.., then 20 missing: the estimate keeps the ramp's time."""
-    kf = ForceFilter(ForceFilterConfig(measurement_variance_n2=1e-4, jump_gate_sigma=1e9))
+    kf = ForceFilter(
+        ForceFilterConfig(
+            sample_period_s=0.001, measurement_variance_n2=1e-4, jump_gate_sigma=1e9
+        )
+    )
     counters = [(65000 + i) % 65536 for i in range(536)] + [14 + i for i in range(5)]
     times = list(range(536)) + [556 + i for i in range(5)]
     for counter, k in zip(counters, times, strict=True):

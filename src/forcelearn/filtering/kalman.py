@@ -47,28 +47,47 @@ class ForceFilterConfig:
     """Parameters of the force filter (units in the names).
 
     Attributes:
-        sample_period_s: time between sensor samples (the async period, or
-            the control loop's sampling in sync mode).
+        model: "moves" (:class:`~forcelearn.filtering.step_filter.MoveAwareForceFilter`,
+            for a cell that moves, settles and reads a burst: the §5 task) or
+            "stream" (:class:`ForceFilter`, a constant-rate track of a
+            continuous stream with jump restart and outlier rejection).
+        sample_period_s: time between sensor samples: in sync mode at 1 Mbit/s
+            one SYNC and two 8-byte frames, 55 + 2 x 135 µs (worst-case bit
+            stuffing) = 325 µs; in async mode the streaming period.
         measurement_variance_n2: R, the sensor's noise variance on the axis.
             Default (0.2 N)^2, the emulated JR3's; the calibration tool measures it.
-        rate_noise_var: q of the discrete white-noise model, (N/s^2)^2.
-        jump_gate_sigma: innovation, in standard deviations, that signals a step.
+        rate_noise_var: q of the stream model's discrete white-noise model, (N/s^2)^2.
+        jump_gate_sigma: innovation, in standard deviations, that signals a
+            step (stream) or an outlier (moves).
         axis: which wrench component is the normal force (1 = Fy, the sponge's).
         sign: +1 or -1, so that pressing harder reads larger.
+        noise_cutoff_hz: the low-pass cut-off that colours the sensor's noise
+            (the adapter's ``cutoff_hz``; 0: white noise), moves model.
+        move_change_std_n: how much the force may change across a move when
+            nothing predicts it (a wide prior), N, moves model.
     """
 
-    sample_period_s: float = 0.001
+    model: str = "moves"
+    sample_period_s: float = 0.000325
     measurement_variance_n2: float = 0.04
     rate_noise_var: float = 5.0e4
     jump_gate_sigma: float = 5.0
     axis: int = 1
     sign: float = 1.0
+    noise_cutoff_hz: float = 0.0
+    move_change_std_n: float = 30.0
 
     def __post_init__(self) -> None:
+        if self.model not in ("moves", "stream"):
+            raise ConfigError(f"filter.model={self.model!r}: must be 'moves' or 'stream'")
         for key in ("sample_period_s", "measurement_variance_n2", "rate_noise_var",
-                    "jump_gate_sigma"):
-            if not getattr(self, key) > 0:
-                raise ConfigError(f"filter.{key}={getattr(self, key)}: must be > 0")
+                    "jump_gate_sigma", "move_change_std_n"):
+            value = getattr(self, key)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"filter.{key}={value!r}: must be a finite number > 0")
+        cutoff = self.noise_cutoff_hz
+        if not (isinstance(cutoff, int | float) and math.isfinite(cutoff) and cutoff >= 0):
+            raise ConfigError(f"filter.noise_cutoff_hz={cutoff!r}: must be >= 0 (0: white)")
         if self.axis not in range(6) or self.sign not in (1.0, -1.0):
             raise ConfigError("filter.axis must be 0..5 and filter.sign +1 or -1")
 

@@ -56,14 +56,22 @@ class SurfaceTaskSpec:
     """Millimetres of Y command per action unit."""
     max_offset_mm: float = 15.0
     """Largest |Y command − start Y|, mm (keeps the roller off the sponge's backing)."""
-    samples_per_step: int = 3
-    """Sensor samples filtered after each move (0.2 N noise → ~0.12 N on their mean)."""
+    samples_per_step: int = 0
+    """Sensor samples filtered after each move; 0: as many as fit ``measurement_window_s``."""
+    measurement_window_s: float = 0.025
+    """Time the burst of samples after each settled move spans, s (0.2 N adapter noise with
+    1.3 ms correlation: a 25 ms burst filters to ~0.07 N; see docs/results/filter.md)."""
     settle_s: float = 0.05
     """Dwell in position before the force is measured, s (the robot's clock)."""
 
     def __post_init__(self) -> None:
-        if self.steps_per_trial < 1 or self.input_parts < 1 or self.samples_per_step < 1:
-            raise ConfigError("steps_per_trial, input_parts and samples_per_step must be >= 1")
+        if self.steps_per_trial < 1 or self.input_parts < 1 or self.samples_per_step < 0:
+            raise ConfigError(
+                "task.steps_per_trial and task.input_parts must be >= 1, "
+                "task.samples_per_step >= 0 (0: from task.measurement_window_s)"
+            )
+        if not (math.isfinite(self.measurement_window_s) and self.measurement_window_s > 0):
+            raise ConfigError("task.measurement_window_s must be a finite number > 0")
         for name in ("desired_force_n", "tolerance_n", "output_scale_mm", "max_offset_mm"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"task.{name} must be > 0")
@@ -73,6 +81,12 @@ class SurfaceTaskSpec:
             raise ConfigError("task.z_step_mm must not be 0")
         if self.retract_y_mm <= self.start_mm[1] + self.max_offset_mm:
             raise ConfigError("task.retract_y_mm must lie beyond start Y + max_offset_mm")
+
+    def samples_for(self, sample_period_s: float) -> int:
+        """Samples per step: the configured count, or as many as fit the measurement window."""
+        if self.samples_per_step:
+            return self.samples_per_step
+        return max(1, round(self.measurement_window_s / sample_period_s))
 
     @property
     def path_mm(self) -> float:

@@ -160,7 +160,9 @@ class CellConfig:
     robot: LinkConfig = field(default_factory=lambda: LinkConfig(url=EMULATED))
     bus: BusConfig = field(default_factory=BusConfig)
     sensor: Jr3Config = field(default_factory=lambda: Jr3Config(zero_on_init=True))
-    filter: ForceFilterConfig = field(default_factory=lambda: ForceFilterConfig(axis=1, sign=-1.0))
+    filter: ForceFilterConfig = field(
+        default_factory=lambda: ForceFilterConfig(axis=1, sign=-1.0, noise_cutoff_hz=125.0)
+    )
     safety: SafetyLimits = field(default_factory=SafetyLimits)
     task: SurfaceTaskSpec = field(default_factory=SurfaceTaskSpec)
     learner: SRVParams = field(default_factory=lambda: SRVParams(**SECTION_LEARNER_DEFAULTS))
@@ -228,7 +230,12 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
     sensor_table.setdefault("zero_on_init", True)
     sensor = build(Jr3Config, {**sensor_table, "stale_timeout_s": safety.stale_sensor_s}, "sensor")
 
-    filter_table = {"axis": 1, "sign": -1.0, **data.get("filter", {})}
+    filter_table = {
+        "axis": 1,
+        "sign": -1.0,
+        "noise_cutoff_hz": sensor.cutoff_hz,  # the adapter's low-pass colours the noise
+        **data.get("filter", {}),
+    }
     emulator_table = dict(data.get("emulator", {}))
     check_sections(emulator_table, {"sponge", "sensor", "arm", "time_scale", "profile"})
     pace = {k: emulator_table.pop(k) for k in ("time_scale", "profile") if k in emulator_table}

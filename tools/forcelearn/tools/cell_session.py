@@ -37,7 +37,7 @@ from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge
 from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
 from forcelearn.errors import ForcelearnError, LinkError, SensorBusError
-from forcelearn.filtering import ForceFilter
+from forcelearn.filtering import make_force_filter
 from forcelearn.tools.cell_config import CellConfig
 from forcelearn.tools.emulated_cell import (
     emulated_jr3,
@@ -124,9 +124,9 @@ class CellSession:
         self.cell = Cell(
             self.robot,
             self.sensor,
-            ForceFilter(cfg.filter),
+            make_force_filter(cfg.filter),
             max_force_n=cfg.safety.max_force_n,
-            samples_per_step=cfg.task.samples_per_step,
+            samples_per_step=cfg.task.samples_for(cfg.filter.sample_period_s),
             move_timeout_s=cfg.safety.move_timeout_s,
             settle_s=cfg.task.settle_s,
         )
