@@ -59,6 +59,14 @@ sensor is a thread of this process, so its only "silence" is a stall of the
 host (a loaded CI machine): a longer watchdog keeps such stalls from stopping
 runs or from re-sending SYNCs, which would change the emulated noise sequence."""
 
+EMULATED_LINK_TIMEOUT_S = 5.0
+"""ACK and reply timeouts of the robot link to the in-process emulator when the file sets none, s.
+
+As for the sensor's watchdog: the emulator is a thread of this process, so a
+late answer can only be a stall of the host (seen at a load average of 15 on
+two cores); on a real link 1 s stays the default. Timeouts never change
+results: simulated time does not see them."""
+
 SECTION_LEARNER_DEFAULTS: dict[str, Any] = {
     "gamma": 0.8,  # γ, §5
     "alpha_generalized": 0.5,  # α, §5 generalized
@@ -157,7 +165,13 @@ class EmulatorConfig:
 class CellConfig:
     """Everything ``forcelearn run`` and ``forcelearn check`` need."""
 
-    robot: LinkConfig = field(default_factory=lambda: LinkConfig(url=EMULATED))
+    robot: LinkConfig = field(
+        default_factory=lambda: LinkConfig(
+            url=EMULATED,
+            ack_timeout_s=EMULATED_LINK_TIMEOUT_S,
+            reply_timeout_s=EMULATED_LINK_TIMEOUT_S,
+        )
+    )
     bus: BusConfig = field(default_factory=BusConfig)
     sensor: Jr3Config = field(default_factory=lambda: Jr3Config(zero_on_init=True))
     filter: ForceFilterConfig = field(
@@ -215,6 +229,9 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
     safety = build(SafetyLimits, data.get("safety"), "safety")
     limits = Limits(safety.workspace_min_mm, safety.workspace_max_mm, safety.max_step_mm)
     robot_table = {"url": EMULATED, **data.get("robot", {})}
+    if robot_table["url"] == EMULATED:
+        for key in ("ack_timeout_s", "reply_timeout_s"):
+            robot_table.setdefault(key, EMULATED_LINK_TIMEOUT_S)
     if "limits" in robot_table:
         raise ConfigError("robot.limits: set the limits in [safety] (one place for all limits)")
     robot = replace(build(LinkConfig, robot_table, "robot"), limits=limits)
