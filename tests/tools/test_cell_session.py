@@ -75,8 +75,15 @@ def test_pressing_past_the_force_limit_fails_the_step_and_retracts(session) -> N
     assert session.sponge is not None and session.sponge.passes == 1
 
 
-def test_a_silent_sensor_stops_the_robot_and_raises_stale(session) -> None:
+def test_a_silent_sensor_stops_the_robot_and_raises_stale(tmp_path: Path) -> None:
     """When the adapter goes silent the watchdog raises SensorStale and motion stops."""
+    path = tmp_path / "cell.toml"
+    path.write_text("[safety]\nstale_sensor_s = 0.5\n")
+    with CellSession(load_cell_config(path), seed=1) as session:
+        _silent_sensor_stops(session)
+
+
+def _silent_sensor_stops(session: CellSession) -> None:
     config = session.config
     task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
     task.reset()
@@ -115,7 +122,7 @@ def test_a_target_outside_the_workspace_is_refused(session) -> None:
 
 def test_the_watchdog_is_longer_only_for_the_in_process_emulated_sensor(tmp_path: Path) -> None:
     """Emulated sensor: 1 s unless set; a real bus keeps 0.1 s; an explicit value always wins."""
-    assert load_cell_config().sensor.stale_timeout_s == 1.0
+    assert load_cell_config().sensor.stale_timeout_s == 10.0
     real = tmp_path / "real.toml"
     real.write_text('[sensor]\ninterface = "socketcan"\nchannel = "can0"\n')
     assert load_cell_config(real).sensor.stale_timeout_s == 0.1

@@ -51,21 +51,24 @@ from forcelearn.tasks.surface import SurfaceTaskSpec
 EMULATED = "emulated"
 DEFAULT_TRIALS = 300
 """Trials of a run when neither the config nor the command line says."""
-EMULATED_STALE_SENSOR_S = 1.0
+EMULATED_STALE_SENSOR_S = 10.0
 """Stale-sensor watchdog of the in-process emulated sensor when the file sets none, s.
 
 On a real sensor silence is a fault and 0.1 s is the default. In emulation the
 sensor is a thread of this process, so its only "silence" is a stall of the
 host (a loaded CI machine): a longer watchdog keeps such stalls from stopping
-runs or from re-sending SYNCs, which would change the emulated noise sequence."""
+runs or from re-sending SYNCs, which would change the emulated noise sequence
+(a run at load average 15-25 on two cores diverged with 1 s: the driver
+presumes samples lost after half the watchdog and asks again). Results are
+identical as long as no stall of the host lasts longer than half of it."""
 
-EMULATED_LINK_TIMEOUT_S = 5.0
+EMULATED_LINK_TIMEOUT_S = 10.0
 """ACK and reply timeouts of the robot link to the in-process emulator when the file sets none, s.
 
 As for the sensor's watchdog: the emulator is a thread of this process, so a
 late answer can only be a stall of the host (seen at a load average of 15 on
-two cores); on a real link 1 s stays the default. Timeouts never change
-results: simulated time does not see them."""
+two cores); on a real link 1 s stays the default. A timeout that fires sends an
+ENQ, whose bytes the simulated clock does see, so the timeouts are long."""
 
 SECTION_LEARNER_DEFAULTS: dict[str, Any] = {
     "gamma": 0.8,  # γ, §5
