@@ -110,8 +110,9 @@ class SurfaceTaskSpec:
             raise ConfigError("task.z_step_mm must not be 0")
         if self.retract_y_mm <= self.fallback_centre_y_mm + self.fallback_offset_mm:
             raise ConfigError(
-                "task.retract_y_mm must lie beyond the output range's top "
-                f"({self.fallback_centre_y_mm + self.fallback_offset_mm:g} mm)"
+                f"task.retract_y_mm = {self.retract_y_mm:g} mm must lie beyond the output "
+                "range's top (centre + task.max_offset_mm = "
+                f"{self.fallback_centre_y_mm + self.fallback_offset_mm:g} mm)"
             )
 
     @property
