@@ -69,3 +69,30 @@ def test_a_range_that_cannot_reach_the_force_warns_and_fails_require_converged(
     assert "task.max_offset_mm" in summary["diagnosis"]
     assert summary["output_map"]["source"] == "config"
     assert not (out / "probe.csv").exists()  # the whole map was configured: no probe
+
+
+@pytest.mark.parametrize(
+    ("stiffness", "force"),
+    [(1.2, 19.6133), (4.0, 29.41995)],
+    ids=["issue-soft-sponge-2kgf", "stiff-sponge-3kgf"],
+)
+def test_a_changed_sponge_or_force_converges_without_retuning(
+    stiffness: float, force: float, tmp_path: Path
+) -> None:
+    """The issue's failing edits converge with the probe's map (stopped once converged).
+
+    Only the sponge or the force changes; every other key is the default. The
+    full grid (0.5x-2x stiffness x 0.5-3 kgf x 3 seeds) is the study in
+    docs/results/surface.md.
+    """
+    config = tmp_path / "cell.toml"
+    config.write_text(
+        f"[task]\ndesired_force_n = {force}\n[emulator.sponge]\nstiffness_n_per_mm = {stiffness}\n"
+        "[run]\nstop_after_converged = 1\n"
+    )
+    out = tmp_path / "run"
+    argv = ["run", "--config", str(config), "--out", str(out), "--no-progress"]
+    assert main([*argv, "--require-converged"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["converged"] is True and summary["diagnosis"] is None
+    assert summary["converged_trial"] < 300
