@@ -19,6 +19,10 @@ from forcelearn.errors import ForcelearnError
 # name -> (module implementing it, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
     "run": ("forcelearn.tools.run_command", "learn force tracking on the cell (paper §5)"),
+    "probe": (
+        "forcelearn.tools.probe_command",
+        "find the surface (contact, stiffness) and the output map a run would use",
+    ),
     "sim": ("forcelearn.tools.sim", "run a simulated task (paper §4 contour tracking)"),
     "study": (
         "forcelearn.tools.study_command",

@@ -37,12 +37,39 @@ def build(cls: type[T], table: Mapping[str, Any] | None, section: str) -> T:
     for key, value in table.items():
         if isinstance(value, list):
             table[key] = _tuples(value)
+        _check_value(f"{section}.{key}", table[key], _default_of(known[key]))
     try:
         return cls(**table)
     except ConfigError as exc:
         raise ConfigError(f"[{section}] {exc}") from exc
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"[{section}] invalid value: {exc}") from exc
+
+
+def _default_of(f: dataclasses.Field[Any]) -> Any:
+    """A field's default value (calling its factory), or MISSING."""
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    return dataclasses.MISSING
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _check_value(key: str, value: Any, default: Any) -> None:
+    """Refuse NaN anywhere, and a non-number where the default is a number, naming ``key``."""
+    if isinstance(value, float) and value != value:
+        raise ConfigError(f"{key} = nan: not a number; give a finite value")
+    if isinstance(value, tuple):
+        for i, item in enumerate(value):
+            inner = default[i] if isinstance(default, tuple) and i < len(default) else None
+            _check_value(f"{key}[{i}]", item, inner)
+        return
+    if _is_number(default) and not _is_number(value):
+        raise ConfigError(f"{key} = {value!r}: must be a number (like {default!r})")
 
 
 def _tuples(value: Any) -> Any:
@@ -58,7 +85,15 @@ def read_run_table(data: Mapping[str, Any], default_trials: int) -> tuple[int, i
         raise ConfigError(
             f"unknown key(s) {['run.' + k for k in unknown]}; known: run.trials, run.seed"
         )
-    return int(run.get("trials", default_trials)), int(run.get("seed", 0))
+    values = {"trials": run.get("trials", default_trials), "seed": run.get("seed", 0)}
+    for key, value in values.items():
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"run.{key} = {value!r}: must be a whole number")
+    if values["trials"] < 1:
+        raise ConfigError(f"run.trials = {values['trials']}: must be >= 1")
+    if values["seed"] < 0:
+        raise ConfigError(f"run.seed = {values['seed']}: must be >= 0")
+    return values["trials"], values["seed"]
 
 
 def check_sections(data: Mapping[str, Any], allowed: set[str]) -> None:

@@ -19,6 +19,7 @@ from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
 from forcelearn.tasks.surface import SurfaceTaskSpec
+from forcelearn.tasks.surface_probe import ProbeSpec
 from forcelearn.tools.cell_config import BusConfig, SafetyLimits, load_cell_config
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -27,6 +28,8 @@ REAL = EXAMPLES / "real-cell.toml"
 
 NOT_IN_TOML = {"limits", "stale_timeout_s", "full_scales", "log_path"}
 """Fields a file cannot or must not set: limits come from [safety], None defaults stay unset."""
+DERIVED = {"tolerance_n", "output_centre_y_mm", "output_scale_mm", "max_offset_mm"}
+"""[task] keys whose default is derived (from the desired force, or the probe): shown commented."""
 TABLES: dict[str, tuple[type, ...]] = {
     "robot": (LinkConfig,),
     "sensor": (BusConfig, Jr3Config),
@@ -34,6 +37,7 @@ TABLES: dict[str, tuple[type, ...]] = {
     "safety": (SafetyLimits,),
     "task": (SurfaceTaskSpec,),
     "learner": (SRVParams,),
+    "probe": (ProbeSpec,),
     "emulator.sponge": (SpongeParams,),
     "emulator.sensor": (SensorModelParams,),
     "emulator.arm": (ArmConfig,),
@@ -53,8 +57,15 @@ def test_the_emulated_example_shows_every_parameter(table: str) -> None:
     for part in table.split("."):
         data = data[part]
     fields = {f.name for cls in TABLES[table] for f in dataclasses.fields(cls) if f.init}
-    missing = sorted(fields - NOT_IN_TOML - set(data))
+    missing = sorted(fields - NOT_IN_TOML - DERIVED - set(data))
     assert not missing, f"examples/emulated-cell.toml lacks [{table}] {missing}: add them"
+
+
+def test_the_derived_task_keys_are_shown_commented() -> None:
+    """The keys the probe (or the desired force) sets are in the example, commented out."""
+    text = EMULATED.read_text()
+    for key in sorted(DERIVED):
+        assert f"# {key} = " in text, key
 
 
 def test_a_changed_emulated_example_is_no_longer_the_default(tmp_path: Path) -> None:

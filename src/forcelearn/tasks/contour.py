@@ -54,11 +54,34 @@ class ContourTaskSpec:
     """Largest joint increment one command may ask for, degrees (a safety limit)."""
 
     def __post_init__(self) -> None:
-        if self.steps_per_trial < 1:
-            raise ConfigError("steps_per_trial must be >= 1")
-        for name in ("force_scale_n", "velocity_scale_m", "output_scale_deg", "max_step_deg"):
-            if getattr(self, name) <= 0:
-                raise ConfigError(f"{name} must be > 0")
+        for name in ("steps_per_trial", "theta1_parts", "theta2_parts"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ConfigError(f"task.{name} = {value!r}: must be a whole number >= 1")
+        positive = (
+            "desired_force_n", "desired_velocity_m", "force_scale_n", "velocity_scale_m",
+            "output_scale_deg", "max_step_deg",
+        )
+        for name in positive:
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"task.{name} = {value!r}: must be a finite number > 0")
+        for name in ("theta1_range_deg", "theta2_range_deg"):
+            lo, hi = getattr(self, name)
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ConfigError(f"task.{name} = {(lo, hi)!r}: must be (low, high), low < high")
+
+    def check_start(self, start_theta_deg: tuple[float, float]) -> None:
+        """Refuse a start pose outside the input partition (every trial would fail at once)."""
+        for i, (name, theta) in enumerate(
+            (("theta1_range_deg", start_theta_deg[0]), ("theta2_range_deg", start_theta_deg[1]))
+        ):
+            lo, hi = getattr(self, name)
+            if not lo <= theta <= hi:
+                raise ConfigError(
+                    f"geometry.start_theta_deg[{i}] = {theta:g} deg lies outside "
+                    f"task.{name} = [{lo:g}, {hi:g}]: the start must be inside the partition"
+                )
 
     def grid(self) -> BoxGrid:
         """The BOXES partition of (θ1, θ2): 100 x 200 boxes by default."""

@@ -10,10 +10,14 @@ Choices the paper leaves open (docs/surface.md gives the reasons):
 
 * input: the distance travelled along Z (mm) before the step, in
   ``input_parts`` boxes over the path (one box per step by default);
-* output y(a) = start Y + ``output_scale_mm`` · a (absolute Y command, mm),
-  limited to ±``max_offset_mm`` from the start Y;
-* evaluation r = |force − desired| / ``tolerance_n``; a step with r > 1 fails,
-  and so does passing the safety force limit (r is then set to 2 for learning).
+* output y(a) = centre Y + scale · a (absolute Y command, mm), limited to
+  ±half-range from the centre. Centre, scale and half-range come from the
+  surface probe (:mod:`forcelearn.tasks.surface_probe`) unless the config
+  gives them (``output_centre_y_mm``, ``output_scale_mm``, ``max_offset_mm``);
+  with no probe and no config, the fallback is start Y, 2 mm and 15 mm;
+* evaluation r = |force − desired| / tolerance (``tolerance_n``, by default
+  half the desired force); a step with r > 1 fails, and so does passing the
+  safety force limit (r is then set to 2 for learning).
 """
 
 from __future__ import annotations
@@ -33,16 +37,31 @@ KGF_N = 9.80665
 """One kilogram-force in newtons."""
 SAFETY_R = 2.0
 """Evaluation given to a step stopped by the force limit (a failure, learned as one)."""
+FALLBACK_SCALE_MM = 2.0
+"""Output scale without a probe or a configured one, mm per action unit (the pre-probe map)."""
+FALLBACK_OFFSET_MM = 15.0
+"""Output half-range without a probe or a configured one, mm (the pre-probe map)."""
+
+
+def _is_number(value: object) -> bool:
+    """True for a finite int or float (not a bool, not a string, not NaN)."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
 @dataclass(frozen=True)
 class SurfaceTaskSpec:
-    """Targets, path, partition and output map of the §5 task (paper values as defaults)."""
+    """Targets, path, partition and output map of the §5 task (paper values as defaults).
+
+    Keys left at ``None`` are derived: ``tolerance_n`` from the desired force,
+    the output map (``output_centre_y_mm``, ``output_scale_mm``,
+    ``max_offset_mm``) from the surface probe at the start of a run.
+    """
 
     desired_force_n: float = 2.0 * KGF_N
     """2 kgf (§5)."""
-    tolerance_n: float = 10.0
-    """Force error at which r = 1 (a failure); about half the desired force."""
+    tolerance_n: float | None = None
+    """Force error at which r = 1 (a failure), N; default half the desired force (§5's 10 N
+    for 2 kgf, rounded)."""
     steps_per_trial: int = 20
     z_step_mm: float = -5.0
     start_mm: tuple[float, float, float] = (900.0, -4.0, 0.0)
@@ -52,35 +71,81 @@ class SurfaceTaskSpec:
     retract_y_mm: float = 15.0
     """Y of the retract path: 10 mm clear of the highest point of the default sponge."""
     input_parts: int = 20
-    output_scale_mm: float = 2.0
-    """Millimetres of Y command per action unit."""
-    max_offset_mm: float = 15.0
-    """Largest |Y command − start Y|, mm (keeps the roller off the sponge's backing)."""
+    output_centre_y_mm: float | None = None
+    """Y command (mm) at action 0; default from the probe (else start Y)."""
+    output_scale_mm: float | None = None
+    """Millimetres of Y command per action unit; default from the probe (else 2 mm)."""
+    max_offset_mm: float | None = None
+    """Largest |Y command − centre|, mm; default from the probe (else 15 mm)."""
     samples_per_step: int = 0
     """Sensor samples filtered after each move; 0: as many as fit ``measurement_window_s``."""
     measurement_window_s: float = 0.025
     """Time the burst of samples after each settled move spans, s (0.2 N adapter noise with
-    1.3 ms correlation: a 25 ms burst filters to ~0.07 N; see docs/results/filter.md)."""
+    1.3 ms correlation: a 25 ms burst filters to ~0.06 N; see docs/results/filter.md)."""
     settle_s: float = 0.05
     """Dwell in position before the force is measured, s (the robot's clock)."""
 
     def __post_init__(self) -> None:
-        if self.steps_per_trial < 1 or self.input_parts < 1 or self.samples_per_step < 0:
-            raise ConfigError(
-                "task.steps_per_trial and task.input_parts must be >= 1, "
-                "task.samples_per_step >= 0 (0: from task.measurement_window_s)"
-            )
-        if not (math.isfinite(self.measurement_window_s) and self.measurement_window_s > 0):
-            raise ConfigError("task.measurement_window_s must be a finite number > 0")
-        for name in ("desired_force_n", "tolerance_n", "output_scale_mm", "max_offset_mm"):
-            if not getattr(self, name) > 0:
-                raise ConfigError(f"task.{name} must be > 0")
-        if not (math.isfinite(self.settle_s) and self.settle_s >= 0):
-            raise ConfigError("task.settle_s must be a finite number >= 0")
+        for name in ("steps_per_trial", "input_parts", "samples_per_step"):
+            value = getattr(self, name)
+            least = 0 if name == "samples_per_step" else 1  # 0: from the measurement window
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ConfigError(f"task.{name} = {value!r}: must be a whole number >= {least}")
+        positive = ("desired_force_n", "tolerance_n", "output_scale_mm", "max_offset_mm")
+        for name in positive:
+            value = getattr(self, name)
+            if value is not None and not (_is_number(value) and value > 0):
+                raise ConfigError(f"task.{name} = {value!r}: must be a finite number > 0")
+        for name in ("settle_s",):
+            value = getattr(self, name)
+            if not (_is_number(value) and value >= 0):
+                raise ConfigError(f"task.{name} = {value!r}: must be a finite number >= 0")
+        window = self.measurement_window_s
+        if not (_is_number(window) and window > 0):
+            raise ConfigError(f"task.measurement_window_s = {window!r}: must be a finite number > 0")
+        for name in ("z_step_mm", "retract_y_mm", "output_centre_y_mm"):
+            value = getattr(self, name)
+            if value is not None and not _is_number(value):
+                raise ConfigError(f"task.{name} = {value!r}: must be a finite number")
+        for name, size in (("start_mm", 3), ("orientation", 4)):
+            value = getattr(self, name)
+            if not (
+                isinstance(value, tuple) and len(value) == size and all(map(_is_number, value))
+            ):
+                raise ConfigError(f"task.{name} = {value!r}: must be {size} finite numbers")
         if self.z_step_mm == 0:
             raise ConfigError("task.z_step_mm must not be 0")
-        if self.retract_y_mm <= self.start_mm[1] + self.max_offset_mm:
-            raise ConfigError("task.retract_y_mm must lie beyond start Y + max_offset_mm")
+        if self.retract_y_mm <= self.fallback_centre_y_mm + self.fallback_offset_mm:
+            raise ConfigError(
+                f"task.retract_y_mm = {self.retract_y_mm:g} mm must lie beyond the output "
+                "range's top (centre + task.max_offset_mm = "
+                f"{self.fallback_centre_y_mm + self.fallback_offset_mm:g} mm)"
+            )
+
+    @property
+    def tolerance(self) -> float:
+        """The force error at which r = 1, N (``tolerance_n`` or half the desired force)."""
+        return self.tolerance_n if self.tolerance_n is not None else 0.5 * self.desired_force_n
+
+    @property
+    def map_configured(self) -> bool:
+        """True when the config gives the whole output map (the probe then chooses nothing)."""
+        return None not in (self.output_centre_y_mm, self.output_scale_mm, self.max_offset_mm)
+
+    @property
+    def fallback_centre_y_mm(self) -> float:
+        """Centre of the output map without a probe: the configured one, else start Y."""
+        return self.start_mm[1] if self.output_centre_y_mm is None else self.output_centre_y_mm
+
+    @property
+    def fallback_offset_mm(self) -> float:
+        """Half-range of the output map without a probe (15 mm unless configured)."""
+        return FALLBACK_OFFSET_MM if self.max_offset_mm is None else self.max_offset_mm
+
+    @property
+    def fallback_scale_mm(self) -> float:
+        """Scale of the output map without a probe (2 mm unless configured)."""
+        return FALLBACK_SCALE_MM if self.output_scale_mm is None else self.output_scale_mm
 
     def samples_for(self, sample_period_s: float) -> int:
         """Samples per step: the configured count, or as many as fit the measurement window."""
@@ -104,10 +169,11 @@ class SurfaceTaskSpec:
 
 
 class SurfaceYOutput:
-    """y(a) = start Y + scale · a, limited to ±max_offset: an absolute Y command in mm."""
+    """y(a) = centre Y + scale · a, limited to ±max_offset: an absolute Y command in mm."""
 
     def __init__(self, start_y_mm: float, scale_mm: float, max_offset_mm: float):
         self.start_y_mm = start_y_mm
+        """The centre Y (mm): the command at action 0."""
         self.scale_mm = scale_mm
         self.max_offset_mm = max_offset_mm
 
@@ -122,8 +188,15 @@ class SurfaceTask:
 
     name = "surface"
 
-    def __init__(self, cell: Cell, spec: SurfaceTaskSpec, max_step_mm: float):
+    def __init__(
+        self,
+        cell: Cell,
+        spec: SurfaceTaskSpec,
+        max_step_mm: float,
+        output: SurfaceYOutput | None = None,
+    ):
         self.cell = cell
+        self._output = output
         self.spec = spec
         self.max_step_mm = max_step_mm
         self.steps_per_trial = spec.steps_per_trial
@@ -134,9 +207,16 @@ class SurfaceTask:
         self._trial_start_s = 0.0
 
     def output_map(self) -> SurfaceYOutput:
-        """The output function y this task expects the learner to use."""
+        """The output function y this task expects the learner to use.
+
+        The map given at construction (the probe's choice), else the configured
+        or fallback one (:meth:`SurfaceTaskSpec.fallback_centre_y_mm` ...).
+        """
+        if self._output is not None:
+            return self._output
+        spec = self.spec
         return SurfaceYOutput(
-            self.spec.start_mm[1], self.spec.output_scale_mm, self.spec.max_offset_mm
+            spec.fallback_centre_y_mm, spec.fallback_scale_mm, spec.fallback_offset_mm
         )
 
     def retract(self) -> None:
@@ -184,7 +264,7 @@ class SurfaceTask:
             self.cell.move_in_steps(target, self.max_step_mm, guard_force=True)
             force = self.cell.measure_force_n()
             error = force - self.desired_force_n
-            r = abs(error) / self.spec.tolerance_n
+            r = abs(error) / self.spec.tolerance
             limit_hit = False
         except ForceLimitExceeded:
             force = self.cell.force_filter.force_n
@@ -196,3 +276,45 @@ class SurfaceTask:
             self.retract()
         extras = {"y_cmd_mm": y_cmd, "z_mm": target.z_mm, "limit_hit": float(limit_hit)}
         return StepOutcome(np.array([travel]), r, failed, force, error, extras)
+
+
+def check_task_limits(
+    spec: SurfaceTaskSpec,
+    max_force_n: float,
+    workspace_min_mm: tuple[float, float, float],
+    workspace_max_mm: tuple[float, float, float],
+) -> None:
+    """Refuse a task the safety limits make impossible, before any device opens.
+
+    Checks the desired force against the force limit, and the path (start,
+    end, retract plane) and any configured output range against the
+    workspace box (mm). Raises :class:`ConfigError` naming the key.
+    """
+    if spec.desired_force_n >= max_force_n:
+        raise ConfigError(
+            f"task.desired_force_n = {spec.desired_force_n:g} N is at or above "
+            f"safety.max_force_n = {max_force_n:g} N: every trial would stop at the limit; "
+            "lower the desired force (or raise the limit if the cell allows)"
+        )
+    lo, hi = workspace_min_mm, workspace_max_mm
+    x, y, z = spec.start_mm
+    end_z = z + spec.steps_per_trial * spec.z_step_mm
+
+    def inside(key: str, axis: int, value: float) -> None:
+        if not lo[axis] <= value <= hi[axis]:
+            name = "xyz"[axis]
+            raise ConfigError(
+                f"{key}: {name} = {value:g} mm lies outside the workspace "
+                f"[{lo[axis]:g}, {hi[axis]:g}] mm (safety.workspace_min_mm/max_mm)"
+            )
+
+    inside("task.start_mm", 0, x)
+    inside("task.start_mm", 1, y)
+    inside("task.start_mm", 2, z)
+    inside("task.z_step_mm (path end = start z + steps_per_trial * z_step_mm)", 2, end_z)
+    inside("task.retract_y_mm", 1, spec.retract_y_mm)
+    if spec.max_offset_mm is not None or spec.output_centre_y_mm is not None:
+        centre, half = spec.fallback_centre_y_mm, spec.fallback_offset_mm
+        key = "task.max_offset_mm" if spec.max_offset_mm is not None else "task.output_centre_y_mm"
+        inside(f"{key} (output range bottom = centre - max_offset)", 1, centre - half)
+        inside(f"{key} (output range top = centre + max_offset)", 1, centre + half)

@@ -19,6 +19,7 @@ table          holds
                ``workspace_max_mm``, ``stale_sensor_s``: always on, never off
 ``[task]``     the §5 surface task (:class:`SurfaceTaskSpec`)
 ``[learner]``  SRV hyperparameters (§5 values as defaults)
+``[probe]``    the surface probe before learning (:class:`ProbeSpec`)
 ``[run]``      ``trials``, ``seed``
 ``[emulator]`` ``time_scale`` (0: as fast as possible; 1: real time), ``profile``
                ("realistic", or "ideal": no time on wires, instant arm, no
@@ -46,7 +47,8 @@ from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
-from forcelearn.tasks.surface import SurfaceTaskSpec
+from forcelearn.tasks.surface import SurfaceTaskSpec, check_task_limits
+from forcelearn.tasks.surface_probe import ProbeSpec
 
 EMULATED = "emulated"
 DEFAULT_TRIALS = 300
@@ -184,9 +186,13 @@ class CellConfig:
     task: SurfaceTaskSpec = field(default_factory=SurfaceTaskSpec)
     learner: SRVParams = field(default_factory=lambda: SRVParams(**SECTION_LEARNER_DEFAULTS))
     emulator: EmulatorConfig = field(default_factory=EmulatorConfig)
+    probe: ProbeSpec = field(default_factory=ProbeSpec)
     calibration_file: Path | None = None
     trials: int = DEFAULT_TRIALS
     seed: int = 0
+    stop_after_converged: int = 0
+    """``[run] stop_after_converged``: end a run this many trials after it converged (0: never;
+    studies use it to spend no time on runs already decided)."""
     source: Path | None = None
 
     @property
@@ -227,6 +233,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
             "run",
             "emulator",
             "calibration",
+            "probe",
         },
     )
     safety = build(SafetyLimits, data.get("safety"), "safety")
@@ -269,7 +276,11 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         },
         "emulator",
     )
-    trials, seed = read_run_table(data, DEFAULT_TRIALS)
+    run_table = dict(data.get("run", {}))
+    stop_after = run_table.pop("stop_after_converged", 0)
+    if isinstance(stop_after, bool) or not isinstance(stop_after, int) or stop_after < 0:
+        raise ConfigError(f"run.stop_after_converged = {stop_after!r}: a whole number >= 0")
+    trials, seed = read_run_table({"run": run_table}, DEFAULT_TRIALS)
     calibration = dict(data.get("calibration", {}))
     if set(calibration) - {"file"}:
         raise ConfigError("[calibration] takes one key, file")
@@ -278,19 +289,23 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         calibration_file = Path(calibration["file"])
         if not calibration_file.is_absolute() and path is not None:
             calibration_file = Path(path).parent / calibration_file
+    task = build(SurfaceTaskSpec, data.get("task"), "task")
+    check_task_limits(task, safety.max_force_n, safety.workspace_min_mm, safety.workspace_max_mm)
     return CellConfig(
         robot=robot,
         bus=bus,
         sensor=sensor,
         filter=build(ForceFilterConfig, filter_table, "filter"),
         safety=safety,
-        task=build(SurfaceTaskSpec, data.get("task"), "task"),
+        task=task,
         learner=build(
             SRVParams, {**SECTION_LEARNER_DEFAULTS, **data.get("learner", {})}, "learner"
         ),
         emulator=emulator,
+        probe=build(ProbeSpec, data.get("probe"), "probe"),
         calibration_file=calibration_file,
         trials=trials,
         seed=seed,
+        stop_after_converged=stop_after,
         source=Path(path) if path else None,
     )

@@ -65,6 +65,7 @@ def run_contour_batch(
         records = result.records[b]
         switch = result.switch_trial[b]
         greedy, _ = run_trial(learner.member(b), single, len(records), learn=False)
+        converged_at = converged_trial(records, single.steps_per_trial, single.desired_force_n)
         summaries.append(
             {
                 "task": "contour",
@@ -73,9 +74,8 @@ def run_contour_batch(
                 "trials": len(records),
                 "phase_switch_trial": switch,
                 "criterion_trial": criterion_trial(records, config.learner.success_trials),
-                "converged_trial": converged_trial(
-                    records, single.steps_per_trial, single.desired_force_n
-                ),
+                "converged_trial": converged_at,
+                "converged": converged_at is not None,
                 **final_figures(records),
                 "switch_force_rms_n": records[switch].force_rms_n if switch is not None else None,
                 "failures": sum(r.failed for r in records),

@@ -15,6 +15,7 @@ from typing import Any
 
 from forcelearn.config import build, check_sections, read_run_table, read_toml
 from forcelearn.emulators.physics.two_link_arm import ContourGeometry, TwoLinkContourCell
+from forcelearn.errors import ConfigError
 from forcelearn.learning import SRVLearner, SRVParams
 from forcelearn.run_output import final_figures
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
@@ -56,7 +57,11 @@ def load_config(
         trials=trials,
         seed=seed,
     )
-    return replace(config, **{k: v for k, v in (overrides or {}).items() if v is not None})
+    config.task.check_start(config.geometry.start_theta_deg)
+    config = replace(config, **{k: v for k, v in (overrides or {}).items() if v is not None})
+    if config.trials < 1:
+        raise ConfigError(f"run.trials = {config.trials}: must be >= 1")
+    return config
 
 
 @dataclass
@@ -81,6 +86,7 @@ def run_contour(
     result = train(learner, task, config.trials, on_trial=on_trial)
     wall_s = time.perf_counter() - started
     greedy, _ = run_trial(learner, task, len(result.records), learn=False)
+    converged_at = converged_trial(result.records, task.steps_per_trial, task.desired_force_n)
     summary: dict[str, Any] = {
         "task": "contour",
         "mode": "two-phase" if config.learner.generalized_phase else "specialized-only",
@@ -88,9 +94,8 @@ def run_contour(
         "trials": len(result.records),
         "phase_switch_trial": result.switch_trial,
         "criterion_trial": criterion_trial(result.records, config.learner.success_trials),
-        "converged_trial": converged_trial(
-            result.records, task.steps_per_trial, task.desired_force_n
-        ),
+        "converged_trial": converged_at,
+        "converged": converged_at is not None,
         **final_figures(result.records),
         "switch_force_rms_n": (
             result.records[result.switch_trial].force_rms_n

@@ -21,6 +21,9 @@ from forcelearn.learning import SRVLearner
 from forcelearn.tools.surface_run import execute, prepare_run
 from forcelearn.trainer import TrialRecord
 
+NOT_CONVERGED = 3
+"""Exit status of a run that ended unconverged under ``--require-converged``."""
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``forcelearn run``."""
@@ -30,6 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, help="run directory (default runs/surface-<time>)")
     parser.add_argument("--resume", type=Path, metavar="DIR", help="continue the run in DIR")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--require-converged",
+        action="store_true",
+        help=f"exit with status {NOT_CONVERGED} when the run ends unconverged",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -74,7 +82,12 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         with bar:
-            summary = execute(surface_run, checkpoint, on_trial=progress)
+            summary = execute(
+                surface_run,
+                checkpoint,
+                on_trial=progress,
+                on_warning=lambda text: bar.write(f"forcelearn run: WARNING {text}", sys.stderr),
+            )
     except KeyboardInterrupt:
         print(
             f"\nforcelearn run: interrupted; the robot was stopped and the last whole trial "
@@ -84,6 +97,9 @@ def run(args: argparse.Namespace) -> int:
         return 130
     print(json.dumps(summary, indent=2))
     print(f"run directory: {out}")
+    if not summary["converged"]:
+        print(f"forcelearn run: NOT CONVERGED: {summary['diagnosis']}", file=sys.stderr)
+        return NOT_CONVERGED if args.require_converged else 0
     return 0
 
 

@@ -39,14 +39,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     contour.add_argument("--config", type=Path, help="TOML file: [learner] [task] [geometry] [run]")
     contour.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     contour.add_argument("--no-progress", action="store_true", help="no progress bar")
+    contour.add_argument(
+        "--require-converged",
+        action="store_true",
+        help="exit with status 3 when the run ends unconverged",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the contour simulation and write its run directory."""
     config = load_config(args.config, {"trials": args.trials, "seed": args.seed})
-    if config.trials < 1:
-        print("forcelearn sim contour: --trials must be >= 1", file=sys.stderr)
-        return 2
     if args.specialized_only:
         config = replace(config, learner=replace(config.learner, generalized_phase=False))
     out = args.out or Path("runs") / f"contour-seed{config.seed}"
@@ -75,4 +77,11 @@ def run(args: argparse.Namespace) -> int:
         figures_contour.write_all(result, config.geometry, done.task.steps_per_trial, out)
     print(json.dumps(done.summary, indent=2))
     print(f"run directory: {out}")
+    if not done.summary["converged"]:
+        print(
+            f"forcelearn sim contour: NOT CONVERGED in {config.trials} trials (no 10 complete "
+            "trials in a row within 5 % force RMS); try more trials (--trials)",
+            file=sys.stderr,
+        )
+        return 3 if args.require_converged else 0
     return 0

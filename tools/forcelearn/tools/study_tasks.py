@@ -56,7 +56,15 @@ def result_row(spec: RunSpec, config: Any, summary: dict[str, Any]) -> dict[str,
         "trials": spec.trials,
     }
     row.update({k: format_value(v) for k, v in leaf_keys(config).items()})
-    row.update({k: v for k, v in summary.items() if k not in SUMMARY_SKIP})
+    for key, value in summary.items():
+        if key in SUMMARY_SKIP or isinstance(value, list):
+            continue  # lists (probe fits, warnings) stay in the run's own summary.json
+        if isinstance(value, dict):  # e.g. the output map: one column per scalar field
+            row.update(
+                {f"{key}.{k}": v for k, v in value.items() if not isinstance(v, dict | list)}
+            )
+        else:
+            row[key] = value
     return row
 
 

@@ -11,12 +11,20 @@ The run directory holds:
                        trial.
 ``config.toml``        the cell config the run started with (resume reads it)
 ``summary.json``       task, seed, trials, phase_switch_trial, criterion_trial,
-                       converged_trial, final_force_rms_n, final_mean_r, steps,
-                       wall_s, steps_per_s, ...
+                       converged_trial, converged, diagnosis, final_force_rms_n,
+                       final_mean_r, steps, wall_s, steps_per_s, output_map,
+                       probe (fits), ...
+``probe.csv``          the surface probe's readings (``probe.png`` its figure)
 ``trials.csv``         one row per trial
 ``steps_*.csv``        step logs: first trial, mid-way, phase switch, last trial
 ``fig12..14*.png``     the paper's Figs. 12-14
 =====================  ==========================================================
+
+A new run first probes the surface (:mod:`forcelearn.tasks.surface_probe`)
+and takes its output map from the fit; the probe and the map are kept in the
+checkpoint, so a resumed run does not probe again. During the run a
+:class:`~forcelearn.tasks.surface_diagnosis.StuckMonitor` warns (once, through
+``on_warning`` and the log) when learning is stuck.
 
 A resumed run re-opens the cell, restores the learner (with its random
 generator) and, on an emulated cell, the emulators' state, then continues with
@@ -39,6 +47,14 @@ from forcelearn.errors import ForcelearnError, StateFileError
 from forcelearn.learning import SRVLearner, load_extra_arrays, load_learner, save_learner
 from forcelearn.run_output import final_figures, write_step_log, write_summary, write_trials
 from forcelearn.tasks.surface import SurfaceTask
+from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
+from forcelearn.tasks.surface_probe import (
+    OutputMapChoice,
+    ProbeResult,
+    SurfaceProbe,
+    choose_output_map,
+    configured_map,
+)
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.trainer import (
@@ -52,9 +68,14 @@ from forcelearn.trainer import (
 
 log = logging.getLogger(__name__)
 
+
+class _ConvergedStop(Exception):
+    """Raised after a trial to end a run early (``[run] stop_after_converged``)."""
+
 CHECKPOINT = "checkpoint.npz"
 CONFIG_COPY = "config.toml"
-RUN_STATE_VERSION = 3
+RUN_STATE_VERSION = 4
+"""4: the probe's result and the output map in the metadata (issue 11)."""
 
 
 @dataclasses.dataclass
@@ -71,6 +92,12 @@ class SurfaceRun:
     wall_s: float = 0.0
     saved: tuple[int, int, TrialLog | None] = (0, 0, None)
     """(trials, steps, last log) as of the last checkpoint written."""
+    probe: ProbeResult | None = None
+    """The surface probe's readings and fits (None: no probe)."""
+    output_map: OutputMapChoice | None = None
+    """The output map the learner uses (from the probe and/or the config)."""
+    monitor: StuckMonitor | None = None
+    """Watches for stuck learning (edge of the range, no trial completing)."""
 
     def mark_saved(self) -> None:
         """Remember what the checkpoint on disk holds."""
@@ -154,6 +181,8 @@ def _run_state(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any
         "steps": result.steps,
         "wall_s": run.wall_s,
         "emulator": emulator_state,
+        "probe": run.probe.to_json() if run.probe is not None else None,
+        "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
     }
 
 
@@ -172,6 +201,8 @@ def _restore(run: SurfaceRun, state: dict[str, Any], arrays: dict[str, np.ndarra
     result.logs = {int(k): _log_from_json(v) for k, v in state["logs"].items()}  # type: ignore[misc]
     result.steps = int(state["steps"])
     run.wall_s = float(state["wall_s"])
+    run.probe = ProbeResult.from_json(state["probe"]) if state["probe"] is not None else None
+    run.output_map = OutputMapChoice(**state["output_map"])
 
 
 def prepare_run(
@@ -212,8 +243,13 @@ def execute(
     run: SurfaceRun,
     checkpoint: Path | None,
     on_trial: Callable[[TrialRecord, SRVLearner], Any] | None = None,
+    on_warning: Callable[[str], Any] | None = None,
 ) -> dict[str, Any]:
     """Open the cell and run (or continue) the trials; checkpoint after each; return the summary.
+
+    A new run probes the surface first (unless ``[probe] enabled = false`` or
+    the config gives the whole output map); ``on_warning`` receives the stuck
+    monitor's warnings (one line each).
 
     Ctrl-C (KeyboardInterrupt) or any device error stops the robot; the last
     whole trial is already on disk, and the outputs are written for the trials
@@ -224,15 +260,25 @@ def execute(
     wall_before = run.wall_s
     with CellSession(config, seed=run.seed) as session:
         assert session.cell is not None
-        task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
-        output = task.output_map()
         if checkpoint is not None:
-            learner, state = load_learner(checkpoint, output=output)
+            state = load_learner(checkpoint)[1]
             _restore(run, state, load_extra_arrays(checkpoint))
             session.load_emulator_state(state["emulator"])
             run.mark_saved()
         else:
+            probe_and_choose(run, session)
+        assert run.output_map is not None
+        output = run.output_map.output()
+        task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
+        if checkpoint is not None:
+            learner = load_learner(checkpoint, output=output)[0]
+        else:
             learner = SRVLearner(task.grid, 1, config.learner, rng=run.seed, output=output)
+        monitor = run.monitor = StuckMonitor(
+            run.output_map.centre_y_mm, run.output_map.max_offset_mm, config.task.steps_per_trial
+        )
+        for record, trace in zip(run.result.records, run.traces, strict=True):  # resumed
+            monitor.update(record, trace["command_y_mm"])
 
         def after_trial(record: TrialRecord, trial_log: TrialLog, lrn: SRVLearner) -> None:
             run.traces.append(
@@ -252,8 +298,20 @@ def execute(
                 arrays=_history_arrays(run),
             )
             run.mark_saved()
+            warning = monitor.update(record, run.traces[-1]["command_y_mm"])
+            if warning is not None:
+                log.warning("%s", warning)
+                if on_warning is not None:
+                    on_warning(warning)
             if on_trial is not None:
                 on_trial(record, lrn)
+            after = config.stop_after_converged
+            if after > 0:
+                at = converged_trial(
+                    run.result.records, config.task.steps_per_trial, config.task.desired_force_n
+                )
+                if at is not None and record.index - at >= after:
+                    raise _ConvergedStop
 
         remaining = run.trials - len(run.result.records)
         try:
@@ -266,6 +324,8 @@ def execute(
                     on_trial=after_trial,
                     result=run.result,
                 )
+        except _ConvergedStop:
+            log.info("converged; stopped %d trials later", config.stop_after_converged)
         except (KeyboardInterrupt, ForcelearnError):
             session.cell.stop()
             run.rollback_to_saved()
@@ -275,18 +335,81 @@ def execute(
     return write_outputs(run, learner)
 
 
+def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:
+    """Probe the surface (if enabled and needed) and set the run's output map; write probe files.
+
+    Raises:
+        ProbeError: no surface found, or the desired force is out of reach.
+    """
+    config = run.config
+    assert session.cell is not None
+    if not config.probe.enabled or config.task.map_configured:
+        run.output_map = configured_map(config.task)
+        return
+    probe = SurfaceProbe(
+        session.cell,
+        config.task,
+        config.probe,
+        config.safety.max_step_mm,
+        config.safety.workspace_min_mm[1],
+    )
+    try:
+        run.probe = probe.run()
+    finally:
+        write_probe_files(run.out, probe.result, None)
+    run.output_map = choose_output_map(
+        run.probe, config.task, config.probe, config.safety.workspace_min_mm[1]
+    )
+    write_probe_files(run.out, run.probe, run.output_map)
+
+
+def write_probe_files(
+    out: Path, probe: ProbeResult, choice: OutputMapChoice | None
+) -> None:
+    """probe.csv (every reading), probe.json (fits and map) and probe.png (the figure)."""
+    import csv
+    import json
+
+    from forcelearn.tools import figures_probe
+
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "probe.csv", "w", newline="") as handle:
+        fields = ["point", "z_mm", "y_mm", "phase", "early_force_n", "force_n", "cell_time_s"]
+        writer = csv.DictWriter(handle, fieldnames=fields)
+        writer.writeheader()
+        writer.writerows(probe.rows)
+    data = {**probe.to_json(), "output_map": dataclasses.asdict(choice) if choice else None}
+    del data["rows"]
+    (out / "probe.json").write_text(json.dumps(data, indent=2))
+    if probe.rows:
+        figures_probe.write_probe_figure(probe, choice, out / "probe.png")
+
+
 def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
     """The run's summary.json content."""
     result, config = run.result, run.config
     cell_time = float(sum(r.cell_time_s for r in result.records))
+    converged_at = converged_trial(
+        result.records, config.task.steps_per_trial, config.task.desired_force_n
+    )
+    monitor = run.monitor or StuckMonitor(0.0, 1.0, config.task.steps_per_trial)
+    converged, diagnosis = diagnose(result.records, converged_at, monitor)
     return {
         "task": "surface",
         "seed": run.seed,
         "trials": len(result.records),
         "phase_switch_trial": result.switch_trial,
         "criterion_trial": criterion_trial(result.records, config.learner.success_trials),
-        "converged_trial": converged_trial(
-            result.records, config.task.steps_per_trial, config.task.desired_force_n
+        "converged_trial": converged_at,
+        "converged": converged,
+        "diagnosis": diagnosis,
+        "warnings": list(monitor.warnings),
+        "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
+        "probe_stiffness_n_per_mm": (
+            run.probe.stiffness_n_per_mm() if run.probe is not None else None
+        ),
+        "probe_fits": (
+            [dataclasses.asdict(f) for f in run.probe.fits] if run.probe is not None else None
         ),
         **final_figures(result.records),
         "failures": sum(r.failed for r in result.records),

@@ -1,0 +1,439 @@
+"""Find the surface before learning: a short, force-guarded probe, a fit, and the output map.
+
+At a few points along the §5 path (``[probe] points``: fractions of the path,
+default its start, middle and end) the probe
+
+1. stands off at the retract plane (``task.retract_y_mm``) and reads the
+   free-space force (the baseline);
+2. approaches along −Y in steps of ``approach_step_mm`` until the force rises
+   ``contact_force_n`` above the baseline (no further than ``max_depth_mm``
+   below the retract plane and never outside the workspace);
+3. presses on in ``press_points`` steps, sized from a running stiffness
+   estimate so the last one reaches about ``press_force_ratio`` × the desired
+   force; after each step it **dwells** ``dwell_s`` before it reads the force:
+   a fresh indentation of foam reads stiffer (the standard linear solid of the
+   emulated sponge reads ~25 % high at first and relaxes with 0.4 s), and the
+   dwell of ~4 time constants leaves < 1 % of that, so the fit is of the
+   relaxed stiffness, the one a slow pass sees. The force right after the
+   step is kept too (``early_force_n``) to show the relaxation;
+4. retracts to the retract plane.
+
+Every step is force-guarded: one move at a time, the force read after every
+move through :meth:`Cell.measure_force_n` (which stops the robot past
+``safety.max_force_n``), and the probe itself stops pressing before a step
+whose predicted (unrelaxed) force would pass ``max_force_ratio`` × the limit.
+
+Fit (per point): relaxed force F = k · (y_c − y) by least squares over the
+points in contact; stiffness k (N/mm) and contact Y y_c (mm), each with its
+standard error from the residuals.
+
+Output map (what the learner commands, y = centre + scale · a within
+±half-range): centre = mean over the points of the Y where the fit gives the
+desired force; scale = ``force_per_unit`` × tolerance / k (so one action unit
+is the same share of the tolerance on any sponge; 2 mm on the default one);
+half-range = the spread of those Ys + 3 mm + ``wear_margin`` × the needed
+depth (the sponge softens and sets with wear; the desired force drifts
+deeper). The range is cut to the allowed depth (``max_depth_mm`` below the
+shallowest contact, and the workspace) and kept under the retract plane.
+A desired force whose needed depth (with 10 % margin) passes the allowed depth
+is refused (:class:`ProbeError`, with both figures).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from forcelearn.cell import Cell
+from forcelearn.devices import Pose
+from forcelearn.errors import ConfigError, ForcelearnError
+from forcelearn.tasks.surface import SurfaceTaskSpec, SurfaceYOutput
+
+log = logging.getLogger(__name__)
+
+MIN_MARGIN_MM = 3.0
+"""Least margin of the output range beyond the spread of the target Ys, mm."""
+NEEDED_DEPTH_MARGIN = 1.1
+"""A desired force is refused when 1.1 × its needed depth passes the allowed depth."""
+
+
+class ProbeError(ForcelearnError):
+    """The probe found no surface, or a surface on which the desired force cannot be reached."""
+
+
+def _finite(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+@dataclass(frozen=True)
+class ProbeSpec:
+    """The probe's settings (``[probe]`` table); lengths mm, forces N, times s (robot clock)."""
+
+    enabled: bool = True
+    """Probe at the start of a new run (the output map then comes from it)."""
+    points: tuple[float, ...] = (0.0, 0.5, 1.0)
+    """Where along the path to probe, as fractions of it (0: start Z, 1: end Z)."""
+    approach_step_mm: float = 1.0
+    """Step of the approach from the retract plane towards the surface, mm."""
+    contact_force_n: float = 1.0
+    """Rise of the force above the free-space baseline that marks contact, N."""
+    press_points: int = 6
+    """Force readings in contact per point (the first contact counts), >= 3."""
+    press_force_ratio: float = 1.25
+    """The deepest press aims at this × the desired force (the fit spans the working force)."""
+    max_force_ratio: float = 0.7
+    """The probe never steps where its predicted unrelaxed force passes this × the force limit."""
+    max_depth_mm: float = 38.0
+    """Deepest compression allowed below the contact, mm (assumption: 95 % of the default
+    40 mm foam; set it from your material: beyond it the roller meets the backing)."""
+    dwell_s: float = 1.5
+    """Wait after each press step before reading, s (~4 relaxation time constants of the foam)."""
+    samples: int = 16
+    """Sensor samples read per force reading."""
+    force_per_unit: float = 0.4
+    """One action unit = this share of the tolerance in force (sets the scale)."""
+    wear_margin: float = 0.5
+    """Extra half-range for wear and drift, as a share of the needed depth."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.enabled, bool):
+            raise ConfigError(f"probe.enabled = {self.enabled!r}: true or false")
+        if not (
+            isinstance(self.points, tuple)
+            and self.points
+            and all(_finite(p) and 0.0 <= p <= 1.0 for p in self.points)
+        ):
+            raise ConfigError(f"probe.points = {self.points!r}: fractions of the path in [0, 1]")
+        for name in ("press_points", "samples"):
+            value = getattr(self, name)
+            least = 3 if name == "press_points" else 1
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise ConfigError(f"probe.{name} = {value!r}: a whole number >= {least}")
+        positive = (
+            "approach_step_mm", "contact_force_n", "press_force_ratio", "max_depth_mm",
+            "force_per_unit",
+        )
+        for name in positive:
+            value = getattr(self, name)
+            if not (_finite(value) and value > 0):
+                raise ConfigError(f"probe.{name} = {value!r}: a finite number > 0")
+        for name in ("dwell_s", "wear_margin"):
+            value = getattr(self, name)
+            if not (_finite(value) and value >= 0):
+                raise ConfigError(f"probe.{name} = {value!r}: a finite number >= 0")
+        if not (_finite(self.max_force_ratio) and 0 < self.max_force_ratio < 1):
+            raise ConfigError(f"probe.max_force_ratio = {self.max_force_ratio!r}: in (0, 1)")
+
+
+@dataclass(frozen=True)
+class ContactFit:
+    """F = k · (y_c − y) fitted at one probe point."""
+
+    z_mm: float
+    stiffness_n_per_mm: float
+    stiffness_std: float
+    contact_y_mm: float
+    contact_y_std: float
+    residual_rms_n: float
+    points: int
+
+
+def fit_contact(y_mm: np.ndarray, force_n: np.ndarray, z_mm: float = math.nan) -> ContactFit:
+    """Least-squares F = k (y_c − y) through readings in contact; standard errors from residuals.
+
+    Raises:
+        ProbeError: fewer than 2 readings, or no force rise with depth.
+    """
+    y = np.asarray(y_mm, float)
+    f = np.asarray(force_n, float)
+    if len(y) < 2:
+        raise ProbeError(f"the probe at z = {z_mm:g} mm got {len(y)} readings in contact; need 2")
+    design = np.column_stack([np.ones_like(y), y])
+    coef, *_ = np.linalg.lstsq(design, f, rcond=None)
+    intercept, slope = float(coef[0]), float(coef[1])
+    if not slope < 0:
+        raise ProbeError(
+            f"the force did not rise with depth at z = {z_mm:g} mm (slope {-slope:.3g} N/mm): "
+            "is the sensor's normal axis/sign right ([filter] axis, sign)?"
+        )
+    residual = f - design @ coef
+    dof = max(len(y) - 2, 1)
+    s2 = float(residual @ residual) / dof
+    cov = s2 * np.linalg.pinv(design.T @ design)
+    k = -slope
+    y_c = intercept / k
+    # y_c = -a/b: gradient (-1/b, a/b^2)
+    grad = np.array([-1.0 / slope, intercept / slope**2])
+    y_c_var = float(grad @ cov @ grad)
+    return ContactFit(
+        z_mm=float(z_mm),
+        stiffness_n_per_mm=k,
+        stiffness_std=math.sqrt(max(float(cov[1, 1]), 0.0)),
+        contact_y_mm=y_c,
+        contact_y_std=math.sqrt(max(y_c_var, 0.0)),
+        residual_rms_n=math.sqrt(float(residual @ residual) / len(y)),
+        points=len(y),
+    )
+
+
+@dataclass(frozen=True)
+class OutputMapChoice:
+    """The output map y = centre + scale · a within ±max_offset (mm), and where it came from."""
+
+    centre_y_mm: float
+    scale_mm: float
+    max_offset_mm: float
+    needed_depth_mm: float
+    """Mean compression (mm) the fits predict for the desired force."""
+    allowed_depth_mm: float
+    """Deepest compression below the shallowest contact the map may command, mm."""
+    source: str = "probe"
+    """"probe", "config" or "probe+config" (keys given in the config win)."""
+
+    def output(self) -> SurfaceYOutput:
+        """The learner's output function."""
+        return SurfaceYOutput(self.centre_y_mm, self.scale_mm, self.max_offset_mm)
+
+    @property
+    def action_range(self) -> float:
+        """Half-range in action units."""
+        return self.max_offset_mm / self.scale_mm
+
+
+@dataclass
+class ProbeResult:
+    """What the probe read and fitted (JSON-able through :meth:`to_json`)."""
+
+    rows: list[dict[str, float]] = field(default_factory=list)
+    """Every reading: point, z_mm, y_mm, phase ("baseline", "approach", "press"),
+    force_n (relaxed, baseline removed), early_force_n, cell_time_s."""
+    fits: list[ContactFit] = field(default_factory=list)
+    baselines_n: list[float] = field(default_factory=list)
+
+    def to_json(self) -> dict[str, Any]:
+        """Plain data for a checkpoint or summary.json."""
+        return {
+            "rows": self.rows,
+            "fits": [asdict(f) for f in self.fits],
+            "baselines_n": self.baselines_n,
+        }
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> ProbeResult:
+        """Inverse of :meth:`to_json`."""
+        return cls(
+            rows=[dict(r) for r in data["rows"]],
+            fits=[ContactFit(**f) for f in data["fits"]],
+            baselines_n=[float(b) for b in data["baselines_n"]],
+        )
+
+    def stiffness_n_per_mm(self) -> float:
+        """Mean fitted stiffness over the points, N/mm."""
+        return float(np.mean([f.stiffness_n_per_mm for f in self.fits]))
+
+
+class SurfaceProbe:
+    """Runs the probe on a cell (see the module docstring); one instance per probe."""
+
+    def __init__(
+        self,
+        cell: Cell,
+        task: SurfaceTaskSpec,
+        spec: ProbeSpec,
+        max_step_mm: float,
+        workspace_min_y_mm: float,
+    ):
+        self.cell = cell
+        self.task = task
+        self.spec = spec
+        self.max_step_mm = max_step_mm
+        self.floor_y_mm = workspace_min_y_mm
+        self.result = ProbeResult()
+
+    def run(self) -> ProbeResult:
+        """Probe every point; the robot ends at the retract plane above the last one."""
+        x, _, z0 = self.task.start_mm
+        for index, fraction in enumerate(self.spec.points):
+            z = z0 + fraction * self.task.steps_per_trial * self.task.z_step_mm
+            try:
+                self._probe_point(index, x, z)
+            finally:
+                self._retract()
+        return self.result
+
+    def _pose(self, x: float, y: float, z: float) -> Pose:
+        return Pose(x, y, z, self.task.start_pose().quaternion)
+
+    def _retract(self) -> None:
+        pose = self.cell.pose
+        self.cell.move_in_steps(
+            self._pose(pose.x_mm, self.task.retract_y_mm, pose.z_mm), self.max_step_mm
+        )
+
+    def _read(self, dwell_s: float) -> tuple[float, float]:
+        """(early, relaxed) force, N: read at once, then again after ``dwell_s``."""
+        cell = self.cell
+        cell.reset_filter()
+        early = cell.measure_force_n(self.spec.samples)
+        if dwell_s > 0:
+            try:
+                cell.time_s = cell.robot.wait_in_position(cell.move_timeout_s, dwell_s)
+            except ForcelearnError:
+                cell.stop()
+                raise
+        cell.reset_filter()
+        return early, cell.measure_force_n(self.spec.samples)
+
+    def _record(self, point: int, z: float, y: float, phase: str, early: float, force: float):
+        self.result.rows.append(
+            {
+                "point": point,
+                "z_mm": z,
+                "y_mm": y,
+                "phase": phase,
+                "early_force_n": early,
+                "force_n": force,
+                "cell_time_s": self.cell.time_s,
+            }
+        )
+
+    def _probe_point(self, index: int, x: float, z: float) -> None:
+        spec, task, cell = self.spec, self.task, self.cell
+        limit_n = spec.max_force_ratio * cell.max_force_n
+        aim_n = min(spec.press_force_ratio * task.desired_force_n, limit_n / 1.4)
+        top = task.retract_y_mm
+        floor = max(self.floor_y_mm, top - spec.max_depth_mm - 60.0)
+        self._retract()
+        cell.move_in_steps(self._pose(x, top, z), self.max_step_mm)
+        _, baseline = self._read(0.0)
+        self.result.baselines_n.append(baseline)
+        self._record(index, z, top, "baseline", baseline, 0.0)
+        if baseline > spec.contact_force_n:
+            raise ProbeError(
+                f"force {baseline:.2f} N at the retract plane (task.retract_y_mm = {top:g} mm, "
+                f"z = {z:g} mm): the tool is already in contact; raise task.retract_y_mm"
+            )
+        y = top
+        while True:  # approach
+            y -= spec.approach_step_mm
+            if y < floor:
+                raise ProbeError(
+                    f"no contact between y = {top:g} and {floor:g} mm at z = {z:g} mm "
+                    f"(force stayed under {spec.contact_force_n:g} N above the baseline): "
+                    "check task.start_mm and task.retract_y_mm against where the surface is"
+                )
+            cell.move_in_steps(self._pose(x, y, z), self.max_step_mm, guard_force=True)
+            early = cell.measure_force_n() - baseline
+            if early > spec.contact_force_n:
+                break
+            self._record(index, z, y, "approach", early, early)
+        ys: list[float] = []
+        forces: list[float] = []
+        contact_guess = y + spec.approach_step_mm
+        depth_floor = max(floor, contact_guess - spec.max_depth_mm)
+        while True:  # press
+            early, relaxed = self._read(spec.dwell_s)
+            early, relaxed = early - baseline, relaxed - baseline
+            self._record(index, z, y, "press", early, relaxed)
+            ys.append(y)
+            forces.append(relaxed)
+            if len(ys) >= spec.press_points or relaxed >= aim_n:
+                break
+            if len(ys) >= 2:
+                k = max((forces[0] - forces[-1]) / (ys[-1] - ys[0]), 1e-3)
+            else:
+                k = max(relaxed / max(contact_guess - y, 0.5 * spec.approach_step_mm), 1e-3)
+            remaining = spec.press_points - len(ys)
+            step = max((aim_n - relaxed) / k / remaining, 0.25 * spec.approach_step_mm)
+            step = min(step, 0.99 * self.max_step_mm)
+            seen = [(e - f) / f for e, f in zip(self._early(index), forces, strict=True) if f > 0.5]
+            ratio = max(1.3, 1.0 + max(seen, default=0.0))  # unrelaxed / relaxed force
+            if ratio * (relaxed + k * step) > limit_n or y - step < depth_floor:
+                break  # the next step could pass the probe's force limit or depth
+            y -= step
+            cell.move_in_steps(self._pose(x, y, z), self.max_step_mm, guard_force=True)
+        contact = [(yy, ff) for yy, ff in zip(ys, forces, strict=True) if ff > spec.contact_force_n]
+        if len(contact) < 2:
+            contact = list(zip(ys, forces, strict=True))
+        fit = fit_contact(np.array([c[0] for c in contact]), np.array([c[1] for c in contact]), z)
+        self.result.fits.append(fit)
+        log.info(
+            "probe z = %.1f mm: k = %.3f ± %.3f N/mm, contact y = %.2f ± %.2f mm (%d points)",
+            z, fit.stiffness_n_per_mm, fit.stiffness_std, fit.contact_y_mm, fit.contact_y_std,
+            fit.points,
+        )
+
+    def _early(self, index: int) -> list[float]:
+        return [
+            r["early_force_n"] for r in self.result.rows
+            if r["point"] == index and r["phase"] == "press"
+        ]
+
+
+def choose_output_map(
+    result: ProbeResult,
+    task: SurfaceTaskSpec,
+    spec: ProbeSpec,
+    workspace_min_y_mm: float,
+) -> OutputMapChoice:
+    """Choose centre, scale and half-range from the fits; configured keys win.
+
+    Raises:
+        ProbeError: the desired force needs more depth than allowed (figures given).
+    """
+    fits = result.fits
+    if not fits:
+        raise ProbeError("the probe fitted no point")
+    targets = np.array([f.contact_y_mm - task.desired_force_n / f.stiffness_n_per_mm for f in fits])
+    depths = np.array([task.desired_force_n / f.stiffness_n_per_mm for f in fits])
+    needed = float(np.max(depths))
+    top_contact = max(f.contact_y_mm for f in fits)
+    allowed_bottom = max(
+        min(f.contact_y_mm for f in fits) - spec.max_depth_mm, workspace_min_y_mm
+    )
+    allowed = top_contact - allowed_bottom
+    if NEEDED_DEPTH_MARGIN * needed > allowed:
+        raise ProbeError(
+            f"task.desired_force_n = {task.desired_force_n:g} N needs {needed:.1f} mm of "
+            f"compression (fitted stiffness {min(f.stiffness_n_per_mm for f in fits):.3g} N/mm, "
+            f"with 10 % margin {NEEDED_DEPTH_MARGIN * needed:.1f} mm), more than the "
+            f"{allowed:.1f} mm allowed (probe.max_depth_mm = {spec.max_depth_mm:g}, "
+            "safety.workspace_min_mm): lower the desired force or allow more depth"
+        )
+    centre = float(np.mean(targets))
+    spread = float(np.max(np.abs(targets - centre)))
+    half = spread + MIN_MARGIN_MM + spec.wear_margin * float(np.mean(depths))
+    half = min(half, centre - allowed_bottom, task.retract_y_mm - 1.0 - centre)
+    k = result.stiffness_n_per_mm()
+    scale = spec.force_per_unit * task.tolerance / k
+    source = "probe"
+    if task.output_centre_y_mm is not None:
+        centre, source = task.output_centre_y_mm, "probe+config"
+    if task.output_scale_mm is not None:
+        scale, source = task.output_scale_mm, "probe+config"
+    if task.max_offset_mm is not None:
+        half, source = task.max_offset_mm, "probe+config"
+    if half <= 0:
+        raise ProbeError(
+            f"no room for an output range: centre y = {centre:.2f} mm, retract plane "
+            f"task.retract_y_mm = {task.retract_y_mm:g} mm, deepest allowed y = "
+            f"{allowed_bottom:.2f} mm"
+        )
+    return OutputMapChoice(centre, scale, half, needed, allowed, source)
+
+
+def configured_map(task: SurfaceTaskSpec) -> OutputMapChoice:
+    """The map without a probe: the configured keys, else the pre-probe fallback."""
+    source = "config" if task.map_configured else "fallback"
+    return OutputMapChoice(
+        task.fallback_centre_y_mm,
+        task.fallback_scale_mm,
+        task.fallback_offset_mm,
+        math.nan,
+        math.nan,
+        source,
+    )
