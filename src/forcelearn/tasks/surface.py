@@ -102,7 +102,9 @@ class SurfaceTaskSpec:
                 raise ConfigError(f"task.{name} = {value!r}: must be a finite number >= 0")
         window = self.measurement_window_s
         if not (_is_number(window) and window > 0):
-            raise ConfigError(f"task.measurement_window_s = {window!r}: must be a finite number > 0")
+            raise ConfigError(
+                f"task.measurement_window_s = {window!r}: must be a finite number > 0"
+            )
         for name in ("z_step_mm", "retract_y_mm", "output_centre_y_mm"):
             value = getattr(self, name)
             if value is not None and not _is_number(value):
