@@ -27,7 +27,7 @@ from forcelearn.tools.cell_session import CellSession
 
 SEEDS = range(*(int(v) for v in os.environ.get("FORCELEARN_CALIBRATION_SEEDS", "0:5").split(":")))
 """Seeds of the accuracy test; FORCELEARN_CALIBRATION_SEEDS=5:25 measures 20 more."""
-FAST = CalibrationPlan(record_s=0.5, samples_per_pose=800, settle_s=0.2, settle_timeout_s=5.0)
+FAST = CalibrationPlan(record_s=2.0, samples_per_pose=800, settle_s=0.2, settle_timeout_s=5.0)
 """Short recordings: the test budget, not the site's (5 s and 500 samples there)."""
 
 

@@ -55,11 +55,11 @@ def test_a_calibration_file_sets_r_and_compensates_tool_gravity(tmp_path: Path) 
     (tmp_path / "cell.toml").write_text('[calibration]\nfile = "cal.toml"\n')
     with CellSession(load_cell_config(tmp_path / "cell.toml"), seed=5) as session:
         assert session.calibration is not None and session.cell.compensation is not None
-        assert float(session.cell.force_filter._kf.R[0, 0]) == pytest.approx(FY_VARIANCE)
+        assert session.cell.force_filter.measurement_variance_n2 == pytest.approx(FY_VARIANCE)
         compensated = _tilted_normal_force(session)
     with CellSession(load_cell_config(), seed=5) as session:
         assert session.calibration is None and session.cell.compensation is None
-        assert float(session.cell.force_filter._kf.R[0, 0]) == pytest.approx(0.04)
+        assert session.cell.force_filter.measurement_variance_n2 == pytest.approx(0.04)
         raw = _tilted_normal_force(session)
     print(f"normal force at a 60 deg tilt: {compensated:.3f} N compensated, {raw:.3f} N raw")
     assert abs(compensated) < 0.2

@@ -123,6 +123,12 @@ class ForceFilter:
             self._kf.R = np.array([[variance_n2]])
 
     @property
+    def measurement_variance_n2(self) -> float:
+        """R: the sensor's noise variance on the axis, N^2."""
+        with self._lock:
+            return float(self._kf.R[0, 0])
+
+    @property
     def force_n(self) -> float:
         """The filtered force in N (nan before the first measurement)."""
         with self._lock:

@@ -93,6 +93,12 @@ class MoveAwareForceFilter:
         self.reset()
 
     @property
+    def measurement_variance_n2(self) -> float:
+        """R: the sensor's noise variance on the axis, N^2."""
+        with self._lock:
+            return self._variance_n2
+
+    @property
     def noise_correlation(self) -> float:
         """a: the correlation of the noise of two consecutive samples (0 = white)."""
         cutoff = self.config.noise_cutoff_hz

@@ -82,6 +82,7 @@ class Calibrator:
             raise ValueError("the cell session is not open")
         self.robot, self.sensor, self.cell = session.robot, session.sensor, session.cell
         self.max_step_mm = session.config.safety.max_step_mm
+        self.sample_period_s = session.config.filter.sample_period_s
         self.plan, self.manual, self.ask = plan, manual, ask
         self.progress, self.out = progress, out or sys.stdout
         self._orientation = plan.poses[0].quaternion if plan.poses else (1.0, 0.0, 0.0, 0.0)
@@ -146,24 +147,22 @@ class Calibrator:
         self._wait_settled_robot()
         zero_quaternion = self.robot.read_pose().quaternion
         self.sensor.zero_offsets()
-        record_s = self.plan.record_s
+        # record_s of the sensor's own time: as many samples as that holds at the configured
+        # sample period (the host's clock would make an emulated recording depend on its load)
+        count = max(READ_CHUNK, math.ceil(self.plan.record_s / self.sample_period_s))
         wrenches: list[np.ndarray] = []
         stamps: list[float] = []
-        bar = tqdm(total=record_s, unit="s", disable=not self.progress, file=sys.stderr,
-                   desc="bias and noise", bar_format="{desc}: {percentage:3.0f}%|{bar}| "
-                   "{n:.1f}/{total:.1f} s {postfix}")
+        bar = tqdm(total=count, unit="sample", disable=not self.progress, file=sys.stderr,
+                   desc="bias and noise")
         with bar:
             start = time.monotonic()
-            shown = 0.0
-            while (elapsed := time.monotonic() - start) < record_s:
-                for sample in self.sensor.read_many(READ_CHUNK):
+            while len(wrenches) < count:
+                for sample in self.sensor.read_many(min(READ_CHUNK, count - len(wrenches))):
                     wrenches.append(sample.wrench)
                     stamps.append(sample.timestamp_s)
-                bar.update(min(elapsed, record_s) - shown)
-                shown = min(elapsed, record_s)
-                rate = len(wrenches) / max(elapsed, 1e-9)
-                bar.set_postfix_str(f"{len(wrenches)} samples, {rate:.0f}/s", refresh=False)
-            bar.update(record_s - shown)
+                    bar.update(1)
+                rate = len(wrenches) / max(time.monotonic() - start, 1e-9)
+                bar.set_postfix_str(f"{rate:.0f}/s", refresh=False)
         noise = estimate_noise(np.array(wrenches), np.array(stamps), zero_quaternion)
         print(f"bias and noise: {noise.samples} samples in {noise.duration_s:.2f} s "
               f"({noise.rate_hz:.0f} samples/s)", file=self.out)
