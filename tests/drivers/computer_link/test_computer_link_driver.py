@@ -131,6 +131,6 @@ def test_emulator_survives_a_client_that_disconnects(emulator, connect) -> None:
 
 def test_reply_from_another_protocol_version_is_refused(emulator, connect, monkeypatch) -> None:
     """A controller of another major protocol version is refused at open."""
-    monkeypatch.setattr(controller, "VERSION", (2, 0))
-    with pytest.raises(ProtocolError, match=r"protocol 2\.0"):
+    monkeypatch.setattr(controller, "VERSION", (3, 0))
+    with pytest.raises(ProtocolError, match=r"protocol 3\.0"):
         connect(emulator.url)
