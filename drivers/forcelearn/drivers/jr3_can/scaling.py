@@ -10,45 +10,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from forcelearn.devices import (  # noqa: F401  (re-exported: the check lives in the core)
+    FORCE_FULL_SCALE_RANGE_N,
+    MOMENT_FULL_SCALE_RANGE_NM,
+    check_full_scales,
+)
+
 COUNTS_PER_FULL_SCALE = 16384
 NEAR_SATURATION_COUNTS = 26214
 """The JR3 DSP's "near saturation" level, about 1.6 x full scale."""
 INT16_MIN, INT16_MAX = -32768, 32767
 DNM_PER_NM = 10.0
-FORCE_FULL_SCALE_RANGE_N = (1.0, 40_000.0)
-"""Plausible force full scales, N (assumption: JR3's catalogue spans about 50 N to 40 kN)."""
-MOMENT_FULL_SCALE_RANGE_NM = (0.1, 6_000.0)
-"""Plausible moment full scales, N*m (assumption; the adapter's 0xFFFF dN*m is 6553.5)."""
-
-
-def check_full_scales(full_scales: object) -> np.ndarray:
-    """Return six full scales (N, N, N, N*m, N*m, N*m) as floats, or raise ValueError.
-
-    Refuses anything but six finite values inside the plausible ranges: a full
-    scale of 0 (or an erased 0xFFFF) would scale every wrench to nonsense, and a
-    force limit could then never trip.
-    """
-    try:
-        fs = np.asarray(full_scales, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"full scales must be six numbers: {exc}") from None
-    if fs.shape != (6,) or not np.all(np.isfinite(fs)):
-        raise ValueError(f"full scales must be six finite numbers, got {fs.tolist()}")
-    for axes, (low, high), unit in (
-        (slice(0, 3), FORCE_FULL_SCALE_RANGE_N, "N"),
-        (slice(3, 6), MOMENT_FULL_SCALE_RANGE_NM, "N*m"),
-    ):
-        values = fs[axes]
-        if np.any(values < low) or np.any(values > high):
-            raise ValueError(
-                f"full scales {fs.tolist()} are implausible: forces must be "
-                f"{FORCE_FULL_SCALE_RANGE_N[0]:g}..{FORCE_FULL_SCALE_RANGE_N[1]:g} N and moments "
-                f"{MOMENT_FULL_SCALE_RANGE_NM[0]:g}..{MOMENT_FULL_SCALE_RANGE_NM[1]:g} N*m "
-                f"(out of range in {unit})"
-            )
-    return fs
-
-
 def full_scales_from_wire(
     forces_n: tuple[int, int, int], moments_dnm: tuple[int, int, int]
 ) -> np.ndarray:
