@@ -11,7 +11,7 @@ import pytest
 from forcelearn.drivers.computer_link import LinkConfig, framing
 from forcelearn.drivers.computer_link import messages as m
 from forcelearn.drivers.computer_link.link import Link
-from forcelearn.errors import LinkError
+from forcelearn.errors import LinkError, LinkTimeout
 
 ACK, NAK = framing.Control.ACK, framing.Control.NAK
 UNDECODABLE = framing.encode(b"\x03\x00")  # passes the CRC, shorter than a reply header
@@ -22,10 +22,15 @@ class ScriptedController:
 
     ``bad_replies`` undecodable frames are sent before the real reply; a NAK
     from the PC asks for the reply again (never a second execution).
+    ``silent_until_enq``: the controller executes a request at once but sends
+    nothing until that many DLE ENQs have arrived (an ACK "delayed past the
+    timeout", decided by counting, not by the clock).
     """
 
-    def __init__(self, bad_replies: int) -> None:
+    def __init__(self, bad_replies: int = 0, silent_until_enq: int = 0) -> None:
         self.bad_left = bad_replies
+        self.silent_until_enq = silent_until_enq
+        self.enqs = 0
         self.executed: list[int] = []
         self.received: list[framing.Frame] = []
         self._reader = framing.FrameReader()
@@ -59,8 +64,13 @@ class ScriptedController:
                     self.executed.append(request.transaction)
                     reply = m.Reply(request.command, request.transaction, m.ErrorCode.OK)
                     self._last_reply = framing.encode(m.encode_reply(reply))
-                self._out += ACK.wire + self._next_reply()
-            elif frame in (NAK, framing.Control.ENQ):
+                if self.enqs >= self.silent_until_enq:
+                    self._out += ACK.wire + self._next_reply()
+            elif frame is framing.Control.ENQ:
+                self.enqs += 1
+                if self.enqs >= self.silent_until_enq:
+                    self._out += self._next_reply()
+            elif frame is NAK:
                 self._out += self._next_reply()
         return len(data)
 
@@ -96,3 +106,24 @@ def test_undecodable_replies_past_the_retries_end_in_link_error() -> None:
     assert len(port.executed) == 1
     assert port.received.count(NAK) == 2
     assert link.damaged_frames == 3
+
+
+def test_a_controller_silent_past_the_timeout_is_asked_again_and_moves_once() -> None:
+    """No ACK until the 2nd ENQ: the repeated reply ends the call, the move ran once."""
+    port = ScriptedController(silent_until_enq=2)
+    link = _link(port)
+    reply = link.transact(m.Command.MOVE_BY, m.increment_body((3.0, 0.0, 0.0)))
+    assert reply.command is m.Command.MOVE_BY and reply.error == m.ErrorCode.OK
+    assert port.enqs == 2
+    assert len(port.executed) == 1
+    assert sum(isinstance(f, framing.DataFrame) for f in port.received) == 1  # no retransmit
+
+
+def test_a_controller_silent_past_every_enq_gives_link_timeout() -> None:
+    """Silent through all ENQs: LinkTimeout after exactly enq_retries ENQs; never doubled."""
+    port = ScriptedController(silent_until_enq=100)
+    link = Link(port, LinkConfig(url="loop://", ack_timeout_s=0.01, enq_retries=3))  # type: ignore[arg-type]
+    with pytest.raises(LinkTimeout, match="may have executed"):
+        link.transact(m.Command.MOVE_BY, m.increment_body((3.0, 0.0, 0.0)))
+    assert port.enqs == 3
+    assert len(port.executed) == 1

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 
@@ -36,9 +37,16 @@ def test_async_streaming_rate_and_no_loss(
     """Async at 2 ms streams into the callback with consecutive counters; the rate is printed."""
     make_node()
     got: list[WrenchSample] = []
-    sensor = make_sensor(mode="async", period_us=2000, on_sample=got.append)
+    enough = threading.Event()
+
+    def on_sample(sample: WrenchSample) -> None:
+        got.append(sample)
+        if len(got) >= 100:
+            enough.set()
+
+    sensor = make_sensor(mode="async", period_us=2000, on_sample=on_sample)
     sensor.initialise()
-    time.sleep(0.4)
+    assert enough.wait(30.0), f"only {len(got)} samples streamed"  # an event, not a sleep
     window = list(got)
     span_s = window[-1].timestamp_s - window[0].timestamp_s
     rate = (len(window) - 1) / span_s
