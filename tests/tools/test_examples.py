@@ -25,7 +25,7 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 EMULATED = EXAMPLES / "emulated-cell.toml"
 REAL = EXAMPLES / "real-cell.toml"
 
-NOT_IN_TOML = {"limits", "stale_timeout_s", "full_scales", "log_path"}
+NOT_IN_TOML = {"limits", "stale_timeout_s", "full_scales", "log_path", "sleep_after_open_s"}
 """Fields a file cannot or must not set: limits come from [safety], None defaults stay unset."""
 TABLES: dict[str, tuple[type, ...]] = {
     "robot": (LinkConfig,),
