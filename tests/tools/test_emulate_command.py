@@ -160,3 +160,32 @@ def test_emulate_prints_its_pid_and_stable_links_that_survive_a_restart(
         capture_output=True, text=True, timeout=60, env=env,
     )
     assert checked.returncode == 0, checked.stdout + checked.stderr
+
+
+def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
+    spawn: Callable[..., Emulator], tmp_path: Path
+) -> None:
+    """Issue 12.8: run, check, run again on one emulator: the two runs' trials are identical.
+
+    Without --fresh-per-connection the second run meets a worn sponge and a sensor
+    further along its noise sequence, and its trials differ (the default, as on a
+    real cell).
+    """
+    site = tmp_path / "site.toml"
+    emulator = spawn("--write-config", str(site), "--fresh-per-connection")
+    emulator.wait_for(r"^site config written to", STARTUP_S)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
+
+    def cli(*args: str) -> None:
+        done = subprocess.run([sys.executable, "-m", "forcelearn.cli", *args],
+                              capture_output=True, text=True, timeout=120, env=env)
+        assert done.returncode == 0, done.stdout + done.stderr
+
+    run = ("run", "--config", str(site), "--trials", "1", "--seed", "3", "--no-progress")
+    cli(*run, "--out", str(tmp_path / "first"))
+    cli("check", "--config", str(site), "--seconds", "0.1")
+    cli(*run, "--out", str(tmp_path / "second"))
+    first = (tmp_path / "first" / "trials.csv").read_text()
+    assert first == (tmp_path / "second" / "trials.csv").read_text()
+    assert emulator.stop(signal.SIGTERM) == 0
+    emulator.wait_for(r"3 client sessions", 5.0)
