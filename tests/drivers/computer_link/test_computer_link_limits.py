@@ -100,3 +100,27 @@ def test_link_config_from_dict_builds_and_names_bad_keys() -> None:
         Limits(max_step_mm=-1)
     with pytest.raises(ConfigError, match=r"workspace_min_mm\[2\]"):
         Limits(workspace_min_mm=(0, 0, 10), workspace_max_mm=(1, 1, 10))
+
+
+def test_a_non_finite_reported_position_cannot_bypass_the_step_limit(
+    emulator, connect, monkeypatch
+) -> None:
+    """A controller reporting NaN as its position made every step NaN, and NaN > limit is False.
+
+    The step check now refuses anything not provably within the limit.
+    """
+    from forcelearn.drivers.computer_link import messages
+
+    real = messages.parse_position
+
+    def nan_position(body: bytes) -> messages.Position:
+        position = real(body)
+        return messages.Position((math.nan,) * 3, position.quaternion, position.joints_deg)
+
+    monkeypatch.setattr(messages, "parse_position", nan_position)
+    robot = connect(emulator.url, limits=TIGHT)
+    writes = count_writes(robot, monkeypatch)
+    with pytest.raises(SafetyStop, match="step of nan"):
+        robot.move_to(HOME.moved(dz_mm=-1.0))
+    assert writes == []
+    assert emulator.move_count == 0

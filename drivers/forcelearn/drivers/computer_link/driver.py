@@ -161,7 +161,7 @@ class ComputerLinkRobot:
                 f"{list(low)}..{list(high)} (limits.workspace_*_mm); nothing was sent"
             )
         step = float(np.linalg.norm(position - self._reference_locked().position_mm))
-        if step > limits.max_step_mm:
+        if not step <= limits.max_step_mm:  # NaN (a non-finite reported pose) is refused too
             raise SafetyStop(
                 f"refused a step of {step:.3f} mm: more than limits.max_step_mm = "
                 f"{limits.max_step_mm} mm; nothing was sent"
