@@ -1,6 +1,13 @@
-"""Fixtures shared by the whole suite."""
+"""Fixtures shared by the whole suite, and the hypothesis profile."""
 
 import pytest
+from hypothesis import settings
+
+# No per-example deadline: hypothesis's default (200 ms) fails property tests on a busy
+# host (seen at load average 20 on 2 cores); the example counts bound the work instead,
+# and pytest-timeout catches a hang.
+settings.register_profile("forcelearn", deadline=None)
+settings.load_profile("forcelearn")
 
 REQUIRED_SUMMARY_KEYS = frozenset(
     {

@@ -14,13 +14,22 @@ T = TypeVar("T")
 
 
 def read_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read a TOML file; a missing or malformed file is a ConfigError naming it."""
+    """Read a TOML file; a missing, unreadable or malformed file is a ConfigError naming it."""
     try:
         with open(path, "rb") as handle:
             return tomllib.load(handle)
     except FileNotFoundError as exc:
         raise ConfigError(f"config file {os.fspath(path)!r} does not exist") from exc
-    except tomllib.TOMLDecodeError as exc:
+    except IsADirectoryError as exc:
+        raise ConfigError(f"config file {os.fspath(path)!r} is a directory, not a file") from exc
+    except OSError as exc:
+        raise ConfigError(f"config file {os.fspath(path)!r} cannot be read: {exc}") from exc
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"config file {os.fspath(path)!r} is not UTF-8 text (byte {exc.start}): "
+            "the file is damaged or not a TOML file"
+        ) from exc
+    except (tomllib.TOMLDecodeError, RecursionError) as exc:
         raise ConfigError(f"config file {os.fspath(path)!r} is not valid TOML: {exc}") from exc
 
 

@@ -21,6 +21,41 @@ import numpy as np
 IDENTITY_QUATERNION: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
 
 
+FORCE_FULL_SCALE_RANGE_N = (1.0, 40_000.0)
+"""Plausible force full scales, N (assumption: JR3's catalogue spans about 50 N to 40 kN)."""
+MOMENT_FULL_SCALE_RANGE_NM = (0.1, 6_000.0)
+"""Plausible moment full scales, N*m (assumption; the adapter's 0xFFFF dN*m is 6553.5)."""
+
+
+def check_full_scales(full_scales: object) -> np.ndarray:
+    """Return six full scales (N, N, N, N*m, N*m, N*m) as floats, or raise ValueError.
+
+    Refuses anything but six finite values inside the plausible ranges: a full
+    scale of 0 (or an erased 0xFFFF) would scale every wrench to nonsense, and a
+    force limit could then never trip.
+    """
+    try:
+        fs = np.asarray(full_scales, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"full scales must be six numbers: {exc}") from None
+    if fs.shape != (6,) or not np.all(np.isfinite(fs)):
+        raise ValueError(f"full scales must be six finite numbers, got {fs.tolist()}")
+    for axes, (low, high), unit in (
+        (slice(0, 3), FORCE_FULL_SCALE_RANGE_N, "N"),
+        (slice(3, 6), MOMENT_FULL_SCALE_RANGE_NM, "N*m"),
+    ):
+        values = fs[axes]
+        if np.any(values < low) or np.any(values > high):
+            raise ValueError(
+                f"full scales {fs.tolist()} are implausible: forces must be "
+                f"{FORCE_FULL_SCALE_RANGE_N[0]:g}..{FORCE_FULL_SCALE_RANGE_N[1]:g} N and moments "
+                f"{MOMENT_FULL_SCALE_RANGE_NM[0]:g}..{MOMENT_FULL_SCALE_RANGE_NM[1]:g} N*m "
+                f"(out of range in {unit})"
+            )
+    return fs
+
+
+
 @dataclass(frozen=True)
 class Pose:
     """A Cartesian tool pose: position in mm, orientation as quaternion (w, x, y, z)."""

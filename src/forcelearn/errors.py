@@ -26,7 +26,8 @@ driver boundary with ``raise ... from``.
      │    ├── SensorProtocolError          the sensor sent bytes or values its protocol forbids
      │    └── SensorFault                  the sensor reported an error in its status word
      └── SafetyStop                        a safety limit stopped the robot
-          └── ForceLimitExceeded           the contact force passed safety.max_force_n
+          ├── ForceLimitExceeded           the contact force passed safety.max_force_n
+          └── InvalidTarget (ValueError)   a commanded pose is malformed; nothing was sent
 """
 
 from __future__ import annotations
@@ -137,3 +138,11 @@ class SafetyStop(ForcelearnError):
 
 class ForceLimitExceeded(SafetyStop):
     """The measured contact force passed the configured maximum; the robot retracts."""
+
+
+class InvalidTarget(SafetyStop, ValueError):
+    """A commanded pose is malformed (wrong length, not finite, non-unit quaternion).
+
+    Nothing was sent. It is a :class:`SafetyStop`, so a caller guarding moves
+    catches it, and a :class:`ValueError`, as every bad argument is.
+    """

@@ -50,7 +50,7 @@ def test_round_trip_gives_back_the_same_calibration(tmp_path: Path, calibration)
     assert [p.name for p in tmp_path.iterdir()] == ["cal.toml"]  # no temporary file left
     text = path.read_text()
     assert text.startswith("# forcelearn sensor calibration")
-    assert "format_version = 1" in text and "[[tool.pose]]" in text
+    assert "format_version = 2" in text and "[[tool.pose]]" in text and "digest = " in text
 
 
 def test_round_trip_without_the_optional_matrix_check(tmp_path: Path, calibration) -> None:
@@ -85,8 +85,8 @@ def _edit(text: str, old: str, new: str) -> str:
 @pytest.mark.parametrize(
     ("old", "new", "message"),
     [
-        ("format_version = 1", "format_version = 2", "format_version is 2.*reads version 1"),
-        ("format_version = 1", "", "format_version is None"),
+        ("format_version = 2", "format_version = 1", "format_version is 1.*reads version 2"),
+        ("format_version = 2", "", "format_version is None"),
         ('created = "', 'creatd = "', "missing key file.created"),
         ("[sensor]\n", "[sensor]\nextra = 1\n", "unknown key.*sensor.extra"),
         ("mass_kg = ", "mass_kg = -", "tool.mass_kg must be a finite number > 0"),
@@ -148,3 +148,95 @@ def test_the_serializer_writes_what_tomllib_reads_back() -> None:
         dumps({"x": float("nan")})
     with pytest.raises(TypeError, match="cannot write"):
         dumps({"x": object()})
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("node_id = 1\n", "node_id = 500\n", r"sensor\.node_id must be an integer 1\.\.127"),
+        ("cutoff_hz = 125.0", "cutoff_hz = 0.0", r"sensor\.cutoff_hz must be a finite number > 0"),
+        ("full_scales = [\n    200.0", "full_scales = [\n    -200.0", "full_scales.*implausible"),
+        ("full_scales = [\n    200.0", "full_scales = [\n    0.0", "full_scales.*implausible"),
+        ("pose_count = ", "pose_count = 1", r"tool\.pose_count is 1.* poses"),
+        ("digest = ", "digest_ = ", r"unknown key.*file\.digest_|missing key file\.digest"),
+    ],
+)
+def test_wrong_values_are_refused(tmp_path: Path, calibration, old: str, new: str,
+                                  message: str) -> None:
+    """Issue 12.6: values that used to load silently are ConfigErrors naming the key."""
+    path = tmp_path / "cal.toml"
+    path.write_text(_edit(to_toml(calibration), old, new))
+    with pytest.raises(ConfigError, match=message):
+        load_calibration(path)
+
+
+def test_a_file_cut_after_a_complete_pose_is_refused(tmp_path: Path, calibration) -> None:
+    """Issue 12.6: truncation at a table boundary leaves valid TOML; the pose count catches it."""
+    text = to_toml(calibration)
+    first = text.index("[[tool.pose]]")
+    cut = text.index("[[tool.pose]]", first + 1)  # keep one whole pose, drop the rest
+    path = tmp_path / "cal.toml"
+    path.write_text(text[:cut])
+    with pytest.raises(ConfigError, match=r"pose_count is \d+ but the file holds \d+ poses"):
+        load_calibration(path)
+
+
+def _digit_positions(text: str) -> list[int]:
+    """Positions of digits in value lines (not comments, not the digest itself)."""
+    positions, offset = [], 0
+    for line in text.splitlines(keepends=True):
+        if not line.startswith(("#", "digest")):
+            positions += [offset + i for i, c in enumerate(line) if c.isdigit()]
+        offset += len(line)
+    return positions
+
+
+def test_every_digit_flip_is_refused_or_harmless(tmp_path: Path, calibration) -> None:
+    """Issue 12.6: any digit changed in a value is refused (digest), never a different value."""
+    text = to_toml(calibration)
+    path = tmp_path / "cal.toml"
+    positions = _digit_positions(text)
+    assert len(positions) > 500
+    for at in positions[::7]:
+        flipped = text[:at] + str((int(text[at]) + 3) % 10) + text[at + 1 :]
+        path.write_text(flipped)
+        try:
+            loaded = load_calibration(path)
+        except ConfigError:
+            continue
+        assert loaded == calibration, f"a flip at {at} loaded a different calibration"
+
+
+def test_astral_characters_are_written_so_that_they_read_back(tmp_path: Path,
+                                                              calibration) -> None:
+    """Issue 12.6: an emoji in a string was written as a surrogate pair tomllib refused."""
+    from dataclasses import replace
+
+    odd = replace(calibration, sensor=replace(calibration.sensor, model="JR3 😀 \U0010fffd"))
+    path = tmp_path / "cal.toml"
+    save_calibration(odd, path)
+    assert load_calibration(path) == odd
+
+
+def test_a_calibration_the_reader_would_refuse_is_not_written(tmp_path: Path,
+                                                              calibration) -> None:
+    """save_calibration checks its own output: node id 500 raises and no file appears."""
+    from dataclasses import replace
+
+    bad = replace(calibration, sensor=replace(calibration.sensor, node_id=500))
+    with pytest.raises(ConfigError, match="node_id"):
+        save_calibration(bad, tmp_path / "cal.toml")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_undecodable_bytes_and_directories_are_config_errors(tmp_path: Path,
+                                                             calibration) -> None:
+    """Issue 12.5: a non-UTF-8 byte and a directory named as the file were not ConfigErrors."""
+    path = tmp_path / "cal.toml"
+    data = bytearray(to_toml(calibration).encode())
+    data[data.index(b"created") + 12] = 0xFF  # inside the created string
+    path.write_bytes(bytes(data))
+    with pytest.raises(ConfigError, match="not UTF-8"):
+        load_calibration(path)
+    with pytest.raises(ConfigError, match="is a directory"):
+        load_calibration(tmp_path)

@@ -26,6 +26,9 @@ FY_VARIANCE = 0.0625
 """R the file gives axis 1 (Fy, the filter's axis): (0.25 N)^2, not the default 0.04."""
 
 
+FULL_SCALES = (200.0, 200.0, 400.0, 20.0, 20.0, 20.0)
+"""The emulated sensor's full scales (N, N*m)."""
+
 def _write_calibration(path: Path) -> None:
     """A calibration of the emulator's true tool, from exact synthetic readings."""
     quaternions = [p.quaternion for p in DEFAULT_POSES]
@@ -34,7 +37,8 @@ def _write_calibration(path: Path) -> None:
     covariance = np.diag([0.04, FY_VARIANCE, 0.04, 4e-4, 4e-4, 4e-4])
     noise = NoiseEstimate(bias=(0.0,) * 6, covariance=tuple(tuple(r) for r in covariance.tolist()),
                           drift_per_s=(0.0,) * 6, samples=1000, duration_s=1.0, rate_hz=1000.0)
-    cal = Calibration("2024-05-01T00:00:00+00:00", SensorInfo(cutoff_hz=125.0), noise,
+    sensor = SensorInfo(full_scales=FULL_SCALES, cutoff_hz=125.0)
+    cal = Calibration("2024-05-01T00:00:00+00:00", sensor, noise,
                       fit_tool_load(quaternions, readings))
     save_calibration(cal, path)
 
@@ -70,7 +74,7 @@ def test_a_bad_calibration_file_stops_the_session_before_any_device_opens(
         tmp_path: Path) -> None:
     """A file of another format version is a ConfigError naming it; nothing is started."""
     _write_calibration(tmp_path / "cal.toml")
-    text = (tmp_path / "cal.toml").read_text().replace("format_version = 1", "format_version = 9")
+    text = (tmp_path / "cal.toml").read_text().replace("format_version = 2", "format_version = 9")
     (tmp_path / "cal.toml").write_text(text)
     (tmp_path / "cell.toml").write_text('[calibration]\nfile = "cal.toml"\n')
     with pytest.raises(ConfigError, match=r"cal\.toml.*format_version is 9"):

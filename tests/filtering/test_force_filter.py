@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import itertools
 import os
-import time
+import threading
 
 import can
 import numpy as np
@@ -122,10 +122,22 @@ def test_async_stream_from_the_driver_feeds_the_filter() -> None:
     with Jr3EmulatorNode(physics, channel=channel, seed=4) as node, \
             can.Bus(interface="virtual", channel=channel) as bus:
         config = Jr3Config(mode="async", period_us=1000, zero_on_init=True, zero_settle_s=0.0)
-        with Jr3CanSensor(bus, config, on_sample=kf.on_sample) as sensor:
+        pressed = threading.Event()
+        after_press: list[float] = []
+
+        def on_sample(sample: WrenchSample) -> None:
+            kf.on_sample(sample)
+            if pressed.is_set():
+                after_press.append(sample.timestamp_s)
+                if len(after_press) >= 400:  # 0.4 s of samples at 1 kHz, however long it takes
+                    done.set()
+
+        done = threading.Event()
+        with Jr3CanSensor(bus, config, on_sample=on_sample) as sensor:
             physics.set_pose(Pose(0.0, surface_y_mm(sponge.params, 0, -40.0) - depth, -40.0))
             true_n = physics.true_wrench()[1]
-            time.sleep(0.4)
+            pressed.set()
+            assert done.wait(30.0), "the sensor stopped streaming"
             estimate = kf.force_n
             stats = sensor.stats
         assert node.mode == "idle"

@@ -153,3 +153,79 @@ def test_extra_arrays_are_saved_beside_the_learner(tmp_path: Path) -> None:
     assert extras["weights"].tolist() == [0, 1, 2]
     learner, _ = load_learner(path)
     assert np.array_equal(learner.weights, trained_learner().weights)
+
+
+def _saved_arrays(tmp_path: Path) -> dict[str, np.ndarray]:
+    path = tmp_path / "good.npz"
+    save_learner(trained_learner(), path)
+    with np.load(path) as archive:
+        return {k: archive[k] for k in archive.files}
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "match"),
+    [
+        ("weights", "nan", "NaN"),
+        ("predictions", "inf", "NaN or infinite"),
+        ("trials", np.array(-1), "trials"),
+        ("trials", np.array(10**12), "trials"),
+        ("trials", np.array(2.7), "trials"),
+        ("consecutive_successes", np.array(10**6), "consecutive_successes"),
+        ("switch_trial", np.array(-5), "switch_trial"),
+        ("phase", np.array(7), "phase"),
+        ("metadata_json", np.array("[1, 2]"), "metadata_json"),
+        ("rng_json", np.array('{"bit_generator": "seed"}'), "bit generator 'seed'"),
+        ("grid_parts", np.array([10**5, 10**5]), "grid_parts"),
+    ],
+)
+def test_nonsense_values_are_refused(
+    tmp_path: Path, key: str, value: object, match: str
+) -> None:
+    """Issue 12.4: each nonsense value is a StateFileError naming the key, never a silent load.
+
+    NaN weights, counters out of range or not integers, a list as metadata, a
+    foreign rng name (which used to be *called*, re-seeding the global RNG).
+    """
+    arrays = _saved_arrays(tmp_path)
+    if isinstance(value, str):  # poison one element of a float array
+        arrays[key] = arrays[key].copy()
+        arrays[key].flat[3] = float(value)
+    else:
+        arrays[key] = value  # type: ignore[assignment]
+    path = tmp_path / "bad.npz"
+    np.savez(path, **arrays)
+    before = np.random.get_state()[1].copy()
+    with pytest.raises(StateFileError, match=match):
+        load_learner(path)
+    assert np.array_equal(np.random.get_state()[1], before), "the global RNG was touched"
+
+
+def test_damaged_zip_compression_field_is_a_state_file_error(tmp_path: Path) -> None:
+    """Issue 12.4: an unknown compression method in the zip headers raised NotImplementedError."""
+    path = tmp_path / "learner.npz"
+    save_learner(trained_learner(), path)
+    data = bytearray(path.read_bytes())
+    at = data.find(b"PK\x01\x02")  # first central directory entry; method at offset 10
+    data[at + 10 : at + 12] = (99).to_bytes(2, "little")
+    path.write_bytes(bytes(data))
+    with pytest.raises(StateFileError, match="restore it from a backup"):
+        load_learner(path)
+
+
+def test_plain_npy_and_garbage_are_refused_without_pickle_advice(tmp_path: Path) -> None:
+    """A .npy under the name (was TypeError) and garbage both say what the file is not.
+
+    Neither passes on numpy's advice to load the file with pickle.
+    """
+    npy = tmp_path / "array.npz"
+    with open(npy, "wb") as handle:
+        np.save(handle, np.zeros(3))
+    with pytest.raises(StateFileError, match=r"single \.npy array"):
+        load_learner(npy)
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"\x80\x04garbage that looks like a pickle")
+    with pytest.raises(StateFileError) as caught:
+        load_learner(garbage)
+    assert "pickle" not in str(caught.value)
+    with pytest.raises(StateFileError, match=r"single \.npy array"):
+        state_file.load_extra_arrays(npy)

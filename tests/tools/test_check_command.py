@@ -136,3 +136,22 @@ def test_a_move_counter_that_changes_during_the_check_fails_it() -> None:
     session = SimpleNamespace(robot=robot, sensor=sensor, config=load_cell_config())
     with pytest.raises(SafetyStop, match="from 3 to 4"):
         check_session(session, 0.01, lambda line: None)  # type: ignore[arg-type]
+
+
+def test_check_names_every_missing_device_and_the_slcan_delay_hint(tmp_path, capsys) -> None:
+    """Issue 12.8: with both ports gone, check names both, not only the first it opens."""
+    import argparse
+
+    from forcelearn.tools import check_command
+
+    site = tmp_path / "site.toml"
+    site.write_text(
+        f'[robot]\nurl = "{tmp_path / "gone-robot"}"\n\n'
+        f'[sensor]\ninterface = "slcan"\nchannel = "{tmp_path / "gone-slcan"}"\n'
+    )
+    status = check_command.run(argparse.Namespace(config=site, seconds=0.2, seed=0))
+    out = capsys.readouterr().out
+    assert status == 1
+    assert f"robot link: port {tmp_path / 'gone-robot'} does not exist" in out
+    assert f"slcan adapter port {tmp_path / 'gone-slcan'} does not exist" in out
+    assert "sleep_after_open_s = 0" in out

@@ -72,11 +72,17 @@ class Emulator:
 
 
 @pytest.fixture
-def spawn() -> Iterator[Callable[..., Emulator]]:
-    """Start emulators; every one is gone after the test, even when it fails."""
+def spawn(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Callable[..., Emulator]]:
+    """Start emulators; every one is gone after the test, even when it fails.
+
+    Each gets its own ``--link-dir`` unless the test names one, so parallel runs
+    on one host never share the stable symlinks.
+    """
     started: list[Emulator] = []
 
     def start(*args: str) -> Emulator:
+        if "--link-dir" not in args:
+            args = (*args, "--link-dir", str(tmp_path_factory.mktemp("links")))
         emulator = Emulator(*args)
         started.append(emulator)
         return emulator
@@ -115,7 +121,7 @@ def test_check_in_another_process_reaches_the_emulated_cell_through_slcan(
     summary = emulator.wait_for(r"stopping: (\d+) robot moves executed, (\d+) JR3 samples", 1.0)
     assert int(summary.group(1)) == 0
     assert int(summary.group(2)) >= samples
-    assert not Path(robot).exists() and not Path(slcan).exists()  # ptys released
+    assert not Path(robot).exists() and not Path(slcan).exists()  # ptys (and links) released
 
 
 def test_ctrl_c_stops_the_emulator_cleanly(spawn: Callable[..., Emulator]) -> None:
@@ -126,3 +132,60 @@ def test_ctrl_c_stops_the_emulator_cleanly(spawn: Callable[..., Emulator]) -> No
     assert emulator.stop(signal.SIGINT) == 0
     emulator.wait_for(r"stopping: 0 robot moves", 1.0)
     assert not Path(slcan).exists()
+
+
+def test_emulate_prints_its_pid_and_stable_links_that_survive_a_restart(
+    spawn: Callable[..., Emulator], tmp_path: Path
+) -> None:
+    """Issue 12.8: the PID is printed; a site config saved once still reaches a restarted cell."""
+    links, site = tmp_path / "links", tmp_path / "site.toml"
+    first = spawn("--link-dir", str(links), "--write-config", str(site))
+    pid = int(first.wait_for(r"running, PID (\d+)", STARTUP_S).group(1))
+    assert pid == first.process.pid
+    robot = first.wait_for(r"^robot link \(computer link, pty\): (\S+)$", STARTUP_S).group(1)
+    first.wait_for(r"^site config written to", STARTUP_S)
+    assert robot == str(links / "robot")
+    assert "sleep_after_open_s = 0.0" in site.read_text()
+    assert first.stop(signal.SIGTERM) == 0
+    assert not (links / "robot").exists()
+
+    second = spawn("--link-dir", str(links))
+    second.wait_for(r'^channel = "', STARTUP_S)
+    config = load_cell_config(site)  # the file written by the first emulator
+    assert Path(config.robot.url).exists() and Path(config.bus.channel).exists()
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
+    checked = subprocess.run(
+        [sys.executable, "-m", "forcelearn.cli", "check", "--config", str(site),
+         "--seconds", "0.2"],
+        capture_output=True, text=True, timeout=60, env=env,
+    )
+    assert checked.returncode == 0, checked.stdout + checked.stderr
+
+
+def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
+    spawn: Callable[..., Emulator], tmp_path: Path
+) -> None:
+    """Issue 12.8: run, check, run again on one emulator: the two runs' trials are identical.
+
+    Without --fresh-per-connection the second run meets a worn sponge and a sensor
+    further along its noise sequence, and its trials differ (the default, as on a
+    real cell).
+    """
+    site = tmp_path / "site.toml"
+    emulator = spawn("--write-config", str(site), "--fresh-per-connection")
+    emulator.wait_for(r"^site config written to", STARTUP_S)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
+
+    def cli(*args: str) -> None:
+        done = subprocess.run([sys.executable, "-m", "forcelearn.cli", *args],
+                              capture_output=True, text=True, timeout=120, env=env)
+        assert done.returncode == 0, done.stdout + done.stderr
+
+    run = ("run", "--config", str(site), "--trials", "1", "--seed", "3", "--no-progress")
+    cli(*run, "--out", str(tmp_path / "first"))
+    cli("check", "--config", str(site), "--seconds", "0.1")
+    cli(*run, "--out", str(tmp_path / "second"))
+    first = (tmp_path / "first" / "trials.csv").read_text()
+    assert first == (tmp_path / "second" / "trials.csv").read_text()
+    assert emulator.stop(signal.SIGTERM) == 0
+    emulator.wait_for(r"3 client sessions", 5.0)

@@ -7,7 +7,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -76,42 +75,64 @@ def test_run_writes_summary_trials_logs_checkpoint_and_figures(
         assert (uninterrupted / name).exists(), name
 
 
+# The child runs the real CLI with one hook: after the checkpoint of trial ``stop_at`` it
+# prints "checkpoint <n>" and blocks on stdin, so the parent signals it at a known point
+# instead of polling the checkpoint file against the clock.
+PAUSING_CLI = """
+import sys
+import forcelearn.tools.run_command as rc
+stop_at = int(sys.argv[1])
+original = rc.execute
+def execute(run, checkpoint, on_trial=None):
+    def hook(record, learner):
+        if on_trial is not None:
+            on_trial(record, learner)
+        if len(run.result.records) == stop_at:
+            print("checkpoint", stop_at, flush=True)
+            sys.stdin.readline()  # wait here for the parent's signal
+    return original(run, checkpoint, on_trial=hook)
+rc.execute = execute
+from forcelearn.cli import main
+sys.exit(main(sys.argv[2:]))
+"""
+
+
+def start_paused_at(stop_at: int, *args: str) -> subprocess.Popen[str]:
+    """Start ``forcelearn *args``; return once trial ``stop_at`` is checkpointed and paused."""
+    child = subprocess.Popen(
+        [sys.executable, "-c", PAUSING_CLI, str(stop_at), *args],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert child.stdout is not None
+    line = child.stdout.readline()  # the event; pytest-timeout bounds a hang
+    if line.strip() != f"checkpoint {stop_at}":
+        child.kill()
+        _, err = child.communicate(timeout=10)
+        raise AssertionError(f"the run did not reach trial {stop_at}: {line!r} {err}")
+    return child
+
+
 def test_sigkill_mid_run_then_resume_ends_bit_identical(
     uninterrupted: Path, tmp_path: Path
 ) -> None:
     """A run killed with SIGKILL and resumed equals the uninterrupted run bit for bit."""
     out = tmp_path / "run"
-    code = "import sys; from forcelearn.cli import main; sys.exit(main(sys.argv[1:]))"
-    child = subprocess.Popen(
-        [
-            sys.executable,
-            "-c",
-            code,
-            "run",
-            "--trials",
-            str(TRIALS),
-            "--seed",
-            "5",
-            "--out",
-            str(out),
-            "--no-progress",
-        ],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
+    child = start_paused_at(
+        TRIALS // 2,
+        "run", "--trials", str(TRIALS), "--seed", "5", "--out", str(out), "--no-progress",
     )
     try:
-        deadline = time.monotonic() + 90.0
-        while trials_done(out) < TRIALS // 2 and time.monotonic() < deadline:
-            assert child.poll() is None, "the run ended before it could be killed"
-            time.sleep(0.01)
         os.kill(child.pid, signal.SIGKILL)
         child.wait(timeout=10)
     finally:
         if child.poll() is None:
             child.kill()
-            child.wait(timeout=10)
-    killed_at = trials_done(out)
-    assert TRIALS // 2 <= killed_at < TRIALS
+        child.communicate(timeout=10)
+    assert child.returncode == -signal.SIGKILL
+    assert trials_done(out) == TRIALS // 2
     resumed = run_cli("run", "--resume", str(out), "--no-progress")
     assert resumed.returncode == 0, resumed.stderr
     assert (out / "trials.csv").read_text() == (uninterrupted / "trials.csv").read_text()
@@ -133,17 +154,8 @@ def test_sigkill_mid_run_then_resume_ends_bit_identical(
 def test_ctrl_c_stops_and_leaves_a_resumable_checkpoint(tmp_path: Path) -> None:
     """SIGINT mid-run: exit 130, the robot stopped, the checkpoint whole and resumable."""
     out = tmp_path / "run"
-    code = "import sys; from forcelearn.cli import main; sys.exit(main(sys.argv[1:]))"
-    child = subprocess.Popen(
-        [sys.executable, "-c", code, "run", "--trials", "200", "--out", str(out), "--no-progress"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    child = start_paused_at(3, "run", "--trials", "200", "--out", str(out), "--no-progress")
     try:
-        deadline = time.monotonic() + 90.0
-        while trials_done(out) < 3 and time.monotonic() < deadline:
-            time.sleep(0.01)
         child.send_signal(signal.SIGINT)
         _, err = child.communicate(timeout=30)
     finally:
@@ -153,7 +165,7 @@ def test_ctrl_c_stops_and_leaves_a_resumable_checkpoint(tmp_path: Path) -> None:
     assert child.returncode == 130, err
     assert "--resume" in err
     done = trials_done(out)
-    assert done >= 3
+    assert done == 3
     summary = json.loads((out / "summary.json").read_text())
     assert summary["trials"] == done  # outputs written for the whole trials, nothing partial
     resumed = run_cli("run", "--resume", str(out), "--trials", str(done + 2), "--no-progress")

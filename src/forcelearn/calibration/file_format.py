@@ -1,26 +1,32 @@
-"""The calibration file: versioned TOML, written atomically by a small serializer, read strictly.
+"""The calibration file: versioned TOML with an integrity digest, written atomically, read strictly.
 
-The standard library reads TOML (``tomllib``) but does not write it; the file
-holds only strings, integers, finite floats, arrays of them and one array of
-tables, so :func:`dumps` covers exactly that rather than adding a dependency.
+Written with ``tomli-w`` (the standard library reads TOML but does not write
+it), read with ``tomllib``. Format version 2 adds ``digest`` (SHA-256 of the
+canonical content, see :func:`content_digest`) and ``tool.pose_count``, so a
+file that was damaged, truncated or edited after it was written is refused
+instead of loading wrong values.
 
 The reader refuses any other ``format_version``, unknown or missing keys,
-wrong lengths, non-finite numbers, a covariance that is not symmetric
-positive semi-definite with positive variances, a non-positive mass and
-non-unit quaternions; every message names the key. The table of keys is in
-docs/calibration.md.
+wrong lengths, non-finite numbers, implausible full scales, a node id outside
+1..127, a cut-off <= 0, a covariance that is not symmetric positive
+semi-definite with positive variances, a non-positive mass, non-unit
+quaternions, a pose count that disagrees with the poses and a digest that
+disagrees with the content; every message names the key. The table of keys
+is in docs/calibration.md.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
-import re
-from collections.abc import Mapping, Sequence
+import tomllib
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+import tomli_w
 
 from forcelearn.atomic import atomic_write_bytes
 from forcelearn.calibration.model import (
@@ -33,63 +39,52 @@ from forcelearn.calibration.model import (
     ToolLoad,
 )
 from forcelearn.config import read_toml
+from forcelearn.devices import check_full_scales
 from forcelearn.errors import ConfigError
 
-_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+DIGEST_PREFIX = "sha256:"
+MAX_NODE_ID = 127
+"""CAN node ids are 1..127."""
 
 
 # ---- writing ----------------------------------------------------------------------------
-def _key(key: str) -> str:
-    return key if _BARE_KEY.match(key) else json.dumps(key)
-
-
-def _value(value: Any, indent: str = "") -> str:
-    """Return one TOML value: bool, int, finite float, str, or arrays of them."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
+def _plain(value: Any) -> Any:
+    """Return ``value`` as plain TOML types (numpy scalars and tuples converted, floats finite)."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
     if isinstance(value, int | np.integer):
-        return str(int(value))
+        return int(value)
     if isinstance(value, float | np.floating):
         if not math.isfinite(value):
             raise ValueError(f"TOML has no {value}: only finite floats are written")
-        return repr(float(value))
+        return float(value)
     if isinstance(value, str):
-        return json.dumps(value)  # JSON's escapes are valid in a TOML basic string
-    if isinstance(value, Sequence | np.ndarray):
-        items = list(value)
-        if items and all(isinstance(v, Sequence | np.ndarray) for v in items):
-            inner = indent + "    "
-            rows = "".join(f"{inner}{_value(v, inner)},\n" for v in items)
-            return f"[\n{rows}{indent}]"
-        return "[" + ", ".join(_value(v, indent) for v in items) + "]"
+        return value
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items() if v is not None}
+    if isinstance(value, list | tuple | np.ndarray):
+        return [_plain(v) for v in value]
     raise TypeError(f"cannot write {type(value).__name__} to TOML")
 
 
 def dumps(document: Mapping[str, Any], header: str = "") -> str:
-    """Serialise nested dicts to TOML; a list of dicts is an array of tables (scalars only)."""
+    """Serialise nested dicts to TOML with tomli-w, ``header`` as leading comment lines."""
     lines = [f"# {line}".rstrip() for line in header.splitlines()]
-    _write_table(lines, [], document)
-    return "\n".join(lines).strip("\n") + "\n"
+    body = tomli_w.dumps(_plain(document), indent=4)
+    return "\n".join([*lines, ""]) + body if lines else body
 
 
-def _write_table(lines: list[str], path: list[str], table: Mapping[str, Any]) -> None:
-    def is_table_array(v: Any) -> bool:
-        return isinstance(v, list) and bool(v) and all(isinstance(i, Mapping) for i in v)
+def content_digest(document: Mapping[str, Any]) -> str:
+    """Return ``"sha256:<hex>"`` of the document's canonical JSON, ``digest`` key left out.
 
-    for key, value in table.items():
-        if value is not None and not isinstance(value, Mapping) and not is_table_array(value):
-            lines.append(f"{_key(key)} = {_value(value)}")
-    for key, value in table.items():
-        dotted = ".".join(_key(k) for k in [*path, key])
-        if isinstance(value, Mapping):
-            lines += ["", f"[{dotted}]"]
-            _write_table(lines, [*path, key], value)
-        elif is_table_array(value):
-            for item in value:
-                if any(isinstance(v, Mapping) or is_table_array(v) for v in item.values()):
-                    raise TypeError(f"{dotted}: tables inside an array of tables are not written")
-                lines += ["", f"[[{dotted}]]"]
-                _write_table(lines, [*path, key], item)
+    Canonical: keys sorted, no spaces, UTF-8, floats as Python's shortest repr,
+    which TOML reproduces exactly, so a written file and its parsed content
+    give the same digest.
+    """
+    content = {k: v for k, v in document.items() if k != "digest"}
+    text = json.dumps(_plain(content), sort_keys=True, separators=(",", ":"),
+                      ensure_ascii=False, allow_nan=False)
+    return DIGEST_PREFIX + hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def to_document(cal: Calibration) -> dict[str, Any]:
@@ -109,6 +104,7 @@ def to_document(cal: Calibration) -> dict[str, Any]:
             "force_bias_n": t.force_bias_n, "force_bias_std_n": t.force_bias_std_n,
             "torque_bias_nm": t.torque_bias_nm, "torque_bias_std_nm": t.torque_bias_std_nm,
             "condition_number": t.condition_number,
+            "pose_count": len(t.poses),
             "pose": [{"name": p.name, "quaternion": p.quaternion, "samples": p.samples,
                       "mean": p.mean, "residual": p.residual} for p in t.poses],
         },
@@ -118,6 +114,7 @@ def to_document(cal: Calibration) -> dict[str, Any]:
         doc["matrix_check"] = {"loads": m.loads, "matrix": m.matrix,
                                "rms_residual_fit": m.rms_residual_fit,
                                "rms_residual_sensor": m.rms_residual_sensor}
+    doc["digest"] = content_digest(doc)
     return doc
 
 
@@ -137,8 +134,14 @@ def to_toml(cal: Calibration) -> str:
 
 
 def save_calibration(cal: Calibration, path: str | os.PathLike[str]) -> None:
-    """Write the calibration file atomically (a reader sees the old file or the new one)."""
-    atomic_write_bytes(path, to_toml(cal).encode("utf-8"))
+    """Write the calibration file atomically (a reader sees the old file or the new one).
+
+    The text is read back and checked first, so a file that can be written can
+    be read: ConfigError names what the reader would refuse, and nothing is written.
+    """
+    text = to_toml(cal)
+    from_document(tomllib.loads(text), f"calibration to write to {os.fspath(path)!r}")
+    atomic_write_bytes(path, text.encode("utf-8"))
 
 
 # ---- reading ----------------------------------------------------------------------------
@@ -165,10 +168,12 @@ class _Table:
             raise self.fail(key, f"must be a string, got {value!r}")
         return value
 
-    def integer(self, key: str, minimum: int = 0) -> int:
+    def integer(self, key: str, minimum: int = 0, maximum: int | None = None) -> int:
         value = self._get(key)
-        if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-            raise self.fail(key, f"must be an integer >= {minimum}, got {value!r}")
+        if (isinstance(value, bool) or not isinstance(value, int) or value < minimum
+                or (maximum is not None and value > maximum)):
+            bound = f"{minimum}..{maximum}" if maximum is not None else f">= {minimum}"
+            raise self.fail(key, f"must be an integer {bound}, got {value!r}")
         return value
 
     def number(self, key: str, minimum: float = -math.inf, above: bool = False) -> float:
@@ -219,12 +224,17 @@ def from_document(data: Mapping[str, Any], source: str = "calibration") -> Calib
             f"{FORMAT_VERSION}; run `forcelearn calibrate` again to write a current file"
         )
     top = _Table(data, "file", source)
-    top.used.add("format_version")
+    top.used.update(("format_version", "digest"))
     created = top.string("created")
     s = _Table(top._get("sensor"), "sensor", source)
     sensor = SensorInfo(model=s.string("model"), serial=s.string("serial"),
-                        node_id=s.integer("node_id", 1), full_scales=s.vector("full_scales", 6),
-                        cutoff_hz=s.number("cutoff_hz", 0.0), robot=s.string("robot"))
+                        node_id=s.integer("node_id", 1, MAX_NODE_ID),
+                        full_scales=s.vector("full_scales", 6),
+                        cutoff_hz=s.number("cutoff_hz", 0.0, above=True), robot=s.string("robot"))
+    try:
+        check_full_scales(sensor.full_scales)
+    except ValueError as exc:
+        raise s.fail("full_scales", str(exc)) from None
     s.done()
     n = _Table(top._get("noise"), "noise", source)
     noise = NoiseEstimate(
@@ -248,6 +258,7 @@ def from_document(data: Mapping[str, Any], source: str = "calibration") -> Calib
                             rms_residual_sensor=c.vector("rms_residual_sensor", 6, 0.0))
         c.done()
     top.done()
+    _check_digest(data, source)
     return Calibration(created=created, sensor=sensor, noise=noise, tool=tool,
                        matrix_check=check)
 
@@ -263,6 +274,10 @@ def _read_tool(t: _Table, source: str) -> ToolLoad:
                              samples=p.integer("samples"), mean=p.vector("mean", 6),
                              residual=p.vector("residual", 6)))
         p.done()
+    pose_count = t.integer("pose_count", 1)
+    if pose_count != len(poses):
+        raise t.fail("pose_count", f"is {pose_count} but the file holds {len(poses)} poses: it "
+                     "is truncated or damaged; run `forcelearn calibrate` again")
     tool = ToolLoad(
         mass_kg=t.number("mass_kg", 0.0, above=True), mass_std_kg=t.number("mass_std_kg", 0.0),
         com_mm=t.vector("com_mm", 3), com_std_mm=t.vector("com_std_mm", 3, 0.0),
@@ -274,6 +289,19 @@ def _read_tool(t: _Table, source: str) -> ToolLoad:
     )
     t.done()
     return tool
+
+
+def _check_digest(data: Mapping[str, Any], source: str) -> None:
+    """Refuse a document whose ``digest`` is missing or disagrees with its content."""
+    digest = data.get("digest")
+    if not isinstance(digest, str) or not digest.startswith(DIGEST_PREFIX):
+        raise ConfigError(f"{source}: missing key file.digest (\"{DIGEST_PREFIX}...\")")
+    if digest != content_digest(data):
+        raise ConfigError(
+            f"{source}: file.digest does not match the content: the file was damaged, "
+            "truncated or edited after it was written; run `forcelearn calibrate` again "
+            "(or restore the file from a backup)"
+        )
 
 
 def load_calibration(path: str | os.PathLike[str]) -> Calibration:

@@ -17,7 +17,7 @@ import numpy as np
 
 from forcelearn.devices import Pose, quaternion_to_matrix
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 """Version of the calibration file format this code writes and reads."""
 STANDARD_GRAVITY_M_S2 = 9.80665
 MM_PER_M = 1000.0

@@ -29,9 +29,12 @@ The output map is code, not state: pass it again to :func:`load_learner`.
 from __future__ import annotations
 
 import json
+import lzma
 import os
+import struct
 import zipfile
-from collections.abc import Mapping
+import zlib
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -92,86 +95,190 @@ def load_learner(
 ) -> tuple[SRVLearner, dict[str, Any]]:
     """Read a learner saved by :func:`save_learner`; returns it and the saved metadata.
 
+    Every value is checked before use: finite weights and predictions, integer
+    counters in range, a known random generator, metadata that is a table.
+
     Raises:
         StateFileError: the file is missing, damaged, not a learner state, or of
             another format version.
     """
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            data = {key: archive[key] for key in archive.files}
-    except FileNotFoundError as exc:
-        raise StateFileError(f"no learner state at {os.fspath(path)!r}") from exc
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise StateFileError(
-            f"{os.fspath(path)!r} is not a readable learner state ({exc}); "
-            "restore it from a backup or start a new run"
-        ) from exc
+    data = _read_archive(path, lambda key: not key.startswith("extra_"))
     try:
         return _learner_from_arrays(data, output)
-    except (KeyError, ValueError, TypeError, json.JSONDecodeError) as exc:
-        if isinstance(exc, StateFileError):
-            raise
+    except StateFileError as exc:  # another format or version: the advice is in the message
+        raise StateFileError(f"{os.fspath(path)!r}: {exc}") from exc
+    except (KeyError, ValueError, TypeError, OverflowError, json.JSONDecodeError) as exc:
         raise StateFileError(
-            f"{os.fspath(path)!r} is damaged: {type(exc).__name__}: {exc}; "
+            f"{os.fspath(path)!r} is damaged: {type(exc).__name__}: {_describe(exc)}; "
             "restore it from a backup or start a new run"
         ) from exc
 
 
 def load_extra_arrays(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     """Return the ``arrays`` saved with :func:`save_learner` (without their prefix)."""
+    data = _read_archive(path, lambda key: key.startswith("extra_"))
+    return {key[len("extra_"):]: value for key, value in data.items()}
+
+
+_ZIP_MAGIC = b"PK\x03\x04"
+_READ_ERRORS = (
+    OSError, ValueError, EOFError, KeyError, TypeError, MemoryError, NotImplementedError,
+    RuntimeError, UnicodeDecodeError, struct.error, zipfile.BadZipFile, zlib.error,
+    lzma.LZMAError,
+)
+"""What numpy and zipfile raise on a damaged archive (damaged headers reach all of these)."""
+
+
+def _read_archive(
+    path: str | os.PathLike[str], wanted: Callable[[str], bool]
+) -> dict[str, np.ndarray]:
+    """Return the wanted arrays of the ``.npz`` at ``path``; StateFileError if unreadable."""
+    where = repr(os.fspath(path))
+    advice = "restore it from a backup or start a new run"
+    try:
+        with open(path, "rb") as handle:
+            magic = handle.read(len(_ZIP_MAGIC))
+    except FileNotFoundError as exc:
+        raise StateFileError(f"no learner state at {where}") from exc
+    except OSError as exc:
+        raise StateFileError(f"cannot read the learner state {where} ({exc})") from exc
+    if magic != _ZIP_MAGIC:
+        kind = "a single .npy array" if magic.startswith(b"\x93NUM") else "not an .npz archive"
+        raise StateFileError(f"{where} is not a learner state ({kind}); {advice}")
     try:
         with np.load(path, allow_pickle=False) as archive:
-            return {k[len("extra_"):]: archive[k] for k in archive.files if k.startswith("extra_")}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            if not isinstance(archive, np.lib.npyio.NpzFile):
+                raise StateFileError(f"{where} is not a learner state (not an .npz archive)")
+            return {key: archive[key] for key in archive.files if wanted(key)}
+    except StateFileError:
+        raise
+    except _READ_ERRORS as exc:
         raise StateFileError(
-            f"{os.fspath(path)!r} is not a readable learner state ({exc})"
+            f"{where} is not a readable learner state ({type(exc).__name__}: {_describe(exc)}); "
+            f"{advice}"
         ) from exc
+
+
+def _describe(exc: BaseException) -> str:
+    """The exception's text, without numpy's advice to load pickled data."""
+    text = str(exc)
+    if "pickle" in text:
+        return "it holds pickled objects, which are never loaded"
+    return text[:200]
+
+
+_BIT_GENERATORS: dict[str, type[np.random.BitGenerator]] = {
+    "PCG64": np.random.PCG64,
+    "PCG64DXSM": np.random.PCG64DXSM,
+    "MT19937": np.random.MT19937,
+    "Philox": np.random.Philox,
+    "SFC64": np.random.SFC64,
+}
+MAX_COUNT = 10**9
+"""Largest trial counter accepted (far beyond any run; larger means damage)."""
+MAX_BOXES = 10**7
+"""Largest grid accepted, in boxes (a damaged ``grid_parts`` must not exhaust memory)."""
+
+
+def _array(data: dict[str, np.ndarray], key: str, kinds: str, ndim: int | None) -> np.ndarray:
+    """Return ``data[key]``, checking its dtype kind and number of dimensions."""
+    value = data[key]
+    if not isinstance(value, np.ndarray) or value.dtype.kind not in kinds:
+        raise ValueError(f"'{key}' has type {getattr(value, 'dtype', type(value))}")
+    if ndim is not None and value.ndim != ndim:
+        raise ValueError(f"'{key}' has {value.ndim} dimensions, expected {ndim}")
+    return value
+
+
+def _count(data: dict[str, np.ndarray], key: str, low: int, high: int) -> int:
+    """Return an integer scalar in ``low..high``."""
+    value = int(_array(data, key, "iu", 0))
+    if not low <= value <= high:
+        raise ValueError(f"'{key}' is {value}, expected {low}..{high}")
+    return value
+
+
+def _text(data: dict[str, np.ndarray], key: str) -> str:
+    return str(_array(data, key, "U", 0))
+
+
+def _finite(data: dict[str, np.ndarray], key: str) -> np.ndarray:
+    value = _array(data, key, "f", None)
+    if not np.all(np.isfinite(value)):
+        raise ValueError(f"'{key}' holds NaN or infinite values")
+    return value.astype(float)
 
 
 def _learner_from_arrays(
     data: dict[str, np.ndarray], output: OutputMap | None
 ) -> tuple[SRVLearner, dict[str, Any]]:
-    if str(data.get("format", "")) != FORMAT:
+    if "format" not in data or _text(data, "format") != FORMAT:
         raise StateFileError("not a forcelearn learner state (its 'format' key is missing)")
-    version = int(data["format_version"])
+    version = int(_array(data, "format_version", "iu", 0))
     if version != FORMAT_VERSION:
         raise StateFileError(
             f"learner state has format version {version}; this forcelearn reads version "
             f"{FORMAT_VERSION}: use the forcelearn release that wrote it"
         )
+    names = _array(data, "grid_names", "U", 1)
+    lows, highs = _finite(data, "grid_lows"), _finite(data, "grid_highs")
+    parts = _array(data, "grid_parts", "iu", 1)
+    if not len(names) == len(lows) == len(highs) == len(parts) >= 1:
+        raise ValueError("grid_names, grid_lows, grid_highs, grid_parts differ in length")
+    if np.any(parts < 1) or float(np.prod(parts.astype(float))) > MAX_BOXES:
+        raise ValueError(f"grid_parts {parts.tolist()} must be >= 1, <= {MAX_BOXES} boxes")
     dims = [
         Dimension(str(n), float(lo), float(hi), int(p))
-        for n, lo, hi, p in zip(
-            data["grid_names"],
-            data["grid_lows"],
-            data["grid_highs"],
-            data["grid_parts"],
-            strict=True,
-        )
+        for n, lo, hi, p in zip(names, lows, highs, parts, strict=True)
     ]
-    grid = BoxGrid(dims, out_of_range=str(data["grid_out_of_range"]))  # type: ignore[arg-type]
-    params = SRVParams.from_dict(json.loads(str(data["params_json"])))
-    weights = np.asarray(data["weights"], dtype=float)
-    predictions = np.asarray(data["predictions"], dtype=float)
-    if predictions.shape != grid.shape or weights.shape[:-1] != grid.shape:
-        raise StateFileError(
+    out_of_range = _text(data, "grid_out_of_range")
+    if out_of_range not in ("error", "clamp"):
+        raise ValueError(f"grid_out_of_range is {out_of_range!r}, not 'error' or 'clamp'")
+    grid = BoxGrid(dims, out_of_range=out_of_range)  # type: ignore[arg-type]
+    params_table = json.loads(_text(data, "params_json"))
+    if not isinstance(params_table, dict):
+        raise ValueError("params_json is not a table")
+    params = SRVParams.from_dict(params_table)
+    weights, predictions = _finite(data, "weights"), _finite(data, "predictions")
+    if (
+        predictions.shape != grid.shape
+        or weights.shape[:-1] != grid.shape
+        or weights.ndim != predictions.ndim + 1
+        or weights.shape[-1] < 1
+    ):
+        raise ValueError(
             f"weights {weights.shape} / predictions {predictions.shape} do not fit the grid "
             f"{grid.shape}"
         )
-    rng_state = json.loads(str(data["rng_json"]))
-    bit_generator = getattr(np.random, rng_state["bit_generator"])()
-    bit_generator.state = rng_state
-    learner = SRVLearner(
-        grid, weights.shape[-1], params, np.random.Generator(bit_generator), output
-    )
+    rng = _generator(_text(data, "rng_json"))
+    trials = _count(data, "trials", 0, MAX_COUNT)
+    consecutive = _count(data, "consecutive_successes", 0, trials)
+    switch = _count(data, "switch_trial", -1, trials - 1)
+    phase = Phase(_count(data, "phase", min(Phase), max(Phase)))
+    metadata = json.loads(_text(data, "metadata_json"))
+    if not isinstance(metadata, dict):
+        raise ValueError(f"metadata_json is a {type(metadata).__name__}, not a table")
+    learner = SRVLearner(grid, weights.shape[-1], params, rng, output)
     learner.weights[...] = weights
     learner.predictions[...] = predictions
-    switch = int(data["switch_trial"])
     learner.schedule = PhaseSchedule(
         success_trials=params.success_trials,
-        phase=Phase(int(data["phase"])),
-        consecutive_successes=int(data["consecutive_successes"]),
-        trials=int(data["trials"]),
+        phase=phase,
+        consecutive_successes=consecutive,
+        trials=trials,
         switch_trial=None if switch < 0 else switch,
     )
-    return learner, json.loads(str(data["metadata_json"]))
+    return learner, metadata
+
+
+def _generator(rng_json: str) -> np.random.Generator:
+    """Rebuild the saved generator; only the known bit generators are ever constructed."""
+    state = json.loads(rng_json)
+    name = state.get("bit_generator") if isinstance(state, dict) else None
+    if name not in _BIT_GENERATORS:
+        raise ValueError(
+            f"rng_json names bit generator {name!r}; known: {sorted(_BIT_GENERATORS)}"
+        )
+    bit_generator = _BIT_GENERATORS[name]()
+    bit_generator.state = state
+    return np.random.Generator(bit_generator)

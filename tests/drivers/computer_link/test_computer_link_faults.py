@@ -5,13 +5,11 @@ Every test runs over a pty and over TCP; the emulator's move counter is the proo
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
 from forcelearn.emulators.robot_controller import Fault, FaultConfig
 from forcelearn.emulators.robot_controller.kinematics import HOME
-from forcelearn.errors import LinkError, LinkTimeout
+from forcelearn.errors import LinkError
 
 ONCE = Fault(1.0, limit=1)
 
@@ -33,38 +31,9 @@ def test_single_fault_is_recovered_and_the_robot_moves_once(emulator, connect, f
     assert robot.read_pose() == HOME.moved(dz_mm=-2.0)
 
 
-def test_ack_delayed_past_the_timeout_is_recovered_without_a_second_move(
-    make_emulator, connect
-) -> None:
-    """The ACK arrives after ENQs were sent: the move still executes exactly once."""
-    emulator = make_emulator(faults=FaultConfig(ack_delay_s=0.12))
-    robot = connect(emulator.url)  # ack timeout 0.05 s, 3 ENQ: gives up after ~0.2 s
-    _armed(emulator, "delay_ack")
-    robot.move_by(dx_mm=3.0)
-    assert emulator.faults.fired["delay_ack"] == 1
-    assert emulator.move_count == 1
-    assert robot.read_pose() == HOME.moved(dx_mm=3.0)
-
-
-def test_ack_delayed_past_every_retry_raises_link_timeout(make_emulator, connect) -> None:
-    """A controller silent past all ENQs gives LinkTimeout; the move is never doubled."""
-    delay_s = 0.6
-    emulator = make_emulator(faults=FaultConfig(ack_delay_s=delay_s))
-    robot = connect(emulator.url)
-    _armed(emulator, "delay_ack")
-    started = time.monotonic()
-    with pytest.raises(LinkTimeout, match="may have executed"):
-        robot.move_by(dx_mm=3.0)
-    assert time.monotonic() - started < delay_s  # gave up by the documented retries
-    pose = None
-    for _ in range(20):  # the controller is busy for the rest of the delay
-        try:
-            pose = robot.read_pose()
-            break
-        except LinkTimeout:
-            continue
-    assert pose == HOME.moved(dx_mm=3.0)
-    assert emulator.move_count == 1
+# An ACK delayed past the timeout is tested in test_computer_link_link.py against a
+# scripted controller that stays silent until it has counted the ENQs: the outcome
+# there never depends on how fast the host runs (it did here, by 80 ms).
 
 
 def test_dropped_connection_raises_link_error_then_reconnect_works(emulator, connect) -> None:

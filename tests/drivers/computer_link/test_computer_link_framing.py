@@ -21,15 +21,18 @@ from forcelearn.drivers.computer_link.framing import (
 )
 
 # (payload, wire bytes): written out by hand from the layout in docs/computer-link.md.
+# Protocol 2.0: DLE STX, length byte, payload, DLE ETX, CRC-16/MODBUS low byte first.
 GOLDEN = [
-    (b"\x07\x2a\x00", bytes.fromhex("10 02 07 2a 00 10 03 60 bd")),
-    (b"\x01\x10\x00", bytes.fromhex("10 02 01 10 10 00 10 03 40 38")),
+    (b"\x07\x2a\x00", bytes.fromhex("10 02 03 07 2a 00 10 03 00 bd")),
+    (b"\x01\x10\x00", bytes.fromhex("10 02 03 01 10 10 00 10 03 20 38")),
+    (bytes(range(0x20, 0x30)), bytes.fromhex("10 02 10 10") + bytes(range(0x20, 0x30))
+     + bytes.fromhex("10 03 d8 ce")),  # a 16-byte payload: its length byte is stuffed
 ]
 
 
 def _crc_bitwise(data: bytes) -> int:
-    """Reference CRC-16/ARC, bit by bit, independent of the table in the module."""
-    crc = 0
+    """Reference CRC-16/MODBUS, bit by bit, independent of the table in the module."""
+    crc = 0xFFFF
     for byte in data:
         crc ^= byte
         for _ in range(8):
@@ -39,10 +42,10 @@ def _crc_bitwise(data: bytes) -> int:
 
 @pytest.mark.parametrize(
     ("data", "expected"),
-    [(b"123456789", 0xBB3D), (b"A", 0x30C0), (b"", 0x0000)],
+    [(b"123456789", 0x4B37), (b"", 0xFFFF)],
 )
 def test_crc16_matches_published_check_values(data: bytes, expected: int) -> None:
-    """CRC-16/ARC check values from the CRC catalogue."""
+    """CRC-16/MODBUS check value from the CRC catalogue (and its initial value)."""
     assert crc16(data) == expected
 
 
@@ -143,7 +146,7 @@ def test_frame_cut_short_resyncs_on_the_new_start() -> None:
 def test_illegal_dle_pair_and_oversize_are_rejected() -> None:
     """DLE followed by a non-control byte inside a frame, or a runaway frame, is BadFrame."""
     assert isinstance(decode(b"\x10\x02ab\x10\x41cd").frame, BadFrame)
-    runaway = b"\x10\x02" + b"a" * (framing.MAX_PAYLOAD + 1)
+    runaway = b"\x10\x02" + b"a" * (framing.MAX_PAYLOAD + 2)  # length byte + payload
     assert isinstance(decode(runaway).frame, BadFrame)
     assert isinstance(decode(b"\x10\x02\x10\x03\x00\x00").frame, BadFrame)
 
@@ -187,3 +190,45 @@ def test_fuzz_decoder_never_accepts_a_damaged_frame_and_resyncs(
     for payload, count in accepted_before.items():
         assert count <= intact[payload], f"accepted a damaged or invented frame {payload!r}"
     assert reader.pending == 0
+
+
+def test_leading_zero_after_stx_is_rejected() -> None:
+    """Issue 12.1: a 0x00 inserted after DLE STX left CRC-16/ARC unchanged; now it fails."""
+    for payload in (b"\x07\x2a\x00", b"\x83\x01\x00\x00", bytes(range(1, 40))):
+        wire = encode(payload)
+        for zeros in range(1, 4):
+            damaged = wire[:2] + bytes(zeros) + wire[2:]
+            assert isinstance(decode(damaged).frame, BadFrame), (payload, zeros)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    payload=st.binary(min_size=1, max_size=60),
+    at=st.integers(0, 10_000),
+    inserted=st.binary(min_size=1, max_size=3),
+)
+def test_short_insertions_inside_a_frame_are_never_accepted(
+    payload: bytes, at: int, inserted: bytes
+) -> None:
+    """Bytes inserted anywhere between DLE STX and the CRC never yield a different payload."""
+    wire = encode(payload)
+    position = 2 + at % (len(wire) - 3)
+    damaged = wire[:position] + inserted + wire[position:]
+    accepted = [f.payload for f in _feed_all(damaged) if isinstance(f, DataFrame)]
+    assert accepted[-1] == MARKER
+    assert all(p in (payload, MARKER) for p in accepted), accepted
+
+
+def test_length_byte_disagreeing_with_the_payload_is_rejected() -> None:
+    """A frame whose CRC is right but whose length byte is wrong is BadFrame."""
+    body = b"\x05abc"  # says 5 payload bytes, holds 3
+    crc = crc16(b"\x03", crc16(body))
+    wire = b"\x10\x02" + body + b"\x10\x03" + crc.to_bytes(2, "little")
+    frame = decode(wire).frame
+    assert isinstance(frame, BadFrame)
+    assert "length" in frame.reason
+
+
+def _feed_all(data: bytes) -> list[framing.Frame]:
+    reader = FrameReader()
+    return reader.feed(data + encode(MARKER) * 2)

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import time
+import math
 
 import pytest
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import Limits, LinkConfig
 from forcelearn.emulators.robot_controller.kinematics import HOME, TOOL_DOWN
-from forcelearn.errors import ConfigError, SafetyStop
+from forcelearn.errors import ConfigError, InvalidTarget, SafetyStop
 
 TIGHT = Limits(
     workspace_min_mm=(850.0, -50.0, 550.0),
@@ -19,23 +19,18 @@ TIGHT = Limits(
 )
 
 
-def settled_bytes_received(emulator, quiet_s: float = 0.05, limit_s: float = 2.0) -> int:
-    """Wait until the emulator's byte count stops changing (the driver's trailing DLE ACK).
+def count_writes(robot, monkeypatch: pytest.MonkeyPatch) -> list[bytes]:
+    """Record every write the driver makes to its port from now on (no waiting for silence)."""
+    writes: list[bytes] = []
+    port = robot._port
+    original = port.write
 
-    The driver acknowledges each reply after it has read it, so the last ACK of
-    the previous call may still be on its way when the test takes its baseline.
-    """
-    deadline = time.monotonic() + limit_s
-    count = emulator.bytes_received
-    quiet_since = time.monotonic()
-    while time.monotonic() < deadline:
-        time.sleep(0.005)
-        now = emulator.bytes_received
-        if now != count:
-            count, quiet_since = now, time.monotonic()
-        elif time.monotonic() - quiet_since >= quiet_s:
-            return count
-    raise AssertionError("the emulator kept receiving bytes for 2 s")
+    def write(data: bytes) -> int | None:
+        writes.append(bytes(data))
+        return original(data)
+
+    monkeypatch.setattr(port, "write", write)
+    return writes
 
 
 @pytest.mark.parametrize(
@@ -47,17 +42,22 @@ def settled_bytes_received(emulator, quiet_s: float = 0.05, limit_s: float = 2.0
         (lambda r: r.move_to(HOME.moved(dx_mm=float("nan"))), "workspace"),
         (lambda r: r.set_speed(100.5), "speed"),
         (lambda r: r.set_speed(0.0), "speed"),
+        (lambda r: r.move_to(HOME.moved(dx_mm=1e39)), "workspace"),  # > float32, finite
+        (lambda r: r.move_by(dx_mm=1e39), "workspace"),
+        (lambda r: r.move_to(Pose(900.0, 0.0, 600.0, (1.0, 0.0, 0.0))), "4 finite"),
+        (lambda r: r.move_to(Pose(900.0, 0.0, 600.0, (1.0, 0.0, 0.0, math.inf))), "4 finite"),
+        (lambda r: r.move_to(Pose(900.0, 0.0, 600.0, ("w", 0, 0, 0))), "4 numbers"),
     ],
 )
 def test_command_outside_a_limit_is_refused_before_any_byte_is_sent(
-    emulator, connect, command, match
+    emulator, connect, monkeypatch, command, match
 ) -> None:
-    """SafetyStop names the limit; the controller receives nothing and does not move."""
+    """SafetyStop names the limit; the driver writes nothing and the robot does not move."""
     robot = connect(emulator.url, limits=TIGHT)
-    received = settled_bytes_received(emulator)
+    writes = count_writes(robot, monkeypatch)
     with pytest.raises(SafetyStop, match=match):
         command(robot)
-    assert settled_bytes_received(emulator) == received
+    assert writes == []
     assert emulator.move_count == 0
 
 
@@ -71,13 +71,16 @@ def test_step_limit_is_measured_from_the_last_commanded_position(emulator, conne
         robot.move_to(HOME)
 
 
-def test_non_unit_quaternion_is_a_value_error(emulator, connect) -> None:
-    """A malformed orientation is a bad argument, refused before sending."""
+def test_non_unit_quaternion_is_a_value_error_and_a_safety_stop(
+    emulator, connect, monkeypatch
+) -> None:
+    """A malformed orientation is a bad argument and a refused target: nothing is written."""
     robot = connect(emulator.url)
-    received = settled_bytes_received(emulator)
-    with pytest.raises(ValueError, match="unit length"):
+    writes = count_writes(robot, monkeypatch)
+    with pytest.raises(InvalidTarget, match="unit length") as caught:
         robot.move_to(Pose(900.0, 0.0, 600.0, (1.0, 1.0, 0.0, 0.0)))
-    assert settled_bytes_received(emulator) == received
+    assert isinstance(caught.value, ValueError) and isinstance(caught.value, SafetyStop)
+    assert writes == []
 
 
 def test_link_config_from_dict_builds_and_names_bad_keys() -> None:
@@ -97,3 +100,27 @@ def test_link_config_from_dict_builds_and_names_bad_keys() -> None:
         Limits(max_step_mm=-1)
     with pytest.raises(ConfigError, match=r"workspace_min_mm\[2\]"):
         Limits(workspace_min_mm=(0, 0, 10), workspace_max_mm=(1, 1, 10))
+
+
+def test_a_non_finite_reported_position_cannot_bypass_the_step_limit(
+    emulator, connect, monkeypatch
+) -> None:
+    """A controller reporting NaN as its position made every step NaN, and NaN > limit is False.
+
+    The step check now refuses anything not provably within the limit.
+    """
+    from forcelearn.drivers.computer_link import messages
+
+    real = messages.parse_position
+
+    def nan_position(body: bytes) -> messages.Position:
+        position = real(body)
+        return messages.Position((math.nan,) * 3, position.quaternion, position.joints_deg)
+
+    monkeypatch.setattr(messages, "parse_position", nan_position)
+    robot = connect(emulator.url, limits=TIGHT)
+    writes = count_writes(robot, monkeypatch)
+    with pytest.raises(SafetyStop, match="step of nan"):
+        robot.move_to(HOME.moved(dz_mm=-1.0))
+    assert writes == []
+    assert emulator.move_count == 0

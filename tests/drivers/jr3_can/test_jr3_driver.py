@@ -14,6 +14,7 @@ from forcelearn.devices import ForceSensor, Pose
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3 import Jr3EmulatorNode, SensorModelParams
+from forcelearn.emulators.jr3 import node as node_module
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import ConfigError, SensorBusError, SensorError, SensorTimeout
@@ -78,6 +79,38 @@ def test_full_scales_are_read_and_used_in_scaling(
     assert np.all(np.abs(truth) > 0.05)
     reading = sensor.read().wrench
     assert np.all(np.abs(reading - truth) <= np.array(scales) / 16384 * 0.51)
+
+
+@pytest.mark.parametrize(
+    "wire",
+    [((0, 0, 0), (0, 0, 0)), ((65535,) * 3, (65535,) * 3), ((200, 200, 400), (200, 0, 200))],
+)
+def test_implausible_full_scales_from_the_adapter_are_refused(
+    make_node: NodeFactory,
+    make_sensor: SensorFactory,
+    monkeypatch: pytest.MonkeyPatch,
+    wire: tuple[tuple[int, ...], tuple[int, ...]],
+) -> None:
+    """Issue 12.2: full scales of 0 or 0xFFFF from the wire stop initialisation with SensorError.
+
+    Accepted, a zero full scale reads every wrench as 0 N and no force limit can trip.
+    """
+    monkeypatch.setattr(node_module, "full_scales_to_wire", lambda _fs: wire)
+    make_node(model=QUIET)
+    sensor = make_sensor()
+    with pytest.raises(SensorError, match="implausible"):
+        sensor.initialise()
+    assert sensor.full_scales is None
+
+
+@pytest.mark.parametrize(
+    "scales", [(0.0,) * 6, (200.0, 200.0, -1.0, 20.0, 20.0, 20.0), (1e9,) * 6,
+               (200.0, 200.0, 400.0, 20.0, 20.0, float("nan"))],
+)
+def test_implausible_configured_full_scales_are_config_errors(scales: tuple[float, ...]) -> None:
+    """The same plausibility check guards jr3.full_scales from the configuration."""
+    with pytest.raises(ConfigError, match="full_scales"):
+        Jr3Config(full_scales=scales)
 
 
 def test_configured_full_scales_override_the_adapter(

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from forcelearn.drivers.jr3_can.codec import Forces, Moments
 from forcelearn.drivers.jr3_can.pairing import Pairer, counter_gap
 
@@ -72,3 +75,28 @@ def test_restart_forgets_the_counter() -> None:
     pairer.push(_f(0))
     pair = pairer.push(_m(0))
     assert pair is not None and pair.dropped == 0 and pairer.dropped == 0
+
+
+def test_pending_newer_frame_is_kept_or_counted_when_a_pair_completes() -> None:
+    """Issue 12.7: out of order, M(11) waits while F(10), M(10) pair; it is not lost silently."""
+    pairer = Pairer()
+    pairer.push(_m(11))
+    pairer.push(_f(10))
+    pair = pairer.push(_m(10))
+    assert pair is not None and pair.counter == 10
+    assert pairer.pending == 1  # M(11) still waits for F(11)
+    pair = pairer.push(_f(11))
+    assert pair is not None and pair.counter == 11
+    assert pairer.unpaired == 0 and pairer.pending == 0
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.booleans(), st.integers(0, 6)), max_size=60))
+def test_every_pushed_frame_is_accounted_for(frames: list[tuple[bool, int]]) -> None:
+    """Any order of frames: pushed = 2 x (pairs + duplicates) + unpaired + pending."""
+    pairer = Pairer()
+    pairs = 0
+    for is_force, counter in frames:
+        pairs += pairer.push(_f(counter) if is_force else _m(counter)) is not None
+    accounted = 2 * (pairs + pairer.duplicates) + pairer.unpaired + pairer.pending
+    assert accounted == len(frames)

@@ -122,6 +122,21 @@ class BusConfig:
     interface: str = EMULATED
     channel: str = "forcelearn-jr3"
     bitrate: int = 1_000_000
+    sleep_after_open_s: float | None = None
+    """slcan only: python-can's wait after opening the adapter, s (None: its default, 2 s)."""
+
+    def __post_init__(self) -> None:
+        wait = self.sleep_after_open_s
+        if wait is not None and (self.interface != "slcan" or not 0 <= wait <= 10):
+            raise ConfigError(
+                f"sensor.sleep_after_open_s={wait}: only for interface \"slcan\", 0..10 s"
+            )
+
+    def can_kwargs(self) -> dict[str, float]:
+        """Extra keyword arguments for ``can.Bus`` (python-can's ``sleep_after_open``)."""
+        if self.sleep_after_open_s is None:
+            return {}
+        return {"sleep_after_open": self.sleep_after_open_s}
 
 
 PROFILES = ("realistic", "ideal")
@@ -206,7 +221,7 @@ class CellConfig:
         return self.bus.interface == EMULATED
 
 
-_BUS_KEYS = {"interface", "channel", "bitrate"}
+_BUS_KEYS = {"interface", "channel", "bitrate", "sleep_after_open_s"}
 
 
 def _with_home_pose(arm: dict[str, Any] | None) -> dict[str, Any] | None:

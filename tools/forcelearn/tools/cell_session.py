@@ -94,7 +94,8 @@ class CellSession:
         else:
             try:
                 self._bus = can.Bus(
-                    interface=cfg.bus.interface, channel=cfg.bus.channel, bitrate=cfg.bus.bitrate
+                    interface=cfg.bus.interface, channel=cfg.bus.channel, bitrate=cfg.bus.bitrate,
+                    **cfg.bus.can_kwargs(),
                 )
             except (can.CanError, OSError, ValueError, ImportError) as exc:
                 raise SensorBusError(

@@ -55,6 +55,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"forcelearn check: {source}")
     print(f"  robot   {_describe_robot(config)}")
     print(f"  sensor  {_describe_bus(config)}")
+    missing = missing_devices(config)
+    for line in missing:
+        print(f"FAILED  {line}")
+    if missing:
+        return 1
     try:
         with CellSession(config, seed=args.seed) as session:
             check_session(session, args.seconds, print)
@@ -127,6 +132,24 @@ def _check_sensor(sensor: Jr3CanSensor, config: CellConfig, seconds: float, say:
         say(f"  sensor  calibration file {config.calibration_file}: {state}")
 
 
+def missing_devices(config: CellConfig) -> list[str]:
+    """One line per device whose serial port path does not exist (all of them, not the first)."""
+    lines = []
+    robot_url = config.robot.url
+    if not config.robot_emulated and "://" not in robot_url and not Path(robot_url).exists():
+        lines.append(f"robot link: port {robot_url} does not exist; check [robot] url and the "
+                     "cable" + _EMULATE_HINT)
+    channel = config.bus.channel
+    if config.bus.interface == "slcan" and "://" not in channel and not Path(channel).exists():
+        lines.append(f"sensor: slcan adapter port {channel} does not exist; check the channel in "
+                     "[sensor] and that the USB-CAN adapter is plugged in" + _EMULATE_HINT)
+    return lines
+
+
+_EMULATE_HINT = (" (for `forcelearn emulate`, name the stable links it prints, which survive "
+                 "restarts, rather than the /dev/pts paths)")
+
+
 def _describe_robot(config: CellConfig) -> str:
     robot = config.robot
     if config.robot_emulated:
@@ -139,5 +162,9 @@ def _describe_bus(config: CellConfig) -> str:
     bus = config.bus
     if config.sensor_emulated:
         return "built-in JR3 emulator on a virtual CAN bus"
-    return (f"CAN interface {bus.interface}, channel {bus.channel}, {bus.bitrate} bit/s, "
-            f"JR3 node {config.sensor.node_id}")
+    described = (f"CAN interface {bus.interface}, channel {bus.channel}, {bus.bitrate} bit/s, "
+                 f"JR3 node {config.sensor.node_id}")
+    if bus.interface == "slcan" and bus.sleep_after_open_s is None:
+        described += ("\n          (python-can's slcan waits 2 s after every open; set "
+                      "[sensor] sleep_after_open_s = 0 if your adapter needs no settle time)")
+    return described

@@ -13,7 +13,9 @@ another shell::
 from __future__ import annotations
 
 import argparse
+import os
 import signal
+import tempfile
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -36,6 +38,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--write-config", type=Path, metavar="FILE", help="also write the site config to FILE"
     )
+    parser.add_argument(
+        "--link-dir", type=Path, metavar="DIR", default=default_link_dir(),
+        help="folder for the stable port symlinks 'robot' and 'jr3-slcan' named in the site "
+        f"config (default {default_link_dir()})",
+    )
+    parser.add_argument(
+        "--fresh-per-connection", action="store_true",
+        help="give each client session a fresh cell (new sponge, sensor as at start); by "
+        "default the cell remembers wear between sessions, as a real one does",
+    )
+
+
+def default_link_dir() -> Path:
+    """Per-user folder of the stable symlinks (one running emulator per folder)."""
+    return Path(tempfile.gettempdir()) / f"forcelearn-emulate-{os.getuid()}"
 
 
 @contextmanager
@@ -57,10 +74,14 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     """Serve the emulated cell until a signal (or ``stop``, for callers in-process)."""
     config = load_cell_config(args.config)
     stop = stop or threading.Event()
-    with _stop_on_signals(stop), EmulatedCell(config, seed=args.seed) as cell:
+    cell = EmulatedCell(config, seed=args.seed, link_dir=args.link_dir,
+                        fresh_per_connection=args.fresh_per_connection)
+    sessions = ("a fresh cell per client session" if args.fresh_per_connection
+                else "the cell remembers wear between client sessions")
+    with _stop_on_signals(stop), cell:
         print(
-            f"forcelearn emulate: emulated cell running (seed {args.seed}); "
-            "Ctrl-C or SIGTERM stops it",
+            f"forcelearn emulate: emulated cell running, PID {os.getpid()} (seed {args.seed}, "
+            f"{sessions}); Ctrl-C or `kill {os.getpid()}` stops it",
             flush=True,
         )
         print(f"robot link (computer link, pty): {cell.robot_path}")
@@ -77,7 +98,8 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
         print(
             f"forcelearn emulate: stopping: {cell.robot.move_count} robot moves executed, "
             f"{cell.sensor.stats.samples} JR3 samples sent, "
-            f"{cell.adapter.model.frames_sent} frames from the slcan host",
+            f"{cell.adapter.model.frames_sent} frames from the slcan host, "
+            f"{cell.sessions} client sessions",
             flush=True,
         )
     return 0

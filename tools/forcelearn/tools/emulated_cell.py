@@ -19,8 +19,11 @@ settings (baud rate and framing), the CAN bus that of ``[sensor] bitrate``.
 from __future__ import annotations
 
 import contextlib
+import copy
 import logging
+import os
 import uuid
+from pathlib import Path
 
 from forcelearn.emulators.clock import SimClock, serial_char_time_s
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
@@ -32,6 +35,10 @@ from forcelearn.emulators.slcan import SlcanAdapterEmulator
 from forcelearn.tools.cell_config import CellConfig
 
 log = logging.getLogger(__name__)
+
+ROBOT_LINK = "robot"
+SLCAN_LINK = "jr3-slcan"
+"""Names of the stable symlinks in ``link_dir``."""
 
 
 def emulated_physics(config: CellConfig) -> tuple[Sponge, CellPhysics]:
@@ -86,10 +93,25 @@ class EmulatedCell:
         config: the cell config; its ``[emulator]`` tables, ``sensor.node_id``
             and ``[sensor] bitrate`` shape the emulated devices.
         seed: seed of the emulated sensor's noise.
+        link_dir: if given, stable symlinks ``robot`` and ``jr3-slcan`` in this
+            folder point at the ptys (whose paths change on every start), so a
+            saved site config stays valid; they are removed on stop.
+        fresh_per_connection: each time a client opens the CAN adapter (a new
+            client session) the sponge and the sensor return to their state at
+            start. Default False: like a real cell, the emulator remembers wear.
     """
 
-    def __init__(self, config: CellConfig, seed: int = 0) -> None:
+    def __init__(
+        self,
+        config: CellConfig,
+        seed: int = 0,
+        link_dir: Path | None = None,
+        fresh_per_connection: bool = False,
+    ) -> None:
         self.config = config
+        self.link_dir = link_dir
+        self.sessions = 0
+        """Client sessions seen (opens of the CAN adapter)."""
         self.sponge, self.physics = emulated_physics(config)
         self._stack = contextlib.ExitStack()
         try:
@@ -100,19 +122,51 @@ class EmulatedCell:
             self._stack.callback(self.sensor.close)
             self.adapter = SlcanAdapterEmulator(channel=channel, bus_bitrate=config.bus.bitrate)
             self._stack.callback(self.adapter.stop)
+            self._initial = {"sponge": self.sponge.state_dict(), "jr3": self.sensor.state_dict()}
+            self.fresh_per_connection = fresh_per_connection
+            self.adapter.on_open = self._on_session
+            if link_dir is not None:
+                self._stack.callback(self._remove_links)
+                self._make_links()
         except BaseException:
             self._stack.close()
             raise
 
     @property
     def robot_path(self) -> str:
-        """The robot link's serial port (a pty path)."""
-        return self.robot.url
+        """The robot link's serial port (the stable symlink when ``link_dir`` is set)."""
+        return str(self.link_dir / ROBOT_LINK) if self.link_dir else self.robot.url
 
     @property
     def slcan_path(self) -> str:
-        """The slcan adapter's serial port (a pty path)."""
-        return self.adapter.path
+        """The slcan adapter's serial port (the stable symlink when ``link_dir`` is set)."""
+        return str(self.link_dir / SLCAN_LINK) if self.link_dir else self.adapter.path
+
+    def fresh(self) -> None:
+        """Return the sponge and the sensor to their state at start (the robot stays put)."""
+        self.sponge.load_state_dict(copy.deepcopy(self._initial["sponge"]))
+        self.sensor.load_state_dict(copy.deepcopy(self._initial["jr3"]))
+
+    def _on_session(self) -> None:
+        self.sessions += 1
+        if self.fresh_per_connection:
+            self.fresh()
+            log.info("client session %d: fresh cell", self.sessions)
+
+    def _make_links(self) -> None:
+        """Point the stable symlinks at the ptys (replacing stale ones atomically)."""
+        assert self.link_dir is not None
+        self.link_dir.mkdir(parents=True, exist_ok=True)
+        for name, target in ((ROBOT_LINK, self.robot.url), (SLCAN_LINK, self.adapter.path)):
+            temporary = self.link_dir / f".{name}.{os.getpid()}"
+            temporary.unlink(missing_ok=True)
+            temporary.symlink_to(target)
+            os.replace(temporary, self.link_dir / name)
+
+    def _remove_links(self) -> None:
+        assert self.link_dir is not None
+        for name in (ROBOT_LINK, SLCAN_LINK):
+            (self.link_dir / name).unlink(missing_ok=True)
 
     def start(self) -> None:
         """Start serving both ports."""
@@ -144,5 +198,6 @@ class EmulatedCell:
             'interface = "slcan"\n'
             f'channel = "{self.slcan_path}"\n'
             f"bitrate = {bus.bitrate}\n"
+            "sleep_after_open_s = 0.0   # the emulated adapter needs no settle time\n"
             f"node_id = {self.config.sensor.node_id}\n"
         )

@@ -39,7 +39,13 @@ from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import messages as m
 from forcelearn.drivers.computer_link.config import POLL_S, LinkConfig
 from forcelearn.drivers.computer_link.link import Link
-from forcelearn.errors import ForcelearnError, LinkError, NotInPosition, SafetyStop
+from forcelearn.errors import (
+    ForcelearnError,
+    InvalidTarget,
+    LinkError,
+    NotInPosition,
+    SafetyStop,
+)
 
 log = logging.getLogger(__name__)
 
@@ -175,13 +181,16 @@ class ComputerLinkRobot:
     # -- commanding ------------------------------------------------------------------------
 
     def move_to(self, pose: Pose) -> None:
-        """Move to an absolute pose; returns when the controller has accepted it."""
-        norm = math.sqrt(sum(c * c for c in pose.quaternion))
-        if not abs(norm - 1.0) <= 1e-6:
-            raise ValueError(f"pose quaternion must be unit length, its norm is {norm:.6f}")
-        body = m.pose_body((pose.x_mm, pose.y_mm, pose.z_mm), pose.quaternion)
+        """Move to an absolute pose; returns when the controller has accepted it.
+
+        Raises:
+            InvalidTarget: the quaternion is not 4 finite numbers of unit length.
+            SafetyStop: the target breaks a limit. In both cases nothing was sent.
+        """
+        _check_quaternion(pose.quaternion)
         with self._lock:
-            self._check_target(pose)
+            self._check_target(pose)  # before packing: huge values are refused, not overflowed
+            body = m.pose_body((pose.x_mm, pose.y_mm, pose.z_mm), pose.quaternion)
             self._command(m.Command.MOVE_TO, body, pose)
 
     def move_by(self, dx_mm: float = 0.0, dy_mm: float = 0.0, dz_mm: float = 0.0) -> None:
@@ -225,7 +234,7 @@ class ComputerLinkRobot:
                 f"{list(low)}..{list(high)} (limits.workspace_*_mm); nothing was sent"
             )
         step = float(np.linalg.norm(position - self._reference_locked().position_mm))
-        if step > limits.max_step_mm:
+        if not step <= limits.max_step_mm:  # NaN (a non-finite reported pose) is refused too
             raise SafetyStop(
                 f"refused a step of {step:.3f} mm: more than limits.max_step_mm = "
                 f"{limits.max_step_mm} mm; nothing was sent"
@@ -276,3 +285,20 @@ class ComputerLinkRobot:
                 ResourceWarning,
                 stacklevel=2,
             )
+
+
+def _check_quaternion(quaternion: object) -> None:
+    """Raise InvalidTarget unless ``quaternion`` is 4 finite numbers of unit norm."""
+    try:
+        values = [float(c) for c in quaternion]  # type: ignore[attr-defined]
+    except (TypeError, ValueError) as exc:
+        raise InvalidTarget(f"pose quaternion must be 4 numbers (w, x, y, z): {exc}") from None
+    if len(values) != 4 or not all(math.isfinite(c) for c in values):
+        raise InvalidTarget(
+            f"pose quaternion must be 4 finite numbers (w, x, y, z), got {values}; nothing was sent"
+        )
+    norm = math.sqrt(sum(c * c for c in values))
+    if not abs(norm - 1.0) <= 1e-6:
+        raise InvalidTarget(
+            f"pose quaternion must be unit length, its norm is {norm:.6f}; nothing was sent"
+        )

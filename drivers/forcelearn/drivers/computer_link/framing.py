@@ -4,21 +4,27 @@ This module is the only place that knows the byte layout of a frame; a site
 holding the real ADLP-10 specification replaces it (and ``messages``) and keeps
 the driver and the emulator. See docs/computer-link.md.
 
-Data frame (``payload`` bytes carried transparently)::
+Data frame (``payload`` bytes carried transparently), protocol 2.0::
 
-    +-----+-----+-----------------------+-----+-----+--------+--------+
-    | DLE | STX | payload, DLE doubled  | DLE | ETX | CRC lo | CRC hi |
-    | 10  | 02  | 1..MAX_PAYLOAD bytes  | 10  | 03  |        |        |
-    +-----+-----+-----------------------+-----+-----+--------+--------+
+    +-----+-----+--------+-----------------------+-----+-----+--------+--------+
+    | DLE | STX | length | payload               | DLE | ETX | CRC lo | CRC hi |
+    | 10  | 02  | 1..250 | 1..MAX_PAYLOAD bytes  | 10  | 03  |        |        |
+    +-----+-----+--------+-----------------------+-----+-----+--------+--------+
 
-The CRC is CRC-16/ARC (polynomial 0x8005 reflected, initial value 0) over the
-unstuffed payload followed by the ETX byte, sent low byte first and *not*
-stuffed. Link-control sequences are two bytes: DLE ACK (10 06), DLE NAK
-(10 15), DLE ENQ (10 05).
+Every 0x10 between STX and DLE ETX (the length byte included) is sent twice.
+The length byte is the payload's size before stuffing. The CRC is
+CRC-16/MODBUS (polynomial 0x8005 reflected, initial value 0xFFFF, no final
+XOR) over the unstuffed length byte, payload and the ETX byte, sent low byte
+first and *not* stuffed. The non-zero initial value makes leading zero bytes
+change the check (with CRC-16/ARC of protocol 1.0 they did not), and the
+length byte catches bytes inserted or lost inside the frame.
+
+Link-control sequences are two bytes: DLE ACK (10 06), DLE NAK (10 15),
+DLE ENQ (10 05).
 
 :func:`decode` never raises on bad input: garbage before a frame is skipped, a
-frame whose check fails (or that is cut short by a new DLE STX, or that holds
-an illegal DLE pair, or that grows past ``MAX_PAYLOAD``) comes out as
+frame whose check or length fails (or that is cut short by a new DLE STX, or
+that holds an illegal DLE pair, or that grows past ``MAX_PAYLOAD``) comes out as
 :class:`BadFrame` so the receiver can answer DLE NAK, and decoding resumes at
 the next DLE.
 """
@@ -53,8 +59,12 @@ def _crc16_table() -> tuple[int, ...]:
 _CRC_TABLE = _crc16_table()
 
 
-def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
-    """Return the CRC-16/ARC of ``data`` (check value of b"123456789" is 0xBB3D).
+CRC_INIT = 0xFFFF
+"""Initial value of the frame check (CRC-16/MODBUS)."""
+
+
+def crc16(data: bytes | bytearray | memoryview, crc: int = CRC_INIT) -> int:
+    """Return the CRC-16/MODBUS of ``data`` (check value of b"123456789" is 0x4B37).
 
     ``crc`` continues a previous computation, so ``crc16(b, crc16(a))`` equals
     ``crc16(a + b)``.
@@ -109,8 +119,9 @@ def encode(payload: bytes) -> bytes:
     """Return the wire bytes of a data frame carrying ``payload`` (1..MAX_PAYLOAD bytes)."""
     if not 0 < len(payload) <= MAX_PAYLOAD:
         raise ValueError(f"payload must be 1..{MAX_PAYLOAD} bytes, got {len(payload)}")
-    crc = crc16(bytes((ETX,)), crc16(payload))
-    stuffed = payload.replace(b"\x10", b"\x10\x10")
+    body = bytes((len(payload),)) + payload
+    crc = crc16(bytes((ETX,)), crc16(body))
+    stuffed = body.replace(b"\x10", b"\x10\x10")
     return b"\x10\x02" + stuffed + b"\x10\x03" + crc.to_bytes(2, "little")
 
 
@@ -136,40 +147,43 @@ def decode(buffer: bytes | bytearray) -> Decoded:
 def _decode_data(buffer: bytes | bytearray, start: int) -> Decoded:
     """Decode a data frame whose DLE STX is at ``start``."""
     size = len(buffer)
-    payload = bytearray()
+    body = bytearray()
     i = start + 2
     while i < size:
         byte = buffer[i]
         if byte != DLE:
-            payload.append(byte)
+            body.append(byte)
             i += 1
         elif i + 1 >= size:
             return Decoded(start, None)
         elif buffer[i + 1] == DLE:
-            payload.append(DLE)
+            body.append(DLE)
             i += 2
         elif buffer[i + 1] == ETX:
-            return _check(buffer, start, i + 2, bytes(payload))
+            return _check(buffer, start, i + 2, bytes(body))
         elif buffer[i + 1] == STX:
             return Decoded(i, BadFrame("frame cut short by a new DLE STX"))
         else:
             return Decoded(i + 1, BadFrame(f"illegal DLE 0x{buffer[i + 1]:02X} inside a frame"))
-        if len(payload) > MAX_PAYLOAD:
+        if len(body) > MAX_PAYLOAD + 1:  # the length byte, then the payload
             return Decoded(start + 2, BadFrame(f"frame longer than {MAX_PAYLOAD} bytes"))
     return Decoded(start, None)
 
 
-def _check(buffer: bytes | bytearray, start: int, crc_at: int, payload: bytes) -> Decoded:
-    """Verify the CRC that follows DLE ETX at ``crc_at``."""
+def _check(buffer: bytes | bytearray, start: int, crc_at: int, body: bytes) -> Decoded:
+    """Verify the CRC that follows DLE ETX at ``crc_at`` and the length byte of ``body``."""
     if crc_at + 2 > len(buffer):
         return Decoded(start, None)
-    if not payload:
-        return Decoded(crc_at + 2, BadFrame("empty frame"))
-    received = int.from_bytes(buffer[crc_at : crc_at + 2], "little")
-    expected = crc16(bytes((ETX,)), crc16(payload))
+    end = crc_at + 2
+    if len(body) < 2:
+        return Decoded(end, BadFrame("empty frame"))
+    received = int.from_bytes(buffer[crc_at:end], "little")
+    expected = crc16(bytes((ETX,)), crc16(body))
     if received != expected:
-        return Decoded(crc_at + 2, BadFrame(f"CRC 0x{received:04X} != 0x{expected:04X}"))
-    return Decoded(crc_at + 2, DataFrame(payload))
+        return Decoded(end, BadFrame(f"CRC 0x{received:04X} != 0x{expected:04X}"))
+    if body[0] != len(body) - 1:
+        return Decoded(end, BadFrame(f"length byte {body[0]} but {len(body) - 1} payload bytes"))
+    return Decoded(end, DataFrame(body[1:]))
 
 
 class FrameReader:

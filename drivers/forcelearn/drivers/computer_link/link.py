@@ -10,7 +10,9 @@ next. For each transaction (docs/computer-link.md, "Retries"):
 3. Nothing within the timeout: send DLE ENQ (the controller repeats its last
    reply, or DLE NAK if it has none). A repeated reply to an *earlier*
    request proves this one was lost: retransmit it.
-4. A damaged reply: answer DLE NAK; the controller sends it again.
+4. A damaged reply: answer DLE NAK; the controller sends it again. A frame
+   whose check passes but whose payload is not a well-formed reply is
+   damaged too (NAKed, never ACKed, and counted in ``damaged_frames``).
 5. Every intact frame from the controller is answered with DLE ACK; replies
    with another transaction number are stale and ignored.
 
@@ -57,6 +59,8 @@ class Link:
         self._lock = threading.Lock()
         self._transaction = secrets.randbelow(0x10000)
         self._broken: str | None = None
+        self.damaged_frames = 0
+        """Frames from the controller NAKed as damaged (check failed or undecodable)."""
 
     def transact(self, command: m.Command, body: bytes = b"") -> m.Reply:
         """Send one request, return its OK reply; RobotFault if the controller refused it."""
@@ -92,6 +96,9 @@ class Link:
         while True:
             frame = self._next_frame(deadline)
             resend = fresh_ack = False
+            reply = None
+            if isinstance(frame, framing.DataFrame) and (reply := _reply_or_none(frame)) is None:
+                frame = framing.BadFrame("payload is not a well-formed reply")
             if frame is None:
                 if enqs >= cfg.enq_retries:
                     raise LinkTimeout(
@@ -108,6 +115,7 @@ class Link:
             elif frame is framing.Control.NAK:
                 resend = True
             elif isinstance(frame, framing.BadFrame):
+                self.damaged_frames += 1
                 if naks_sent >= cfg.nak_retries:
                     raise LinkError(
                         f"reply to {command.name} damaged {naks_sent + 1} times ({frame.reason}): "
@@ -115,9 +123,8 @@ class Link:
                     )
                 naks_sent += 1
                 self._port.write(_NAK)
-            elif isinstance(frame, framing.DataFrame):
+            elif reply is not None:
                 self._port.write(_ACK)
-                reply = m.decode_reply(frame.payload)
                 if reply.transaction == tns and reply.command == command:
                     return reply
                 log.debug("stale reply to transaction %d ignored", reply.transaction)
@@ -159,3 +166,12 @@ class Link:
                 "framing/message modules"
             )
         return version, model
+
+
+def _reply_or_none(frame: framing.DataFrame) -> m.Reply | None:
+    """Decode a reply; None when the payload is not one (the frame is then damaged)."""
+    try:
+        return m.decode_reply(frame.payload)
+    except ProtocolError as exc:
+        log.debug("undecodable frame treated as damaged: %s", exc)
+        return None

@@ -49,6 +49,8 @@ from dataclasses import dataclass
 from forcelearn.errors import ProtocolError
 
 PROTOCOL_VERSION = (2, 0)
+"""Link protocol version: 2.0 added the frame length byte and the CRC-16/MODBUS check
+(framing), the controller's clock in READ_STATUS and READ_TARGET (messages)."""
 REPLY_BIT = 0x80
 MAX_REASON = 200
 

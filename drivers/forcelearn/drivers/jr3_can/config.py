@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from forcelearn.drivers.jr3_can.opcodes import OPCODE_MAPS, OpcodeMap
-from forcelearn.drivers.jr3_can.scaling import INT16_MAX, cutoff_to_wire
+from forcelearn.drivers.jr3_can.scaling import INT16_MAX, check_full_scales, cutoff_to_wire
 from forcelearn.errors import ConfigError
 
 
@@ -56,10 +56,11 @@ class Jr3Config:
             raise ConfigError(f"jr3.cutoff_hz: {exc}") from exc
         if not 1 <= self.period_us <= 0xFFFFFFFF:
             raise ConfigError(f"jr3.period_us={self.period_us}: must be a positive uint32")
-        if self.full_scales is not None and (
-            len(self.full_scales) != 6 or min(self.full_scales) <= 0
-        ):
-            raise ConfigError("jr3.full_scales: six positive values (N, N, N, N*m, N*m, N*m)")
+        if self.full_scales is not None:
+            try:
+                check_full_scales(self.full_scales)
+            except ValueError as exc:
+                raise ConfigError(f"jr3.full_scales: {exc}") from exc
         for key in ("zero_settle_s", "ack_timeout_s", "stale_timeout_s"):
             if getattr(self, key) < 0 or (key != "zero_settle_s" and getattr(self, key) == 0):
                 raise ConfigError(f"jr3.{key}={getattr(self, key)}: must be positive")

@@ -131,7 +131,15 @@ class Jr3CanSensor:
                     f"JR3 node {cfg.node_id} answered a full-scale query without full scales: "
                     "set jr3.full_scales in the configuration or update the adapter firmware"
                 )
-            full_scales = full_scales_from_wire(forces, moments)
+            try:
+                full_scales = full_scales_from_wire(forces, moments)
+            except ValueError as exc:
+                raise SensorError(
+                    f"JR3 node {cfg.node_id} reported force full scales {forces} N and moment "
+                    f"full scales {moments} dN*m: {exc}; check the adapter's sensor cable and "
+                    "EEPROM, or set jr3.full_scales in the configuration from the sensor's "
+                    "calibration sheet"
+                ) from exc
         self._full_scales = full_scales
         self._listener.set_full_scales(full_scales)
         if cfg.zero_on_init:

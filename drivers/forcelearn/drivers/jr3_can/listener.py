@@ -39,6 +39,8 @@ class Jr3Stats:
     samples: int = 0
     dropped_samples: int = 0
     unpaired_frames: int = 0
+    pending_frames: int = 0
+    """Force or moment frames waiting for their partner (0..2)."""
     duplicate_samples: int = 0
     samples_before_full_scales: int = 0
     bootups: int = 0
@@ -96,6 +98,7 @@ class Jr3Listener(can.Listener):
             s = self._stats
             s.dropped_samples = self._pairer.dropped
             s.unpaired_frames = self._pairer.unpaired
+            s.pending_frames = self._pairer.pending
             s.duplicate_samples = self._pairer.duplicates
             return Jr3Stats(**{**s.__dict__, "rejected": Counter(s.rejected)})
 

@@ -48,6 +48,15 @@ class Pairer:
         self._moments: Moments | None = None
         self._last_counter: int | None = None
 
+    @property
+    def pending(self) -> int:
+        """Frames held waiting for their partner (0, 1 or 2).
+
+        Every pushed frame is accounted for: ``pushed == 2 * (pairs returned +
+        duplicates) + unpaired + pending``.
+        """
+        return (self._forces is not None) + (self._moments is not None)
+
     def restart(self) -> None:
         """Forget pending frames and the last counter (after a bootup the counter restarts)."""
         self.unpaired += (self._forces is not None) + (self._moments is not None)
@@ -62,7 +71,12 @@ class Pairer:
             mine, other = "_moments", self._forces
         if other is not None and other.counter == frame.counter:
             forces, moments = (frame, other) if isinstance(frame, Forces) else (other, frame)
+            waiting = getattr(self, mine)  # a frame of this kind that arrived out of order
+            if waiting is not None and not self._is_older(frame.counter, waiting.counter):
+                self.unpaired += 1  # older than this pair: its partner is gone
+                waiting = None
             self._forces = self._moments = None
+            setattr(self, mine, waiting)  # a newer one keeps waiting for its partner
             return self._complete(forces, moments)
         if getattr(self, mine) is not None:
             self.unpaired += 1

@@ -10,18 +10,26 @@ from __future__ import annotations
 
 import numpy as np
 
+from forcelearn.devices import (  # noqa: F401  (re-exported: the check lives in the core)
+    FORCE_FULL_SCALE_RANGE_N,
+    MOMENT_FULL_SCALE_RANGE_NM,
+    check_full_scales,
+)
+
 COUNTS_PER_FULL_SCALE = 16384
 NEAR_SATURATION_COUNTS = 26214
 """The JR3 DSP's "near saturation" level, about 1.6 x full scale."""
 INT16_MIN, INT16_MAX = -32768, 32767
 DNM_PER_NM = 10.0
-
-
 def full_scales_from_wire(
     forces_n: tuple[int, int, int], moments_dnm: tuple[int, int, int]
 ) -> np.ndarray:
-    """Return the six full scales (N, N, N, N*m, N*m, N*m) from the adapter's ACK values."""
-    return np.array([*forces_n, *(m / DNM_PER_NM for m in moments_dnm)], dtype=float)
+    """Return the six full scales (N, N, N, N*m, N*m, N*m) from the adapter's ACK values.
+
+    Raises:
+        ValueError: a value is outside the plausible ranges (see :func:`check_full_scales`).
+    """
+    return check_full_scales([*forces_n, *(m / DNM_PER_NM for m in moments_dnm)])
 
 
 def full_scales_to_wire(

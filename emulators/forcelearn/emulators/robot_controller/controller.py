@@ -229,8 +229,8 @@ class ControllerEngine:
         return m.Reply(code, tns, error, reason=reason)
 
 
-_FRAME_OVERHEAD = 6
-"""DLE STX, DLE ETX and the two check bytes around a payload."""
+_FRAME_OVERHEAD = 7
+"""DLE STX, the length byte, DLE ETX and the two check bytes around a payload."""
 
 
 def _wire_size(frame: framing.Frame) -> int:
@@ -247,5 +247,5 @@ def _wire_size(frame: framing.Frame) -> int:
 
 def _nominal_size(wire: bytes) -> int:
     """The nominal size of an encoded data frame: its payload unstuffed, plus the overhead."""
-    body = wire[2:-4]
-    return len(body) - body.count(b"\x10\x10") + _FRAME_OVERHEAD
+    body = wire[2:-4]  # length byte and payload, stuffed
+    return len(body) - body.count(b"\x10\x10") - 1 + _FRAME_OVERHEAD

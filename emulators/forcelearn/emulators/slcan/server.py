@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 
 import can
 
@@ -87,6 +88,8 @@ class SlcanAdapterEmulator:
         self._notifier: can.Notifier | None = None
         self._t0 = time.monotonic()
         self._stopped = False
+        self.on_open: Callable[[], None] | None = None
+        """Called when a host opens the channel (``O``), before the reply: a new client session."""
 
     @property
     def path(self) -> str:
@@ -136,7 +139,11 @@ class SlcanAdapterEmulator:
 
     def _answer(self, line: bytes) -> None:
         with self._lock:
+            was_open = self.model.is_open
             outcome = self.model.handle(parse_line(line))
+            opened = self.model.is_open and not was_open
+        if opened and self.on_open is not None:
+            self.on_open()
         frame = outcome.to_bus
         if frame is not None:
             msg = can.Message(arbitration_id=frame.arbitration_id, data=frame.data,
