@@ -105,19 +105,20 @@ def test_link_config_from_dict_builds_and_names_bad_keys() -> None:
 def test_a_non_finite_reported_position_cannot_bypass_the_step_limit(
     emulator, connect, monkeypatch
 ) -> None:
-    """A controller reporting NaN as its position made every step NaN, and NaN > limit is False.
+    """A controller reporting NaN as its target made every step NaN, and NaN > limit is False.
 
-    The step check now refuses anything not provably within the limit.
+    The step check now refuses anything not provably within the limit. (The
+    reference is the controller's commanded target, read with READ_TARGET.)
     """
     from forcelearn.drivers.computer_link import messages
 
-    real = messages.parse_position
+    real = messages.parse_pose
 
-    def nan_position(body: bytes) -> messages.Position:
-        position = real(body)
-        return messages.Position((math.nan,) * 3, position.quaternion, position.joints_deg)
+    def nan_target(body: bytes) -> tuple[tuple[float, float, float], tuple[float, ...]]:
+        _, quaternion = real(body)
+        return (math.nan,) * 3, quaternion
 
-    monkeypatch.setattr(messages, "parse_position", nan_position)
+    monkeypatch.setattr(messages, "parse_pose", nan_target)
     robot = connect(emulator.url, limits=TIGHT)
     writes = count_writes(robot, monkeypatch)
     with pytest.raises(SafetyStop, match="step of nan"):

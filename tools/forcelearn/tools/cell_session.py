@@ -129,7 +129,8 @@ class CellSession:
             max_force_n=cfg.safety.max_force_n,
             samples_per_step=cfg.task.samples_for(cfg.filter.sample_period_s),
             move_timeout_s=cfg.safety.move_timeout_s,
-            settle_s=cfg.task.settle_s,
+            # in the ideal profile nothing takes time, so there is nothing to dwell for
+            settle_s=0.0 if cfg.robot_emulated and cfg.emulator.ideal else cfg.task.settle_s,
         )
         if self.calibration is not None:
             self._apply_calibration(self.calibration, self.robot, self.cell)

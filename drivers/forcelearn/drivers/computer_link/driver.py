@@ -154,13 +154,17 @@ class ComputerLinkRobot:
             wall_limit = time.monotonic() + timeout_s + 10.0
             first = status = self.read_status()
             since: float | None = None
+            previous = math.nan
             while True:
                 if status.in_position and not status.moving:
                     since = status.time_s if since is None else since
-                    if status.time_s - since >= settle_s:
+                    if status.time_s - since >= settle_s or status.time_s == previous:
+                        # settled; or a clock that stands still (an emulated cell where
+                        # nothing takes time): dwelling could change nothing
                         return status.time_s
                 else:
                     since = None
+                previous = status.time_s
                 waited = status.time_s - first.time_s
                 if waited > timeout_s or time.monotonic() > wall_limit:
                     self._stop_after_timeout()
