@@ -38,7 +38,7 @@ import serial
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import messages as m
 from forcelearn.drivers.computer_link.config import POLL_S, LinkConfig
-from forcelearn.drivers.computer_link.link import Link
+from forcelearn.drivers.computer_link.link import PORT_ERRORS, Link
 from forcelearn.errors import (
     ForcelearnError,
     InvalidTarget,
@@ -271,7 +271,7 @@ class ComputerLinkRobot:
         if self._port is not None:
             try:
                 self._port.close()
-            except (serial.SerialException, OSError) as exc:
+            except PORT_ERRORS as exc:
                 log.warning("closing %s failed: %s", self.config.url, exc)
             self._port = None
 

@@ -39,6 +39,13 @@ from forcelearn.errors import LinkError, LinkTimeout, ProtocolError, RobotFault
 
 log = logging.getLogger(__name__)
 
+try:  # pyserial on POSIX lets termios.error (not an OSError) out of a hung-up pty
+    import termios
+
+    PORT_ERRORS: tuple[type[BaseException], ...] = (serial.SerialException, OSError, termios.error)
+except ImportError:  # pragma: no cover - Windows
+    PORT_ERRORS = (serial.SerialException, OSError)
+
 _ACK = framing.Control.ACK.wire
 _NAK = framing.Control.NAK.wire
 _ENQ = framing.Control.ENQ.wire
@@ -71,7 +78,7 @@ class Link:
                 reply = self._transact(command, body)
             except LinkError:  # LinkTimeout is also an OSError (TimeoutError): keep it as is
                 raise
-            except (serial.SerialException, OSError) as exc:  # pyserial leaks raw OSError
+            except PORT_ERRORS as exc:  # pyserial leaks raw OSError and termios.error
                 self._broken = str(exc)
                 raise LinkError(
                     f"link to {self._config.url} lost ({exc}); the last command may or may "
