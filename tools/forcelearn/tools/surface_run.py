@@ -42,6 +42,7 @@ from forcelearn.tasks.surface import SurfaceTask
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.trainer import (
+    StepHook,
     TrainingResult,
     TrialLog,
     TrialRecord,
@@ -212,8 +213,11 @@ def execute(
     run: SurfaceRun,
     checkpoint: Path | None,
     on_trial: Callable[[TrialRecord, SRVLearner], Any] | None = None,
+    on_step: StepHook | None = None,
 ) -> dict[str, Any]:
     """Open the cell and run (or continue) the trials; checkpoint after each; return the summary.
+
+    ``on_step`` sees every step's log row as it is made (``forcelearn run --live``).
 
     Ctrl-C (KeyboardInterrupt) or any device error stops the robot; the last
     whole trial is already on disk, and the outputs are written for the trials
@@ -265,6 +269,7 @@ def execute(
                     keep_logs=(run.mid_trial,),
                     on_trial=after_trial,
                     result=run.result,
+                    on_step=on_step,
                 )
         except (KeyboardInterrupt, ForcelearnError):
             session.cell.stop()
