@@ -4,7 +4,9 @@ With no ``--config`` the built-in emulated cell starts in-process: the
 robot-controller emulator on a pty and the JR3 emulator on a virtual CAN bus,
 reached through the real drivers. ``--config site.toml`` runs the same
 controller on a real cell. Ctrl-C stops the robot; the last whole trial is
-checkpointed, and ``--resume DIR`` continues from it.
+checkpointed, and ``--resume DIR`` continues from it. Every run appends its
+steps and trials to ``live.ndjson`` (``forcelearn view DIR`` follows it);
+``--live`` also serves a read-only page of the run (docs/live.md).
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from pathlib import Path
 from tqdm import tqdm
 
 from forcelearn.learning import SRVLearner
+from forcelearn.tools.live.publish import surface_extras, surface_meta
+from forcelearn.tools.live.session import add_live_arguments, live_run
 from forcelearn.tools.surface_run import execute, prepare_run
 from forcelearn.trainer import TrialRecord
 
@@ -30,6 +34,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, help="run directory (default runs/surface-<time>)")
     parser.add_argument("--resume", type=Path, metavar="DIR", help="continue the run in DIR")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_live_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -57,7 +62,11 @@ def run(args: argparse.Namespace) -> int:
         initial=done or 0,
     )
 
+    meta = surface_meta(surface_run.config, surface_run.trials)
+    live = live_run(meta, args, out, surface_extras(surface_run.config))
+
     def progress(record: TrialRecord, learner: SRVLearner) -> None:
+        publisher.on_trial(record, learner)
         if bar.n < record.index:
             bar.update(record.index - bar.n)
         bar.update(1)
@@ -66,8 +75,10 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        with bar:
-            summary = execute(surface_run, checkpoint, on_trial=progress)
+        with bar, live as publisher:
+            summary = execute(
+                surface_run, checkpoint, on_trial=progress, on_step=publisher.on_step
+            )
     except KeyboardInterrupt:
         print(
             f"\nforcelearn run: interrupted; the robot was stopped and the last whole trial "
@@ -77,4 +88,6 @@ def run(args: argparse.Namespace) -> int:
         return 130
     print(json.dumps(summary, indent=2))
     print(f"run directory: {out}")
+    if args.live:
+        print(f"see the run again with: forcelearn view {out}")
     return 0
