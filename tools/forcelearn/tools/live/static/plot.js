@@ -139,7 +139,10 @@ const Plot = (() => {
       const yy = y + 6 + i * 14;
       ctx.strokeStyle = ctx.fillStyle = s.color || "#1f77b4";
       ctx.setLineDash(s.dash || []); ctx.lineWidth = s.width || 1.5;
-      if (s.width === 0) { ctx.beginPath(); ctx.arc(xr - w + 13, yy, 2.5, 0, 2 * Math.PI); ctx.fill(); }
+      if (s.width === 0 && s.marker === "x") {
+        ctx.beginPath(); ctx.moveTo(xr - w + 10, yy - 3); ctx.lineTo(xr - w + 16, yy + 3);
+        ctx.moveTo(xr - w + 10, yy + 3); ctx.lineTo(xr - w + 16, yy - 3); ctx.stroke();
+      } else if (s.width === 0) { ctx.beginPath(); ctx.arc(xr - w + 13, yy, 2.5, 0, 2 * Math.PI); ctx.fill(); }
       else { ctx.beginPath(); ctx.moveTo(xr - w + 4, yy); ctx.lineTo(xr - w + 22, yy); ctx.stroke(); }
       ctx.setLineDash([]); ctx.fillStyle = "#1d2430";
       ctx.fillText(s.label, xr - w + 26, yy);
