@@ -283,8 +283,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("out", type=Path)
     parser.add_argument("--canvases", type=int, default=4, help="plots to wait for (contour: 2)")
     parser.add_argument("--after-trial", type=int, default=-1, help="wait for a trial above this")
+    parser.add_argument("--timeout-s", type=float, default=900.0, help="longest wait, s")
     args = parser.parse_args(argv)
-    with Chromium() as browser:
+    with Chromium(timeout_s=args.timeout_s) as browser:
         browser.navigate(args.url)
         seen = browser.wait_rendered(args.canvases, args.after_trial)
         browser.screenshot(args.out)
