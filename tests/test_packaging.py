@@ -103,3 +103,12 @@ def test_only_the_chosen_subcommand_module_is_imported() -> None:
     )
     loaded = helped.stdout.strip().splitlines()[-1]
     assert "forcelearn.tools.sim'" in loaded and "run_command" not in loaded
+
+
+def test_wheel_ships_the_live_page(wheel: Path) -> None:
+    """The live page's HTML, CSS and JavaScript are package data: no CDN, offline cell PCs."""
+    names = set(zipfile.ZipFile(wheel).namelist())
+    static = ROOT / "tools" / "forcelearn" / "tools" / "live" / "static"
+    expected = {f"forcelearn/tools/live/static/{p.name}" for p in static.iterdir()}
+    assert {"index.html", "live.js", "plot.js", "live.css"} <= {p.name for p in static.iterdir()}
+    assert expected <= names, f"wheel lacks {sorted(expected - names)}"

@@ -32,6 +32,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "calibrate": ("forcelearn.tools.calibrate", "measure sensor bias, noise and tool load"),
     "check": ("forcelearn.tools.check_command", "check a cell's devices without moving the robot"),
     "emulate": ("forcelearn.tools.emulate_command", "serve the emulated cell on two ptys (slcan)"),
+    "view": (
+        "forcelearn.tools.view_command",
+        "serve the read-only live page of a run directory (finished or in progress)",
+    ),
 }
 
 

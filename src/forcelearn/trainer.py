@@ -87,13 +87,25 @@ class TrialLog:
     rows: list[dict[str, float]] = field(default_factory=list)
 
 
+StepHook = Callable[[int, str, dict[str, float]], Any]
+"""``on_step(trial_index, phase, row)``: called after every step with its step-log row.
+
+The row is the trainer's own: a hook must copy it before changing anything.
+"""
+
+
 def run_trial(
-    learner: SRVLearner, task: EpisodicTask, index: int, learn: bool = True
+    learner: SRVLearner,
+    task: EpisodicTask,
+    index: int,
+    learn: bool = True,
+    on_step: StepHook | None = None,
 ) -> tuple[TrialRecord, TrialLog]:
     """Run one trial (S3-S8 per step until the path ends or a step fails); no phase update.
 
     With ``learn=False`` the learner acts with its mean μ (no search) and learns
     nothing: an evaluation of the learned policy that leaves the learner as it was.
+    ``on_step`` (live views) sees each step's log row as soon as it is made.
     """
     phase = learner.phase.name.lower()
     x = task.reset()
@@ -119,6 +131,8 @@ def run_trial(
             **outcome.extras,
         }
         log.rows.append(row)
+        if on_step is not None:
+            on_step(index, phase, row)
         x = outcome.x
         if outcome.failed:
             failed = True
@@ -191,6 +205,7 @@ def train(
     keep_logs: Sequence[int] = (),
     on_trial: Callable[[TrialRecord, TrialLog, SRVLearner], Any] | None = None,
     result: TrainingResult | None = None,
+    on_step: StepHook | None = None,
 ) -> TrainingResult:
     """Run ``trials`` trials (S3-S9) and update the phase schedule after each (global criterion).
 
@@ -202,11 +217,12 @@ def train(
         on_trial: called after each trial with its record, step log and the learner
             (progress bars, checkpoints); the phase schedule is already updated.
         result: a result to continue (resumed runs); a new one by default.
+        on_step: called after each step with the trial index, phase and step-log row.
     """
     result = result or TrainingResult()
     start = len(result.records)
     for index in range(start, start + trials):
-        record, log = run_trial(learner, task, index)
+        record, log = run_trial(learner, task, index, on_step=on_step)
         switched = learner.end_trial(success=not record.failed)
         result.records.append(record)
         result.steps += len(log.rows)

@@ -20,6 +20,7 @@ from forcelearn.learning import SRVLearner, SRVParams
 from forcelearn.run_output import final_figures
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
 from forcelearn.trainer import (
+    StepHook,
     TrainingResult,
     TrialLog,
     TrialRecord,
@@ -78,12 +79,13 @@ class ContourRun:
 def run_contour(
     config: ContourConfig,
     on_trial: Callable[[TrialRecord, TrialLog, SRVLearner], Any] | None = None,
+    on_step: StepHook | None = None,
 ) -> ContourRun:
     """Run the §4 experiment as configured and return everything it produced."""
     task = ContourTask(TwoLinkContourCell(config.geometry), config.task)
     learner = SRVLearner(task.grid, 2, config.learner, rng=config.seed, output=task.output_map())
     started = time.perf_counter()
-    result = train(learner, task, config.trials, on_trial=on_trial)
+    result = train(learner, task, config.trials, on_trial=on_trial, on_step=on_step)
     wall_s = time.perf_counter() - started
     greedy, _ = run_trial(learner, task, len(result.records), learn=False)
     converged_at = converged_trial(result.records, task.steps_per_trial, task.desired_force_n)

@@ -4,7 +4,9 @@ With no ``--config`` the built-in emulated cell starts in-process: the
 robot-controller emulator on a pty and the JR3 emulator on a virtual CAN bus,
 reached through the real drivers. ``--config site.toml`` runs the same
 controller on a real cell. Ctrl-C stops the robot; the last whole trial is
-checkpointed, and ``--resume DIR`` continues from it.
+checkpointed, and ``--resume DIR`` continues from it. Every run appends its
+steps and trials to ``live.ndjson`` (``forcelearn view DIR`` follows it);
+``--live`` also serves a read-only page of the run (docs/live.md).
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from pathlib import Path
 from tqdm import tqdm
 
 from forcelearn.learning import SRVLearner
+from forcelearn.tools.live.publish import surface_extras, surface_meta
+from forcelearn.tools.live.session import add_live_arguments, live_run
 from forcelearn.tools.surface_run import execute, prepare_run
 from forcelearn.trainer import TrialRecord
 
@@ -38,6 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help=f"exit with status {NOT_CONVERGED} when the run ends unconverged",
     )
+    add_live_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -66,10 +71,13 @@ def run(args: argparse.Namespace) -> int:
     )
 
     cell_s = sum(r.cell_time_s for r in surface_run.result.records)
+    meta = surface_meta(surface_run.config, surface_run.trials)
+    live = live_run(meta, args, out, surface_extras(surface_run.config))
 
     def progress(record: TrialRecord, learner: SRVLearner) -> None:
         nonlocal cell_s
         cell_s += record.cell_time_s
+        publisher.on_trial(record, learner)
         if bar.n < record.index:
             bar.update(record.index - bar.n)
         bar.update(1)
@@ -81,11 +89,12 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        with bar:
+        with bar, live as publisher:
             summary = execute(
                 surface_run,
                 checkpoint,
                 on_trial=progress,
+                on_step=publisher.on_step,
                 on_warning=lambda text: bar.write(f"forcelearn run: WARNING {text}", sys.stderr),
             )
     except KeyboardInterrupt:
@@ -97,6 +106,8 @@ def run(args: argparse.Namespace) -> int:
         return 130
     print(json.dumps(summary, indent=2))
     print(f"run directory: {out}")
+    if args.live:
+        print(f"see the run again with: forcelearn view {out}")
     if not summary["converged"]:
         print(f"forcelearn run: NOT CONVERGED: {summary['diagnosis']}", file=sys.stderr)
         return NOT_CONVERGED if args.require_converged else 0

@@ -19,6 +19,8 @@ from forcelearn.learning import SRVLearner, save_learner
 from forcelearn.run_output import write_step_log, write_summary, write_trials
 from forcelearn.tools import figures_contour
 from forcelearn.tools.contour_experiment import load_config, run_contour
+from forcelearn.tools.live.publish import contour_meta
+from forcelearn.tools.live.session import add_live_arguments, live_run
 from forcelearn.trainer import TrialLog, TrialRecord
 
 
@@ -44,6 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="exit with status 3 when the run ends unconverged",
     )
+    add_live_arguments(contour)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -57,14 +60,17 @@ def run(args: argparse.Namespace) -> int:
     bar = tqdm(total=config.trials, unit="trial", disable=args.no_progress, dynamic_ncols=True)
 
     def progress(record: TrialRecord, log: TrialLog, learner: SRVLearner) -> None:
+        publisher.on_trial(record, learner)
         bar.update(1)
         if record.index % 10 == 0 or record.index == config.trials - 1:
             bar.set_postfix(
                 phase=record.phase[:4], steps=record.steps, rms_n=f"{record.force_rms_n:.3f}"
             )
 
-    with bar:
-        done = run_contour(config, on_trial=progress)
+    # No journal: a contour run is seconds of pure simulation (view reads its CSVs).
+    with bar, live_run(contour_meta(config), args, None) as publisher:
+        on_step = publisher.on_step if args.live else None
+        done = run_contour(config, on_trial=progress, on_step=on_step)
     result = done.result
     write_summary(out, done.summary)
     write_trials(out, result.records)

@@ -58,6 +58,7 @@ from forcelearn.tasks.surface_probe import (
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.trainer import (
+    StepHook,
     TrainingResult,
     TrialLog,
     TrialRecord,
@@ -244,12 +245,14 @@ def execute(
     checkpoint: Path | None,
     on_trial: Callable[[TrialRecord, SRVLearner], Any] | None = None,
     on_warning: Callable[[str], Any] | None = None,
+    on_step: StepHook | None = None,
 ) -> dict[str, Any]:
     """Open the cell and run (or continue) the trials; checkpoint after each; return the summary.
 
     A new run probes the surface first (unless ``[probe] enabled = false`` or
     the config gives the whole output map); ``on_warning`` receives the stuck
-    monitor's warnings (one line each).
+    monitor's warnings (one line each); ``on_step`` sees every step's log row
+    as it is made (``forcelearn run --live``).
 
     Ctrl-C (KeyboardInterrupt) or any device error stops the robot; the last
     whole trial is already on disk, and the outputs are written for the trials
@@ -323,6 +326,7 @@ def execute(
                     keep_logs=(run.mid_trial,),
                     on_trial=after_trial,
                     result=run.result,
+                    on_step=on_step,
                 )
         except _ConvergedStop:
             log.info("converged; stopped %d trials later", config.stop_after_converged)

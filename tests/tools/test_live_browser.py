@@ -1,0 +1,101 @@
+"""The live page in headless Chromium: a running run, and `forcelearn view` of a finished one."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from forcelearn.tools.live.browser import Chromium, find_chromium
+
+CLI = "import sys; from forcelearn.cli import main; sys.exit(main(sys.argv[1:]))"
+SCREENSHOTS = os.environ.get("FORCELEARN_LIVE_SCREENSHOTS")
+"""A folder to keep the screenshots in (docs/results when refreshing the docs)."""
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(
+        find_chromium() is None,
+        reason="no chromium on PATH (.ci/run installs Debian's chromium; or set "
+        "FORCELEARN_CHROMIUM)",
+    ),
+]
+
+
+def page_url(child: subprocess.Popen[bytes], prefix: str) -> str:
+    """The URL a forcelearn child prints on stderr."""
+    assert child.stderr is not None
+    for raw in child.stderr:
+        line = raw.decode()
+        if line.startswith(prefix):
+            return line[len(prefix) :].split()[0]
+    child.wait()
+    raise AssertionError(f"no page URL; exit {child.returncode}")
+
+
+def assert_not_blank(path: Path) -> None:
+    """A screenshot with plots has many colours and contrast, not one flat colour."""
+    pixels = imread(path)[..., :3]
+    colours = np.unique((pixels * 255).astype(np.uint8).reshape(-1, 3), axis=0)
+    assert len(colours) > 50, f"{path} looks blank ({len(colours)} colours)"
+    assert pixels.std() > 0.05
+
+
+def shot(tmp_path: Path, name: str) -> Path:
+    """Where a screenshot goes."""
+    folder = Path(SCREENSHOTS) if SCREENSHOTS else tmp_path
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder / name
+
+
+def test_live_page_of_a_running_run_and_view_of_the_finished_run(tmp_path: Path) -> None:
+    """Plots drawn, the status panel's trial advances, screenshots not blank."""
+    out = tmp_path / "run"
+    trials = os.environ.get("FORCELEARN_LIVE_TRIALS", "60")
+    run = subprocess.Popen(
+        [
+            *(sys.executable, "-c", CLI, "run", "--trials", trials, "--out", str(out)),
+            *("--no-progress", "--live", "--live-port", "0"),
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        url = page_url(run, "live page: ")
+        with Chromium() as browser:
+            browser.navigate(url)
+            first = browser.wait_rendered(canvases=4)
+            later = browser.wait_rendered(canvases=4, after_trial=first["trial"])
+            assert later["trial"] > first["trial"]
+            assert later["drawn"] == 4
+            live_png = browser.screenshot(shot(tmp_path, "live_run.png"))
+        assert_not_blank(live_png)
+        assert run.wait(timeout=600) == 0
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+
+    view = subprocess.Popen(
+        [sys.executable, "-c", CLI, "view", str(out), "--port", "0"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        url = page_url(view, "page of the run: ")
+        with Chromium() as browser:
+            browser.navigate(url)
+            seen = browser.wait_rendered(canvases=4, after_trial=int(trials) - 2)
+            assert seen["state"] == "finished"
+            assert seen["trials_done"] == int(trials)
+            view_png = browser.screenshot(shot(tmp_path, "live_view.png"))
+        assert_not_blank(view_png)
+    finally:
+        view.send_signal(signal.SIGINT)
+        assert view.wait(timeout=60) == 0
