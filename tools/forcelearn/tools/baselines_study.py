@@ -258,6 +258,17 @@ def learning_curves_figure(
     plt.close(fig)
 
 
+def saved_rows(study_dir: Path, trials: int) -> list[dict[str, Any]]:
+    """Every finished run of ``trials`` trials saved in a study folder (any method, seed)."""
+    import json
+
+    rows = [json.loads(p.read_text()) for p in sorted((study_dir / "runs").glob("*.json"))]
+    return sorted(
+        (r for r in rows if r["trials"] == trials and r["task"] == "baselines"),
+        key=lambda r: (r["variant"], r["method"], r["seed"]),
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the comparison study and write docs/results/baselines.md with its figure."""
     from forcelearn.tools.study_runner import load_curves, run_study
@@ -271,6 +282,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, help="local processes (default: all cores)")
     parser.add_argument("--out", type=Path, default=Path("docs/results"))
     parser.add_argument("--study-dir", type=Path, default=Path("runs/study-baselines"))
+    parser.add_argument(
+        "--report-only",
+        action="store_true",
+        help="run nothing: tabulate every run already saved in --study-dir",
+    )
     args = parser.parse_args(argv)
     methods, variants = args.methods.split(","), args.variants.split(",")
     points = [{"method": m, "variant": v} for v in variants for m in methods]
@@ -279,28 +295,32 @@ def main(argv: list[str] | None = None) -> int:
         f"--methods {args.methods} --variants {args.variants}"
     )
     started = time.perf_counter()
-    outcome = run_study(
-        get_task("baselines"),
-        args.study_dir,
-        args.trials,
-        range(args.seeds),
-        points,
-        workers=args.workers,
-        command=command,
-    )
-    wall = time.perf_counter() - started
-    rows = outcome.rows
+    if args.report_only:
+        rows = saved_rows(args.study_dir, args.trials)
+        header = f"Tabulated from the runs saved in `{args.study_dir}` by `{command}`"
+    else:
+        outcome = run_study(
+            get_task("baselines"),
+            args.study_dir,
+            args.trials,
+            range(args.seeds),
+            points,
+            workers=args.workers,
+            command=command,
+        )
+        rows = outcome.rows
+        header = (
+            f"Made by `{command}` ({time.perf_counter() - started:.0f} s wall, "
+            f"{outcome.ran} runs run now, {outcome.reused} reused)"
+        )
     curves = {r["run_id"]: load_curves(args.study_dir, r["run_id"]) for r in rows}
     args.out.mkdir(parents=True, exist_ok=True)
     figure = args.out / "baselines_learning_curves.png"
     learning_curves_figure(rows, curves, args.trials, figure)
     table = report_rows(rows, args.trials)
-    (args.out / "baselines_table.md").write_text(
-        f"Made by `{command}` ({wall:.0f} s wall, {outcome.ran} runs run now, "
-        f"{outcome.reused} reused).\n\n" + "\n".join(table) + "\n"
-    )
+    (args.out / "baselines_table.md").write_text(header + ".\n\n" + "\n".join(table) + "\n")
     print("\n".join(table))
-    print(f"wrote {figure} and {args.out / 'baselines_table.md'} ({wall:.0f} s)")
+    print(f"wrote {figure} and {args.out / 'baselines_table.md'}")
     print(f"budget rule: stop at converged + {CONVERGENCE_WINDOW} + {AFTER_CONVERGED} trials")
     return 0
 
