@@ -139,7 +139,7 @@ def test_force_control_corrects_y_against_the_error_and_forgets_between_trials()
 
 
 def test_path_search_evaluates_one_candidate_per_trial_and_tells_a_full_generation() -> None:
-    """popsize candidates, one per trial; the mean moves only after the generation is told."""
+    """Four candidates, one per trial; the mean moves once the generation is told."""
     search = PathSearchController(FAKE_ENV, seed=0, params=PathSearchParams(popsize=4))
     mean_before = np.array(search.es.mean)
     paths = []

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import gymnasium
@@ -83,7 +84,7 @@ def test_surface_rollout_measures_force_spends_cell_time_and_renders() -> None:
             done = terminated or truncated
         assert terminated != truncated
         assert info["step"] <= 20 and (truncated == (info["step"] == 20))
-        assert all(b > a for a, b in zip(times, times[1:], strict=False)) and times[0] > 0
+        assert all(b > a for a, b in itertools.pairwise(times)) and times[0] > 0
         frame = env.render()
         assert frame is not None and frame.shape == (240, 320, 3) and frame.dtype == np.uint8
         assert (frame < 200).any(), "the frame holds a drawing, not a blank canvas"

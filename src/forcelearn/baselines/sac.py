@@ -43,8 +43,8 @@ def run_sac(
     seed: int,
     trials: int,
     params: SACParams | None = None,
-) -> TrialRecorder:
-    """Train SAC on ``env`` until the budget rule stops it; return the recorder."""
+) -> tuple[TrialRecorder, Any]:
+    """Train SAC on ``env`` until the budget rule stops it; return the recorder and the model."""
     try:
         from stable_baselines3 import SAC
         from stable_baselines3.common.callbacks import BaseCallback
@@ -76,4 +76,4 @@ def run_sac(
         verbose=0,
     )
     model.learn(total_timesteps=trials * task.task_steps_per_trial, callback=Budget())
-    return recorder
+    return recorder, model

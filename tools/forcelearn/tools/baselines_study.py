@@ -99,7 +99,7 @@ def run_baseline(config: BaselinesConfig, seed: int) -> tuple[dict[str, Any], di
     started = time.perf_counter()
     try:
         if config.method == "sac":
-            recorder: TrialRecorder = run_sac(env, seed, config.trials, config.sac)
+            recorder: TrialRecorder = run_sac(env, seed, config.trials, config.sac)[0]
         else:
             controller = {
                 "srv": lambda: SRVController(env, cell.learner, seed),
