@@ -24,6 +24,7 @@ variant        the emulated cell
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import statistics
 import sys
@@ -45,13 +46,18 @@ from forcelearn.baselines.controllers import (
 )
 from forcelearn.baselines.runner import AFTER_CONVERGED, TrialRecorder, run_controller
 from forcelearn.baselines.sac import SACParams, run_sac
-from forcelearn.errors import ConfigError
+from forcelearn.errors import ConfigError, LinkError, SensorError
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.study_grid import RunSpec, apply_overrides
 from forcelearn.trainer import CONVERGENCE_WINDOW, converged_trial, criterion_trial
 
+log = logging.getLogger(__name__)
+
 METHODS = ("srv", "pi", "ilc", "cma", "sac")
 VARIANTS = ("default", "fast_wear", "soft")
+DEVICE_RETRIES = 2
+"""A run whose emulated devices time out (host overloaded: the drivers' watchdogs are
+wall-clock) is started again from scratch on a fresh cell, at most this many times."""
 FINAL_TRIALS = 10
 """Trials whose median force RMS is the 'final force RMS' (the last ones of the run)."""
 
@@ -164,7 +170,15 @@ def run_chunk(specs: list[RunSpec]) -> list[dict[str, Any]]:
     rows = []
     for spec in specs:
         config = apply_overrides(BaselinesConfig(trials=spec.trials), dict(spec.overrides))
-        summary, curves = run_baseline(config, spec.seed)
+        for attempt in range(1 + DEVICE_RETRIES):
+            try:
+                summary, curves = run_baseline(config, spec.seed)
+                break
+            except (SensorError, LinkError) as exc:
+                if attempt == DEVICE_RETRIES:
+                    raise
+                log.warning("run %s: %s; starting it again on a fresh cell", spec.run_id, exc)
+        summary["device_retries"] = attempt
         row = result_row(spec, config, summary)
         row[CURVES] = curves
         rows.append(row)
