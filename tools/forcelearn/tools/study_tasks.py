@@ -11,9 +11,9 @@ task       what a run is
 =========  ===================================================================
 contour    paper §4, the batched simulation (many runs per chunk, one core)
 surface    paper §5, one ``forcelearn run`` on the emulated cell per run
+baselines  §5 through ``forcelearn/Surface-v0``: one method (srv, pi, ilc, cma,
+           sac) on one cell variant per run (:mod:`.baselines_study`)
 =========  ===================================================================
-
-Baselines register here the same way when they exist (none yet in this tree).
 """
 
 from __future__ import annotations
@@ -121,6 +121,19 @@ def run_surface_chunk(specs: list[RunSpec]) -> list[dict[str, Any]]:
     return rows
 
 
+def _baselines_base() -> Any:
+    from forcelearn.tools.baselines_study import base_config
+
+    return base_config()
+
+
+def run_baselines_chunk(specs: list[RunSpec]) -> list[dict[str, Any]]:
+    """Run comparison specs (method × cell variant × seed) one after the other."""
+    from forcelearn.tools.baselines_study import run_chunk
+
+    return run_chunk(specs)
+
+
 TASKS: dict[str, StudyTask] = {
     "contour": StudyTask(
         "contour",
@@ -135,6 +148,14 @@ TASKS: dict[str, StudyTask] = {
         "paper §5 sponge task on the emulated cell (one forcelearn run per run)",
         _surface_base,
         run_surface_chunk,
+        lambda spec: spec.run_id,
+        batched=False,
+    ),
+    "baselines": StudyTask(
+        "baselines",
+        "paper §5 through the Gymnasium env: SRV vs force control, ILC, CMA-ES, SAC",
+        _baselines_base,
+        run_baselines_chunk,
         lambda spec: spec.run_id,
         batched=False,
     ),

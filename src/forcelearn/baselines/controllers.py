@@ -1,0 +1,287 @@
+"""The methods of the comparison, each a :class:`~forcelearn.baselines.runner.Controller`.
+
+=================  =========================================================================
+``srv``            the paper's SRV learner over BOXES, driven through the env (same result
+                   as the native trainer for a seed)
+``pi``             explicit force control: a PI loop on the filtered force error that
+                   corrects Y every step; gains scaled by the stiffness measured at the
+                   trial's first step; nothing carried from trial to trial
+``ilc``            iterative learning control: a P-type update of the 20-step Y path from
+                   trial to trial, learning gain L, zero-phase Q-filter
+``cma``            black-box path search: CMA-ES over the 20 Y offsets, one trial per
+                   evaluation
+=================  =========================================================================
+
+The model-based methods (``pi``, ``ilc``) and ``cma`` start from the same first
+guess, a constant Y offset ``probe_offset_mm`` (−4 mm) below the start Y: what an
+operator would try first. ``pi`` and ``ilc`` measure the sponge's stiffness
+from it as k̂ = (F1 − F0) / |probe| (F0 the force at the start pose, F1 after the
+first step); ``srv`` starts from μ = 0 (Y at the start pose), as in the paper.
+
+The surface task only: Y offsets in mm, forces in N. Env actions are offsets
+divided by ``max_offset_mm``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from forcelearn.learning import SRVLearner, SRVParams
+from forcelearn.trainer import TrialRecord
+
+MIN_STIFFNESS_N_PER_MM = 0.2
+"""Smallest stiffness estimate accepted (a probe that met almost no force), N/mm."""
+MAX_STIFFNESS_N_PER_MM = 50.0
+"""Largest stiffness estimate accepted, N/mm."""
+
+
+def measured_stiffness(start_force_n: float, probe_force_n: float, probe_offset_mm: float) -> float:
+    """k̂ = (F1 − F0) / |probe| in N/mm, clipped to a sane range."""
+    k = (probe_force_n - start_force_n) / abs(probe_offset_mm)
+    return float(np.clip(k, MIN_STIFFNESS_N_PER_MM, MAX_STIFFNESS_N_PER_MM))
+
+
+class SRVController:
+    """The paper's learner acting through an env (its output map gives env actions).
+
+    Args:
+        env: the unwrapped forcelearn env (``grid``, ``learner_input``, ``learner_action``).
+        params: SRV hyperparameters.
+        seed: the learner's random seed.
+    """
+
+    name = "srv"
+
+    def __init__(self, env: Any, params: SRVParams, seed: int):
+        n_outputs = int(env.action_space.shape[0])
+        self.env = env
+        self.learner = SRVLearner(env.grid, n_outputs, params, rng=seed, output=env.learner_action)
+        self._action: Any = None
+        self.switch_trial: int | None = None
+
+    def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Nothing to prepare."""
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """S3-S4: draw a ~ N(μ, σ) in the input box; the output map makes it an env action."""
+        self._action = self.learner.act(self.env.learner_input(obs))
+        return self._action.output
+
+    def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """S7-S8 with r = −reward."""
+        self.learner.learn(self._action, float(info["r"]))
+
+    def end(self, record: TrialRecord) -> None:
+        """S9: the global criterion."""
+        if self.learner.end_trial(success=not record.failed):
+            self.switch_trial = record.index
+
+
+@dataclass(frozen=True)
+class ForceControlParams:
+    """PI force control (admittance-style: force error → Y correction), per step."""
+
+    kp: float = 0.1
+    """Proportional gain, as a fraction of the inverse stiffness."""
+    ki: float = 1.0
+    """Integral gain per step, as a fraction of the inverse stiffness (1: deadbeat on a
+    static sponge). Kp, Ki picked from a small grid on seed 0 of the default cell
+    (docs/results/baselines.md): larger gains oscillate (the relaxing sponge is stiffer
+    than k̂ just after a move), smaller ones lag further behind the surface."""
+    probe_offset_mm: float = -4.0
+    """Y offset of the first step of the first trial; the stiffness is measured there."""
+
+
+class ForceController:
+    """Explicit force control: Y_{k+1} = Y_0 + (Kp e_k + Ki Σ_{i≤k} e_i) / k̂, no memory.
+
+    e_k is the filtered force error (the cell's Kalman filter) after step k, e_0
+    the error at the start pose (positive: pressing too hard, so Y rises: the
+    sponge pushes along +Y); Y_0 is the start Y. k̂ is measured once, at the
+    first step of the first trial, which goes to ``probe_offset_mm`` (a
+    calibration of the cell, like an operator's stiffness test; every later
+    trial starts from the start-force error). Nothing else is carried over.
+    """
+
+    name = "pi"
+
+    def __init__(self, env: Any, params: ForceControlParams | None = None):
+        self.params = params or ForceControlParams()
+        self.spec = env.task_spec
+        self.stiffness_n_per_mm = math.nan
+        self._start_force_n = math.nan
+        self._integral = 0.0
+        self._offset_mm = self.params.probe_offset_mm
+
+    def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Reset the integrator; the first step is the probe, or the PI on the start error."""
+        self._start_force_n = float(info["start_force_n"])
+        self._integral = 0.0
+        if math.isfinite(self.stiffness_n_per_mm):
+            self._correct(self._start_force_n - self.spec.desired_force_n)
+        else:
+            self._offset_mm = self.params.probe_offset_mm
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """The env action for the present Y offset."""
+        return np.array([_action_of(self._offset_mm, self.spec.max_offset_mm)])
+
+    def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Measure k̂ after the very first probe, then the PI correction of the next Y."""
+        if not math.isfinite(self.stiffness_n_per_mm):
+            self.stiffness_n_per_mm = measured_stiffness(
+                self._start_force_n, float(info["force_n"]), self.params.probe_offset_mm
+            )
+            self._integral = (self._offset_mm * self.stiffness_n_per_mm) / self.params.ki
+        self._correct(float(info["force_error_n"]))
+
+    def end(self, record: TrialRecord) -> None:
+        """Nothing is carried to the next trial (k̂ is a constant of the cell)."""
+
+    def _correct(self, error_n: float) -> None:
+        p = self.params
+        self._integral += error_n
+        correction = (p.kp * error_n + p.ki * self._integral) / self.stiffness_n_per_mm
+        limit = self.spec.max_offset_mm
+        self._offset_mm = float(np.clip(correction, -limit, limit))
+
+
+@dataclass(frozen=True)
+class ILCParams:
+    """P-type ILC of the Y path: p_{j+1} = Q(p_j + L e_j / k̂) (too much force raises Y)."""
+
+    learning_gain: float = 0.5
+    """L: fraction of the stiffness-scaled error corrected per trial (0 < L < 2 on a static map)."""
+    q_weights: tuple[float, float, float] = (0.25, 0.5, 0.25)
+    """Zero-phase Q-filter along the path (edges repeat the end values); (0, 1, 0) is none."""
+    probe_offset_mm: float = -4.0
+    """The first trial's constant path; the stiffness is measured at its first step."""
+
+
+def q_filter(path: np.ndarray, weights: tuple[float, float, float]) -> np.ndarray:
+    """Zero-phase 3-tap filter along the path, edges padded with the end values."""
+    padded = np.concatenate([path[:1], path, path[-1:]])
+    w0, w1, w2 = weights
+    return w0 * padded[:-2] + w1 * padded[1:-1] + w2 * padded[2:]
+
+
+class ILCController:
+    """Iterative learning control of the 20 Y offsets (feedforward only, no in-trial feedback).
+
+    A trial that failed at step m has no errors past m: they are taken as the
+    error at m (the path is corrected in the same direction from there on).
+    """
+
+    name = "ilc"
+
+    def __init__(self, env: Any, params: ILCParams | None = None):
+        self.params = params or ILCParams()
+        self.spec = env.task_spec
+        self.path_mm = np.full(self.spec.steps_per_trial, self.params.probe_offset_mm)
+        self._stiffness = math.nan
+        self._start_force_n = math.nan
+        self._errors: list[float] = []
+
+    def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """A new pass along the present path."""
+        self._start_force_n = float(info["start_force_n"])
+        self._errors = []
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """The path's offset of this step as an env action."""
+        return np.array([_action_of(self.path_mm[len(self._errors)], self.spec.max_offset_mm)])
+
+    def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Keep the error; the first trial's first step measures k̂."""
+        if not math.isfinite(self._stiffness):
+            self._stiffness = measured_stiffness(
+                self._start_force_n, float(info["force_n"]), self.path_mm[0]
+            )
+        self._errors.append(float(info["force_error_n"]))
+
+    def end(self, record: TrialRecord) -> None:
+        """The ILC update of the whole path."""
+        errors = np.full(self.path_mm.shape, self._errors[-1])
+        errors[: len(self._errors)] = self._errors
+        updated = self.path_mm + self.params.learning_gain * errors / self._stiffness
+        limit = self.spec.max_offset_mm
+        self.path_mm = np.clip(q_filter(updated, self.params.q_weights), -limit, limit)
+
+
+@dataclass(frozen=True)
+class PathSearchParams:
+    """CMA-ES over the Y path (offsets in mm)."""
+
+    sigma0_mm: float = 2.0
+    """Initial step size of the search, mm."""
+    popsize: int = 0
+    """Candidates per generation; 0: CMA-ES's default 4 + ⌊3 ln 20⌋ = 12."""
+    probe_offset_mm: float = -4.0
+    """The initial mean: a constant offset, the same first guess as pi and ilc."""
+
+
+class PathSearchController:
+    """Black-box search of the 20 Y offsets with CMA-ES; one trial evaluates one candidate.
+
+    The objective is the force RMS over the 20 steps, a step not reached (the
+    trial failed before it) counting as an error of ``tolerance_n`` (10 N).
+    """
+
+    name = "cma"
+
+    def __init__(self, env: Any, seed: int, params: PathSearchParams | None = None):
+        import cma
+
+        self.params = params or PathSearchParams()
+        self.spec = env.task_spec
+        n = self.spec.steps_per_trial
+        limit = self.spec.max_offset_mm
+        options: dict[str, Any] = {
+            "seed": seed + 1,  # cma treats 0 as "seed from the clock"
+            "bounds": [-limit, limit],
+            "verbose": -9,
+        }
+        if self.params.popsize:
+            options["popsize"] = self.params.popsize
+        self.es = cma.CMAEvolutionStrategy(
+            np.full(n, self.params.probe_offset_mm), self.params.sigma0_mm, options
+        )
+        self._pending: list[np.ndarray] = []
+        self._told: list[float] = []
+        self._asked: list[np.ndarray] = []
+        self.path_mm = np.zeros(n)
+        self._errors: list[float] = []
+
+    def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Take the next candidate (ask a new generation when none is left)."""
+        if not self._pending:
+            self._asked = [np.asarray(c, dtype=float) for c in self.es.ask()]
+            self._pending = list(self._asked)
+            self._told = []
+        self.path_mm = self._pending.pop(0)
+        self._errors = []
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """The candidate's offset of this step as an env action."""
+        return np.array([_action_of(self.path_mm[len(self._errors)], self.spec.max_offset_mm)])
+
+    def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
+        """Keep the error."""
+        self._errors.append(float(info["force_error_n"]))
+
+    def end(self, record: TrialRecord) -> None:
+        """Score the candidate; tell CMA-ES when the generation is complete."""
+        errors = np.full(self.spec.steps_per_trial, self.spec.tolerance_n)
+        errors[: len(self._errors)] = self._errors
+        self._told.append(float(np.sqrt(np.mean(np.square(errors)))))
+        if len(self._told) == len(self._asked):
+            self.es.tell(self._asked, self._told)
+
+
+def _action_of(offset_mm: float, max_offset_mm: float) -> float:
+    """Env action of a Y offset (mm), clipped to [-1, 1]."""
+    return float(np.clip(offset_mm / max_offset_mm, -1.0, 1.0))

@@ -1,0 +1,193 @@
+"""The comparison's methods and its scoring: SRV through the env equals the native trainer."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from forcelearn.baselines.controllers import (
+    ForceController,
+    ILCController,
+    ILCParams,
+    PathSearchController,
+    PathSearchParams,
+    SRVController,
+    measured_stiffness,
+    q_filter,
+)
+from forcelearn.baselines.runner import TrialRecorder, run_controller, should_stop
+from forcelearn.emulators.physics.two_link_arm import ContourGeometry, TwoLinkContourCell
+from forcelearn.envs import ContourEnv, SurfaceEnv
+from forcelearn.learning import SRVLearner, SRVParams
+from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
+from forcelearn.tasks.surface import SurfaceTask, SurfaceTaskSpec
+from forcelearn.tools.cell_config import load_cell_config
+from forcelearn.tools.cell_session import CellSession
+from forcelearn.trainer import TrialRecord, train
+
+SPEC = SurfaceTaskSpec()
+FAKE_ENV = SimpleNamespace(task_spec=SPEC)
+
+
+def _same_records(
+    native: list[TrialRecord],
+    through_env: list[TrialRecord],
+    rel: float = 1e-9,
+    abs_n: float = 1e-12,
+) -> None:
+    assert len(native) == len(through_env)
+    for a, b in zip(native, through_env, strict=True):
+        assert (a.index, a.steps, a.failed) == (b.index, b.steps, b.failed)
+        assert b.mean_r == pytest.approx(a.mean_r, rel=rel, abs=abs_n / 10.0)
+        assert b.force_rms_n == pytest.approx(a.force_rms_n, rel=rel, abs=abs_n)
+        assert b.start_force_n == pytest.approx(a.start_force_n, rel=rel, abs=abs_n)
+        assert b.cell_time_s == pytest.approx(a.cell_time_s, rel=rel, nan_ok=True)
+
+
+def test_srv_through_the_contour_env_gives_the_native_trainers_trials() -> None:
+    """The same seed, the same 60 trials (steps, failures, r, force RMS) either way."""
+    seed, trials = 4, 60
+    task = ContourTask(TwoLinkContourCell(ContourGeometry()), ContourTaskSpec())
+    learner = SRVLearner(task.grid, 2, SRVParams(), rng=seed, output=task.output_map())
+    native = train(learner, task, trials).records
+    env = ContourEnv()
+    controller = SRVController(env, SRVParams(), seed)
+    recorder = run_controller(env, controller, trials, seed, stop_early=False)
+    _same_records(native, recorder.records)
+    assert sum(r.steps for r in native) > trials, "the runs went past the first step"
+
+
+def test_srv_through_the_surface_env_gives_the_native_trainers_trials() -> None:
+    """§5 on the emulated cell (real drivers): 2 trials agree, trial for trial.
+
+    Two *native* runs of one seed were seen to differ by ~1e-3 N in force RMS on a
+    heavily loaded host (the emulated cell is not bit-reproducible there; see
+    docs/results/baselines.md), so the figures are compared to 0.05 N / 1 %,
+    steps and failures exactly, over 2 trials (with 4, a loaded host flipped a later
+    trial's failure step in the full suite).
+    """
+    seed, trials = 2, 2
+    config = load_cell_config(None)
+    with CellSession(config, seed=seed) as session:
+        assert session.cell is not None
+        task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
+        learner = SRVLearner(task.grid, 1, config.learner, rng=seed, output=task.output_map())
+        native = train(learner, task, trials).records
+    env = SurfaceEnv(config)
+    try:
+        controller = SRVController(env, config.learner, seed)
+        recorder = run_controller(env, controller, trials, seed, stop_early=False)
+    finally:
+        env.close()
+    _same_records(native, recorder.records, rel=0.01, abs_n=0.05)
+    assert all(r.cell_time_s > 1.0 for r in recorder.records)
+
+
+def test_should_stop_after_convergence_plus_ten_or_at_the_budget() -> None:
+    """Converged at trial 3 → stop once 3 + 10 + 10 trials are done; never → at the budget."""
+
+    def record(i: int, rms: float) -> TrialRecord:
+        return TrialRecord(i, "x", 20, False, 0.1, rms, 10.0)
+
+    records = [record(i, 5.0 if i < 3 else 0.5) for i in range(22)]
+    assert not should_stop(records, 300, 20, 19.61)
+    records.append(record(22, 0.5))
+    assert should_stop(records, 300, 20, 19.61)
+    bad = [record(i, 5.0) for i in range(30)]
+    assert not should_stop(bad, 31, 20, 19.61) and should_stop(bad, 30, 20, 19.61)
+
+
+def test_stiffness_estimate_is_the_force_rise_per_mm_and_stays_sane() -> None:
+    """(F1 − F0)/|probe|, clipped away from zero (a probe that met nothing)."""
+    assert measured_stiffness(10.0, 18.0, -4.0) == pytest.approx(2.0)
+    assert measured_stiffness(10.0, 9.0, -4.0) == pytest.approx(0.2)
+
+
+def test_q_filter_keeps_a_constant_path_and_smooths_a_spike() -> None:
+    """Zero-phase, unit DC gain, the ends padded."""
+    flat = np.full(20, -5.0)
+    assert np.allclose(q_filter(flat, (0.25, 0.5, 0.25)), flat)
+    spike = np.zeros(5)
+    spike[2] = 4.0
+    assert q_filter(spike, (0.25, 0.5, 0.25)).tolist() == [0.0, 1.0, 2.0, 1.0, 0.0]
+
+
+def _play(controller, forces: list[float], start_force_n: float = 10.0) -> list[float]:
+    """Feed a controller a trial of measured forces; return the offsets it commanded (mm)."""
+    controller.begin(np.zeros(3), {"start_force_n": start_force_n})
+    offsets = []
+    for force in forces:
+        offsets.append(float(controller.act(np.zeros(3))[0]) * SPEC.max_offset_mm)
+        controller.observe(
+            np.zeros(3), {"force_n": force, "force_error_n": force - SPEC.desired_force_n}
+        )
+    return offsets
+
+
+def test_ilc_raises_the_path_where_it_pressed_too_hard_and_lowers_it_where_too_soft() -> None:
+    """P-type update with L = 0.5, no Q-filter: Δp = L e / k̂ per step."""
+    ilc = ILCController(FAKE_ENV, ILCParams(learning_gain=0.5, q_weights=(0.0, 1.0, 0.0)))
+    desired = SPEC.desired_force_n
+    forces = [18.0] + [desired + 2.0] * 9 + [desired - 2.0] * 10  # k̂ = (18 - 10)/4 = 2 N/mm
+    _play(ilc, forces)
+    ilc.end(TrialRecord(0, "ilc", 20, False, 0.1, 2.0, 10.0))
+    change = ilc.path_mm - (-4.0)
+    assert change[1:10] == pytest.approx(0.5 * 2.0 / 2.0)
+    assert change[10:] == pytest.approx(-0.5 * 2.0 / 2.0)
+
+
+def test_force_control_corrects_y_against_the_error_and_forgets_between_trials() -> None:
+    """Too much force raises Y; the next trial starts from the start force again (no memory)."""
+    pi = ForceController(FAKE_ENV)
+    first = _play(pi, [18.0, 25.0, 25.0])  # probe, then pressing 5.4 N too hard
+    assert first[0] == pytest.approx(-4.0)
+    assert pi.stiffness_n_per_mm == pytest.approx(2.0)
+    assert first[2] > first[1]
+    second = _play(pi, [SPEC.desired_force_n] * 3, start_force_n=SPEC.desired_force_n)
+    assert second == pytest.approx([0.0, 0.0, 0.0])
+
+
+def test_path_search_evaluates_one_candidate_per_trial_and_tells_a_full_generation() -> None:
+    """Four candidates, one per trial; the mean moves once the generation is told."""
+    search = PathSearchController(FAKE_ENV, seed=0, params=PathSearchParams(popsize=4))
+    mean_before = np.array(search.es.mean)
+    paths = []
+    for trial in range(4):
+        _play(search, [SPEC.desired_force_n + trial] * 20)
+        paths.append(search.path_mm.copy())
+        search.end(TrialRecord(trial, "cma", 20, False, 0.1, 1.0, 10.0))
+    assert len({tuple(p) for p in paths}) == 4
+    assert search.es.countiter == 1
+    assert not np.allclose(search.es.mean, mean_before)
+
+
+def test_recorder_scores_any_agent_by_the_trainers_formulas() -> None:
+    """A random agent on §4: each record's RMS and steps follow from its episode's infos."""
+    env = TrialRecorder(ContourEnv(), "random")
+    env.action_space.seed(0)
+    errors: list[float] = []
+    env.reset(seed=0)
+    done = False
+    while not done:
+        _, _, terminated, truncated, info = env.step(env.action_space.sample())
+        errors.append(info["force_error_n"])
+        done = terminated or truncated
+    (record,) = env.records
+    assert record.force_rms_n == pytest.approx(float(np.sqrt(np.mean(np.square(errors)))))
+    assert record.steps == len(errors) - (1 if record.failed else 0)
+    assert record.phase == "random"
+
+
+def test_ilc_converges_on_the_emulated_cell(tmp_path: Path) -> None:
+    """ILC through the env meets the convergence rule on the default cell within 40 trials."""
+    from forcelearn.tools.baselines_study import BaselinesConfig, run_baseline
+
+    summary, curves = run_baseline(BaselinesConfig(method="ilc", trials=40), seed=0)
+    assert summary["converged_trial"] is not None
+    assert summary["trials_run"] == summary["converged_trial"] + 20
+    assert summary["final_force_rms_n"] <= 0.05 * SPEC.desired_force_n
+    assert len(curves["force_rms_n"]) == summary["trials_run"]
+    assert summary["cell_time_to_converge_s"] > 0
