@@ -42,6 +42,7 @@ import socket
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm.controller import HOME, EgmControllerConfig, EgmControllerModel
@@ -112,6 +113,8 @@ class EgmControllerEmulator:
         self._stop = threading.Event()
         self._restart = threading.Event()
         self._thread: threading.Thread | None = None
+        self._t = self.clock.now_s
+        """Simulated time of the present cycle, s."""
         self.cycles = 0
         """Cycles run (EgmRobot datagrams built, sent or not)."""
         self.replies = 0
@@ -159,13 +162,14 @@ class EgmControllerEmulator:
 
     def _run(self) -> None:
         period = self.config.sample_period_s
-        t = self.clock.now_s
+        self._t = t = self.clock.now_s
         wall0, t0 = time.monotonic(), t
         held: bytes | None = None  # reordered datagram, sent after the next one
         inbox: list[bytes] = []  # EgmSensor datagrams read at the next cycle
         late: list[bytes] = []  # read one cycle later still
         try:
             while not self._stop.is_set():
+                t = self._t
                 self.faults.cycle = self.cycles
                 for datagram in inbox:
                     self.model.apply_sensor(datagram, t)
@@ -180,23 +184,42 @@ class EgmControllerEmulator:
                 self.cycles += 1
                 expect_reply, held = self._send_cycle(datagram, held)
                 self.clock.hold()
-                next_t = t + period
                 if self.lockstep:
                     replies = self._await_reply(expect_reply)
                 else:
-                    due = wall0 + (next_t - t0) / self.clock.time_scale
+                    due = wall0 + (t + period - t0) / self.clock.time_scale
                     replies = self._drain_until(due)
                 for reply in replies:
                     if self.faults.fires("lose_reply"):
                         continue
                     (late if self.faults.fires("late_reply") else inbox).append(reply)
+                t = self._t  # a resume may have moved the cycle grid meanwhile (load_state_dict)
+                next_t = t + period
                 now = self.clock.now_s
                 if now > next_t:
                     next_t = t + period * math.ceil((now - t) / period - 1e-9)
-                t = self.clock.advance_to(next_t)
+                self._t = self.clock.advance_to(next_t)
         except OSError as exc:
             if not self._stop.is_set():
                 log.error("EGM emulator socket failed: %s", exc)
+
+    # -- checkpoint (the emulated cell's bit-identical resume) ------------------------------
+
+    def state_dict(self) -> dict[str, Any]:
+        """The controller's state and its cycle time (JSON-able; the arm is the physics')."""
+        return {"t_s": self._t, "cycles": self.cycles, "model": self.model.state_dict()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` while the loop waits for the PC's answer (lockstep).
+
+        The next cycle then follows the restored one, as if the run had never
+        stopped. Fault injection is not restored (the emulated cell runs none).
+        """
+        if not self.lockstep:
+            raise ValueError("only a lockstep emulator can be restored")
+        self._t = float(state["t_s"])
+        self.cycles = int(state["cycles"])
+        self.model.load_state_dict(state["model"])
 
     def _send_cycle(self, datagram: bytes, held: bytes | None) -> tuple[bool, bytes | None]:
         """Send one cycle's datagram through the faults, then any held-back one.
