@@ -54,6 +54,14 @@ log = logging.getLogger(__name__)
 
 POLL_S = 0.05
 """Longest blocking wait of the loop (s): bounds how long stop() takes."""
+RESEND_S = 0.2
+"""Lockstep: while no answer comes, the cycle's datagram is sent again this often (wall s).
+
+A real controller streams whether or not the PC answers; in lockstep the
+emulator stands still instead, so it repeats the waiting cycle's datagram (same
+seqno: the driver ignores it as a duplicate). A driver that binds after the
+emulator started, or a second client after the first closed (``forcelearn
+emulate``), then still receives a cycle to answer. No simulated time passes."""
 
 
 @dataclass
@@ -115,6 +123,8 @@ class EgmControllerEmulator:
         self._thread: threading.Thread | None = None
         self._t = self.clock.now_s
         """Simulated time of the present cycle, s."""
+        self._waiting: bytes | None = None
+        """The datagram of the cycle waiting for an answer (lockstep resend)."""
         self.cycles = 0
         """Cycles run (EgmRobot datagrams built, sent or not)."""
         self.replies = 0
@@ -227,12 +237,14 @@ class EgmControllerEmulator:
         Returns whether an answer is to be expected and the datagram now held back.
         """
         expect, hold = True, None
+        self._waiting = None
         if self.faults.fires("lose"):
             expect = False
         elif self.faults.fires("reorder"):
             expect, hold = False, datagram
         else:
             self._send(datagram)
+            self._waiting = datagram
             if self.faults.fires("duplicate"):
                 self._send(datagram)
         if held is not None:
@@ -269,11 +281,15 @@ class EgmControllerEmulator:
                 self.silent = False
             return [reply] if reply is not None else []
         deadline = None if self.patience_s is None else time.monotonic() + self.patience_s
+        sent = time.monotonic()
         while not self._stop.is_set():
             wait = POLL_S if deadline is None else min(POLL_S, deadline - time.monotonic())
             reply = self._receive(wait)
             if reply is not None:
                 return [reply]
+            if self._waiting is not None and time.monotonic() - sent >= RESEND_S:
+                self._sock.sendto(self._waiting, self._remote)  # see RESEND_S
+                sent = time.monotonic()
             if deadline is not None and time.monotonic() >= deadline:
                 log.info("the PC has been silent for %.3f s: cycles go on without it",
                          self.patience_s)
