@@ -21,6 +21,7 @@ TIMING_KEYS = {"wall_s", "steps_per_s", "realtime_factor"}
 
 
 def write(tmp_path: Path, text: str) -> Path:
+    """Write a cell config into ``tmp_path``; return its path."""
     path = tmp_path / "cell.toml"
     path.write_text(text)
     return path
@@ -37,6 +38,7 @@ def write(tmp_path: Path, text: str) -> Path:
 def test_examples_load_as_emulated_cells_of_their_kinds(
     name: str, robot: type, sensor: type
 ) -> None:
+    """Each example loads with its kinds, emulated as shipped, limits from [safety]."""
     config = load_cell_config(EXAMPLES / name)
     assert isinstance(config.robot, robot) and isinstance(config.sensor, sensor)
     assert config.robot_emulated and config.sensor_emulated
@@ -48,11 +50,13 @@ def test_examples_load_as_emulated_cells_of_their_kinds(
 
 
 def test_defaults_stay_computer_link_and_jr3() -> None:
+    """No config: the computer link and the JR3, as before the kinds."""
     config = load_cell_config(None)
     assert config.robot_kind == "computer_link" and config.sensor_kind == "jr3"
 
 
 def test_a_real_egm_and_netft_cell_keeps_its_addresses(tmp_path: Path) -> None:
+    """Real addresses are kept; a real sensor keeps the 0.1 s watchdog."""
     config = load_cell_config(write(tmp_path, """
 [robot]
 kind = "egm"
@@ -90,11 +94,13 @@ host = "192.168.1.1"
     ],
 )
 def test_errors_name_the_key(tmp_path: Path, text: str, named: str) -> None:
+    """Every bad value or unknown key is named with its table."""
     with pytest.raises(ConfigError, match=named.replace(".", r"\.")):
         load_cell_config(write(tmp_path, text))
 
 
 def test_emulated_egm_and_netft_share_one_arm_clock_and_physics() -> None:
+    """EGM moves the shared arm the Net F/T emulator samples, on one clock."""
     config = load_cell_config(EXAMPLES / "egm-netft-cell.toml")
     with CellSession(config, seed=3) as session:
         assert session.egm is not None and session.netft is not None
@@ -118,6 +124,7 @@ def test_emulated_egm_and_netft_share_one_arm_clock_and_physics() -> None:
 
 
 def run(config: Path, out: Path, *extra: str) -> dict:
+    """``forcelearn run`` in this process; return its summary."""
     code = main(["run", "--config", str(config), "--out", str(out), "--no-progress", *extra])
     assert code in (0, None)
     return json.loads((out / "summary.json").read_text())
