@@ -128,11 +128,13 @@ def test_config_errors_name_the_key() -> None:
 
 
 def test_the_example_egm_cell_config_loads() -> None:
-    """examples/egm-cell.toml's [robot] table is a valid EgmConfig."""
-    import tomllib
+    """examples/egm-cell.toml's [robot] table is a valid EgmConfig (through the cell config)."""
     from pathlib import Path
 
+    from forcelearn.tools.cell_config import load_cell_config
+
     path = Path(__file__).parents[3] / "examples" / "egm-cell.toml"
-    config = EgmConfig.from_dict(tomllib.loads(path.read_text())["robot"])
+    config = load_cell_config(path).robot
+    assert isinstance(config, EgmConfig)
     assert (config.version, config.port, config.lockstep) == ("rw6", 6510, False)
-    assert config.limits.max_step_mm == 10.0
+    assert config.limits.max_step_mm == 10.0 and config.limits.max_speed_mm_s == 250.0

@@ -136,18 +136,7 @@ def calibrate(
         with opened if session is None else contextlib.nullcontext(opened):
             measurement = Calibrator(opened, plan, manual=manual, ask=ask,
                                      progress=progress, out=stream).run()
-            robot, jr3 = opened.robot, opened.sensor
-            if robot is None or jr3 is None or jr3.full_scales is None:  # pragma: no cover
-                raise CalibrationError("the cell session did not open its devices")
-            sensor = SensorInfo(
-                model=sensor_model if sensor_model is not None else (
-                    "JR3 (forcelearn emulator)" if config.sensor_emulated else ""),
-                serial=sensor_serial,
-                node_id=config.sensor.node_id,
-                full_scales=tuple(float(v) for v in jr3.full_scales),
-                cutoff_hz=jr3.cutoff_hz,
-                robot=robot.controller_model,
-            )
+            sensor = _sensor_info(config, opened, sensor_model, sensor_serial)
         cal = Calibration(
             created=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             sensor=sensor, noise=measurement.noise, tool=measurement.tool, matrix_check=check,
@@ -231,3 +220,38 @@ def _matrix_lines(check: MatrixCheck) -> list[str]:
         f"  {'sensor own matrix':<30}" + "".join(f"{v:9.4f}" for v in check.rms_residual_sensor),
         f"  {'fitted 6x6 matrix':<30}" + "".join(f"{v:9.4f}" for v in check.rms_residual_fit),
     ]
+
+
+def _sensor_info(
+    config: CellConfig, opened: CellSession, sensor_model: str | None, serial: str
+) -> SensorInfo:
+    """What the calibration file records of the sensor and robot, for every device kind."""
+    robot, sensor = opened.robot, opened.sensor
+    if robot is None or sensor is None:  # pragma: no cover
+        raise CalibrationError("the cell session did not open its devices")
+    if config.robot_kind == "egm":
+        robot_name = f"ABB EGM {robot.config.version}"
+    else:
+        robot_name = robot.controller_model
+    if config.sensor_kind == "netft":
+        cal = sensor.calibration
+        scales = config.sensor.full_scales or (cal.ranges_si if cal is not None else None)
+        return SensorInfo(
+            model=sensor_model if sensor_model is not None else (
+                "ATI Net F/T (forcelearn emulator)" if config.sensor_emulated else "ATI Net F/T"),
+            serial=serial,
+            full_scales=tuple(float(v) for v in scales) if scales else (0.0,) * 6,
+            cutoff_hz=0.0,  # the box filters by index (setuserfilter), not a cut-off
+            robot=robot_name,
+        )
+    if sensor.full_scales is None:  # pragma: no cover
+        raise CalibrationError("the JR3 did not report its full scales")
+    return SensorInfo(
+        model=sensor_model if sensor_model is not None else (
+            "JR3 (forcelearn emulator)" if config.sensor_emulated else ""),
+        serial=serial,
+        node_id=config.sensor.node_id,
+        full_scales=tuple(float(v) for v in sensor.full_scales),
+        cutoff_hz=sensor.cutoff_hz,
+        robot=robot_name,
+    )

@@ -5,15 +5,21 @@ Tables (every key optional; defaults are the emulated cell and the paper's §5):
 =============  ===============================================================
 table          holds
 =============  ===============================================================
-``[robot]``    computer link: ``url``, ``baudrate``, ``bytesize``, ``parity``,
-               ``stopbits``, ``ack_timeout_s``, ``reply_timeout_s``,
-               ``nak_retries``, ``enq_retries`` (``url = "emulated"`` starts the
-               robot-controller emulator on a pty)
-``[sensor]``   CAN bus: ``interface``, ``channel``, ``bitrate``; JR3 adapter:
-               ``node_id``, ``mode``, ``cutoff_hz``, ``period_us``, ``full_scales``,
-               ``ack_timeout_s``, ``opcodes_version``, ``log_path``
-               (``interface = "emulated"`` starts the JR3 emulator on the
-               in-process virtual bus)
+``[robot]``    ``kind = "computer_link"`` (default): ``url``, ``baudrate``,
+               ``bytesize``, ``parity``, ``stopbits``, ``ack_timeout_s``,
+               ``reply_timeout_s``, ``nak_retries``, ``enq_retries``
+               (``url = "emulated"`` starts the robot-controller emulator on a pty);
+               ``kind = "egm"``: the keys of :class:`EgmConfig` (``host``,
+               ``port``, ``version``, ``speed_mm_s``...; ``host = "emulated"``
+               starts the EGM controller emulator on loopback UDP, in lockstep)
+``[sensor]``   ``kind = "jr3"`` (default): CAN bus ``interface``, ``channel``,
+               ``bitrate``; JR3 adapter ``node_id``, ``mode``, ``cutoff_hz``,
+               ``period_us``, ``full_scales``, ``ack_timeout_s``,
+               ``opcodes_version``, ``log_path`` (``interface = "emulated"``
+               starts the JR3 emulator on the in-process virtual bus);
+               ``kind = "netft"``: the keys of :class:`NetFtConfig` (``host``,
+               ``rdt_port``, ``calibration_source``...; ``host = "emulated"``
+               starts the Net F/T emulator on loopback)
 ``[filter]``   the Kalman force filter; ``axis`` and ``sign`` pick the normal force
 ``[safety]``   ``max_force_n``, ``max_step_mm``, ``workspace_min_mm``,
                ``workspace_max_mm``, ``stale_sensor_s``: always on, never off
@@ -24,10 +30,18 @@ table          holds
 ``[emulator]`` ``time_scale`` (0: as fast as possible; 1: real time), ``profile``
                ("realistic", or "ideal": no time on wires, instant arm, no
                relaxation, no adapter filter); physics of the emulated cell:
-               ``[emulator.sponge]``, ``[emulator.sensor]``, ``[emulator.arm]``
+               ``[emulator.sponge]``, ``[emulator.sensor]`` (the JR3's
+               :class:`SensorModelParams`, or with ``[sensor] kind = "netft"``
+               the Net F/T's :class:`NetFtModelParams`), ``[emulator.arm]``,
+               ``[emulator.egm]`` (EGM control lag: :class:`ServoParams`)
                (ignored on a real cell)
 ``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``
 =============  ===============================================================
+
+One rule selects an emulated device: the key that says where the device is
+(``url`` of the computer link, ``interface`` of the JR3's CAN bus, ``host``
+of EGM and of the Net F/T) set to ``"emulated"``; a table that does not set
+that key is emulated too, so an empty config is the emulated cell.
 """
 
 from __future__ import annotations
@@ -40,8 +54,12 @@ from typing import Any, Literal
 from forcelearn.config import build, check_sections, read_run_table, read_toml
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link.config import Limits, LinkConfig
+from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.jr3_can.config import Jr3Config
+from forcelearn.drivers.netft.config import NetFtConfig
+from forcelearn.emulators.egm.servo import ServoParams
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.netft.sensor_model import NetFtModelParams
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ConfigError
@@ -51,6 +69,10 @@ from forcelearn.tasks.surface import SurfaceTaskSpec, check_task_limits
 from forcelearn.tasks.surface_probe import ProbeSpec
 
 EMULATED = "emulated"
+ROBOT_KINDS = ("computer_link", "egm")
+"""``[robot] kind``: the ABB computer link (serial) or Externally Guided Motion (UDP)."""
+SENSOR_KINDS = ("jr3", "netft")
+"""``[sensor] kind``: the JR3 behind its CAN adapter, or an ATI Net F/T box (Ethernet)."""
 DEFAULT_TRIALS = 300
 """Trials of a run when neither the config nor the command line says."""
 EMULATED_STALE_SENSOR_S = 10.0
@@ -64,6 +86,8 @@ runs or from re-sending SYNCs, which would change the emulated noise sequence
 presumes samples lost after half the watchdog and asks again). Results are
 identical as long as no stall of the host lasts longer than half of it."""
 
+NETFT_RDT_HZ = 7000.0
+"""The Net F/T's RDT rate when the config names none (the emulator's default), Hz."""
 EMULATED_LINK_TIMEOUT_S = 10.0
 """ACK and reply timeouts of the robot link to the in-process emulator when the file sets none, s.
 
@@ -149,6 +173,10 @@ class EmulatorConfig:
     sponge: SpongeParams = field(default_factory=SpongeParams)
     sensor: SensorModelParams = field(default_factory=SensorModelParams)
     arm: ArmConfig = field(default_factory=ArmConfig)
+    netft: NetFtModelParams = field(default_factory=NetFtModelParams)
+    """The emulated Net F/T's model (``[emulator.sensor]`` when ``[sensor] kind = "netft"``)."""
+    egm: ServoParams = field(default_factory=ServoParams)
+    """EGM control lag (dead time) and servo time constant of the emulated controller."""
     time_scale: float = 0.0
     """0: as fast as possible (simulated time only); 1.0: real time; any factor between."""
     profile: Literal["realistic", "ideal"] = "realistic"
@@ -185,7 +213,7 @@ class EmulatorConfig:
 class CellConfig:
     """Everything ``forcelearn run`` and ``forcelearn check`` need."""
 
-    robot: LinkConfig = field(
+    robot: LinkConfig | EgmConfig = field(
         default_factory=lambda: LinkConfig(
             url=EMULATED,
             ack_timeout_s=EMULATED_LINK_TIMEOUT_S,
@@ -193,7 +221,7 @@ class CellConfig:
         )
     )
     bus: BusConfig = field(default_factory=BusConfig)
-    sensor: Jr3Config = field(default_factory=lambda: Jr3Config(zero_on_init=True))
+    sensor: Jr3Config | NetFtConfig = field(default_factory=lambda: Jr3Config(zero_on_init=True))
     filter: ForceFilterConfig = field(
         default_factory=lambda: ForceFilterConfig(axis=1, sign=-1.0, noise_cutoff_hz=125.0)
     )
@@ -211,13 +239,27 @@ class CellConfig:
     source: Path | None = None
 
     @property
+    def robot_kind(self) -> str:
+        """``"computer_link"`` or ``"egm"``."""
+        return "egm" if isinstance(self.robot, EgmConfig) else "computer_link"
+
+    @property
+    def sensor_kind(self) -> str:
+        """``"jr3"`` or ``"netft"``."""
+        return "netft" if isinstance(self.sensor, NetFtConfig) else "jr3"
+
+    @property
     def robot_emulated(self) -> bool:
-        """True when the robot link goes to the built-in emulator."""
+        """True when the robot goes to the built-in emulator."""
+        if isinstance(self.robot, EgmConfig):
+            return self.robot.host == EMULATED
         return self.robot.url == EMULATED
 
     @property
     def sensor_emulated(self) -> bool:
-        """True when the sensor bus goes to the built-in emulator."""
+        """True when the sensor goes to the built-in emulator."""
+        if isinstance(self.sensor, NetFtConfig):
+            return self.sensor.host == EMULATED
         return self.bus.interface == EMULATED
 
 
@@ -231,6 +273,31 @@ def _with_home_pose(arm: dict[str, Any] | None) -> dict[str, Any] | None:
     if not isinstance(arm["home"], dict):
         raise ConfigError("emulator.arm.home: a table with x_mm, y_mm, z_mm, quaternion")
     return {**arm, "home": build(Pose, arm["home"], "emulator.arm.home")}
+
+
+def _kind(table: dict[str, Any], section: str, kinds: tuple[str, ...]) -> str:
+    """Pop ``kind`` from a device table (default: the first of ``kinds``); name a bad one."""
+    kind = table.pop("kind", kinds[0])
+    if kind not in kinds:
+        raise ConfigError(f"{section}.kind = {kind!r}: one of {list(kinds)}")
+    return kind
+
+
+def _load_robot(table: dict[str, Any], limits: Limits) -> LinkConfig | EgmConfig:
+    """``[robot]`` by its kind; the limits always come from ``[safety]``."""
+    kind = _kind(table, "robot", ROBOT_KINDS)
+    if "limits" in table:
+        raise ConfigError("robot.limits: set the limits in [safety] (one place for all limits)")
+    if kind == "computer_link":
+        table = {"url": EMULATED, **table}
+        if table["url"] == EMULATED:
+            for key in ("ack_timeout_s", "reply_timeout_s"):
+                table.setdefault(key, EMULATED_LINK_TIMEOUT_S)
+        return replace(build(LinkConfig, table, "robot"), limits=limits)
+    table.setdefault("host", EMULATED)
+    if "max_speed_mm_s" in table:  # EGM's ramp-speed ceiling is a robot key, not a [safety] one
+        limits = replace(limits, max_speed_mm_s=table.pop("max_speed_mm_s"))
+    return build(EgmConfig, {**table, "limits": limits}, "robot")
 
 
 def load_cell_config(path: str | Path | None = None) -> CellConfig:
@@ -253,41 +320,63 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
     )
     safety = build(SafetyLimits, data.get("safety"), "safety")
     limits = Limits(safety.workspace_min_mm, safety.workspace_max_mm, safety.max_step_mm)
-    robot_table = {"url": EMULATED, **data.get("robot", {})}
-    if robot_table["url"] == EMULATED:
-        for key in ("ack_timeout_s", "reply_timeout_s"):
-            robot_table.setdefault(key, EMULATED_LINK_TIMEOUT_S)
-    if "limits" in robot_table:
-        raise ConfigError("robot.limits: set the limits in [safety] (one place for all limits)")
-    robot = replace(build(LinkConfig, robot_table, "robot"), limits=limits)
+    robot = _load_robot(dict(data.get("robot", {})), limits)
 
     sensor_table = dict(data.get("sensor", {}))
-    bus = build(
-        BusConfig, {k: sensor_table.pop(k) for k in list(sensor_table) if k in _BUS_KEYS}, "sensor"
-    )
-    if bus.interface == EMULATED and "stale_sensor_s" not in data.get("safety", {}):
+    sensor_kind = _kind(sensor_table, "sensor", SENSOR_KINDS)
+    bus = BusConfig()
+    if sensor_kind == "jr3":
+        bus = build(
+            BusConfig,
+            {k: sensor_table.pop(k) for k in list(sensor_table) if k in _BUS_KEYS},
+            "sensor",
+        )
+        emulated_sensor = bus.interface == EMULATED
+    else:
+        sensor_table.setdefault("host", EMULATED)
+        emulated_sensor = sensor_table["host"] == EMULATED
+    if emulated_sensor and "stale_sensor_s" not in data.get("safety", {}):
         safety = replace(safety, stale_sensor_s=EMULATED_STALE_SENSOR_S)
     if "stale_timeout_s" in sensor_table:
         raise ConfigError("sensor.stale_timeout_s: set safety.stale_sensor_s instead")
     sensor_table.setdefault("zero_on_init", True)
-    sensor = build(Jr3Config, {**sensor_table, "stale_timeout_s": safety.stale_sensor_s}, "sensor")
+    sensor_cls: type[Jr3Config] | type[NetFtConfig] = (
+        Jr3Config if sensor_kind == "jr3" else NetFtConfig
+    )
+    sensor = build(
+        sensor_cls, {**sensor_table, "stale_timeout_s": safety.stale_sensor_s}, "sensor"
+    )
 
     filter_table = {
         "axis": 1,
         "sign": -1.0,
-        "noise_cutoff_hz": sensor.cutoff_hz,  # the adapter's low-pass colours the noise
+        # the adapter's low-pass colours the noise (the Net F/T emulator's is white)
+        "noise_cutoff_hz": getattr(sensor, "cutoff_hz", 0.0),
+        **({"sample_period_s": 1.0 / (getattr(sensor, "rdt_rate_hz", None) or NETFT_RDT_HZ)}
+           if sensor_kind == "netft" else {}),
         **data.get("filter", {}),
     }
     emulator_table = dict(data.get("emulator", {}))
-    check_sections(emulator_table, {"sponge", "sensor", "arm", "time_scale", "profile"})
+    check_sections(emulator_table, {"sponge", "sensor", "arm", "egm", "time_scale", "profile"})
     pace = {k: emulator_table.pop(k) for k in ("time_scale", "profile") if k in emulator_table}
+    sensor_model = emulator_table.get("sensor")
     emulator = build(
         EmulatorConfig,
         {
             **pace,
             "sponge": build(SpongeParams, emulator_table.get("sponge"), "emulator.sponge"),
-            "sensor": build(SensorModelParams, emulator_table.get("sensor"), "emulator.sensor"),
+            "sensor": build(
+                SensorModelParams,
+                sensor_model if sensor_kind == "jr3" else None,
+                "emulator.sensor",
+            ),
+            "netft": build(
+                NetFtModelParams,
+                sensor_model if sensor_kind == "netft" else None,
+                "emulator.sensor",
+            ),
             "arm": build(ArmConfig, _with_home_pose(emulator_table.get("arm")), "emulator.arm"),
+            "egm": build(ServoParams, emulator_table.get("egm"), "emulator.egm"),
         },
         "emulator",
     )

@@ -1,8 +1,11 @@
 """Open a cell as its config says: real devices, or the built-in emulators behind real drivers.
 
 An emulated cell starts, in this process, the robot-controller emulator on a
-pseudo-terminal and the JR3 emulator on a private ``virtual`` CAN channel, both
-reading one :class:`CellPhysics` with the sponge; the drivers then connect to
+pseudo-terminal (or, with ``[robot] kind = "egm"``, the EGM controller emulator
+on loopback UDP) and the JR3 emulator on a private ``virtual`` CAN channel (or,
+with ``[sensor] kind = "netft"``, the Net F/T emulator on loopback), all
+reading one :class:`CellPhysics` with the sponge (:mod:`.device_factory` opens
+the Ethernet kinds); the drivers then connect to
 them exactly as they would to the devices (pyserial on the pty path,
 python-can on the bus). The trainer gets the same :class:`~forcelearn.cell.Cell`
 either way.
@@ -39,6 +42,7 @@ from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
 from forcelearn.errors import ForcelearnError, LinkError, SensorBusError
 from forcelearn.filtering import make_force_filter
 from forcelearn.tools.cell_config import CellConfig
+from forcelearn.tools.device_factory import Opened, open_egm, open_netft
 from forcelearn.tools.emulated_cell import (
     emulated_jr3,
     emulated_physics,
@@ -64,8 +68,14 @@ class CellSession:
         self.robot_emulator: RobotControllerEmulator | None = None
         self.sensor_emulator: Jr3EmulatorNode | None = None
         self._bus: can.BusABC | None = None
-        self.robot: ComputerLinkRobot | None = None
-        self.sensor: Jr3CanSensor | None = None
+        self.robot: Any = None
+        """The robot driver: ComputerLinkRobot, or EgmRobotDriver with ``[robot] kind = "egm"``."""
+        self.sensor: Any = None
+        """The sensor driver: Jr3CanSensor, or NetFtSensor with ``[sensor] kind = "netft"``."""
+        self.egm: Opened[Any, Any] | None = None
+        """The EGM driver and (emulated cell) its controller emulator."""
+        self.netft: Opened[Any, Any] | None = None
+        """The Net F/T driver and (emulated cell) its box emulator."""
         self.cell: Cell | None = None
         self.calibration: Calibration | None = None
         self._stack = contextlib.ExitStack()
@@ -81,11 +91,61 @@ class CellSession:
             self.calibration = load_calibration(cfg.calibration_file)
         if cfg.robot_emulated or cfg.sensor_emulated:
             self.sponge, self.physics = emulated_physics(cfg)
-        robot_config = cfg.robot
-        if cfg.robot_emulated:
-            self.robot_emulator = emulated_robot(cfg, self.physics)  # type: ignore[arg-type]
-            self._stack.callback(self.robot_emulator.stop)
-            robot_config = replace(robot_config, url=self.robot_emulator.start())
+        # Order (and so the close order): the far ends first, then the drivers.
+        robot_url = self._start_link_emulator() if cfg.robot_kind == "computer_link" else None
+        if cfg.sensor_kind == "jr3":
+            self._open_jr3_bus(seed)
+        if cfg.robot_kind == "egm":
+            self.egm = open_egm(cfg, self.physics)
+            self._stack.callback(self.egm.close)  # the driver, then its emulator
+            self.robot = self.egm.driver
+        else:
+            self._open_link(robot_url)
+        if cfg.sensor_kind == "netft":
+            self.netft = open_netft(cfg, self.physics, seed)
+            self._stack.callback(self.netft.close)  # the driver, then its emulator
+            self.sensor = self.netft.driver
+        else:
+            self._open_jr3()
+        self.cell = Cell(
+            self.robot,
+            self.sensor,
+            make_force_filter(cfg.filter),
+            max_force_n=cfg.safety.max_force_n,
+            samples_per_step=cfg.task.samples_for(cfg.filter.sample_period_s),
+            move_timeout_s=cfg.safety.move_timeout_s,
+            # in the ideal profile nothing takes time, so there is nothing to dwell for
+            settle_s=0.0 if cfg.robot_emulated and cfg.emulator.ideal else cfg.task.settle_s,
+        )
+        if self.calibration is not None:
+            self._apply_calibration(self.calibration, self.robot, self.cell)
+
+    def _start_link_emulator(self) -> str | None:
+        """Start the robot-controller emulator on a pty if the link is emulated; its path."""
+        cfg = self.config
+        if not cfg.robot_emulated:
+            return None
+        self.robot_emulator = emulated_robot(cfg, self.physics)  # type: ignore[arg-type]
+        self._stack.callback(self.robot_emulator.stop)
+        return self.robot_emulator.start()
+
+    def _open_link(self, emulator_url: str | None) -> None:
+        """The computer-link driver, on the emulator's pty or the configured serial port."""
+        robot_config = self.config.robot
+        if emulator_url is not None:
+            robot_config = replace(robot_config, url=emulator_url)
+        try:
+            self.robot = ComputerLinkRobot(robot_config)
+        except LinkError as exc:
+            raise LinkError(
+                f"{exc}; check [robot] url (port name), baudrate and framing, that the "
+                "controller is on and its computer link enabled"
+            ) from exc
+        self._stack.callback(self.robot.close)
+
+    def _open_jr3_bus(self, seed: int) -> None:
+        """The JR3's CAN bus: the emulator on a private virtual bus, or the adapter."""
+        cfg = self.config
         if cfg.sensor_emulated:
             channel = private_channel(cfg)
             self.sensor_emulator = emulated_jr3(cfg, self.physics, channel, seed)  # type: ignore[arg-type]
@@ -105,14 +165,11 @@ class CellSession:
                     "(e.g. socketcan/can0, pcan/PCAN_USBBUS1, slcan/<serial port>)"
                 ) from exc
         self._stack.callback(self._bus.shutdown)
-        try:
-            self.robot = ComputerLinkRobot(robot_config)
-        except LinkError as exc:
-            raise LinkError(
-                f"{exc}; check [robot] url (port name), baudrate and framing, that the "
-                "controller is on and its computer link enabled"
-            ) from exc
-        self._stack.callback(self.robot.close)
+
+    def _open_jr3(self) -> None:
+        """The JR3 driver on the open bus, initialised."""
+        cfg = self.config
+        assert self._bus is not None
         self.sensor = Jr3CanSensor(self._bus, cfg.sensor)
         self._stack.callback(self.sensor.close)
         try:
@@ -122,33 +179,22 @@ class CellSession:
                 f"{exc}; check [sensor] node_id ({cfg.sensor.node_id}), the bus bitrate and "
                 "that the JR3 adapter is powered"
             ) from exc
-        self.cell = Cell(
-            self.robot,
-            self.sensor,
-            make_force_filter(cfg.filter),
-            max_force_n=cfg.safety.max_force_n,
-            samples_per_step=cfg.task.samples_for(cfg.filter.sample_period_s),
-            move_timeout_s=cfg.safety.move_timeout_s,
-            # in the ideal profile nothing takes time, so there is nothing to dwell for
-            settle_s=0.0 if cfg.robot_emulated and cfg.emulator.ideal else cfg.task.settle_s,
-        )
-        if self.calibration is not None:
-            self._apply_calibration(self.calibration, self.robot, self.cell)
 
     def _apply_calibration(
-        self, calibration: Calibration, robot: ComputerLinkRobot, cell: Cell
+        self, calibration: Calibration, robot: Any, cell: Cell
     ) -> None:
         """Give the filter R from the measured noise; install bias and gravity compensation."""
         cfg = self.config
         if cfg.sensor.zero_on_init:  # zeroed just now, at the pose the robot is in
             calibration = calibration.rezeroed(robot.read_pose().quaternion)
         measured_at = calibration.sensor.cutoff_hz
-        if measured_at and abs(measured_at - cfg.sensor.cutoff_hz) > 0.01:
+        cutoff_hz = getattr(cfg.sensor, "cutoff_hz", None)  # a Net F/T filters in the box
+        if measured_at and cutoff_hz is not None and abs(measured_at - cutoff_hz) > 0.01:
             log.warning(
                 "the calibration measured the noise at a %.2f Hz cut-off, the sensor "
                 "runs at %.2f Hz: R may be wrong; calibrate again",
                 measured_at,
-                cfg.sensor.cutoff_hz,
+                cutoff_hz,
             )
         self.calibration = calibration
         cell.force_filter.set_measurement_variance(calibration.noise_variance(cfg.filter.axis))
@@ -178,6 +224,13 @@ class CellSession:
             state["sponge"] = self.sponge.state_dict()
         if self.sensor_emulator is not None:
             state["jr3"] = _jsonable(self.sensor_emulator.state_dict())
+        if self.egm is not None and self.egm.emulator is not None:
+            state["egm"] = {
+                "controller": self.egm.emulator.state_dict(),
+                "driver": self.egm.driver.state_dict(),
+            }
+        if self.netft is not None and self.netft.emulator is not None:
+            state["netft"] = _jsonable(self.netft.emulator.state_dict())
         return state
 
     def load_emulator_state(self, state: dict[str, Any]) -> None:
@@ -194,6 +247,11 @@ class CellSession:
             self.sponge.load_state_dict(state["sponge"])
         if self.sensor_emulator is not None and "jr3" in state:
             self.sensor_emulator.load_state_dict(state["jr3"])
+        if self.egm is not None and self.egm.emulator is not None and "egm" in state:
+            self.egm.emulator.load_state_dict(state["egm"]["controller"])
+            self.egm.driver.load_state_dict(state["egm"]["driver"])
+        if self.netft is not None and self.netft.emulator is not None and "netft" in state:
+            self.netft.emulator.load_state_dict(state["netft"])
 
     def close(self) -> None:
         """Stop the robot, release the devices, stop the emulators; safe to call twice."""

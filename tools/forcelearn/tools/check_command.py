@@ -8,6 +8,10 @@ axis, and the sample rate achieved. It sends no motion command: only
 IDENTIFY, READ_POSITION, READ_STATUS, and the STOP every close sends; it
 reads the controller's move counter before and after and fails if it changed.
 
+Over EGM (``[robot] kind = "egm"``) and a Net F/T (``[sensor] kind = "netft"``)
+the checks of :mod:`.check_ethernet` run instead (an EGM session that only
+holds; the box's calibration and its record counts).
+
 Each failure names the device and what to check (port, baud, bus, bitrate,
 node id) and exits with status 1. With no ``--config`` it checks the built-in
 emulated cell.
@@ -27,6 +31,13 @@ from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.errors import LinkError, SafetyStop, SensorError
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
+from forcelearn.tools.check_ethernet import (
+    check_egm,
+    check_egm_unmoved,
+    check_netft,
+    describe_egm,
+    describe_netft,
+)
 
 AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 UNITS = ("N", "N", "N", "N*m", "N*m", "N*m")
@@ -81,6 +92,11 @@ def check_session(session: CellSession, seconds: float, say: Printer) -> None:
     robot, sensor = session.robot, session.sensor
     if robot is None or sensor is None:
         raise ValueError("check_session needs an open CellSession")
+    if session.config.robot_kind == "egm":
+        held = check_egm(robot, say)
+        _check_any_sensor(session, seconds, say)
+        check_egm_unmoved(robot, held, say)
+        return
     major, minor = messages.PROTOCOL_VERSION
     say(f"  robot   controller {robot.controller_model!r}, computer link {major}.x "
         f"(this driver speaks {major}.{minor})")
@@ -90,7 +106,7 @@ def check_session(session: CellSession, seconds: float, say: Printer) -> None:
     before = robot.read_status()
     say(f"  robot   {'MOVING' if before.moving else 'still'}, last error {before.last_error}, "
         f"{before.move_count} moves since power-up")
-    _check_sensor(sensor, session.config, seconds, say)
+    _check_any_sensor(session, seconds, say)
     after = robot.read_status()
     if after.move_count != before.move_count:
         raise SafetyStop(
@@ -98,6 +114,13 @@ def check_session(session: CellSession, seconds: float, say: Printer) -> None:
             f"{after.move_count} during the check: something else commands this robot; "
             "stop and find it before running"
         )
+
+
+def _check_any_sensor(session: CellSession, seconds: float, say: Printer) -> None:
+    if session.config.sensor_kind == "netft":
+        check_netft(session.sensor, session.config, seconds, say)
+    else:
+        _check_sensor(session.sensor, session.config, seconds, say)
 
 
 def _check_sensor(sensor: Jr3CanSensor, config: CellConfig, seconds: float, say: Printer) -> None:
@@ -151,6 +174,8 @@ _EMULATE_HINT = (" (for `forcelearn emulate`, name the stable links it prints, w
 
 
 def _describe_robot(config: CellConfig) -> str:
+    if config.robot_kind == "egm":
+        return describe_egm(config)
     robot = config.robot
     if config.robot_emulated:
         return "built-in robot-controller emulator on a pty"
@@ -159,6 +184,8 @@ def _describe_robot(config: CellConfig) -> str:
 
 
 def _describe_bus(config: CellConfig) -> str:
+    if config.sensor_kind == "netft":
+        return describe_netft(config)
     bus = config.bus
     if config.sensor_emulated:
         return "built-in JR3 emulator on a virtual CAN bus"

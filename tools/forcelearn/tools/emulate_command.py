@@ -8,6 +8,11 @@ another shell::
 
     forcelearn emulate --write-config /tmp/emulated-site.toml
     forcelearn check --config /tmp/emulated-site.toml
+
+``--robot egm`` and ``--sensor netft`` (defaults: the config's kinds) serve the
+Ethernet devices instead (:class:`~forcelearn.tools.emulated_devices.EmulatedDevices`):
+the EGM controller on loopback UDP toward ``--egm-port``, the Net F/T box on
+its UDP/TCP/HTTP ports.
 """
 
 from __future__ import annotations
@@ -22,8 +27,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from forcelearn.atomic import atomic_write_bytes
-from forcelearn.tools.cell_config import load_cell_config
+from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.emulated_cell import EmulatedCell
+from forcelearn.tools.emulated_devices import ROBOTS, SENSORS, EmulatedDevices
 
 WAIT_SLICE_S = 0.2
 """How often the main thread looks at the stop flag (s)."""
@@ -47,6 +53,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--fresh-per-connection", action="store_true",
         help="give each client session a fresh cell (new sponge, sensor as at start); by "
         "default the cell remembers wear between sessions, as a real one does",
+    )
+    parser.add_argument(
+        "--robot", choices=ROBOTS, help="computer link or EGM (default: the config's [robot] kind)"
+    )
+    parser.add_argument(
+        "--sensor", choices=SENSORS, help="JR3 or Net F/T (default: the config's [sensor] kind)"
+    )
+    parser.add_argument(
+        "--egm-port", type=int, default=0,
+        help="the PC's UDP port the EGM controller sends to (default: a free one)",
     )
 
 
@@ -74,6 +90,12 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     """Serve the emulated cell until a signal (or ``stop``, for callers in-process)."""
     config = load_cell_config(args.config)
     stop = stop or threading.Event()
+    robot = getattr(args, "robot", None) or (
+        "egm" if config.robot_kind == "egm" else "link"
+    )
+    sensor = getattr(args, "sensor", None) or config.sensor_kind
+    if (robot, sensor) != ("link", "jr3"):
+        return _run_devices(args, config, robot, sensor, stop)
     cell = EmulatedCell(config, seed=args.seed, link_dir=args.link_dir,
                         fresh_per_connection=args.fresh_per_connection)
     sessions = ("a fresh cell per client session" if args.fresh_per_connection
@@ -102,4 +124,30 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
             f"{cell.sessions} client sessions",
             flush=True,
         )
+    return 0
+
+
+def _run_devices(
+    args: argparse.Namespace, config: CellConfig, robot: str, sensor: str, stop: threading.Event
+) -> int:
+    """Serve an emulated cell with EGM and/or Net F/T until a signal (or ``stop``)."""
+    port = getattr(args, "egm_port", 0)
+    with _stop_on_signals(stop), EmulatedDevices(
+        config, seed=args.seed, robot=robot, sensor=sensor, egm_port=port
+    ) as devices:
+        print(
+            f"forcelearn emulate: emulated cell running (seed {args.seed}); "
+            "Ctrl-C or SIGTERM stops it",
+            flush=True,
+        )
+        for line in devices.describe():
+            print(line)
+        site = devices.site_config()
+        if args.write_config is not None:
+            atomic_write_bytes(args.write_config, site.encode())
+            print(f"site config written to {args.write_config}")
+        print("\n" + site, flush=True)
+        while not stop.wait(WAIT_SLICE_S):
+            pass
+        print(f"forcelearn emulate: stopping: {devices.summary()}", flush=True)
     return 0

@@ -39,6 +39,7 @@ import threading
 import time
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -414,6 +415,25 @@ class EgmRobotDriver:
             if time.monotonic() > wall_deadline:
                 raise LinkTimeout(f"controller time did not advance {span_s} s in wall time")
             self._next_message()
+
+    # -- checkpoint (emulated cell only) ----------------------------------------------------
+
+    def state_dict(self) -> dict[str, Any]:
+        """The guidance session (latest feedback, target, planned pose, speed, seqno), JSON-able.
+
+        For the emulated cell's bit-identical resume, where the driver and the
+        emulator are restored together; a real controller cannot be restored.
+        """
+        with self._lock:
+            return self._guidance.state_dict()
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` (lockstep only, between calls, a session open)."""
+        if not self.config.lockstep:
+            raise ValueError("only a lockstep (emulated) EGM session can be restored")
+        with self._lock:
+            self._check()
+            self._guidance.load_state_dict(state)
 
     # -- lifetime ---------------------------------------------------------------------------
 

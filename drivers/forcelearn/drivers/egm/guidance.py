@@ -21,7 +21,8 @@ and builds the EgmSensor answer (:meth:`Guidance.reply`). Rules:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -86,6 +87,8 @@ class Guidance:
     def __init__(self, config: EgmConfig) -> None:
         self.config = config
         self.latest: codec.RobotMessage | None = None
+        self.latest_raw: bytes | None = None
+        """The datagram ``latest`` was decoded from (what a checkpoint keeps)."""
         self.target: Pose | None = None
         """Last accepted target (the step limit is measured from it)."""
         self.planned: Pose | None = None
@@ -113,6 +116,7 @@ class Guidance:
         latest = self.latest
         if latest is None or (message.seqno == 0 and latest.seqno != 0):
             self._start_session(message)
+            self.latest_raw = data
             return True
         ahead = (message.seqno - latest.seqno) % _SEQNO_MOD
         if ahead == 0:
@@ -123,6 +127,7 @@ class Guidance:
             return False
         self._count(missed=ahead - 1)
         self.latest = message
+        self.latest_raw = data
         return True
 
     def _start_session(self, message: codec.RobotMessage) -> None:
@@ -162,6 +167,45 @@ class Guidance:
         """Make the present feedback pose both target and planned pose."""
         if self.latest is not None and self.latest.feedback is not None:
             self.target = self.planned = self.latest.feedback
+
+    # -- checkpoint (an emulated cell's bit-identical resume) -------------------------------
+
+    def state_dict(self) -> dict[str, Any]:
+        """The session as JSON-able values (the latest datagram as hex)."""
+
+        def pose(p: Pose | None) -> list[float] | None:
+            return None if p is None else [p.x_mm, p.y_mm, p.z_mm, *p.quaternion]
+
+        return {
+            "latest": None if self.latest_raw is None else self.latest_raw.hex(),
+            "target": pose(self.target),
+            "planned": pose(self.planned),
+            "speed_mm_s": self.speed_mm_s,
+            "session": self.session,
+            "next_seqno": self._next_seqno,
+            "stats": asdict(self.stats),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+
+        def pose(v: list[float] | None) -> Pose | None:
+            if v is None:
+                return None
+            return Pose(*(float(c) for c in v[:3]), tuple(float(c) for c in v[3:7]))  # type: ignore[arg-type]
+
+        raw = state["latest"]
+        self.latest_raw = None if raw is None else bytes.fromhex(raw)
+        self.latest = (
+            None if self.latest_raw is None
+            else codec.decode_robot(self.latest_raw, self.config.version)
+        )
+        self.target = pose(state["target"])
+        self.planned = pose(state["planned"])
+        self.speed_mm_s = float(state["speed_mm_s"])
+        self.session = int(state["session"])
+        self._next_seqno = int(state["next_seqno"])
+        self.stats = EgmStats(**state["stats"])
 
     # -- queries ----------------------------------------------------------------------------
 

@@ -3,6 +3,7 @@
 * ``servo``: dead time + first-order lag motion model, with a seam for the shared one (pure).
 * ``controller``: the EGM state of the controller: sessions, CommTimeout, states (pure).
 * ``faults``: fault-injection hook (lost, duplicated, reordered, late, restart).
+* ``shared_motion``: :class:`PhysicsMotion`, the seam filled by the cell's shared arm.
 * ``server``: :class:`EgmControllerEmulator`, the running emulator on 127.0.0.1 UDP.
 
 :func:`start_emulated_egm` is the one-call factory for the emulated cell.
@@ -14,7 +15,8 @@ from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm.controller import EgmControllerConfig, EgmControllerModel
 from forcelearn.emulators.egm.faults import EgmFaultConfig, Fault
 from forcelearn.emulators.egm.server import EgmControllerEmulator
-from forcelearn.emulators.egm.servo import LagServo, ServoParams
+from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
+from forcelearn.emulators.egm.shared_motion import PhysicsMotion, egm_motion_params
 from forcelearn.emulators.physics.cell import CellPhysics
 
 __all__ = [
@@ -24,7 +26,10 @@ __all__ = [
     "EgmFaultConfig",
     "Fault",
     "LagServo",
+    "MotionModel",
+    "PhysicsMotion",
     "ServoParams",
+    "egm_motion_params",
     "start_emulated_egm",
 ]
 
@@ -35,14 +40,23 @@ def start_emulated_egm(
     remote_port: int,
     config: EgmControllerConfig | None = None,
     faults: EgmFaultConfig | None = None,
+    motion: MotionModel | None = None,
 ) -> EgmControllerEmulator:
     """Start an emulated EGM controller for an emulated cell (lockstep) and return it.
 
     ``remote_port`` is the driver's bound port (``EgmRobotDriver.port``); the
-    driver must be configured with ``lockstep = True``. Stop it with ``stop()``.
+    driver must be configured with ``lockstep = True``. ``motion`` replaces the
+    private servo (the emulated cell passes :class:`PhysicsMotion` over the shared
+    arm). Stop it with ``stop()``.
     """
     emulator = EgmControllerEmulator(
-        remote_port, physics=physics, clock=clock, config=config, faults=faults, lockstep=True
+        remote_port,
+        physics=physics,
+        clock=clock,
+        config=config,
+        faults=faults,
+        lockstep=True,
+        motion=motion,
     )
     emulator.start()
     return emulator

@@ -25,6 +25,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -198,3 +199,43 @@ class EgmControllerModel:
         )
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
         return codec.encode_robot(message, self.config.version)
+
+    # -- checkpoint -------------------------------------------------------------------------
+
+    def state_dict(self) -> dict[str, Any]:
+        """The session's state (JSON-able); the motion model saves its own."""
+        t0, p0 = self._last_pose_s
+        return {
+            "pose": _pose_list(self.pose),
+            "planned": _pose_list(self.planned),
+            "mci": self.mci.name,
+            "rapid": self.rapid.name,
+            "sessions": self.sessions,
+            "targets_read": self.targets_read,
+            "ignored": self.ignored,
+            "seqno": self._seqno,
+            "last_read_s": self._last_read_s,
+            "last_pose": [t0, *_pose_list(p0)],
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        self.pose = _list_pose(state["pose"])
+        self.planned = _list_pose(state["planned"])
+        self.mci = codec.MciState[state["mci"]]
+        self.rapid = codec.RapidState[state["rapid"]]
+        self.sessions = int(state["sessions"])
+        self.targets_read = int(state["targets_read"])
+        self.ignored = int(state["ignored"])
+        self._seqno = int(state["seqno"])
+        self._last_read_s = float(state["last_read_s"])
+        last = state["last_pose"]
+        self._last_pose_s = (float(last[0]), _list_pose(last[1:]))
+
+
+def _pose_list(pose: Pose) -> list[float]:
+    return [pose.x_mm, pose.y_mm, pose.z_mm, *pose.quaternion]
+
+
+def _list_pose(values: list[float]) -> Pose:
+    return Pose(*(float(v) for v in values[:3]), tuple(float(v) for v in values[3:7]))  # type: ignore[arg-type]

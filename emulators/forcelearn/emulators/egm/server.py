@@ -42,6 +42,7 @@ import socket
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm.controller import HOME, EgmControllerConfig, EgmControllerModel
@@ -53,6 +54,14 @@ log = logging.getLogger(__name__)
 
 POLL_S = 0.05
 """Longest blocking wait of the loop (s): bounds how long stop() takes."""
+RESEND_S = 0.2
+"""Lockstep: while no answer comes, the cycle's datagram is sent again this often (wall s).
+
+A real controller streams whether or not the PC answers; in lockstep the
+emulator stands still instead, so it repeats the waiting cycle's datagram (same
+seqno: the driver ignores it as a duplicate). A driver that binds after the
+emulator started, or a second client after the first closed (``forcelearn
+emulate``), then still receives a cycle to answer. No simulated time passes."""
 
 
 @dataclass
@@ -112,6 +121,10 @@ class EgmControllerEmulator:
         self._stop = threading.Event()
         self._restart = threading.Event()
         self._thread: threading.Thread | None = None
+        self._t = self.clock.now_s
+        """Simulated time of the present cycle, s."""
+        self._waiting: bytes | None = None
+        """The datagram of the cycle waiting for an answer (lockstep resend)."""
         self.cycles = 0
         """Cycles run (EgmRobot datagrams built, sent or not)."""
         self.replies = 0
@@ -159,13 +172,14 @@ class EgmControllerEmulator:
 
     def _run(self) -> None:
         period = self.config.sample_period_s
-        t = self.clock.now_s
+        self._t = t = self.clock.now_s
         wall0, t0 = time.monotonic(), t
         held: bytes | None = None  # reordered datagram, sent after the next one
         inbox: list[bytes] = []  # EgmSensor datagrams read at the next cycle
         late: list[bytes] = []  # read one cycle later still
         try:
             while not self._stop.is_set():
+                t = self._t
                 self.faults.cycle = self.cycles
                 for datagram in inbox:
                     self.model.apply_sensor(datagram, t)
@@ -180,23 +194,42 @@ class EgmControllerEmulator:
                 self.cycles += 1
                 expect_reply, held = self._send_cycle(datagram, held)
                 self.clock.hold()
-                next_t = t + period
                 if self.lockstep:
                     replies = self._await_reply(expect_reply)
                 else:
-                    due = wall0 + (next_t - t0) / self.clock.time_scale
+                    due = wall0 + (t + period - t0) / self.clock.time_scale
                     replies = self._drain_until(due)
                 for reply in replies:
                     if self.faults.fires("lose_reply"):
                         continue
                     (late if self.faults.fires("late_reply") else inbox).append(reply)
+                t = self._t  # a resume may have moved the cycle grid meanwhile (load_state_dict)
+                next_t = t + period
                 now = self.clock.now_s
                 if now > next_t:
                     next_t = t + period * math.ceil((now - t) / period - 1e-9)
-                t = self.clock.advance_to(next_t)
+                self._t = self.clock.advance_to(next_t)
         except OSError as exc:
             if not self._stop.is_set():
                 log.error("EGM emulator socket failed: %s", exc)
+
+    # -- checkpoint (the emulated cell's bit-identical resume) ------------------------------
+
+    def state_dict(self) -> dict[str, Any]:
+        """The controller's state and its cycle time (JSON-able; the arm is the physics')."""
+        return {"t_s": self._t, "cycles": self.cycles, "model": self.model.state_dict()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` while the loop waits for the PC's answer (lockstep).
+
+        The next cycle then follows the restored one, as if the run had never
+        stopped. Fault injection is not restored (the emulated cell runs none).
+        """
+        if not self.lockstep:
+            raise ValueError("only a lockstep emulator can be restored")
+        self._t = float(state["t_s"])
+        self.cycles = int(state["cycles"])
+        self.model.load_state_dict(state["model"])
 
     def _send_cycle(self, datagram: bytes, held: bytes | None) -> tuple[bool, bytes | None]:
         """Send one cycle's datagram through the faults, then any held-back one.
@@ -204,12 +237,14 @@ class EgmControllerEmulator:
         Returns whether an answer is to be expected and the datagram now held back.
         """
         expect, hold = True, None
+        self._waiting = None
         if self.faults.fires("lose"):
             expect = False
         elif self.faults.fires("reorder"):
             expect, hold = False, datagram
         else:
             self._send(datagram)
+            self._waiting = datagram
             if self.faults.fires("duplicate"):
                 self._send(datagram)
         if held is not None:
@@ -246,11 +281,15 @@ class EgmControllerEmulator:
                 self.silent = False
             return [reply] if reply is not None else []
         deadline = None if self.patience_s is None else time.monotonic() + self.patience_s
+        sent = time.monotonic()
         while not self._stop.is_set():
             wait = POLL_S if deadline is None else min(POLL_S, deadline - time.monotonic())
             reply = self._receive(wait)
             if reply is not None:
                 return [reply]
+            if self._waiting is not None and time.monotonic() - sent >= RESEND_S:
+                self._sock.sendto(self._waiting, self._remote)  # see RESEND_S
+                sent = time.monotonic()
             if deadline is not None and time.monotonic() >= deadline:
                 log.info("the PC has been silent for %.3f s: cycles go on without it",
                          self.patience_s)

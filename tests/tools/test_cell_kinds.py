@@ -1,0 +1,150 @@
+"""`[robot] kind = "egm"` and `[sensor] kind = "netft"`: config, examples, runs, resume."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from forcelearn.cli import main
+from forcelearn.drivers.computer_link.config import LinkConfig
+from forcelearn.drivers.egm import EgmConfig
+from forcelearn.drivers.jr3_can.config import Jr3Config
+from forcelearn.drivers.netft import NetFtConfig
+from forcelearn.errors import ConfigError
+from forcelearn.tools.cell_config import EMULATED_STALE_SENSOR_S, load_cell_config
+from forcelearn.tools.cell_session import CellSession
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+TIMING_KEYS = {"wall_s", "steps_per_s", "realtime_factor"}
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    """Write a cell config into ``tmp_path``; return its path."""
+    path = tmp_path / "cell.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("name", "robot", "sensor"),
+    [
+        ("egm-cell.toml", EgmConfig, Jr3Config),
+        ("netft-cell.toml", LinkConfig, NetFtConfig),
+        ("egm-netft-cell.toml", EgmConfig, NetFtConfig),
+    ],
+)
+def test_examples_load_as_emulated_cells_of_their_kinds(
+    name: str, robot: type, sensor: type
+) -> None:
+    """Each example loads with its kinds, emulated as shipped, limits from [safety]."""
+    config = load_cell_config(EXAMPLES / name)
+    assert isinstance(config.robot, robot) and isinstance(config.sensor, sensor)
+    assert config.robot_emulated and config.sensor_emulated
+    assert config.safety.stale_sensor_s == EMULATED_STALE_SENSOR_S
+    assert config.sensor.stale_timeout_s == EMULATED_STALE_SENSOR_S
+    # the limits are [safety]'s whatever the robot kind
+    assert config.robot.limits.max_step_mm == config.safety.max_step_mm
+    assert config.robot.limits.workspace_min_mm == config.safety.workspace_min_mm
+
+
+def test_defaults_stay_computer_link_and_jr3() -> None:
+    """No config: the computer link and the JR3, as before the kinds."""
+    config = load_cell_config(None)
+    assert config.robot_kind == "computer_link" and config.sensor_kind == "jr3"
+
+
+def test_a_real_egm_and_netft_cell_keeps_its_addresses(tmp_path: Path) -> None:
+    """Real addresses are kept; a real sensor keeps the 0.1 s watchdog."""
+    config = load_cell_config(write(tmp_path, """
+[robot]
+kind = "egm"
+host = "192.168.125.100"
+version = "rw6"
+max_speed_mm_s = 200.0
+[sensor]
+kind = "netft"
+host = "192.168.1.1"
+"""))
+    assert not config.robot_emulated and not config.sensor_emulated
+    assert config.robot.host == "192.168.125.100" and config.robot.version == "rw6"
+    assert config.robot.limits.max_speed_mm_s == 200.0
+    assert config.sensor.stale_timeout_s == 0.1  # a real box: [safety]'s default
+    assert config.sensor.zero_on_init  # as for the JR3: zeroed at initialisation
+
+
+@pytest.mark.parametrize(
+    ("text", "named"),
+    [
+        ('[robot]\nkind = "kuka"\n', "robot.kind"),
+        ('[sensor]\nkind = "ati"\n', "sensor.kind"),
+        ('[robot]\nkind = "egm"\nport = 70000\n', "robot.port"),
+        ('[robot]\nkind = "egm"\nurl = "/dev/ttyS0"\n', "robot.url"),
+        ('[robot]\nkind = "egm"\nversion = "rw5"\n', "robot.version"),
+        ('[robot]\nkind = "egm"\n[robot.limits]\nmax_step_mm = 1.0\n', "robot.limits"),
+        ('[sensor]\nkind = "netft"\nhost = ""\n', "sensor.host"),
+        ('[sensor]\nkind = "netft"\nnode_id = 1\n', "sensor.node_id"),
+        ('[sensor]\nkind = "netft"\nrdt_port = -1\n', "sensor.rdt_port"),
+        ('[sensor]\nkind = "netft"\nstale_timeout_s = 1.0\n', "sensor.stale_timeout_s"),
+        ('[sensor]\nkind = "jr3"\nhost = "1.2.3.4"\n', "sensor.host"),
+        ('[sensor]\nkind = "netft"\n[emulator.sensor]\nemulate_filter = false\n',
+         "emulator.sensor.emulate_filter"),
+        ("[emulator.egm]\ncontrol_lag_s = -1.0\n", "emulator.egm"),
+    ],
+)
+def test_errors_name_the_key(tmp_path: Path, text: str, named: str) -> None:
+    """Every bad value or unknown key is named with its table."""
+    with pytest.raises(ConfigError, match=named.replace(".", r"\.")):
+        load_cell_config(write(tmp_path, text))
+
+
+def test_emulated_egm_and_netft_share_one_arm_clock_and_physics() -> None:
+    """EGM moves the shared arm the Net F/T emulator samples, on one clock."""
+    config = load_cell_config(EXAMPLES / "egm-netft-cell.toml")
+    with CellSession(config, seed=3) as session:
+        assert session.egm is not None and session.netft is not None
+        egm, netft = session.egm.emulator, session.netft.emulator
+        assert egm is not None and netft is not None
+        assert egm.physics is session.physics and netft.physics is session.physics
+        assert egm.clock is session.physics.clock is netft.clock
+        assert egm.model.motion.motion is session.physics.motion  # PhysicsMotion over the arm
+        cell = session.cell
+        assert cell is not None
+        start = cell.sync()
+        target = start.moved(0.0, 0.0, -5.0)
+        cell.move_to(target)
+        reached = session.physics.pose
+        assert abs(reached.z_mm - target.z_mm) <= config.robot.in_position_mm
+        assert session.physics.motion.target == target  # the arm took EGM's planned pose
+        cell.measure_force_n()
+        state = session.emulator_state()
+    assert {"clock", "motion", "sponge", "egm", "netft"} <= set(state)
+    assert state["clock"]["now_s"] > 0.1  # the move and the settle took simulated time
+
+
+def run(config: Path, out: Path, *extra: str) -> dict:
+    """``forcelearn run`` in this process; return its summary."""
+    code = main(["run", "--config", str(config), "--out", str(out), "--no-progress", *extra])
+    assert code in (0, None)
+    return json.loads((out / "summary.json").read_text())
+
+
+@pytest.mark.parametrize("name", ["egm-cell.toml", "netft-cell.toml"])
+def test_run_is_deterministic_and_resumes_bit_identical(name: str, tmp_path: Path) -> None:
+    """Same seed twice: identical trials.csv; 2 trials then resume to 4: the same again."""
+    config = EXAMPLES / name
+    whole = run(config, tmp_path / "a", "--trials", "4", "--seed", "2")
+    again = run(config, tmp_path / "b", "--trials", "4", "--seed", "2")
+    csv = (tmp_path / "a" / "trials.csv").read_text()
+    assert csv == (tmp_path / "b" / "trials.csv").read_text()
+    assert len(csv.splitlines()) == 5
+    assert whole["cell_time_s"] == again["cell_time_s"] > 0
+    run(config, tmp_path / "c", "--trials", "2", "--seed", "2")
+    code = main(["run", "--resume", str(tmp_path / "c"), "--trials", "4", "--no-progress"])
+    assert code in (0, None)
+    assert (tmp_path / "c" / "trials.csv").read_text() == csv
+    resumed = json.loads((tmp_path / "c" / "summary.json").read_text())
+    assert {k: v for k, v in resumed.items() if k not in TIMING_KEYS} == {
+        k: v for k, v in whole.items() if k not in TIMING_KEYS
+    }
