@@ -120,7 +120,7 @@ def _play(controller, forces: list[float], start_force_n: float = 10.0) -> list[
     controller.begin(np.zeros(3), {"start_force_n": start_force_n})
     offsets = []
     for force in forces:
-        offsets.append(float(controller.act(np.zeros(3))[0]) * SPEC.max_offset_mm)
+        offsets.append(float(controller.act(np.zeros(3))[0]) * SPEC.fallback_offset_mm)
         controller.observe(
             np.zeros(3), {"force_n": force, "force_error_n": force - SPEC.desired_force_n}
         )

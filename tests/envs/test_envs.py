@@ -77,7 +77,8 @@ def test_surface_rollout_measures_force_spends_cell_time_and_renders() -> None:
         times, done = [], False
         while not done:
             obs, reward, terminated, truncated, info = env.step(np.array([-0.4]))
-            assert reward == pytest.approx(-abs(info["force_n"] - 2 * 9.80665) / 10.0)
+            tolerance = env.task_spec.tolerance
+            assert reward == pytest.approx(-abs(info["force_n"] - 2 * 9.80665) / tolerance)
             assert info["y_cmd_mm"] == pytest.approx(-4.0 - 6.0)
             assert obs[2] == pytest.approx(-6.0)
             times.append(info["trial_cell_time_s"])

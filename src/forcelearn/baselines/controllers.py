@@ -128,7 +128,7 @@ class ForceController:
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The env action for the present Y offset."""
-        return np.array([_action_of(self._offset_mm, self.spec.max_offset_mm)])
+        return np.array([_action_of(self._offset_mm, self.spec.fallback_offset_mm)])
 
     def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
         """Measure k̂ after the very first probe, then the PI correction of the next Y."""
@@ -146,7 +146,7 @@ class ForceController:
         p = self.params
         self._integral += error_n
         correction = (p.kp * error_n + p.ki * self._integral) / self.stiffness_n_per_mm
-        limit = self.spec.max_offset_mm
+        limit = self.spec.fallback_offset_mm
         self._offset_mm = float(np.clip(correction, -limit, limit))
 
 
@@ -193,7 +193,7 @@ class ILCController:
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The path's offset of this step as an env action."""
-        return np.array([_action_of(self.path_mm[len(self._errors)], self.spec.max_offset_mm)])
+        return np.array([_action_of(self.path_mm[len(self._errors)], self.spec.fallback_offset_mm)])
 
     def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
         """Keep the error; the first trial's first step measures k̂."""
@@ -208,7 +208,7 @@ class ILCController:
         errors = np.full(self.path_mm.shape, self._errors[-1])
         errors[: len(self._errors)] = self._errors
         updated = self.path_mm + self.params.learning_gain * errors / self._stiffness
-        limit = self.spec.max_offset_mm
+        limit = self.spec.fallback_offset_mm
         self.path_mm = np.clip(q_filter(updated, self.params.q_weights), -limit, limit)
 
 
@@ -239,7 +239,7 @@ class PathSearchController:
         self.params = params or PathSearchParams()
         self.spec = env.task_spec
         n = self.spec.steps_per_trial
-        limit = self.spec.max_offset_mm
+        limit = self.spec.fallback_offset_mm
         options: dict[str, Any] = {
             "seed": seed + 1,  # cma treats 0 as "seed from the clock"
             "bounds": [-limit, limit],
@@ -267,7 +267,7 @@ class PathSearchController:
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The candidate's offset of this step as an env action."""
-        return np.array([_action_of(self.path_mm[len(self._errors)], self.spec.max_offset_mm)])
+        return np.array([_action_of(self.path_mm[len(self._errors)], self.spec.fallback_offset_mm)])
 
     def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
         """Keep the error."""
@@ -275,7 +275,7 @@ class PathSearchController:
 
     def end(self, record: TrialRecord) -> None:
         """Score the candidate; tell CMA-ES when the generation is complete."""
-        errors = np.full(self.spec.steps_per_trial, self.spec.tolerance_n)
+        errors = np.full(self.spec.steps_per_trial, self.spec.tolerance)
         errors[: len(self._errors)] = self._errors
         self._told.append(float(np.sqrt(np.mean(np.square(errors)))))
         if len(self._told) == len(self._asked):

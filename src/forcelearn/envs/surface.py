@@ -35,7 +35,7 @@ class SurfaceEnv(TaskEnv):
     ## Action space: ``Box(-1, 1, (1,), float64)``
     | index | meaning | unit after scaling |
     |---|---|---|
-    | 0 | Y command relative to the start Y | ± ``task.max_offset_mm`` (15 mm) |
+    | 0 | Y offset from the map's centre (start Y) | ± 15 mm (``task.max_offset_mm``) |
 
     Actions outside [-1, 1] are clipped. Y = start Y + 15 mm · action.
 
@@ -49,7 +49,8 @@ class SurfaceEnv(TaskEnv):
     The force bound is ``safety.max_force_n``; observations are clipped to the bounds.
 
     ## Reward
-    −r with r = |force − 19.61 N| / 10 N (``task.tolerance_n``).
+    −r with r = |force − 19.61 N| / tolerance (``task.tolerance_n``, default half the
+    desired force).
 
     ## Start state
     The tool retracts, travels clear of the sponge and presses in at the start
@@ -96,7 +97,8 @@ class SurfaceEnv(TaskEnv):
         self.task_desired_force_n = spec.desired_force_n
         self.action_space = box([-1.0], [1.0])
         self.observation_space = box(
-            [0.0, -limit, -spec.max_offset_mm], [spec.path_mm, limit, spec.max_offset_mm]
+            [0.0, -limit, -spec.fallback_offset_mm],
+            [spec.path_mm, limit, spec.fallback_offset_mm],
         )
 
     @property
@@ -122,8 +124,8 @@ class SurfaceEnv(TaskEnv):
         return super().reset(seed=seed, options=options)
 
     def _command(self, action: np.ndarray) -> np.ndarray:
-        self._y_offset_mm = float(action[0]) * self.task_spec.max_offset_mm
-        return np.array([self.task_spec.start_mm[1] + self._y_offset_mm])
+        self._y_offset_mm = float(action[0]) * self.task_spec.fallback_offset_mm
+        return np.array([self.task_spec.fallback_centre_y_mm + self._y_offset_mm])
 
     def _observation(self, x: np.ndarray, force_n: float) -> np.ndarray:
         obs = np.array([x[0], force_n, self._y_offset_mm], dtype=float)
@@ -151,11 +153,11 @@ class SurfaceEnv(TaskEnv):
         The native output map: Y offset = 2 mm · a, clipped to ±15 mm.
         """
         offset = np.clip(
-            a * self.task_spec.output_scale_mm,
-            -self.task_spec.max_offset_mm,
-            self.task_spec.max_offset_mm,
+            a * self.task_spec.fallback_scale_mm,
+            -self.task_spec.fallback_offset_mm,
+            self.task_spec.fallback_offset_mm,
         )
-        return offset / self.task_spec.max_offset_mm
+        return offset / self.task_spec.fallback_offset_mm
 
     @property
     def grid(self) -> Any:
