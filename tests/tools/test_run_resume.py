@@ -83,14 +83,14 @@ import sys
 import forcelearn.tools.run_command as rc
 stop_at = int(sys.argv[1])
 original = rc.execute
-def execute(run, checkpoint, on_trial=None):
+def execute(run, checkpoint, on_trial=None, **hooks):
     def hook(record, learner):
         if on_trial is not None:
             on_trial(record, learner)
         if len(run.result.records) == stop_at:
             print("checkpoint", stop_at, flush=True)
             sys.stdin.readline()  # wait here for the parent's signal
-    return original(run, checkpoint, on_trial=hook)
+    return original(run, checkpoint, on_trial=hook, **hooks)
 rc.execute = execute
 from forcelearn.cli import main
 sys.exit(main(sys.argv[2:]))

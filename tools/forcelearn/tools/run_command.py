@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
 
     cell_s = sum(r.cell_time_s for r in surface_run.result.records)
     meta = surface_meta(surface_run.config, surface_run.trials)
-    live = live_run(meta, args, out, surface_extras(surface_run.config))
+    live = live_run(meta, args, out, surface_extras(surface_run))
 
     def progress(record: TrialRecord, learner: SRVLearner) -> None:
         nonlocal cell_s

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -110,15 +110,23 @@ def surface_meta(config: CellConfig, trials_target: int, source: str = "live") -
     )
 
 
-def surface_extras(config: CellConfig) -> RowExtras:
-    """Adds ``mean_y_mm``: the learner's mean μ as a Y command (Fig. 12's solid line)."""
+def surface_extras(run: Any) -> RowExtras:
+    """Adds ``mean_y_mm``: the learner's mean μ as a Y command (Fig. 12's solid line).
+
+    ``run`` is the ``SurfaceRun``: its output map is known only once the run has
+    probed the surface (or restored the probe), so it is read at each row.
+    """
     from forcelearn.tasks.surface import SurfaceYOutput
 
-    spec = config.task
-    output = SurfaceYOutput(spec.start_mm[1], spec.output_scale_mm, spec.max_offset_mm)
+    spec = run.config.task
+    fallback = SurfaceYOutput(
+        spec.fallback_centre_y_mm, spec.fallback_scale_mm, spec.fallback_offset_mm
+    )
     empty = np.empty(0)
 
     def extras(row: dict[str, float]) -> dict[str, float]:
+        choice = getattr(run, "output_map", None)
+        output = choice.output() if choice is not None else fallback
         return {"mean_y_mm": float(output(np.array([row["mean_0"]]), empty)[0])}
 
     return extras
