@@ -47,7 +47,7 @@ from forcelearn.errors import CalibrationError, ConfigError, ForcelearnError
 from forcelearn.tools.calibration_figure import write_residual_png
 from forcelearn.tools.calibration_plan import CalibrationPlan, load_poses
 from forcelearn.tools.calibration_run import Ask, Calibrator
-from forcelearn.tools.cell_config import CellConfig, load_cell_config
+from forcelearn.tools.cell_config import NETFT_RDT_HZ, CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
 
 LOAD_COLUMNS = [f"{kind}_{axis.lower()}" for kind in ("raw", "applied") for axis in AXES]
@@ -241,7 +241,13 @@ def _sensor_info(
                 "ATI Net F/T (forcelearn emulator)" if config.sensor_emulated else "ATI Net F/T"),
             serial=serial,
             full_scales=tuple(float(v) for v in scales) if scales else (0.0,) * 6,
-            cutoff_hz=0.0,  # the box filters by index (setuserfilter), not a cut-off
+            # the box filters by index (setuserfilter), not by a cut-off: the recorded
+            # noise's bandwidth is the RDT stream's Nyquist frequency
+            cutoff_hz=0.5 * (
+                (cal.rdt_rate_hz if cal is not None else None)
+                or config.sensor.rdt_rate_hz
+                or NETFT_RDT_HZ
+            ),
             robot=robot_name,
         )
     if sensor.full_scales is None:  # pragma: no cover

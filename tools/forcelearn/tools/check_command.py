@@ -158,12 +158,18 @@ def _check_sensor(sensor: Jr3CanSensor, config: CellConfig, seconds: float, say:
 def missing_devices(config: CellConfig) -> list[str]:
     """One line per device whose serial port path does not exist (all of them, not the first)."""
     lines = []
-    robot_url = config.robot.url
-    if not config.robot_emulated and "://" not in robot_url and not Path(robot_url).exists():
+    robot_url = getattr(config.robot, "url", "")  # EGM and Net F/T are reached over UDP
+    if (
+        robot_url
+        and not config.robot_emulated
+        and "://" not in robot_url
+        and not Path(robot_url).exists()
+    ):
         lines.append(f"robot link: port {robot_url} does not exist; check [robot] url and the "
                      "cable" + _EMULATE_HINT)
     channel = config.bus.channel
-    if config.bus.interface == "slcan" and "://" not in channel and not Path(channel).exists():
+    slcan = config.sensor_kind == "jr3" and config.bus.interface == "slcan"
+    if slcan and "://" not in channel and not Path(channel).exists():
         lines.append(f"sensor: slcan adapter port {channel} does not exist; check the channel in "
                      "[sensor] and that the USB-CAN adapter is plugged in" + _EMULATE_HINT)
     return lines
