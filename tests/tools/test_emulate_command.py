@@ -189,3 +189,36 @@ def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
     assert first == (tmp_path / "second" / "trials.csv").read_text()
     assert emulator.stop(signal.SIGTERM) == 0
     emulator.wait_for(r"3 client sessions", 5.0)
+
+
+def test_a_run_through_emulate_in_another_process_equals_the_in_process_run(
+    spawn: Callable[..., Emulator], tmp_path: Path
+) -> None:
+    """Issue 10: the same seed gives the same trials with the cell in this process or in another.
+
+    The emulate process speaks to the run over a pty and an slcan adapter pty
+    instead of an in-process pty and virtual bus; simulated time is charged by
+    the same rules on both, so the numbers are byte-identical.
+    """
+    site = tmp_path / "site.toml"
+    emulator = spawn("--write-config", str(site), "--seed", "3")
+    emulator.wait_for(r"^site config written to", STARTUP_S)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
+    # the in-process cell's watchdog and timeouts, so a stall of this host cannot differ
+    timeouts = "[robot]\nack_timeout_s = 10.0\nreply_timeout_s = 10.0\n"
+    text = site.read_text().replace("[robot]\n", timeouts)
+    site.write_text(text + "\n[safety]\nstale_sensor_s = 10.0\n")
+
+    def run(*args: str, out: Path) -> str:
+        done = subprocess.run(
+            [sys.executable, "-m", "forcelearn.cli", "run", *args, "--trials", "2", "--seed", "3",
+             "--no-progress", "--out", str(out)],
+            capture_output=True, text=True, timeout=300, env=env,
+        )
+        assert done.returncode == 0, done.stdout + done.stderr
+        return (out / "trials.csv").read_text()
+
+    remote = run("--config", str(site), out=tmp_path / "remote")
+    local = run(out=tmp_path / "local")
+    assert remote == local
+    assert emulator.stop(signal.SIGTERM) == 0
