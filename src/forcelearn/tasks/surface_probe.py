@@ -409,10 +409,7 @@ def choose_output_map(
     half = spread + MIN_MARGIN_MM + spec.wear_margin * float(np.mean(depths))
     half = min(half, centre - allowed_bottom, task.retract_y_mm - 1.0 - centre)
     k = result.stiffness_n_per_mm()
-    # one action unit: a share of the force band, but never so fine that the range spans more
-    # than MAX_UNITS_PER_HALF_RANGE units (at 0.5 kgf on a stiff sponge the band's share is
-    # 0.24 mm, and the learner's means never travelled the 2 mm the sponge sets with wear)
-    scale = max(spec.force_per_unit * task.tolerance / k, half / MAX_UNITS_PER_HALF_RANGE)
+    scale = spec.force_per_unit * task.tolerance / k
     source = "probe"
     if task.output_centre_y_mm is not None:
         centre, source = task.output_centre_y_mm, "probe+config"
@@ -427,10 +424,6 @@ def choose_output_map(
             f"{allowed_bottom:.2f} mm"
         )
     return OutputMapChoice(centre, scale, half, needed, allowed, source)
-
-
-MAX_UNITS_PER_HALF_RANGE = 6.0
-"""Most action units from the map's centre to its edge (the default sponge's map spans 5.4)."""
 
 
 def configured_map(task: SurfaceTaskSpec) -> OutputMapChoice:
