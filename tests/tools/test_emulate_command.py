@@ -175,6 +175,8 @@ def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
     emulator = spawn("--write-config", str(site), "--fresh-per-connection")
     emulator.wait_for(r"^site config written to", STARTUP_S)
     env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
+    # the in-process cell's watchdog, so a stall of this host cannot make the driver re-ask
+    site.write_text(site.read_text() + "\n[safety]\nstale_sensor_s = 10.0\n")
 
     def cli(*args: str) -> None:
         done = subprocess.run([sys.executable, "-m", "forcelearn.cli", *args],

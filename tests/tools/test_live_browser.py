@@ -54,6 +54,7 @@ def shot(tmp_path: Path, name: str) -> Path:
     return folder / name
 
 
+@pytest.mark.timeout(600)  # a whole run, a browser and a view: minutes on a loaded host
 def test_live_page_of_a_running_run_and_view_of_the_finished_run(tmp_path: Path) -> None:
     """Plots drawn, the status panel's trial advances, screenshots not blank."""
     out = tmp_path / "run"

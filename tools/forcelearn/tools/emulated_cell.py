@@ -24,6 +24,7 @@ import logging
 import os
 import uuid
 from pathlib import Path
+from typing import Any
 
 from forcelearn.emulators.clock import SimClock, serial_char_time_s
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
@@ -122,7 +123,7 @@ class EmulatedCell:
             self._stack.callback(self.sensor.close)
             self.adapter = SlcanAdapterEmulator(channel=channel, bus_bitrate=config.bus.bitrate)
             self._stack.callback(self.adapter.stop)
-            self._initial = {"sponge": self.sponge.state_dict(), "jr3": self.sensor.state_dict()}
+            self._initial = self._state()
             self.fresh_per_connection = fresh_per_connection
             self.adapter.on_open = self._on_session
             if link_dir is not None:
@@ -142,10 +143,27 @@ class EmulatedCell:
         """The slcan adapter's serial port (the stable symlink when ``link_dir`` is set)."""
         return str(self.link_dir / SLCAN_LINK) if self.link_dir else self.adapter.path
 
+    def _state(self) -> dict[str, Any]:
+        """The whole emulated cell's state: clock, arm, link wires, sponge, sensor."""
+        assert self.physics.motion is not None
+        return copy.deepcopy({
+            "clock": self.physics.clock.state_dict(),
+            "motion": self.physics.motion.state_dict(),
+            "link": self.robot.engine.state_dict(),
+            "sponge": self.sponge.state_dict(),
+            "jr3": self.sensor.state_dict(),
+        })
+
     def fresh(self) -> None:
-        """Return the sponge and the sensor to their state at start (the robot stays put)."""
-        self.sponge.load_state_dict(copy.deepcopy(self._initial["sponge"]))
-        self.sensor.load_state_dict(copy.deepcopy(self._initial["jr3"]))
+        """Return the whole cell to its state at start: clock, arm at home, sponge, sensor."""
+        state = copy.deepcopy(self._initial)
+        assert self.physics.motion is not None
+        self.physics.clock.load_state_dict(state["clock"])
+        self.physics.motion.load_state_dict(state["motion"])
+        self.physics.set_pose(self.physics.motion.pose)
+        self.robot.engine.load_state_dict(state["link"])
+        self.sponge.load_state_dict(state["sponge"])
+        self.sensor.load_state_dict(state["jr3"])
 
     def _on_session(self) -> None:
         self.sessions += 1
