@@ -172,7 +172,8 @@ def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
     real cell).
     """
     site = tmp_path / "site.toml"
-    emulator = spawn("--write-config", str(site), "--fresh-per-connection")
+    links = str(tmp_path / "links")  # its own stable links: no other emulator's can interfere
+    emulator = spawn("--write-config", str(site), "--fresh-per-connection", "--link-dir", links)
     emulator.wait_for(r"^site config written to", STARTUP_S)
     env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
     # the in-process cell's watchdog, so a stall of this host cannot make the driver re-ask
@@ -203,7 +204,7 @@ def test_a_run_through_emulate_in_another_process_equals_the_in_process_run(
     the same rules on both, so the numbers are byte-identical.
     """
     site = tmp_path / "site.toml"
-    emulator = spawn("--write-config", str(site), "--seed", "3")
+    emulator = spawn("--write-config", str(site), "--seed", "3", "--link-dir", str(tmp_path / "l"))
     emulator.wait_for(r"^site config written to", STARTUP_S)
     env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
     # the in-process cell's watchdog and timeouts, so a stall of this host cannot differ

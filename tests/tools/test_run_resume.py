@@ -79,7 +79,9 @@ def test_run_writes_summary_trials_logs_checkpoint_and_figures(
 # prints "checkpoint <n>" and blocks on stdin, so the parent signals it at a known point
 # instead of polling the checkpoint file against the clock.
 PAUSING_CLI = """
+import signal
 import sys
+signal.signal(signal.SIGINT, signal.default_int_handler)  # even under a background job
 import forcelearn.tools.run_command as rc
 stop_at = int(sys.argv[1])
 original = rc.execute
