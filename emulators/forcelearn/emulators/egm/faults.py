@@ -25,21 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from forcelearn.emulators.robot_controller.faults import Fault
+
 FAULT_NAMES = ("lose", "duplicate", "reorder", "lose_reply", "late_reply", "restart")
-
-
-@dataclass(frozen=True)
-class Fault:
-    """Fire with ``probability`` (0..1), at most ``limit`` times (None: no limit)."""
-
-    probability: float = 0.0
-    limit: int | None = None
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.probability <= 1.0:
-            raise ValueError(f"fault probability must be in 0..1, got {self.probability}")
-        if self.limit is not None and self.limit < 0:
-            raise ValueError(f"fault limit must be >= 0, got {self.limit}")
 
 
 @dataclass(frozen=True)
