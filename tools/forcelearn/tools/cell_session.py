@@ -52,6 +52,9 @@ from forcelearn.tools.emulated_cell import (
 
 log = logging.getLogger(__name__)
 
+SLCAN_VERSION_TIMEOUT_S = 2.0
+"""Longest wait for the slcan adapter's version answer when opening it (s)."""
+
 
 class CellSession:
     """The devices of one cell, opened together and closed together (a context manager).
@@ -165,6 +168,29 @@ class CellSession:
                     "(e.g. socketcan/can0, pcan/PCAN_USBBUS1, slcan/<serial port>)"
                 ) from exc
         self._stack.callback(self._bus.shutdown)
+        if cfg.bus.interface == "slcan" and not cfg.sensor_emulated:
+            self._slcan_barrier()
+
+    def _slcan_barrier(self) -> None:
+        """Wait until the slcan adapter has taken its open commands (a ``V`` round trip).
+
+        python-can writes the adapter's close/bitrate/open lines and returns at
+        once; the adapter reads them later. Asking its version and waiting for
+        the answer puts the channel's opening before any robot traffic of this
+        session, always: an emulated cell that starts afresh on that opening
+        (``forcelearn emulate --fresh-per-connection``) then sees one order on
+        any host. An adapter that does not answer only costs the wait.
+        """
+        get_version = getattr(self._bus, "get_version", None)
+        if get_version is None:
+            return
+        hardware, software = get_version(SLCAN_VERSION_TIMEOUT_S)
+        if hardware is None:
+            log.warning("slcan adapter on %s did not answer the version query within %.1f s",
+                        self.config.bus.channel, SLCAN_VERSION_TIMEOUT_S)
+        else:
+            log.info("slcan adapter on %s: hardware %s, software %s",
+                     self.config.bus.channel, hardware, software)
 
     def _open_jr3(self) -> None:
         """The JR3 driver on the open bus, initialised."""
