@@ -30,3 +30,16 @@ REQUIRED_SUMMARY_KEYS = frozenset(
 def required_summary_keys() -> frozenset[str]:
     """The fields every summary.json must hold."""
     return REQUIRED_SUMMARY_KEYS
+
+
+CONFIGURED_MAP_TOML = (
+    "[task]\noutput_centre_y_mm = -4.0\noutput_scale_mm = 2.0\nmax_offset_mm = 15.0\n"
+)
+"""The whole output map of the first delivery (start Y, 2 mm, 15 mm) in a config: the run
+skips the surface probe (~4 s). For tests where the probe is not the point."""
+
+
+@pytest.fixture()
+def configured_map_toml() -> str:
+    """A ``[task]`` table with the whole output map: a run with it does not probe."""
+    return CONFIGURED_MAP_TOML

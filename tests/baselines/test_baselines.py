@@ -181,6 +181,7 @@ def test_recorder_scores_any_agent_by_the_trainers_formulas() -> None:
     assert record.phase == "random"
 
 
+@pytest.mark.convergence
 def test_ilc_converges_on_the_emulated_cell(tmp_path: Path) -> None:
     """ILC through the env meets the convergence rule on the default cell within 40 trials."""
     from forcelearn.tools.baselines_study import BaselinesConfig, run_baseline

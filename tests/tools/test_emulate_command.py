@@ -163,7 +163,7 @@ def test_emulate_prints_its_pid_and_stable_links_that_survive_a_restart(
 
 
 def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
-    spawn: Callable[..., Emulator], tmp_path: Path
+    spawn: Callable[..., Emulator], tmp_path: Path, configured_map_toml: str
 ) -> None:
     """Issue 12.8: run, check, run again on one emulator: the two runs' trials are identical.
 
@@ -176,8 +176,11 @@ def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
     emulator = spawn("--write-config", str(site), "--fresh-per-connection", "--link-dir", links)
     emulator.wait_for(r"^site config written to", STARTUP_S)
     env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
-    # the in-process cell's watchdog, so a stall of this host cannot make the driver re-ask
-    site.write_text(site.read_text() + "\n[safety]\nstale_sensor_s = 10.0\n")
+    # the in-process cell's watchdog and timeouts, so a stall of this host cannot make a
+    # driver re-ask; and a whole output map: no probe (the sessions' independence is the point)
+    timeouts = "[robot]\nack_timeout_s = 10.0\nreply_timeout_s = 10.0\n"
+    text = site.read_text().replace("[robot]\n", timeouts)
+    site.write_text(text + "\n[safety]\nstale_sensor_s = 10.0\n\n" + configured_map_toml)
 
     def cli(*args: str) -> None:
         done = subprocess.run([sys.executable, "-m", "forcelearn.cli", *args],
@@ -214,7 +217,7 @@ def test_a_run_through_emulate_in_another_process_equals_the_in_process_run(
 
     def run(*args: str, out: Path) -> str:
         done = subprocess.run(
-            [sys.executable, "-m", "forcelearn.cli", "run", *args, "--trials", "2", "--seed", "3",
+            [sys.executable, "-m", "forcelearn.cli", "run", *args, "--trials", "1", "--seed", "3",
              "--no-progress", "--out", str(out)],
             capture_output=True, text=True, timeout=300, env=env,
         )

@@ -72,17 +72,22 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
     ],
 )
 def test_check_then_run_reach_the_emulate_process(
-    tmp_path: Path, options: tuple[str, ...], robot_line: str, sensor_line: str
+    tmp_path: Path, options: tuple[str, ...], robot_line: str, sensor_line: str,
+    configured_map_toml: str,
 ) -> None:
-    """The emulate process prints a site config; check passes (no move); 2 trials run."""
+    """The emulate process prints a site config; check passes (no move); a trial runs."""
     site = tmp_path / "site.toml"
-    emulator = Emulator(*options, "--write-config", str(site))
+    # its own stable links: parallel tests never share the default folder's
+    emulator = Emulator(*options, "--write-config", str(site), "--link-dir", str(tmp_path / "l"))
     try:
         emulator.wait_for(robot_line)
         emulator.wait_for(sensor_line)
         emulator.wait_for("site config written")
-        # a loaded CI host is no real sensor: allow it pauses (a real cell keeps 0.1 s)
-        site.write_text(site.read_text() + "\n[safety]\nstale_sensor_s = 2.0\n")
+        # a loaded CI host is no real sensor: allow it pauses (a real cell keeps 0.1 s), as
+        # the in-process emulated cell does; a whole output map: the probe over EGM and
+        # Net F/T is tested in-process (tests/tools/test_cell_kinds.py)
+        site.write_text(site.read_text() + "\n[safety]\nstale_sensor_s = 10.0\n\n"
+                        + configured_map_toml)
         config = load_cell_config(site)
         assert not config.robot_emulated and not config.sensor_emulated
         if "egm" in options:
@@ -93,11 +98,11 @@ def test_check_then_run_reach_the_emulate_process(
         assert checked.returncode == 0, checked.stdout + checked.stderr
         assert "the robot was not moved" in checked.stdout
         out = tmp_path / "run"
-        ran = cli("run", "--config", str(site), "--trials", "2", "--out", str(out),
+        ran = cli("run", "--config", str(site), "--trials", "1", "--out", str(out),
                   "--no-progress")
         assert ran.returncode == 0, ran.stdout + ran.stderr
         summary = json.loads((out / "summary.json").read_text())
-        assert summary["trials"] == 2 and summary["steps"] > 0 and summary["cell_time_s"] > 0
+        assert summary["trials"] == 1 and summary["steps"] > 0 and summary["cell_time_s"] > 0
     finally:
         code = emulator.stop()
     assert code == 0

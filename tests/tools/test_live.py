@@ -183,7 +183,7 @@ def start_live_run(out: Path, trials: int) -> tuple[subprocess.Popen[bytes], str
 def test_live_run_data_endpoint_equals_trials_csv_and_step_logs(tmp_path: Path) -> None:
     """While the run goes, the page's data equal what the run writes to its files."""
     out = tmp_path / "run"
-    child, url = start_live_run(out, trials=12)
+    child, url = start_live_run(out, trials=6)
     trials: dict[str, list[Any]] = {name: [] for name in TRIAL_FIELDS}
     mid: dict[str, Any] | None = None
     last: dict[str, Any] = {}
@@ -203,7 +203,7 @@ def test_live_run_data_endpoint_equals_trials_csv_and_step_logs(tmp_path: Path) 
     csv_trials = read_csv(out / "trials.csv")
     check_trials(mid["trials"], csv_trials)
     check_trials(trials, csv_trials)
-    assert len(trials["index"]) == 12
+    assert len(trials["index"]) == 6
     check_steps(mid["first"], read_csv(out / "steps_first.csv"))
     check_steps(last["previous"], read_csv(out / "steps_final.csv"))
     summary = json.loads((out / "summary.json").read_text())

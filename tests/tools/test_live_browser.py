@@ -63,7 +63,7 @@ def shot(tmp_path: Path, name: str) -> Path:
 def test_live_page_of_a_running_run_and_view_of_the_finished_run(tmp_path: Path) -> None:
     """Plots drawn, the status panel's trial advances, screenshots not blank."""
     out = tmp_path / "run"
-    trials = os.environ.get("FORCELEARN_LIVE_TRIALS", "60")
+    trials = os.environ.get("FORCELEARN_LIVE_TRIALS", "15")
     run = subprocess.Popen(
         [
             *(sys.executable, "-c", CLI, "run", "--trials", trials, "--out", str(out)),

@@ -16,7 +16,8 @@ from forcelearn.cli import main
 from forcelearn.errors import StateFileError
 from forcelearn.learning import load_learner
 
-TRIALS = 24
+TRIALS = 10
+"""Trials of the uninterrupted run; the SIGKILL test stops at half of them."""
 TIMING_KEYS = {"wall_s", "steps_per_s", "realtime_factor"}
 
 
@@ -43,7 +44,7 @@ def trials_done(out: Path) -> int:
         return 0
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def uninterrupted(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A complete run of TRIALS trials with seed 5."""
     out = tmp_path_factory.mktemp("whole") / "run"
@@ -54,9 +55,7 @@ def uninterrupted(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def test_run_writes_summary_trials_logs_checkpoint_and_figures(
-    uninterrupted: Path, required_summary_keys: frozenset[str]
-) -> None:
+def check_run_outputs(uninterrupted: Path, required_summary_keys: frozenset[str]) -> None:
     """The run directory holds every promised output."""
     summary = json.loads((uninterrupted / "summary.json").read_text())
     assert set(summary) >= required_summary_keys
@@ -118,9 +117,13 @@ def start_paused_at(stop_at: int, *args: str) -> subprocess.Popen[str]:
 
 
 def test_sigkill_mid_run_then_resume_ends_bit_identical(
-    uninterrupted: Path, tmp_path: Path
+    uninterrupted: Path, tmp_path: Path, required_summary_keys: frozenset[str]
 ) -> None:
-    """A run killed with SIGKILL and resumed equals the uninterrupted run bit for bit."""
+    """A run writes every output; one killed with SIGKILL and resumed equals it bit for bit.
+
+    (One test for both, so the uninterrupted run is made once whatever the workers.)
+    """
+    check_run_outputs(uninterrupted, required_summary_keys)
     out = tmp_path / "run"
     child = start_paused_at(
         TRIALS // 2,
@@ -153,10 +156,15 @@ def test_sigkill_mid_run_then_resume_ends_bit_identical(
     }
 
 
-def test_ctrl_c_stops_and_leaves_a_resumable_checkpoint(tmp_path: Path) -> None:
+def test_ctrl_c_stops_and_leaves_a_resumable_checkpoint(
+    tmp_path: Path, configured_map_toml: str
+) -> None:
     """SIGINT mid-run: exit 130, the robot stopped, the checkpoint whole and resumable."""
     out = tmp_path / "run"
-    child = start_paused_at(3, "run", "--trials", "200", "--out", str(out), "--no-progress")
+    config = tmp_path / "cell.toml"
+    config.write_text(configured_map_toml)  # no probe: Ctrl-C is the point
+    child = start_paused_at(3, "run", "--config", str(config), "--trials", "200",
+                            "--out", str(out), "--no-progress")
     try:
         child.send_signal(signal.SIGINT)
         _, err = child.communicate(timeout=120)  # bounded; a loaded host is slow, not wrong
@@ -187,7 +195,7 @@ def test_resume_and_new_run_refuse_the_wrong_folder(
 
 
 def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, configured_map_toml: str
 ) -> None:
     """The JR3 goes silent after trial 3: SensorStale ends the run, robot stopped, 3 trials kept."""
     from forcelearn.emulators.jr3.faults import FaultConfig
@@ -222,7 +230,9 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
             sessions[0].sensor_emulator.set_faults(FaultConfig(silent=True))
 
     out = tmp_path / "run"
-    run, checkpoint = surface_run.prepare_run(None, out, 10, 3, resume=False)
+    config = tmp_path / "cell.toml"
+    config.write_text(configured_map_toml)  # no probe: the failing sensor is the point
+    run, checkpoint = surface_run.prepare_run(config, out, 10, 3, resume=False)
     with pytest.raises(SensorStale):
         surface_run.execute(run, checkpoint, on_trial=silence_after_three)
     assert stops_before_close[0] >= 1, "the run did not stop the robot before closing"

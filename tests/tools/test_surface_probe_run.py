@@ -71,6 +71,7 @@ def test_a_range_that_cannot_reach_the_force_warns_and_fails_require_converged(
     assert not (out / "probe.csv").exists()  # the whole map was configured: no probe
 
 
+@pytest.mark.convergence
 @pytest.mark.parametrize(
     ("stiffness", "force"),
     [(4.0, 29.41995)],
