@@ -3,6 +3,8 @@
 import pytest
 from hypothesis import settings
 
+from forcelearn.tasks.surface import FALLBACK_OFFSET_MM, FALLBACK_SCALE_MM, SurfaceTaskSpec
+
 # No per-example deadline: hypothesis's default (200 ms) fails property tests on a busy
 # host (seen at load average 20 on 2 cores); the example counts bound the work instead,
 # and pytest-timeout catches a hang.
@@ -33,7 +35,8 @@ def required_summary_keys() -> frozenset[str]:
 
 
 CONFIGURED_MAP_TOML = (
-    "[task]\noutput_centre_y_mm = -4.0\noutput_scale_mm = 2.0\nmax_offset_mm = 15.0\n"
+    f"[task]\noutput_centre_y_mm = {SurfaceTaskSpec().start_mm[1]}\n"
+    f"output_scale_mm = {FALLBACK_SCALE_MM}\nmax_offset_mm = {FALLBACK_OFFSET_MM}\n"
 )
 """The whole output map of the first delivery (start Y, 2 mm, 15 mm) in a config: the run
 skips the surface probe (~4 s). For tests where the probe is not the point."""

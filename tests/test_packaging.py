@@ -19,10 +19,6 @@ def _modules_in(folder: str) -> set[str]:
     return {p.relative_to(base).as_posix() for p in base.rglob("*.py")}
 
 
-pytestmark = pytest.mark.xdist_group("wheel")
-"""The module fixture is made once: every test of this module runs on one worker."""
-
-
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Build the wheel once for this module."""

@@ -168,7 +168,7 @@ class CellSession:
                     "(e.g. socketcan/can0, pcan/PCAN_USBBUS1, slcan/<serial port>)"
                 ) from exc
         self._stack.callback(self._bus.shutdown)
-        if cfg.bus.interface == "slcan" and not cfg.sensor_emulated:
+        if cfg.bus.interface == "slcan" and not cfg.sensor_emulated:  # a real slcanBus
             self._slcan_barrier()
 
     def _slcan_barrier(self) -> None:
@@ -181,10 +181,12 @@ class CellSession:
         (``forcelearn emulate --fresh-per-connection``) then sees one order on
         any host. An adapter that does not answer only costs the wait.
         """
-        get_version = getattr(self._bus, "get_version", None)
-        if get_version is None:
+        try:
+            hardware, software = self._bus.get_version(SLCAN_VERSION_TIMEOUT_S)
+        except can.CanError as exc:  # the JR3's initialisation then names the fault
+            log.warning("slcan adapter on %s: version query failed: %s",
+                        self.config.bus.channel, exc)
             return
-        hardware, software = get_version(SLCAN_VERSION_TIMEOUT_S)
         if hardware is None:
             log.warning("slcan adapter on %s did not answer the version query within %.1f s",
                         self.config.bus.channel, SLCAN_VERSION_TIMEOUT_S)
