@@ -1,13 +1,16 @@
 """Open a cell as its config says: real devices, or the built-in emulators behind real drivers.
 
-An emulated cell starts, in this process, the robot-controller emulator on a
-pseudo-terminal (or, with ``[robot] kind = "egm"``, the EGM controller emulator
-on loopback UDP) and the JR3 emulator on a private ``virtual`` CAN channel (or,
-with ``[sensor] kind = "netft"``, the Net F/T emulator on loopback), all
-reading one :class:`CellPhysics` with the sponge (:mod:`.device_factory` opens
-the Ethernet kinds); the drivers then connect to
-them exactly as they would to the devices (pyserial on the pty path,
-python-can on the bus). The trainer gets the same :class:`~forcelearn.cell.Cell`
+An emulated cell starts, in this process, the robot-controller emulator (or,
+with ``[robot] kind = "egm"``, the EGM controller emulator on loopback UDP) and
+the JR3 emulator (or, with ``[sensor] kind = "netft"``, the Net F/T emulator on
+loopback), all reading one :class:`CellPhysics` with the sponge
+(:mod:`.device_factory` opens the Ethernet kinds); the drivers then connect to
+them exactly as they would to the devices: pyserial opens the controller as
+``forcelearn-robot://NAME`` and python-can the JR3's bus as
+``can.Bus(interface="forcelearn-jr3", channel=NAME)``, both in-process routes
+that answer in the driver's thread (the same bytes as a pty and a CAN adapter,
+without a thread hand-over per exchange; ``forcelearn emulate`` serves the pty
+and slcan routes for another process). The trainer gets the same :class:`~forcelearn.cell.Cell`
 either way.
 
 ``CellSession.emulator_state()`` / ``load_emulator_state()`` checkpoint what a
@@ -124,11 +127,11 @@ class CellSession:
             self._apply_calibration(self.calibration, self.robot, self.cell)
 
     def _start_link_emulator(self) -> str | None:
-        """Start the robot-controller emulator on a pty if the link is emulated; its path."""
+        """Start the in-process robot-controller emulator if the link is emulated; its URL."""
         cfg = self.config
         if not cfg.robot_emulated:
             return None
-        self.robot_emulator = emulated_robot(cfg, self.physics)  # type: ignore[arg-type]
+        self.robot_emulator = emulated_robot(cfg, self.physics, "inproc")  # type: ignore[arg-type]
         self._stack.callback(self.robot_emulator.stop)
         return self.robot_emulator.start()
 
@@ -147,13 +150,15 @@ class CellSession:
         self._stack.callback(self.robot.close)
 
     def _open_jr3_bus(self, seed: int) -> None:
-        """The JR3's CAN bus: the emulator on a private virtual bus, or the adapter."""
+        """The JR3's CAN bus: the in-process emulator's (``forcelearn-jr3``), or the adapter."""
         cfg = self.config
         if cfg.sensor_emulated:
             channel = private_channel(cfg)
-            self.sensor_emulator = emulated_jr3(cfg, self.physics, channel, seed)  # type: ignore[arg-type]
+            self.sensor_emulator = emulated_jr3(  # type: ignore[arg-type]
+                cfg, self.physics, channel, seed, in_process=True
+            )
             self._stack.callback(self.sensor_emulator.close)
-            self._bus = can.Bus(interface="virtual", channel=channel)
+            self._bus = can.Bus(interface="forcelearn-jr3", channel=channel)
         else:
             try:
                 self._bus = can.Bus(

@@ -24,7 +24,7 @@ import logging
 import os
 import uuid
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from forcelearn.emulators.clock import SimClock, serial_char_time_s
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
@@ -58,10 +58,12 @@ def link_char_time_s(config: CellConfig) -> float:
     return serial_char_time_s(robot.baudrate, robot.bytesize, robot.parity, robot.stopbits)
 
 
-def emulated_robot(config: CellConfig, physics: CellPhysics) -> RobotControllerEmulator:
-    """The robot-controller emulator on a pty (not yet serving: call ``start()``)."""
+def emulated_robot(
+    config: CellConfig, physics: CellPhysics, transport: Literal["pty", "inproc"] = "pty"
+) -> RobotControllerEmulator:
+    """The robot-controller emulator on a pty or in-process (not yet serving: ``start()``)."""
     return RobotControllerEmulator(
-        "pty",
+        transport,
         config=config.emulator.effective().arm,
         physics=physics,
         char_time_s=link_char_time_s(config),
@@ -74,9 +76,9 @@ def private_channel(config: CellConfig) -> str:
 
 
 def emulated_jr3(
-    config: CellConfig, physics: CellPhysics, channel: str, seed: int
+    config: CellConfig, physics: CellPhysics, channel: str, seed: int, in_process: bool = False
 ) -> Jr3EmulatorNode:
-    """The JR3 adapter emulator on the ``virtual`` CAN ``channel``."""
+    """The JR3 adapter emulator on the ``virtual`` CAN ``channel`` (or in-process under it)."""
     return Jr3EmulatorNode(
         physics,
         channel=channel,
@@ -84,6 +86,7 @@ def emulated_jr3(
         model=config.emulator.effective().sensor,
         seed=seed,
         bitrate=None if config.emulator.ideal else config.bus.bitrate,
+        in_process=in_process,
     )
 
 

@@ -28,6 +28,13 @@ sample period after the previous sample; the physics is advanced to that
 instant first, so the sample sees the robot and the sponge as they are then.
 The clock ends at the last bit of the answer. Async streaming is paced by the
 host's wall clock (the cell uses sync mode, which is deterministic).
+
+In-process (``in_process=True``): no bus and no thread. The node registers
+its ``channel`` name; a python-can bus opened as
+``can.Bus(interface="forcelearn-jr3", channel=NAME)``
+(:class:`~forcelearn.emulators.jr3.can_bus.Jr3EmulatorBus`) hands each frame
+the host sends to :meth:`Jr3EmulatorNode.receive`, in the host's thread, and
+takes the answers before ``send`` returns.
 """
 
 from __future__ import annotations
@@ -36,6 +43,7 @@ import logging
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,6 +54,7 @@ from forcelearn.drivers.jr3_can import codec
 from forcelearn.drivers.jr3_can.codec import Ack, Decoded, Frame
 from forcelearn.drivers.jr3_can.opcodes import DEFAULT_OPCODES, OpcodeMap
 from forcelearn.drivers.jr3_can.scaling import cutoff_from_wire, full_scales_to_wire
+from forcelearn.emulators import registry
 from forcelearn.emulators.clock import Wire, can_frame_time_s
 from forcelearn.emulators.jr3.faults import FaultConfig, FrameHook, apply_faults
 from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
@@ -56,6 +65,8 @@ log = logging.getLogger(__name__)
 POLL_S = 0.02
 """Longest the thread blocks on the bus, so ``close()`` returns promptly."""
 JOIN_TIMEOUT_S = 2.0
+REGISTRY_KIND = "jr3"
+"""Kind under which in-process nodes register (``can.Bus(interface="forcelearn-jr3")``)."""
 
 
 @dataclass
@@ -77,7 +88,8 @@ class Jr3EmulatorNode:
         physics: the shared cell; each sample reads ``physics.true_wrench()``.
         bus: the bus to use (not shut down by the node); default: a new
             ``virtual`` bus on ``channel``, shut down on close.
-        channel: virtual channel name when no bus is given.
+        channel: virtual channel name when no bus is given; with ``in_process``,
+            the name ``forcelearn-jr3`` buses join.
         node_id: the adapter's node id (1..127).
         model: the sensor model (full scales, noise, bias, drift).
         faults: wire faults; change them at run time with :meth:`set_faults`.
@@ -86,6 +98,7 @@ class Jr3EmulatorNode:
         frame_hook: called on each outgoing frame after the faults.
         opcodes: the opcode map to speak.
         bitrate: the bus bitrate for frame times, bit/s (None: frames cost no time).
+        in_process: no bus and no thread: reached by ``forcelearn-jr3`` buses.
     """
 
     def __init__(
@@ -102,6 +115,7 @@ class Jr3EmulatorNode:
         frame_hook: FrameHook | None = None,
         opcodes: OpcodeMap = DEFAULT_OPCODES,
         bitrate: float | None = 1_000_000,
+        in_process: bool = False,
     ) -> None:
         if not 1 <= node_id <= 127:
             raise ValueError(f"node_id={node_id} is not 1..127")
@@ -123,14 +137,22 @@ class Jr3EmulatorNode:
         self.bus_wire = Wire(self.clock)
         """The CAN bus as a timeline: frames never overlap."""
         self.last_sample_s = -math.inf
-        self._owns_bus = bus is None
-        self.bus = bus if bus is not None else can.Bus(interface="virtual", channel=channel)
+        self.channel = channel
+        self.in_process = in_process
+        self._hosts: list[Callable[[can.Message], None]] = []
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._next_emit = 0.0
+        self._closed = False
+        self._owns_bus = bus is None and not in_process
+        self.bus: can.BusABC | None = None
+        self._thread: threading.Thread | None = None
+        if in_process:
+            registry.register(REGISTRY_KIND, channel, self)
+            return
+        self.bus = bus if bus is not None else can.Bus(interface="virtual", channel=channel)
         self._thread = threading.Thread(target=self._run, name=f"jr3-emulator-{node_id}",
                                         daemon=True)
-        self._closed = False
         self._thread.start()
 
     # ---- public control -------------------------------------------------
@@ -164,12 +186,56 @@ class Jr3EmulatorNode:
             last = state.get("last_sample_s")
             self.last_sample_s = -math.inf if last is None else float(last)
 
+    # ---- in-process hosts (forcelearn-jr3 buses) ----------------------------
+    def attach_host(self, deliver: Callable[[can.Message], None]) -> None:
+        """Deliver every frame the node sends to ``deliver`` (an in-process bus)."""
+        with self._lock:
+            if self._closed:
+                raise can.CanOperationError(f"JR3 emulator {self.channel!r} is closed")
+            self._hosts.append(deliver)
+
+    def detach_host(self, deliver: Callable[[can.Message], None]) -> None:
+        """Stop delivering to ``deliver``; returns silently if it was not attached."""
+        with self._lock:
+            if deliver in self._hosts:
+                self._hosts.remove(deliver)
+
+    @property
+    def hosts(self) -> int:
+        """In-process buses attached now."""
+        with self._lock:
+            return len(self._hosts)
+
+    def receive(self, msg: can.Message) -> None:
+        """A frame a host put on the bus: handled now, answers delivered before return."""
+        with self._lock:
+            self._handle(msg)
+
+    def emit_due(self) -> float | None:
+        """Stream what async mode owes by now; seconds to the next sample (None: not streaming)."""
+        with self._lock:
+            if self.mode != "async":
+                return None
+            now = time.monotonic()
+            if now >= self._next_emit:
+                self._emit_sample()
+                period_s = self.period_us * 1e-6
+                # keep the schedule, but never burst to catch up after a stall
+                self._next_emit = max(self._next_emit + period_s, now)
+            return max(0.0, self._next_emit - time.monotonic())
+
     def close(self) -> None:
         """Stop the thread (joined) and shut down the bus if the node made it; idempotent."""
         if self._closed:
             return
         self._closed = True
         self._stop.set()
+        if self.in_process:
+            registry.unregister(REGISTRY_KIND, self.channel, self)
+            with self._lock:
+                self._hosts.clear()
+            return
+        assert self._thread is not None and self.bus is not None
         self._thread.join(JOIN_TIMEOUT_S)
         if self._thread.is_alive():
             log.warning("JR3 emulator thread did not stop within %.1f s", JOIN_TIMEOUT_S)
@@ -184,10 +250,10 @@ class Jr3EmulatorNode:
 
     # ---- thread ---------------------------------------------------------
     def _run(self) -> None:
+        assert self.bus is not None
+        until_next: float | None = None
         while not self._stop.is_set():
-            timeout = POLL_S
-            if self.mode == "async":
-                timeout = min(POLL_S, max(0.0, self._next_emit - time.monotonic()))
+            timeout = POLL_S if until_next is None else min(POLL_S, until_next)
             try:
                 msg = self.bus.recv(timeout)
             except can.CanError:
@@ -195,14 +261,9 @@ class Jr3EmulatorNode:
                     return
                 log.exception("JR3 emulator: bus receive failed; stopping the node")
                 return
-            with self._lock:
-                if msg is not None:
-                    self._handle(msg)
-                if self.mode == "async" and time.monotonic() >= self._next_emit:
-                    self._emit_sample()
-                    period_s = self.period_us * 1e-6
-                    # keep the schedule, but never burst to catch up after a stall
-                    self._next_emit = max(self._next_emit + period_s, time.monotonic())
+            if msg is not None:
+                self.receive(msg)
+            until_next = self.emit_due()
 
     def _frame_time_s(self, data_bytes: int) -> float:
         return 0.0 if self.bitrate is None else can_frame_time_s(data_bytes, self.bitrate)
@@ -307,6 +368,13 @@ class Jr3EmulatorNode:
         self.clock.advance_to(end)
         msg = can.Message(arbitration_id=frame.arbitration_id, data=frame.data,
                           is_extended_id=False)
+        if self.in_process:
+            msg.timestamp = time.time()
+            msg.channel = self.channel
+            for deliver in self._hosts:
+                deliver(msg)
+            return
+        assert self.bus is not None
         try:
             self.bus.send(msg)
         except can.CanError:

@@ -89,12 +89,19 @@ class MotionParams:
 
 
 def _nlerp(q0: tuple[float, ...], q1: tuple[float, ...], f: float) -> tuple[float, ...]:
-    """Normalised linear interpolation of unit quaternions (the short way)."""
-    if sum(a * b for a, b in zip(q0, q1, strict=True)) < 0:
-        q1 = tuple(-c for c in q1)
-    q = [a + f * (b - a) for a, b in zip(q0, q1, strict=True)]
-    norm = math.sqrt(sum(c * c for c in q))
-    return tuple(c / norm for c in q)
+    """Normalised linear interpolation of unit quaternions (the short way).
+
+    Written out per component (the motion's hot path); the sums run in the
+    order ``sum()`` would take them, so the result is the same to the bit.
+    """
+    a0, a1, a2, a3 = q0
+    b0, b1, b2, b3 = q1
+    if a0 * b0 + a1 * b1 + a2 * b2 + a3 * b3 < 0:
+        b0, b1, b2, b3 = -b0, -b1, -b2, -b3
+    c0, c1 = a0 + f * (b0 - a0), a1 + f * (b1 - a1)
+    c2, c3 = a2 + f * (b2 - a2), a3 + f * (b3 - a3)
+    norm = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2 + c3 * c3)
+    return (c0 / norm, c1 / norm, c2 / norm, c3 / norm)
 
 
 def _angle_deg(q0: tuple[float, ...], q1: tuple[float, ...]) -> float:
@@ -147,6 +154,12 @@ class ArmMotion:
     def pose(self) -> Pose:
         """Where the tool is (mm, quaternion w x y z)."""
         return Pose(*self._tool, self._tool_q)  # type: ignore[arg-type]
+
+    @property
+    def tool_key(self) -> tuple[float, ...]:
+        """Where the tool is, as (x, y, z, quaternion) without building a Pose (hot path)."""
+        x, y, z = self._tool
+        return (x, y, z, self._tool_q)
 
     @property
     def moving(self) -> bool:
@@ -225,11 +238,10 @@ class ArmMotion:
             self._v = 0.0 if self._s >= self._seg_end else v
         else:
             self._v = 0.0
-        ref = self._point_at(self._s)
-        self._ref = [ref.x_mm, ref.y_mm, ref.z_mm]
-        self._ref_q = ref.quaternion
+        self._ref, self._ref_q = self._reference_at(self._s)
         gain = 1.0 - self._lag_keep
-        tool = [a + gain * (b - a) for a, b in zip(self._tool, self._ref, strict=True)]
+        (tx, ty, tz), (rx, ry, rz) = self._tool, self._ref
+        tool = [tx + gain * (rx - tx), ty + gain * (ry - ty), tz + gain * (rz - tz)]
         if math.dist(tool, self._ref) < _SNAP_MM and self._s >= self._seg_end:
             tool, self._tool_q = list(self._ref), self._ref_q
         else:
@@ -260,12 +272,17 @@ class ArmMotion:
         return (delta[0] / norm, delta[1] / norm, delta[2] / norm)
 
     def _point_at(self, s: float) -> Pose:
+        xyz, q = self._reference_at(s)
+        return Pose(*xyz, q)  # type: ignore[arg-type]
+
+    def _reference_at(self, s: float) -> tuple[list[float], tuple[float, ...]]:
+        """The path's point ``s`` mm along the segment: [x, y, z] and quaternion."""
         f = 1.0 if self._seg_length == 0.0 else s / self._seg_length
         goal = self._seg_goal
-        xyz = [a + f * (b - a) for a, b in zip(self._seg_start, (goal.x_mm, goal.y_mm, goal.z_mm),
-                                               strict=True)]
+        x0, y0, z0 = self._seg_start
+        xyz = [x0 + f * (goal.x_mm - x0), y0 + f * (goal.y_mm - y0), z0 + f * (goal.z_mm - z0)]
         q = goal.quaternion if f >= 1.0 else _nlerp(self._seg_start_q, goal.quaternion, f)
-        return Pose(*xyz, q)  # type: ignore[arg-type]
+        return xyz, q
 
     # ---- checkpoint --------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:

@@ -90,12 +90,27 @@ class CellPhysics:
         clock: SimClock | None = None,
     ):
         self._lock = threading.RLock()
-        self.environment: ContactEnvironment = environment or NoContact()
+        self.environment = environment or NoContact()
         self.clock = clock or SimClock()
         self.motion: ArmMotion | None = None
         self._tool = tool or POINT_TOOL
         self._pose = pose or Pose(0.0, 0.0, 0.0)
+        self._pose_key = (self._pose.x_mm, self._pose.y_mm, self._pose.z_mm,
+                          self._pose.quaternion)
+        self._position_mm = self._pose.position_mm
         self._rotation, self._gravity = self._orientation_terms(self._pose)
+
+    @property
+    def environment(self) -> ContactEnvironment:
+        """What the tool presses on."""
+        return self._environment
+
+    @environment.setter
+    def environment(self, environment: ContactEnvironment) -> None:
+        # Protocol checks are slow (typing inspects the class); the hot path asks once.
+        self._environment = environment
+        self._timed = environment if isinstance(environment, TimedEnvironment) else None
+        self._observer = environment if isinstance(environment, PoseObserver) else None
 
     def attach_motion(self, motion: ArmMotion) -> None:
         """Let ``motion`` move the tool from now on (its pose is published at once)."""
@@ -113,14 +128,13 @@ class CellPhysics:
             motion = self.motion
             if motion is None:
                 return
-            timed = self.environment if isinstance(self.environment, TimedEnvironment) else None
+            timed = self._timed
 
             def on_tick(dt_s: float) -> None:
-                pose = motion.pose
-                if pose != self._pose:
-                    self.set_pose(pose)
+                if motion.tool_key != self._pose_key:
+                    self.set_pose(motion.pose)
                 if timed is not None:
-                    timed.evolve(self._pose.position_mm, dt_s)
+                    timed.evolve(self._position_mm, dt_s)
 
             motion.advance_to(t, on_tick)
             if motion.pose != self._pose:  # an instant arm moves between ticks
@@ -154,8 +168,10 @@ class CellPhysics:
             if pose.quaternion != self._pose.quaternion:
                 self._rotation, self._gravity = self._orientation_terms(pose)
             self._pose = pose
-            if isinstance(self.environment, PoseObserver):
-                self.environment.observe_pose(pose.position_mm)
+            self._pose_key = (pose.x_mm, pose.y_mm, pose.z_mm, pose.quaternion)
+            self._position_mm = pose.position_mm
+            if self._observer is not None:
+                self._observer.observe_pose(self._position_mm)
 
     def true_wrench(self) -> np.ndarray:
         """Return the noise-free wrench (6,) in the sensor frame, N and N·m.
@@ -163,8 +179,8 @@ class CellPhysics:
         Contact force and moment about the sensor origin plus the tool's weight.
         """
         with self._lock:
-            pose, rotation, gravity = self._pose, self._rotation, self._gravity
-            force_world = self.environment.contact_force_world_n(pose.position_mm)
+            rotation, gravity = self._rotation, self._gravity
+            force_world = self.environment.contact_force_world_n(self._position_mm)
         if not force_world.any():
             return gravity.copy()
         return contact_wrench(self.tool, rotation, force_world) + gravity

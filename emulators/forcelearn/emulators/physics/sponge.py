@@ -181,6 +181,16 @@ class Sponge:
         self._foam_mm = 0.0
         self._memo_key: tuple[float, ...] | None = None
         self._memo_force = np.zeros(3)
+        self._depth_key: tuple[float, ...] | None = None
+        self._depth_mm = 0.0
+
+    def _penetration_mm(self, position_mm: np.ndarray) -> float:
+        """:func:`penetration_mm` at the present pass count, remembered for the last position."""
+        key = (self.passes, float(position_mm[1]), float(position_mm[2]))
+        if key != self._depth_key:  # asked once per pose and once per motion tick
+            self._depth_key = key
+            self._depth_mm = penetration_mm(self.params, self.passes, position_mm)
+        return self._depth_mm
 
     def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
         """Return the reaction force (3,) in N, world frame, at the present pass count."""
@@ -199,7 +209,7 @@ class Sponge:
         for the standard linear solid under a ramp).
         """
         p = self.params
-        foam = min(penetration_mm(p, self.passes, position_mm), p.thickness_mm)
+        foam = min(self._penetration_mm(position_mm), p.thickness_mm)
         change, self._foam_mm = foam - self._foam_mm, foam
         if p.relaxation_ratio == 0.0 or dt_s <= 0.0:
             self.relaxing_mm = 0.0
@@ -213,7 +223,7 @@ class Sponge:
 
     def observe_pose(self, position_mm: np.ndarray) -> None:
         """Note where the tool is; completes a pass when it leaves the sponge after contact."""
-        in_contact = penetration_mm(self.params, self.passes, position_mm) > 0.0
+        in_contact = self._penetration_mm(position_mm) > 0.0
         if in_contact:
             self._touched = True
         elif self._touched:

@@ -8,7 +8,9 @@ Start it in-process (this is what tests and the emulated cell use)::
         assert emu.move_count == 1
 
 or from a shell: ``python -m forcelearn.emulators.robot_controller --transport pty``
-(prints the path to open).
+(prints the path to open). ``transport="inproc"`` serves no thread: the driver
+opens ``forcelearn-robot://NAME`` and every byte it writes is answered in its own
+thread (the fastest route, for the emulated cell in this process).
 """
 
 from __future__ import annotations
@@ -19,12 +21,20 @@ from typing import Literal
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import framing
+from forcelearn.emulators import registry
 from forcelearn.emulators.clock import serial_char_time_s
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.robot_controller.controller import ControllerEngine
 from forcelearn.emulators.robot_controller.faults import FaultConfig, FaultInjector
 from forcelearn.emulators.robot_controller.kinematics import ArmConfig
-from forcelearn.emulators.robot_controller.transport import PtyEndpoint, TcpEndpoint
+from forcelearn.emulators.robot_controller.transport import (
+    InProcessEndpoint,
+    PtyEndpoint,
+    TcpEndpoint,
+)
+
+REGISTRY_KIND = "robot"
+"""Kind under which in-process controllers register (``forcelearn-robot://NAME``)."""
 
 log = logging.getLogger(__name__)
 
@@ -36,11 +46,14 @@ class RobotControllerEmulator:
     """A robot controller speaking the computer-link protocol on a pty or loopback TCP.
 
     Args:
-        transport: "pty" (``url`` is a path) or "tcp" (``url`` is ``socket://127.0.0.1:PORT``).
+        transport: "pty" (``url`` is a path), "tcp" (``url`` is
+            ``socket://127.0.0.1:PORT``) or "inproc" (``url`` is
+            ``forcelearn-robot://NAME``, reachable while started).
         config: arm geometry, limits, servo settings.
         physics: shared cell physics; the emulator writes every reached pose into it.
         faults: fault injection settings (default: none).
-        port: TCP port (0 picks a free one); ignored for "pty".
+        port: TCP port (0 picks a free one); ignored for "pty" and "inproc".
+        name: the in-process name (default: a fresh ``robot-<hex>``); "inproc" only.
         char_time_s: seconds per character on the emulated serial line
             (default: 9600 baud 8N1; 0: the wire costs no time). The pty or
             socket itself is as fast as the host; only simulated time counts.
@@ -48,24 +61,33 @@ class RobotControllerEmulator:
 
     def __init__(
         self,
-        transport: Literal["pty", "tcp"] = "pty",
+        transport: Literal["pty", "tcp", "inproc"] = "pty",
         *,
         config: ArmConfig | None = None,
         physics: CellPhysics | None = None,
         faults: FaultConfig | None = None,
         port: int = 0,
         char_time_s: float = serial_char_time_s(9600),
+        name: str | None = None,
     ) -> None:
-        if transport not in ("pty", "tcp"):
-            raise ValueError(f"transport must be 'pty' or 'tcp', got {transport!r}")
+        if transport not in ("pty", "tcp", "inproc"):
+            raise ValueError(f"transport must be 'pty', 'tcp' or 'inproc', got {transport!r}")
         self.engine = ControllerEngine(config, physics, char_time_s)
         self.faults = FaultInjector(faults)
         self.engine.motion.stall_fraction = self.faults.config.stall_fraction
         self.engine.never_in_position = self.faults.config.never_in_position
-        self._endpoint = PtyEndpoint() if transport == "pty" else TcpEndpoint(port)
+        self.transport = transport
+        self._endpoint: PtyEndpoint | TcpEndpoint | InProcessEndpoint
+        if transport == "inproc":
+            self._endpoint = InProcessEndpoint(name or registry.new_name("robot"))
+        else:
+            self._endpoint = PtyEndpoint() if transport == "pty" else TcpEndpoint(port)
         self._reader = framing.FrameReader()
+        self._generation = self._endpoint.generation
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._receive_lock = threading.Lock()
+        self._serving = False
         self.bytes_received = 0
         """Bytes received from clients so far (tests use it to prove nothing was sent)."""
 
@@ -85,7 +107,18 @@ class RobotControllerEmulator:
         return self.engine.pose
 
     def start(self) -> str:
-        """Start serving in a daemon thread; returns :attr:`url`."""
+        """Start serving (a daemon thread; "inproc": register the name); returns :attr:`url`."""
+        if isinstance(self._endpoint, InProcessEndpoint):
+            if not self._serving:
+                from forcelearn.emulators.robot_controller.serial_port import (
+                    register_url_handler,
+                )
+
+                register_url_handler()  # so its url opens with serial.serial_for_url
+                registry.register(REGISTRY_KIND, self._endpoint.name, self)
+                self._serving = True
+                log.info("robot controller emulator serving on %s", self.url)
+            return self.url
         if self._thread is None:
             self._thread = threading.Thread(
                 target=self._serve, name="robot-controller-emulator", daemon=True
@@ -97,6 +130,9 @@ class RobotControllerEmulator:
     def stop(self) -> None:
         """Stop serving, join the thread and release the transport; safe to call twice."""
         self._stop.set()
+        if isinstance(self._endpoint, InProcessEndpoint) and self._serving:
+            registry.unregister(REGISTRY_KIND, self._endpoint.name, self)
+            self._serving = False
         if self._thread is not None:
             self._thread.join(timeout=5.0)
             if self._thread.is_alive():  # pragma: no cover - would be a bug in _serve
@@ -111,18 +147,41 @@ class RobotControllerEmulator:
     def __exit__(self, *exc_info: object) -> None:
         self.stop()
 
+    def connect(self, client: object) -> None:
+        """Attach an in-process client port (``forcelearn-robot://``); one at a time."""
+        if not isinstance(self._endpoint, InProcessEndpoint):
+            raise ValueError("only an 'inproc' emulator takes in-process clients")
+        if not self._serving or self._stop.is_set():
+            raise ConnectionRefusedError(f"{self.url} is not serving: start() it first")
+        self._endpoint.attach(client)
+
+    def disconnect(self, client: object) -> None:
+        """Detach an in-process client port (it closed)."""
+        if isinstance(self._endpoint, InProcessEndpoint):
+            self._endpoint.detach(client)
+
+    def receive(self, client: object, data: bytes) -> None:
+        """Bytes an in-process client wrote: answered now, in the caller's thread."""
+        with self._receive_lock:
+            endpoint = self._endpoint
+            if not isinstance(endpoint, InProcessEndpoint) or endpoint.client is not client:
+                raise ConnectionResetError(f"{self.url}: the connection was lost; reopen the port")
+            self._take(data)
+
     def _serve(self) -> None:
-        generation = self._endpoint.generation
         while not self._stop.is_set():
-            data = self._endpoint.read(POLL_S)
-            if self._endpoint.generation != generation:
-                generation = self._endpoint.generation
-                self._reader.clear()
-            if data:
-                self.bytes_received += len(data)
-                for frame in self._reader.feed(self.faults.corrupt(data)):
-                    if self._answer(frame):
-                        break
+            self._take(self._endpoint.read(POLL_S))
+
+    def _take(self, data: bytes) -> None:
+        """Feed received bytes to the frame reader and answer each complete frame."""
+        if self._endpoint.generation != self._generation:  # a connection began or ended
+            self._generation = self._endpoint.generation
+            self._reader.clear()
+        if data:
+            self.bytes_received += len(data)
+            for frame in self._reader.feed(self.faults.corrupt(data)):
+                if self._answer(frame):
+                    break
 
     def _answer(self, frame: framing.Frame) -> bool:
         """Answer one frame through the fault hooks; True if the connection was dropped."""

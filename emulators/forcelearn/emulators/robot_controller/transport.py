@@ -1,4 +1,4 @@
-"""Byte transports the emulated controller listens on: a pseudo-terminal or loopback TCP.
+"""Byte transports the emulated controller listens on: a pseudo-terminal, loopback TCP, in-process.
 
 Both offer the same small interface, used by one server thread only:
 ``url`` (what a client passes to ``serial.serial_for_url``), ``read(timeout_s)``
@@ -12,6 +12,11 @@ a connection begins or ends (the server then drops any half-received frame).
   hang-up to its client) and repoints the symlink.
 * :class:`TcpEndpoint`: listens on 127.0.0.1 only. One client at a time: a
   second connection while one is served is closed at once.
+* :class:`InProcessEndpoint`: no thread and no descriptor; its client is a
+  pyserial port opened as ``forcelearn-robot://NAME``
+  (:mod:`~forcelearn.emulators.robot_controller.serial_port`), whose ``write``
+  hands the bytes to the controller in the caller's thread and whose ``read``
+  returns the answers. One client at a time: a second open is refused.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ import socket
 import tempfile
 import tty
 from pathlib import Path
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -189,3 +195,57 @@ class TcpEndpoint:
         """Close the client and the listener; safe to call twice."""
         self.hang_up()
         self._listener.close()
+
+
+class InProcessEndpoint:
+    """The controller's end of an in-process link (``forcelearn-robot://NAME``).
+
+    The emulator pushes the client's bytes in through its ``receive``; answers
+    go to the attached client's receive buffer through :meth:`write`.
+    """
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.client: Any = None
+        """The attached pyserial port (``EmulatedRobotSerial``), if any."""
+        self.generation = 0
+
+    @property
+    def url(self) -> str:
+        """``forcelearn-robot://NAME`` for ``serial.serial_for_url``."""
+        return f"forcelearn-robot://{self.name}"
+
+    def attach(self, client: Any) -> None:
+        """Serve ``client``; raises ConnectionRefusedError while another is attached."""
+        if self.client is not None and self.client is not client:
+            raise ConnectionRefusedError(
+                f"{self.url} is open by another client: close it first (one client at a time)"
+            )
+        self.client = client
+        self.generation += 1
+
+    def detach(self, client: Any) -> None:
+        """The client closed its port."""
+        if self.client is client:
+            self.client = None
+            self.generation += 1
+
+    def read(self, timeout_s: float) -> bytes:
+        """Nothing to poll: the client's writes arrive through the emulator's ``receive``."""
+        return b""
+
+    def write(self, data: bytes) -> None:
+        """Deliver ``data`` to the attached client (dropped when none is attached)."""
+        if self.client is not None:
+            self.client.deliver(data)
+
+    def hang_up(self) -> None:
+        """Drop the connection: the client's next read or write fails as on a lost port."""
+        client, self.client = self.client, None
+        if client is not None:
+            client.hang_up()
+            self.generation += 1
+
+    def close(self) -> None:
+        """Hang up the client; safe to call twice."""
+        self.hang_up()

@@ -1,0 +1,162 @@
+"""``can.Bus(interface="forcelearn-jr3", channel=NAME)``: a bus with an emulated JR3 on it.
+
+python-can finds this class through the ``can.interface`` entry point
+``forcelearn-jr3`` (pyproject.toml). The bus joins the in-process
+:class:`~forcelearn.emulators.jr3.node.Jr3EmulatorNode` registered under
+``channel`` (what the emulated cell starts: it shares the cell's physics), or,
+when no node has that name, starts one of its own on a cell of its own (the
+tool in free space at the default home pose, a default sensor model; options
+below), which later buses on the same channel join, as python-can's
+``virtual`` channels are joined by name, and which stops with the last of them.
+
+Frames cost no thread hand-over: :meth:`Jr3EmulatorBus.send` hands the frame
+to the node, which answers before ``send`` returns; ``recv`` then returns the
+answers. In async mode the node streams on the host's wall clock, emitted by
+whichever thread waits in ``recv`` (the driver's ``can.Notifier``).
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+import time
+import weakref
+from dataclasses import fields
+from typing import Any
+
+import can
+
+from forcelearn.emulators import registry
+from forcelearn.emulators.jr3.node import REGISTRY_KIND, Jr3EmulatorNode
+from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+
+INTERFACE = "forcelearn-jr3"
+_MODEL_OPTIONS = {f.name for f in fields(SensorModelParams)}
+_new_node_lock = threading.Lock()
+_started_by_a_bus: weakref.WeakSet[Jr3EmulatorNode] = weakref.WeakSet()
+"""Nodes a bus started (they stop with their last bus); the cell's own nodes are not here."""
+
+
+class Jr3EmulatorBus(can.BusABC):
+    """A python-can bus on which an emulated JR3 adapter answers.
+
+    Args:
+        channel: name of the in-process node to join (or to start).
+        node_id: node id of a node this bus starts (1..127).
+        seed: noise seed of a node this bus starts.
+        bitrate: bit/s of the bus, for the frames' simulated time (a node this
+            bus starts; default 1 Mbit/s).
+        receive_own_messages: also receive the frames this bus sends.
+        **kwargs: sensor-model fields (``noise_std``, ``full_scales``,
+            ``initial_bias``...: :class:`SensorModelParams`) for a node this
+            bus starts; python-can's generic options are accepted and ignored.
+    """
+
+    def __init__(
+        self,
+        channel: Any = None,
+        *,
+        node_id: int = 1,
+        seed: int | None = 0,
+        bitrate: float | None = None,
+        receive_own_messages: bool = False,
+        **kwargs: Any,
+    ) -> None:
+        if channel is None or not str(channel):
+            raise can.CanInitializationError(
+                f"{INTERFACE}: name a channel, e.g. can.Bus(interface={INTERFACE!r}, "
+                "channel='jr3')"
+            )
+        self.channel = str(channel)
+        self.channel_info = f"forcelearn JR3 emulator on {self.channel!r}"
+        self.receive_own_messages = receive_own_messages
+        self._rx: collections.deque[can.Message] = collections.deque()
+        self._cond = threading.Condition()
+        self._closed = False
+        model = {k: kwargs.pop(k) for k in list(kwargs) if k in _MODEL_OPTIONS}
+        with _new_node_lock:
+            node = registry.lookup(REGISTRY_KIND, self.channel)
+            if node is None:
+                node = _private_node(self.channel, node_id, seed, bitrate, model)
+            self.node: Jr3EmulatorNode = node
+            node.attach_host(self._deliver)
+        super().__init__(channel=self.channel, **kwargs)
+
+    def _deliver(self, msg: can.Message) -> None:
+        with self._cond:
+            self._rx.append(msg)
+            self._cond.notify_all()
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        """Put ``msg`` on the bus: the node answers before this returns."""
+        if self._closed:
+            raise can.CanOperationError(f"{INTERFACE} bus on {self.channel!r} is shut down")
+        self._check_node()
+        frame = can.Message(
+            timestamp=time.time(), arbitration_id=msg.arbitration_id,
+            is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
+            is_error_frame=msg.is_error_frame, dlc=msg.dlc, data=bytes(msg.data),
+            channel=self.channel, is_rx=True,
+        )
+        if self.receive_own_messages:
+            self._deliver(frame)
+        self.node.receive(frame)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            until_sample = self.node.emit_due()
+            with self._cond:
+                if self._rx:
+                    return self._rx.popleft(), False
+                if self._closed:
+                    raise can.CanOperationError(f"{INTERFACE} bus on {self.channel!r} is shut down")
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    return None, False
+                waits = [w for w in (left, until_sample) if w is not None]
+                self._cond.wait(min(waits) if waits else None)
+
+    def _check_node(self) -> None:
+        if self.node.in_process and registry.lookup(REGISTRY_KIND, self.channel) is not self.node:
+            raise can.CanOperationError(
+                f"the JR3 emulator on {self.channel!r} has stopped: open the bus again"
+            )
+
+    def shutdown(self) -> None:
+        """Leave the bus (a node this bus started stops with its last bus); idempotent."""
+        if self._closed:
+            return
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        self.node.detach_host(self._deliver)
+        with _new_node_lock:
+            if self.node.hosts == 0 and self.node in _started_by_a_bus:
+                self.node.close()
+        super().shutdown()
+
+    @staticmethod
+    def _detect_available_configs() -> list[dict[str, Any]]:
+        return [{"interface": INTERFACE, "channel": name} for name in registry.names(REGISTRY_KIND)]
+
+
+def _private_node(
+    channel: str, node_id: int, seed: int | None, bitrate: float | None, model: dict[str, Any]
+) -> Jr3EmulatorNode:
+    """A node on a cell of its own (free space, home pose), started for a bus."""
+    from forcelearn.emulators.physics.cell import CellPhysics
+    from forcelearn.emulators.robot_controller.kinematics import HOME
+
+    try:
+        params = SensorModelParams(**{
+            k: tuple(v) if isinstance(v, list) else v for k, v in model.items()
+        })
+        node = Jr3EmulatorNode(
+            CellPhysics(pose=HOME), channel=channel, node_id=node_id, model=params, seed=seed,
+            bitrate=1_000_000 if bitrate is None else bitrate, in_process=True,
+        )
+    except (TypeError, ValueError) as exc:
+        raise can.CanInitializationError(f"{INTERFACE} on {channel!r}: {exc}") from exc
+    _started_by_a_bus.add(node)
+    return node

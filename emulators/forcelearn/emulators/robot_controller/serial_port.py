@@ -1,0 +1,196 @@
+"""``forcelearn-robot://``: a pyserial port whose far end is an in-process controller emulator.
+
+``serial.serial_for_url("forcelearn-robot://NAME")`` attaches to the
+:class:`~forcelearn.emulators.robot_controller.server.RobotControllerEmulator`
+started in this process with ``transport="inproc"`` under NAME (its ``url``);
+``forcelearn-robot://`` with no name starts a fresh emulator of its own (a
+default arm, no shared physics, stopped when the port closes) whose serial
+line costs the port's baud rate and framing in simulated time, and
+``?instant=1`` makes its arm reach each target at once. What the driver writes
+is answered in the writer's thread before ``write`` returns, so the link costs
+no thread hand-over; ``read`` then returns the answer, and waits out its
+timeout only when no answer is coming (a dropped reply, a stopped emulator),
+as a real port would.
+
+pyserial has no plugin registry: :func:`register_url_handler` adds the handler
+package to ``serial.protocol_handler_packages``. An in-process controller
+emulator calls it when it starts, and the installed wheel's ``.pth`` hook
+calls it at interpreter start, so ``forcelearn-robot://`` opens in a fresh
+interpreter too (docs/emulators.md).
+"""
+
+from __future__ import annotations
+
+import threading
+import urllib.parse
+from typing import Any
+
+import serial
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
+
+from forcelearn.emulators import registry
+from forcelearn.emulators.clock import serial_char_time_s
+
+SCHEME = "forcelearn-robot"
+
+
+class EmulatedRobotSerial(SerialBase):
+    """A pyserial port on an in-process robot-controller emulator (``forcelearn-robot://``)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self._rx = bytearray()
+        self._cond = threading.Condition()
+        self._hung_up = False
+        self._emulator: Any = None
+        self._owns_emulator = False
+        super().__init__(*args, **kwargs)
+
+    # ---- pyserial interface ---------------------------------------------------------
+    def open(self) -> None:
+        """Attach to the named emulator (or start a private one)."""
+        if self._port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        name, instant = self._parse(str(self._port))
+        emulator = self._find(name) if name else self._private(instant)
+        try:
+            emulator.connect(self)
+        except BaseException as exc:
+            if self._owns_emulator:
+                emulator.stop()
+            if isinstance(exc, ConnectionError):
+                raise SerialException(str(exc)) from exc
+            raise
+        with self._cond:
+            self._rx.clear()
+            self._hung_up = False
+        self._emulator = emulator
+        self.is_open = True
+
+    def _parse(self, url: str) -> tuple[str, bool]:
+        parts = urllib.parse.urlsplit(url)
+        if parts.scheme.lower() != SCHEME:
+            raise SerialException(f"expected a {SCHEME}://NAME URL, got {url!r}")
+        name = (parts.netloc + parts.path).strip("/")
+        instant = False
+        for key, values in urllib.parse.parse_qs(parts.query, keep_blank_values=True).items():
+            if key != "instant" or values[-1] not in ("0", "1", ""):
+                raise SerialException(
+                    f"{url!r}: unknown option {key}={values[-1]!r}; the only option is "
+                    "instant=0|1 (for a private emulator)"
+                )
+            instant = values[-1] != "0"
+        if name and instant:
+            raise SerialException(f"{url!r}: options apply to a private emulator (no NAME) only")
+        return name, instant
+
+    def _find(self, name: str) -> Any:
+        from forcelearn.emulators.robot_controller.server import REGISTRY_KIND
+
+        emulator = registry.lookup(REGISTRY_KIND, name)
+        if emulator is None:
+            running = registry.names(REGISTRY_KIND) or ["none"]
+            raise SerialException(
+                f"no in-process robot controller emulator named {name!r} (running: "
+                f"{', '.join(running)}); start RobotControllerEmulator('inproc') in this "
+                f"process and open its url, or open {SCHEME}:// for a private one"
+            )
+        return emulator
+
+    def _private(self, instant: bool) -> Any:
+        from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+        from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
+
+        char_time = serial_char_time_s(self._baudrate, self._bytesize, self._parity,
+                                       self._stopbits)
+        emulator = RobotControllerEmulator(
+            "inproc", config=ArmConfig(instant=instant), char_time_s=char_time
+        )
+        emulator.start()
+        self._owns_emulator = True
+        return emulator
+
+    def close(self) -> None:
+        """Detach from the emulator (a private one stops); safe to call twice."""
+        if self._emulator is not None:
+            self._emulator.disconnect(self)
+            if self._owns_emulator:
+                self._emulator.stop()
+        self._emulator = None
+        self._owns_emulator = False
+        self.is_open = False
+
+    def _reconfigure_port(self) -> None:
+        """Settings take no effect on the wire (the emulator's line time is fixed at open)."""
+
+    @property
+    def in_waiting(self) -> int:
+        """Bytes received and not read yet."""
+        with self._cond:
+            return len(self._rx)
+
+    def read(self, size: int = 1) -> bytes:
+        """Up to ``size`` bytes: at once when the answer is in, else within ``timeout``."""
+        if not self.is_open:
+            raise PortNotOpenError()
+        timeout = Timeout(self._timeout)
+        with self._cond:
+            while len(self._rx) < size and not self._hung_up and not timeout.expired():
+                self._cond.wait(timeout.time_left())
+            if self._hung_up and not self._rx:
+                raise SerialException(
+                    "device reports readiness to read but returned no data (the emulated "
+                    "controller hung up): reopen the port"
+                )
+            data = bytes(self._rx[:size])
+            del self._rx[:size]
+        return data
+
+    def write(self, data: bytes | bytearray | memoryview) -> int:  # type: ignore[override]
+        """Hand ``data`` to the emulator, which answers before this returns."""
+        if not self.is_open:
+            raise PortNotOpenError()
+        if self._hung_up:
+            raise SerialException("write failed: the emulated controller hung up; reopen the port")
+        payload = bytes(data)
+        try:
+            self._emulator.receive(self, payload)
+        except ConnectionError as exc:
+            raise SerialException(f"write failed: {exc}") from exc
+        return len(payload)
+
+    def flush(self) -> None:
+        """Nothing is buffered on the way out."""
+
+    def reset_input_buffer(self) -> None:
+        """Discard received bytes."""
+        with self._cond:
+            self._rx.clear()
+
+    def reset_output_buffer(self) -> None:
+        """Nothing is buffered on the way out."""
+
+    # ---- the emulator's side --------------------------------------------------------
+    def deliver(self, data: bytes) -> None:
+        """Bytes from the controller (called by its endpoint)."""
+        with self._cond:
+            self._rx += data
+            self._cond.notify_all()
+
+    def hang_up(self) -> None:
+        """The controller dropped the connection."""
+        with self._cond:
+            self._hung_up = True
+            self._cond.notify_all()
+
+
+Serial = EmulatedRobotSerial
+"""The name pyserial's URL handler lookup expects."""
+
+
+def register_url_handler() -> None:
+    """Make ``serial.serial_for_url`` find ``forcelearn-robot://`` (idempotent)."""
+    package = "forcelearn.emulators.urlhandler"
+    if package not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append(package)

@@ -1,0 +1,1 @@
+"""pyserial URL handlers of the emulators (``serial.protocol_handler_packages`` entry)."""

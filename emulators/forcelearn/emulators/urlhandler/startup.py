@@ -1,0 +1,12 @@
+"""Run by the wheel's ``forcelearn-serial-url.pth`` at interpreter start: register ``forcelearn-robot://``.
+
+A ``.pth`` hook must never stop the interpreter, so any failure is swallowed
+(the scheme then works once an in-process emulator starts).
+"""
+
+try:
+    from forcelearn.emulators.robot_controller.serial_port import register_url_handler
+
+    register_url_handler()
+except Exception:  # see the module docstring
+    pass
