@@ -11,7 +11,7 @@ from forcelearn.drivers.computer_link import ComputerLinkRobot, LinkConfig
 from forcelearn.emulators.robot_controller import RobotControllerEmulator
 from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 
-TRANSPORTS = ("pty", "tcp")
+TRANSPORTS = ("pty", "tcp", "inproc")
 
 # Short timeouts keep fault tests quick; far above loopback round trips (< 1 ms).
 FAST = {"ack_timeout_s": 0.05, "reply_timeout_s": 0.05}
@@ -19,7 +19,7 @@ FAST = {"ack_timeout_s": 0.05, "reply_timeout_s": 0.05}
 
 @pytest.fixture(params=TRANSPORTS)
 def transport(request: pytest.FixtureRequest) -> str:
-    """Each driver test runs once over a real pty and once over socket://127.0.0.1."""
+    """Each driver test runs over a real pty, socket://127.0.0.1 and forcelearn-robot://."""
     return request.param
 
 

@@ -1,4 +1,8 @@
-"""Fixtures: an emulated JR3 node and a driver on a private virtual CAN channel per test."""
+"""Fixtures: an emulated JR3 node and a driver on a private CAN channel per test.
+
+Each test runs on both routes: python-can's ``virtual`` bus with the node's
+thread behind it, and the in-process ``forcelearn-jr3`` interface.
+"""
 
 from __future__ import annotations
 
@@ -24,6 +28,12 @@ def channel(request: pytest.FixtureRequest) -> str:
     return f"jr3-{os.getpid()}-{next(_numbers)}-{request.node.name}"
 
 
+@pytest.fixture(params=("virtual", "forcelearn-jr3"))
+def route(request: pytest.FixtureRequest) -> str:
+    """The python-can interface the host opens."""
+    return request.param
+
+
 @pytest.fixture
 def physics() -> CellPhysics:
     """Free-space cell with a point tool (override in tests that need contact)."""
@@ -31,12 +41,16 @@ def physics() -> CellPhysics:
 
 
 @pytest.fixture
-def make_node(channel: str, physics: CellPhysics) -> Iterator[Callable[..., Jr3EmulatorNode]]:
+def make_node(
+    channel: str, physics: CellPhysics, route: str
+) -> Iterator[Callable[..., Jr3EmulatorNode]]:
     """Factory of emulator nodes on the test's channel; all closed (threads joined) at teardown."""
     nodes: list[Jr3EmulatorNode] = []
 
     def make(**kwargs: Any) -> Jr3EmulatorNode:
         kwargs.setdefault("physics", physics)
+        if route == "forcelearn-jr3" and "bus" not in kwargs:
+            kwargs["in_process"] = True
         node = Jr3EmulatorNode(kwargs.pop("physics"), channel=channel, **kwargs)
         nodes.append(node)
         return node
@@ -47,9 +61,9 @@ def make_node(channel: str, physics: CellPhysics) -> Iterator[Callable[..., Jr3E
 
 
 @pytest.fixture
-def bus(channel: str) -> Iterator[can.BusABC]:
-    """The host's end of the test's virtual channel."""
-    with can.Bus(interface="virtual", channel=channel) as host_bus:
+def bus(channel: str, route: str) -> Iterator[can.BusABC]:
+    """The host's end of the test's channel."""
+    with can.Bus(interface=route, channel=channel) as host_bus:
         yield host_bus
 
 

@@ -38,6 +38,7 @@ def _ids(channel: str, action: Callable[[], None]) -> list[int]:
     return ids
 
 
+@pytest.mark.parametrize("route", ["virtual"])  # spies or breaks the virtual bus itself
 def test_initialisation_follows_the_careful_host_sequence(
     make_node: NodeFactory, make_sensor: SensorFactory, channel: str
 ) -> None:
@@ -194,6 +195,7 @@ def test_saturation_is_flagged_near_full_scale(
     assert sensor.read_many(10, 10)[-1].wrench[2] == pytest.approx(-32768 * 400.0 / 16384)
 
 
+@pytest.mark.parametrize("route", ["virtual"])  # spies or breaks the virtual bus itself
 def test_no_adapter_raises_sensor_timeout(make_sensor: SensorFactory) -> None:
     """Without an adapter on the bus, initialisation fails with SensorTimeout, a TimeoutError."""
     sensor = make_sensor(ack_timeout_s=0.05)

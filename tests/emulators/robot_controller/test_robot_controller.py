@@ -126,10 +126,15 @@ def test_fault_limits_and_seeded_probability_are_deterministic() -> None:
 
 
 def test_emulator_imports_only_the_codec_of_the_driver_package() -> None:
-    """The emulator knows bytes and frames, not the driver (nor pyserial)."""
+    """The emulator knows bytes and frames, not the driver (nor pyserial).
+
+    Only what the import adds counts: the installed ``.pth`` hook has imported
+    pyserial at start-up, for the ``forcelearn-robot://`` URL handler.
+    """
     code = (
-        "import sys, forcelearn.emulators.robot_controller as e;"
-        "bad = [n for n in sys.modules if n.endswith(('computer_link.driver', "
+        "import sys; before = set(sys.modules);"
+        "import forcelearn.emulators.robot_controller as e;"
+        "bad = [n for n in set(sys.modules) - before if n.endswith(('computer_link.driver', "
         "'computer_link.link')) or n == 'serial'];"
         "print(bad); sys.exit(1 if bad else 0)"
     )

@@ -3,11 +3,12 @@
 python-can finds this class through the ``can.interface`` entry point
 ``forcelearn-jr3`` (pyproject.toml). The bus joins the in-process
 :class:`~forcelearn.emulators.jr3.node.Jr3EmulatorNode` registered under
-``channel`` (what the emulated cell starts: it shares the cell's physics), or,
-when no node has that name, starts one of its own on a cell of its own (the
-tool in free space at the default home pose, a default sensor model; options
-below), which later buses on the same channel join, as python-can's
-``virtual`` channels are joined by name, and which stops with the last of them.
+``channel`` (what the emulated cell starts: it shares the cell's physics). When
+no node has that name at the bus's first send or receive, the bus starts one on
+a cell of its own (the tool in free space at the default home pose, a default
+sensor model; options below); later buses on the channel join it, as python-can's
+``virtual`` channels are joined by name, and it stops with the last of them. So
+the bus may open before the node, as on a real bus.
 
 Frames cost no thread hand-over: :meth:`Jr3EmulatorBus.send` hands the frame
 to the node, which answers before ``send`` returns; ``recv`` then returns the
@@ -74,13 +75,29 @@ class Jr3EmulatorBus(can.BusABC):
         self._cond = threading.Condition()
         self._closed = False
         model = {k: kwargs.pop(k) for k in list(kwargs) if k in _MODEL_OPTIONS}
-        with _new_node_lock:
-            node = registry.lookup(REGISTRY_KIND, self.channel)
-            if node is None:
-                node = _private_node(self.channel, node_id, seed, bitrate, model)
-            self.node: Jr3EmulatorNode = node
-            node.attach_host(self._deliver)
+        try:
+            params = SensorModelParams(**{
+                k: tuple(v) if isinstance(v, list) else v for k, v in model.items()
+            })
+        except (TypeError, ValueError) as exc:
+            raise can.CanInitializationError(f"{INTERFACE} on {self.channel!r}: {exc}") from exc
+        if not 1 <= node_id <= 127:
+            raise can.CanInitializationError(f"{INTERFACE}: node_id={node_id} is not 1..127")
+        self._private = (node_id, seed, 1_000_000 if bitrate is None else bitrate, params)
+        self._node: Jr3EmulatorNode | None = None
         super().__init__(channel=self.channel, **kwargs)
+
+    @property
+    def node(self) -> Jr3EmulatorNode:
+        """The node on this bus, joined at first use (so the bus may open before the node)."""
+        if self._node is None:
+            with _new_node_lock:
+                node = registry.lookup(REGISTRY_KIND, self.channel)
+                if node is None:
+                    node = _private_node(self.channel, *self._private)
+                node.attach_host(self._deliver)
+                self._node = node
+        return self._node
 
     def _deliver(self, msg: can.Message) -> None:
         with self._cond:
@@ -118,7 +135,8 @@ class Jr3EmulatorBus(can.BusABC):
                 self._cond.wait(min(waits) if waits else None)
 
     def _check_node(self) -> None:
-        if self.node.in_process and registry.lookup(REGISTRY_KIND, self.channel) is not self.node:
+        node = self.node
+        if registry.lookup(REGISTRY_KIND, self.channel) is not node:
             raise can.CanOperationError(
                 f"the JR3 emulator on {self.channel!r} has stopped: open the bus again"
             )
@@ -130,10 +148,12 @@ class Jr3EmulatorBus(can.BusABC):
         with self._cond:
             self._closed = True
             self._cond.notify_all()
-        self.node.detach_host(self._deliver)
-        with _new_node_lock:
-            if self.node.hosts == 0 and self.node in _started_by_a_bus:
-                self.node.close()
+        node, self._node = self._node, None
+        if node is not None:
+            node.detach_host(self._deliver)
+            with _new_node_lock:
+                if node.hosts == 0 and node in _started_by_a_bus:
+                    node.close()
         super().shutdown()
 
     @staticmethod
@@ -142,21 +162,15 @@ class Jr3EmulatorBus(can.BusABC):
 
 
 def _private_node(
-    channel: str, node_id: int, seed: int | None, bitrate: float | None, model: dict[str, Any]
+    channel: str, node_id: int, seed: int | None, bitrate: float, params: SensorModelParams
 ) -> Jr3EmulatorNode:
     """A node on a cell of its own (free space, home pose), started for a bus."""
     from forcelearn.emulators.physics.cell import CellPhysics
     from forcelearn.emulators.robot_controller.kinematics import HOME
 
-    try:
-        params = SensorModelParams(**{
-            k: tuple(v) if isinstance(v, list) else v for k, v in model.items()
-        })
-        node = Jr3EmulatorNode(
-            CellPhysics(pose=HOME), channel=channel, node_id=node_id, model=params, seed=seed,
-            bitrate=1_000_000 if bitrate is None else bitrate, in_process=True,
-        )
-    except (TypeError, ValueError) as exc:
-        raise can.CanInitializationError(f"{INTERFACE} on {channel!r}: {exc}") from exc
+    node = Jr3EmulatorNode(
+        CellPhysics(pose=HOME), channel=channel, node_id=node_id, model=params, seed=seed,
+        bitrate=bitrate, in_process=True,
+    )
     _started_by_a_bus.add(node)
     return node
