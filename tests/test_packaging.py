@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-import forcelearn.cli
+import forcelearn.tools.cli
 
 ROOT = Path(__file__).resolve().parents[1]
 CODE_FOLDERS = ("src", "drivers", "emulators", "tools")
@@ -57,15 +57,15 @@ def test_wheel_declares_the_console_script(wheel: Path) -> None:
     with zipfile.ZipFile(wheel) as zf:
         (entry,) = [n for n in zf.namelist() if n.endswith("entry_points.txt")]
         text = zf.read(entry).decode()
-    assert "forcelearn = forcelearn.cli:main" in text
+    assert "forcelearn = forcelearn.tools.cli:main" in text
 
 
 def test_version_flag_prints_the_installed_version(capsys: pytest.CaptureFixture[str]) -> None:
     """`forcelearn --version` prints the distribution version and exits 0."""
     with pytest.raises(SystemExit) as stop:
-        forcelearn.cli.main(["--version"])
+        forcelearn.tools.cli.main(["--version"])
     assert stop.value.code == 0
-    assert capsys.readouterr().out.strip() == f"forcelearn {forcelearn.cli.version()}"
+    assert capsys.readouterr().out.strip() == f"forcelearn {forcelearn.tools.cli.version()}"
 
 
 def test_console_script_runs_in_a_subprocess() -> None:
@@ -74,7 +74,7 @@ def test_console_script_runs_in_a_subprocess() -> None:
         [
             sys.executable,
             "-c",
-            "import sys, forcelearn.cli; sys.exit(forcelearn.cli.main(['--help']))",
+            "import sys, forcelearn.tools.cli; sys.exit(forcelearn.tools.cli.main(['--help']))",
         ],
         capture_output=True,
         text=True,
@@ -87,9 +87,10 @@ def test_console_script_runs_in_a_subprocess() -> None:
 def test_only_the_chosen_subcommand_module_is_imported() -> None:
     """`--version` imports no command module; `sim ...` imports sim but not run's."""
     probe = (
-        "import sys, forcelearn.cli as c\n"
+        "import sys, forcelearn.tools.cli as c\n"
         "try:\n    c.main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
-        "print(sorted(m for m in sys.modules if m.startswith('forcelearn.tools.')))"
+        "print(sorted(m for m in sys.modules if m.startswith('forcelearn.tools.')\n"
+        "             and m != 'forcelearn.tools.cli'))"
     )
     version = subprocess.run(
         [sys.executable, "-c", probe, "--version"], capture_output=True, text=True, check=True

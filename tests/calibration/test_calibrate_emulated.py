@@ -16,7 +16,6 @@ import numpy as np
 import pytest
 
 from forcelearn.calibration import load_calibration
-from forcelearn.cli import main
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import CalibrationError, RobotFault, SafetyStop, SensorStale
@@ -24,6 +23,7 @@ from forcelearn.tools.calibrate import calibrate
 from forcelearn.tools.calibration_plan import CalibrationPlan, NamedPose, slerp_steps, tilted
 from forcelearn.tools.cell_config import load_cell_config
 from forcelearn.tools.cell_session import CellSession
+from forcelearn.tools.cli import main
 
 SEEDS = range(*(int(v) for v in os.environ.get("FORCELEARN_CALIBRATION_SEEDS", "0:5").split(":")))
 """Seeds of the accuracy test; FORCELEARN_CALIBRATION_SEEDS=5:25 measures 20 more."""

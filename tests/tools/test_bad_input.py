@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from forcelearn.cli import main
 from forcelearn.tools import cell_session, surface_run
+from forcelearn.tools.cli import main
 
 CASES = [
     ("[task]\ndesired_force_n = 80.0\n", "task.desired_force_n"),

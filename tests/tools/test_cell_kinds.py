@@ -7,7 +7,6 @@ from pathlib import Path
 
 import pytest
 
-from forcelearn.cli import main
 from forcelearn.drivers.computer_link.config import LinkConfig
 from forcelearn.drivers.egm import EgmConfig
 from forcelearn.drivers.jr3_can.config import Jr3Config
@@ -15,6 +14,7 @@ from forcelearn.drivers.netft import NetFtConfig
 from forcelearn.errors import ConfigError
 from forcelearn.tools.cell_config import EMULATED_STALE_SENSOR_S, load_cell_config
 from forcelearn.tools.cell_session import CellSession
+from forcelearn.tools.cli import main
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 TIMING_KEYS = {"wall_s", "steps_per_s", "realtime_factor"}

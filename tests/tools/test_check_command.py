@@ -10,13 +10,13 @@ from types import SimpleNamespace
 
 import pytest
 
-from forcelearn.cli import main
-from forcelearn.drivers.computer_link.messages import Status
 from forcelearn.drivers.jr3_can.listener import Jr3Stats
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.errors import SafetyStop
+from forcelearn.protocols.computer_link.messages import Status
 from forcelearn.tools.cell_config import EmulatorConfig, load_cell_config
 from forcelearn.tools.check_command import check_session
+from forcelearn.tools.cli import main
 from forcelearn.tools.emulated_cell import EmulatedCell
 
 

@@ -26,7 +26,7 @@ class Emulator:
 
     def __init__(self, *args: str) -> None:
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "forcelearn.cli", "emulate", *args],
+            [sys.executable, "-m", "forcelearn.tools.cli", "emulate", *args],
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
@@ -107,7 +107,7 @@ def test_check_in_another_process_reaches_the_emulated_cell_through_slcan(
 
     env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}  # real slcan open
     checked = subprocess.run(
-        [sys.executable, "-m", "forcelearn.cli", "check", "--config", str(site),
+        [sys.executable, "-m", "forcelearn.tools.cli", "check", "--config", str(site),
          "--seconds", "0.5"],
         capture_output=True, text=True, timeout=60, env=env,
     )
@@ -155,7 +155,7 @@ def test_emulate_prints_its_pid_and_stable_links_that_survive_a_restart(
     assert Path(config.robot.url).exists() and Path(config.bus.channel).exists()
     env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
     checked = subprocess.run(
-        [sys.executable, "-m", "forcelearn.cli", "check", "--config", str(site),
+        [sys.executable, "-m", "forcelearn.tools.cli", "check", "--config", str(site),
          "--seconds", "0.2"],
         capture_output=True, text=True, timeout=60, env=env,
     )
@@ -183,7 +183,7 @@ def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
     site.write_text(text + "\n[safety]\nstale_sensor_s = 10.0\n\n" + configured_map_toml)
 
     def cli(*args: str) -> None:
-        done = subprocess.run([sys.executable, "-m", "forcelearn.cli", *args],
+        done = subprocess.run([sys.executable, "-m", "forcelearn.tools.cli", *args],
                               capture_output=True, text=True, timeout=120, env=env)
         assert done.returncode == 0, done.stdout + done.stderr
 
@@ -217,7 +217,8 @@ def test_a_run_through_emulate_in_another_process_equals_the_in_process_run(
 
     def run(*args: str, out: Path) -> str:
         done = subprocess.run(
-            [sys.executable, "-m", "forcelearn.cli", "run", *args, "--trials", "1", "--seed", "3",
+            [sys.executable, "-m", "forcelearn.tools.cli", "run", *args, "--trials", "1",
+             "--seed", "3",
              "--no-progress", "--out", str(out)],
             capture_output=True, text=True, timeout=300, env=env,
         )

@@ -27,7 +27,7 @@ class Emulator:
 
     def __init__(self, *args: str) -> None:
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "forcelearn.cli", "emulate", *args],
+            [sys.executable, "-m", "forcelearn.tools.cli", "emulate", *args],
             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
         )
         self.lines: queue.Queue[str] = queue.Queue()
@@ -59,7 +59,7 @@ class Emulator:
 def cli(*args: str) -> subprocess.CompletedProcess[str]:
     """Run a forcelearn command in a child process."""
     return subprocess.run(
-        [sys.executable, "-m", "forcelearn.cli", *args],
+        [sys.executable, "-m", "forcelearn.tools.cli", *args],
         capture_output=True, text=True, timeout=CLIENT_S, check=False,
     )
 

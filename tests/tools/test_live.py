@@ -22,7 +22,7 @@ from forcelearn.tools.live.server import LiveServer, bind_warning
 from forcelearn.trainer import TrialRecord, converged_trial
 
 META = LiveMeta(task="surface", desired_force_n=19.6133, steps_per_trial=3, trials_target=50)
-CLI = "import sys; from forcelearn.cli import main; sys.exit(main(sys.argv[1:]))"
+CLI = "import sys; from forcelearn.tools.cli import main; sys.exit(main(sys.argv[1:]))"
 
 
 def record(index: int, rms: float, failed: bool = False, steps: int = 3) -> TrialRecord:

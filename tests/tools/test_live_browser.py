@@ -18,7 +18,7 @@ CLI = (
     # Ctrl-C must reach the child even when this suite was started as a background job,
     # whose children inherit SIGINT ignored
     "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-    "from forcelearn.cli import main; sys.exit(main(sys.argv[1:]))"
+    "from forcelearn.tools.cli import main; sys.exit(main(sys.argv[1:]))"
 )
 SCREENSHOTS = os.environ.get("FORCELEARN_LIVE_SCREENSHOTS")
 """A folder to keep the screenshots in (docs/results when refreshing the docs)."""

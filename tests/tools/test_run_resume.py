@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcelearn.cli import main
 from forcelearn.errors import StateFileError
 from forcelearn.learning import load_learner
+from forcelearn.tools.cli import main
 
 TRIALS = 10
 """Trials of the uninterrupted run; the SIGKILL test stops at half of them."""
@@ -23,7 +23,7 @@ TIMING_KEYS = {"wall_s", "steps_per_s", "realtime_factor"}
 
 def run_cli(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
     """Run the forcelearn CLI in a child process."""
-    code = "import sys; from forcelearn.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; from forcelearn.tools.cli import main; sys.exit(main(sys.argv[1:]))"
     return subprocess.run(
         [sys.executable, "-c", code, *args],
         capture_output=True,
@@ -93,7 +93,7 @@ def execute(run, checkpoint, on_trial=None, **hooks):
             sys.stdin.readline()  # wait here for the parent's signal
     return original(run, checkpoint, on_trial=hook, **hooks)
 rc.execute = execute
-from forcelearn.cli import main
+from forcelearn.tools.cli import main
 sys.exit(main(sys.argv[2:]))
 """
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from forcelearn.cli import main
+from forcelearn.tools.cli import main
 
 
 def test_sim_contour_writes_the_run_directory(

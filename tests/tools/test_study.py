@@ -7,8 +7,8 @@ from typing import Any
 
 import pytest
 
-from forcelearn.cli import main
 from forcelearn.errors import ConfigError
+from forcelearn.tools.cli import main
 from forcelearn.tools.contour_experiment import ContourConfig
 from forcelearn.tools.study_grid import apply_overrides, grid_points, parse_sets
 from forcelearn.tools.study_runner import run_study

@@ -9,11 +9,11 @@ import serial
 
 from forcelearn.devices import Pose, Robot
 from forcelearn.drivers.computer_link import Limits
-from forcelearn.drivers.computer_link import messages as m
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.robot_controller import ArmConfig, controller
 from forcelearn.emulators.robot_controller.kinematics import HOME, TOOL_DOWN
 from forcelearn.errors import LinkError, ProtocolError, RobotFault
+from forcelearn.protocols.computer_link import messages as m
 
 
 def test_open_identifies_and_reads_the_home_pose(emulator, connect) -> None:

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from forcelearn.drivers.computer_link import framing
-from forcelearn.drivers.computer_link.framing import (
+from forcelearn.protocols.computer_link import framing
+from forcelearn.protocols.computer_link.framing import (
     BadFrame,
     Control,
     DataFrame,

@@ -110,7 +110,7 @@ def test_a_non_finite_reported_position_cannot_bypass_the_step_limit(
     The step check now refuses anything not provably within the limit. (The
     reference is the controller's commanded target, read with READ_TARGET.)
     """
-    from forcelearn.drivers.computer_link import messages
+    from forcelearn.protocols.computer_link import messages
 
     real = messages.parse_pose
 

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import pytest
 
-from forcelearn.drivers.computer_link import LinkConfig, framing
-from forcelearn.drivers.computer_link import messages as m
+from forcelearn.drivers.computer_link import LinkConfig
 from forcelearn.drivers.computer_link.link import Link
 from forcelearn.errors import LinkError, LinkTimeout
+from forcelearn.protocols.computer_link import framing
+from forcelearn.protocols.computer_link import messages as m
 
 ACK, NAK = framing.Control.ACK, framing.Control.NAK
 UNDECODABLE = framing.encode(b"\x03\x00")  # passes the CRC, shorter than a reply header

@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from forcelearn.drivers.computer_link import messages as m
 from forcelearn.errors import ProtocolError
+from forcelearn.protocols.computer_link import messages as m
 
 
 def test_move_to_request_has_the_documented_layout() -> None:

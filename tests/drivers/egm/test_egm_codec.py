@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import codec
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.errors import ConfigError, EgmVersionMismatch, ProtocolError
+from forcelearn.protocols.egm import codec
 
 DOWN = (0.0, 1.0, 0.0, 0.0)
 ROBOT = codec.RobotMessage(

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from forcelearn.devices import Pose, Robot
-from forcelearn.drivers.egm import EgmRobotDriver, codec
+from forcelearn.drivers.egm import EgmRobotDriver
 from forcelearn.emulators.egm import EgmControllerEmulator, EgmFaultConfig, Fault
 from forcelearn.errors import (
     EgmVersionMismatch,
@@ -17,6 +17,7 @@ from forcelearn.errors import (
     LinkTimeout,
     SafetyStop,
 )
+from forcelearn.protocols.egm import codec
 
 HOME = Pose(900.0, 0.0, 600.0, (0.0, 1.0, 0.0, 0.0))
 """The conftest's start pose."""

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import codec
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.guidance import Guidance
 from forcelearn.errors import GuidanceStopped, ProtocolError
+from forcelearn.protocols.egm import codec
 
 DOWN = (0.0, 1.0, 0.0, 0.0)
 HOME = Pose(900.0, 0.0, 600.0, DOWN)

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from forcelearn.drivers.jr3_can import codec
-from forcelearn.drivers.jr3_can.codec import (
+from forcelearn.protocols.jr3_can import codec
+from forcelearn.protocols.jr3_can.codec import (
     Ack,
     Bootup,
     Decoded,
@@ -30,7 +30,7 @@ from forcelearn.drivers.jr3_can.codec import (
     decode,
     encode,
 )
-from forcelearn.drivers.jr3_can.opcodes import JR3_MBED_2023_12, OpcodeMap
+from forcelearn.protocols.jr3_can.opcodes import JR3_MBED_2023_12, OpcodeMap
 
 ONE_OF_EACH = [
     Sync(),

@@ -12,11 +12,11 @@ import pytest
 from can.interfaces.virtual import VirtualBus
 
 from forcelearn.devices import WrenchSample
-from forcelearn.drivers.jr3_can.codec import Frame
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3 import FaultConfig, Jr3EmulatorNode
 from forcelearn.errors import SensorBusError, SensorStale
+from forcelearn.protocols.jr3_can.codec import Frame
 
 NodeFactory = Callable[..., Jr3EmulatorNode]
 SensorFactory = Callable[..., Jr3CanSensor]

@@ -5,8 +5,8 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from forcelearn.drivers.jr3_can.codec import Forces, Moments
 from forcelearn.drivers.jr3_can.pairing import Pairer, counter_gap
+from forcelearn.protocols.jr3_can.codec import Forces, Moments
 
 
 def _f(counter: int) -> Forces:

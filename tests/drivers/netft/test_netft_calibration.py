@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from forcelearn.drivers.netft.calibration import from_calinfo, parse_netftapi2
-from forcelearn.drivers.netft.protocol import CalInfo
 from forcelearn.errors import SensorError, SensorProtocolError
+from forcelearn.protocols.netft import CalInfo
 
 
 def xml(**fields: str) -> bytes:

@@ -5,8 +5,8 @@ from __future__ import annotations
 from hypothesis import given
 from hypothesis import strategies as st
 
-from forcelearn.drivers.netft import protocol
-from forcelearn.drivers.netft.protocol import CalInfo, Command, Record, Rejected, Request
+from forcelearn.protocols import netft as protocol
+from forcelearn.protocols.netft import CalInfo, Command, Record, Rejected, Request
 
 
 def test_requests_golden_bytes() -> None:

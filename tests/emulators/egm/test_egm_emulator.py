@@ -11,7 +11,7 @@ from collections.abc import Iterator
 import pytest
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver, codec
+from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
@@ -22,6 +22,7 @@ from forcelearn.emulators.egm import (
     ServoParams,
 )
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.protocols.egm import codec
 
 HOME = Pose(900.0, 0.0, 600.0, (0.0, 1.0, 0.0, 0.0))
 

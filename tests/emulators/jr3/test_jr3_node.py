@@ -10,10 +10,10 @@ import can
 import numpy as np
 import pytest
 
-from forcelearn.drivers.jr3_can import codec
-from forcelearn.drivers.jr3_can.codec import Ack, Decoded, Rejected
 from forcelearn.emulators.jr3 import FaultConfig, Jr3EmulatorNode
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.protocols.jr3_can import codec
+from forcelearn.protocols.jr3_can.codec import Ack, Decoded, Rejected
 
 _numbers = itertools.count()
 NODE = 3

@@ -10,11 +10,11 @@ from netft_support import QUIET, config_for, contact_physics, start
 
 from forcelearn.devices import BatchForceSensor, ForceSensor, Pose
 from forcelearn.drivers.netft import NetFtSensor, open_netft_sensor
-from forcelearn.drivers.netft.protocol import CalInfo, Record, decode_request
 from forcelearn.drivers.netft.traffic_log import read_traffic_log
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.netft import NetFtEmulator, NetFtModelParams
 from forcelearn.errors import ConfigError, SensorProtocolError
+from forcelearn.protocols.netft import CalInfo, Record, decode_request
 
 
 @pytest.mark.parametrize("source", ["tcp", "http"])

@@ -8,9 +8,9 @@ import pytest
 from netft_support import config_for, start
 
 from forcelearn.drivers.netft import NetFtSensor
-from forcelearn.drivers.netft.protocol import Record
 from forcelearn.emulators.netft import NetFtEmulator, NetFtFaults
 from forcelearn.errors import SensorBusError, SensorFault, SensorStale
+from forcelearn.protocols.netft import Record
 
 
 def rewrite(order: list[int]):

@@ -53,7 +53,7 @@ def test_driver_reads_a_box_in_another_process(box: dict, source: str) -> None:
 
 def test_bench_netft_runs(capsys: pytest.CaptureFixture[str]) -> None:
     """``forcelearn bench netft`` runs a tiny configuration and prints both figures."""
-    from forcelearn.cli import main
+    from forcelearn.tools.cli import main
 
     assert main(["bench", "netft", "--records", "300", "--seconds", "0.05",
                  "--repeats", "1"]) == 0

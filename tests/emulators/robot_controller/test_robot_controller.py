@@ -7,12 +7,12 @@ import sys
 
 import pytest
 
-from forcelearn.drivers.computer_link import framing
-from forcelearn.drivers.computer_link import messages as m
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.robot_controller.controller import ControllerEngine
 from forcelearn.emulators.robot_controller.faults import Fault, FaultConfig, FaultInjector
 from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig
+from forcelearn.protocols.computer_link import framing
+from forcelearn.protocols.computer_link import messages as m
 
 ACK, NAK, ENQ = framing.Control.ACK, framing.Control.NAK, framing.Control.ENQ
 

@@ -9,11 +9,11 @@ import sys
 import pytest
 import serial
 
-from forcelearn.drivers.computer_link import framing
-from forcelearn.drivers.computer_link import messages as m
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.robot_controller import ArmConfig, RobotControllerEmulator
 from forcelearn.emulators.robot_controller.kinematics import HOME
+from forcelearn.protocols.computer_link import framing
+from forcelearn.protocols.computer_link import messages as m
 
 
 def _status_exchange(port: serial.SerialBase, tns: int) -> bytes:

@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from forcelearn.emulators.slcan import lawicel
-from forcelearn.emulators.slcan.lawicel import (
+from forcelearn.protocols import lawicel
+from forcelearn.protocols.lawicel import (
     MAX_LINE,
     CanFrame,
     Invalid,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from forcelearn.emulators.slcan import lawicel
 from forcelearn.emulators.slcan.adapter import (
     FLAG_BUS_ERROR,
     FLAG_DATA_OVERRUN,
@@ -10,7 +9,8 @@ from forcelearn.emulators.slcan.adapter import (
     Outcome,
     SlcanAdapterModel,
 )
-from forcelearn.emulators.slcan.lawicel import BEL, CR, CanFrame, parse_line
+from forcelearn.protocols import lawicel
+from forcelearn.protocols.lawicel import BEL, CR, CanFrame, parse_line
 
 FRAME = CanFrame(0x601, b"\x01\x02")
 

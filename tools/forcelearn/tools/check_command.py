@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from forcelearn.drivers.computer_link import messages
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.errors import LinkError, SafetyStop, SensorError
+from forcelearn.protocols.computer_link import messages
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.tools.check_ethernet import (

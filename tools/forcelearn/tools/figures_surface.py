@@ -3,13 +3,26 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from matplotlib.figure import Figure
 
-if TYPE_CHECKING:
-    from forcelearn.tools.surface_run import SurfaceRun
+from forcelearn.tools.cell_config import CellConfig
+from forcelearn.trainer import TrainingResult
+
+
+class SurfaceRun(Protocol):
+    """What the figures read of a run (:class:`forcelearn.tools.surface_run.SurfaceRun`)."""
+
+    config: CellConfig
+    result: TrainingResult
+    traces: list[dict[str, list[float]]]
+
+    @property
+    def mid_trial(self) -> int:
+        """The trial whose step log stands for 'mid-way'."""
+        ...
 
 
 def _save(fig: Figure, path: Path) -> Path:

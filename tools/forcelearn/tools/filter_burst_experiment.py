@@ -28,9 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from forcelearn.devices import WrenchSample
-from forcelearn.drivers.jr3_can.scaling import counts_to_wrench
 from forcelearn.emulators.jr3.sensor_model import SensorModel
 from forcelearn.filtering import ForceFilter, ForceFilterConfig, MoveAwareForceFilter
+from forcelearn.protocols.jr3_can.scaling import counts_to_wrench
 from forcelearn.tools.filter_experiment import quiet_drift_model
 
 SAMPLE_PERIOD_S = 0.000325

@@ -16,10 +16,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forcelearn.drivers.jr3_can.scaling import counts_to_wrench
 from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.filtering import ForceFilter, ForceFilterConfig
+from forcelearn.protocols.jr3_can.scaling import counts_to_wrench
 
 SAMPLE_PERIOD_S = 0.001
 DURATION_S = 6.0

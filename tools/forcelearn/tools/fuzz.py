@@ -96,15 +96,15 @@ def _foreign(exc: BaseException, what: str) -> FuzzFailure:
 # ---- link -----------------------------------------------------------------------------
 def link_stream(payloads: Sequence[bytes]) -> bytes:
     """The wire bytes of ``payloads`` sent one after another."""
-    from forcelearn.drivers.computer_link import framing
+    from forcelearn.protocols.computer_link import framing
 
     return b"".join(framing.encode(p) for p in payloads)
 
 
 def check_link(sent: Sequence[bytes], received: bytes, chunk: int = 7) -> str:
     """Feed ``received`` to a FrameReader; "accepted" if every sent frame came through."""
-    from forcelearn.drivers.computer_link import framing
-    from forcelearn.drivers.computer_link import messages as m
+    from forcelearn.protocols.computer_link import framing
+    from forcelearn.protocols.computer_link import messages as m
 
     reader = framing.FrameReader()
     accepted: list[bytes] = []
@@ -130,7 +130,7 @@ def check_link(sent: Sequence[bytes], received: bytes, chunk: int = 7) -> str:
 
 def random_replies(rng: random.Random) -> list[bytes]:
     """One to three reply payloads of the kinds the controller sends."""
-    from forcelearn.drivers.computer_link import messages as m
+    from forcelearn.protocols.computer_link import messages as m
 
     payloads = []
     for _ in range(rng.randint(1, 3)):
@@ -173,9 +173,9 @@ class CanFrame:
 
 def check_can(frames: Sequence[CanFrame]) -> str:
     """Codec round trip, listener never raising, samples equal to received pairs."""
-    from forcelearn.drivers.jr3_can import codec
     from forcelearn.drivers.jr3_can.listener import Jr3Listener
-    from forcelearn.drivers.jr3_can.opcodes import JR3_MBED_2023_12
+    from forcelearn.protocols.jr3_can import codec
+    from forcelearn.protocols.jr3_can.opcodes import JR3_MBED_2023_12
 
     listener = Jr3Listener(FUZZ_NODE, JR3_MBED_2023_12, 26214)
     listener.set_full_scales(FUZZ_FULL_SCALES)
@@ -224,8 +224,8 @@ def check_can(frames: Sequence[CanFrame]) -> str:
 
 def random_can_frames(rng: random.Random) -> list[CanFrame]:
     """A short burst: valid frames of the node (some mutated) and random frames."""
-    from forcelearn.drivers.jr3_can import codec
-    from forcelearn.drivers.jr3_can.opcodes import JR3_MBED_2023_12
+    from forcelearn.protocols.jr3_can import codec
+    from forcelearn.protocols.jr3_can.opcodes import JR3_MBED_2023_12
 
     frames = []
     counter = rng.randrange(0x10000)

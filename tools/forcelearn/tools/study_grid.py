@@ -162,3 +162,30 @@ def run_specs(
     for point in points:
         for seed in seeds:
             yield RunSpec(task, trials, seed, tuple(point.items()))
+
+
+CURVES = "_curves"
+"""Row key of per-trial arrays; the study saves them as runs/<run_id>.npz, not in the table."""
+SUMMARY_SKIP = {"task", "seed", "trials"}
+"""Summary keys already in the row's identity columns."""
+
+
+def result_row(spec: RunSpec, config: Any, summary: dict[str, Any]) -> dict[str, Any]:
+    """One tidy row: identity, every parameter of the resolved config, every summary figure."""
+    row: dict[str, Any] = {
+        "run_id": spec.run_id,
+        "task": spec.task,
+        "seed": spec.seed,
+        "trials": spec.trials,
+    }
+    row.update({k: format_value(v) for k, v in leaf_keys(config).items()})
+    for key, value in summary.items():
+        if key in SUMMARY_SKIP or isinstance(value, list):
+            continue  # lists (probe fits, warnings) stay in the run's own summary.json
+        if isinstance(value, dict):  # e.g. the output map: one column per scalar field
+            row.update(
+                {f"{key}.{k}": v for k, v in value.items() if not isinstance(v, dict | list)}
+            )
+        else:
+            row[key] = value
+    return row

@@ -25,12 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from forcelearn.errors import ConfigError
-from forcelearn.tools.study_grid import RunSpec, apply_overrides, format_value, leaf_keys
-
-CURVES = "_curves"
-"""Row key of per-trial arrays; the study saves them as runs/<run_id>.npz, not in the table."""
-SUMMARY_SKIP = {"task", "seed", "trials"}
-"""Summary keys already in the row's identity columns."""
+from forcelearn.tools.study_grid import CURVES, RunSpec, apply_overrides, result_row
 
 
 @dataclass(frozen=True)
@@ -45,27 +40,6 @@ class StudyTask:
     """Runs with equal keys may share a chunk (a batch)."""
     batched: bool
     """True: a chunk of many runs costs little more than one (run them together)."""
-
-
-def result_row(spec: RunSpec, config: Any, summary: dict[str, Any]) -> dict[str, Any]:
-    """One tidy row: identity, every parameter of the resolved config, every summary figure."""
-    row: dict[str, Any] = {
-        "run_id": spec.run_id,
-        "task": spec.task,
-        "seed": spec.seed,
-        "trials": spec.trials,
-    }
-    row.update({k: format_value(v) for k, v in leaf_keys(config).items()})
-    for key, value in summary.items():
-        if key in SUMMARY_SKIP or isinstance(value, list):
-            continue  # lists (probe fits, warnings) stay in the run's own summary.json
-        if isinstance(value, dict):  # e.g. the output map: one column per scalar field
-            row.update(
-                {f"{key}.{k}": v for k, v in value.items() if not isinstance(v, dict | list)}
-            )
-        else:
-            row[key] = value
-    return row
 
 
 def _contour_config(spec: RunSpec) -> Any:

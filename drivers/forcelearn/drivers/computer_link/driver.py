@@ -36,7 +36,6 @@ import numpy as np
 import serial
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.computer_link import messages as m
 from forcelearn.drivers.computer_link.config import POLL_S, LinkConfig
 from forcelearn.drivers.computer_link.link import PORT_ERRORS, Link
 from forcelearn.errors import (
@@ -46,6 +45,7 @@ from forcelearn.errors import (
     NotInPosition,
     SafetyStop,
 )
+from forcelearn.protocols.computer_link import messages as m
 
 log = logging.getLogger(__name__)
 

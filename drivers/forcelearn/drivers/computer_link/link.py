@@ -32,10 +32,10 @@ import time
 
 import serial
 
-from forcelearn.drivers.computer_link import framing
-from forcelearn.drivers.computer_link import messages as m
 from forcelearn.drivers.computer_link.config import LinkConfig
 from forcelearn.errors import LinkError, LinkTimeout, ProtocolError, RobotFault
+from forcelearn.protocols.computer_link import framing
+from forcelearn.protocols.computer_link import messages as m
 
 log = logging.getLogger(__name__)
 

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from forcelearn.drivers.computer_link.config import Limits
-from forcelearn.drivers.egm.codec import VERSIONS, Version
 from forcelearn.errors import ConfigError
+from forcelearn.protocols.egm.codec import VERSIONS, Version
 
 __all__ = ["DEFAULT_PORT", "EgmConfig", "Limits"]
 

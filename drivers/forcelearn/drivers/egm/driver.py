@@ -44,7 +44,6 @@ from typing import Any
 import numpy as np
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import codec
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.guidance import EgmStats, Guidance
 from forcelearn.errors import (
@@ -56,6 +55,7 @@ from forcelearn.errors import (
     ProtocolError,
     SafetyStop,
 )
+from forcelearn.protocols.egm import codec
 
 log = logging.getLogger(__name__)
 

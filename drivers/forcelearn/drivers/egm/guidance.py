@@ -27,9 +27,9 @@ from typing import Any
 import numpy as np
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import codec
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.errors import GuidanceStopped, ProtocolError
+from forcelearn.protocols.egm import codec
 
 TURN_DEG_S = 45.0
 """Largest rate at which the planned orientation turns toward the target (assumption)."""

@@ -1,6 +1,7 @@
 """JR3 force/torque sensor over the open JR3-to-CAN adapter protocol (python-can).
 
-Layers: :mod:`.opcodes` (versioned opcode table), :mod:`.codec` (pure frames),
-:mod:`.scaling` (counts <-> N, N*m), :mod:`.pairing` (counters), :mod:`.config`,
-:mod:`.listener` (bus frames -> samples) and :mod:`.driver` (the sensor).
+The protocol (opcode table, frame codec, count scaling) is
+:mod:`forcelearn.protocols.jr3_can`, shared with the emulator. Here:
+:mod:`.pairing` (counters), :mod:`.config`, :mod:`.listener` (bus frames ->
+samples) and :mod:`.driver` (the sensor).
 """

@@ -5,9 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from forcelearn.drivers.jr3_can.opcodes import OPCODE_MAPS, OpcodeMap
-from forcelearn.drivers.jr3_can.scaling import INT16_MAX, check_full_scales, cutoff_to_wire
 from forcelearn.errors import ConfigError
+from forcelearn.protocols.jr3_can.opcodes import OPCODE_MAPS, OpcodeMap
+from forcelearn.protocols.jr3_can.scaling import INT16_MAX, check_full_scales, cutoff_to_wire
 
 
 @dataclass(frozen=True)

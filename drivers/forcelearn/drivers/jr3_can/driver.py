@@ -34,11 +34,11 @@ import can
 import numpy as np
 
 from forcelearn.devices import WrenchSample
-from forcelearn.drivers.jr3_can import codec
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.listener import Jr3Listener, Jr3Stats, SampleCallback
-from forcelearn.drivers.jr3_can.scaling import cutoff_to_wire, full_scales_from_wire
 from forcelearn.errors import SensorBusError, SensorError, SensorStale, SensorTimeout
+from forcelearn.protocols.jr3_can import codec
+from forcelearn.protocols.jr3_can.scaling import cutoff_to_wire, full_scales_from_wire
 
 log = logging.getLogger(__name__)
 

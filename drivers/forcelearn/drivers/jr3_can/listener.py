@@ -20,10 +20,10 @@ import can
 import numpy as np
 
 from forcelearn.devices import WrenchSample
-from forcelearn.drivers.jr3_can import codec
-from forcelearn.drivers.jr3_can.opcodes import OpcodeMap
 from forcelearn.drivers.jr3_can.pairing import Pairer
-from forcelearn.drivers.jr3_can.scaling import COUNTS_PER_FULL_SCALE
+from forcelearn.protocols.jr3_can import codec
+from forcelearn.protocols.jr3_can.opcodes import OpcodeMap
+from forcelearn.protocols.jr3_can.scaling import COUNTS_PER_FULL_SCALE
 
 log = logging.getLogger(__name__)
 

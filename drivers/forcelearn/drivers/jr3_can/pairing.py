@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from forcelearn.drivers.jr3_can.codec import COUNTER_MODULUS, Forces, Moments
+from forcelearn.protocols.jr3_can.codec import COUNTER_MODULUS, Forces, Moments
 
 
 def counter_gap(previous: int, current: int) -> int:

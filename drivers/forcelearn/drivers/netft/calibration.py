@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forcelearn.drivers.netft import protocol
 from forcelearn.errors import SensorBusError, SensorError, SensorProtocolError, SensorTimeout
+from forcelearn.protocols import netft as protocol
 
 COUNTS_PER_UNIT_RANGE = (1.0, 1.0e8)
 """Plausible counts per force or torque unit. ATI ships 1,000,000 per unit (N, N-m or N-mm);

@@ -6,8 +6,8 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from forcelearn.drivers.netft import protocol
 from forcelearn.errors import ConfigError
+from forcelearn.protocols import netft as protocol
 
 SECTION = "sensor"
 """The TOML table the cell config gives this driver (``[sensor]`` with ``kind = "netft"``)."""

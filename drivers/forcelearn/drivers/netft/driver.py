@@ -43,7 +43,6 @@ from types import TracebackType
 import numpy as np
 
 from forcelearn.devices import WrenchSample
-from forcelearn.drivers.netft import protocol
 from forcelearn.drivers.netft.calibration import (
     Calibration,
     read_calibration_http,
@@ -59,6 +58,7 @@ from forcelearn.errors import (
     SensorFault,
     SensorStale,
 )
+from forcelearn.protocols import netft as protocol
 
 log = logging.getLogger(__name__)
 

@@ -36,7 +36,7 @@ import enum
 from collections import deque
 from dataclasses import dataclass
 
-from forcelearn.drivers.netft.protocol import SEQUENCE_MODULUS
+from forcelearn.protocols.netft import SEQUENCE_MODULUS
 
 HALF = SEQUENCE_MODULUS // 2
 SEEN_WINDOW = 4096

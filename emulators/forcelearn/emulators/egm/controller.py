@@ -30,10 +30,10 @@ from typing import Any
 import numpy as np
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import codec
 from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import ProtocolError
+from forcelearn.protocols.egm import codec
 
 log = logging.getLogger(__name__)
 

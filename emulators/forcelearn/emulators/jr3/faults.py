@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forcelearn.drivers.jr3_can.codec import Frame
+from forcelearn.protocols.jr3_can.codec import Frame
 
 FrameHook = Callable[[Frame], Frame | None]
 """Gets each outgoing frame; returns it (maybe changed) or None to drop it."""

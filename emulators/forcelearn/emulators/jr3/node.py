@@ -50,15 +50,15 @@ from typing import Any
 import can
 import numpy as np
 
-from forcelearn.drivers.jr3_can import codec
-from forcelearn.drivers.jr3_can.codec import Ack, Decoded, Frame
-from forcelearn.drivers.jr3_can.opcodes import DEFAULT_OPCODES, OpcodeMap
-from forcelearn.drivers.jr3_can.scaling import cutoff_from_wire, full_scales_to_wire
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import Wire, can_frame_time_s
 from forcelearn.emulators.jr3.faults import FaultConfig, FrameHook, apply_faults
 from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.protocols.jr3_can import codec
+from forcelearn.protocols.jr3_can.codec import Ack, Decoded, Frame
+from forcelearn.protocols.jr3_can.opcodes import DEFAULT_OPCODES, OpcodeMap
+from forcelearn.protocols.jr3_can.scaling import cutoff_from_wire, full_scales_to_wire
 
 log = logging.getLogger(__name__)
 

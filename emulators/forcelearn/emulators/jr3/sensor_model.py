@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from forcelearn.drivers.jr3_can.scaling import COUNTS_PER_FULL_SCALE, INT16_MAX, INT16_MIN
+from forcelearn.protocols.jr3_can.scaling import COUNTS_PER_FULL_SCALE, INT16_MAX, INT16_MIN
 
 Six = tuple[float, float, float, float, float, float]
 

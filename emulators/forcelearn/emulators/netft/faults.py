@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forcelearn.drivers.netft.protocol import Record
+from forcelearn.protocols.netft import Record
 
 RecordsHook = Callable[[list[Record]], list[Record]]
 """Gets the records of one request (after the faults); returns what is sent, in order."""

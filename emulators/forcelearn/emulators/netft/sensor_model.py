@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from forcelearn.drivers.netft.protocol import FORCE_UNIT_SI, INT32_MAX, INT32_MIN, TORQUE_UNIT_SI
+from forcelearn.protocols.netft import FORCE_UNIT_SI, INT32_MAX, INT32_MIN, TORQUE_UNIT_SI
 
 Six = tuple[float, float, float, float, float, float]
 

@@ -1,6 +1,6 @@
 """An emulated ATI Net F/T box on loopback: RDT over UDP, READCALINFO over TCP, netftapi2.xml.
 
-The emulator reuses the driver's pure codec (:mod:`forcelearn.drivers.netft.protocol`),
+The emulator reuses the driver's pure codec (:mod:`forcelearn.protocols.netft`),
 so it speaks exactly the bytes a box does, and differs from one only in what
 is behind the wire: the shared :class:`~forcelearn.emulators.physics.cell.CellPhysics`
 and a :class:`~.sensor_model.NetFtSensorModel`. Every server binds 127.0.0.1.
@@ -47,12 +47,12 @@ from typing import Any
 
 import numpy as np
 
-from forcelearn.drivers.netft import protocol
-from forcelearn.drivers.netft.protocol import Command, Record
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.netft.faults import FaultCounts, NetFtFaults, RecordsHook, apply_faults
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams, NetFtSensorModel
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.protocols import netft as protocol
+from forcelearn.protocols.netft import Command, Record
 
 log = logging.getLogger(__name__)
 

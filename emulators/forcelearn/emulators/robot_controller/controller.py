@@ -31,8 +31,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.computer_link import framing
-from forcelearn.drivers.computer_link import messages as m
 from forcelearn.emulators.clock import Wire, serial_char_time_s
 from forcelearn.emulators.physics.arm_motion import ArmMotion
 from forcelearn.emulators.physics.cell import CellPhysics
@@ -42,6 +40,8 @@ from forcelearn.emulators.robot_controller.kinematics import (
     joint_angles_deg,
 )
 from forcelearn.errors import ProtocolError
+from forcelearn.protocols.computer_link import framing
+from forcelearn.protocols.computer_link import messages as m
 
 log = logging.getLogger(__name__)
 

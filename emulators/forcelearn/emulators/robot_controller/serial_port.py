@@ -12,7 +12,7 @@ no thread hand-over; ``read`` then returns the answer, and waits out its
 timeout only when no answer is coming (a dropped reply, a stopped emulator),
 as a real port would.
 
-pyserial has no plugin registry: :func:`register_url_handler` adds the handler
+pyserial has no plugin registry: :func:`.url_scheme.register_url_handler` adds the handler
 package to ``serial.protocol_handler_packages``. An in-process controller
 emulator calls it when it starts, and the installed wheel's ``.pth`` hook
 calls it at interpreter start, so ``forcelearn-robot://`` opens in a fresh
@@ -25,13 +25,11 @@ import threading
 import urllib.parse
 from typing import Any
 
-import serial
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
 
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import serial_char_time_s
-
-SCHEME = "forcelearn-robot"
+from forcelearn.emulators.robot_controller.url_scheme import REGISTRY_KIND, SCHEME
 
 
 class EmulatedRobotSerial(SerialBase):
@@ -86,8 +84,6 @@ class EmulatedRobotSerial(SerialBase):
         return name, instant
 
     def _find(self, name: str) -> Any:
-        from forcelearn.emulators.robot_controller.server import REGISTRY_KIND
-
         emulator = registry.lookup(REGISTRY_KIND, name)
         if emulator is None:
             running = registry.names(REGISTRY_KIND) or ["none"]
@@ -183,14 +179,3 @@ class EmulatedRobotSerial(SerialBase):
         with self._cond:
             self._hung_up = True
             self._cond.notify_all()
-
-
-Serial = EmulatedRobotSerial
-"""The name pyserial's URL handler lookup expects."""
-
-
-def register_url_handler() -> None:
-    """Make ``serial.serial_for_url`` find ``forcelearn-robot://`` (idempotent)."""
-    package = "forcelearn.emulators.urlhandler"
-    if package not in serial.protocol_handler_packages:
-        serial.protocol_handler_packages.append(package)

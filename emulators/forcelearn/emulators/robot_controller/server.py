@@ -20,7 +20,6 @@ import threading
 from typing import Literal
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.computer_link import framing
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import serial_char_time_s
 from forcelearn.emulators.physics.cell import CellPhysics
@@ -32,9 +31,11 @@ from forcelearn.emulators.robot_controller.transport import (
     PtyEndpoint,
     TcpEndpoint,
 )
-
-REGISTRY_KIND = "robot"
-"""Kind under which in-process controllers register (``forcelearn-robot://NAME``)."""
+from forcelearn.emulators.robot_controller.url_scheme import (
+    REGISTRY_KIND,
+    register_url_handler,
+)
+from forcelearn.protocols.computer_link import framing
 
 log = logging.getLogger(__name__)
 
@@ -110,10 +111,6 @@ class RobotControllerEmulator:
         """Start serving (a daemon thread; "inproc": register the name); returns :attr:`url`."""
         if isinstance(self._endpoint, InProcessEndpoint):
             if not self._serving:
-                from forcelearn.emulators.robot_controller.serial_port import (
-                    register_url_handler,
-                )
-
                 register_url_handler()  # so its url opens with serial.serial_for_url
                 registry.register(REGISTRY_KIND, self._endpoint.name, self)
                 self._serving = True

@@ -1,6 +1,6 @@
 """An emulated slcan (LAWICEL) USB-CAN adapter on a pseudo-terminal.
 
-:mod:`.lawicel` is the pure line codec, :mod:`.adapter` the adapter's rules,
+:mod:`forcelearn.protocols.lawicel` is the pure line codec, :mod:`.adapter` the adapter's rules,
 :mod:`.pty_port` the serial side, :mod:`.server` the running emulator.
 """
 

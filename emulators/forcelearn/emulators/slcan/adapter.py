@@ -26,8 +26,8 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
-from forcelearn.emulators.slcan import lawicel
-from forcelearn.emulators.slcan.lawicel import BEL, CR, CanFrame, Command, Invalid
+from forcelearn.protocols import lawicel
+from forcelearn.protocols.lawicel import BEL, CR, CanFrame, Command, Invalid
 
 log = logging.getLogger(__name__)
 

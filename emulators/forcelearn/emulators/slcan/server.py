@@ -23,8 +23,8 @@ from collections.abc import Callable
 import can
 
 from forcelearn.emulators.slcan.adapter import FLAG_BUS_ERROR, SlcanAdapterModel
-from forcelearn.emulators.slcan.lawicel import CanFrame, LineSplitter, parse_line
 from forcelearn.emulators.slcan.pty_port import PtyPort
+from forcelearn.protocols.lawicel import CanFrame, LineSplitter, parse_line
 
 log = logging.getLogger(__name__)
 

@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from forcelearn.envs.base import TaskEnv, box
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
+from forcelearn.tools.envs.base import TaskEnv, box
 
 MAX_OBS_FORCE_N = 20.0
 """Upper bound of the force observation, N (any force above 3 N has already failed)."""

@@ -17,7 +17,7 @@ import struct
 from dataclasses import dataclass
 from typing import ClassVar, NamedTuple
 
-from forcelearn.drivers.jr3_can.opcodes import (
+from forcelearn.protocols.jr3_can.opcodes import (
     DEFAULT_OPCODES,
     NODE_ID_BITS,
     OpcodeMap,

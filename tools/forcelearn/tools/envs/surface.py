@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from forcelearn.envs.base import TaskEnv, box
 from forcelearn.tasks.surface import SurfaceTask
+from forcelearn.tools.envs.base import TaskEnv, box
 
 log = logging.getLogger(__name__)
 

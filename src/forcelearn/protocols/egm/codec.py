@@ -3,7 +3,7 @@
 One UDP datagram holds exactly one protobuf message, so there is no framing:
 ``encode_*`` returns the datagram, ``decode_*`` reads one. Both directions use
 the official ``protobuf`` runtime and the modules generated from ABB's
-``egm.proto`` (``forcelearn.drivers.egm.proto``).
+``egm.proto`` (``forcelearn.protocols.egm.proto``).
 
 ==========================  ======================  =======================================
 value                       EGM field               units
@@ -34,8 +34,8 @@ from typing import Any, Literal
 from google.protobuf.message import DecodeError
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm.proto import egm_rw6_pb2, egm_rw7_pb2
 from forcelearn.errors import EgmVersionMismatch, ProtocolError
+from forcelearn.protocols.egm.proto import egm_rw6_pb2, egm_rw7_pb2
 
 Version = Literal["rw6", "rw7"]
 VERSIONS: tuple[Version, ...] = ("rw6", "rw7")

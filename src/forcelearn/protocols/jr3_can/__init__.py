@@ -1,0 +1,1 @@
+"""JR3-to-CAN adapter protocol: ``opcodes`` (versioned table), ``codec`` (frames), ``scaling``."""
