@@ -32,9 +32,9 @@ from tqdm import tqdm
 
 from forcelearn.atomic import atomic_write_bytes, atomic_writer
 from forcelearn.errors import StudyError
-from forcelearn.tools.study_grid import RunSpec, Value, format_value, run_specs
+from forcelearn.tools.study_grid import CURVES, RunSpec, Value, format_value, run_specs
 from forcelearn.tools.study_report import write_tables
-from forcelearn.tools.study_tasks import CURVES, StudyTask
+from forcelearn.tools.study_tasks import StudyTask
 
 RUNS_DIR = "runs"
 MANIFEST = "study.json"

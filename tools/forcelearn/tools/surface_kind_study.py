@@ -24,9 +24,9 @@ from typing import Any
 
 from forcelearn.run_output import median_range
 from forcelearn.tools.cell_config import load_cell_config
-from forcelearn.tools.study_grid import RunSpec
+from forcelearn.tools.study_grid import RunSpec, result_row
 from forcelearn.tools.study_runner import run_study
-from forcelearn.tools.study_tasks import StudyTask, result_row
+from forcelearn.tools.study_tasks import StudyTask
 
 PAPER_REPETITIONS = 237
 """Trials the paper's §5 cell needed (the target to meet or beat)."""
