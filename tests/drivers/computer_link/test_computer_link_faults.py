@@ -23,7 +23,7 @@ def _armed(emulator, name: str, fault: Fault = ONCE) -> None:
 @pytest.mark.parametrize("fault", ["drop_request", "drop_reply", "corrupt_byte"])
 def test_single_fault_is_recovered_and_the_robot_moves_once(emulator, connect, fault) -> None:
     """A lost request, a lost reply or one damaged byte: retries recover, one move executed."""
-    robot = connect(emulator.url)
+    robot = connect(emulator.address)
     _armed(emulator, fault)
     robot.move_by(dz_mm=-2.0)
     assert emulator.faults.fired[fault] == 1
@@ -38,7 +38,7 @@ def test_single_fault_is_recovered_and_the_robot_moves_once(emulator, connect, f
 
 def test_dropped_connection_raises_link_error_then_reconnect_works(emulator, connect) -> None:
     """The controller hangs up after executing: a clear LinkError, one move, reconnect resumes."""
-    robot = connect(emulator.url)
+    robot = connect(emulator.address)
     _armed(emulator, "drop_connection")
     with pytest.raises(LinkError, match="reconnect"):
         robot.move_by(dy_mm=4.0)
@@ -55,7 +55,7 @@ def test_dropped_connection_raises_link_error_then_reconnect_works(emulator, con
 def test_random_corruption_never_moves_twice(make_emulator, connect) -> None:
     """Under 1 % byte corruption each way, every move executes once or raises a LinkError."""
     emulator = make_emulator(faults=FaultConfig(corrupt_byte=Fault(0.01), seed=7))
-    robot = connect(emulator.url, nak_retries=3, enq_retries=3)
+    robot = connect(emulator.address, nak_retries=3, enq_retries=3)
     succeeded = failed = 0
     for i in range(60):
         before = emulator.move_count
@@ -73,7 +73,7 @@ def test_random_corruption_never_moves_twice(make_emulator, connect) -> None:
 
 def test_retransmissions_stop_at_the_documented_count(emulator, connect) -> None:
     """A controller that loses every request sees exactly 1 + nak_retries copies, then LinkError."""
-    robot = connect(emulator.url, nak_retries=2, enq_retries=3)
+    robot = connect(emulator.address, nak_retries=2, enq_retries=3)
     _armed(emulator, "drop_request", Fault(1.0))
     with pytest.raises(LinkError, match="lost 3 times"):
         robot.move_by(dz_mm=1.0)

@@ -19,7 +19,7 @@ def test_wait_in_position_returns_once_the_robot_is_there_and_settled(
 ) -> None:
     """Accepted is not arrived: the wait ends in the band, after the settle time, on its clock."""
     emulator = make_emulator(config=ArmConfig())
-    robot = connect(emulator.url)
+    robot = connect(emulator.address)
     robot.move_by(dz_mm=-5.0)
     accepted = robot.read_status()
     assert accepted.moving and not accepted.in_position  # still planning or travelling
@@ -34,7 +34,7 @@ def test_wait_in_position_returns_once_the_robot_is_there_and_settled(
 def test_a_robot_that_stops_short_ends_the_wait_and_is_stopped(make_emulator, connect) -> None:
     """Stalled half way: NotInPosition after the timeout of controller time; STOP was sent."""
     emulator = make_emulator(config=ArmConfig(), faults=FaultConfig(stall_fraction=0.5))
-    robot = connect(emulator.url)
+    robot = connect(emulator.address)
     robot.move_by(dz_mm=-8.0)
     start = robot.read_status().time_s
     with pytest.raises(NotInPosition, match="move_timeout_s") as error:
@@ -48,7 +48,7 @@ def test_a_robot_that_stops_short_ends_the_wait_and_is_stopped(make_emulator, co
 def test_a_robot_that_never_reports_in_position_ends_the_wait(make_emulator, connect) -> None:
     """Status never says in position: the wait is bounded by its timeout, not endless."""
     emulator = make_emulator(config=ArmConfig(), faults=FaultConfig(never_in_position=True))
-    robot = connect(emulator.url)
+    robot = connect(emulator.address)
     robot.move_by(dz_mm=-2.0)
     with pytest.raises(NotInPosition):
         robot.wait_in_position(timeout_s=0.8, settle_s=0.05)
@@ -67,7 +67,7 @@ def test_relative_moves_after_a_lost_link_never_leave_the_workspace(
     limit_x = 1000.0
     emulator = make_emulator(config=ArmConfig(lag_s=5.0))
     limits = Limits(workspace_max_mm=(limit_x, 800.0, 1400.0))
-    robot = connect(emulator.url, limits=limits)
+    robot = connect(emulator.address, limits=limits)
     for _ in range(11):
         robot.move_by(dx_mm=9.0)
         assert emulator.engine.motion.target.x_mm <= limit_x
@@ -88,7 +88,7 @@ def test_after_a_stop_the_reference_is_where_the_controller_brakes_to(
 ) -> None:
     """STOP mid-move: the next relative move adds to the controller's rest point."""
     emulator = make_emulator(config=ArmConfig(start_delay_s=0.0, default_speed_mm_s=20.0))
-    robot = connect(emulator.url)
+    robot = connect(emulator.address)
     robot.move_by(dz_mm=-9.0)
     robot.read_status()  # some controller time passes: the arm is on its way
     robot.read_status()

@@ -53,7 +53,7 @@ def test_command_outside_a_limit_is_refused_before_any_byte_is_sent(
     emulator, connect, monkeypatch, command, match
 ) -> None:
     """SafetyStop names the limit; the driver writes nothing and the robot does not move."""
-    robot = connect(emulator.url, limits=TIGHT)
+    robot = connect(emulator.address, limits=TIGHT)
     writes = count_writes(robot, monkeypatch)
     with pytest.raises(SafetyStop, match=match):
         command(robot)
@@ -63,7 +63,7 @@ def test_command_outside_a_limit_is_refused_before_any_byte_is_sent(
 
 def test_step_limit_is_measured_from_the_last_commanded_position(emulator, connect) -> None:
     """Steps chain: two 4 mm moves pass, the reference follows each accepted target."""
-    robot = connect(emulator.url, limits=TIGHT)
+    robot = connect(emulator.address, limits=TIGHT)
     robot.move_by(dz_mm=-4.0)
     robot.move_to(HOME.moved(dz_mm=-8.0))
     assert emulator.move_count == 2
@@ -75,7 +75,7 @@ def test_non_unit_quaternion_is_a_value_error_and_a_safety_stop(
     emulator, connect, monkeypatch
 ) -> None:
     """A malformed orientation is a bad argument and a refused target: nothing is written."""
-    robot = connect(emulator.url)
+    robot = connect(emulator.address)
     writes = count_writes(robot, monkeypatch)
     with pytest.raises(InvalidTarget, match="unit length") as caught:
         robot.move_to(Pose(900.0, 0.0, 600.0, (1.0, 1.0, 0.0, 0.0)))
@@ -119,7 +119,7 @@ def test_a_non_finite_reported_position_cannot_bypass_the_step_limit(
         return (math.nan,) * 3, quaternion
 
     monkeypatch.setattr(messages, "parse_pose", nan_target)
-    robot = connect(emulator.url, limits=TIGHT)
+    robot = connect(emulator.address, limits=TIGHT)
     writes = count_writes(robot, monkeypatch)
     with pytest.raises(SafetyStop, match="step of nan"):
         robot.move_to(HOME.moved(dz_mm=-1.0))

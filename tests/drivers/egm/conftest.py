@@ -44,7 +44,7 @@ def egm_pair() -> Iterator[Callable[..., Pair]]:
                 "config": EgmControllerConfig(**(controller or {})),
             } | (emulator or {})
             emu = EgmControllerEmulator(robot.port, **emulator_kw)
-            stack.callback(emu.stop)
+            stack.callback(emu.close)
             emu.start()
             if wait:
                 robot.wait_for_session(5.0)

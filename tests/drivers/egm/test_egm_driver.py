@@ -103,7 +103,7 @@ def test_rw6_rw7_mismatch_is_refused(egm_pair: MakePair) -> None:
 def test_watchdog_on_the_controllers_messages(egm_pair: MakePair) -> None:
     """A controller that falls silent ends the wait in LinkTimeout after watchdog_s."""
     robot, emu = egm_pair(driver={"watchdog_s": 0.2})
-    emu.stop()
+    emu.close()
     with pytest.raises(LinkTimeout, match="watchdog_s"):
         robot.dwell(0.1)
 
@@ -164,7 +164,7 @@ def test_real_mode_answers_from_a_thread_and_detects_stale_feedback(egm_pair: Ma
     robot.wait_in_position(timeout_s=2.0, settle_s=0.02)
     reached = robot.read_pose()
     assert abs(reached.y_mm - 3.0) <= 0.2
-    emu.stop()
+    emu.close()
     time.sleep(0.05)  # longer than stale_after_s: what is measured is the age, not a duration
     with pytest.raises(LinkTimeout, match="stale"):
         robot.read_pose()

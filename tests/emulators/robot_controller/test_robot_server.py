@@ -31,7 +31,7 @@ def _status_exchange(port: serial.SerialBase, tns: int) -> bytes:
 def test_raw_client_gets_ack_and_reply(transport: str) -> None:
     """A bare pyserial client speaking the frames by hand is served on either transport."""
     with RobotControllerEmulator(transport) as emu:
-        port = serial.serial_for_url(emu.url, timeout=0.02)
+        port = serial.serial_for_url(emu.address, timeout=0.02)
         try:
             ack, reply = _status_exchange(port, 500)
         finally:
@@ -43,7 +43,7 @@ def test_raw_client_gets_ack_and_reply(transport: str) -> None:
 def test_tcp_serves_one_client_at_a_time_and_the_next_after_a_disconnect() -> None:
     """A second TCP client is closed at once; after the first leaves, a new one is served."""
     with RobotControllerEmulator("tcp") as emu:
-        host, port_number = emu.url.removeprefix("socket://").split(":")
+        host, port_number = emu.address.removeprefix("socket://").split(":")
         first = socket.create_connection((host, int(port_number)), timeout=2)
         first.sendall(framing.Control.ENQ.wire)
         assert first.recv(2) == framing.Control.NAK.wire  # served (nothing to repeat yet)
@@ -51,7 +51,7 @@ def test_tcp_serves_one_client_at_a_time_and_the_next_after_a_disconnect() -> No
         assert second.recv(16) == b""  # refused: closed by the emulator
         second.close()
         first.close()
-        client = serial.serial_for_url(emu.url, timeout=0.02)
+        client = serial.serial_for_url(emu.address, timeout=0.02)
         try:
             ack, _ = _status_exchange(client, 1)
         finally:
@@ -63,8 +63,8 @@ def test_stop_joins_the_thread_and_frees_the_port() -> None:
     """After stop() the listener is closed, and stop() twice is harmless."""
     emu = RobotControllerEmulator("tcp")
     url = emu.start()
-    emu.stop()
-    emu.stop()
+    emu.close()
+    emu.close()
     assert emu._thread is None
     _, port_number = url.removeprefix("socket://").split(":")
     with pytest.raises(OSError):

@@ -40,8 +40,8 @@ def _name(stem: str) -> str:
 def test_a_named_controller_is_reached_with_serial_for_url() -> None:
     """The driver opens the emulator's URL and a move executes on it."""
     with RobotControllerEmulator("inproc", name=_name("robot")) as emulator:
-        assert emulator.url.startswith("forcelearn-robot://")
-        with ComputerLinkRobot(LinkConfig(url=emulator.url, **FAST)) as robot:
+        assert emulator.address.startswith("forcelearn-robot://")
+        with ComputerLinkRobot(LinkConfig(url=emulator.address, **FAST)) as robot:
             robot.move_by(dz_mm=-5.0)
             robot.wait_in_position(5.0)
             assert emulator.move_count == 1
@@ -53,7 +53,7 @@ def test_the_same_exchange_gives_the_same_answers_and_times_as_a_pty() -> None:
 
     def session(transport: str) -> list[tuple[object, ...]]:
         with RobotControllerEmulator(transport) as emulator, \
-                ComputerLinkRobot(LinkConfig(url=emulator.url)) as robot:
+                ComputerLinkRobot(LinkConfig(url=emulator.address)) as robot:
             seen = []
             for step in range(3):
                 robot.move_by(dy_mm=2.0 + step, dz_mm=-5.0)
@@ -93,11 +93,11 @@ def test_bad_urls_are_refused_with_what_to_do(url: str, words: str) -> None:
 def test_one_client_at_a_time() -> None:
     """A second open is refused while the first holds the port; after it closes, it succeeds."""
     with RobotControllerEmulator("inproc") as emulator:
-        first = serial.serial_for_url(emulator.url, timeout=0.1)
+        first = serial.serial_for_url(emulator.address, timeout=0.1)
         with pytest.raises(serial.SerialException, match="another client"):
-            serial.serial_for_url(emulator.url, timeout=0.1)
+            serial.serial_for_url(emulator.address, timeout=0.1)
         first.close()
-        second = serial.serial_for_url(emulator.url, timeout=0.1)
+        second = serial.serial_for_url(emulator.address, timeout=0.1)
         second.close()
 
 
@@ -105,8 +105,8 @@ def test_a_stopped_controller_fails_the_driver_with_a_link_error() -> None:
     """Writing to a controller that has stopped is a lost port, not a hang."""
     emulator = RobotControllerEmulator("inproc")
     emulator.start()
-    robot = ComputerLinkRobot(LinkConfig(url=emulator.url, **FAST))
-    emulator.stop()
+    robot = ComputerLinkRobot(LinkConfig(url=emulator.address, **FAST))
+    emulator.close()
     t0 = time.monotonic()
     with pytest.raises(LinkError):
         robot.read_status()
@@ -117,7 +117,7 @@ def test_a_stopped_controller_fails_the_driver_with_a_link_error() -> None:
 def test_a_read_with_no_answer_coming_waits_its_timeout() -> None:
     """Nothing written, nothing to read: ``read`` returns empty after its timeout, like a port."""
     with RobotControllerEmulator("inproc") as emulator:
-        port = serial.serial_for_url(emulator.url, timeout=0.05)
+        port = serial.serial_for_url(emulator.address, timeout=0.05)
         t0 = time.monotonic()
         assert port.read(1) == b""
         assert time.monotonic() - t0 >= 0.04

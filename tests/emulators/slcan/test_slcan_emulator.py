@@ -47,7 +47,7 @@ def peer(channel: str) -> Iterator[can.BusABC]:
 
 def _slcan(adapter: SlcanAdapterEmulator, bitrate: int = 1_000_000) -> can.BusABC:
     """python-can's slcan interface on the adapter's pty (no 2 s Arduino-reset wait)."""
-    return can.Bus(interface="slcan", channel=adapter.path, bitrate=bitrate, sleep_after_open=0)
+    return can.Bus(interface="slcan", channel=adapter.address, bitrate=bitrate, sleep_after_open=0)
 
 
 def test_python_can_identifies_the_adapter(adapter: SlcanAdapterEmulator) -> None:
@@ -125,7 +125,7 @@ def test_a_host_that_stops_reading_loses_frames_but_never_stalls_the_adapter(
     adapter: SlcanAdapterEmulator, peer: can.BusABC
 ) -> None:
     """A full pty drops whole lines (overrun flag); frames keep flowing and stop() is prompt."""
-    with serial.serial_for_url(adapter.path, timeout=0.5) as port:
+    with serial.serial_for_url(adapter.address, timeout=0.5) as port:
         port.write(b"O\r")
         assert port.read_until(b"\r") == b"\r"
         frame = can.Message(arbitration_id=0x601, data=bytes(8), is_extended_id=False)
@@ -141,6 +141,6 @@ def test_a_host_that_stops_reading_loses_frames_but_never_stalls_the_adapter(
         assert lines[-1] == b"F"
         assert all(len(line) == len("t6018") + 16 for line in lines[1:-1])
     start = time.monotonic()
-    adapter.stop()
+    adapter.close()
     assert time.monotonic() - start < 1.0
-    assert not Path(adapter.path).exists()
+    assert not Path(adapter.address).exists()

@@ -29,7 +29,7 @@ def measure(commands: int, warmup: int, transport: str = "pty") -> np.ndarray:
     """Return the round-trip times (s) of ``commands`` MOVE_BY commands."""
     times = np.empty(commands)
     with RobotControllerEmulator(transport) as emulator, ComputerLinkRobot(
-        LinkConfig(url=emulator.url)
+        LinkConfig(url=emulator.address)
     ) as robot:
         for i in range(warmup + commands):
             step = 0.05 if i % 2 else -0.05

@@ -132,7 +132,7 @@ class CellSession:
         if not cfg.robot_emulated:
             return None
         self.robot_emulator = emulated_robot(cfg, self.physics, "inproc")  # type: ignore[arg-type]
-        self._stack.callback(self.robot_emulator.stop)
+        self._stack.callback(self.robot_emulator.close)
         return self.robot_emulator.start()
 
     def _open_link(self, emulator_url: str | None) -> None:
@@ -142,11 +142,12 @@ class CellSession:
             robot_config = replace(robot_config, url=emulator_url)
         try:
             self.robot = ComputerLinkRobot(robot_config)
-        except LinkError as exc:
-            raise LinkError(
-                f"{exc}; check [robot] url (port name), baudrate and framing, that the "
+        except LinkError as exc:  # keeps its type (LinkTimeout, ProtocolError...)
+            exc.add_note(
+                "check [robot] url (port name), baudrate and framing, that the "
                 "controller is on and its computer link enabled"
-            ) from exc
+            )
+            raise
         self._stack.callback(self.robot.close)
 
     def _open_jr3_bus(self, seed: int) -> None:
@@ -207,11 +208,12 @@ class CellSession:
         self._stack.callback(self.sensor.close)
         try:
             self.sensor.initialise()
-        except ForcelearnError as exc:
-            raise type(exc)(
-                f"{exc}; check [sensor] node_id ({cfg.sensor.node_id}), the bus bitrate and "
+        except ForcelearnError as exc:  # keeps its type and attributes
+            exc.add_note(
+                f"check [sensor] node_id ({cfg.sensor.node_id}), the bus bitrate and "
                 "that the JR3 adapter is powered"
-            ) from exc
+            )
+            raise
 
     def _apply_calibration(
         self, calibration: Calibration, robot: Any, cell: Cell

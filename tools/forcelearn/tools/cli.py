@@ -85,8 +85,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         return int(args._run(args) or 0)
-    except ForcelearnError as exc:
-        print(f"forcelearn {args.command}: {exc}", file=sys.stderr)
+    except ForcelearnError as exc:  # one line: the message, then each note (what to check)
+        message = "; ".join([str(exc), *getattr(exc, "__notes__", ())])
+        print(f"forcelearn {args.command}: {message}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"forcelearn {args.command}: interrupted", file=sys.stderr)

@@ -141,17 +141,13 @@ def open_netft(
     opened: Opened[NetFtSensor, NetFtEmulator] = Opened(driver, emulator)
     try:
         driver.initialise()
-    except ForcelearnError as exc:
+    except ForcelearnError as exc:  # keeps its type and fields (SensorFault...)
         opened.close()
-        hint = (
-            f"{exc}; check [sensor] host ({config.sensor.host}), that the box is powered and "
+        exc.add_note(
+            f"check [sensor] host ({config.sensor.host}), that the box is powered and "
             "on this subnet, and its calibration (docs/netft.md, On site)"
         )
-        try:
-            named = type(exc)(hint)
-        except TypeError:  # an error with more fields (SensorFault): keep it as it is
-            raise exc from None
-        raise named from exc
+        raise
     except BaseException:
         opened.close()
         raise

@@ -120,12 +120,12 @@ class EmulatedCell:
         self._stack = contextlib.ExitStack()
         try:
             self.robot = emulated_robot(config, self.physics)
-            self._stack.callback(self.robot.stop)
+            self._stack.callback(self.robot.close)
             channel = private_channel(config)
             self.sensor = emulated_jr3(config, self.physics, channel, seed)
             self._stack.callback(self.sensor.close)
             self.adapter = SlcanAdapterEmulator(channel=channel, bus_bitrate=config.bus.bitrate)
-            self._stack.callback(self.adapter.stop)
+            self._stack.callback(self.adapter.close)
             self._initial = self._state()
             self.fresh_per_connection = fresh_per_connection
             self.adapter.on_open = self._on_session
@@ -139,12 +139,12 @@ class EmulatedCell:
     @property
     def robot_path(self) -> str:
         """The robot link's serial port (the stable symlink when ``link_dir`` is set)."""
-        return str(self.link_dir / ROBOT_LINK) if self.link_dir else self.robot.url
+        return str(self.link_dir / ROBOT_LINK) if self.link_dir else self.robot.address
 
     @property
     def slcan_path(self) -> str:
         """The slcan adapter's serial port (the stable symlink when ``link_dir`` is set)."""
-        return str(self.link_dir / SLCAN_LINK) if self.link_dir else self.adapter.path
+        return str(self.link_dir / SLCAN_LINK) if self.link_dir else self.adapter.address
 
     def _state(self) -> dict[str, Any]:
         """The whole emulated cell's state: clock, arm, link wires, sponge, sensor."""
@@ -178,7 +178,7 @@ class EmulatedCell:
         """Point the stable symlinks at the ptys (replacing stale ones atomically)."""
         assert self.link_dir is not None
         self.link_dir.mkdir(parents=True, exist_ok=True)
-        for name, target in ((ROBOT_LINK, self.robot.url), (SLCAN_LINK, self.adapter.path)):
+        for name, target in ((ROBOT_LINK, self.robot.address), (SLCAN_LINK, self.adapter.address)):
             temporary = self.link_dir / f".{name}.{os.getpid()}"
             temporary.unlink(missing_ok=True)
             temporary.symlink_to(target)
@@ -195,7 +195,7 @@ class EmulatedCell:
         self.adapter.start()
         log.info("emulated cell: robot on %s, slcan on %s", self.robot_path, self.slcan_path)
 
-    def stop(self) -> None:
+    def close(self) -> None:
         """Stop every emulator thread and release the ptys; safe to call twice."""
         self._stack.close()
 
@@ -204,7 +204,7 @@ class EmulatedCell:
         return self
 
     def __exit__(self, *exc_info: object) -> None:
-        self.stop()
+        self.close()
 
     def site_config(self) -> str:
         """A TOML site config that reaches this cell through the pty and python-can's slcan."""

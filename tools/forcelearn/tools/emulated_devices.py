@@ -90,7 +90,7 @@ class EmulatedDevices:
         try:
             if robot == "link":
                 self.link = emulated_robot(config, self.physics)
-                self._stack.callback(self.link.stop)
+                self._stack.callback(self.link.close)
             else:
                 self._build_egm()
             if sensor == "jr3":
@@ -100,7 +100,7 @@ class EmulatedDevices:
                 self.adapter = SlcanAdapterEmulator(
                     channel=channel, bus_bitrate=config.bus.bitrate
                 )
-                self._stack.callback(self.adapter.stop)
+                self._stack.callback(self.adapter.close)
             else:
                 self.netft = NetFtEmulator(
                     self.physics, self.physics.clock, model=config.emulator.netft, seed=seed
@@ -127,7 +127,7 @@ class EmulatedDevices:
             motion=PhysicsMotion(self.physics),
             lockstep=True,
         )
-        self._stack.callback(self.egm.stop)
+        self._stack.callback(self.egm.close)
 
     def start(self) -> None:
         """Start serving every device."""
@@ -138,7 +138,7 @@ class EmulatedDevices:
         if self.adapter is not None:
             self.adapter.start()
 
-    def stop(self) -> None:
+    def close(self) -> None:
         """Stop every emulator; safe to call twice."""
         self._stack.close()
 
@@ -147,13 +147,13 @@ class EmulatedDevices:
         return self
 
     def __exit__(self, *exc_info: object) -> None:
-        self.stop()
+        self.close()
 
     def describe(self) -> list[str]:
         """One line per device: what it is and where to reach it."""
         lines = []
         if self.link is not None:
-            lines.append(f"robot link (computer link, pty): {self.link.url}")
+            lines.append(f"robot link (computer link, pty): {self.link.address}")
         if self.egm is not None:
             lines.append(
                 f"robot EGM ({self.egm_version}, UDP from 127.0.0.1:{self.egm.port} to the PC "
@@ -162,7 +162,7 @@ class EmulatedDevices:
         if self.adapter is not None:
             lines.append(
                 f"JR3 sensor (slcan CAN adapter, pty, node {self.config.sensor.node_id}, "
-                f"{self.config.bus.bitrate} bit/s): {self.adapter.path}"
+                f"{self.config.bus.bitrate} bit/s): {self.adapter.address}"
             )
         if self.netft is not None:
             ports = self.netft.ports
@@ -195,7 +195,7 @@ class EmulatedDevices:
             "[robot]",
         ]
         if self.link is not None:
-            lines.append(f'url = "{self.link.url}"')
+            lines.append(f'url = "{self.link.address}"')
         else:
             lines += [
                 'kind = "egm"',
@@ -209,7 +209,7 @@ class EmulatedDevices:
         if self.adapter is not None:
             lines += [
                 'interface = "slcan"',
-                f'channel = "{self.adapter.path}"',
+                f'channel = "{self.adapter.address}"',
                 f"bitrate = {self.config.bus.bitrate}",
                 f"node_id = {self.config.sensor.node_id}",
             ]

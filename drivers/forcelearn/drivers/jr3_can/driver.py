@@ -27,6 +27,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+import warnings
 from collections.abc import Callable
 from types import TracebackType
 
@@ -358,6 +359,15 @@ class Jr3CanSensor:
             if self._notifier is not None:
                 self._notifier.stop(timeout=1.0)
             self._listener.stop()
+
+    def __del__(self) -> None:
+        if getattr(self, "_closed", True) is False:
+            warnings.warn(
+                f"Jr3CanSensor for node {self.config.node_id} was not closed; use it as a "
+                "context manager (closing stops the adapter's streaming and the Notifier)",
+                ResourceWarning,
+                stacklevel=2,
+            )
 
     def __enter__(self) -> Jr3CanSensor:
         try:

@@ -35,6 +35,7 @@ from __future__ import annotations
 import logging
 import socket
 import time
+import warnings
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -388,6 +389,15 @@ class NetFtSensor:
             self._sock.close()
             if self._log is not None:
                 self._log.close()
+
+    def __del__(self) -> None:
+        if getattr(self, "_closed", True) is False:
+            warnings.warn(
+                f"NetFtSensor on {self.config.host} was not closed; use it as a context manager "
+                "(closing stops the box's stream)",
+                ResourceWarning,
+                stacklevel=2,
+            )
 
     def __enter__(self) -> NetFtSensor:
         try:

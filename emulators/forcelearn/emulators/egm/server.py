@@ -48,6 +48,7 @@ from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm.controller import HOME, EgmControllerConfig, EgmControllerModel
 from forcelearn.emulators.egm.faults import EgmFaultConfig, EgmFaultInjector
 from forcelearn.emulators.egm.servo import MotionModel
+from forcelearn.emulators.lifecycle import Emulator
 from forcelearn.emulators.physics.cell import CellPhysics
 
 log = logging.getLogger(__name__)
@@ -74,7 +75,7 @@ class CycleTiming:
     """From sending a cycle's EgmRobot to the first EgmSensor received after it."""
 
 
-class EgmControllerEmulator:
+class EgmControllerEmulator(Emulator):
     """An ABB controller running EGM pose guidance toward a PC at ``remote_port``.
 
     Args:
@@ -86,7 +87,7 @@ class EgmControllerEmulator:
         faults: fault injection (default: none).
         lockstep: wait for the PC's answer before advancing the clock (see module doc).
         patience_s: lockstep only: wall seconds of PC silence before the PC is
-            declared silent (None: wait for ever; stop() still ends the wait).
+            declared silent (None: wait for ever; close() still ends the wait).
         motion: the arm's motion model (default: the config's dead time + lag servo).
         record_timing: keep wall-clock send times and reply latencies (the bench).
     """
@@ -139,16 +140,19 @@ class EgmControllerEmulator:
         """The controller's own UDP port (the source of its EgmRobot datagrams)."""
         return self._sock.getsockname()[1]
 
-    def start(self) -> int:
-        """Start the cycle loop in a daemon thread; return :attr:`port`."""
-        if self._thread is None:
-            self._thread = threading.Thread(target=self._run, name="egm-controller", daemon=True)
-            self._thread.start()
-            log.info("EGM controller emulator on 127.0.0.1:%d -> %s:%d", self.port, *self._remote)
-        return self.port
+    @property
+    def address(self) -> str:
+        """``127.0.0.1:PORT``: where the controller's EgmRobot datagrams come from."""
+        return f"127.0.0.1:{self.port}"
 
-    def stop(self) -> None:
-        """Stop the loop, join it and close the socket; safe to call twice."""
+    def _start_serving(self) -> None:
+        """The cycle loop in a daemon thread."""
+        self._thread = threading.Thread(target=self._run, name="egm-controller", daemon=True)
+        self._thread.start()
+        log.info("EGM controller emulator on 127.0.0.1:%d -> %s:%d", self.port, *self._remote)
+
+    def _release(self) -> None:
+        """Stop the loop, join it and close the socket."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
@@ -160,13 +164,6 @@ class EgmControllerEmulator:
     def restart_guidance(self) -> None:
         """Restart the RAPID program (operator action): a new session from the next cycle."""
         self._restart.set()
-
-    def __enter__(self) -> EgmControllerEmulator:
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.stop()
 
     # -- the cycle loop ---------------------------------------------------------------------
 

@@ -54,6 +54,7 @@ from forcelearn.emulators import registry
 from forcelearn.emulators.clock import Wire, can_frame_time_s
 from forcelearn.emulators.jr3.faults import FaultConfig, FrameHook, apply_faults
 from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
+from forcelearn.emulators.lifecycle import Emulator
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.protocols.jr3_can import codec
 from forcelearn.protocols.jr3_can.codec import Ack, Decoded, Frame
@@ -81,7 +82,7 @@ class NodeStats:
     rejected_by_reason: dict[str, int] = field(default_factory=dict)
 
 
-class Jr3EmulatorNode:
+class Jr3EmulatorNode(Emulator):
     """An emulated JR3 adapter on a CAN bus.
 
     Args:
@@ -143,17 +144,23 @@ class Jr3EmulatorNode:
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._next_emit = 0.0
-        self._closed = False
         self._owns_bus = bus is None and not in_process
         self.bus: can.BusABC | None = None
         self._thread: threading.Thread | None = None
         if in_process:
             registry.register(REGISTRY_KIND, channel, self)
+            self._mark_started()  # serving from construction (forcelearn.emulators.lifecycle)
             return
         self.bus = bus if bus is not None else can.Bus(interface="virtual", channel=channel)
         self._thread = threading.Thread(target=self._run, name=f"jr3-emulator-{node_id}",
                                         daemon=True)
         self._thread.start()
+        self._mark_started()
+
+    @property
+    def address(self) -> str:
+        """The CAN channel a host opens (``virtual`` or ``forcelearn-jr3``)."""
+        return self.channel
 
     # ---- public control -------------------------------------------------
     def set_faults(self, faults: FaultConfig) -> None:
@@ -224,11 +231,8 @@ class Jr3EmulatorNode:
                 self._next_emit = max(self._next_emit + period_s, now)
             return max(0.0, self._next_emit - time.monotonic())
 
-    def close(self) -> None:
-        """Stop the thread (joined) and shut down the bus if the node made it; idempotent."""
-        if self._closed:
-            return
-        self._closed = True
+    def _release(self) -> None:
+        """Stop the thread (joined) and shut down the bus if the node made it."""
         self._stop.set()
         if self.in_process:
             registry.unregister(REGISTRY_KIND, self.channel, self)
@@ -241,12 +245,6 @@ class Jr3EmulatorNode:
             log.warning("JR3 emulator thread did not stop within %.1f s", JOIN_TIMEOUT_S)
         if self._owns_bus:
             self.bus.shutdown()
-
-    def __enter__(self) -> Jr3EmulatorNode:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # ---- thread ---------------------------------------------------------
     def _run(self) -> None:

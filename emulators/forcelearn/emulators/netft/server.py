@@ -48,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from forcelearn.emulators.clock import SimClock
+from forcelearn.emulators.lifecycle import Emulator
 from forcelearn.emulators.netft.faults import FaultCounts, NetFtFaults, RecordsHook, apply_faults
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams, NetFtSensorModel
 from forcelearn.emulators.physics.cell import CellPhysics
@@ -144,7 +145,7 @@ class _HttpServer(ThreadingHTTPServer):
     daemon_threads = True
 
 
-class NetFtEmulator:
+class NetFtEmulator(Emulator):
     """An emulated Net F/T box serving on 127.0.0.1.
 
     Args:
@@ -228,7 +229,6 @@ class NetFtEmulator:
         self._http = _HttpServer((HOST, http_port), _XmlHandler)
         self._http.emulator = self  # type: ignore[attr-defined]
         self._stop = threading.Event()
-        self._closed = False
         self._threads = [
             threading.Thread(target=self._serve_udp, name="netft-emulator-udp", daemon=True),
             threading.Thread(target=self._tcp.serve_forever, args=(POLL_S,),
@@ -238,8 +238,14 @@ class NetFtEmulator:
         ]
         for thread in self._threads:
             thread.start()
+        self._mark_started()  # serving from construction (forcelearn.emulators.lifecycle)
 
     # ---- addresses ------------------------------------------------------
+    @property
+    def address(self) -> str:
+        """``127.0.0.1:RDT_PORT``: the box's host and UDP stream port."""
+        return f"{HOST}:{self.ports['rdt_port']}"
+
     @property
     def host(self) -> str:
         """Where every server listens (always loopback)."""
@@ -285,11 +291,8 @@ class NetFtEmulator:
             self.last_sample_s = None if last is None else float(last)
             self._records_since_boot = int(state["records_since_boot"])
 
-    def close(self) -> None:
-        """Stop every server and join the threads; idempotent."""
-        if self._closed:
-            return
-        self._closed = True
+    def _release(self) -> None:
+        """Stop every server and join the threads."""
         self._stop.set()
         self._tcp.shutdown()
         self._http.shutdown()
@@ -300,12 +303,6 @@ class NetFtEmulator:
         self._udp.close()
         self._tcp.server_close()
         self._http.server_close()
-
-    def __enter__(self) -> NetFtEmulator:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # ---- UDP ------------------------------------------------------------
     def _serve_udp(self) -> None:

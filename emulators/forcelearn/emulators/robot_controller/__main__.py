@@ -23,7 +23,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.transport, config=ArmConfig(lag_s=args.lag_s), port=args.port
     )
     with emulator:
-        print(emulator.url, flush=True)
+        print(emulator.address, flush=True)
         with contextlib.suppress(KeyboardInterrupt):
             threading.Event().wait()
     return 0

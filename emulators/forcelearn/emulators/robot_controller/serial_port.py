@@ -56,7 +56,7 @@ class EmulatedRobotSerial(SerialBase):
             emulator.connect(self)
         except BaseException as exc:
             if self._owns_emulator:
-                emulator.stop()
+                emulator.close()
             if isinstance(exc, ConnectionError):
                 raise SerialException(str(exc)) from exc
             raise
@@ -112,7 +112,7 @@ class EmulatedRobotSerial(SerialBase):
         if self._emulator is not None:
             self._emulator.disconnect(self)
             if self._owns_emulator:
-                self._emulator.stop()
+                self._emulator.close()
         self._emulator = None
         self._owns_emulator = False
         self.is_open = False

@@ -3,7 +3,7 @@
 Start it in-process (this is what tests and the emulated cell use)::
 
     with RobotControllerEmulator("pty", physics=cell_physics) as emu:
-        robot = ComputerLinkRobot(LinkConfig(url=emu.url))
+        robot = ComputerLinkRobot(LinkConfig(url=emu.address))
         ...
         assert emu.move_count == 1
 
@@ -22,15 +22,13 @@ from typing import Literal
 from forcelearn.devices import Pose
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import serial_char_time_s
+from forcelearn.emulators.lifecycle import Emulator
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.pty_endpoint import PtyEndpoint
 from forcelearn.emulators.robot_controller.controller import ControllerEngine
 from forcelearn.emulators.robot_controller.faults import FaultConfig, FaultInjector
 from forcelearn.emulators.robot_controller.kinematics import ArmConfig
-from forcelearn.emulators.robot_controller.transport import (
-    InProcessEndpoint,
-    PtyEndpoint,
-    TcpEndpoint,
-)
+from forcelearn.emulators.robot_controller.transport import InProcessEndpoint, TcpEndpoint
 from forcelearn.emulators.robot_controller.url_scheme import (
     REGISTRY_KIND,
     register_url_handler,
@@ -43,12 +41,12 @@ POLL_S = 0.005
 """Longest wait of the server loop (s): bounds stop latency (motion runs on simulated time)."""
 
 
-class RobotControllerEmulator:
+class RobotControllerEmulator(Emulator):
     """A robot controller speaking the computer-link protocol on a pty or loopback TCP.
 
     Args:
-        transport: "pty" (``url`` is a path), "tcp" (``url`` is
-            ``socket://127.0.0.1:PORT``) or "inproc" (``url`` is
+        transport: "pty" (``address`` is a path), "tcp" (``address`` is
+            ``socket://127.0.0.1:PORT``) or "inproc" (``address`` is
             ``forcelearn-robot://NAME``, reachable while started).
         config: arm geometry, limits, servo settings.
         physics: shared cell physics; the emulator writes every reached pose into it.
@@ -82,7 +80,7 @@ class RobotControllerEmulator:
         if transport == "inproc":
             self._endpoint = InProcessEndpoint(name or registry.new_name("robot"))
         else:
-            self._endpoint = PtyEndpoint() if transport == "pty" else TcpEndpoint(port)
+            self._endpoint = PtyEndpoint("robot") if transport == "pty" else TcpEndpoint(port)
         self._reader = framing.FrameReader()
         self._generation = self._endpoint.generation
         self._stop = threading.Event()
@@ -93,9 +91,9 @@ class RobotControllerEmulator:
         """Bytes received from clients so far (tests use it to prove nothing was sent)."""
 
     @property
-    def url(self) -> str:
-        """What the driver opens: a pty path or ``socket://127.0.0.1:PORT``."""
-        return self._endpoint.url
+    def address(self) -> str:
+        """What the driver opens: a pty path, ``socket://...`` or ``forcelearn-robot://NAME``."""
+        return self._endpoint.address
 
     @property
     def move_count(self) -> int:
@@ -107,25 +105,21 @@ class RobotControllerEmulator:
         """The pose the robot has reached."""
         return self.engine.pose
 
-    def start(self) -> str:
-        """Start serving (a daemon thread; "inproc": register the name); returns :attr:`url`."""
+    def _start_serving(self) -> None:
+        """A daemon thread on the pty or socket; "inproc": register the name."""
         if isinstance(self._endpoint, InProcessEndpoint):
-            if not self._serving:
-                register_url_handler()  # so its url opens with serial.serial_for_url
-                registry.register(REGISTRY_KIND, self._endpoint.name, self)
-                self._serving = True
-                log.info("robot controller emulator serving on %s", self.url)
-            return self.url
-        if self._thread is None:
+            register_url_handler()  # so its address opens with serial.serial_for_url
+            registry.register(REGISTRY_KIND, self._endpoint.name, self)
+            self._serving = True
+        else:
             self._thread = threading.Thread(
                 target=self._serve, name="robot-controller-emulator", daemon=True
             )
             self._thread.start()
-            log.info("robot controller emulator serving on %s", self.url)
-        return self.url
+        log.info("robot controller emulator serving on %s", self.address)
 
-    def stop(self) -> None:
-        """Stop serving, join the thread and release the transport; safe to call twice."""
+    def _release(self) -> None:
+        """Stop serving, join the thread and release the transport."""
         self._stop.set()
         if isinstance(self._endpoint, InProcessEndpoint) and self._serving:
             registry.unregister(REGISTRY_KIND, self._endpoint.name, self)
@@ -137,19 +131,12 @@ class RobotControllerEmulator:
         self._thread = None
         self._endpoint.close()
 
-    def __enter__(self) -> RobotControllerEmulator:
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.stop()
-
     def connect(self, client: object) -> None:
         """Attach an in-process client port (``forcelearn-robot://``); one at a time."""
         if not isinstance(self._endpoint, InProcessEndpoint):
             raise ValueError("only an 'inproc' emulator takes in-process clients")
         if not self._serving or self._stop.is_set():
-            raise ConnectionRefusedError(f"{self.url} is not serving: start() it first")
+            raise ConnectionRefusedError(f"{self.address} is not serving: start() it first")
         self._endpoint.attach(client)
 
     def disconnect(self, client: object) -> None:
@@ -162,7 +149,9 @@ class RobotControllerEmulator:
         with self._receive_lock:
             endpoint = self._endpoint
             if not isinstance(endpoint, InProcessEndpoint) or endpoint.client is not client:
-                raise ConnectionResetError(f"{self.url}: the connection was lost; reopen the port")
+                raise ConnectionResetError(
+                    f"{self.address}: the connection was lost; reopen the port"
+                )
             self._take(data)
 
     def _serve(self) -> None:

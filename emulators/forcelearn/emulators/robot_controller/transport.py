@@ -1,15 +1,13 @@
 """Byte transports the emulated controller listens on: a pseudo-terminal, loopback TCP, in-process.
 
-Both offer the same small interface, used by one server thread only:
-``url`` (what a client passes to ``serial.serial_for_url``), ``read(timeout_s)``
+They offer the same small interface, used by one server thread only:
+``address`` (what a client passes to ``serial.serial_for_url``), ``read(timeout_s)``
 (bytes, ``b""`` on timeout or while no client is connected), ``write(data)``,
 ``hang_up()``, ``close()``, and ``generation``, a counter that changes whenever
 a connection begins or ends (the server then drops any half-received frame).
 
-* :class:`PtyEndpoint`: the client opens ``url``, a symlink to the pty's slave
-  side. The emulator keeps its own slave descriptor open so the pty survives
-  clients that close it; ``hang_up`` replaces the pty (the old one reports a
-  hang-up to its client) and repoints the symlink.
+* :class:`~forcelearn.emulators.pty_endpoint.PtyEndpoint` (shared with the
+  slcan adapter): the client opens ``address``, a symlink to the pty's slave side.
 * :class:`TcpEndpoint`: listens on 127.0.0.1 only. One client at a time: a
   second connection while one is served is closed at once.
 * :class:`InProcessEndpoint`: no thread and no descriptor; its client is a
@@ -22,90 +20,14 @@ a connection begins or ends (the server then drops any half-received frame).
 from __future__ import annotations
 
 import contextlib
-import errno
 import logging
-import os
 import select
 import socket
-import tempfile
-import tty
-from pathlib import Path
 from typing import Any
 
 log = logging.getLogger(__name__)
 
 _QUICKACK: int | None = getattr(socket, "TCP_QUICKACK", None)  # Linux only
-
-
-class PtyEndpoint:
-    """The controller's end of a pseudo-terminal; ``url`` is the path clients open."""
-
-    def __init__(self) -> None:
-        self._dir = tempfile.TemporaryDirectory(prefix="forcelearn-robot-")
-        self._link = Path(self._dir.name) / "robot-tty"
-        self._master = -1
-        self._slave = -1
-        self.generation = 0
-        self._open_pty()
-
-    def _open_pty(self) -> None:
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._slave)
-        os.set_blocking(self._master, False)
-        tmp = self._link.with_suffix(".new")
-        tmp.unlink(missing_ok=True)
-        tmp.symlink_to(os.ttyname(self._slave))
-        tmp.replace(self._link)
-
-    @property
-    def url(self) -> str:
-        """Path of the symlink to the pty slave (stable across hang-ups)."""
-        return str(self._link)
-
-    def read(self, timeout_s: float) -> bytes:
-        """Return the bytes the client wrote, waiting at most ``timeout_s``."""
-        ready, _, _ = select.select([self._master], [], [], timeout_s)
-        if not ready:
-            return b""
-        try:
-            return os.read(self._master, 4096)
-        except BlockingIOError:
-            return b""
-        except OSError as exc:  # EIO: no slave open (cannot happen while we hold one)
-            if exc.errno != errno.EIO:
-                raise
-            return b""
-
-    def write(self, data: bytes) -> None:
-        """Send ``data`` to the client (dropped if the pty buffer stays full for 1 s)."""
-        view = memoryview(data)
-        while view:
-            _, ready, _ = select.select([], [self._master], [], 1.0)
-            if not ready:
-                log.warning("pty output full, %d bytes dropped", len(view))
-                return
-            view = view[os.write(self._master, view) :]
-
-    def hang_up(self) -> None:
-        """Drop the connection: the client sees a hang-up, new clients get a new pty."""
-        old = (self._master, self._slave)
-        self._open_pty()  # repoint the symlink first, so a client reconnecting at once
-        for fd in old:  # after seeing the hang-up finds the new pty
-            with contextlib.suppress(OSError):
-                os.close(fd)
-        self.generation += 1
-
-    def _close_fds(self) -> None:
-        for fd in (self._master, self._slave):
-            if fd >= 0:
-                with contextlib.suppress(OSError):
-                    os.close(fd)
-        self._master = self._slave = -1
-
-    def close(self) -> None:
-        """Release the pty and its symlink; safe to call twice."""
-        self._close_fds()
-        self._dir.cleanup()
 
 
 class TcpEndpoint:
@@ -118,7 +40,7 @@ class TcpEndpoint:
         self.generation = 0
 
     @property
-    def url(self) -> str:
+    def address(self) -> str:
         """``socket://127.0.0.1:PORT`` for ``serial.serial_for_url``."""
         return f"socket://127.0.0.1:{self._listener.getsockname()[1]}"
 
@@ -211,7 +133,7 @@ class InProcessEndpoint:
         self.generation = 0
 
     @property
-    def url(self) -> str:
+    def address(self) -> str:
         """``forcelearn-robot://NAME`` for ``serial.serial_for_url``."""
         return f"forcelearn-robot://{self.name}"
 
@@ -219,7 +141,7 @@ class InProcessEndpoint:
         """Serve ``client``; raises ConnectionRefusedError while another is attached."""
         if self.client is not None and self.client is not client:
             raise ConnectionRefusedError(
-                f"{self.url} is open by another client: close it first (one client at a time)"
+                f"{self.address} is open by another client: close it first (one client at a time)"
             )
         self.client = client
         self.generation += 1

@@ -1,11 +1,11 @@
 """An emulated slcan (LAWICEL) USB-CAN adapter: a pty on one side, a CAN bus on the other.
 
-A host opens :attr:`SlcanAdapterEmulator.path` exactly as it would the serial
+A host opens :attr:`SlcanAdapterEmulator.address` exactly as it would the serial
 port of a CANable-style adapter, e.g. with python-can::
 
     with SlcanAdapterEmulator(channel="jr3") as adapter:
         node = Jr3EmulatorNode(physics, channel="jr3")
-        bus = can.Bus(interface="slcan", channel=adapter.path, bitrate=1_000_000)
+        bus = can.Bus(interface="slcan", channel=adapter.address, bitrate=1_000_000)
 
 One thread reads host lines from the pty and answers them
 (:mod:`.lawicel` parses, :mod:`.adapter` decides); frames for the bus go out
@@ -22,8 +22,9 @@ from collections.abc import Callable
 
 import can
 
+from forcelearn.emulators.lifecycle import Emulator
+from forcelearn.emulators.pty_endpoint import PtyEndpoint
 from forcelearn.emulators.slcan.adapter import FLAG_BUS_ERROR, SlcanAdapterModel
-from forcelearn.emulators.slcan.pty_port import PtyPort
 from forcelearn.protocols.lawicel import CanFrame, LineSplitter, parse_line
 
 log = logging.getLogger(__name__)
@@ -57,12 +58,12 @@ class _ToHost(can.Listener):
         log.error("slcan emulator: bus receive failed: %s", exc)
 
 
-class SlcanAdapterEmulator:
+class SlcanAdapterEmulator(Emulator):
     """A LAWICEL adapter on a pty, bridging to a python-can bus.
 
     Args:
         bus: the CAN side (not shut down by the emulator); default: a new
-            ``virtual`` bus on ``channel``, shut down on stop.
+            ``virtual`` bus on ``channel``, shut down on close.
         channel: virtual channel name when no bus is given.
         bus_bitrate: the bitrate of that bus (bit/s); a host choosing another
             hears nothing, as on a real bus.
@@ -80,39 +81,30 @@ class SlcanAdapterEmulator:
         self.model = model or SlcanAdapterModel(bus_bitrate)
         self._owns_bus = bus is None
         self.bus = bus if bus is not None else can.Bus(interface="virtual", channel=channel)
-        self._port = PtyPort("slcan")
+        self._port = PtyEndpoint("slcan")
         self._lines = LineSplitter()
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._notifier: can.Notifier | None = None
         self._t0 = time.monotonic()
-        self._stopped = False
         self.on_open: Callable[[], None] | None = None
         """Called when a host opens the channel (``O``), before the reply: a new client session."""
 
     @property
-    def path(self) -> str:
-        """The serial port to open (a symlink to the pty)."""
-        return self._port.path
+    def address(self) -> str:
+        """The serial port to open (a symlink to the pty): python-can's slcan ``channel``."""
+        return self._port.address
 
-    def start(self) -> str:
-        """Start serving (two daemon threads); returns :attr:`path`."""
-        if self._stopped:
-            raise RuntimeError("this slcan emulator was stopped; create a new one")
-        if self._thread is None:
-            self._notifier = can.Notifier(self.bus, [_ToHost(self)], timeout=POLL_S)
-            self._thread = threading.Thread(target=self._serve, name="slcan-emulator",
-                                            daemon=True)
-            self._thread.start()
-            log.info("slcan adapter emulator serving on %s", self.path)
-        return self.path
+    def _start_serving(self) -> None:
+        """Two daemon threads: the pty side and the bus side."""
+        self._notifier = can.Notifier(self.bus, [_ToHost(self)], timeout=POLL_S)
+        self._thread = threading.Thread(target=self._serve, name="slcan-emulator", daemon=True)
+        self._thread.start()
+        log.info("slcan adapter emulator serving on %s", self.address)
 
-    def stop(self) -> None:
-        """Stop both threads (joined), release the pty and the bus if made here; idempotent."""
-        if self._stopped:
-            return
-        self._stopped = True
+    def _release(self) -> None:
+        """Stop both threads (joined), release the pty and the bus if made here."""
         self._stop.set()
         if self._notifier is not None:
             self._notifier.stop(timeout=JOIN_TIMEOUT_S)
@@ -123,13 +115,6 @@ class SlcanAdapterEmulator:
         self._port.close()
         if self._owns_bus:
             self.bus.shutdown()
-
-    def __enter__(self) -> SlcanAdapterEmulator:
-        self.start()
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.stop()
 
     def _serve(self) -> None:
         while not self._stop.is_set():
