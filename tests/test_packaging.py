@@ -60,6 +60,40 @@ def test_wheel_declares_the_console_script(wheel: Path) -> None:
     assert "forcelearn = forcelearn.tools.cli:main" in text
 
 
+def test_wheel_is_typed_and_declares_both_emulator_routes(wheel: Path) -> None:
+    """py.typed (PEP 561), the forcelearn-jr3 can.interface entry point and the .pth hook."""
+    with zipfile.ZipFile(wheel) as zf:
+        names = set(zf.namelist())
+        (entry,) = [n for n in names if n.endswith("entry_points.txt")]
+        text = zf.read(entry).decode()
+        hook = zf.read("forcelearn-serial-url.pth").decode()
+    assert "forcelearn/py.typed" in names
+    assert "[can.interface]" in text
+    assert "forcelearn-jr3 = forcelearn.emulators.jr3.can_bus:Jr3EmulatorBus" in text
+    assert "forcelearn/emulators/urlhandler/protocol_forcelearn-robot.py" in names
+    assert hook.strip() == "import forcelearn.emulators.urlhandler.startup"
+
+
+def test_every_module_imports() -> None:
+    """No module is broken by a move (a study script nobody's test imports, say)."""
+    code = (
+        "import importlib, pkgutil, forcelearn\n"
+        "skip = ('protocol_forcelearn-robot', '.startup')\n"
+        "bad = []\n"
+        "for m in pkgutil.walk_packages(forcelearn.__path__, 'forcelearn.'):\n"
+        "    if m.name.endswith(skip):\n"
+        "        continue\n"
+        "    try:\n"
+        "        importlib.import_module(m.name)\n"
+        "    except Exception as exc:\n"
+        "        bad.append(f'{m.name}: {exc!r}')\n"
+        "print(bad)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, timeout=120)
+    assert done.stdout.strip().splitlines()[-1] == "[]", done.stdout
+
+
 def test_version_flag_prints_the_installed_version(capsys: pytest.CaptureFixture[str]) -> None:
     """`forcelearn --version` prints the distribution version and exits 0."""
     with pytest.raises(SystemExit) as stop:

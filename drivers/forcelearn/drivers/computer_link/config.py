@@ -1,14 +1,13 @@
 """Configuration of the computer-link driver: port, timing, retries and client-side limits.
 
-Frozen dataclasses, validated on construction; :meth:`LinkConfig.from_dict`
-reads the ``[robot]`` table of a TOML file and names any bad key.
+Frozen dataclasses, validated on construction (the cell config,
+:mod:`forcelearn.tools.cell_config`, reads the ``[robot]`` table into them).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
-from typing import Any
+from dataclasses import dataclass, field
 
 import serial
 
@@ -84,24 +83,3 @@ class LinkConfig:
         for name in ("nak_retries", "enq_retries"):
             if not 0 <= getattr(self, name) <= 10:
                 raise ConfigError(f"{name} must be 0..10, got {getattr(self, name)!r}")
-
-    @classmethod
-    def from_dict(cls, table: dict[str, Any]) -> LinkConfig:
-        """Build from a TOML table; ``limits`` is a sub-table. Unknown keys are errors."""
-        known = {f.name for f in fields(cls)}
-        unknown = set(table) - known
-        if unknown:
-            raise ConfigError(f"unknown robot link key(s): {', '.join(sorted(unknown))}")
-        values = dict(table)
-        if "limits" in values:
-            limit_keys = {f.name for f in fields(Limits)}
-            bad = set(values["limits"]) - limit_keys
-            if bad:
-                raise ConfigError(f"unknown limits key(s): {', '.join(sorted(bad))}")
-            limits = {
-                k: tuple(v) if isinstance(v, list) else v for k, v in values["limits"].items()
-            }
-            values["limits"] = Limits(**limits)
-        if "url" not in values:
-            raise ConfigError("url is required")
-        return cls(**values)
