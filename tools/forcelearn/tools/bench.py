@@ -21,6 +21,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "egm": ("forcelearn.tools.bench_egm", "EGM 4 ms loop period, jitter and reply latency, UDP"),
     "netft": ("forcelearn.tools.bench_netft", "Net F/T records/s and p99 latency, loopback UDP"),
     "cell": ("forcelearn.tools.bench_cell", "§5 run on the emulated cell: cell time / wall time"),
+    "live": ("forcelearn.tools.bench_live", "§5 run with --live and a browser vs without"),
 }
 
 

@@ -1,7 +1,8 @@
 """Benchmark: how fast the emulated cell runs against the time it simulates.
 
-Runs the §5 job (``forcelearn run``'s code path: real drivers over a pty and a
-virtual CAN bus, the emulators on one simulated clock) for a number of trials
+Runs the §5 job (``forcelearn run``'s code path: the real drivers on the
+in-process ``forcelearn-robot://`` and ``forcelearn-jr3`` routes, the emulators
+on one simulated clock) for a number of trials
 and prints the cell time (the robot's clock: what the run would hold a real
 cell), the wall time, their ratio (the real-time factor) and steps per second.
 The figures depend on the host's load; run it on an idle machine.
