@@ -47,8 +47,11 @@ def test_members_match_single_learners_step_for_step() -> None:
         assert batch.phase(b) is single.phase
         assert np.array_equal(batch.weights[b], single.weights)
         assert np.array_equal(batch.predictions[b], single.predictions)
+        assert np.array_equal(batch.member_weights(b), single.weights)
+        assert np.array_equal(batch.member_predictions(b), single.predictions)
         member = batch.member(b)
         assert np.array_equal(member.weights, single.weights)
+        assert np.array_equal(member.predictions, single.predictions)
         assert member.schedule == single.schedule
 
 

@@ -171,6 +171,18 @@ class BatchedSRVLearner:
         """V of every member, shape (B, *grid) (a copy)."""
         return self._predictions.reshape(self.size, *self.grid.shape).copy()
 
+    def member_weights(self, b: int) -> np.ndarray:
+        """W of member ``b``, shape (*grid, n_outputs) (a copy; only that member is read)."""
+        rows = self._weights[:, b * self._n_padded:(b + 1) * self._n_padded]
+        padded = np.moveaxis(rows.reshape(self.n_outputs, *self._padded_shape), 0, -1)
+        inner = tuple(slice(d, d + n) for d, n in zip(self._pad, self.grid.shape, strict=True))
+        return padded[inner].copy()
+
+    def member_predictions(self, b: int) -> np.ndarray:
+        """V of member ``b``, shape grid (a copy)."""
+        n = self.grid.n_boxes
+        return self._predictions[b * n:(b + 1) * n].reshape(self.grid.shape).copy()
+
     def phase(self, member: int) -> Phase:
         """The learning phase in force for ``member``."""
         return self.schedules[member].phase
@@ -193,7 +205,8 @@ class BatchedSRVLearner:
                     "out_of_range='clamp' to use the edge box"
                 )
             f = np.clip(f, 0.0, 1.0)
-        return np.minimum((f * self._parts).astype(np.int64), self._parts - 1)
+        boxes: np.ndarray = np.minimum((f * self._parts).astype(np.int64), self._parts - 1)
+        return boxes
 
     def _draw(self, members: np.ndarray) -> np.ndarray:
         n = self.n_outputs
@@ -205,7 +218,8 @@ class BatchedSRVLearner:
             self._used[b] = 0
         columns = self._used[members][:, None] + np.arange(n)
         self._used[members] += n
-        return self._normals[members[:, None], columns]
+        normals: np.ndarray = self._normals[members[:, None], columns]
+        return normals
 
     def act(self, members: np.ndarray, x: np.ndarray, explore: bool = True) -> BatchAction:
         """Steps S3-S4 for ``members`` (indices) at inputs ``x`` (M, ndim).
@@ -265,8 +279,8 @@ class BatchedSRVLearner:
         learner = SRVLearner(
             self.grid, self.n_outputs, self.params[b], rng=0, output=output or self.output
         )
-        learner.weights[...] = self.weights[b]
-        learner.predictions[...] = self.predictions[b]
+        learner.weights[...] = self.member_weights(b)
+        learner.predictions[...] = self.member_predictions(b)
         s = self.schedules[b]
         learner.schedule = PhaseSchedule(
             s.success_trials, s.phase, s.consecutive_successes, s.trials, s.switch_trial
