@@ -24,10 +24,25 @@ from forcelearn.trainer import TrialRecord
 class BatchOutcomeLike(Protocol):
     """Arrays over the stepped members: next input, evaluation, failure, force error."""
 
-    x: np.ndarray
-    r: np.ndarray
-    failed: np.ndarray
-    force_error_n: np.ndarray
+    @property
+    def x(self) -> np.ndarray:
+        """Next inputs, (M, ndim)."""
+        ...
+
+    @property
+    def r(self) -> np.ndarray:
+        """Evaluations, (M,)."""
+        ...
+
+    @property
+    def failed(self) -> np.ndarray:
+        """True ends that member's trial, (M,)."""
+        ...
+
+    @property
+    def force_error_n(self) -> np.ndarray:
+        """Measured minus desired force, (M,), N."""
+        ...
 
 
 class BatchedTask(Protocol):

@@ -24,6 +24,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
+from typing import ParamSpec, TypeVar
 
 import numpy as np
 
@@ -38,6 +39,9 @@ SYNC_WINDOW = 16
 
 WrenchCompensation = Callable[[np.ndarray, Pose], np.ndarray]
 """Maps a measured wrench (sensor frame, N and N·m) and the pose to a compensated one."""
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
 
 
 class Cell:
@@ -170,14 +174,14 @@ class Cell:
             batch = self._guarded(self.sensor.read_many, count, min(count, SYNC_WINDOW))
         else:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
-        samples = [self._compensated(raw) for raw in batch]
+        compensated = [self._compensated(raw) for raw in batch]
         config = self.force_filter.config
-        peak = max(config.sign * float(s.wrench[config.axis]) for s in samples)
+        peak = max(config.sign * float(s.wrench[config.axis]) for s in compensated)
         on_burst = getattr(self.force_filter, "on_burst", None)
         if on_burst is not None:
-            on_burst(samples)
+            on_burst(compensated)
         else:
-            for sample in samples:
+            for sample in compensated:
                 self.force_filter.on_sample(sample)
         force = self.force_filter.force_n
         if max(peak, force) > self.max_force_n:
@@ -201,9 +205,9 @@ class Cell:
         wrench = self.compensation(sample.wrench, self.pose)
         return WrenchSample(wrench, sample.timestamp_s, sample.counter, sample.saturated)
 
-    def _guarded(self, call, *args):
+    def _guarded(self, call: Callable[_P, _R], *args: _P.args, **kwargs: _P.kwargs) -> _R:
         try:
-            return call(*args)
+            return call(*args, **kwargs)
         except ForcelearnError:
             self.stop()
             raise

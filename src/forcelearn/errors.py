@@ -33,8 +33,17 @@ driver boundary with ``raise ... from``.
 from __future__ import annotations
 
 
+def one_line(exc: BaseException) -> str:
+    """The error's message, then each note a layer added (what to check), on one line."""
+    return "; ".join([str(exc), *getattr(exc, "__notes__", ())])
+
+
 class ForcelearnError(Exception):
-    """Root of every error raised on purpose by forcelearn."""
+    """Root of every error raised on purpose by forcelearn.
+
+    A layer that knows what to check adds a note (``exc.add_note``) and lets
+    the error go on with its type; :func:`one_line` shows both.
+    """
 
 
 class ConfigError(ForcelearnError, ValueError):

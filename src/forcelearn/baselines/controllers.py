@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from forcelearn.learning import SRVLearner, SRVParams
+from forcelearn.learning import Action, SRVLearner, SRVParams
 from forcelearn.trainer import TrialRecord
 
 MIN_STIFFNESS_N_PER_MM = 0.2
@@ -60,7 +60,7 @@ class SRVController:
         n_outputs = int(env.action_space.shape[0])
         self.env = env
         self.learner = SRVLearner(env.grid, n_outputs, params, rng=seed, output=env.learner_action)
-        self._action: Any = None
+        self._action: Action | None = None
         self.switch_trial: int | None = None
 
     def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
@@ -68,11 +68,14 @@ class SRVController:
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """S3-S4: draw a ~ N(μ, σ) in the input box; the output map makes it an env action."""
-        self._action = self.learner.act(self.env.learner_input(obs))
-        return self._action.output
+        action = self.learner.act(self.env.learner_input(obs))
+        self._action = action
+        return action.output
 
     def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
         """S7-S8 with r = −reward."""
+        if self._action is None:
+            raise RuntimeError("observe() before act(): no action to learn from")
         self.learner.learn(self._action, float(info["r"]))
 
     def end(self, record: TrialRecord) -> None:

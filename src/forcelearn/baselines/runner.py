@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, SupportsFloat
 
 import gymnasium
 import numpy as np
@@ -62,7 +62,9 @@ class TrialRecorder(gymnasium.Wrapper[np.ndarray, np.ndarray, np.ndarray, np.nda
         self._forces = [self._start_force_n]
         return obs, info
 
-    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
         """One step; a finished episode becomes a record."""
         obs, reward, terminated, truncated, info = self.env.step(action)
         self._rs.append(float(info["r"]))

@@ -55,7 +55,7 @@ def run_sac(
     p = params or SACParams()
     recorder = TrialRecorder(env, "sac")
     task: Any = recorder.unwrapped
-    wrapped = gymnasium.wrappers.RescaleObservation(recorder, -1.0, 1.0)
+    wrapped = gymnasium.wrappers.RescaleObservation(recorder, np.float64(-1.0), np.float64(1.0))
 
     class Budget(BaseCallback):  # type: ignore[misc]
         def _on_step(self) -> bool:

@@ -67,8 +67,8 @@ from forcelearn.calibration.model import (
     SensorInfo,
     ToolLoad,
     gravity_in_sensor,
-    quaternion_to_matrix,
 )
+from forcelearn.devices import quaternion_to_matrix
 
 __all__ = [
     "AXES",

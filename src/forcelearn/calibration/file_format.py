@@ -151,7 +151,8 @@ class _Table:
     def __init__(self, data: Any, name: str, source: str) -> None:
         if not isinstance(data, Mapping):
             raise ConfigError(f"{source}: [{name}] must be a table")
-        self.data, self.name, self.source, self.used = data, name, source, set()
+        self.data, self.name, self.source = data, name, source
+        self.used: set[str] = set()
 
     def _get(self, key: str) -> Any:
         self.used.add(key)

@@ -11,7 +11,7 @@ physics (core must not import emulators); a test checks that both agree.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -32,7 +32,8 @@ Quaternion = tuple[float, float, float, float]
 
 def gravity_in_sensor(q: Quaternion) -> np.ndarray:
     """Return gravity g_s (3,) in the sensor frame, m/s^2, for orientation ``q``."""
-    return quaternion_to_matrix(q).T @ np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2])
+    g_s: np.ndarray = quaternion_to_matrix(q).T @ np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2])
+    return g_s
 
 
 def floats(values: Any) -> tuple[float, ...]:
@@ -111,7 +112,8 @@ class ToolLoad:
     @property
     def rms_residual(self) -> np.ndarray:
         """RMS residual per axis over the poses (N, N*m)."""
-        return np.sqrt(np.mean(np.square([p.residual for p in self.poses]), axis=0))
+        rms: np.ndarray = np.sqrt(np.mean(np.square([p.residual for p in self.poses]), axis=0))
+        return rms
 
 
 @dataclass(frozen=True)
@@ -153,20 +155,24 @@ class Calibration:
 
     def gravity_wrench(self, quaternion: Quaternion) -> np.ndarray:
         """Return the tool's weight in the sensor frame, [m g_s ; c x m g_s] (N, N*m)."""
-        key = tuple(float(c) for c in quaternion)
-        cached = self._gravity_cache.get(key)  # type: ignore[call-overload]
+        # Four floats, as ``quaternion`` has four components.
+        key = cast(Quaternion, tuple(float(c) for c in quaternion))
+        cached = self._gravity_cache.get(key)
         if cached is None:
-            force = self.tool.mass_kg * gravity_in_sensor(key)  # type: ignore[arg-type]
+            force = self.tool.mass_kg * gravity_in_sensor(key)
             com_m = np.asarray(self.tool.com_mm) / MM_PER_M
             cached = np.concatenate([force, np.cross(com_m, force)])
             if len(self._gravity_cache) >= 64:  # the hot path sees few orientations
                 self._gravity_cache.clear()
-            self._gravity_cache[key] = cached  # type: ignore[index]
+            self._gravity_cache[key] = cached
         return cached
 
     def compensate(self, wrench: np.ndarray, quaternion: Quaternion) -> np.ndarray:
         """Return measured - bias - tool gravity (6,), N and N*m."""
-        return np.asarray(wrench, dtype=float) - self.bias - self.gravity_wrench(quaternion)
+        compensated: np.ndarray = (
+            np.asarray(wrench, dtype=float) - self.bias - self.gravity_wrench(quaternion)
+        )
+        return compensated
 
     def compensation(self, wrench: np.ndarray, pose: Pose) -> np.ndarray:
         """``Cell.compensation``: :meth:`compensate` at the pose's orientation."""

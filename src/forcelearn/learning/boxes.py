@@ -29,6 +29,9 @@ from forcelearn.errors import ConfigError, ForcelearnError
 
 RangePolicy = Literal["error", "clamp"]
 
+InputVector = Sequence[float] | np.ndarray
+"""An input: a sequence of floats or a 1-D array, one component per dimension."""
+
 
 class BoxRangeError(ForcelearnError, ValueError):
     """An input lies outside the partitioned range and the grid does not clamp."""
@@ -87,11 +90,11 @@ class BoxGrid:
         """Total number of boxes."""
         return math.prod(self.shape)
 
-    def contains(self, x: Sequence[float]) -> bool:
+    def contains(self, x: InputVector) -> bool:
         """True when every component of ``x`` lies within its dimension's range."""
         return all(d.low <= float(v) <= d.high for d, v in zip(self.dimensions, x, strict=True))
 
-    def index(self, x: Sequence[float]) -> tuple[int, ...]:
+    def index(self, x: InputVector) -> tuple[int, ...]:
         """Return the box (one integer per dimension) that holds input ``x``."""
         if len(x) != self.ndim:
             raise ValueError(f"input has {len(x)} components, the grid has {self.ndim} dimensions")

@@ -54,7 +54,8 @@ class AffineOutput:
 
     def __call__(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
         """Return the scaled, offset and clipped command."""
-        y = np.asarray(self.offset, dtype=float) + np.asarray(self.scale, dtype=float) * a
+        scale = np.asarray(self.scale, dtype=float)
+        y: np.ndarray = np.asarray(self.offset, dtype=float) + scale * a
         if self.low is not None or self.high is not None:
             y = np.clip(y, self.low, self.high)
         return y

@@ -19,13 +19,12 @@ Python loop over boxes.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from forcelearn.errors import ConfigError
-from forcelearn.learning.boxes import BoxGrid, neighbourhood_kernel
+from forcelearn.learning.boxes import BoxGrid, InputVector, neighbourhood_kernel
 from forcelearn.learning.exploration import IdentityOutput, OutputMap, sigma_of_prediction
 from forcelearn.learning.params import SRVParams
 from forcelearn.learning.phase import Phase, PhaseSchedule
@@ -58,14 +57,16 @@ def input_box_change(
     r_hat: float, r: float, a: np.ndarray, mu: np.ndarray, sigma: float, alpha: float
 ) -> np.ndarray:
     """Eq. (2): ΔW of the input box, per output."""
-    return alpha * (r_hat - r) * (a - mu) / sigma
+    change: np.ndarray = alpha * (r_hat - r) * (a - mu) / sigma
+    return change
 
 
 def neighbour_change(
     weight: np.ndarray | float, r_hat: float, r: float, a: np.ndarray, mu: np.ndarray, alpha: float
 ) -> np.ndarray:
     """Eq. (3): ΔW of a neighbour whose weight is γ^(Σ|d̂_i|) (σ removed)."""
-    return np.multiply.outer(weight, alpha * (r_hat - r) * (a - mu))
+    change: np.ndarray = np.multiply.outer(weight, alpha * (r_hat - r) * (a - mu))
+    return change
 
 
 class SRVLearner:
@@ -114,7 +115,7 @@ class SRVLearner:
         """The learning phase in force."""
         return self.schedule.phase
 
-    def act(self, x: Sequence[float], explore: bool = True) -> Action:
+    def act(self, x: InputVector, explore: bool = True) -> Action:
         """Steps S3-S4: pick the box of ``x``, draw a ~ N(μ, σ), map it to y.
 
         With ``explore=False`` the action is the mean μ (for showing a learned policy).

@@ -87,7 +87,8 @@ def save_learner(
     for name, values in (arrays or {}).items():
         content[f"extra_{name}"] = np.asarray(values)
     with atomic_writer(path) as handle:
-        np.savez(handle, **content)
+        # allow_pickle is numpy's default, named so that mypy does not match **content to it.
+        np.savez(handle, allow_pickle=True, **content)
 
 
 def load_learner(

@@ -112,7 +112,8 @@ class Record:
     rdt_sequence: int
     ft_sequence: int
     status: int
-    counts: tuple[int, int, int, int, int, int]
+    counts: tuple[int, ...]
+    """Fx Fy Fz Tx Ty Tz (six)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,7 +153,7 @@ def decode_record(data: bytes) -> Record | Rejected:
     if len(data) != RECORD.size:
         return Rejected("RECORD_SIZE", bytes(data))
     rdt, ft, status, *counts = RECORD.unpack(data)
-    return Record(rdt, ft, status, tuple(counts))  # type: ignore[arg-type]
+    return Record(rdt, ft, status, tuple(counts))
 
 
 @dataclass(frozen=True, slots=True)
@@ -190,4 +191,4 @@ def decode_calinfo_reply(data: bytes) -> CalInfo | Rejected:
     header, fu, tu, cpf, cpt, *scales = CALINFO_REPLY.unpack(data)
     if header != HEADER:
         return Rejected("CALINFO_HEADER", bytes(data))
-    return CalInfo(fu, tu, cpf, cpt, tuple(scales))  # type: ignore[arg-type]
+    return CalInfo(fu, tu, cpf, cpt, tuple(scales))

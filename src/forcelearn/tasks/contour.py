@@ -96,7 +96,10 @@ class ContourTaskSpec:
 class ContourCell(Protocol):
     """What the task needs of the two-link cell (the emulator's ``TwoLinkContourCell``)."""
 
-    geometry: ContourGeometryLike
+    @property
+    def geometry(self) -> ContourGeometryLike:
+        """The surface the cell's arm presses on (read only)."""
+        ...
 
     def reset(self) -> tuple[float, float]:
         """Return to the start pose; return (θ1, θ2) in degrees."""
@@ -116,11 +119,22 @@ class ContourCell(Protocol):
 
 
 class ContourGeometryLike(Protocol):
-    """The surface facts the evaluation needs: centre, radius, stiffness."""
+    """The surface facts the evaluation needs: centre, radius, stiffness (read only)."""
 
-    centre_m: tuple[float, float]
-    radius_m: float
-    stiffness_n_per_m: float
+    @property
+    def centre_m(self) -> tuple[float, float]:
+        """Centre (x, y) of the circular surface, m."""
+        ...
+
+    @property
+    def radius_m(self) -> float:
+        """Radius of the surface, m."""
+        ...
+
+    @property
+    def stiffness_n_per_m(self) -> float:
+        """Normal stiffness of the surface, N/m."""
+        ...
 
 
 class IncrementalJointOutput:

@@ -25,8 +25,12 @@ from forcelearn.tasks.contour import (
 class ContourCells(Protocol):
     """What the batched task needs of ``B`` two-link cells (``TwoLinkContourCells``)."""
 
-    geometry: ContourGeometryLike
     size: int
+
+    @property
+    def geometry(self) -> ContourGeometryLike:
+        """The surface all the cells' arms press on (read only)."""
+        ...
 
     def reset(self, arms: np.ndarray) -> np.ndarray:
         """Return ``arms`` to the start pose; return (M, 2) joint angles, deg."""

@@ -44,7 +44,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, TypedDict, cast
 
 import numpy as np
 
@@ -204,11 +204,23 @@ class OutputMapChoice:
         return self.max_offset_mm / self.scale_mm
 
 
+class ProbeRow(TypedDict):
+    """One reading of the probe (a row of probe.csv)."""
+
+    point: int
+    z_mm: float
+    y_mm: float
+    phase: str
+    early_force_n: float
+    force_n: float
+    cell_time_s: float
+
+
 @dataclass
 class ProbeResult:
     """What the probe read and fitted (JSON-able through :meth:`to_json`)."""
 
-    rows: list[dict[str, float]] = field(default_factory=list)
+    rows: list[ProbeRow] = field(default_factory=list)
     """Every reading: point, z_mm, y_mm, phase ("baseline", "approach", "press"),
     force_n (relaxed, baseline removed), early_force_n, cell_time_s."""
     fits: list[ContactFit] = field(default_factory=list)
@@ -226,7 +238,7 @@ class ProbeResult:
     def from_json(cls, data: dict[str, Any]) -> ProbeResult:
         """Inverse of :meth:`to_json`."""
         return cls(
-            rows=[dict(r) for r in data["rows"]],
+            rows=[cast(ProbeRow, dict(r)) for r in data["rows"]],  # as to_json wrote them
             fits=[ContactFit(**f) for f in data["fits"]],
             baselines_n=[float(b) for b in data["baselines_n"]],
         )
@@ -288,7 +300,9 @@ class SurfaceProbe:
         cell.reset_filter()
         return early, cell.measure_force_n(self.spec.samples)
 
-    def _record(self, point: int, z: float, y: float, phase: str, early: float, force: float):
+    def _record(
+        self, point: int, z: float, y: float, phase: str, early: float, force: float
+    ) -> None:
         self.result.rows.append(
             {
                 "point": point,

@@ -24,6 +24,7 @@ import logging
 import math
 import statistics
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -36,7 +37,7 @@ from forcelearn.baselines.controllers import (
     PathSearchParams,
     SRVController,
 )
-from forcelearn.baselines.runner import TrialRecorder, run_controller
+from forcelearn.baselines.runner import Controller, TrialRecorder, run_controller
 from forcelearn.baselines.sac import SACParams, run_sac
 from forcelearn.errors import ConfigError, LinkError, SensorError
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
@@ -88,7 +89,9 @@ def variant_config(variant: str, base: CellConfig | None = None) -> CellConfig:
     return replace(config, emulator=replace(config.emulator, sponge=sponge))
 
 
-def run_baseline(config: BaselinesConfig, seed: int) -> tuple[dict[str, Any], dict[str, list]]:
+def run_baseline(
+    config: BaselinesConfig, seed: int
+) -> tuple[dict[str, Any], dict[str, list[float]]]:
     """Run one method on one variant for one seed; return the summary and per-trial curves."""
     from forcelearn.tools.envs import SurfaceEnv
 
@@ -99,12 +102,13 @@ def run_baseline(config: BaselinesConfig, seed: int) -> tuple[dict[str, Any], di
         if config.method == "sac":
             recorder: TrialRecorder = run_sac(env, seed, config.trials, config.sac)[0]
         else:
-            controller = {
+            factories: dict[str, Callable[[], Controller]] = {
                 "srv": lambda: SRVController(env, cell.learner, seed),
                 "pi": lambda: ForceController(env, config.pi),
                 "ilc": lambda: ILCController(env, config.ilc),
                 "cma": lambda: PathSearchController(env, seed, config.cma),
-            }[config.method]()
+            }
+            controller = factories[config.method]()
             recorder = run_controller(env, controller, config.trials, seed)
     finally:
         env.close()
@@ -138,7 +142,7 @@ def summarize_run(
     }
 
 
-def curves_of(recorder: TrialRecorder) -> dict[str, list]:
+def curves_of(recorder: TrialRecorder) -> dict[str, list[float]]:
     """Per-trial arrays saved beside the run (learning-curve figure)."""
     records = recorder.records
     return {

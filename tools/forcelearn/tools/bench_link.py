@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from typing import Literal
 
 import numpy as np
 
@@ -25,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--transport", choices=("pty", "tcp"), default="pty")
 
 
-def measure(commands: int, warmup: int, transport: str = "pty") -> np.ndarray:
+def measure(commands: int, warmup: int, transport: Literal["pty", "tcp"] = "pty") -> np.ndarray:
     """Return the round-trip times (s) of ``commands`` MOVE_BY commands."""
     times = np.empty(commands)
     with RobotControllerEmulator(transport) as emulator, ComputerLinkRobot(

@@ -52,7 +52,9 @@ def measure(records: int, *, time_scale: float, rate_hz: float, window: int,
                        rdt_rate_hz=rate_hz,
                        on_send=lambda _record: sent_at.append(time.monotonic())) as emu, \
             NetFtSensor(NetFtConfig(host=emu.host, stale_timeout_s=1.0, burst_records=window,
-                                    **emu.ports)) as sensor:
+                                    rdt_port=emu.ports["rdt_port"],
+                                    tcp_port=emu.ports["tcp_port"],
+                                    http_port=emu.ports["http_port"])) as sensor:
         sensor.read_many(200)  # warm up
         first = len(sent_at)
         start = time.perf_counter()

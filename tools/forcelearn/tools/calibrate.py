@@ -245,7 +245,7 @@ def _sensor_info(
             # noise's bandwidth is the RDT stream's Nyquist frequency
             cutoff_hz=0.5 * (
                 (cal.rdt_rate_hz if cal is not None else None)
-                or config.sensor.rdt_rate_hz
+                or config.netft.rdt_rate_hz
                 or NETFT_RDT_HZ
             ),
             robot=robot_name,
@@ -256,7 +256,7 @@ def _sensor_info(
         model=sensor_model if sensor_model is not None else (
             "JR3 (forcelearn emulator)" if config.sensor_emulated else ""),
         serial=serial,
-        node_id=config.sensor.node_id,
+        node_id=config.jr3.node_id,
         full_scales=tuple(float(v) for v in sensor.full_scales),
         cutoff_hz=sensor.cutoff_hz,
         robot=robot_name,

@@ -62,9 +62,12 @@ def tilted(axis_world: tuple[float, float, float], angle_deg: float) -> Quaterni
     if not norm > 0:
         raise ValueError("tilt axis must not be zero")
     half = math.radians(angle_deg) / 2
-    turn = (math.cos(half), *(float(c) * math.sin(half) / norm for c in axis))
-    q = np.asarray(multiply(turn, TOOL_DOWN))  # type: ignore[arg-type]
-    return tuple(float(c) for c in q / np.linalg.norm(q))  # type: ignore[return-value]
+    ax, ay, az = (float(c) for c in axis)
+    sin_half = math.sin(half)
+    turn = (math.cos(half), ax * sin_half / norm, ay * sin_half / norm, az * sin_half / norm)
+    q = np.asarray(multiply(turn, TOOL_DOWN))
+    w, x, y, z = (float(c) for c in q / np.linalg.norm(q))
+    return (w, x, y, z)
 
 
 def slerp_steps(q0: Quaternion, q1: Quaternion, max_step_deg: float) -> list[Quaternion]:
@@ -141,7 +144,9 @@ class CalibrationPlan:
                               f"got {self.position_mm}")
 
 
-def load_poses(path: str | os.PathLike[str]) -> tuple[tuple[NamedPose, ...], tuple | None]:
+def load_poses(
+    path: str | os.PathLike[str],
+) -> tuple[tuple[NamedPose, ...], tuple[float, float, float] | None]:
     """Read a poses file; return (poses, position_mm or None). Errors name the key."""
     data = read_toml(path)
     source = f"poses file {os.fspath(path)!r}"
@@ -158,7 +163,11 @@ def load_poses(path: str | os.PathLike[str]) -> tuple[tuple[NamedPose, ...], tup
     if not isinstance(raw, list) or not raw:
         raise ConfigError(f"{source}: needs [[pose]] tables, one per orientation")
     poses = [_pose(entry, i, source) for i, entry in enumerate(raw)]
-    return tuple(poses), (tuple(float(c) for c in position) if position else None)
+    position_mm = None
+    if position:
+        x, y, z = (float(c) for c in position)  # three numbers, checked above
+        position_mm = (x, y, z)
+    return tuple(poses), position_mm
 
 
 def _pose(entry: object, index: int, source: str) -> NamedPose:
@@ -177,11 +186,12 @@ def _pose(entry: object, index: int, source: str) -> NamedPose:
             q = np.asarray(entry["quaternion"], dtype=float)
             if q.shape != (4,) or not np.all(np.isfinite(q)) or abs(np.linalg.norm(q) - 1) > 1e-3:
                 raise ValueError("quaternion must be 4 numbers (w, x, y, z) of unit length")
-            return NamedPose(name, tuple(float(c) for c in q / np.linalg.norm(q)))  # type: ignore[arg-type]
+            w, x, y, z = (float(c) for c in q / np.linalg.norm(q))
+            return NamedPose(name, (w, x, y, z))
         axis = np.asarray(entry["tilt_axis"], dtype=float)
         if axis.shape != (3,) or abs(axis[2]) > 1e-9 * max(1.0, float(np.abs(axis).max())):
             raise ValueError("tilt_axis must be 3 numbers, horizontal (z = 0)")
-        return NamedPose(name, tilted(tuple(axis), float(entry["tilt_deg"])))  # type: ignore[arg-type]
+        return NamedPose(name, tilted(tuple(axis), float(entry["tilt_deg"])))
     except KeyError as exc:
         raise ConfigError(f"{where}: missing {exc.args[0]} (give quaternion, or tilt_axis and "
                           "tilt_deg)") from exc

@@ -49,7 +49,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypedDict
 
 from forcelearn.config import build, check_sections, read_run_table, read_toml
 from forcelearn.devices import Pose
@@ -136,7 +136,18 @@ class SafetyLimits:
                     f"safety.{name} = {value!r}: must be a finite number > 0; safety limits "
                     "cannot be switched off"
                 )
-        Limits(tuple(self.workspace_min_mm), tuple(self.workspace_max_mm), self.max_step_mm)
+        for name in ("workspace_min_mm", "workspace_max_mm"):
+            corner = getattr(self, name)
+            if len(corner) != 3:
+                raise ConfigError(f"safety.{name} = {corner!r}: must be 3 numbers (x, y, z), mm")
+        Limits(self.workspace_min_mm, self.workspace_max_mm, self.max_step_mm)
+
+
+class CanBusKwargs(TypedDict, total=False):
+    """Extra keyword arguments of ``can.Bus`` that a ``[sensor]`` table may set."""
+
+    sleep_after_open: float
+    """python-can's slcan wait after opening the adapter, s."""
 
 
 @dataclass(frozen=True)
@@ -156,7 +167,7 @@ class BusConfig:
                 f"sensor.sleep_after_open_s={wait}: only for interface \"slcan\", 0..10 s"
             )
 
-    def can_kwargs(self) -> dict[str, float]:
+    def can_kwargs(self) -> CanBusKwargs:
         """Extra keyword arguments for ``can.Bus`` (python-can's ``sleep_after_open``)."""
         if self.sleep_after_open_s is None:
             return {}
@@ -249,6 +260,34 @@ class CellConfig:
         return "netft" if isinstance(self.sensor, NetFtConfig) else "jr3"
 
     @property
+    def link(self) -> LinkConfig:
+        """``robot`` of a computer-link cell (``ConfigError`` for another kind)."""
+        if not isinstance(self.robot, LinkConfig):
+            raise ConfigError(f"the robot is of kind {self.robot_kind!r}, not computer_link")
+        return self.robot
+
+    @property
+    def egm(self) -> EgmConfig:
+        """``robot`` of an EGM cell (``ConfigError`` for another kind)."""
+        if not isinstance(self.robot, EgmConfig):
+            raise ConfigError(f"the robot is of kind {self.robot_kind!r}, not egm")
+        return self.robot
+
+    @property
+    def jr3(self) -> Jr3Config:
+        """``sensor`` of a JR3 cell (``ConfigError`` for another kind)."""
+        if not isinstance(self.sensor, Jr3Config):
+            raise ConfigError(f"the sensor is of kind {self.sensor_kind!r}, not jr3")
+        return self.sensor
+
+    @property
+    def netft(self) -> NetFtConfig:
+        """``sensor`` of a Net F/T cell (``ConfigError`` for another kind)."""
+        if not isinstance(self.sensor, NetFtConfig):
+            raise ConfigError(f"the sensor is of kind {self.sensor_kind!r}, not netft")
+        return self.sensor
+
+    @property
     def robot_emulated(self) -> bool:
         """True when the robot goes to the built-in emulator."""
         if isinstance(self.robot, EgmConfig):
@@ -280,7 +319,8 @@ def _kind(table: dict[str, Any], section: str, kinds: tuple[str, ...]) -> str:
     kind = table.pop("kind", kinds[0])
     if kind not in kinds:
         raise ConfigError(f"{section}.kind = {kind!r}: one of {list(kinds)}")
-    return kind
+    known: str = kind  # one of ``kinds``
+    return known
 
 
 def _load_robot(table: dict[str, Any], limits: Limits) -> LinkConfig | EgmConfig:

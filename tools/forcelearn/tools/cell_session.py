@@ -33,6 +33,7 @@ from dataclasses import replace
 from typing import Any
 
 import can
+from can.interfaces.slcan import slcanBus
 
 from forcelearn.calibration import Calibration, load_calibration
 from forcelearn.cell import Cell
@@ -131,13 +132,14 @@ class CellSession:
         cfg = self.config
         if not cfg.robot_emulated:
             return None
-        self.robot_emulator = emulated_robot(cfg, self.physics, "inproc")  # type: ignore[arg-type]
+        assert self.physics is not None  # built for any emulated device
+        self.robot_emulator = emulated_robot(cfg, self.physics, "inproc")
         self._stack.callback(self.robot_emulator.close)
         return self.robot_emulator.start()
 
     def _open_link(self, emulator_url: str | None) -> None:
         """The computer-link driver, on the emulator's pty or the configured serial port."""
-        robot_config = self.config.robot
+        robot_config = self.config.link
         if emulator_url is not None:
             robot_config = replace(robot_config, url=emulator_url)
         try:
@@ -154,10 +156,9 @@ class CellSession:
         """The JR3's CAN bus: the in-process emulator's (``forcelearn-jr3``), or the adapter."""
         cfg = self.config
         if cfg.sensor_emulated:
+            assert self.physics is not None  # built for any emulated device
             channel = private_channel(cfg)
-            self.sensor_emulator = emulated_jr3(  # type: ignore[arg-type]
-                cfg, self.physics, channel, seed, in_process=True
-            )
+            self.sensor_emulator = emulated_jr3(cfg, self.physics, channel, seed, in_process=True)
             self._stack.callback(self.sensor_emulator.close)
             self._bus = can.Bus(interface="forcelearn-jr3", channel=channel)
         else:
@@ -187,8 +188,10 @@ class CellSession:
         (``forcelearn emulate --fresh-per-connection``) then sees one order on
         any host. An adapter that does not answer only costs the wait.
         """
+        bus = self._bus
+        assert isinstance(bus, slcanBus)  # the caller checked [sensor] interface = "slcan"
         try:
-            hardware, software = self._bus.get_version(SLCAN_VERSION_TIMEOUT_S)
+            hardware, software = bus.get_version(SLCAN_VERSION_TIMEOUT_S)
         except can.CanError as exc:  # the JR3's initialisation then names the fault
             log.warning("slcan adapter on %s: version query failed: %s",
                         self.config.bus.channel, exc)
@@ -204,13 +207,13 @@ class CellSession:
         """The JR3 driver on the open bus, initialised."""
         cfg = self.config
         assert self._bus is not None
-        self.sensor = Jr3CanSensor(self._bus, cfg.sensor)
+        self.sensor = Jr3CanSensor(self._bus, cfg.jr3)
         self._stack.callback(self.sensor.close)
         try:
             self.sensor.initialise()
         except ForcelearnError as exc:  # keeps its type and attributes
             exc.add_note(
-                f"check [sensor] node_id ({cfg.sensor.node_id}), the bus bitrate and "
+                f"check [sensor] node_id ({cfg.jr3.node_id}), the bus bitrate and "
                 "that the JR3 adapter is powered"
             )
             raise

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
-from forcelearn.errors import LinkError, SafetyStop, SensorError
+from forcelearn.errors import LinkError, SafetyStop, SensorError, one_line
 from forcelearn.protocols.computer_link import messages
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
@@ -75,13 +75,13 @@ def run(args: argparse.Namespace) -> int:
         with CellSession(config, seed=args.seed) as session:
             check_session(session, args.seconds, print)
     except LinkError as exc:
-        print(f"FAILED  robot link: {exc}")
+        print(f"FAILED  robot link: {one_line(exc)}")
         return 1
     except SensorError as exc:
-        print(f"FAILED  sensor: {exc}")
+        print(f"FAILED  sensor: {one_line(exc)}")
         return 1
     except SafetyStop as exc:
-        print(f"FAILED  {exc}")
+        print(f"FAILED  {one_line(exc)}")
         return 1
     print("OK      both devices answer; the robot was not moved")
     return 0
@@ -124,7 +124,7 @@ def _check_any_sensor(session: CellSession, seconds: float, say: Printer) -> Non
 
 
 def _check_sensor(sensor: Jr3CanSensor, config: CellConfig, seconds: float, say: Printer) -> None:
-    cfg = config.sensor
+    cfg = config.jr3
     scales = sensor.full_scales
     say(f"  sensor  JR3 node {cfg.node_id} initialised: {cfg.mode} mode, cut-off "
         f"{sensor.cutoff_hz:g} Hz, offsets {'zeroed' if cfg.zero_on_init else 'as stored'}")
@@ -182,7 +182,7 @@ _EMULATE_HINT = (" (for `forcelearn emulate`, name the stable links it prints, w
 def _describe_robot(config: CellConfig) -> str:
     if config.robot_kind == "egm":
         return describe_egm(config)
-    robot = config.robot
+    robot = config.link
     if config.robot_emulated:
         return "built-in robot-controller emulator on a pty"
     return (f"port {robot.url} at {robot.baudrate} baud, {robot.bytesize}"
@@ -196,7 +196,7 @@ def _describe_bus(config: CellConfig) -> str:
     if config.sensor_emulated:
         return "built-in JR3 emulator on a virtual CAN bus"
     described = (f"CAN interface {bus.interface}, channel {bus.channel}, {bus.bitrate} bit/s, "
-                 f"JR3 node {config.sensor.node_id}")
+                 f"JR3 node {config.jr3.node_id}")
     if bus.interface == "slcan" and bus.sleep_after_open_s is None:
         described += ("\n          (python-can's slcan waits 2 s after every open; set "
                       "[sensor] sleep_after_open_s = 0 if your adapter needs no settle time)")

@@ -14,7 +14,7 @@ import sys
 from collections.abc import Sequence
 from importlib import metadata
 
-from forcelearn.errors import ForcelearnError
+from forcelearn.errors import ForcelearnError, one_line
 
 # name -> (module implementing it, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -86,8 +86,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args._run(args) or 0)
     except ForcelearnError as exc:  # one line: the message, then each note (what to check)
-        message = "; ".join([str(exc), *getattr(exc, "__notes__", ())])
-        print(f"forcelearn {args.command}: {message}", file=sys.stderr)
+        print(f"forcelearn {args.command}: {one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"forcelearn {args.command}: interrupted", file=sys.stderr)

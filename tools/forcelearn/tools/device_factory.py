@@ -131,7 +131,14 @@ def open_netft(
         if sensor.rdt_rate_hz is not None:
             options["rdt_rate_hz"] = sensor.rdt_rate_hz
         emulator = start_emulated_netft(physics, physics.clock, seed, **options)
-        sensor = replace(sensor, host=emulator.host, **emulator.ports)
+        ports = emulator.ports
+        sensor = replace(
+            sensor,
+            host=emulator.host,
+            rdt_port=ports["rdt_port"],
+            tcp_port=ports["tcp_port"],
+            http_port=ports["http_port"],
+        )
     try:
         driver = NetFtSensor(sensor)
     except BaseException:
@@ -144,7 +151,7 @@ def open_netft(
     except ForcelearnError as exc:  # keeps its type and fields (SensorFault...)
         opened.close()
         exc.add_note(
-            f"check [sensor] host ({config.sensor.host}), that the box is powered and "
+            f"check [sensor] host ({config.netft.host}), that the box is powered and "
             "on this subnet, and its calibration (docs/netft.md, On site)"
         )
         raise

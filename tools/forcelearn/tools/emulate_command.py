@@ -108,7 +108,7 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
         )
         print(f"robot link (computer link, pty): {cell.robot_path}")
         print(
-            f"JR3 sensor (slcan CAN adapter, pty, node {config.sensor.node_id}, "
+            f"JR3 sensor (slcan CAN adapter, pty, node {config.jr3.node_id}, "
             f"{config.bus.bitrate} bit/s): {cell.slcan_path}"
         )
         if args.write_config is not None:

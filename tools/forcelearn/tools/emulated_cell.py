@@ -54,7 +54,7 @@ def link_char_time_s(config: CellConfig) -> float:
     """Seconds per character of the emulated robot link (0 in the ideal profile)."""
     if config.emulator.ideal:
         return 0.0
-    robot = config.robot
+    robot = config.link
     return serial_char_time_s(robot.baudrate, robot.bytesize, robot.parity, robot.stopbits)
 
 
@@ -82,7 +82,7 @@ def emulated_jr3(
     return Jr3EmulatorNode(
         physics,
         channel=channel,
-        node_id=config.sensor.node_id,
+        node_id=config.jr3.node_id,
         model=config.emulator.effective().sensor,
         seed=seed,
         bitrate=None if config.emulator.ideal else config.bus.bitrate,
@@ -220,5 +220,5 @@ class EmulatedCell:
             f'channel = "{self.slcan_path}"\n'
             f"bitrate = {bus.bitrate}\n"
             "sleep_after_open_s = 0.0   # the emulated adapter needs no settle time\n"
-            f"node_id = {self.config.sensor.node_id}\n"
+            f"node_id = {self.config.jr3.node_id}\n"
         )

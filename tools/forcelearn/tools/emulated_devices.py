@@ -56,7 +56,7 @@ def free_udp_port() -> int:
     """A UDP port on 127.0.0.1 free right now (for the PC side of EGM)."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
+        return int(probe.getsockname()[1])
 
 
 class EmulatedDevices:
@@ -161,7 +161,7 @@ class EmulatedDevices:
             )
         if self.adapter is not None:
             lines.append(
-                f"JR3 sensor (slcan CAN adapter, pty, node {self.config.sensor.node_id}, "
+                f"JR3 sensor (slcan CAN adapter, pty, node {self.config.jr3.node_id}, "
                 f"{self.config.bus.bitrate} bit/s): {self.adapter.address}"
             )
         if self.netft is not None:
@@ -211,7 +211,7 @@ class EmulatedDevices:
                 'interface = "slcan"',
                 f'channel = "{self.adapter.address}"',
                 f"bitrate = {self.config.bus.bitrate}",
-                f"node_id = {self.config.sensor.node_id}",
+                f"node_id = {self.config.jr3.node_id}",
             ]
         if self.netft is not None:
             ports = self.netft.ports

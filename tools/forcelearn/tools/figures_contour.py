@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -26,10 +27,12 @@ def _column(log: TrialLog, key: str) -> np.ndarray:
     return np.array([row[key] for row in log.rows], dtype=float)
 
 
-def _figure(rows: int = 1, figsize: tuple[float, float] = (7, 3.5), **kwargs: object):
-    """A pyplot-free figure (no global backend state) and its axes."""
+def _figure(
+    rows: int = 1, figsize: tuple[float, float] = (7, 3.5), sharex: bool = False
+) -> tuple[Figure, Any]:
+    """A pyplot-free figure (no global backend state) and its axes (one Axes, or an array)."""
     fig = Figure(figsize=figsize)
-    return fig, fig.subplots(rows, 1, **kwargs)
+    return fig, fig.subplots(rows, 1, sharex=sharex)
 
 
 def _save(fig: Figure, path: Path) -> Path:

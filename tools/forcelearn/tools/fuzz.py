@@ -35,6 +35,7 @@ bounded inputs; the long run is::
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 import random
 import sys
@@ -44,11 +45,16 @@ from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 import can
 import numpy as np
 
 from forcelearn.errors import ForcelearnError
+
+if TYPE_CHECKING:
+    from forcelearn.devices import WrenchSample
+    from forcelearn.learning import SRVLearner
 
 Mutation = tuple[int, int, int]
 """(kind, position, value): kind 0 flip a bit, 1 set a byte, 2 insert, 3 delete, 4 truncate."""
@@ -179,7 +185,7 @@ def check_can(frames: Sequence[CanFrame]) -> str:
 
     listener = Jr3Listener(FUZZ_NODE, JR3_MBED_2023_12, 26214)
     listener.set_full_scales(FUZZ_FULL_SCALES)
-    samples = []
+    samples: list[WrenchSample] = []
     listener.callbacks.append(samples.append)
     forces: dict[int, list[tuple[int, ...]]] = {}
     moments: dict[int, list[tuple[int, ...]]] = {}
@@ -284,7 +290,9 @@ def check_file(case: FileCase, data: bytes) -> str:
 
 
 def _same_learner(a: object, b: object) -> bool:
-    (la, ma), (lb, mb) = a, b  # type: ignore[misc]
+    # Both are what load_learner returns (the state case's loader): (learner, metadata).
+    la, ma = cast("tuple[SRVLearner, dict[str, Any]]", a)
+    lb, mb = cast("tuple[SRVLearner, dict[str, Any]]", b)
     return bool(
         np.array_equal(la.weights, lb.weights) and np.array_equal(la.predictions, lb.predictions)
         and la.schedule == lb.schedule and la.params == lb.params and ma == mb
@@ -399,7 +407,9 @@ class Tally:
                 self.failures.append(str(exc))
 
 
-def run(targets: Sequence[str], inputs: int, seed: int, examples: Sequence[Path]) -> dict:
+def run(
+    targets: Sequence[str], inputs: int, seed: int, examples: Sequence[Path]
+) -> dict[str, Tally]:
     """Run ``inputs`` mutated inputs per target; returns a Tally per target."""
     rng = random.Random(seed)
     tallies: dict[str, Tally] = {}
@@ -412,11 +422,12 @@ def run(targets: Sequence[str], inputs: int, seed: int, examples: Sequence[Path]
                 for _ in range(inputs):
                     sent = random_replies(rng)
                     data = apply_mutations(link_stream(sent), random_mutations(rng))
-                    tally.add(lambda s=sent, d=data: check_link(s, d, rng.randint(1, 17)))
+                    # add() runs it at once: the chunk size is drawn right after the mutations.
+                    tally.add(functools.partial(check_link, sent, data, rng.randint(1, 17)))
             elif target == "can":
                 for _ in range(inputs):
                     frames = random_can_frames(rng)
-                    tally.add(lambda f=frames: check_can(f))
+                    tally.add(functools.partial(check_can, frames))
             else:
                 cases = {"state": lambda: [state_case(folder)],
                          "calibration": lambda: [calibration_case(folder)],
@@ -424,7 +435,7 @@ def run(targets: Sequence[str], inputs: int, seed: int, examples: Sequence[Path]
                 for i in range(inputs):
                     case = cases[i % len(cases)]
                     data = apply_mutations(case.good, file_mutations(rng, case))
-                    tally.add(lambda c=case, d=data: check_file(c, d))
+                    tally.add(functools.partial(check_file, case, data))
             elapsed = time.monotonic() - started
             print(f"{target:12s} {tally.inputs:8d} inputs  {elapsed:7.1f} s  "
                   f"{dict(sorted(tally.outcomes.items()))}", flush=True)

@@ -64,9 +64,9 @@ def record_step(seed: int = 0) -> dict[str, Any]:
         physics.set_pose = logged_pose  # type: ignore[method-assign]
         measure = node.model.measure
 
-        def logged_measure(*args: Any) -> list[int]:
+        def logged_measure(*args: Any, **kwargs: Any) -> list[int]:
             logs["samples"].append(node.last_sample_s)
-            return measure(*args)
+            return measure(*args, **kwargs)
 
         node.model.measure = logged_measure  # type: ignore[method-assign]
         start = physics.clock.now_s

@@ -78,7 +78,7 @@ def parse_value(key: str, text: str, default: Any) -> Value:
             if len(parts) == 1 and default:
                 parts = parts * len(default)
             element = default[0] if default else ""
-            return tuple(parse_value(key, p, element) for p in parts)  # type: ignore[misc]
+            return tuple(parse_value(key, p, element) for p in parts)
         if isinstance(default, int):
             return int(text)
         if isinstance(default, float):

@@ -40,7 +40,7 @@ def _csv(path: Path, header: Sequence[str], rows: Sequence[dict[str, Any]]) -> P
     return path
 
 
-def _stats(values: list[float]) -> tuple[float, float, float]:
+def _stats(values: Sequence[float | None]) -> tuple[float, float, float]:
     finite = [v for v in values if v is not None and math.isfinite(v)]
     if not finite:
         return math.nan, math.nan, math.nan

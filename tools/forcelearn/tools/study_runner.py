@@ -25,7 +25,7 @@ from concurrent.futures import (
 )
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from tqdm import tqdm
@@ -52,6 +52,18 @@ class StudyOutcome:
     files: list[Path]
 
 
+class _DaskClient(Protocol):
+    """The part of ``distributed.Client`` used here (Dask does not annotate these methods)."""
+
+    def __enter__(self) -> Any: ...
+
+    def __exit__(self, exc_type: Any, exc_value: Any, traceback: Any) -> Any: ...
+
+    def nthreads(self) -> Mapping[str, int]: ...
+
+    def get_executor(self) -> Executor: ...
+
+
 @contextlib.contextmanager
 def open_executor(workers: int | None, scheduler: str | None) -> Iterator[tuple[Executor, int]]:
     """Yield an executor and its number of parallel slots.
@@ -67,8 +79,9 @@ def open_executor(workers: int | None, scheduler: str | None) -> Iterator[tuple[
             raise StudyError(
                 "--scheduler needs Dask's distributed package: pip install 'forcelearn[cluster]'"
             ) from exc
+        connect: Callable[..., _DaskClient] = Client
         try:
-            client = Client(scheduler, timeout=30)
+            client = connect(scheduler, timeout=30)
         except OSError as exc:
             raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from exc
         with client:
@@ -152,7 +165,9 @@ def run_study(
             curves = row.pop(CURVES, None)
             if curves is not None:
                 with atomic_writer(runs_dir / f"{row['run_id']}.npz") as handle:
-                    np.savez_compressed(handle, **{k: np.asarray(v) for k, v in curves.items()})
+                    arrays = {k: np.asarray(v) for k, v in curves.items()}
+                    # numpy's default allow_pickle, named: mypy would match **arrays to it.
+                    np.savez_compressed(handle, allow_pickle=True, **arrays)
             path = runs_dir / f"{row['run_id']}.json"
             atomic_write_bytes(path, (json.dumps(_json_safe(row)) + "\n").encode())
         ran += len(rows)

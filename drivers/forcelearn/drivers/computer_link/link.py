@@ -29,6 +29,7 @@ import logging
 import secrets
 import threading
 import time
+from typing import Protocol
 
 import serial
 
@@ -51,6 +52,27 @@ _NAK = framing.Control.NAK.wire
 _ENQ = framing.Control.ENQ.wire
 
 
+class SerialPort(Protocol):
+    """What the link uses of an open pyserial port (``serial.Serial``, a URL handler's port)."""
+
+    @property
+    def in_waiting(self) -> int:
+        """Bytes received and not yet read."""
+        ...
+
+    def read(self, size: int = 1, /) -> bytes:
+        """Up to ``size`` bytes (fewer at the port's timeout)."""
+        ...
+
+    def write(self, data: bytes, /) -> int | None:
+        """Send ``data``."""
+        ...
+
+    def reset_input_buffer(self) -> None:
+        """Drop what was received and not yet read."""
+        ...
+
+
 class Link:
     """Transactions over an open pyserial port; thread-safe (one at a time).
 
@@ -58,7 +80,7 @@ class Link:
     replaces the link: a lost link is reported, never silently reopened.
     """
 
-    def __init__(self, port: serial.SerialBase, config: LinkConfig) -> None:
+    def __init__(self, port: SerialPort, config: LinkConfig) -> None:
         self._port = port
         self._config = config
         self._reader = framing.FrameReader()

@@ -100,7 +100,7 @@ class EgmConfig:
             bad = set(values["limits"]) - {f.name for f in fields(Limits)}
             if bad:
                 raise ConfigError(f"unknown robot.limits key(s): {', '.join(sorted(bad))}")
-            limits = {
+            limits: dict[str, Any] = {  # TOML values: Limits.__post_init__ checks them
                 k: tuple(v) if isinstance(v, list) else v for k, v in values["limits"].items()
             }
             values["limits"] = Limits(**limits)

@@ -78,7 +78,9 @@ def step_toward(pose: Pose, target: Pose, max_mm: float, max_deg: float) -> Pose
         q1 = -q1
     q = q0 + fraction * (q1 - q0)
     q = q / np.linalg.norm(q)
-    return Pose(*(float(c) for c in position), tuple(float(c) for c in q))
+    x, y, z = (float(c) for c in position)
+    w, qx, qy, qz = (float(c) for c in q)
+    return Pose(x, y, z, (w, qx, qy, qz))
 
 
 class Guidance:
@@ -192,7 +194,8 @@ class Guidance:
         def pose(v: list[float] | None) -> Pose | None:
             if v is None:
                 return None
-            return Pose(*(float(c) for c in v[:3]), tuple(float(c) for c in v[3:7]))  # type: ignore[arg-type]
+            x, y, z, w, qx, qy, qz = (float(c) for c in v[:7])
+            return Pose(x, y, z, (w, qx, qy, qz))
 
         raw = state["latest"]
         self.latest_raw = None if raw is None else bytes.fromhex(raw)

@@ -216,8 +216,11 @@ class Jr3CanSensor:
                         self._send(codec.Sync())
                         sent += 1
                 have = len(out)
-                if self._wait_for(lambda n=have: len(out) > n or lst.bootup_pending,
-                                  self.config.stale_timeout_s / 2):
+
+                def arrived(n: int = have) -> bool:
+                    return len(out) > n or lst.bootup_pending
+
+                if self._wait_for(arrived, self.config.stale_timeout_s / 2):
                     waited_once = False
                 elif not waited_once:  # the last pairs in flight were lost: ask again
                     waited_once = True

@@ -121,7 +121,10 @@ class Jr3Listener(can.Listener):
             result = codec.decode(msg.arbitration_id, msg.data, is_extended_id=msg.is_extended_id,
                                   opcodes=self.opcodes)
             if isinstance(result, codec.Rejected) or msg.is_remote_frame:
-                reason = "REMOTE_FRAME" if msg.is_remote_frame else result.reason.name
+                if msg.is_remote_frame or isinstance(result, codec.Decoded):
+                    reason = "REMOTE_FRAME"  # a frame that decoded is rejected for being remote
+                else:
+                    reason = result.reason.name
                 self._stats.rejected[reason] += 1
                 log.debug("rejected frame id=%#x data=%s: %s", msg.arbitration_id,
                           bytes(msg.data).hex(), reason)
@@ -154,7 +157,7 @@ class Jr3Listener(can.Listener):
             self._stats.samples_before_full_scales += 1
             return None
         limit = self.near_saturation_counts
-        saturated = _NOT_SATURATED
+        saturated: tuple[bool, ...] = _NOT_SATURATED
         if max(pair.raw) >= limit or min(pair.raw) <= -limit:
             saturated = tuple(abs(v) >= limit for v in pair.raw)
         sample = WrenchSample(

@@ -31,6 +31,15 @@ class Pair:
     dropped: int
 
 
+def _forces_first(a: Forces | Moments, b: Forces | Moments) -> tuple[Forces, Moments]:
+    """Return a force and a moment frame, forces first, whichever order they come in."""
+    if isinstance(a, Forces) and isinstance(b, Moments):
+        return a, b
+    if isinstance(a, Moments) and isinstance(b, Forces):
+        return b, a
+    raise TypeError(f"expected a force and a moment frame, got {a!r} and {b!r}")
+
+
 class Pairer:
     """Match frames by counter and count what is lost; one instance per stream.
 
@@ -65,12 +74,13 @@ class Pairer:
 
     def push(self, frame: Forces | Moments) -> Pair | None:
         """Add one frame; return the pair it completes, or None."""
+        other: Forces | Moments | None
         if isinstance(frame, Forces):
             mine, other = "_forces", self._moments
         else:
             mine, other = "_moments", self._forces
         if other is not None and other.counter == frame.counter:
-            forces, moments = (frame, other) if isinstance(frame, Forces) else (other, frame)
+            forces, moments = _forces_first(frame, other)
             waiting = getattr(self, mine)  # a frame of this kind that arrived out of order
             if waiting is not None and not self._is_older(frame.counter, waiting.counter):
                 self.unpaired += 1  # older than this pair: its partner is gone

@@ -292,7 +292,7 @@ class NetFtSensor:
 
     def _sample(self, record: protocol.Record, now: float, position: int) -> WrenchSample:
         wrench = np.asarray(record.counts, dtype=float) * self._scale
-        saturated = _NOT_SATURATED
+        saturated: tuple[bool, ...] = _NOT_SATURATED
         if self._limits is not None:
             over = np.abs(wrench) >= self._limits
             if over.any():

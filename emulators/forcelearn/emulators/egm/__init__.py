@@ -13,11 +13,12 @@ from __future__ import annotations
 
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm.controller import EgmControllerConfig, EgmControllerModel
-from forcelearn.emulators.egm.faults import EgmFaultConfig, Fault
+from forcelearn.emulators.egm.faults import EgmFaultConfig
 from forcelearn.emulators.egm.server import EgmControllerEmulator
 from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
 from forcelearn.emulators.egm.shared_motion import PhysicsMotion, egm_motion_params
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.robot_controller.faults import Fault
 
 __all__ = [
     "EgmControllerConfig",

@@ -238,4 +238,5 @@ def _pose_list(pose: Pose) -> list[float]:
 
 
 def _list_pose(values: list[float]) -> Pose:
-    return Pose(*(float(v) for v in values[:3]), tuple(float(v) for v in values[3:7]))  # type: ignore[arg-type]
+    x, y, z, w, qx, qy, qz = (float(v) for v in values[:7])
+    return Pose(x, y, z, (w, qx, qy, qz))

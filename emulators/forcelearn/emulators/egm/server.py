@@ -138,7 +138,7 @@ class EgmControllerEmulator(Emulator):
     @property
     def port(self) -> int:
         """The controller's own UDP port (the source of its EgmRobot datagrams)."""
-        return self._sock.getsockname()[1]
+        return int(self._sock.getsockname()[1])
 
     @property
     def address(self) -> str:

@@ -114,4 +114,6 @@ def blend(a: Pose, b: Pose, fraction: float) -> Pose:
         q1 = -q1
     q = q0 + fraction * (q1 - q0)
     q = q / np.linalg.norm(q)
-    return Pose(*(float(c) for c in position), tuple(float(c) for c in q))
+    x, y, z = (float(c) for c in position)
+    w, qx, qy, qz = (float(c) for c in q)
+    return Pose(x, y, z, (w, qx, qy, qz))

@@ -26,6 +26,7 @@ from dataclasses import fields
 from typing import Any
 
 import can
+from can.typechecking import AutoDetectedConfig
 
 from forcelearn.emulators import registry
 from forcelearn.emulators.jr3.node import REGISTRY_KIND, Jr3EmulatorNode
@@ -76,9 +77,10 @@ class Jr3EmulatorBus(can.BusABC):
         self._closed = False
         model = {k: kwargs.pop(k) for k in list(kwargs) if k in _MODEL_OPTIONS}
         try:
-            params = SensorModelParams(**{
+            options: dict[str, Any] = {
                 k: tuple(v) if isinstance(v, list) else v for k, v in model.items()
-            })
+            }
+            params = SensorModelParams(**options)
         except (TypeError, ValueError) as exc:
             raise can.CanInitializationError(f"{INTERFACE} on {self.channel!r}: {exc}") from exc
         if not 1 <= node_id <= 127:
@@ -157,8 +159,9 @@ class Jr3EmulatorBus(can.BusABC):
         super().shutdown()
 
     @staticmethod
-    def _detect_available_configs() -> list[dict[str, Any]]:
-        return [{"interface": INTERFACE, "channel": name} for name in registry.names(REGISTRY_KIND)]
+    def _detect_available_configs() -> list[AutoDetectedConfig]:
+        return [AutoDetectedConfig(interface=INTERFACE, channel=name)
+                for name in registry.names(REGISTRY_KIND)]
 
 
 def _private_node(

@@ -355,8 +355,8 @@ class Jr3EmulatorNode(Emulator):
             self._reboot()
 
     def _send(self, message: codec.Message) -> None:
-        frame: Frame | None = codec.encode(message, self.node_id, self.opcodes)
-        frame = apply_faults(frame, self.faults, self.rng)
+        encoded = codec.encode(message, self.node_id, self.opcodes)
+        frame: Frame | None = apply_faults(encoded, self.faults, self.rng)
         if frame is not None and self.frame_hook is not None:
             frame = self.frame_hook(frame)
         if frame is None:

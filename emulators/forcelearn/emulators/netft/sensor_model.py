@@ -111,7 +111,8 @@ class NetFtSensorModel:
         draws = self.rng.standard_normal(12)
         self.bias += self._drift * math.sqrt(max(dt_s, 0.0)) * draws[6:]
         reading = true_wrench + self.bias + self._noise * draws[:6]
-        return np.clip(reading, -self._saturation, self._saturation)
+        clipped: np.ndarray = np.clip(reading, -self._saturation, self._saturation)
+        return clipped
 
     def measure(self, true_wrench: np.ndarray, dt_s: float) -> tuple[int, ...]:
         """Return six int32 counts for one record, ``dt_s`` after the previous one."""

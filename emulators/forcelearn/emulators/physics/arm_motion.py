@@ -54,9 +54,13 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 from forcelearn.devices import Pose
+
+Quaternion = tuple[float, float, float, float]
+PoseKey = tuple[float, float, float, Quaternion]
+"""A pose as (x, y, z, quaternion): compared without building a :class:`Pose`."""
 
 _SNAP_MM = 1e-4
 """Below this distance the lagging tool is taken to have reached the reference."""
@@ -88,7 +92,7 @@ class MotionParams:
                 raise ValueError(f"arm {name} must be >= 0, got {value!r}")
 
 
-def _nlerp(q0: tuple[float, ...], q1: tuple[float, ...], f: float) -> tuple[float, ...]:
+def _nlerp(q0: tuple[float, ...], q1: tuple[float, ...], f: float) -> Quaternion:
     """Normalised linear interpolation of unit quaternions (the short way).
 
     Written out per component (the motion's hot path); the sums run in the
@@ -133,7 +137,7 @@ class ArmMotion:
 
     def _set_rest(self, pose: Pose) -> None:
         self._tool = [pose.x_mm, pose.y_mm, pose.z_mm]
-        self._tool_q = tuple(pose.quaternion)
+        self._tool_q = cast(Quaternion, tuple(pose.quaternion))  # a Pose's four components
         self._ref = list(self._tool)
         self._ref_q = self._tool_q
         self._seg_start = list(self._tool)
@@ -153,10 +157,11 @@ class ArmMotion:
     @property
     def pose(self) -> Pose:
         """Where the tool is (mm, quaternion w x y z)."""
-        return Pose(*self._tool, self._tool_q)  # type: ignore[arg-type]
+        x, y, z = self._tool
+        return Pose(x, y, z, self._tool_q)
 
     @property
-    def tool_key(self) -> tuple[float, ...]:
+    def tool_key(self) -> PoseKey:
         """Where the tool is, as (x, y, z, quaternion) without building a Pose (hot path)."""
         x, y, z = self._tool
         return (x, y, z, self._tool_q)
@@ -272,10 +277,10 @@ class ArmMotion:
         return (delta[0] / norm, delta[1] / norm, delta[2] / norm)
 
     def _point_at(self, s: float) -> Pose:
-        xyz, q = self._reference_at(s)
-        return Pose(*xyz, q)  # type: ignore[arg-type]
+        (x, y, z), q = self._reference_at(s)
+        return Pose(x, y, z, q)
 
-    def _reference_at(self, s: float) -> tuple[list[float], tuple[float, ...]]:
+    def _reference_at(self, s: float) -> tuple[list[float], Quaternion]:
         """The path's point ``s`` mm along the segment: [x, y, z] and quaternion."""
         f = 1.0 if self._seg_length == 0.0 else s / self._seg_length
         goal = self._seg_goal

@@ -183,4 +183,5 @@ class CellPhysics:
             force_world = self.environment.contact_force_world_n(self._position_mm)
         if not force_world.any():
             return gravity.copy()
-        return contact_wrench(self.tool, rotation, force_world) + gravity
+        wrench: np.ndarray = contact_wrench(self.tool, rotation, force_world) + gravity
+        return wrench

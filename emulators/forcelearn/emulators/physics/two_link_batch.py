@@ -34,13 +34,14 @@ class TwoLinkContourCells:
     def reset(self, arms: np.ndarray) -> np.ndarray:
         """Return ``arms`` to the start pose; return their joint angles (M, 2), deg."""
         self.theta_deg[arms] = self.geometry.start_theta_deg
-        return self.theta_deg[arms].copy()
+        theta: np.ndarray = self.theta_deg[arms].copy()
+        return theta
 
     def move(self, arms: np.ndarray, command_deg: np.ndarray) -> np.ndarray:
         """Apply joint commands (M, 2) deg through the servo; return the reached angles."""
         keep = self.geometry.servo_lag
         theta = self.theta_deg[arms]
-        reached = command_deg + keep * (theta - command_deg)
+        reached: np.ndarray = command_deg + keep * (theta - command_deg)
         self.theta_deg[arms] = reached
         return reached
 

@@ -100,7 +100,9 @@ class ArmConfig:
         )
 
 
-def joint_angles_deg(config: ArmConfig, pose: Pose) -> tuple[float, ...] | None:
+def joint_angles_deg(
+    config: ArmConfig, pose: Pose
+) -> tuple[float, float, float, float, float, float] | None:
     """Return (J1..J6) in degrees for ``pose``, or None if the links cannot reach it."""
     x, y, z = pose.x_mm, pose.y_mm, pose.z_mm
     j1 = math.atan2(y, x)

@@ -22,10 +22,11 @@ interpreter too (docs/emulators.md).
 from __future__ import annotations
 
 import threading
+import time
 import urllib.parse
 from typing import Any
 
-from serial.serialutil import PortNotOpenError, SerialBase, SerialException, Timeout
+from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import serial_char_time_s
@@ -46,11 +47,11 @@ class EmulatedRobotSerial(SerialBase):
     # ---- pyserial interface ---------------------------------------------------------
     def open(self) -> None:
         """Attach to the named emulator (or start a private one)."""
-        if self._port is None:
+        if self.port is None:
             raise SerialException("Port must be configured before it can be used.")
         if self.is_open:
             raise SerialException("Port is already open.")
-        name, instant = self._parse(str(self._port))
+        name, instant = self._parse(str(self.port))
         emulator = self._find(name) if name else self._private(instant)
         try:
             emulator.connect(self)
@@ -98,8 +99,8 @@ class EmulatedRobotSerial(SerialBase):
         from forcelearn.emulators.robot_controller.kinematics import ArmConfig
         from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
 
-        char_time = serial_char_time_s(self._baudrate, self._bytesize, self._parity,
-                                       self._stopbits)
+        char_time = serial_char_time_s(self.baudrate, self.bytesize, self.parity,
+                                       self.stopbits)
         emulator = RobotControllerEmulator(
             "inproc", config=ArmConfig(instant=instant), char_time_s=char_time
         )
@@ -130,10 +131,13 @@ class EmulatedRobotSerial(SerialBase):
         """Up to ``size`` bytes: at once when the answer is in, else within ``timeout``."""
         if not self.is_open:
             raise PortNotOpenError()
-        timeout = Timeout(self._timeout)
+        deadline = None if self.timeout is None else time.monotonic() + self.timeout
         with self._cond:
-            while len(self._rx) < size and not self._hung_up and not timeout.expired():
-                self._cond.wait(timeout.time_left())
+            while len(self._rx) < size and not self._hung_up:
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    break
+                self._cond.wait(left)
             if self._hung_up and not self._rx:
                 raise SerialException(
                     "device reports readiness to read but returned no data (the emulated "

@@ -45,6 +45,7 @@ from __future__ import annotations
 import enum
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 from forcelearn.errors import ProtocolError
 
@@ -229,7 +230,8 @@ def speed_body(speed_mm_s: float) -> bytes:
 
 def parse_speed(body: bytes) -> float:
     """Inverse of :func:`speed_body`."""
-    return _unpack(_SPEED, body)[0]
+    speed_mm_s: float = _unpack(_SPEED, body)[0]
+    return speed_mm_s
 
 
 def position_body(position: Position) -> bytes:
@@ -271,7 +273,7 @@ def parse_identify(body: bytes) -> tuple[tuple[int, int], str]:
     return (body[0], body[1]), body[2:].decode("utf-8", "replace")
 
 
-def _unpack(layout: struct.Struct, body: bytes) -> tuple:
+def _unpack(layout: struct.Struct, body: bytes) -> tuple[Any, ...]:
     if len(body) != layout.size:
         raise ProtocolError(f"message body is {len(body)} bytes, expected {layout.size}")
     return layout.unpack(body)

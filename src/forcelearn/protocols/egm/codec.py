@@ -149,7 +149,8 @@ def encode_robot(message: RobotMessage, version: Version) -> bytes:
         pb.measuredForce.force.extend(message.measured_force)
     if message.utilization_pct is not None:
         pb.utilizationRate = message.utilization_pct
-    return pb.SerializeToString()
+    datagram: bytes = pb.SerializeToString()
+    return datagram
 
 
 def encode_sensor(message: SensorMessage, version: Version) -> bytes:
@@ -160,7 +161,8 @@ def encode_sensor(message: SensorMessage, version: Version) -> bytes:
     pb.header.mtype = MSGTYPE_CORRECTION
     if message.planned is not None:
         _set_pose(pb.planned.cartesian, message.planned)
-    return pb.SerializeToString()
+    datagram: bytes = pb.SerializeToString()
+    return datagram
 
 
 # -- decoding -------------------------------------------------------------------------------

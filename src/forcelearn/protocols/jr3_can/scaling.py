@@ -10,10 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from forcelearn.devices import (  # noqa: F401  (re-exported: the check lives in the core)
-    FORCE_FULL_SCALE_RANGE_N,
-    MOMENT_FULL_SCALE_RANGE_NM,
-    check_full_scales,
+# Re-exported (explicitly, `X as X`): the check lives in the core.
+from forcelearn.devices import (
+    FORCE_FULL_SCALE_RANGE_N as FORCE_FULL_SCALE_RANGE_N,
+)
+from forcelearn.devices import (
+    MOMENT_FULL_SCALE_RANGE_NM as MOMENT_FULL_SCALE_RANGE_NM,
+)
+from forcelearn.devices import (
+    check_full_scales as check_full_scales,
 )
 
 COUNTS_PER_FULL_SCALE = 16384
@@ -51,7 +56,8 @@ def counts_to_wrench(raw: np.ndarray, full_scales: np.ndarray) -> np.ndarray:
 def wrench_to_counts(wrench: np.ndarray, full_scales: np.ndarray) -> np.ndarray:
     """Return six int16 counts (rounded, clipped to the int16 range) for a wrench."""
     counts = np.rint(np.asarray(wrench, dtype=float) * COUNTS_PER_FULL_SCALE / full_scales)
-    return np.clip(counts, INT16_MIN, INT16_MAX).astype(np.int64)
+    clipped: np.ndarray = np.clip(counts, INT16_MIN, INT16_MAX).astype(np.int64)
+    return clipped
 
 
 def cutoff_to_wire(cutoff_hz: float) -> int:

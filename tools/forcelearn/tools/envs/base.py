@@ -28,7 +28,7 @@ start pose.
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+from typing import Any, Protocol
 
 import gymnasium
 import numpy as np
@@ -44,7 +44,8 @@ RENDER_SIZE_PX = (320, 240)
 class TaskEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     """Base of the forcelearn environments; not registered itself (see the subclasses)."""
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
+    # Not a ClassVar: gymnasium.Env declares ``metadata`` an instance attribute.
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}  # noqa: RUF012
 
     action_space: spaces.Box
     observation_space: spaces.Box
@@ -129,7 +130,7 @@ class TaskEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         obs = self._observation(self._x, float(outcome.force_n))
         return obs, -float(outcome.r), terminated, truncated, info
 
-    def render(self) -> np.ndarray | None:  # type: ignore[override]
+    def render(self) -> np.ndarray | None:
         """With ``render_mode="rgb_array"``: the episode's force trace as an RGB array."""
         if self.render_mode != "rgb_array":
             return None
@@ -157,6 +158,14 @@ def box(low: list[float], high: list[float]) -> spaces.Box:
     return spaces.Box(np.array(low, dtype=float), np.array(high, dtype=float), dtype=np.float64)
 
 
+class _RgbaCanvas(Protocol):
+    """What is drawn on here of matplotlib's Agg canvas (whose methods are not annotated)."""
+
+    def draw(self) -> None: ...
+
+    def buffer_rgba(self) -> memoryview: ...
+
+
 def force_trace_rgb(forces: list[float], desired_n: float, steps: int) -> np.ndarray:
     """Draw the force per step (start force at step 0) against the desired force; RGB uint8."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -164,7 +173,7 @@ def force_trace_rgb(forces: list[float], desired_n: float, steps: int) -> np.nda
 
     width, height = RENDER_SIZE_PX
     fig = Figure(figsize=(width / 80, height / 80), dpi=80)
-    canvas = FigureCanvasAgg(fig)
+    canvas: _RgbaCanvas = FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     ax.axhline(desired_n, color="tab:green", lw=1, label="desired")
     ax.plot(range(len(forces)), forces, "o-", color="tab:blue", ms=3, label="measured")

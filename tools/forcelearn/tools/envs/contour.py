@@ -88,7 +88,8 @@ class ContourEnv(TaskEnv):
 
     def _observation(self, x: np.ndarray, force_n: float) -> np.ndarray:
         obs = np.array([x[0], x[1], force_n], dtype=float)
-        return np.clip(obs, self.observation_space.low, self.observation_space.high)
+        clipped: np.ndarray = np.clip(obs, self.observation_space.low, self.observation_space.high)
+        return clipped
 
     # -- what a learner over BOXES needs (forcelearn.baselines.srv) --------------------------
     @property

@@ -129,7 +129,8 @@ class SurfaceEnv(TaskEnv):
 
     def _observation(self, x: np.ndarray, force_n: float) -> np.ndarray:
         obs = np.array([x[0], force_n, self._y_offset_mm], dtype=float)
-        return np.clip(obs, self.observation_space.low, self.observation_space.high)
+        clipped: np.ndarray = np.clip(obs, self.observation_space.low, self.observation_space.high)
+        return clipped
 
     def close_task(self) -> None:
         """Stop the robot, close the drivers and stop the emulators."""

@@ -158,6 +158,7 @@ class Chromium:
             text=True,
         )
         self._next_id = 0
+        self._ws: _WebSocket | None = None
         try:
             endpoint = self._devtools_endpoint(timeout_s)
             self._ws = _WebSocket(self._page_target(endpoint), timeout_s)
@@ -198,11 +199,14 @@ class Chromium:
 
     def call(self, method: str, **params: Any) -> dict[str, Any]:
         """One DevTools command; its result."""
+        ws = self._ws
+        if ws is None:
+            raise BrowserError(f"{method}: the browser is closed")
         self._next_id += 1
         ident = self._next_id
-        self._ws.send_text(json.dumps({"id": ident, "method": method, "params": params}))
+        ws.send_text(json.dumps({"id": ident, "method": method, "params": params}))
         while True:
-            message = json.loads(self._ws.recv_text())
+            message = json.loads(ws.recv_text())
             if message.get("id") == ident:
                 if "error" in message:
                     raise BrowserError(f"{method}: {message['error']}")
@@ -254,7 +258,7 @@ class Chromium:
 
     def close(self) -> None:
         """End the browser and remove its profile; safe to call twice."""
-        ws = getattr(self, "_ws", None)
+        ws = self._ws
         if ws is not None:
             ws.close()
             self._ws = None

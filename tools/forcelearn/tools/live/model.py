@@ -236,7 +236,8 @@ class LiveModel:
                 "status": status,
                 "events": list(self._events),
             }
-        return json_safe(data)
+        safe: dict[str, Any] = json_safe(data)  # a dict stays a dict
+        return safe
 
     # ---- internals (lock held) ---------------------------------------------------------
 

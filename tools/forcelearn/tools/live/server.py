@@ -210,7 +210,8 @@ class LiveServer:
     def url(self) -> str:
         """The page's address."""
         host, port = self._server.server_address[:2]
-        shown = f"[{host}]" if ":" in str(host) else str(host)
+        name = host.decode() if isinstance(host, bytes) else str(host)
+        shown = f"[{name}]" if ":" in name else name
         return f"http://{shown}:{port}/"
 
     def close(self) -> None:
