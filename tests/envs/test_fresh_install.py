@@ -36,16 +36,18 @@ def target(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _isolated(target: Path) -> str:
     """Code that makes the subprocess import forcelearn from ``target`` only.
 
-    The editable install's source folders leave ``sys.path``, and ``target`` is
-    added as a site folder, so its ``.pth`` hooks run as in a real environment.
+    The editable install's source folders leave ``sys.path``; ``target`` is
+    added as a site folder, so its ``.pth`` hooks run as in a real environment,
+    and put first, ahead of a copy installed in the venv.
     """
     return textwrap.dedent(
         f"""
         import site, sys
         sys.path = [p for p in sys.path if not p.startswith({str(ROOT)!r})]
+        sys.path.insert(0, {str(target)!r})  # ahead of a copy installed in the venv
         for name in [m for m in sys.modules if m == "forcelearn" or m.startswith("forcelearn.")]:
-            del sys.modules[name]
-        site.addsitedir({str(target)!r})
+            del sys.modules[name]  # imported at start-up by an installed copy's .pth hook
+        site.addsitedir({str(target)!r})  # runs the target's .pth hooks
         """
     )
 
