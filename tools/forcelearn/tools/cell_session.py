@@ -58,6 +58,8 @@ log = logging.getLogger(__name__)
 
 SLCAN_VERSION_TIMEOUT_S = 2.0
 """Longest wait for the slcan adapter's version answer when opening it (s)."""
+NETFT_SETTLE_TIMEOUT_S = 5.0
+"""On resume, longest wait for the emulated Net F/T to take the driver's requests (s)."""
 
 
 class CellSession:
@@ -289,6 +291,13 @@ class CellSession:
             self.egm.emulator.load_state_dict(state["egm"]["controller"])
             self.egm.driver.load_state_dict(state["egm"]["driver"])
         if self.netft is not None and self.netft.emulator is not None and "netft" in state:
+            # What the driver sent while initialising (set bias needs no answer) takes
+            # effect before the checkpoint's state, never after it.
+            sent = self.netft.driver.stats.requests
+            if not self.netft.emulator.wait_handled(sent, NETFT_SETTLE_TIMEOUT_S):
+                log.warning("the Net F/T emulator did not handle the driver's %d request(s) "
+                            "within %.1f s; the resumed run may differ", sent,
+                            NETFT_SETTLE_TIMEOUT_S)
             self.netft.emulator.load_state_dict(state["netft"])
 
     def close(self) -> None:

@@ -198,6 +198,8 @@ class NetFtEmulator(Emulator):
         self.last_sample_s: float | None = None
         self._records_since_boot = 0
         self._lock = threading.RLock()
+        self._handled = threading.Condition(self._lock)
+        self._datagrams_handled = 0
         self._stream_to: tuple[str, int] | None = None
         self._stream_wall0 = 0.0
         self._stream_t0 = 0.0
@@ -322,29 +324,47 @@ class NetFtEmulator(Emulator):
                 self._stream_due()
 
     def _handle(self, data: bytes, address: tuple[str, int]) -> None:
-        request = protocol.decode_request(data)
         with self._lock:
-            if isinstance(request, protocol.Rejected):
-                self.stats.rejected += 1
-                return
-            self.stats.requests += 1
-            if request.command == Command.SET_BIAS:
-                self.stats.bias_commands += 1
-                self.model.set_software_bias(self.physics.true_wrench())
-                return
-            self._stream_to = None  # any other command takes precedence over the last
-            if request.command == Command.STOP:
-                return
-            if request.command != Command.START_REALTIME:
-                self.stats.rejected += 1
-                return
-            if request.sample_count == 0:
-                self._stream_to = address
-                self._stream_wall0 = time.monotonic()
-                self._stream_t0 = self._next_sample_time()
-                self._stream_sent = 0
-                return
-            records, times = self._generate(1, request.sample_count, self._next_sample_time())
+            try:
+                self._handle_locked(data, address)
+            finally:
+                self._datagrams_handled += 1
+                self._handled.notify_all()
+
+    def wait_handled(self, datagrams: int, timeout_s: float = 2.0) -> bool:
+        """Wait until ``datagrams`` UDP requests (valid or not) have been handled.
+
+        A request needs no answer (set bias) and is handled in the emulator's
+        thread whenever it gets to it; a resume restores the emulator's state
+        only once what the driver sent before has taken effect, so the restored
+        state is never overwritten by it (the host's speed must not decide).
+        """
+        with self._handled:
+            return self._handled.wait_for(lambda: self._datagrams_handled >= datagrams, timeout_s)
+
+    def _handle_locked(self, data: bytes, address: tuple[str, int]) -> None:
+        request = protocol.decode_request(data)
+        if isinstance(request, protocol.Rejected):
+            self.stats.rejected += 1
+            return
+        self.stats.requests += 1
+        if request.command == Command.SET_BIAS:
+            self.stats.bias_commands += 1
+            self.model.set_software_bias(self.physics.true_wrench())
+            return
+        self._stream_to = None  # any other command takes precedence over the last
+        if request.command == Command.STOP:
+            return
+        if request.command != Command.START_REALTIME:
+            self.stats.rejected += 1
+            return
+        if request.sample_count == 0:
+            self._stream_to = address
+            self._stream_wall0 = time.monotonic()
+            self._stream_t0 = self._next_sample_time()
+            self._stream_sent = 0
+            return
+        records, times = self._generate(1, request.sample_count, self._next_sample_time())
         self._send(records, times, address, pace=True)
 
     def _stream_due(self) -> None:
