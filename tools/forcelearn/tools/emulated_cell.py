@@ -22,10 +22,10 @@ import contextlib
 import copy
 import logging
 import os
-import uuid
 from pathlib import Path
 from typing import Any, Literal
 
+from forcelearn.emulators import registry
 from forcelearn.emulators.clock import SimClock, serial_char_time_s
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
 from forcelearn.emulators.physics.cell import CellPhysics
@@ -71,8 +71,8 @@ def emulated_robot(
 
 
 def private_channel(config: CellConfig) -> str:
-    """A ``virtual`` CAN channel name no other cell in this process uses."""
-    return f"{config.bus.channel}-{uuid.uuid4().hex[:8]}"
+    """A CAN channel name (``virtual`` or ``forcelearn-jr3``) no other cell in this process uses."""
+    return registry.new_name(config.bus.channel)
 
 
 def emulated_jr3(

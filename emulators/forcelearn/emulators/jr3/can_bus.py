@@ -110,7 +110,7 @@ class Jr3EmulatorBus(can.BusABC):
         """Put ``msg`` on the bus: the node answers before this returns."""
         if self._closed:
             raise can.CanOperationError(f"{INTERFACE} bus on {self.channel!r} is shut down")
-        self._check_node()
+        node = self._running_node()
         frame = can.Message(
             timestamp=time.time(), arbitration_id=msg.arbitration_id,
             is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
@@ -119,7 +119,7 @@ class Jr3EmulatorBus(can.BusABC):
         )
         if self.receive_own_messages:
             self._deliver(frame)
-        self.node.receive(frame)
+        node.receive(frame)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         deadline = None if timeout is None else time.monotonic() + timeout
@@ -136,12 +136,15 @@ class Jr3EmulatorBus(can.BusABC):
                 waits = [w for w in (left, until_sample) if w is not None]
                 self._cond.wait(min(waits) if waits else None)
 
-    def _check_node(self) -> None:
+    def _running_node(self) -> Jr3EmulatorNode:
+        """The bus's node; CanOperationError once it has stopped."""
         node = self.node
-        if registry.lookup(REGISTRY_KIND, self.channel) is not node:
+        registered: object = registry.lookup(REGISTRY_KIND, self.channel)
+        if registered is not node:
             raise can.CanOperationError(
                 f"the JR3 emulator on {self.channel!r} has stopped: open the bus again"
             )
+        return node
 
     def shutdown(self) -> None:
         """Leave the bus (a node this bus started stops with its last bus); idempotent."""

@@ -94,11 +94,14 @@ class CellPhysics:
         self.clock = clock or SimClock()
         self.motion: ArmMotion | None = None
         self._tool = tool or POINT_TOOL
-        self._pose = pose or Pose(0.0, 0.0, 0.0)
-        self._pose_key = (self._pose.x_mm, self._pose.y_mm, self._pose.z_mm,
-                          self._pose.quaternion)
-        self._position_mm = self._pose.position_mm
+        self._record(pose or Pose(0.0, 0.0, 0.0))
         self._rotation, self._gravity = self._orientation_terms(self._pose)
+
+    def _record(self, pose: Pose) -> None:
+        """Keep ``pose`` with the two forms the hot path reads (a key to compare, an array)."""
+        self._pose = pose
+        self._pose_key = (pose.x_mm, pose.y_mm, pose.z_mm, pose.quaternion)
+        self._position_mm = pose.position_mm
 
     @property
     def environment(self) -> ContactEnvironment:
@@ -167,9 +170,7 @@ class CellPhysics:
         with self._lock:
             if pose.quaternion != self._pose.quaternion:
                 self._rotation, self._gravity = self._orientation_terms(pose)
-            self._pose = pose
-            self._pose_key = (pose.x_mm, pose.y_mm, pose.z_mm, pose.quaternion)
-            self._position_mm = pose.position_mm
+            self._record(pose)
             if self._observer is not None:
                 self._observer.observe_pose(self._position_mm)
 

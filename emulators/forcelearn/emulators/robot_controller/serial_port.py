@@ -58,6 +58,7 @@ class EmulatedRobotSerial(SerialBase):
         except BaseException as exc:
             if self._owns_emulator:
                 emulator.close()
+                self._owns_emulator = False
             if isinstance(exc, ConnectionError):
                 raise SerialException(str(exc)) from exc
             raise
@@ -91,7 +92,7 @@ class EmulatedRobotSerial(SerialBase):
             raise SerialException(
                 f"no in-process robot controller emulator named {name!r} (running: "
                 f"{', '.join(running)}); start RobotControllerEmulator('inproc') in this "
-                f"process and open its url, or open {SCHEME}:// for a private one"
+                f"process and open its address, or open {SCHEME}:// for a private one"
             )
         return emulator
 

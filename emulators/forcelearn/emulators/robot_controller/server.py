@@ -75,7 +75,6 @@ class RobotControllerEmulator(Emulator):
         self.faults = FaultInjector(faults)
         self.engine.motion.stall_fraction = self.faults.config.stall_fraction
         self.engine.never_in_position = self.faults.config.never_in_position
-        self.transport = transport
         self._endpoint: PtyEndpoint | TcpEndpoint | InProcessEndpoint
         if transport == "inproc":
             self._endpoint = InProcessEndpoint(name or registry.new_name("robot"))
@@ -86,7 +85,6 @@ class RobotControllerEmulator(Emulator):
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._receive_lock = threading.Lock()
-        self._serving = False
         self.bytes_received = 0
         """Bytes received from clients so far (tests use it to prove nothing was sent)."""
 
@@ -110,7 +108,6 @@ class RobotControllerEmulator(Emulator):
         if isinstance(self._endpoint, InProcessEndpoint):
             register_url_handler()  # so its address opens with serial.serial_for_url
             registry.register(REGISTRY_KIND, self._endpoint.name, self)
-            self._serving = True
         else:
             self._thread = threading.Thread(
                 target=self._serve, name="robot-controller-emulator", daemon=True
@@ -121,9 +118,8 @@ class RobotControllerEmulator(Emulator):
     def _release(self) -> None:
         """Stop serving, join the thread and release the transport."""
         self._stop.set()
-        if isinstance(self._endpoint, InProcessEndpoint) and self._serving:
+        if isinstance(self._endpoint, InProcessEndpoint):  # a name not registered: no-op
             registry.unregister(REGISTRY_KIND, self._endpoint.name, self)
-            self._serving = False
         if self._thread is not None:
             self._thread.join(timeout=5.0)
             if self._thread.is_alive():  # pragma: no cover - would be a bug in _serve
@@ -135,7 +131,7 @@ class RobotControllerEmulator(Emulator):
         """Attach an in-process client port (``forcelearn-robot://``); one at a time."""
         if not isinstance(self._endpoint, InProcessEndpoint):
             raise ValueError("only an 'inproc' emulator takes in-process clients")
-        if not self._serving or self._stop.is_set():
+        if not self._started or self.closed:
             raise ConnectionRefusedError(f"{self.address} is not serving: start() it first")
         self._endpoint.attach(client)
 
