@@ -136,15 +136,21 @@ def test_lost_and_late_answers_keep_the_last_planned_pose(
 ) -> None:
     """A lost answer is never read; a late one is read one cycle late (the last one meanwhile).
 
-    Lockstep resends a waiting cycle after RESEND_S of wall time; on a loaded
-    host this peer can be slower than that, which is not what is tested here.
+    Each run has a PC side of its own: a datagram the first emulator sent just
+    before it stopped would otherwise be the second run's first message (seen on
+    a loaded host). Lockstep resends a waiting cycle after RESEND_S of wall time;
+    a slow peer on a loaded host is not what is tested here either.
     """
     monkeypatch.setattr(egm_server, "RESEND_S", 30.0)
     plan = {k: HOME.moved(dz_mm=-0.1 * k) for k in range(10)}
     lost = run(peer, emulator_for(peer, faults=EgmFaultConfig(
         lose_reply=Fault(1.0, limit=1), after_cycles=3)), 8, plan)
-    late = run(peer, emulator_for(peer, faults=EgmFaultConfig(
-        late_reply=Fault(1.0, limit=1), after_cycles=3)), 8, plan)
+    second = Peer()
+    try:
+        late = run(second, emulator_for(second, faults=EgmFaultConfig(
+            late_reply=Fault(1.0, limit=1), after_cycles=3)), 8, plan)
+    finally:
+        second.sock.close()
     z = [round(m.planned.z_mm, 3) for m in lost]
     # answer k is read at cycle k+1; the answer to cycle 3 is lost
     assert z[3:7] == [599.8, 599.8, 599.6, 599.5]
