@@ -1,4 +1,4 @@
-"""Fixtures: an EGM driver and an emulated controller wired together on loopback UDP."""
+"""Fixtures: an EGM driver and an emulated controller, over loopback UDP or in process."""
 
 from __future__ import annotations
 
@@ -11,21 +11,38 @@ import pytest
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
 from forcelearn.emulators.clock import SimClock
-from forcelearn.emulators.egm import EgmControllerConfig, EgmControllerEmulator
+from forcelearn.emulators.egm import (
+    EgmControllerConfig,
+    EgmControllerEmulator,
+    EgmEmulatorBase,
+    InProcessEgmController,
+)
 from forcelearn.emulators.physics.cell import CellPhysics
 
 DOWN = (0.0, 1.0, 0.0, 0.0)
 HOME = Pose(900.0, 0.0, 600.0, DOWN)
 
-Pair = tuple[EgmRobotDriver, EgmControllerEmulator]
+Pair = tuple[EgmRobotDriver, EgmEmulatorBase]
+ROUTES = ("udp", "in_process")
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    """Every test of an ``egm_pair`` runs on both routes, unless marked ``udp_only``.
+
+    ``udp_only``: the test is about the UDP emulator thread's wall-time
+    behaviour (patience, real mode), which the in-process route does not have.
+    """
+    if "egm_route" in metafunc.fixturenames:
+        udp_only = metafunc.definition.get_closest_marker("udp_only") is not None
+        metafunc.parametrize("egm_route", ROUTES[:1] if udp_only else ROUTES)
 
 
 @pytest.fixture
-def egm_pair() -> Iterator[Callable[..., Pair]]:
+def egm_pair(egm_route: str) -> Iterator[Callable[..., Pair]]:
     """Make (driver, emulator) pairs; the driver waits for the session unless ``wait=False``.
 
     Keyword arguments: ``driver`` (EgmConfig fields), ``controller`` (EgmControllerConfig
-    fields), ``emulator`` (EgmControllerEmulator arguments). Lockstep by default.
+    fields), ``emulator`` (emulator arguments). Lockstep by default.
     """
     with ExitStack() as stack:
 
@@ -36,16 +53,24 @@ def egm_pair() -> Iterator[Callable[..., Pair]]:
             wait: bool = True,
         ) -> Pair:
             driver_cfg = {"port": 0, "lockstep": True, "watchdog_s": 5.0} | (driver or {})
-            robot = EgmRobotDriver(EgmConfig.from_dict(driver_cfg))
-            stack.callback(robot.close)
+            config = EgmConfig.from_dict(driver_cfg)
             emulator_kw = {
                 "physics": CellPhysics(pose=HOME),
                 "clock": SimClock(),
                 "config": EgmControllerConfig(**(controller or {})),
             } | (emulator or {})
-            emu = EgmControllerEmulator(robot.port, **emulator_kw)
-            stack.callback(emu.close)
-            emu.start()
+            emu: EgmEmulatorBase
+            if egm_route == "in_process":
+                emu = InProcessEgmController(**emulator_kw)
+                stack.callback(emu.close)
+                robot = EgmRobotDriver(config, sock=emu.socket())
+                stack.callback(robot.close)
+            else:
+                robot = EgmRobotDriver(config)
+                stack.callback(robot.close)
+                emu = EgmControllerEmulator(robot.port, **emulator_kw)
+                stack.callback(emu.close)
+                emu.start()
             if wait:
                 robot.wait_for_session(5.0)
             return robot, emu

@@ -14,6 +14,7 @@ from forcelearn.emulators.egm import EgmControllerEmulator, EgmFaultConfig, Faul
 from forcelearn.errors import (
     EgmVersionMismatch,
     GuidanceStopped,
+    LinkError,
     LinkTimeout,
     SafetyStop,
 )
@@ -100,11 +101,15 @@ def test_rw6_rw7_mismatch_is_refused(egm_pair: MakePair) -> None:
         robot.wait_for_session(5.0)
 
 
-def test_watchdog_on_the_controllers_messages(egm_pair: MakePair) -> None:
-    """A controller that falls silent ends the wait in LinkTimeout after watchdog_s."""
+def test_watchdog_on_the_controllers_messages(egm_pair: MakePair, egm_route: str) -> None:
+    """A controller that falls silent ends the wait in LinkTimeout after watchdog_s.
+
+    In process, a closed controller is known at once: LinkError, saying so.
+    """
     robot, emu = egm_pair(driver={"watchdog_s": 0.2})
     emu.close()
-    with pytest.raises(LinkTimeout, match="watchdog_s"):
+    expected = (LinkTimeout, "watchdog_s") if egm_route == "udp" else (LinkError, "closed")
+    with pytest.raises(expected[0], match=expected[1]):
         robot.dwell(0.1)
 
 
@@ -146,6 +151,7 @@ def test_controller_restart_drops_the_target_and_holds(egm_pair: MakePair) -> No
     robot.wait_in_position(timeout_s=1.0, settle_s=0.01)
 
 
+@pytest.mark.udp_only
 def test_comm_timeout_ends_guidance_and_the_driver_says_so(egm_pair: MakePair) -> None:
     """A PC silent past CommTimeout: the controller stops and reports it; the driver raises."""
     robot, emu = egm_pair(controller={"comm_timeout_s": 0.1}, emulator={"patience_s": 0.05})
@@ -157,6 +163,7 @@ def test_comm_timeout_ends_guidance_and_the_driver_says_so(egm_pair: MakePair) -
         robot.move_by(dz_mm=-1.0)
 
 
+@pytest.mark.udp_only
 def test_real_mode_answers_from_a_thread_and_detects_stale_feedback(egm_pair: MakePair) -> None:
     """Lockstep = False: every message is answered at once; silence makes the feedback stale."""
     robot, emu = egm_pair(driver={"lockstep": False, "stale_after_s": 0.02, "watchdog_s": 1.0})

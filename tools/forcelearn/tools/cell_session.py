@@ -1,7 +1,7 @@
 """Open a cell as its config says: real devices, or the built-in emulators behind real drivers.
 
 An emulated cell starts, in this process, the robot-controller emulator (or,
-with ``[robot] kind = "egm"``, the EGM controller emulator on loopback UDP) and
+with ``[robot] kind = "egm"``, the EGM controller emulator, in process) and
 the JR3 emulator (or, with ``[sensor] kind = "netft"``, the Net F/T emulator on
 loopback), all reading one :class:`CellPhysics` with the sponge
 (:mod:`.device_factory` opens the Ethernet kinds); the drivers then connect to
@@ -10,8 +10,10 @@ them exactly as they would to the devices: pyserial opens the controller as
 ``can.Bus(interface="forcelearn-jr3", channel=NAME)``, both in-process routes
 that answer in the driver's thread (the same bytes as a pty and a CAN adapter,
 without a thread hand-over per exchange; ``forcelearn emulate`` serves the pty
-and slcan routes for another process). The trainer gets the same :class:`~forcelearn.cell.Cell`
-either way.
+and slcan routes for another process). The EGM driver takes the in-process
+controller's socket-like end in place of its UDP socket (``egm_route="udp"``
+puts loopback UDP and the emulator's thread back, for comparison). The trainer
+gets the same :class:`~forcelearn.cell.Cell` either way.
 
 ``CellSession.emulator_state()`` / ``load_emulator_state()`` checkpoint what a
 bit-identical resume needs (the simulated clock, the arm's motion and the
@@ -68,9 +70,10 @@ class CellSession:
     Args:
         config: the cell configuration.
         seed: seed of the emulated sensor's noise (ignored on a real cell).
+        egm_route: emulated EGM only: ``"in_process"`` (default) or ``"udp"``.
     """
 
-    def __init__(self, config: CellConfig, seed: int = 0):
+    def __init__(self, config: CellConfig, seed: int = 0, egm_route: str = "in_process"):
         self.config = config
         self.physics: CellPhysics | None = None
         self.sponge: Sponge | None = None
@@ -87,6 +90,7 @@ class CellSession:
         """The Net F/T driver and (emulated cell) its box emulator."""
         self.cell: Cell | None = None
         self.calibration: Calibration | None = None
+        self._egm_route = egm_route
         self._stack = contextlib.ExitStack()
         try:
             self._open(seed)
@@ -105,7 +109,7 @@ class CellSession:
         if cfg.sensor_kind == "jr3":
             self._open_jr3_bus(seed)
         if cfg.robot_kind == "egm":
-            self.egm = open_egm(cfg, self.physics)
+            self.egm = open_egm(cfg, self.physics, self._egm_route)
             self._stack.callback(self.egm.close)  # the driver, then its emulator
             self.robot = self.egm.driver
         else:

@@ -6,10 +6,14 @@ Used by :class:`~forcelearn.tools.cell_session.CellSession` when ``[robot] kind
 cell, the emulator behind it; ``close()`` closes the driver first, then the
 emulator (an EGM driver's last answer must still reach its controller).
 
-Emulated EGM: the driver binds 127.0.0.1 on a free port in lockstep (the one
-simulated clock; docs/egm.md "Lockstep"), the controller emulator drives the
-cell's shared arm (:class:`~forcelearn.emulators.egm.PhysicsMotion`), so the
-sponge and the sensor see the arm EGM moves. Emulated Net F/T: the box
+Emulated EGM: the driver runs in lockstep (the one simulated clock; docs/egm.md
+"Lockstep") with the in-process controller in its own thread
+(:class:`~forcelearn.emulators.egm.InProcessEgmController`, the same bytes
+with no UDP hand-over per 4 ms cycle), or, with ``route="udp"``, binds
+127.0.0.1 on a free port and talks to the UDP emulator's thread. Either
+controller drives the cell's shared arm
+(:class:`~forcelearn.emulators.egm.PhysicsMotion`), so the sponge and the
+sensor see the arm EGM moves. Emulated Net F/T: the box
 emulator serves RDT, READCALINFO and HTTP on free loopback ports and samples
 the shared physics on the cell's clock.
 """
@@ -25,7 +29,8 @@ from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver, open_egm_robot
 from forcelearn.drivers.netft import NetFtConfig, NetFtSensor
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
-    EgmControllerEmulator,
+    EgmEmulatorBase,
+    InProcessEgmController,
     PhysicsMotion,
     egm_motion_params,
     start_emulated_egm,
@@ -74,44 +79,59 @@ def egm_arm(config: CellConfig, physics: CellPhysics) -> ArmMotion:
     return physics.motion
 
 
+EGM_ROUTES = ("in_process", "udp")
+
+
 def open_egm(
-    config: CellConfig, physics: CellPhysics | None
-) -> Opened[EgmRobotDriver, EgmControllerEmulator]:
-    """Open the ``[robot] kind = "egm"`` robot: a real controller, or its emulator."""
+    config: CellConfig, physics: CellPhysics | None, route: str = "in_process"
+) -> Opened[EgmRobotDriver, EgmEmulatorBase]:
+    """Open the ``[robot] kind = "egm"`` robot: a real controller, or its emulator.
+
+    ``route`` (emulated cell only): ``"in_process"`` or ``"udp"`` (loopback);
+    the same bytes, cycles and results, the first without a thread hand-over.
+    """
     robot = config.robot
     assert isinstance(robot, EgmConfig)
+    if route not in EGM_ROUTES:
+        raise ValueError(f"route must be one of {EGM_ROUTES}, got {route!r}")
     if not config.robot_emulated:
         return Opened(open_egm_robot(robot))
     assert physics is not None
     egm_arm(config, physics)
-    driver = EgmRobotDriver(
-        replace(
-            robot,
-            host="127.0.0.1",
-            port=0,
-            lockstep=True,
-            watchdog_s=max(robot.watchdog_s, EMULATED_EGM_WATCHDOG_S),
-            first_message_timeout_s=EMULATED_EGM_FIRST_MESSAGE_S,
-        )
+    arm = config.emulator.effective().arm
+    controller = EgmControllerConfig(
+        version=robot.version,
+        sample_period_s=robot.sample_period_s,
+        servo=config.emulator.egm,
+        workspace_min_mm=arm.workspace_min_mm,
+        workspace_max_mm=arm.workspace_max_mm,
+        max_speed_mm_s=arm.max_speed_mm_s,
     )
-    opened: Opened[EgmRobotDriver, EgmControllerEmulator] = Opened(driver)
-    try:
-        arm = config.emulator.effective().arm
-        opened.emulator = start_emulated_egm(
-            physics,
-            physics.clock,
-            driver.port,
-            EgmControllerConfig(
-                version=robot.version,
-                sample_period_s=robot.sample_period_s,
-                servo=config.emulator.egm,
-                workspace_min_mm=arm.workspace_min_mm,
-                workspace_max_mm=arm.workspace_max_mm,
-                max_speed_mm_s=arm.max_speed_mm_s,
-            ),
+    driver_config = replace(
+        robot,
+        host="127.0.0.1",
+        port=0,
+        lockstep=True,
+        watchdog_s=max(robot.watchdog_s, EMULATED_EGM_WATCHDOG_S),
+        first_message_timeout_s=EMULATED_EGM_FIRST_MESSAGE_S,
+    )
+    if route == "in_process":
+        emulator = InProcessEgmController(
+            physics=physics, clock=physics.clock, config=controller,
             motion=PhysicsMotion(physics),
         )
-        driver.wait_for_session()
+        opened: Opened[EgmRobotDriver, EgmEmulatorBase] = Opened(
+            EgmRobotDriver(driver_config, sock=emulator.socket()), emulator
+        )
+    else:
+        opened = Opened(EgmRobotDriver(driver_config))
+    try:
+        if route == "udp":
+            opened.emulator = start_emulated_egm(
+                physics, physics.clock, opened.driver.port, controller,
+                motion=PhysicsMotion(physics),
+            )
+        opened.driver.wait_for_session()
     except BaseException:
         opened.close()
         raise

@@ -39,7 +39,7 @@ import threading
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -64,6 +64,16 @@ POLL_S = 0.05
 MAX_DATAGRAM = 65535
 
 
+class DatagramSocket(Protocol):
+    """What the driver needs of its UDP socket; an emulator's in-process end also has it."""
+
+    def sendto(self, data: bytes, address: Any, /) -> int: ...  # noqa: D102
+    def recvfrom(self, bufsize: int, /) -> tuple[bytes, Any]: ...  # noqa: D102
+    def settimeout(self, value: float | None, /) -> None: ...  # noqa: D102
+    def getsockname(self) -> Any: ...  # noqa: D102
+    def close(self) -> None: ...  # noqa: D102
+
+
 @dataclass(frozen=True)
 class EgmStatus:
     """The controller's state as of its latest message, and the driver's counters."""
@@ -85,10 +95,13 @@ class EgmRobotDriver:
 
     Constructing it binds the socket (``port`` tells which, when 0 was asked);
     :meth:`wait_for_session` then waits for the controller's first message.
-    :func:`open_egm_robot` does both.
+    :func:`open_egm_robot` does both. ``sock`` replaces the bound UDP socket
+    with a ready one (the emulated cell's in-process controller,
+    ``InProcessEgmController.socket()``; lockstep only); ``host`` and ``port``
+    are then not used.
     """
 
-    def __init__(self, config: EgmConfig) -> None:
+    def __init__(self, config: EgmConfig, sock: DatagramSocket | None = None) -> None:
         self.config = config
         self._lock = threading.RLock()
         self._fresh = threading.Condition(self._lock)
@@ -99,11 +112,13 @@ class EgmRobotDriver:
         self._last_rx_s = 0.0  # host monotonic time of the latest fresh message (staleness)
         self._closed = threading.Event()
         self._thread: threading.Thread | None = None
-        try:
-            self._sock: socket.socket | None = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            self._sock.bind((config.host, config.port))
-        except OSError as exc:
-            raise LinkError(f"cannot bind EGM UDP {config.host}:{config.port}: {exc}") from exc
+        self._sock: DatagramSocket | None
+        if sock is not None:
+            if not config.lockstep:
+                raise ValueError("a given socket (an in-process controller) needs lockstep = True")
+            self._sock = sock
+        else:
+            self._sock = _bind(config.host, config.port)
         self.port: int = self._sock.getsockname()[1]
         if not config.lockstep:
             self._sock.settimeout(POLL_S)
@@ -193,7 +208,7 @@ class EgmRobotDriver:
         except OSError as exc:
             raise LinkError(f"cannot send EgmSensor to {address}: {exc}") from exc
 
-    def _require_socket(self) -> socket.socket:
+    def _require_socket(self) -> DatagramSocket:
         if self._sock is None:
             raise LinkError("EGM driver is closed; open a new one")
         return self._sock
@@ -473,6 +488,17 @@ class EgmRobotDriver:
                 ResourceWarning,
                 stacklevel=2,
             )
+
+
+def _bind(host: str, port: int) -> socket.socket:
+    """A UDP socket bound to ``host:port`` (LinkError if it cannot be)."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        raise LinkError(f"cannot bind EGM UDP {host}:{port}: {exc}") from exc
+    return sock
 
 
 def open_egm_robot(config: EgmConfig, timeout_s: float | None = None) -> EgmRobotDriver:

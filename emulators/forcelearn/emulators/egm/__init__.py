@@ -4,7 +4,10 @@
 * ``controller``: the EGM state of the controller: sessions, CommTimeout, states (pure).
 * ``faults``: fault-injection hook (lost, duplicated, reordered, late, restart).
 * ``shared_motion``: :class:`PhysicsMotion`, the seam filled by the cell's shared arm.
+* ``cycles``: :class:`CycleLoop`, the cycle grid as two halves (pure), run by both routes.
+* ``base``: :class:`EgmEmulatorBase`, what both routes share (model, faults, checkpoint).
 * ``server``: :class:`EgmControllerEmulator`, the running emulator on 127.0.0.1 UDP.
+* ``in_process``: :class:`InProcessEgmController`, the same in the driver's thread (no UDP).
 
 :func:`start_emulated_egm` is the one-call factory for the emulated cell.
 """
@@ -12,8 +15,10 @@
 from __future__ import annotations
 
 from forcelearn.emulators.clock import SimClock
+from forcelearn.emulators.egm.base import EgmEmulatorBase
 from forcelearn.emulators.egm.controller import EgmControllerConfig, EgmControllerModel
 from forcelearn.emulators.egm.faults import EgmFaultConfig
+from forcelearn.emulators.egm.in_process import InProcessEgmController
 from forcelearn.emulators.egm.server import EgmControllerEmulator
 from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
 from forcelearn.emulators.egm.shared_motion import PhysicsMotion, egm_motion_params
@@ -24,8 +29,10 @@ __all__ = [
     "EgmControllerConfig",
     "EgmControllerEmulator",
     "EgmControllerModel",
+    "EgmEmulatorBase",
     "EgmFaultConfig",
     "Fault",
+    "InProcessEgmController",
     "LagServo",
     "MotionModel",
     "PhysicsMotion",

@@ -36,7 +36,6 @@ With ``time_scale > 0`` every cycle is also held until its wall time.
 from __future__ import annotations
 
 import logging
-import math
 import select
 import socket
 import threading
@@ -45,10 +44,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from forcelearn.emulators.clock import SimClock
-from forcelearn.emulators.egm.controller import HOME, EgmControllerConfig, EgmControllerModel
-from forcelearn.emulators.egm.faults import EgmFaultConfig, EgmFaultInjector
+from forcelearn.emulators.egm.base import EgmEmulatorBase
+from forcelearn.emulators.egm.controller import EgmControllerConfig
+from forcelearn.emulators.egm.faults import EgmFaultConfig
 from forcelearn.emulators.egm.servo import MotionModel
-from forcelearn.emulators.lifecycle import Emulator
 from forcelearn.emulators.physics.cell import CellPhysics
 
 log = logging.getLogger(__name__)
@@ -75,7 +74,7 @@ class CycleTiming:
     """From sending a cycle's EgmRobot to the first EgmSensor received after it."""
 
 
-class EgmControllerEmulator(Emulator):
+class EgmControllerEmulator(EgmEmulatorBase):
     """An ABB controller running EGM pose guidance toward a PC at ``remote_port``.
 
     Args:
@@ -106,13 +105,9 @@ class EgmControllerEmulator(Emulator):
         motion: MotionModel | None = None,
         record_timing: bool = False,
     ) -> None:
-        self.clock = clock or SimClock()
+        super().__init__(physics=physics, clock=clock, config=config, faults=faults, motion=motion)
         if not lockstep and self.clock.time_scale <= 0:
             raise ValueError("lockstep=False paces cycles to wall time: needs clock.time_scale > 0")
-        self.config = config or EgmControllerConfig()
-        self.physics = physics or CellPhysics(pose=HOME)
-        self.model = EgmControllerModel(self.config, self.physics, self.clock.now_s, motion)
-        self.faults = EgmFaultInjector(faults)
         self.lockstep = lockstep
         self.patience_s = patience_s
         self.timing = CycleTiming() if record_timing else None
@@ -120,20 +115,11 @@ class EgmControllerEmulator(Emulator):
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._sock.bind(("127.0.0.1", 0))
         self._stop = threading.Event()
-        self._restart = threading.Event()
         self._thread: threading.Thread | None = None
-        self._t = self.clock.now_s
-        """Simulated time of the present cycle, s."""
         self._waiting: bytes | None = None
         """The datagram of the cycle waiting for an answer (lockstep resend)."""
-        self.cycles = 0
-        """Cycles run (EgmRobot datagrams built, sent or not)."""
-        self.replies = 0
-        """EgmSensor datagrams received."""
         self.silent = False
         """True while the PC is declared silent (lockstep with patience_s)."""
-        self.guidance_stopped = threading.Event()
-        """Set when guidance ends (CommTimeout or motion error); cleared by a restart."""
 
     @property
     def port(self) -> int:
@@ -161,92 +147,35 @@ class EgmControllerEmulator(Emulator):
         self._thread = None
         self._sock.close()
 
-    def restart_guidance(self) -> None:
-        """Restart the RAPID program (operator action): a new session from the next cycle."""
-        self._restart.set()
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` while the loop waits for the PC's answer (lockstep)."""
+        if not self.lockstep:
+            raise ValueError("only a lockstep emulator can be restored")
+        super().load_state_dict(state)
 
     # -- the cycle loop ---------------------------------------------------------------------
 
     def _run(self) -> None:
+        loop = self.loop
         period = self.config.sample_period_s
-        self._t = t = self.clock.now_s
-        wall0, t0 = time.monotonic(), t
-        held: bytes | None = None  # reordered datagram, sent after the next one
-        inbox: list[bytes] = []  # EgmSensor datagrams read at the next cycle
-        late: list[bytes] = []  # read one cycle later still
+        loop.t_s = self.clock.now_s  # the grid starts when serving starts
+        wall0, t0 = time.monotonic(), loop.t_s
         try:
             while not self._stop.is_set():
-                t = self._t
-                self.faults.cycle = self.cycles
-                for datagram in inbox:
-                    self.model.apply_sensor(datagram, t)
-                inbox, late = late, []
-                if self._restart.is_set() or (self.cycles and self.faults.fires("restart")):
-                    self._restart.clear()
-                    self.model.restart(t)
-                    self.guidance_stopped.clear()
-                datagram = self.model.robot_datagram(t)
-                if not self.model.running:
-                    self.guidance_stopped.set()
-                self.cycles += 1
-                expect_reply, held = self._send_cycle(datagram, held)
+                out, expect_reply = loop.begin()
+                self._waiting = out[0] if expect_reply else None
+                for datagram in out:
+                    self._send(datagram)
                 self.clock.hold()
                 if self.lockstep:
                     replies = self._await_reply(expect_reply)
                 else:
-                    due = wall0 + (t + period - t0) / self.clock.time_scale
-                    replies = self._drain_until(due)
-                for reply in replies:
-                    if self.faults.fires("lose_reply"):
-                        continue
-                    (late if self.faults.fires("late_reply") else inbox).append(reply)
-                t = self._t  # a resume may have moved the cycle grid meanwhile (load_state_dict)
-                next_t = t + period
-                now = self.clock.now_s
-                if now > next_t:
-                    next_t = t + period * math.ceil((now - t) / period - 1e-9)
-                self._t = self.clock.advance_to(next_t)
+                    replies = self._drain_until(wall0 + (loop.t_s + period - t0)
+                                                / self.clock.time_scale)
+                loop.end(replies)
         except OSError as exc:
             if not self._stop.is_set():
                 log.error("EGM emulator socket failed: %s", exc)
-
-    # -- checkpoint (the emulated cell's bit-identical resume) ------------------------------
-
-    def state_dict(self) -> dict[str, Any]:
-        """The controller's state and its cycle time (JSON-able; the arm is the physics')."""
-        return {"t_s": self._t, "cycles": self.cycles, "model": self.model.state_dict()}
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore :meth:`state_dict` while the loop waits for the PC's answer (lockstep).
-
-        The next cycle then follows the restored one, as if the run had never
-        stopped. Fault injection is not restored (the emulated cell runs none).
-        """
-        if not self.lockstep:
-            raise ValueError("only a lockstep emulator can be restored")
-        self._t = float(state["t_s"])
-        self.cycles = int(state["cycles"])
-        self.model.load_state_dict(state["model"])
-
-    def _send_cycle(self, datagram: bytes, held: bytes | None) -> tuple[bool, bytes | None]:
-        """Send one cycle's datagram through the faults, then any held-back one.
-
-        Returns whether an answer is to be expected and the datagram now held back.
-        """
-        expect, hold = True, None
-        self._waiting = None
-        if self.faults.fires("lose"):
-            expect = False
-        elif self.faults.fires("reorder"):
-            expect, hold = False, datagram
-        else:
-            self._send(datagram)
-            self._waiting = datagram
-            if self.faults.fires("duplicate"):
-                self._send(datagram)
-        if held is not None:
-            self._send(held)
-        return expect, hold
 
     def _send(self, datagram: bytes) -> None:
         if self.timing is not None:

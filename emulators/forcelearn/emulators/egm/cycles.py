@@ -1,0 +1,122 @@
+"""One emulated EGM controller's cycle grid as a step machine (no I/O, no threads).
+
+A controller cycle is two halves, split where the controller waits for the PC:
+
+* :meth:`CycleLoop.begin`: read the EgmSensor answers that reached this cycle,
+  honour a restart, build the cycle's EgmRobot and pass it through the send
+  faults; it returns the datagrams to send, in order, and whether an answer is
+  expected (a lost or held-back datagram expects none);
+* :meth:`CycleLoop.end`: take the answers of this cycle (through the reply
+  faults: lost, or read one cycle late) and move the cell's clock to the next
+  cycle instant: ``t + period``, or the next instant of the grid after the
+  clock if another device has moved it further.
+
+Both routes run the same halves: the UDP emulator
+(:class:`~forcelearn.emulators.egm.server.EgmControllerEmulator`) between its
+socket reads in its own thread, the in-process route
+(:class:`~forcelearn.emulators.egm.in_process.InProcessEgmController`) in the
+driver's thread inside ``recvfrom`` and ``sendto``. So the two give the same
+cycles, datagrams and simulated times for the same traffic.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from typing import Any
+
+from forcelearn.emulators.clock import SimClock
+from forcelearn.emulators.egm.controller import EgmControllerModel
+from forcelearn.emulators.egm.faults import EgmFaultInjector
+
+
+class CycleLoop:
+    """The cycle halves of one controller (not thread-safe: one owner drives it).
+
+    Args:
+        model: the controller's EGM state.
+        faults: the fault injector.
+        clock: the cell's simulated clock.
+        period_s: the sample period (EGMActPose SampleRate), s.
+    """
+
+    def __init__(
+        self,
+        model: EgmControllerModel,
+        faults: EgmFaultInjector,
+        clock: SimClock,
+        period_s: float,
+    ) -> None:
+        self.model = model
+        self.faults = faults
+        self.clock = clock
+        self.period_s = period_s
+        self.t_s = clock.now_s
+        """Simulated time of the present cycle, s."""
+        self.cycles = 0
+        """Cycles run (EgmRobot datagrams built, sent or not)."""
+        self.restart_requested = threading.Event()
+        """Set by an operator restart; the next :meth:`begin` starts a new session."""
+        self.guidance_stopped = threading.Event()
+        """Set when guidance ends (CommTimeout or motion error); cleared by a restart."""
+        self._held: bytes | None = None  # a reordered datagram, sent after the next one
+        self._inbox: list[bytes] = []  # answers read at the next cycle
+        self._late: list[bytes] = []  # read one cycle later still
+
+    def begin(self) -> tuple[list[bytes], bool]:
+        """Start the cycle at :attr:`t_s`; return (datagrams to send, answer expected)."""
+        t = self.t_s
+        model, faults = self.model, self.faults
+        faults.cycle = self.cycles
+        for datagram in self._inbox:
+            model.apply_sensor(datagram, t)
+        self._inbox, self._late = self._late, []
+        if self.restart_requested.is_set() or (self.cycles and faults.fires("restart")):
+            self.restart_requested.clear()
+            model.restart(t)
+            self.guidance_stopped.clear()
+        datagram = model.robot_datagram(t)
+        if not model.running:
+            self.guidance_stopped.set()
+        self.cycles += 1
+        out: list[bytes] = []
+        expect, held = True, None
+        if faults.fires("lose"):
+            expect = False
+        elif faults.fires("reorder"):
+            expect, held = False, datagram
+        else:
+            out.append(datagram)
+            if faults.fires("duplicate"):
+                out.append(datagram)
+        if self._held is not None:
+            out.append(self._held)
+        self._held = held
+        return out, expect
+
+    def end(self, replies: list[bytes]) -> float:
+        """Take this cycle's answers and move to the next cycle; return its time, s."""
+        for reply in replies:
+            if self.faults.fires("lose_reply"):
+                continue
+            (self._late if self.faults.fires("late_reply") else self._inbox).append(reply)
+        t = self.t_s  # a resume may have moved the grid meanwhile (load_state_dict)
+        next_t = t + self.period_s
+        now = self.clock.now_s
+        if now > next_t:
+            next_t = t + self.period_s * math.ceil((now - t) / self.period_s - 1e-9)
+        self.t_s = self.clock.advance_to(next_t)
+        return self.t_s
+
+    def state_dict(self) -> dict[str, Any]:
+        """The cycle time, count and the controller's state (JSON-able; the arm is the physics')."""
+        return {"t_s": self.t_s, "cycles": self.cycles, "model": self.model.state_dict()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` while a cycle waits for its answer (between the halves).
+
+        Fault injection is not restored (the emulated cell runs none).
+        """
+        self.t_s = float(state["t_s"])
+        self.cycles = int(state["cycles"])
+        self.model.load_state_dict(state["model"])

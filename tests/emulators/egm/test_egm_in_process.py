@@ -1,0 +1,172 @@
+"""The in-process EGM controller: the UDP emulator's bytes and times, in the driver's thread."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from forcelearn.devices import Pose
+from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
+from forcelearn.emulators.clock import SimClock
+from forcelearn.emulators.egm import (
+    EgmControllerConfig,
+    EgmControllerEmulator,
+    EgmEmulatorBase,
+    EgmFaultConfig,
+    Fault,
+    InProcessEgmController,
+)
+from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.errors import GuidanceStopped, LinkError
+from forcelearn.protocols.egm import codec
+from forcelearn.tools.cell_config import load_cell_config
+from forcelearn.tools.cell_session import CellSession
+
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
+HOME = Pose(900.0, 0.0, 600.0, (0.0, 1.0, 0.0, 0.0))
+DRIVER = EgmConfig(port=0, lockstep=True, watchdog_s=5.0)
+
+
+def _kwargs(faults: EgmFaultConfig | None = None) -> dict[str, Any]:
+    return {
+        "physics": CellPhysics(pose=HOME),
+        "clock": SimClock(),
+        "config": EgmControllerConfig(),
+        "faults": faults,
+    }
+
+
+def _session(route: str, faults: EgmFaultConfig | None) -> tuple[list[object], EgmEmulatorBase]:
+    """Moves, waits and a dwell; return what the driver saw and the emulator."""
+    emu: EgmEmulatorBase
+    if route == "udp":
+        robot = EgmRobotDriver(DRIVER)
+        emu = EgmControllerEmulator(robot.port, **_kwargs(faults))
+        emu.start()
+    else:
+        emu = InProcessEgmController(**_kwargs(faults))
+        robot = EgmRobotDriver(DRIVER, sock=emu.socket())
+    seen: list[object] = []
+    try:
+        robot.wait_for_session(5.0)
+        for dz in (-3.0, 2.0, -1.0):
+            robot.move_by(dz_mm=dz)
+            seen.append(robot.wait_in_position(timeout_s=1.0, settle_s=0.01))
+            seen.append(robot.read_pose())
+        seen.append(robot.dwell(0.05))
+        status = robot.read_status()
+        seen += [status.seqno, status.controller_time_s, status.stats]
+        # while the controller waits for the answer to its latest cycle (the UDP
+        # route's thread goes on after the driver closes, in wall time)
+        seen += [emu.clock.now_s, emu.cycles, emu.model.targets_read, emu.state_dict()]
+    finally:
+        robot.close()
+        emu.close()
+    return seen, emu
+
+
+@pytest.mark.parametrize(
+    "faults",
+    [
+        None,
+        EgmFaultConfig(lose=Fault(0.2), duplicate=Fault(0.2), reorder=Fault(0.1),
+                       lose_reply=Fault(0.1), late_reply=Fault(0.1), after_cycles=3, seed=5),
+    ],
+    ids=["clean", "every-fault"],
+)
+def test_the_same_cycles_poses_times_and_counters_as_over_udp(
+    faults: EgmFaultConfig | None,
+) -> None:
+    """Both routes run the same cycle halves: everything the driver sees is equal.
+
+    With faults the UDP emulator's thread runs on through cycles that expect
+    no answer (a lost or held-back datagram) while the driver is busy, so its
+    cycle count at the end is a race there; the in-process one runs them when
+    the driver next reads. What the driver saw is the same on both.
+    """
+    udp, udp_emu = _session("udp", faults)
+    local, local_emu = _session("in_process", faults)
+    driver_seen = 10  # the waits' times, poses, seqno, controller time, traffic counters
+    assert local[:driver_seen] == udp[:driver_seen]
+    if faults is None:
+        assert local == udp  # and the controller's cycles, clock and state
+    else:  # the faults really fired, the same ones on both routes
+        kinds = ("lose", "duplicate", "reorder", "lose_reply", "late_reply")
+        assert all(local_emu.faults.fired[k] >= 1 for k in kinds)
+        assert all(udp_emu.faults.fired[k] >= 1 for k in kinds)
+
+
+def test_reading_on_without_answering_leaves_cycles_unanswered_until_comm_timeout() -> None:
+    """A PC that never answers: each read is one unanswered cycle; CommTimeout in sim time."""
+    emu = InProcessEgmController(
+        physics=CellPhysics(pose=HOME), config=EgmControllerConfig(comm_timeout_s=0.1)
+    )
+    sock = emu.socket()
+    states = []
+    for _ in range(40):
+        data, _ = sock.recvfrom(65535)
+        states.append(codec.decode_robot(data, "rw7").mci)
+    assert emu.unanswered == 39 and emu.cycles == 40
+    assert emu.clock.now_s == pytest.approx(39 * 0.004)
+    first_stop = states.index(codec.MciState.STOPPED)
+    assert first_stop == 25  # 0.1 s after the last read answer (power-up), at 4 ms cycles
+    assert emu.guidance_stopped.is_set()
+    emu.close()
+
+
+def test_a_stopped_guidance_fails_the_driver_as_over_udp() -> None:
+    """The driver's own checks see what the controller reports, on this route too."""
+    emu = InProcessEgmController(physics=CellPhysics(pose=HOME), clock=SimClock())
+    with EgmRobotDriver(DRIVER, sock=emu.socket()) as robot:
+        robot.wait_for_session()
+        robot.dwell(0.02)  # a restart at cycle 1 would repeat seqno 0: a duplicate
+        emu.restart_guidance()
+        robot.move_by(dz_mm=-2.0)
+        with pytest.raises(GuidanceStopped, match="new EGM session"):
+            robot.wait_in_position(timeout_s=1.0)
+    emu.close()
+
+
+def test_one_client_at_a_time_and_a_closed_controller_is_a_link_error() -> None:
+    """A second socket is refused while the first is open; closing frees the place."""
+    emu = InProcessEgmController(physics=CellPhysics(pose=HOME))
+    first = emu.socket()
+    with pytest.raises(RuntimeError, match="client already"):
+        emu.socket()
+    first.close()
+    robot = EgmRobotDriver(DRIVER, sock=emu.socket())
+    robot.wait_for_session()
+    emu.close()
+    with pytest.raises(LinkError, match="controller was closed"):
+        robot.dwell(0.01)
+    robot.close()
+    with pytest.raises(RuntimeError, match="closed"):
+        emu.socket()
+
+
+def test_a_given_socket_needs_lockstep() -> None:
+    """Real mode answers from a thread over UDP; an in-process end is refused there."""
+    emu = InProcessEgmController(physics=CellPhysics(pose=HOME))
+    with pytest.raises(ValueError, match="lockstep"):
+        EgmRobotDriver(EgmConfig(port=0), sock=emu.socket())
+    emu.close()
+
+
+def test_the_emulated_cell_gives_the_same_state_on_both_routes() -> None:
+    """The egm-cell example: moves and force reads, then every emulator state, per route."""
+    config = load_cell_config(EXAMPLES / "egm-cell.toml")
+
+    def session(route: str) -> tuple[list[float], dict[str, Any]]:
+        with CellSession(config, seed=4, egm_route=route) as s:
+            assert s.cell is not None
+            start = s.cell.sync()
+            forces = []
+            for dz in (-3.0, -3.0, 1.0):
+                s.cell.move_to(s.cell.sync().moved(0.0, 0.0, dz) if forces else
+                               start.moved(0.0, 0.0, dz))
+                forces.append(s.cell.measure_force_n())
+            return forces, s.emulator_state()
+
+    assert session("in_process") == session("udp")
