@@ -24,6 +24,7 @@ from forcelearn.envs import ContourEnv, SurfaceEnv
 from forcelearn.learning import SRVLearner, SRVParams
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
 from forcelearn.tasks.surface import SurfaceTask, SurfaceTaskSpec
+from forcelearn.tasks.surface_probe import SurfaceProbe, probe_and_map
 from forcelearn.tools.cell_config import load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.trainer import TrialRecord, train
@@ -61,7 +62,7 @@ def test_srv_through_the_contour_env_gives_the_native_trainers_trials() -> None:
 
 
 def test_srv_through_the_surface_env_gives_the_native_trainers_trials() -> None:
-    """§5 on the emulated cell (real drivers): 2 trials agree, trial for trial.
+    """§5 on the emulated cell (real drivers): the probe, its map and 2 trials agree.
 
     Two *native* runs of one seed were seen to differ by ~1e-3 N in force RMS on a
     heavily loaded host (the emulated cell is not bit-reproducible there; see
@@ -71,15 +72,23 @@ def test_srv_through_the_surface_env_gives_the_native_trainers_trials() -> None:
     """
     seed, trials = 2, 2
     config = load_cell_config(None)
-    with CellSession(config, seed=seed) as session:
+    with CellSession(config, seed=seed) as session:  # as `forcelearn run` starts
         assert session.cell is not None
-        task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
-        learner = SRVLearner(task.grid, 1, config.learner, rng=seed, output=task.output_map())
+        probe = SurfaceProbe(session.cell, config.task, config.probe,
+                             config.safety.max_step_mm, config.safety.workspace_min_mm[1])
+        result, choice = probe_and_map(probe)
+        output = choice.output()
+        task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
+        learner = SRVLearner(task.grid, 1, config.learner, rng=seed, output=output)
         native = train(learner, task, trials).records
+    assert result is not None and choice.source == "probe"
     env = SurfaceEnv(config)
     try:
         controller = SRVController(env, config.learner, seed)
         recorder = run_controller(env, controller, trials, seed, stop_early=False)
+        assert env.output_map == choice
+        assert env.probe is not None
+        assert env.probe.stiffness_n_per_mm() == result.stiffness_n_per_mm()
     finally:
         env.close()
     _same_records(native, recorder.records, rel=0.01, abs_n=0.05)
@@ -115,12 +124,23 @@ def test_q_filter_keeps_a_constant_path_and_smooths_a_spike() -> None:
     assert q_filter(spike, (0.25, 0.5, 0.25)).tolist() == [0.0, 1.0, 2.0, 1.0, 0.0]
 
 
-def _play(controller, forces: list[float], start_force_n: float = 10.0) -> list[float]:
-    """Feed a controller a trial of measured forces; return the offsets it commanded (mm)."""
-    controller.begin(np.zeros(3), {"start_force_n": start_force_n})
+PROBED = {"output_map": {"max_offset_mm": 8.0}, "probe_stiffness_n_per_mm": 1.6}
+"""reset's info after a probe: half-range 8 mm, stiffness 1.6 N/mm."""
+
+
+def _play(
+    controller, forces: list[float], start_force_n: float = 10.0, info: dict | None = None
+) -> list[float]:
+    """Feed a controller a trial of measured forces; return the offsets it commanded (mm).
+
+    ``info``: extras of reset's info (none: no probe ran, the fallback map).
+    """
+    extras = info or {}
+    controller.begin(np.zeros(3), {"start_force_n": start_force_n, **extras})
+    half = extras.get("output_map", {}).get("max_offset_mm", SPEC.fallback_offset_mm)
     offsets = []
     for force in forces:
-        offsets.append(float(controller.act(np.zeros(3))[0]) * SPEC.fallback_offset_mm)
+        offsets.append(float(controller.act(np.zeros(3))[0]) * half)
         controller.observe(
             np.zeros(3), {"force_n": force, "force_error_n": force - SPEC.desired_force_n}
         )
@@ -140,23 +160,44 @@ def test_ilc_raises_the_path_where_it_pressed_too_hard_and_lowers_it_where_too_s
 
 
 def test_force_control_corrects_y_against_the_error_and_forgets_between_trials() -> None:
-    """Too much force raises Y; the next trial starts from the start force again (no memory)."""
+    """Too much force raises Y; the next trial starts from the first guess again (no memory)."""
     pi = ForceController(FAKE_ENV)
     first = _play(pi, [18.0, 25.0, 25.0])  # probe, then pressing 5.4 N too hard
     assert first[0] == pytest.approx(-4.0)
     assert pi.stiffness_n_per_mm == pytest.approx(2.0)
     assert first[2] > first[1]
     second = _play(pi, [SPEC.desired_force_n] * 3, start_force_n=SPEC.desired_force_n)
-    assert second == pytest.approx([0.0, 0.0, 0.0])
+    assert second == pytest.approx([-4.0, -4.0, -4.0])  # no error: it holds the first guess
+
+
+def test_after_the_envs_probe_the_methods_start_at_the_map_centre_with_its_stiffness() -> None:
+    """PI and ILC take k̂ from the probe, start at offset 0 and stay in its half-range."""
+    desired = SPEC.desired_force_n
+    pi = ForceController(FAKE_ENV)
+    offsets = _play(pi, [desired + 3.2, desired + 3.2], info=PROBED)
+    assert pi.stiffness_n_per_mm == pytest.approx(1.6)
+    assert offsets[0] == 0.0
+    kp, ki = pi.params.kp, pi.params.ki
+    assert offsets[1] == pytest.approx((kp + ki) * 3.2 / 1.6)  # Y rises: too much force
+    ilc = ILCController(FAKE_ENV, ILCParams(learning_gain=0.5, q_weights=(0.0, 1.0, 0.0)))
+    assert _play(ilc, [desired + 80.0] * 20, info=PROBED) == [0.0] * 20
+    ilc.end(TrialRecord(0, "ilc", 20, False, 0.1, 2.0, 10.0))
+    assert ilc.path_mm == pytest.approx(np.full(20, 8.0))  # 0.5 · 80 / 1.6 = 25, clipped to 8
+    search = PathSearchController(FAKE_ENV, seed=0, params=PathSearchParams(popsize=4))
+    _play(search, [desired] * 20, info=PROBED)
+    assert np.allclose(search.es.mean, 0.0)
+    assert np.all(np.abs(search.path_mm) <= 8.0)
 
 
 def test_path_search_evaluates_one_candidate_per_trial_and_tells_a_full_generation() -> None:
     """Four candidates, one per trial; the mean moves once the generation is told."""
     search = PathSearchController(FAKE_ENV, seed=0, params=PathSearchParams(popsize=4))
-    mean_before = np.array(search.es.mean)
     paths = []
+    mean_before = np.full(20, -4.0)  # no probe: the operator's first guess
     for trial in range(4):
         _play(search, [SPEC.desired_force_n + trial] * 20)
+        if trial == 0:
+            assert np.allclose(search.es.mean, mean_before)
         paths.append(search.path_mm.copy())
         search.end(TrialRecord(trial, "cma", 20, False, 0.1, 1.0, 10.0))
     assert len({tuple(p) for p in paths}) == 4

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -69,18 +70,23 @@ def test_contour_rollout_pushing_into_the_disc_fails_and_terminates() -> None:
 
 
 def test_surface_rollout_measures_force_spends_cell_time_and_renders() -> None:
-    """A constant 6 mm deeper path: −r per step, growing cell time, a drawn force trace."""
+    """A constant path 0.4 half-ranges below the probe's centre: −r per step, growing cell
+    time, a drawn force trace; reset's info carries the probe's map and stiffness."""
     env = SurfaceEnv(render_mode="rgb_array")
     try:
         obs, info = env.reset(seed=3)
         assert obs[0] == 0.0 and obs[1] == pytest.approx(info["start_force_n"])
+        choice = info["output_map"]
+        assert choice["source"] == "probe" and choice == dataclasses.asdict(env.output_map)
+        assert 1.0 < info["probe_stiffness_n_per_mm"] < 4.0  # the default sponge: 2 N/mm
+        deeper = 0.4 * choice["max_offset_mm"]
         times, done = [], False
         while not done:
             obs, reward, terminated, truncated, info = env.step(np.array([-0.4]))
             tolerance = env.task_spec.tolerance
             assert reward == pytest.approx(-abs(info["force_n"] - 2 * 9.80665) / tolerance)
-            assert info["y_cmd_mm"] == pytest.approx(-4.0 - 6.0)
-            assert obs[2] == pytest.approx(-6.0)
+            assert info["y_cmd_mm"] == pytest.approx(choice["centre_y_mm"] - deeper)
+            assert obs[2] == pytest.approx(-deeper)
             times.append(info["trial_cell_time_s"])
             done = terminated or truncated
         assert terminated != truncated

@@ -12,14 +12,19 @@
                    evaluation
 =================  =========================================================================
 
-The model-based methods (``pi``, ``ilc``) and ``cma`` start from the same first
-guess, a constant Y offset ``probe_offset_mm`` (−4 mm) below the start Y: what an
-operator would try first. ``pi`` and ``ilc`` measure the sponge's stiffness
-from it as k̂ = (F1 − F0) / |probe| (F0 the force at the start pose, F1 after the
-first step); ``srv`` starts from μ = 0 (Y at the start pose), as in the paper.
+Every method starts from what the env's surface probe found, as ``forcelearn
+run`` does (:class:`CellPrior`, from ``reset``'s info): offsets are relative to
+the output map's centre, the Y where the probe expects the desired force, and
+bounded by its half-range. ``pi``, ``ilc`` and ``cma`` start at offset 0 (the
+centre), ``srv`` at μ = 0 (the same Y, through its output map); ``pi`` and
+``ilc`` take the probe's stiffness k̂. Without a probe (``[probe] enabled =
+false``, or a configured map) they fall back to what an operator would try
+first: a constant offset ``probe_offset_mm`` (−4 mm) below the centre, with
+k̂ = (F1 − F0) / |probe| measured at that first step (F0 the force at the
+start pose, F1 after the first step).
 
 The surface task only: Y offsets in mm, forces in N. Env actions are offsets
-divided by ``max_offset_mm``.
+divided by the map's half-range.
 """
 
 from __future__ import annotations
@@ -43,6 +48,35 @@ def measured_stiffness(start_force_n: float, probe_force_n: float, probe_offset_
     """k̂ = (F1 − F0) / |probe| in N/mm, clipped to a sane range."""
     k = (probe_force_n - start_force_n) / abs(probe_offset_mm)
     return float(np.clip(k, MIN_STIFFNESS_N_PER_MM, MAX_STIFFNESS_N_PER_MM))
+
+
+@dataclass(frozen=True)
+class CellPrior:
+    """What a method knows of the cell before learning: the env's probe and output map."""
+
+    max_offset_mm: float
+    """Half-range of the Y offsets around the map's centre, mm."""
+    stiffness_n_per_mm: float
+    """The probe's stiffness, N/mm; NaN without a probe (measure it at the first step)."""
+
+    @classmethod
+    def from_info(cls, info: dict[str, Any], fallback_offset_mm: float) -> CellPrior:
+        """From ``reset``'s info (``output_map``, ``probe_stiffness_n_per_mm``)."""
+        choice = info.get("output_map") or {}
+        k = info.get("probe_stiffness_n_per_mm")
+        return cls(
+            float(choice.get("max_offset_mm", fallback_offset_mm)),
+            math.nan if k is None else float(k),
+        )
+
+    @property
+    def probed(self) -> bool:
+        """True when the probe measured the stiffness."""
+        return math.isfinite(self.stiffness_n_per_mm)
+
+    def first_offset_mm(self, probe_offset_mm: float) -> float:
+        """The first guess: the centre after a probe, else ``probe_offset_mm`` below it."""
+        return 0.0 if self.probed else probe_offset_mm
 
 
 class SRVController:
@@ -96,18 +130,20 @@ class ForceControlParams:
     (docs/results/baselines.md): larger gains oscillate (the relaxing sponge is stiffer
     than k̂ just after a move), smaller ones lag further behind the surface."""
     probe_offset_mm: float = -4.0
-    """Y offset of the first step of the first trial; the stiffness is measured there."""
+    """Without a probe: Y offset of the first step of the first trial; k̂ is measured there."""
 
 
 class ForceController:
     """Explicit force control: Y_{k+1} = Y_0 + (Kp e_k + Ki Σ_{i≤k} e_i) / k̂, no memory.
 
-    e_k is the filtered force error (the cell's Kalman filter) after step k, e_0
-    the error at the start pose (positive: pressing too hard, so Y rises: the
-    sponge pushes along +Y); Y_0 is the start Y. k̂ is measured once, at the
-    first step of the first trial, which goes to ``probe_offset_mm`` (a
-    calibration of the cell, like an operator's stiffness test; every later
-    trial starts from the start-force error). Nothing else is carried over.
+    e_k is the filtered force error (the cell's Kalman filter) after step k
+    (positive: pressing too hard, so Y rises: the sponge pushes along +Y); Y_0
+    is the map's centre. Every trial's first step goes to the centre (the
+    probe's estimate of where the desired force is); the loop corrects from
+    the first measured error on. k̂ is the probe's stiffness; without a probe
+    it is measured once, at the first step of the first trial, which goes to
+    ``probe_offset_mm`` (like an operator's stiffness test). Nothing is carried
+    from trial to trial.
     """
 
     name = "pi"
@@ -115,26 +151,27 @@ class ForceController:
     def __init__(self, env: Any, params: ForceControlParams | None = None):
         self.params = params or ForceControlParams()
         self.spec = env.task_spec
+        self.prior: CellPrior | None = None
         self.stiffness_n_per_mm = math.nan
         self._start_force_n = math.nan
         self._integral = 0.0
-        self._offset_mm = self.params.probe_offset_mm
+        self._offset_mm = 0.0
 
     def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        """Reset the integrator; the first step is the probe, or the PI on the start error."""
+        """Reset the integrator; the first step goes to the first guess."""
+        if self.prior is None:
+            self.prior = CellPrior.from_info(info, self.spec.fallback_offset_mm)
+            self.stiffness_n_per_mm = self.prior.stiffness_n_per_mm
         self._start_force_n = float(info["start_force_n"])
-        self._integral = 0.0
-        if math.isfinite(self.stiffness_n_per_mm):
-            self._correct(self._start_force_n - self.spec.desired_force_n)
-        else:
-            self._offset_mm = self.params.probe_offset_mm
+        self._offset_mm = self.prior.first_offset_mm(self.params.probe_offset_mm)
+        self._integral = self._offset_mm * self.stiffness_n_per_mm / self.params.ki
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The env action for the present Y offset."""
-        return np.array([_action_of(self._offset_mm, self.spec.fallback_offset_mm)])
+        return np.array([_action_of(self._offset_mm, self._limit())])
 
     def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        """Measure k̂ after the very first probe, then the PI correction of the next Y."""
+        """Measure k̂ after the very first step if no probe did, then the PI correction."""
         if not math.isfinite(self.stiffness_n_per_mm):
             self.stiffness_n_per_mm = measured_stiffness(
                 self._start_force_n, float(info["force_n"]), self.params.probe_offset_mm
@@ -145,11 +182,16 @@ class ForceController:
     def end(self, record: TrialRecord) -> None:
         """Nothing is carried to the next trial (k̂ is a constant of the cell)."""
 
+    def _limit(self) -> float:
+        if self.prior is None:
+            raise RuntimeError("act() before begin(): the map is not known yet")
+        return self.prior.max_offset_mm
+
     def _correct(self, error_n: float) -> None:
         p = self.params
         self._integral += error_n
         correction = (p.kp * error_n + p.ki * self._integral) / self.stiffness_n_per_mm
-        limit = self.spec.fallback_offset_mm
+        limit = self._limit()
         self._offset_mm = float(np.clip(correction, -limit, limit))
 
 
@@ -162,7 +204,7 @@ class ILCParams:
     q_weights: tuple[float, float, float] = (0.25, 0.5, 0.25)
     """Zero-phase Q-filter along the path (edges repeat the end values); (0, 1, 0) is none."""
     probe_offset_mm: float = -4.0
-    """The first trial's constant path; the stiffness is measured at its first step."""
+    """Without a probe: the first trial's constant path; k̂ is measured at its first step."""
 
 
 def q_filter(path: np.ndarray, weights: tuple[float, float, float]) -> np.ndarray:
@@ -184,19 +226,29 @@ class ILCController:
     def __init__(self, env: Any, params: ILCParams | None = None):
         self.params = params or ILCParams()
         self.spec = env.task_spec
-        self.path_mm = np.full(self.spec.steps_per_trial, self.params.probe_offset_mm)
+        self.prior: CellPrior | None = None
+        self.path_mm = np.zeros(self.spec.steps_per_trial)
         self._stiffness = math.nan
         self._start_force_n = math.nan
         self._errors: list[float] = []
 
     def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        """A new pass along the present path."""
+        """A new pass along the present path (the first: the first guess, constant)."""
+        if self.prior is None:
+            self.prior = CellPrior.from_info(info, self.spec.fallback_offset_mm)
+            self._stiffness = self.prior.stiffness_n_per_mm
+            self.path_mm[:] = self.prior.first_offset_mm(self.params.probe_offset_mm)
         self._start_force_n = float(info["start_force_n"])
         self._errors = []
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The path's offset of this step as an env action."""
-        return np.array([_action_of(self.path_mm[len(self._errors)], self.spec.fallback_offset_mm)])
+        return np.array([_action_of(self.path_mm[len(self._errors)], self._limit())])
+
+    def _limit(self) -> float:
+        if self.prior is None:
+            raise RuntimeError("act() before begin(): the map is not known yet")
+        return self.prior.max_offset_mm
 
     def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
         """Keep the error; the first trial's first step measures k̂."""
@@ -211,7 +263,7 @@ class ILCController:
         errors = np.full(self.path_mm.shape, self._errors[-1])
         errors[: len(self._errors)] = self._errors
         updated = self.path_mm + self.params.learning_gain * errors / self._stiffness
-        limit = self.spec.fallback_offset_mm
+        limit = self._limit()
         self.path_mm = np.clip(q_filter(updated, self.params.q_weights), -limit, limit)
 
 
@@ -224,7 +276,7 @@ class PathSearchParams:
     popsize: int = 0
     """Candidates per generation; 0: CMA-ES's default 4 + ⌊3 ln 20⌋ = 12."""
     probe_offset_mm: float = -4.0
-    """The initial mean: a constant offset, the same first guess as pi and ilc."""
+    """Without a probe: the initial mean's constant offset (the same first guess as pi, ilc)."""
 
 
 class PathSearchController:
@@ -237,30 +289,37 @@ class PathSearchController:
     name = "cma"
 
     def __init__(self, env: Any, seed: int, params: PathSearchParams | None = None):
-        import cma
-
         self.params = params or PathSearchParams()
         self.spec = env.task_spec
-        n = self.spec.steps_per_trial
-        limit = self.spec.fallback_offset_mm
+        self.seed = seed
+        self.prior: CellPrior | None = None
+        self.es: Any = None
+        self._pending: list[np.ndarray] = []
+        self._told: list[float] = []
+        self._asked: list[np.ndarray] = []
+        self.path_mm = np.zeros(self.spec.steps_per_trial)
+        self._errors: list[float] = []
+
+    def _start_search(self, prior: CellPrior) -> Any:
+        import cma
+
+        limit = prior.max_offset_mm
         options: dict[str, Any] = {
-            "seed": seed + 1,  # cma treats 0 as "seed from the clock"
+            "seed": self.seed + 1,  # cma treats 0 as "seed from the clock"
             "bounds": [-limit, limit],
             "verbose": -9,
         }
         if self.params.popsize:
             options["popsize"] = self.params.popsize
-        self.es = cma.CMAEvolutionStrategy(
-            np.full(n, self.params.probe_offset_mm), self.params.sigma0_mm, options
-        )
-        self._pending: list[np.ndarray] = []
-        self._told: list[float] = []
-        self._asked: list[np.ndarray] = []
-        self.path_mm = np.zeros(n)
-        self._errors: list[float] = []
+        first = prior.first_offset_mm(self.params.probe_offset_mm)
+        mean = np.full(self.spec.steps_per_trial, first)
+        return cma.CMAEvolutionStrategy(mean, self.params.sigma0_mm, options)
 
     def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
         """Take the next candidate (ask a new generation when none is left)."""
+        if self.prior is None:
+            self.prior = CellPrior.from_info(info, self.spec.fallback_offset_mm)
+            self.es = self._start_search(self.prior)
         if not self._pending:
             self._asked = [np.asarray(c, dtype=float) for c in self.es.ask()]
             self._pending = list(self._asked)
@@ -270,7 +329,9 @@ class PathSearchController:
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The candidate's offset of this step as an env action."""
-        return np.array([_action_of(self.path_mm[len(self._errors)], self.spec.fallback_offset_mm)])
+        if self.prior is None:
+            raise RuntimeError("act() before begin(): the map is not known yet")
+        return np.array([_action_of(self.path_mm[len(self._errors)], self.prior.max_offset_mm)])
 
     def observe(self, obs: np.ndarray, info: dict[str, Any]) -> None:
         """Keep the error."""

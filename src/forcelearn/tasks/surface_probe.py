@@ -451,3 +451,21 @@ def configured_map(task: SurfaceTaskSpec) -> OutputMapChoice:
         math.nan,
         source,
     )
+
+
+
+def probe_and_map(probe: SurfaceProbe) -> tuple[ProbeResult | None, OutputMapChoice]:
+    """Run ``probe`` (when enabled and the map is not all configured); choose the output map.
+
+    Returns the probe's result (``None`` when it did not run; ``probe.result``
+    holds what it read even when this raised) and the map. The native run and
+    the Gymnasium env both start this way, so they learn on the same map.
+
+    Raises:
+        ProbeError: no surface found, or the desired force is out of reach.
+    """
+    task, spec = probe.task, probe.spec
+    if not spec.enabled or task.map_configured:
+        return None, configured_map(task)
+    result = probe.run()
+    return result, choose_output_map(result, task, spec, probe.floor_y_mm)

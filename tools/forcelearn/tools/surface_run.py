@@ -52,8 +52,7 @@ from forcelearn.tasks.surface_probe import (
     OutputMapChoice,
     ProbeResult,
     SurfaceProbe,
-    choose_output_map,
-    configured_map,
+    probe_and_map,
 )
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
@@ -347,9 +346,6 @@ def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:
     """
     config = run.config
     assert session.cell is not None
-    if not config.probe.enabled or config.task.map_configured:
-        run.output_map = configured_map(config.task)
-        return
     probe = SurfaceProbe(
         session.cell,
         config.task,
@@ -358,13 +354,13 @@ def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:
         config.safety.workspace_min_mm[1],
     )
     try:
-        run.probe = probe.run()
-    finally:
-        write_probe_files(run.out, probe.result, None)
-    run.output_map = choose_output_map(
-        run.probe, config.task, config.probe, config.safety.workspace_min_mm[1]
-    )
-    write_probe_files(run.out, run.probe, run.output_map)
+        run.probe, run.output_map = probe_and_map(probe)
+    except BaseException:
+        if probe.result.rows:
+            write_probe_files(run.out, probe.result, None)
+        raise
+    if run.probe is not None:
+        write_probe_files(run.out, run.probe, run.output_map)
 
 
 def write_probe_files(

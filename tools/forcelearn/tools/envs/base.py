@@ -22,7 +22,7 @@ reward is −r (r the paper's evaluation, smaller is better).
 ==================  ==========================================================
 
 ``reset`` returns ``info = {"start_force_n": ...}``: the force measured at the
-start pose.
+start pose, with the subclass's own extras (:meth:`TaskEnv._reset_info`).
 """
 
 from __future__ import annotations
@@ -83,6 +83,10 @@ class TaskEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         """The observation for the task input ``x`` and the last measured force (N)."""
         raise NotImplementedError
 
+    def _reset_info(self) -> dict[str, Any]:
+        """Extras of ``reset``'s info (none by default)."""
+        return {}
+
     # -- the Gymnasium API ---------------------------------------------------------------------
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -98,7 +102,7 @@ class TaskEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self._done = False
         self._forces = [float(task.start_force_n)]
         obs = self._observation(self._x, float(task.start_force_n))
-        return obs, {"start_force_n": float(task.start_force_n)}
+        return obs, {"start_force_n": float(task.start_force_n), **self._reset_info()}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Apply one control step; see the class docstring for the returned values."""

@@ -7,6 +7,7 @@ JR3 drivers; one simulated clock). ``config="site.toml"`` drives a real cell.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,13 @@ from typing import Any
 import numpy as np
 
 from forcelearn.tasks.surface import SurfaceTask
+from forcelearn.tasks.surface_probe import (
+    OutputMapChoice,
+    ProbeResult,
+    SurfaceProbe,
+    configured_map,
+    probe_and_map,
+)
 from forcelearn.tools.envs.base import TaskEnv, box
 
 log = logging.getLogger(__name__)
@@ -32,21 +40,36 @@ class SurfaceEnv(TaskEnv):
     ``forcelearn.tasks.surface``; cell: ``forcelearn.cell``; devices:
     ``forcelearn.tools.cell_session``.
 
+    ## Output map (the same as ``forcelearn run``'s)
+    When a cell is opened (the first reset, and every seeded reset on the
+    emulated cell) the surface probe runs first, exactly as ``forcelearn run``
+    starts (docs/surface.md): it finds the contact and the stiffness and
+    chooses the map's centre Y (where the desired force is expected), its
+    half-range and the learner's scale. ``[probe] enabled = false`` or a fully
+    configured map (``task.output_centre_y_mm``, ``output_scale_mm``,
+    ``max_offset_mm``) skip it; the map is then the configured one, or the
+    fallback (start Y, 2 mm, 15 mm). ``env.output_map`` holds it and
+    ``reset``'s info carries it (``output_map``, a dict in mm) with the probe's
+    stiffness (``probe_stiffness_n_per_mm``, ``None`` without a probe).
+
     ## Action space: ``Box(-1, 1, (1,), float64)``
     | index | meaning | unit after scaling |
     |---|---|---|
-    | 0 | Y offset from the map's centre (start Y) | ± 15 mm (``task.max_offset_mm``) |
+    | 0 | Y offset from the map's centre | ± the map's half-range, mm |
 
-    Actions outside [-1, 1] are clipped. Y = start Y + 15 mm · action.
+    Actions outside [-1, 1] are clipped. Y = centre + half-range · action.
 
     ## Observation space: ``Box(float64, (3,))``
     | index | meaning | unit | bounds |
     |---|---|---|---|
     | 0 | distance travelled along the path before the next step | mm | [0, 100] |
     | 1 | filtered normal force after the last move (after reset: at the start pose) | N | ± 60 |
-    | 2 | last Y command relative to the start Y (0 after reset) | mm | ± 15 |
+    | 2 | last Y command relative to the map's centre (0 after reset) | mm | ± D |
 
-    The force bound is ``safety.max_force_n``; observations are clipped to the bounds.
+    The force bound is ``safety.max_force_n``; D, the widest half-range any
+    map can have, is the retract plane's height above the workspace floor
+    (``task.retract_y_mm`` − ``safety.workspace_min_mm[1]``). Observations are
+    clipped to the bounds.
 
     ## Reward
     −r with r = |force − 19.61 N| / tolerance (``task.tolerance_n``, default half the
@@ -91,15 +114,17 @@ class SurfaceEnv(TaskEnv):
         self.task_spec = config.task
         self.default_seed = config.seed if seed is None else int(seed)
         self.session: Any | None = None
+        self.output_map: OutputMapChoice = configured_map(config.task)
+        """The output map of the open cell (before the first reset: the configured one)."""
+        self.probe: ProbeResult | None = None
+        """What the latest probe read and fitted (``None``: no probe ran)."""
         self._y_offset_mm = 0.0
         spec, limit = self.task_spec, config.safety.max_force_n
         self.task_steps_per_trial = spec.steps_per_trial
         self.task_desired_force_n = spec.desired_force_n
         self.action_space = box([-1.0], [1.0])
-        self.observation_space = box(
-            [0.0, -limit, -spec.fallback_offset_mm],
-            [spec.path_mm, limit, spec.fallback_offset_mm],
-        )
+        widest = spec.retract_y_mm - config.safety.workspace_min_mm[1]
+        self.observation_space = box([0.0, -limit, -widest], [spec.path_mm, limit, widest])
 
     @property
     def emulated(self) -> bool:
@@ -112,9 +137,26 @@ class SurfaceEnv(TaskEnv):
     def _open_task(self, seed: int | None) -> SurfaceTask:
         from forcelearn.tools.cell_session import CellSession
 
-        self.session = CellSession(self.config, seed=self.default_seed if seed is None else seed)
-        assert self.session.cell is not None  # opened, or CellSession raised
-        return SurfaceTask(self.session.cell, self.task_spec, self.config.safety.max_step_mm)
+        config = self.config
+        self.session = CellSession(config, seed=self.default_seed if seed is None else seed)
+        cell = self.session.cell
+        assert cell is not None  # opened, or CellSession raised
+        probe = SurfaceProbe(
+            cell, config.task, config.probe, config.safety.max_step_mm,
+            config.safety.workspace_min_mm[1],
+        )
+        self.probe, self.output_map = probe_and_map(probe)
+        return SurfaceTask(
+            cell, self.task_spec, config.safety.max_step_mm, self.output_map.output()
+        )
+
+    def _reset_info(self) -> dict[str, Any]:
+        return {
+            "output_map": dataclasses.asdict(self.output_map),
+            "probe_stiffness_n_per_mm": (
+                self.probe.stiffness_n_per_mm() if self.probe is not None else None
+            ),
+        }
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -124,8 +166,8 @@ class SurfaceEnv(TaskEnv):
         return super().reset(seed=seed, options=options)
 
     def _command(self, action: np.ndarray) -> np.ndarray:
-        self._y_offset_mm = float(action[0]) * self.task_spec.fallback_offset_mm
-        return np.array([self.task_spec.fallback_centre_y_mm + self._y_offset_mm])
+        self._y_offset_mm = float(action[0]) * self.output_map.max_offset_mm
+        return np.array([self.output_map.centre_y_mm + self._y_offset_mm])
 
     def _observation(self, x: np.ndarray, force_n: float) -> np.ndarray:
         obs = np.array([x[0], force_n, self._y_offset_mm], dtype=float)
@@ -151,14 +193,11 @@ class SurfaceEnv(TaskEnv):
     def learner_action(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
         """Map the learner's action a (action units) to this env's action in [-1, 1].
 
-        The native output map: Y offset = 2 mm · a, clipped to ±15 mm.
+        The native output map: Y offset = scale · a, clipped to ± the half-range.
         """
-        offset = np.clip(
-            a * self.task_spec.fallback_scale_mm,
-            -self.task_spec.fallback_offset_mm,
-            self.task_spec.fallback_offset_mm,
-        )
-        return offset / self.task_spec.fallback_offset_mm
+        choice = self.output_map
+        offset = np.clip(a * choice.scale_mm, -choice.max_offset_mm, choice.max_offset_mm)
+        return offset / choice.max_offset_mm
 
     @property
     def grid(self) -> Any:
