@@ -71,7 +71,8 @@ def test_contour_rollout_pushing_into_the_disc_fails_and_terminates() -> None:
 
 def test_surface_rollout_measures_force_spends_cell_time_and_renders() -> None:
     """A constant path 0.4 half-ranges below the probe's centre: −r per step, growing cell
-    time, a drawn force trace; reset's info carries the probe's map and stiffness."""
+    time, a drawn force trace; reset's info carries the probe's map and stiffness.
+    """
     env = SurfaceEnv(render_mode="rgb_array")
     try:
         obs, info = env.reset(seed=3)
