@@ -70,8 +70,9 @@ def test_contour_rollout_pushing_into_the_disc_fails_and_terminates() -> None:
 
 
 def test_surface_rollout_measures_force_spends_cell_time_and_renders() -> None:
-    """A constant path 0.4 half-ranges below the probe's centre: −r per step, growing cell
-    time, a drawn force trace; reset's info carries the probe's map and stiffness.
+    """A path 0.4 half-ranges below the probe's centre: −r per step, a drawn trace.
+
+    The cell time grows; reset's info carries the probe's map and stiffness.
     """
     env = SurfaceEnv(render_mode="rgb_array")
     try:
