@@ -79,7 +79,8 @@ def report(name: str, command: str, rows: list[dict[str, Any]], trials: int, wal
         f"Made by `{command}` ({wall_s:.0f} s of wall time on the shared 2-core machine).",
         "",
         f"Cell: `{config_path}`: robot `{config.robot_kind}`, sensor `{config.sensor_kind}`, "
-        "both emulated and reached through their real drivers over loopback.",
+        "both emulated and reached through their real drivers (the in-process routes of "
+        "the built-in cell, docs/emulators.md; the Net F/T box over loopback).",
         "Converged: 10 complete trials in a row, each with force RMS ≤ 5 % of the desired",
         "force; a seed that never converges counts as the budget. Trials count from 0.",
         "",
