@@ -15,8 +15,11 @@
 Every method starts from what the env's surface probe found, as ``forcelearn
 run`` does (:class:`CellPrior`, from ``reset``'s info): offsets are relative to
 the output map's centre, the Y where the probe expects the desired force, and
-bounded by its half-range. ``pi``, ``ilc`` and ``cma`` start at offset 0 (the
-centre), ``srv`` at μ = 0 (the same Y, through its output map); ``pi`` and
+bounded by its half-range. ``pi``, ``ilc`` and ``cma`` start from the probe's
+surface model, the path where its fits give the desired force at each step
+(``probe_path_mm``: the feedforward of ``pi``, the first path of ``ilc``, the
+initial mean of ``cma``); ``srv`` starts at μ = 0 (the map's centre, through
+its output map), as the paper's learner starts from nothing. ``pi`` and
 ``ilc`` take the probe's stiffness k̂. Without a probe (``[probe] enabled =
 false``, or a configured map) they fall back to what an operator would try
 first: a constant offset ``probe_offset_mm`` (−4 mm) below the centre, with
@@ -58,15 +61,19 @@ class CellPrior:
     """Half-range of the Y offsets around the map's centre, mm."""
     stiffness_n_per_mm: float
     """The probe's stiffness, N/mm; NaN without a probe (measure it at the first step)."""
+    path_mm: tuple[float, ...] | None = None
+    """The probe's surface model: per step, the offset where it expects the desired force."""
 
     @classmethod
     def from_info(cls, info: dict[str, Any], fallback_offset_mm: float) -> CellPrior:
-        """From ``reset``'s info (``output_map``, ``probe_stiffness_n_per_mm``)."""
+        """From reset's info: output_map, probe_stiffness_n_per_mm, probe_path_mm."""
         choice = info.get("output_map") or {}
         k = info.get("probe_stiffness_n_per_mm")
+        path = info.get("probe_path_mm")
         return cls(
             float(choice.get("max_offset_mm", fallback_offset_mm)),
             math.nan if k is None else float(k),
+            None if path is None else tuple(float(v) for v in path),
         )
 
     @property
@@ -74,9 +81,16 @@ class CellPrior:
         """True when the probe measured the stiffness."""
         return math.isfinite(self.stiffness_n_per_mm)
 
-    def first_offset_mm(self, probe_offset_mm: float) -> float:
-        """The first guess: the centre after a probe, else ``probe_offset_mm`` below it."""
-        return 0.0 if self.probed else probe_offset_mm
+    def first_path_mm(self, steps: int, probe_offset_mm: float) -> np.ndarray:
+        """The first guess per step: the probe's path (within the range), else a constant.
+
+        Without a probe path: the centre after a probe, else ``probe_offset_mm`` below it.
+        """
+        if self.path_mm is not None and len(self.path_mm) == steps:
+            limit = self.max_offset_mm
+            path: np.ndarray = np.clip(np.asarray(self.path_mm, dtype=float), -limit, limit)
+            return path
+        return np.full(steps, 0.0 if self.probed else probe_offset_mm)
 
 
 class SRVController:
@@ -134,13 +148,13 @@ class ForceControlParams:
 
 
 class ForceController:
-    """Explicit force control: Y_{k+1} = Y_0 + (Kp e_k + Ki Σ_{i≤k} e_i) / k̂, no memory.
+    """Explicit force control: Y_{k+1} = Y_ff,k+1 + (Kp e_k + Ki Σ_{i≤k} e_i) / k̂, no memory.
 
     e_k is the filtered force error (the cell's Kalman filter) after step k
-    (positive: pressing too hard, so Y rises: the sponge pushes along +Y); Y_0
-    is the map's centre. Every trial's first step goes to the centre (the
-    probe's estimate of where the desired force is); the loop corrects from
-    the first measured error on. k̂ is the probe's stiffness; without a probe
+    (positive: pressing too hard, so Y rises: the sponge pushes along +Y);
+    Y_ff is the feedforward: the probe's surface model (:class:`CellPrior`),
+    else a constant. Every trial's first step goes to Y_ff,1; the loop
+    corrects from the first measured error on. k̂ is the probe's stiffness; without a probe
     it is measured once, at the first step of the first trial, which goes to
     ``probe_offset_mm`` (like an operator's stiffness test). Nothing is carried
     from trial to trial.
@@ -155,16 +169,22 @@ class ForceController:
         self.stiffness_n_per_mm = math.nan
         self._start_force_n = math.nan
         self._integral = 0.0
+        self._feedforward = np.zeros(self.spec.steps_per_trial)
+        self._step = 0
         self._offset_mm = 0.0
 
     def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        """Reset the integrator; the first step goes to the first guess."""
+        """Reset the integrator; the first step goes to the feedforward's first."""
         if self.prior is None:
             self.prior = CellPrior.from_info(info, self.spec.fallback_offset_mm)
             self.stiffness_n_per_mm = self.prior.stiffness_n_per_mm
+            self._feedforward = self.prior.first_path_mm(
+                self.spec.steps_per_trial, self.params.probe_offset_mm
+            )
         self._start_force_n = float(info["start_force_n"])
-        self._offset_mm = self.prior.first_offset_mm(self.params.probe_offset_mm)
-        self._integral = self._offset_mm * self.stiffness_n_per_mm / self.params.ki
+        self._step = 0
+        self._integral = 0.0
+        self._offset_mm = float(self._feedforward[0])
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The env action for the present Y offset."""
@@ -176,7 +196,7 @@ class ForceController:
             self.stiffness_n_per_mm = measured_stiffness(
                 self._start_force_n, float(info["force_n"]), self.params.probe_offset_mm
             )
-            self._integral = (self._offset_mm * self.stiffness_n_per_mm) / self.params.ki
+        self._step += 1
         self._correct(float(info["force_error_n"]))
 
     def end(self, record: TrialRecord) -> None:
@@ -191,8 +211,9 @@ class ForceController:
         p = self.params
         self._integral += error_n
         correction = (p.kp * error_n + p.ki * self._integral) / self.stiffness_n_per_mm
+        feedforward = self._feedforward[min(self._step, len(self._feedforward) - 1)]
         limit = self._limit()
-        self._offset_mm = float(np.clip(correction, -limit, limit))
+        self._offset_mm = float(np.clip(feedforward + correction, -limit, limit))
 
 
 @dataclass(frozen=True)
@@ -237,7 +258,9 @@ class ILCController:
         if self.prior is None:
             self.prior = CellPrior.from_info(info, self.spec.fallback_offset_mm)
             self._stiffness = self.prior.stiffness_n_per_mm
-            self.path_mm[:] = self.prior.first_offset_mm(self.params.probe_offset_mm)
+            self.path_mm = self.prior.first_path_mm(
+                self.spec.steps_per_trial, self.params.probe_offset_mm
+            )
         self._start_force_n = float(info["start_force_n"])
         self._errors = []
 
@@ -311,8 +334,7 @@ class PathSearchController:
         }
         if self.params.popsize:
             options["popsize"] = self.params.popsize
-        first = prior.first_offset_mm(self.params.probe_offset_mm)
-        mean = np.full(self.spec.steps_per_trial, first)
+        mean = prior.first_path_mm(self.spec.steps_per_trial, self.params.probe_offset_mm)
         return cma.CMAEvolutionStrategy(mean, self.params.sigma0_mm, options)
 
     def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:

@@ -247,6 +247,25 @@ class ProbeResult:
         """Mean fitted stiffness over the points, N/mm."""
         return float(np.mean([f.stiffness_n_per_mm for f in self.fits]))
 
+    def target_path_mm(self, task: SurfaceTaskSpec) -> np.ndarray:
+        """Y (mm) where each step's fit gives the desired force, one per step of a trial.
+
+        The fits' target Y = contact Y − desired force / stiffness, interpolated
+        linearly in Z between the probed points (held beyond them): the surface
+        model a force-control engineer would feed forward.
+        """
+        if not self.fits:
+            raise ProbeError("the probe fitted no point")
+        order = sorted(self.fits, key=lambda f: f.z_mm)
+        z_fit = np.array([f.z_mm for f in order])
+        y_fit = np.array(
+            [f.contact_y_mm - task.desired_force_n / f.stiffness_n_per_mm for f in order]
+        )
+        z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
+        if z_fit[0] == z_fit[-1]:
+            return np.full(task.steps_per_trial, float(np.mean(y_fit)))
+        return np.asarray(np.interp(z_steps, z_fit, y_fit), dtype=float)
+
 
 class SurfaceProbe:
     """Runs the probe on a cell (see the module docstring); one instance per probe."""

@@ -50,7 +50,9 @@ class SurfaceEnv(TaskEnv):
     ``max_offset_mm``) skip it; the map is then the configured one, or the
     fallback (start Y, 2 mm, 15 mm). ``env.output_map`` holds it and
     ``reset``'s info carries it (``output_map``, a dict in mm) with the probe's
-    stiffness (``probe_stiffness_n_per_mm``, ``None`` without a probe).
+    stiffness (``probe_stiffness_n_per_mm``) and its surface model as a path
+    (``probe_path_mm``: per step, the Y offset from the centre where the fits
+    give the desired force), both ``None`` without a probe.
 
     ## Action space: ``Box(-1, 1, (1,), float64)``
     | index | meaning | unit after scaling |
@@ -151,10 +153,12 @@ class SurfaceEnv(TaskEnv):
         )
 
     def _reset_info(self) -> dict[str, Any]:
+        probe, centre = self.probe, self.output_map.centre_y_mm
         return {
             "output_map": dataclasses.asdict(self.output_map),
-            "probe_stiffness_n_per_mm": (
-                self.probe.stiffness_n_per_mm() if self.probe is not None else None
+            "probe_stiffness_n_per_mm": probe.stiffness_n_per_mm() if probe else None,
+            "probe_path_mm": (
+                (probe.target_path_mm(self.task_spec) - centre).tolist() if probe else None
             ),
         }
 
