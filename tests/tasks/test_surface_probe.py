@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from forcelearn.emulators.physics.sponge import stiffness_n_per_mm, surface_y_mm
-from forcelearn.tasks.surface import SurfaceTaskSpec
+from forcelearn.tasks.surface import WEAR_GAIN, SurfaceTaskSpec, SurfaceYOutput
 from forcelearn.tasks.surface_probe import (
     ContactFit,
     ProbeError,
@@ -16,7 +16,9 @@ from forcelearn.tasks.surface_probe import (
     ProbeSpec,
     SurfaceProbe,
     choose_output_map,
+    constant_centre_error_ratio,
     fit_contact,
+    probe_and_map,
 )
 from forcelearn.tools.cell_config import SafetyLimits, load_cell_config
 from forcelearn.tools.cell_session import CellSession
@@ -136,3 +138,91 @@ def test_no_surface_in_reach_is_a_probe_error() -> None:
 def test_safety_defaults_leave_room_for_the_probe() -> None:
     """Safety defaults leave room for the probe."""
     assert 0.7 * SafetyLimits().max_force_n > 1.25 * SurfaceTaskSpec().desired_force_n
+
+
+def _wavy(k: float, y_contacts: list[float], z_step: float = -25.0) -> ProbeResult:
+    """Fits at Z = 0, -25, -50 ... with the given contact Ys and one stiffness."""
+    fits = [ContactFit(i * z_step, k, 0.01, y, 0.05, 0.1, 6) for i, y in enumerate(y_contacts)]
+    return ProbeResult(rows=[], fits=fits, baselines_n=[0.0] * len(fits))
+
+
+def test_a_constant_centre_that_leaves_the_tolerance_is_told_from_one_that_does_not() -> None:
+    """Predicted error k |t_i - mean t| in tolerances: 4 N/mm x 1 mm over 2.45 N passes 1."""
+    small = SurfaceTaskSpec(desired_force_n=4.903325)
+    assert constant_centre_error_ratio(_wavy(4.0, [1.0, 3.0, 2.0]), small) == pytest.approx(
+        4.0 * 1.0 / 2.4516625
+    )
+    default = SurfaceTaskSpec()
+    assert constant_centre_error_ratio(_wavy(2.0, [1.0, 3.0, 2.0]), default) < 1.0
+
+
+def test_following_the_surface_puts_each_steps_centre_where_the_fits_give_the_force() -> None:
+    """The path interpolates the fits' targets in Z; the start press is the target at Z 0."""
+    task = SurfaceTaskSpec(desired_force_n=4.903325)
+    result = _wavy(4.0, [1.0, 3.0, 2.0, 0.0, 1.5])  # Z 0 .. -100 in 25 mm
+    choice = choose_output_map(result, task, ProbeSpec(), -60.0, follow=True)
+    depth = task.desired_force_n / 4.0
+    assert len(choice.path_y_mm) == task.steps_per_trial
+    z_steps = -5.0 * np.arange(1, 21)
+    expected = np.interp(z_steps, [-100, -75, -50, -25, 0], [1.5, 0.0, 2.0, 3.0, 1.0]) - depth
+    assert np.allclose(choice.path_y_mm, expected)
+    assert choice.start_press_y_mm == pytest.approx(1.0 - depth)
+    assert choice.max_offset_mm == pytest.approx(3.0 + 0.5 * depth)
+    assert choice.centre_y_mm == pytest.approx(float(np.mean(expected)))
+    output = choice.output(5.0)  # the learner's output map reads the travel x
+    assert output(np.array([0.0]), np.array([0.0]))[0] == pytest.approx(expected[0])
+    assert output(np.array([1.0]), np.array([35.0]))[0] == pytest.approx(
+        expected[7] + choice.scale_mm
+    )
+    assert choice.centre_at(19) == pytest.approx(expected[19])
+    constant = choose_output_map(result, task, ProbeSpec(), -60.0)
+    assert constant.path_y_mm == () and constant.start_press_y_mm is None
+    configured = choose_output_map(
+        result, replace(task, output_centre_y_mm=-2.0), ProbeSpec(), -60.0, follow=True
+    )
+    assert configured.path_y_mm == () and configured.centre_y_mm == -2.0  # the config wins
+
+
+@pytest.mark.parametrize(
+    ("stiffness", "force", "follows"),
+    [(4.0, 4.903325, True), (2.0, 19.6133, False)],
+    ids=["stiff-sponge-half-kgf", "default"],
+)
+def test_the_probe_follows_the_surface_only_where_a_constant_centre_fails(
+    stiffness: float, force: float, follows: bool
+) -> None:
+    """On the emulator: a stiff sponge at 0.5 kgf refines and follows; the default does not."""
+    config = load_cell_config()
+    sponge = replace(config.emulator.sponge, stiffness_n_per_mm=stiffness)
+    config = replace(
+        config,
+        emulator=replace(config.emulator, sponge=sponge),
+        task=replace(config.task, desired_force_n=force),
+    )
+    with CellSession(config, seed=1) as session:
+        assert session.cell is not None
+        probe = SurfaceProbe(session.cell, config.task, config.probe,
+                             config.safety.max_step_mm, config.safety.workspace_min_mm[1])
+        result, choice = probe_and_map(probe)
+    assert result is not None
+    points = len(config.probe.points) + (len(config.probe.refine_points) if follows else 0)
+    assert len(result.fits) == points
+    assert bool(choice.path_y_mm) is follows
+    if follows:  # the start press is near the desired force, not start_mm's Y
+        assert choice.start_press_y_mm is not None
+        assert choice.start_press_y_mm > config.task.start_mm[1] + 2.0
+
+
+def test_a_map_that_tracks_wear_shifts_every_centre_by_the_start_forces_missing_depth() -> None:
+    """Less start force than desired: deeper by WEAR_GAIN x the missing force / k, per trial."""
+    output = SurfaceYOutput(-1.0, 0.5, 3.0, (-1.0, -2.0), 5.0, -0.5, 4.0)
+    output.track_wear(start_force_n=3.0, desired_force_n=5.0)  # 2 N short on 4 N/mm
+    assert output.shift_mm == pytest.approx(-WEAR_GAIN * 0.5)
+    assert output(np.array([0.0]), np.array([5.0]))[0] == pytest.approx(-2.0 + output.shift_mm)
+    output.track_wear(start_force_n=7.0, desired_force_n=5.0)  # too much: back up
+    assert output.shift_mm == pytest.approx(0.0)
+    output.track_wear(start_force_n=float("nan"), desired_force_n=5.0)  # no reading: no move
+    assert output.shift_mm == pytest.approx(0.0)
+    fixed = SurfaceYOutput(-1.0, 0.5, 3.0)  # no stiffness given: the map never moves
+    fixed.track_wear(start_force_n=0.0, desired_force_n=5.0)
+    assert fixed.shift_mm == 0.0

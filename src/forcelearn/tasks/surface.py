@@ -170,19 +170,68 @@ class SurfaceTaskSpec:
         return Pose(*self.start_mm, self.orientation or IDENTITY_QUATERNION)
 
 
-class SurfaceYOutput:
-    """y(a) = centre Y + scale · a, limited to ±max_offset: an absolute Y command in mm."""
+WEAR_GAIN = 0.5
+"""Share of the start press's depth error corrected per trial when the map follows wear."""
 
-    def __init__(self, start_y_mm: float, scale_mm: float, max_offset_mm: float):
+
+class SurfaceYOutput:
+    """y(a, x) = centre Y (of the step) + scale · a, limited to ±max_offset: a Y command in mm.
+
+    With ``path_y_mm`` (one centre per step, the surface probe's path) the
+    centre follows the surface: the step is the one that starts at the
+    travel ``x`` (mm), x / ``step_mm``. With ``wear_stiffness_n_per_mm`` set
+    the map also follows the sponge's wear: :class:`SurfaceTask` moves
+    :attr:`shift_mm` (added to every centre and to the start press) from each
+    trial's start force (:meth:`track_wear`).
+    """
+
+    def __init__(
+        self,
+        start_y_mm: float,
+        scale_mm: float,
+        max_offset_mm: float,
+        path_y_mm: tuple[float, ...] = (),
+        step_mm: float = 5.0,
+        start_press_y_mm: float | None = None,
+        wear_stiffness_n_per_mm: float | None = None,
+    ):
         self.start_y_mm = start_y_mm
-        """The centre Y (mm): the command at action 0."""
+        """The centre Y (mm): the command at action 0 (the mean centre with a path)."""
         self.scale_mm = scale_mm
         self.max_offset_mm = max_offset_mm
+        self.path_y_mm = tuple(path_y_mm)
+        self.step_mm = step_mm
+        self.start_press_y_mm = start_press_y_mm
+        """Y of each trial's start press before any shift (None: the task's ``start_mm``)."""
+        self.wear_stiffness_n_per_mm = wear_stiffness_n_per_mm
+        """The stiffness that turns a start-force error into a shift (None: no tracking)."""
+        self.shift_mm = 0.0
+        """How far the sponge has moved since the probe, as tracked (mm, − deeper)."""
+
+    def centre_at(self, x: np.ndarray | None) -> float:
+        """The centre Y (mm) of the step that starts at travel ``x`` (mm), shift included."""
+        path = self.path_y_mm
+        if not path or x is None or np.size(x) == 0:
+            return self.start_y_mm + self.shift_mm
+        index = round(float(np.ravel(x)[0]) / self.step_mm)
+        return path[min(max(index, 0), len(path) - 1)] + self.shift_mm
+
+    def track_wear(self, start_force_n: float, desired_force_n: float) -> None:
+        """Move :attr:`shift_mm` by ``WEAR_GAIN`` × the start-force error / stiffness.
+
+        The start press aims at the desired force: less force means the surface
+        has sunk (set) or softened, so the map goes deeper by the depth that
+        force is missing (a half step per trial, against the sensor's noise).
+        """
+        k = self.wear_stiffness_n_per_mm
+        if k is None or not math.isfinite(start_force_n):
+            return
+        self.shift_mm += WEAR_GAIN * (start_force_n - desired_force_n) / k
 
     def __call__(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """Return the Y command (mm) for action ``a``."""
+        """Return the Y command (mm) for action ``a`` at travel ``x``."""
         offset = np.clip(a * self.scale_mm, -self.max_offset_mm, self.max_offset_mm)
-        return self.start_y_mm + offset
+        return self.centre_at(x) + offset
 
 
 class SurfaceTask:
@@ -233,13 +282,22 @@ class SurfaceTask:
         """Cell time (the robot's clock, s) since the present trial began."""
         return self.cell.time_s - self._trial_start_s
 
+    def start_pose(self) -> Pose:
+        """Where each trial presses in first: ``start_mm``, or the output map's start press."""
+        start = self.spec.start_pose()
+        output = self._output
+        if output is None or output.start_press_y_mm is None:
+            return start
+        return Pose(start.x_mm, output.start_press_y_mm + output.shift_mm, start.z_mm,
+                    start.quaternion)
+
     def reset(self) -> np.ndarray:
         """Retract, travel clear of the sponge to above the start, press in, measure the force.
 
         Starts from the controller's commanded target (:meth:`Cell.sync`), so a
         resumed run starts exactly as the uninterrupted one would.
         """
-        start = self.spec.start_pose()
+        start = self.start_pose()
         self.cell.sync()
         self._trial_start_s = self.cell.time_s
         self.retract()
@@ -250,6 +308,8 @@ class SurfaceTask:
         self.cell.move_in_steps(start, self.max_step_mm, guard_force=True)
         self.cell.reset_filter()
         self.start_force_n = self.cell.measure_force_n()
+        if self._output is not None:
+            self._output.track_wear(self.start_force_n, self.desired_force_n)
         self._step = 0
         return np.array([0.0])
 

@@ -30,11 +30,13 @@ class StuckMonitor:
     Args:
         centre_y_mm, max_offset_mm: the output map's centre and half-range (mm).
         steps_per_trial: steps of a complete trial.
+        path_y_mm: a map that follows the surface: the centre of each step (mm).
     """
 
     centre_y_mm: float
     max_offset_mm: float
     steps_per_trial: int
+    path_y_mm: tuple[float, ...] = ()
     edge_trials: int = 20
     """Trials in a row at the edge before the warning."""
     edge_share: float = 0.5
@@ -52,8 +54,9 @@ class StuckMonitor:
     def update(self, record: TrialRecord, commands_y_mm: Sequence[float]) -> str | None:
         """Account one trial; return a new warning (once per sign) or None."""
         limit = self.max_offset_mm * (1.0 - self.edge_band)
-        low = sum(1 for y in commands_y_mm if y - self.centre_y_mm <= -limit)
-        high = sum(1 for y in commands_y_mm if y - self.centre_y_mm >= limit)
+        offsets = [y - self._centre(k) for k, y in enumerate(commands_y_mm)]
+        low = sum(1 for d in offsets if d <= -limit)
+        high = sum(1 for d in offsets if d >= limit)
         count = max(len(commands_y_mm), 1)
         if max(low, high) / count >= self.edge_share:
             self.edge_run += 1
@@ -67,6 +70,11 @@ class StuckMonitor:
         if self.stall_run >= self.stall_trials and "stall" not in self._warned:
             return self._warn("stall", self.stall_text(record.index))
         return None
+
+    def _centre(self, step_index: int) -> float:
+        if not self.path_y_mm:
+            return self.centre_y_mm
+        return self.path_y_mm[min(step_index, len(self.path_y_mm) - 1)]
 
     def edge_text(self, index: int) -> str:
         """The 'at the edge' warning."""

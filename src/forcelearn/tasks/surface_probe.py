@@ -37,6 +37,23 @@ deeper). The range is cut to the allowed depth (``max_depth_mm`` below the
 shallowest contact, and the workspace) and kept under the retract plane.
 A desired force whose needed depth (with 10 % margin) passes the allowed depth
 is refused (:class:`ProbeError`, with both figures).
+
+Following the surface (``follow_surface``): where the fits say a constant
+centre would put the force outside the tolerance somewhere along the path
+(the largest k_i · |y_i − centre| over the points passes the tolerance; a
+stiff sponge at a small force, where the tolerance is a fraction of a
+millimetre), the probe adds ``refine_points`` and the centre becomes a path:
+per step, the Y where the fits, interpolated in Z, give the desired force.
+The half-range is then 3 mm + ``wear_margin`` × the needed depth around it,
+and each trial's start press goes to the path's Y at the start Z (not
+``start_mm``'s Y, which on a stiff sponge presses several times the desired
+force). The map then also follows the sponge's wear: the start press aims at
+the desired force, so its error each trial says how far the surface has sunk
+or softened, and the whole map (centres and start press) shifts by half that
+depth per trial (:meth:`SurfaceYOutput.track_wear`); on a stiff sponge at a
+small force the wear's 2 mm of set is several tolerances, more than the
+learner's specialized phase follows. On the default cell a constant centre
+stays, with no tracking (the paper's task: the learner follows the wear).
 """
 
 from __future__ import annotations
@@ -59,6 +76,10 @@ MIN_MARGIN_MM = 3.0
 """Least margin of the output range beyond the spread of the target Ys, mm."""
 NEEDED_DEPTH_MARGIN = 1.1
 """A desired force is refused when 1.1 × its needed depth passes the allowed depth."""
+FOLLOW_MODES = ("auto", "always", "never")
+FOLLOW_ABOVE = 1.0
+"""``auto`` follows the surface when the predicted error of a constant centre passes
+this × the tolerance at some probed point."""
 
 
 class ProbeError(ForcelearnError):
@@ -98,6 +119,12 @@ class ProbeSpec:
     """One action unit = this share of the tolerance in force (sets the scale)."""
     wear_margin: float = 0.5
     """Extra half-range for wear and drift, as a share of the needed depth."""
+    follow_surface: str = "auto"
+    """The map's centre along the path: "auto" (follow the fitted surface where a
+    constant centre would leave the tolerance), "always" or "never"."""
+    refine_points: tuple[float, ...] = (0.125, 0.375, 0.625, 0.875)
+    """Points probed in addition before following the surface (its waves are
+    shorter than the path), fractions of the path."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
@@ -108,6 +135,17 @@ class ProbeSpec:
             and all(_finite(p) and 0.0 <= p <= 1.0 for p in self.points)
         ):
             raise ConfigError(f"probe.points = {self.points!r}: fractions of the path in [0, 1]")
+        if not (
+            isinstance(self.refine_points, tuple)
+            and all(_finite(p) and 0.0 <= p <= 1.0 for p in self.refine_points)
+        ):
+            raise ConfigError(
+                f"probe.refine_points = {self.refine_points!r}: fractions of the path in [0, 1]"
+            )
+        if self.follow_surface not in FOLLOW_MODES:
+            raise ConfigError(
+                f"probe.follow_surface = {self.follow_surface!r}: one of {', '.join(FOLLOW_MODES)}"
+            )
         for name in ("press_points", "samples"):
             value = getattr(self, name)
             least = 3 if name == "press_points" else 1
@@ -193,10 +231,28 @@ class OutputMapChoice:
     """Deepest compression below the shallowest contact the map may command, mm."""
     source: str = "probe"
     """"probe", "config" or "probe+config" (keys given in the config win)."""
+    path_y_mm: tuple[float, ...] = ()
+    """Following the surface: the centre Y of each step (mm); empty: ``centre_y_mm``."""
+    start_press_y_mm: float | None = None
+    """Following the surface: Y of each trial's start press (mm); None: ``task.start_mm``."""
+    wear_stiffness_n_per_mm: float | None = None
+    """Following the surface: the stiffness the map tracks wear with (None: no tracking)."""
 
-    def output(self) -> SurfaceYOutput:
-        """The learner's output function."""
-        return SurfaceYOutput(self.centre_y_mm, self.scale_mm, self.max_offset_mm)
+    def __post_init__(self) -> None:  # JSON gives lists
+        object.__setattr__(self, "path_y_mm", tuple(float(v) for v in self.path_y_mm))
+
+    def output(self, step_mm: float = 5.0) -> SurfaceYOutput:
+        """The learner's output function (``step_mm``: the task's Z step, mm)."""
+        return SurfaceYOutput(
+            self.centre_y_mm, self.scale_mm, self.max_offset_mm, self.path_y_mm, step_mm,
+            self.start_press_y_mm, self.wear_stiffness_n_per_mm,
+        )
+
+    def centre_at(self, step_index: int) -> float:
+        """The centre Y (mm) of step ``step_index`` (0: the first step of a trial)."""
+        if not self.path_y_mm:
+            return self.centre_y_mm
+        return self.path_y_mm[min(max(step_index, 0), len(self.path_y_mm) - 1)]
 
     @property
     def action_range(self) -> float:
@@ -254,17 +310,25 @@ class ProbeResult:
         linearly in Z between the probed points (held beyond them): the surface
         model a force-control engineer would feed forward.
         """
+        z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
+        return self._targets_at(task, z_steps)
+
+    def target_at_z_mm(self, task: SurfaceTaskSpec, z_mm: float) -> float:
+        """Y (mm) where the fits, interpolated in Z, give the desired force at ``z_mm``."""
+        return float(self._targets_at(task, np.array([z_mm]))[0])
+
+    def _targets_at(self, task: SurfaceTaskSpec, z_mm: np.ndarray) -> np.ndarray:
         if not self.fits:
             raise ProbeError("the probe fitted no point")
-        order = sorted(self.fits, key=lambda f: f.z_mm)
-        z_fit = np.array([f.z_mm for f in order])
-        y_fit = np.array(
-            [f.contact_y_mm - task.desired_force_n / f.stiffness_n_per_mm for f in order]
-        )
-        z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
-        if z_fit[0] == z_fit[-1]:
-            return np.full(task.steps_per_trial, float(np.mean(y_fit)))
-        return np.asarray(np.interp(z_steps, z_fit, y_fit), dtype=float)
+        by_z: dict[float, list[float]] = {}
+        for f in self.fits:  # a point probed twice: the mean of its targets
+            target = f.contact_y_mm - task.desired_force_n / f.stiffness_n_per_mm
+            by_z.setdefault(f.z_mm, []).append(target)
+        z_fit = np.array(sorted(by_z))
+        y_fit = np.array([float(np.mean(by_z[z])) for z in z_fit])
+        if len(z_fit) == 1:
+            return np.full(len(z_mm), float(y_fit[0]))
+        return np.asarray(np.interp(z_mm, z_fit, y_fit), dtype=float)
 
 
 class SurfaceProbe:
@@ -284,15 +348,20 @@ class SurfaceProbe:
         self.max_step_mm = max_step_mm
         self.floor_y_mm = workspace_min_y_mm
         self.result = ProbeResult()
+        self._next_index = 0
 
-    def run(self) -> ProbeResult:
-        """Probe every point; the robot ends at the retract plane above the last one."""
+    def run(self, points: tuple[float, ...] | None = None) -> ProbeResult:
+        """Probe ``points`` (default ``spec.points``); the robot ends at the retract plane.
+
+        A second call adds its points to the same result (numbered on).
+        """
         x, _, z0 = self.task.start_mm
-        for index, fraction in enumerate(self.spec.points):
+        for fraction in self.spec.points if points is None else points:
             z = z0 + fraction * self.task.steps_per_trial * self.task.z_step_mm
             try:
-                self._probe_point(index, x, z)
+                self._probe_point(self._next_index, x, z)
             finally:
+                self._next_index += 1
                 self._retract()
         return self.result
 
@@ -407,13 +476,29 @@ class SurfaceProbe:
         ]
 
 
+def constant_centre_error_ratio(result: ProbeResult, task: SurfaceTaskSpec) -> float:
+    """Largest predicted |force error| of a constant centre at the probed points, in tolerances.
+
+    At point i the force at the centre c is F + k_i (t_i − c) (t_i: where the fit
+    gives the desired force F), so its error is k_i |t_i − c|.
+    """
+    targets = np.array([f.contact_y_mm - task.desired_force_n / f.stiffness_n_per_mm
+                        for f in result.fits])
+    ks = np.array([f.stiffness_n_per_mm for f in result.fits])
+    return float(np.max(ks * np.abs(targets - np.mean(targets)))) / task.tolerance
+
+
 def choose_output_map(
     result: ProbeResult,
     task: SurfaceTaskSpec,
     spec: ProbeSpec,
     workspace_min_y_mm: float,
+    follow: bool = False,
 ) -> OutputMapChoice:
     """Choose centre, scale and half-range from the fits; configured keys win.
+
+    ``follow``: the centre is the fitted surface's path, one Y per step, and
+    each trial's start press goes to the path's Y at the start Z (module doc).
 
     Raises:
         ProbeError: the desired force needs more depth than allowed (figures given).
@@ -437,10 +522,21 @@ def choose_output_map(
             f"{allowed:.1f} mm allowed (probe.max_depth_mm = {spec.max_depth_mm:g}, "
             "safety.workspace_min_mm): lower the desired force or allow more depth"
         )
-    centre = float(np.mean(targets))
-    spread = float(np.max(np.abs(targets - centre)))
-    half = spread + MIN_MARGIN_MM + spec.wear_margin * float(np.mean(depths))
-    half = min(half, centre - allowed_bottom, task.retract_y_mm - 1.0 - centre)
+    path: tuple[float, ...] = ()
+    start_press: float | None = None
+    if follow and task.output_centre_y_mm is None:
+        path_array = result.target_path_mm(task)
+        path = tuple(float(v) for v in path_array)
+        start_press = result.target_at_z_mm(task, task.start_mm[2])
+        centre = float(np.mean(path_array))
+        half = MIN_MARGIN_MM + spec.wear_margin * float(np.mean(depths))
+        half = min(half, float(np.min(path_array)) - allowed_bottom,
+                   task.retract_y_mm - 1.0 - float(np.max(path_array)))
+    else:
+        centre = float(np.mean(targets))
+        spread = float(np.max(np.abs(targets - centre)))
+        half = spread + MIN_MARGIN_MM + spec.wear_margin * float(np.mean(depths))
+        half = min(half, centre - allowed_bottom, task.retract_y_mm - 1.0 - centre)
     k = result.stiffness_n_per_mm()
     scale = spec.force_per_unit * task.tolerance / k
     source = "probe"
@@ -456,7 +552,10 @@ def choose_output_map(
             f"task.retract_y_mm = {task.retract_y_mm:g} mm, deepest allowed y = "
             f"{allowed_bottom:.2f} mm"
         )
-    return OutputMapChoice(centre, scale, half, needed, allowed, source)
+    wear_k = k if path else None
+    return OutputMapChoice(
+        centre, scale, half, needed, allowed, source, path, start_press, wear_k
+    )
 
 
 def configured_map(task: SurfaceTaskSpec) -> OutputMapChoice:
@@ -487,4 +586,13 @@ def probe_and_map(probe: SurfaceProbe) -> tuple[ProbeResult | None, OutputMapCho
     if not spec.enabled or task.map_configured:
         return None, configured_map(task)
     result = probe.run()
-    return result, choose_output_map(result, task, spec, probe.floor_y_mm)
+    follow = task.output_centre_y_mm is None and (
+        spec.follow_surface == "always"
+        or (spec.follow_surface == "auto"
+            and constant_centre_error_ratio(result, task) > FOLLOW_ABOVE)
+    )
+    if follow:
+        log.info("a constant map centre would leave the tolerance along the path: "
+                 "probing %d more points and following the surface", len(spec.refine_points))
+        probe.run(spec.refine_points)
+    return result, choose_output_map(result, task, spec, probe.floor_y_mm, follow)

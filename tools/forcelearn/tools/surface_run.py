@@ -98,6 +98,8 @@ class SurfaceRun:
     """The output map the learner uses (from the probe and/or the config)."""
     monitor: StuckMonitor | None = None
     """Watches for stuck learning (edge of the range, no trial completing)."""
+    map_shift_mm: float = 0.0
+    """A map that follows wear: its shift as of the last whole trial (mm)."""
 
     def mark_saved(self) -> None:
         """Remember what the checkpoint on disk holds."""
@@ -183,6 +185,7 @@ def _run_state(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any
         "emulator": emulator_state,
         "probe": run.probe.to_json() if run.probe is not None else None,
         "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
+        "map_shift_mm": run.map_shift_mm,
     }
 
 
@@ -203,6 +206,7 @@ def _restore(run: SurfaceRun, state: dict[str, Any], arrays: dict[str, np.ndarra
     run.wall_s = float(state["wall_s"])
     run.probe = ProbeResult.from_json(state["probe"]) if state["probe"] is not None else None
     run.output_map = OutputMapChoice(**state["output_map"])
+    run.map_shift_mm = float(state.get("map_shift_mm", 0.0))
 
 
 def prepare_run(
@@ -270,14 +274,19 @@ def execute(
         else:
             probe_and_choose(run, session)
         assert run.output_map is not None
-        output = run.output_map.output()
+        step_mm = abs(config.task.z_step_mm)
+        output = run.output_map.output(step_mm)
+        output.shift_mm = run.map_shift_mm  # a resumed run's tracked wear
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
         if checkpoint is not None:
             learner = load_learner(checkpoint, output=output)[0]
         else:
             learner = SRVLearner(task.grid, 1, config.learner, rng=run.seed, output=output)
         monitor = run.monitor = StuckMonitor(
-            run.output_map.centre_y_mm, run.output_map.max_offset_mm, config.task.steps_per_trial
+            run.output_map.centre_y_mm,
+            run.output_map.max_offset_mm,
+            config.task.steps_per_trial,
+            path_y_mm=run.output_map.path_y_mm,
         )
         for record, trace in zip(run.result.records, run.traces, strict=True):  # resumed
             monitor.update(record, trace["command_y_mm"])
@@ -286,13 +295,15 @@ def execute(
             run.traces.append(
                 {
                     "mean_y_mm": [
-                        output(np.array([row["mean_0"]]), None).item()  # type: ignore[arg-type]
+                        output(np.array([row["mean_0"]]), np.array([(row["step"] - 1) * step_mm]))
+                        .item()
                         for row in trial_log.rows
                     ],
                     "command_y_mm": [row["command_0"] for row in trial_log.rows],
                 }
             )
             run.wall_s = wall_before + time.perf_counter() - started
+            run.map_shift_mm = output.shift_mm
             save_learner(
                 lrn,
                 run.out / CHECKPOINT,

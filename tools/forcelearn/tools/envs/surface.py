@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from forcelearn.tasks.surface import SurfaceTask
+from forcelearn.tasks.surface import SurfaceTask, SurfaceYOutput
 from forcelearn.tasks.surface_probe import (
     OutputMapChoice,
     ProbeResult,
@@ -118,6 +118,8 @@ class SurfaceEnv(TaskEnv):
         self.session: Any | None = None
         self.output_map: OutputMapChoice = configured_map(config.task)
         """The output map of the open cell (before the first reset: the configured one)."""
+        self._output: SurfaceYOutput = self.output_map.output(abs(config.task.z_step_mm))
+        """Its output function, with the wear it tracks (the task moves its shift)."""
         self.probe: ProbeResult | None = None
         """What the latest probe read and fitted (``None``: no probe ran)."""
         self._y_offset_mm = 0.0
@@ -148,17 +150,20 @@ class SurfaceEnv(TaskEnv):
             config.safety.workspace_min_mm[1],
         )
         self.probe, self.output_map = probe_and_map(probe)
-        return SurfaceTask(
-            cell, self.task_spec, config.safety.max_step_mm, self.output_map.output()
-        )
+        self._output = self.output_map.output(abs(self.task_spec.z_step_mm))
+        return SurfaceTask(cell, self.task_spec, config.safety.max_step_mm, self._output)
 
     def _reset_info(self) -> dict[str, Any]:
-        probe, centre = self.probe, self.output_map.centre_y_mm
+        probe, choice, step = self.probe, self.output_map, abs(self.task_spec.z_step_mm)
+        centres = np.array(
+            [self._output.centre_at(np.array([k * step]))
+             for k in range(self.task_spec.steps_per_trial)]
+        )
         return {
-            "output_map": dataclasses.asdict(self.output_map),
+            "output_map": dataclasses.asdict(choice),
             "probe_stiffness_n_per_mm": probe.stiffness_n_per_mm() if probe else None,
             "probe_path_mm": (
-                (probe.target_path_mm(self.task_spec) - centre).tolist() if probe else None
+                (probe.target_path_mm(self.task_spec) - centres).tolist() if probe else None
             ),
         }
 
@@ -171,7 +176,7 @@ class SurfaceEnv(TaskEnv):
 
     def _command(self, action: np.ndarray) -> np.ndarray:
         self._y_offset_mm = float(action[0]) * self.output_map.max_offset_mm
-        return np.array([self.output_map.centre_y_mm + self._y_offset_mm])
+        return np.array([self._output.centre_at(self._x) + self._y_offset_mm])
 
     def _observation(self, x: np.ndarray, force_n: float) -> np.ndarray:
         obs = np.array([x[0], force_n, self._y_offset_mm], dtype=float)

@@ -129,12 +129,13 @@ def surface_extras(run: Any) -> RowExtras:
     fallback = SurfaceYOutput(
         spec.fallback_centre_y_mm, spec.fallback_scale_mm, spec.fallback_offset_mm
     )
-    empty = np.empty(0)
+    step_mm = abs(spec.z_step_mm)
 
     def extras(row: dict[str, float]) -> dict[str, float]:
         choice = getattr(run, "output_map", None)
-        output = choice.output() if choice is not None else fallback
-        return {"mean_y_mm": float(output(np.array([row["mean_0"]]), empty)[0])}
+        output = choice.output(step_mm) if choice is not None else fallback
+        travel = np.array([(row["step"] - 1) * step_mm])  # the step's input x
+        return {"mean_y_mm": float(output(np.array([row["mean_0"]]), travel)[0])}
 
     return extras
 
