@@ -416,6 +416,7 @@ def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
         "diagnosis": diagnosis,
         "warnings": list(monitor.warnings),
         "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
+        "map_shift_mm": run.map_shift_mm,
         "probe_stiffness_n_per_mm": (
             run.probe.stiffness_n_per_mm() if run.probe is not None else None
         ),
