@@ -185,13 +185,13 @@ def test_following_the_surface_puts_each_steps_centre_where_the_fits_give_the_fo
 
 @pytest.mark.parametrize(
     ("stiffness", "force", "follows"),
-    [(4.0, 4.903325, True), (2.0, 19.6133, False)],
-    ids=["stiff-sponge-half-kgf", "default"],
+    [(4.0, 4.903325, True), (1.0, 4.903325, True), (2.0, 19.6133, False)],
+    ids=["stiff-sponge-half-kgf", "soft-sponge-half-kgf", "default"],
 )
 def test_the_probe_follows_the_surface_only_where_a_constant_centre_fails(
     stiffness: float, force: float, follows: bool
 ) -> None:
-    """On the emulator: a stiff sponge at 0.5 kgf refines and follows; the default does not."""
+    """On the emulator: 0.5 kgf refines and follows (stiff or soft sponge); the default does not."""
     config = load_cell_config()
     sponge = replace(config.emulator.sponge, stiffness_n_per_mm=stiffness)
     config = replace(
@@ -208,7 +208,11 @@ def test_the_probe_follows_the_surface_only_where_a_constant_centre_fails(
     points = len(config.probe.points) + (len(config.probe.refine_points) if follows else 0)
     assert len(result.fits) == points
     assert bool(choice.path_y_mm) is follows
-    if follows:  # the start press is near the desired force, not start_mm's Y
+    if follows:  # the start press is where the fits give the desired force, not start_mm's Y
+        assert choice.start_press_y_mm == pytest.approx(
+            result.target_at_z_mm(config.task, config.task.start_mm[2])
+        )
+    if stiffness > 2.0:  # start_mm's Y would press several times the force there
         assert choice.start_press_y_mm is not None
         assert choice.start_press_y_mm > config.task.start_mm[1] + 2.0
 
