@@ -57,7 +57,7 @@ def run_sac(
     task: Any = recorder.unwrapped
     wrapped = gymnasium.wrappers.RescaleObservation(recorder, np.float64(-1.0), np.float64(1.0))
 
-    class Budget(BaseCallback):  # type: ignore[misc]
+    class Budget(BaseCallback):  # type: ignore[misc,unused-ignore]  # Any without SB3 installed
         def _on_step(self) -> bool:
             return not should_stop(
                 recorder.records, trials, task.task_steps_per_trial, task.task_desired_force_n
