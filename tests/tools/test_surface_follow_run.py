@@ -57,3 +57,15 @@ def test_a_resumed_run_goes_on_from_the_same_shifted_map(straight: Path, tmp_pat
     a = json.loads((straight / "summary.json").read_text())
     b = json.loads((out / "summary.json").read_text())
     assert b["map_shift_mm"] == a["map_shift_mm"]
+
+
+def test_forcelearn_probe_chooses_the_map_the_run_uses(straight: Path, tmp_path: Path) -> None:
+    """``forcelearn probe`` refines and follows as the run does: the same fits and map."""
+    config = tmp_path / "cell.toml"
+    config.write_text(STIFF_SMALL_FORCE)
+    out = tmp_path / "probe"
+    assert main(["probe", "--config", str(config), "--out", str(out), "--seed", "0"]) == 0
+    probed = json.loads((out / "probe.json").read_text())
+    summary = json.loads((straight / "summary.json").read_text())
+    assert probed["output_map"] == summary["output_map"]
+    assert len(probed["fits"]) == len(summary["probe_fits"]) == 7

@@ -588,6 +588,19 @@ def probe_and_map(probe: SurfaceProbe) -> tuple[ProbeResult | None, OutputMapCho
     task, spec = probe.task, probe.spec
     if not spec.enabled or task.map_configured:
         return None, configured_map(task)
+    return map_from_probe(probe)
+
+
+def map_from_probe(probe: SurfaceProbe) -> tuple[ProbeResult, OutputMapChoice]:
+    """Run ``probe``, then its refinement when the map follows the surface; choose the map.
+
+    ``forcelearn probe`` calls this directly (it probes even when the whole
+    map is configured, whose keys then win).
+
+    Raises:
+        ProbeError: no surface found, or the desired force is out of reach.
+    """
+    task, spec = probe.task, probe.spec
     result = probe.run()
     follow = task.output_centre_y_mm is None and (
         spec.follow_surface == "always"

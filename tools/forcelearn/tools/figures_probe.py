@@ -11,7 +11,10 @@ from forcelearn.tasks.surface_probe import OutputMapChoice, ProbeResult
 
 
 def write_probe_figure(probe: ProbeResult, choice: OutputMapChoice | None, path: Path) -> Path:
-    """Relaxed (dots) and unrelaxed (crosses) force vs Y per point, fitted lines, output range."""
+    """Relaxed (dots) and unrelaxed (crosses) force vs Y per point, fitted lines, output range.
+
+    A map that follows the surface shows the span of its step centres and the start press.
+    """
     fig = Figure(figsize=(7, 4.5))
     ax = fig.subplots()
     points = sorted({int(r["point"]) for r in probe.rows})
@@ -35,7 +38,15 @@ def write_probe_figure(probe: ProbeResult, choice: OutputMapChoice | None, path:
                 lw=0.8,
                 label=f"k = {fit.stiffness_n_per_mm:.2f} N/mm, y_c = {fit.contact_y_mm:.2f} mm",
             )
-    if choice is not None:
+    if choice is not None and choice.path_y_mm:  # following the surface
+        low, high, half = min(choice.path_y_mm), max(choice.path_y_mm), choice.max_offset_mm
+        ax.axvspan(low - half, high + half, color="0.93",
+                   label=f"output range: ±{half:.1f} mm around each step's centre")
+        ax.axvspan(low, high, color="0.8",
+                   label=f"step centres, following the surface ({low:.1f} to {high:.1f} mm)")
+        if choice.start_press_y_mm is not None:
+            ax.axvline(choice.start_press_y_mm, color="k", lw=0.8, ls=":", label="start press")
+    elif choice is not None:
         ax.axvline(choice.centre_y_mm, color="k", lw=0.8, ls="--", label="map centre")
         ax.axvspan(
             choice.centre_y_mm - choice.max_offset_mm,

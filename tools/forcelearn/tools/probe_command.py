@@ -15,7 +15,7 @@ import json
 import time
 from pathlib import Path
 
-from forcelearn.tasks.surface_probe import SurfaceProbe, choose_output_map
+from forcelearn.tasks.surface_probe import SurfaceProbe, map_from_probe
 from forcelearn.tools.cell_config import load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.tools.surface_run import write_probe_files
@@ -42,11 +42,10 @@ def run(args: argparse.Namespace) -> int:
             config.safety.max_step_mm,
             config.safety.workspace_min_mm[1],
         )
-        try:
-            result = probe.run()
+        try:  # the run's own probe, with its refinement where the map follows the surface
+            result, choice = map_from_probe(probe)
         finally:
             write_probe_files(out, probe.result, None)
-    choice = choose_output_map(result, config.task, config.probe, config.safety.workspace_min_mm[1])
     write_probe_files(out, result, choice)
     print(
         json.dumps(
