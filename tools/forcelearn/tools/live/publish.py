@@ -134,6 +134,8 @@ def surface_extras(run: Any) -> RowExtras:
     def extras(row: dict[str, float]) -> dict[str, float]:
         choice = getattr(run, "output_map", None)
         output = choice.output(step_mm) if choice is not None else fallback
+        if choice is not None:  # a map that follows wear: where it has moved to
+            output.shift_mm = float(getattr(run, "map_shift_mm", 0.0))
         travel = np.array([(row["step"] - 1) * step_mm])  # the step's input x
         return {"mean_y_mm": float(output(np.array([row["mean_0"]]), travel)[0])}
 
