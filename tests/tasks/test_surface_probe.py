@@ -230,3 +230,25 @@ def test_a_map_that_tracks_wear_shifts_every_centre_by_the_start_forces_missing_
     fixed = SurfaceYOutput(-1.0, 0.5, 3.0)  # no stiffness given: the map never moves
     fixed.track_wear(start_force_n=0.0, desired_force_n=5.0)
     assert fixed.shift_mm == 0.0
+
+
+def test_wear_moves_the_map_only_as_far_as_its_range_stays_allowed(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """A start force that keeps missing (lost contact) moves the map to its limit, then no more."""
+    task = SurfaceTaskSpec(desired_force_n=4.903325)
+    choice = choose_output_map(_wavy(4.0, [1.0, 3.0, 2.0, 0.0, 1.5]), task, ProbeSpec(), -60.0,
+                               follow=True)
+    assert choice.shift_range_mm is not None
+    low, high = choice.shift_range_mm
+    assert min(choice.path_y_mm) + low - choice.max_offset_mm == pytest.approx(
+        max(0.0 - ProbeSpec().max_depth_mm, -60.0)  # the deepest allowed Y
+    )
+    assert max(choice.path_y_mm) + high + choice.max_offset_mm == pytest.approx(
+        task.retract_y_mm - 1.0
+    )
+    output = choice.output(5.0)
+    for _ in range(200):  # no force at all, trial after trial
+        output.track_wear(start_force_n=0.0, desired_force_n=task.desired_force_n)
+    assert output.shift_mm == pytest.approx(low)
+    assert sum("held at the limit" in r.getMessage() for r in caplog.records) == 1

@@ -22,6 +22,7 @@ Choices the paper leaves open (docs/surface.md gives the reasons):
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -32,6 +33,8 @@ from forcelearn.devices import IDENTITY_QUATERNION, Pose
 from forcelearn.errors import ConfigError, ForceLimitExceeded
 from forcelearn.learning import BoxGrid, Dimension
 from forcelearn.trainer import StepOutcome
+
+log = logging.getLogger(__name__)
 
 KGF_N = 9.80665
 """One kilogram-force in newtons."""
@@ -194,6 +197,7 @@ class SurfaceYOutput:
         step_mm: float = 5.0,
         start_press_y_mm: float | None = None,
         wear_stiffness_n_per_mm: float | None = None,
+        shift_range_mm: tuple[float, float] | None = None,
     ):
         self.start_y_mm = start_y_mm
         """The centre Y (mm): the command at action 0 (the mean centre with a path)."""
@@ -207,6 +211,9 @@ class SurfaceYOutput:
         """The stiffness that turns a start-force error into a shift (None: no tracking)."""
         self.shift_mm = 0.0
         """How far the sponge has moved since the probe, as tracked (mm, − deeper)."""
+        self.shift_range_mm = shift_range_mm
+        """Least and most shift (mm); a wear that would move the map further is not followed."""
+        self._held = False
 
     def centre_at(self, x: np.ndarray | None) -> float:
         """The centre Y (mm) of the step that starts at travel ``x`` (mm), shift included."""
@@ -221,12 +228,25 @@ class SurfaceYOutput:
 
         The start press aims at the desired force: less force means the surface
         has sunk (set) or softened, so the map goes deeper by the depth that
-        force is missing (a half step per trial, against the sensor's noise).
+        force is missing (a half step per trial, against the sensor's noise),
+        never past :attr:`shift_range_mm` (a warning says so).
         """
         k = self.wear_stiffness_n_per_mm
         if k is None or not math.isfinite(start_force_n):
             return
-        self.shift_mm += WEAR_GAIN * (start_force_n - desired_force_n) / k
+        shift = self.shift_mm + WEAR_GAIN * (start_force_n - desired_force_n) / k
+        if self.shift_range_mm is not None:
+            low, high = self.shift_range_mm
+            if not low <= shift <= high and not self._held:
+                self._held = True  # once a run
+                log.warning(
+                    "the map would follow the sponge's wear %.2f mm %s than allowed "
+                    "(probe.max_depth_mm, safety.workspace_min_mm, task.retract_y_mm): held at "
+                    "the limit", abs(shift - min(max(shift, low), high)),
+                    "deeper" if shift < low else "higher",
+                )
+            shift = min(max(shift, low), high)
+        self.shift_mm = shift
 
     def __call__(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
         """Return the Y command (mm) for action ``a`` at travel ``x``."""

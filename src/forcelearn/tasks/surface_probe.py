@@ -240,15 +240,21 @@ class OutputMapChoice:
     """Following the surface: Y of each trial's start press (mm); None: ``task.start_mm``."""
     wear_stiffness_n_per_mm: float | None = None
     """Following the surface: the stiffness the map tracks wear with (None: no tracking)."""
+    shift_range_mm: tuple[float, float] | None = None
+    """Following wear: the least and most shift (mm) that keep the whole range between
+    the deepest allowed Y and 1 mm under the retract plane (None: no tracking)."""
 
     def __post_init__(self) -> None:  # JSON gives lists
         object.__setattr__(self, "path_y_mm", tuple(float(v) for v in self.path_y_mm))
+        if self.shift_range_mm is not None:
+            low, high = self.shift_range_mm
+            object.__setattr__(self, "shift_range_mm", (float(low), float(high)))
 
     def output(self, step_mm: float = 5.0) -> SurfaceYOutput:
         """The learner's output function (``step_mm``: the task's Z step, mm)."""
         return SurfaceYOutput(
             self.centre_y_mm, self.scale_mm, self.max_offset_mm, self.path_y_mm, step_mm,
-            self.start_press_y_mm, self.wear_stiffness_n_per_mm,
+            self.start_press_y_mm, self.wear_stiffness_n_per_mm, self.shift_range_mm,
         )
 
     def centre_at(self, step_index: int) -> float:
@@ -555,9 +561,15 @@ def choose_output_map(
             f"task.retract_y_mm = {task.retract_y_mm:g} mm, deepest allowed y = "
             f"{allowed_bottom:.2f} mm"
         )
-    wear_k = k if path else None
+    wear_k, shift_range = None, None
+    if path:  # wear may move the map only as far as its range stays allowed
+        wear_k = k
+        shift_range = (
+            min(0.0, allowed_bottom - (min(path) - half)),
+            max(0.0, task.retract_y_mm - 1.0 - (max(path) + half)),
+        )
     return OutputMapChoice(
-        centre, scale, half, needed, allowed, source, path, start_press, wear_k
+        centre, scale, half, needed, allowed, source, path, start_press, wear_k, shift_range
     )
 
 
