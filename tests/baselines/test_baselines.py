@@ -62,15 +62,15 @@ def test_srv_through_the_contour_env_gives_the_native_trainers_trials() -> None:
 
 
 def test_srv_through_the_surface_env_gives_the_native_trainers_trials() -> None:
-    """§5 on the emulated cell (real drivers): the probe, its map and 2 trials agree.
+    """§5 on the emulated cell (real drivers): the probe, its map and 4 trials agree to 1e-9.
 
-    Two *native* runs of one seed were seen to differ by ~1e-3 N in force RMS on a
-    heavily loaded host (the emulated cell is not bit-reproducible there; see
-    docs/results/baselines.md), so the figures are compared to 0.05 N / 1 %,
-    steps and failures exactly, over 2 trials (with 4, a loaded host flipped a later
-    trial's failure step in the full suite).
+    Since every emulated device answers in the driver's thread (no wall-clock
+    dependence left on the path), the native run and the env's are the same
+    computation; this held with three CPU hogs on the two cores. (It was
+    compared to 1 % when the devices ran in threads and a loaded host shifted
+    their timing.)
     """
-    seed, trials = 2, 2
+    seed, trials = 2, 4
     config = load_cell_config(None)
     with CellSession(config, seed=seed) as session:  # as `forcelearn run` starts
         assert session.cell is not None
@@ -91,7 +91,7 @@ def test_srv_through_the_surface_env_gives_the_native_trainers_trials() -> None:
         assert env.probe.stiffness_n_per_mm() == result.stiffness_n_per_mm()
     finally:
         env.close()
-    _same_records(native, recorder.records, rel=0.01, abs_n=0.05)
+    _same_records(native, recorder.records)
     assert all(r.cell_time_s > 1.0 for r in recorder.records)
 
 
