@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from forcelearn.tools import cell_session, surface_run
+from forcelearn.tools import cell_session, probe_command, surface_run
 from forcelearn.tools.cli import main
 
 CASES = [
@@ -41,10 +41,10 @@ def no_devices(monkeypatch: pytest.MonkeyPatch) -> list[object]:
             opened.append(args)
             raise AssertionError("a device was opened")
 
+    # probe_command is imported at the top: imported here, after cell_session was patched,
+    # it would bind Refused as its own CellSession for good (monkeypatch would "restore" it).
     monkeypatch.setattr(surface_run, "CellSession", Refused)
     monkeypatch.setattr(cell_session, "CellSession", Refused)
-    from forcelearn.tools import probe_command
-
     monkeypatch.setattr(probe_command, "CellSession", Refused)
     return opened
 
