@@ -177,6 +177,16 @@ WEAR_GAIN = 0.5
 """Share of the start press's depth error corrected per trial when the map follows wear."""
 
 
+def step_centre_y_mm(path_y_mm: tuple[float, ...], centre_y_mm: float, step_index: int) -> float:
+    """The centre Y (mm) of step ``step_index`` (0: the first) of an output map.
+
+    The path's, held at its ends, or ``centre_y_mm`` for a map with no path.
+    """
+    if not path_y_mm:
+        return centre_y_mm
+    return path_y_mm[min(max(step_index, 0), len(path_y_mm) - 1)]
+
+
 class SurfaceYOutput:
     """y(a, x) = centre Y (of the step) + scale · a, limited to ±max_offset: a Y command in mm.
 
@@ -215,13 +225,20 @@ class SurfaceYOutput:
         """Least and most shift (mm); a wear that would move the map further is not followed."""
         self._held = False
 
+    def centre_of_step(self, step_index: int) -> float:
+        """The centre Y (mm) of step ``step_index`` (0: the first), shift included."""
+        return step_centre_y_mm(self.path_y_mm, self.start_y_mm, step_index) + self.shift_mm
+
     def centre_at(self, x: np.ndarray | None) -> float:
         """The centre Y (mm) of the step that starts at travel ``x`` (mm), shift included."""
-        path = self.path_y_mm
-        if not path or x is None or np.size(x) == 0:
+        if not self.path_y_mm or x is None or np.size(x) == 0:
             return self.start_y_mm + self.shift_mm
-        index = round(float(np.ravel(x)[0]) / self.step_mm)
-        return path[min(max(index, 0), len(path) - 1)] + self.shift_mm
+        return self.centre_of_step(round(float(np.ravel(x)[0]) / self.step_mm))
+
+    def command_at_step(self, a: float, step_index: int) -> float:
+        """The Y command (mm) for action ``a`` at step ``step_index`` (0: the first)."""
+        travel = np.array([step_index * self.step_mm])
+        return float(self(np.array([a]), travel)[0])
 
     def track_wear(self, start_force_n: float, desired_force_n: float) -> None:
         """Move :attr:`shift_mm` by ``WEAR_GAIN`` × the start-force error / stiffness.
@@ -237,15 +254,15 @@ class SurfaceYOutput:
         shift = self.shift_mm + WEAR_GAIN * (start_force_n - desired_force_n) / k
         if self.shift_range_mm is not None:
             low, high = self.shift_range_mm
-            if not low <= shift <= high and not self._held:
+            held = min(max(shift, low), high)
+            if held != shift and not self._held:
                 self._held = True  # once a run
                 log.warning(
                     "the map would follow the sponge's wear %.2f mm %s than allowed "
                     "(probe.max_depth_mm, safety.workspace_min_mm, task.retract_y_mm): held at "
-                    "the limit", abs(shift - min(max(shift, low), high)),
-                    "deeper" if shift < low else "higher",
+                    "the limit", abs(shift - held), "deeper" if shift < low else "higher",
                 )
-            shift = min(max(shift, low), high)
+            shift = held
         self.shift_mm = shift
 
     def __call__(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:

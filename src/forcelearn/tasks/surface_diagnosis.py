@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from forcelearn.tasks.surface import step_centre_y_mm
 from forcelearn.trainer import TrialRecord
 
 
@@ -54,7 +55,10 @@ class StuckMonitor:
     def update(self, record: TrialRecord, commands_y_mm: Sequence[float]) -> str | None:
         """Account one trial; return a new warning (once per sign) or None."""
         limit = self.max_offset_mm * (1.0 - self.edge_band)
-        offsets = [y - self._centre(k) for k, y in enumerate(commands_y_mm)]
+        offsets = [
+            y - step_centre_y_mm(self.path_y_mm, self.centre_y_mm, k)
+            for k, y in enumerate(commands_y_mm)
+        ]
         low = sum(1 for d in offsets if d <= -limit)
         high = sum(1 for d in offsets if d >= limit)
         count = max(len(commands_y_mm), 1)
@@ -70,11 +74,6 @@ class StuckMonitor:
         if self.stall_run >= self.stall_trials and "stall" not in self._warned:
             return self._warn("stall", self.stall_text(record.index))
         return None
-
-    def _centre(self, step_index: int) -> float:
-        if not self.path_y_mm:
-            return self.centre_y_mm
-        return self.path_y_mm[min(step_index, len(self.path_y_mm) - 1)]
 
     def edge_text(self, index: int) -> str:
         """The 'at the edge' warning."""

@@ -69,7 +69,7 @@ import numpy as np
 from forcelearn.cell import Cell
 from forcelearn.devices import Pose
 from forcelearn.errors import ConfigError, ForcelearnError
-from forcelearn.tasks.surface import SurfaceTaskSpec, SurfaceYOutput
+from forcelearn.tasks.surface import SurfaceTaskSpec, SurfaceYOutput, step_centre_y_mm
 
 log = logging.getLogger(__name__)
 
@@ -182,6 +182,10 @@ class ContactFit:
     residual_rms_n: float
     points: int
 
+    def target_y_mm(self, force_n: float) -> float:
+        """The Y (mm) where this fit gives ``force_n``."""
+        return self.contact_y_mm - force_n / self.stiffness_n_per_mm
+
 
 def fit_contact(y_mm: np.ndarray, force_n: np.ndarray, z_mm: float = math.nan) -> ContactFit:
     """Least-squares F = k (y_c − y) through readings in contact; standard errors from residuals.
@@ -259,9 +263,7 @@ class OutputMapChoice:
 
     def centre_at(self, step_index: int) -> float:
         """The centre Y (mm) of step ``step_index`` (0: the first step of a trial)."""
-        if not self.path_y_mm:
-            return self.centre_y_mm
-        return self.path_y_mm[min(max(step_index, 0), len(self.path_y_mm) - 1)]
+        return step_centre_y_mm(self.path_y_mm, self.centre_y_mm, step_index)
 
     @property
     def action_range(self) -> float:
@@ -331,8 +333,7 @@ class ProbeResult:
             raise ProbeError("the probe fitted no point")
         by_z: dict[float, list[float]] = {}
         for f in self.fits:  # a point probed twice: the mean of its targets
-            target = f.contact_y_mm - task.desired_force_n / f.stiffness_n_per_mm
-            by_z.setdefault(f.z_mm, []).append(target)
+            by_z.setdefault(f.z_mm, []).append(f.target_y_mm(task.desired_force_n))
         z_fit = np.array(sorted(by_z))
         y_fit = np.array([float(np.mean(by_z[z])) for z in z_fit])
         if len(z_fit) == 1:
@@ -491,8 +492,7 @@ def constant_centre_error_ratio(result: ProbeResult, task: SurfaceTaskSpec) -> f
     At point i the force at the centre c is F + k_i (t_i − c) (t_i: where the fit
     gives the desired force F), so its error is k_i |t_i − c|.
     """
-    targets = np.array([f.contact_y_mm - task.desired_force_n / f.stiffness_n_per_mm
-                        for f in result.fits])
+    targets = np.array([f.target_y_mm(task.desired_force_n) for f in result.fits])
     ks = np.array([f.stiffness_n_per_mm for f in result.fits])
     return float(np.max(ks * np.abs(targets - np.mean(targets)))) / task.tolerance
 
@@ -515,7 +515,7 @@ def choose_output_map(
     fits = result.fits
     if not fits:
         raise ProbeError("the probe fitted no point")
-    targets = np.array([f.contact_y_mm - task.desired_force_n / f.stiffness_n_per_mm for f in fits])
+    targets = np.array([f.target_y_mm(task.desired_force_n) for f in fits])
     depths = np.array([task.desired_force_n / f.stiffness_n_per_mm for f in fits])
     needed = float(np.max(depths))
     top_contact = max(f.contact_y_mm for f in fits)

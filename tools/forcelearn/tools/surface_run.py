@@ -295,8 +295,7 @@ def execute(
             run.traces.append(
                 {
                     "mean_y_mm": [
-                        output(np.array([row["mean_0"]]), np.array([(row["step"] - 1) * step_mm]))
-                        .item()
+                        output.command_at_step(row["mean_0"], int(row["step"]) - 1)
                         for row in trial_log.rows
                     ],
                     "command_y_mm": [row["command_0"] for row in trial_log.rows],

@@ -154,10 +154,9 @@ class SurfaceEnv(TaskEnv):
         return SurfaceTask(cell, self.task_spec, config.safety.max_step_mm, self._output)
 
     def _reset_info(self) -> dict[str, Any]:
-        probe, choice, step = self.probe, self.output_map, abs(self.task_spec.z_step_mm)
+        probe, choice = self.probe, self.output_map
         centres = np.array(
-            [self._output.centre_at(np.array([k * step]))
-             for k in range(self.task_spec.steps_per_trial)]
+            [self._output.centre_of_step(k) for k in range(self.task_spec.steps_per_trial)]
         )
         return {
             "output_map": dataclasses.asdict(choice),

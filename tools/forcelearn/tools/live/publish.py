@@ -10,8 +10,6 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from forcelearn.learning import SRVLearner
 from forcelearn.tools.live.journal import JournalWriter
 from forcelearn.tools.live.model import LiveMeta, LiveModel
@@ -136,8 +134,7 @@ def surface_extras(run: Any) -> RowExtras:
         output = choice.output(step_mm) if choice is not None else fallback
         if choice is not None:  # a map that follows wear: where it has moved to
             output.shift_mm = float(getattr(run, "map_shift_mm", 0.0))
-        travel = np.array([(row["step"] - 1) * step_mm])  # the step's input x
-        return {"mean_y_mm": float(output(np.array([row["mean_0"]]), travel)[0])}
+        return {"mean_y_mm": output.command_at_step(row["mean_0"], int(row["step"]) - 1)}
 
     return extras
 
