@@ -97,59 +97,100 @@ class SensorModel:
     def __init__(self, params: SensorModelParams, rng: np.random.Generator) -> None:
         self.params = params
         self.rng = rng
-        self._counts_per_unit = COUNTS_PER_FULL_SCALE / np.asarray(params.full_scales, dtype=float)
-        self._noise = np.asarray(params.noise_std, dtype=float)
-        self._drift = np.asarray(params.bias_drift_per_sqrt_s, dtype=float)
-        self.bias = np.asarray(params.initial_bias, dtype=float).copy()
-        self.offset = np.zeros(6)
-        self.lowpass: np.ndarray | None = None
+        # Plain floats, not 6-element arrays: one sample is a dozen operations per axis, and
+        # numpy's per-call overhead on six numbers is several times the arithmetic.
+        self._counts_per_unit = [COUNTS_PER_FULL_SCALE / fs for fs in params.full_scales]
+        self._noise = [float(v) for v in params.noise_std]
+        self._drift = [float(v) for v in params.bias_drift_per_sqrt_s]
+        self._filter = params.emulate_filter
+        self._bias = [float(v) for v in params.initial_bias]
+        self._offset = [0.0] * 6
+        self._lowpass: list[float] | None = None
+        self._filtered_noise = [0.0] * 6
+
+    @property
+    def bias(self) -> np.ndarray:
+        """The sensor's present bias (6,), N and N*m (a random walk)."""
+        return np.array(self._bias)
+
+    @property
+    def offset(self) -> np.ndarray:
+        """The offset stored by the last zeroing (6,), N and N*m."""
+        return np.array(self._offset)
+
+    @property
+    def lowpass(self) -> np.ndarray | None:
         """The adapter filter's output of the true wrench (None: not started)."""
-        self.noise = np.zeros(6)
-        """The filtered noise at the adapter's output."""
+        return None if self._lowpass is None else np.array(self._lowpass)
+
+    @property
+    def noise(self) -> np.ndarray:
+        """The filtered noise at the adapter's output (6,)."""
+        return np.array(self._filtered_noise)
 
     def measure(self, true_wrench: np.ndarray, dt_s: float, cutoff_hz: float = 0.0) -> list[int]:
         """Return six int16 counts for one sample, ``dt_s`` after the previous one.
 
-        ``cutoff_hz`` is the adapter's low-pass cut-off (0: no filter).
+        ``cutoff_hz`` is the adapter's low-pass cut-off (0: no filter). Each
+        axis is computed in the order the module docstring writes it.
         """
-        draws = self.rng.standard_normal(12)
-        self.bias += self._drift * (dt_s**0.5) * draws[6:]
-        if self.params.emulate_filter and cutoff_hz > 0 and self.lowpass is not None:
+        draws = self.rng.standard_normal(12).tolist()
+        true = true_wrench.tolist() if isinstance(true_wrench, np.ndarray) else list(true_wrench)
+        root_dt = dt_s**0.5
+        filtering = self._filter and cutoff_hz > 0 and self._lowpass is not None
+        if filtering:
             keep = math.exp(-2.0 * math.pi * cutoff_hz * dt_s)
-            self.lowpass = keep * self.lowpass + (1.0 - keep) * true_wrench
-            self.noise = keep * self.noise + self._noise * math.sqrt(1.0 - keep * keep) * draws[:6]
-        else:
-            self.lowpass = np.asarray(true_wrench, dtype=float).copy()
-            self.noise = self._noise * draws[:6]
-        reading = self.lowpass + self.bias - self.offset + self.noise
-        counts = (reading * self._counts_per_unit).round().clip(INT16_MIN, INT16_MAX)
-        return [int(c) for c in counts]
+            rest = 1.0 - keep
+            spread = math.sqrt(1.0 - keep * keep)
+        lowpass = self._lowpass if filtering else true
+        bias, noise, counts = [], [], []
+        for axis in range(6):
+            b = self._bias[axis] + self._drift[axis] * root_dt * draws[6 + axis]
+            if filtering:
+                low = keep * lowpass[axis] + rest * true[axis]
+                n = keep * self._filtered_noise[axis] + self._noise[axis] * spread * draws[axis]
+                lowpass[axis] = low
+            else:
+                low = float(lowpass[axis])
+                lowpass[axis] = low
+                n = self._noise[axis] * draws[axis]
+            bias.append(b)
+            noise.append(n)
+            value = (low + b - self._offset[axis] + n) * self._counts_per_unit[axis]
+            if value >= INT16_MAX:
+                counts.append(INT16_MAX)
+            elif value <= INT16_MIN:
+                counts.append(INT16_MIN)
+            else:
+                counts.append(round(value))  # half to even, as numpy rounds
+        self._bias, self._filtered_noise, self._lowpass = bias, noise, lowpass
+        return counts
 
     def zero(self, true_wrench: np.ndarray) -> None:
         """Store the present reading (noise averaged) as the offset."""
         n = self.params.zero_average_samples
-        noise = self._noise * self.rng.standard_normal((n, 6)).mean(axis=0)
-        self.offset = true_wrench + self.bias + noise
+        noise = np.asarray(self._noise) * self.rng.standard_normal((n, 6)).mean(axis=0)
+        self._offset = (np.asarray(true_wrench, dtype=float) + self.bias + noise).tolist()
 
     def power_cycle(self) -> None:
         """Forget the offset, as the adapter does on reboot (the bias stays: it is physical)."""
-        self.offset = np.zeros(6)
+        self._offset = [0.0] * 6
 
     def state_dict(self) -> dict[str, Any]:
         """Return the generator state, bias and offset (for bit-identical resume)."""
         return {
             "rng": self.rng.bit_generator.state,
-            "bias": self.bias.copy(),
-            "offset": self.offset.copy(),
-            "lowpass": None if self.lowpass is None else self.lowpass.copy(),
-            "noise": self.noise.copy(),
+            "bias": self.bias,
+            "offset": self.offset,
+            "lowpass": self.lowpass,
+            "noise": self.noise,
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore a state from :meth:`state_dict`."""
         self.rng.bit_generator.state = state["rng"]
-        self.bias = np.asarray(state["bias"], dtype=float).copy()
-        self.offset = np.asarray(state["offset"], dtype=float).copy()
+        self._bias = np.asarray(state["bias"], dtype=float).tolist()
+        self._offset = np.asarray(state["offset"], dtype=float).tolist()
         lowpass = state.get("lowpass")
-        self.lowpass = None if lowpass is None else np.asarray(lowpass, dtype=float).copy()
-        self.noise = np.asarray(state.get("noise", np.zeros(6)), dtype=float).copy()
+        self._lowpass = None if lowpass is None else np.asarray(lowpass, dtype=float).tolist()
+        self._filtered_noise = np.asarray(state.get("noise", np.zeros(6)), dtype=float).tolist()

@@ -211,6 +211,10 @@ class ArmMotion:
         self.target = self._point_at(self._seg_end)
 
     # ---- time --------------------------------------------------------------------------
+    def tick_at(self, t_s: float) -> int:
+        """The index of the last tick at or before ``t_s``."""
+        return math.floor(t_s / self.params.tick_s + 1e-9)
+
     def advance_to(self, t_s: float, on_tick: Any = None) -> None:
         """Advance to the last tick at or before ``t_s``; ``on_tick(dt_s)`` after each tick.
 
@@ -218,7 +222,7 @@ class ArmMotion:
         ``on_tick`` is called once with the whole span.
         """
         tick = self.params.tick_s
-        last = math.floor(t_s / tick + 1e-9)
+        last = self.tick_at(t_s)
         while self.tick_index < last:
             if not self._pending and self._at_rest():
                 span = last - self.tick_index

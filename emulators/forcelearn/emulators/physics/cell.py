@@ -96,6 +96,9 @@ class CellPhysics:
         self._tool = tool or POINT_TOOL
         self._record(pose or Pose(0.0, 0.0, 0.0))
         self._rotation, self._gravity = self._orientation_terms(self._pose)
+        self._wrench_key: tuple[float, ...] | None = None
+        """The contact force the cached wrench was computed for (None: recompute)."""
+        self._wrench = np.zeros(6)
 
     def _record(self, pose: Pose) -> None:
         """Keep ``pose`` with the two forms the hot path reads (a key to compare, an array)."""
@@ -139,8 +142,10 @@ class CellPhysics:
                 if timed is not None:
                     timed.evolve(self._position_mm, dt_s)
 
+            if motion.tick_index >= motion.tick_at(t) and motion.tool_key == self._pose_key:
+                return  # no tick to run (the sensor's samples are closer than a tick)
             motion.advance_to(t, on_tick)
-            if motion.pose != self._pose:  # an instant arm moves between ticks
+            if motion.tool_key != self._pose_key:  # an instant arm moves between ticks
                 self.set_pose(motion.pose)
 
     @property
@@ -156,6 +161,7 @@ class CellPhysics:
 
     def _orientation_terms(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """Rotation matrix and tool-weight wrench of a pose (cached: the sensor's hot path)."""
+        self._wrench_key = None  # the cached wrench was of the old orientation or tool
         rotation = quaternion_to_matrix(pose.quaternion)
         return rotation, gravity_wrench(self.tool, rotation)
 
@@ -182,7 +188,12 @@ class CellPhysics:
         with self._lock:
             rotation, gravity = self._rotation, self._gravity
             force_world = self.environment.contact_force_world_n(self._position_mm)
-        if not force_world.any():
-            return gravity.copy()
-        wrench: np.ndarray = contact_wrench(self.tool, rotation, force_world) + gravity
-        return wrench
+            # The force changes once per motion tick, the sensor samples many times per tick.
+            key = tuple(force_world.tolist())
+            if key != self._wrench_key:
+                self._wrench_key = key
+                if any(key):
+                    self._wrench = contact_wrench(self._tool, rotation, force_world) + gravity
+                else:
+                    self._wrench = gravity.copy()
+            return self._wrench.copy()

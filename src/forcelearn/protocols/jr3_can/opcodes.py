@@ -28,7 +28,7 @@ kind                      opcode  direction        payload (little-endian)
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from functools import cache
+from functools import cached_property
 
 NODE_ID_BITS = 0x7F
 """Low 7 bits of an identifier carry the node id; the opcode is a multiple of 0x80."""
@@ -67,11 +67,15 @@ class OpcodeMap:
         """Return ``{kind: opcode}`` for every message kind."""
         return {f.name: getattr(self, f.name) for f in fields(self) if f.type == "int"}
 
+    @cached_property
+    def kind_by_opcode(self) -> dict[int, str]:
+        """The reverse table ``{opcode: kind}`` (kept on the map: hashing one costs more)."""
+        return {code: kind for kind, code in self.by_kind().items()}
 
-@cache
+
 def kind_of_opcode(opcodes: OpcodeMap) -> dict[int, str]:
-    """Return the reverse table ``{opcode: kind}`` of a map (cached per map)."""
-    return {code: kind for kind, code in opcodes.by_kind().items()}
+    """Return the reverse table ``{opcode: kind}`` of a map."""
+    return opcodes.kind_by_opcode
 
 
 JR3_MBED_2023_12 = OpcodeMap(
