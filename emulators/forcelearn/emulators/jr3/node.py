@@ -63,6 +63,8 @@ from forcelearn.protocols.jr3_can.scaling import cutoff_from_wire, full_scales_t
 
 log = logging.getLogger(__name__)
 
+NO_FAULTS = FaultConfig()
+
 POLL_S = 0.02
 """Longest the thread blocks on the bus, so ``close()`` returns promptly."""
 JOIN_TIMEOUT_S = 2.0
@@ -123,7 +125,7 @@ class Jr3EmulatorNode(Emulator):
         self.physics = physics
         self.node_id = node_id
         self.opcodes = opcodes
-        self.faults = faults or FaultConfig()
+        self.faults = faults or NO_FAULTS
         self.frame_hook = frame_hook
         self.rng = np.random.default_rng(seed)
         self.model = SensorModel(model or SensorModelParams(), self.rng)
@@ -135,6 +137,7 @@ class Jr3EmulatorNode(Emulator):
         self.counter = initial_counter & 0xFFFF
         self.clock = physics.clock
         self.bitrate = bitrate
+        self._frame_times: tuple[float | None, tuple[float, ...]] | None = None
         self.bus_wire = Wire(self.clock)
         """The CAN bus as a timeline: frames never overlap."""
         self.last_sample_s = -math.inf
@@ -264,7 +267,12 @@ class Jr3EmulatorNode(Emulator):
             until_next = self.emit_due()
 
     def _frame_time_s(self, data_bytes: int) -> float:
-        return 0.0 if self.bitrate is None else can_frame_time_s(data_bytes, self.bitrate)
+        if self._frame_times is None or self._frame_times[0] != self.bitrate:
+            bitrate = self.bitrate
+            times = tuple(0.0 if bitrate is None else can_frame_time_s(n, bitrate)
+                          for n in range(9))
+            self._frame_times = (bitrate, times)  # per payload length: asked for every frame
+        return self._frame_times[1][data_bytes]
 
     def _handle(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
@@ -356,7 +364,9 @@ class Jr3EmulatorNode(Emulator):
 
     def _send(self, message: codec.Message) -> None:
         encoded = codec.encode(message, self.node_id, self.opcodes)
-        frame: Frame | None = apply_faults(encoded, self.faults, self.rng)
+        frame: Frame | None = encoded
+        if self.faults is not NO_FAULTS:  # the default: nothing to draw
+            frame = apply_faults(encoded, self.faults, self.rng)
         if frame is not None and self.frame_hook is not None:
             frame = self.frame_hook(frame)
         if frame is None:

@@ -142,7 +142,7 @@ class SensorModel:
             keep = math.exp(-2.0 * math.pi * cutoff_hz * dt_s)
             rest = 1.0 - keep
             spread = math.sqrt(1.0 - keep * keep)
-        lowpass = self._lowpass if filtering else true
+        lowpass = self._lowpass if filtering and self._lowpass is not None else true
         bias, noise, counts = [], [], []
         for axis in range(6):
             b = self._bias[axis] + self._drift[axis] * root_dt * draws[6 + axis]

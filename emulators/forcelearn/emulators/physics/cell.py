@@ -32,7 +32,7 @@ import numpy as np
 
 from forcelearn.devices import Pose, quaternion_to_matrix
 from forcelearn.emulators.clock import SimClock
-from forcelearn.emulators.physics.arm_motion import ArmMotion
+from forcelearn.emulators.physics.arm_motion import ArmMotion, PoseKey, Quaternion
 from forcelearn.emulators.physics.tool import POINT_TOOL, ToolParams, contact_wrench, gravity_wrench
 
 
@@ -94,17 +94,28 @@ class CellPhysics:
         self.clock = clock or SimClock()
         self.motion: ArmMotion | None = None
         self._tool = tool or POINT_TOOL
-        self._record(pose or Pose(0.0, 0.0, 0.0))
-        self._rotation, self._gravity = self._orientation_terms(self._pose)
+        first = pose or Pose(0.0, 0.0, 0.0)
+        self._record(first)
+        self._rotation, self._gravity = self._orientation_terms(first.quaternion)
         self._wrench_key: tuple[float, ...] | None = None
         """The contact force the cached wrench was computed for (None: recompute)."""
         self._wrench = np.zeros(6)
 
     def _record(self, pose: Pose) -> None:
         """Keep ``pose`` with the two forms the hot path reads (a key to compare, an array)."""
-        self._pose = pose
+        self._pose: Pose | None = pose
         self._pose_key = (pose.x_mm, pose.y_mm, pose.z_mm, pose.quaternion)
         self._position_mm = pose.position_mm
+
+    def _move_tool(self, key: PoseKey) -> None:
+        """:meth:`set_pose` from the motion's (x, y, z, quaternion), the Pose built when asked."""
+        if key[3] != self._pose_key[3]:
+            self._rotation, self._gravity = self._orientation_terms(key[3])
+        self._pose = None  # a motion tick moves the tool far more often than anyone reads it
+        self._pose_key = key
+        self._position_mm = np.array(key[:3], dtype=float)
+        if self._observer is not None:
+            self._observer.observe_pose(self._position_mm)
 
     @property
     def environment(self) -> ContactEnvironment:
@@ -122,7 +133,7 @@ class CellPhysics:
         """Let ``motion`` move the tool from now on (its pose is published at once)."""
         with self._lock:
             self.motion = motion
-            self.set_pose(motion.pose)
+            self._move_tool(motion.tool_key)
 
     def advance_to(self, t_s: float | None = None) -> None:
         """Bring the arm and the environment to simulated time ``t_s`` (default: the clock's now).
@@ -137,16 +148,18 @@ class CellPhysics:
             timed = self._timed
 
             def on_tick(dt_s: float) -> None:
-                if motion.tool_key != self._pose_key:
-                    self.set_pose(motion.pose)
+                key = motion.tool_key
+                if key != self._pose_key:
+                    self._move_tool(key)
                 if timed is not None:
                     timed.evolve(self._position_mm, dt_s)
 
             if motion.tick_index >= motion.tick_at(t) and motion.tool_key == self._pose_key:
                 return  # no tick to run (the sensor's samples are closer than a tick)
             motion.advance_to(t, on_tick)
-            if motion.tool_key != self._pose_key:  # an instant arm moves between ticks
-                self.set_pose(motion.pose)
+            key = motion.tool_key
+            if key != self._pose_key:  # an instant arm moves between ticks
+                self._move_tool(key)
 
     @property
     def tool(self) -> ToolParams:
@@ -157,25 +170,28 @@ class CellPhysics:
     def tool(self, tool: ToolParams) -> None:
         with self._lock:
             self._tool = tool
-            self._rotation, self._gravity = self._orientation_terms(self._pose)
+            self._rotation, self._gravity = self._orientation_terms(self._pose_key[3])
 
-    def _orientation_terms(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
-        """Rotation matrix and tool-weight wrench of a pose (cached: the sensor's hot path)."""
+    def _orientation_terms(self, quaternion: Quaternion) -> tuple[np.ndarray, np.ndarray]:
+        """Rotation matrix and tool-weight wrench of an orientation (cached: a hot path)."""
         self._wrench_key = None  # the cached wrench was of the old orientation or tool
-        rotation = quaternion_to_matrix(pose.quaternion)
+        rotation = quaternion_to_matrix(quaternion)
         return rotation, gravity_wrench(self.tool, rotation)
 
     @property
     def pose(self) -> Pose:
         """The pose the robot has reached."""
         with self._lock:
+            if self._pose is None:
+                x, y, z, quaternion = self._pose_key
+                self._pose = Pose(x, y, z, quaternion)
             return self._pose
 
     def set_pose(self, pose: Pose) -> None:
         """Record the pose the tool has reached (by the motion model, or directly in tests)."""
         with self._lock:
-            if pose.quaternion != self._pose.quaternion:
-                self._rotation, self._gravity = self._orientation_terms(pose)
+            if pose.quaternion != self._pose_key[3]:
+                self._rotation, self._gravity = self._orientation_terms(pose.quaternion)
             self._record(pose)
             if self._observer is not None:
                 self._observer.observe_pose(self._position_mm)

@@ -138,10 +138,10 @@ def stiffness_n_per_mm(params: SpongeParams, passes: float, z_mm: float) -> floa
 
 def penetration_mm(params: SpongeParams, passes: float, position_mm: np.ndarray) -> float:
     """Return how deep (mm, >= 0) the tool point is in the sponge; 0 off the strip."""
-    _, y, z = position_mm
+    y, z = float(position_mm[1]), float(position_mm[2])  # floats: numpy scalars are slower
     if not params.z_bottom_mm <= z <= params.z_top_mm:
         return 0.0
-    return max(0.0, surface_y_mm(params, passes, z) - float(y))
+    return max(0.0, surface_y_mm(params, passes, z) - y)
 
 
 def contact_force_n(
@@ -194,7 +194,8 @@ class Sponge:
 
     def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
         """Return the reaction force (3,) in N, world frame, at the present pass count."""
-        key = (self.passes, self.relaxing_mm, *(float(c) for c in position_mm))
+        coords = position_mm.tolist() if isinstance(position_mm, np.ndarray) else position_mm
+        key = (self.passes, self.relaxing_mm, *(float(c) for c in coords))
         if key != self._memo_key:  # the sensor asks thousands of times per pose
             self._memo_key = key
             self._memo_force = contact_force_n(

@@ -21,7 +21,6 @@ from forcelearn.protocols.jr3_can.opcodes import (
     DEFAULT_OPCODES,
     NODE_ID_BITS,
     OpcodeMap,
-    kind_of_opcode,
 )
 
 MAX_STANDARD_ID = 0x7FF
@@ -264,24 +263,23 @@ def decode(
     opcodes: OpcodeMap = DEFAULT_OPCODES,
 ) -> Decoded | Rejected:
     """Decode one frame; never raises, returns :class:`Rejected` for anything malformed."""
-    data = bytes(data)
     if is_extended_id:
-        return Rejected(RejectReason.EXTENDED_ID, arbitration_id, data)
+        return Rejected(RejectReason.EXTENDED_ID, arbitration_id, bytes(data))
     if not 0 <= arbitration_id <= MAX_STANDARD_ID:
-        return Rejected(RejectReason.ID_OUT_OF_RANGE, arbitration_id, data)
+        return Rejected(RejectReason.ID_OUT_OF_RANGE, arbitration_id, bytes(data))
     node_id = arbitration_id & NODE_ID_BITS
-    kind = kind_of_opcode(opcodes).get(arbitration_id - node_id)
+    kind = opcodes.kind_by_opcode.get(arbitration_id - node_id)
     if kind is None:
-        return Rejected(RejectReason.UNKNOWN_OPCODE, arbitration_id, data)
+        return Rejected(RejectReason.UNKNOWN_OPCODE, arbitration_id, bytes(data))
     if (node_id == 0) != (kind == "sync"):
-        return Rejected(RejectReason.BAD_NODE_ID, arbitration_id, data)
-    message = _parse(kind, data)
+        return Rejected(RejectReason.BAD_NODE_ID, arbitration_id, bytes(data))
+    message = _parse(kind, data)  # parses bytes and bytearray alike, without a copy
     if message is None:
-        return Rejected(RejectReason.BAD_LENGTH, arbitration_id, data)
+        return Rejected(RejectReason.BAD_LENGTH, arbitration_id, bytes(data))
     return Decoded(node_id, message)
 
 
-def _parse(kind: str, data: bytes) -> Message | None:
+def _parse(kind: str, data: bytes | bytearray) -> Message | None:
     """Parse a payload of a known kind; None when its length is wrong."""
     size = len(data)
     if kind in _EMPTY_KINDS:
