@@ -111,15 +111,14 @@ class Jr3EmulatorBus(can.BusABC):
         if self._closed:
             raise can.CanOperationError(f"{INTERFACE} bus on {self.channel!r} is shut down")
         node = self._running_node()
-        frame = can.Message(
-            timestamp=time.time(), arbitration_id=msg.arbitration_id,
-            is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
-            is_error_frame=msg.is_error_frame, dlc=msg.dlc, data=bytes(msg.data),
-            channel=self.channel, is_rx=True,
-        )
-        if self.receive_own_messages:
-            self._deliver(frame)
-        node.receive(frame)
+        if self.receive_own_messages:  # the host's copy of its own frame, as received
+            self._deliver(can.Message(
+                timestamp=time.time(), arbitration_id=msg.arbitration_id,
+                is_extended_id=msg.is_extended_id, is_remote_frame=msg.is_remote_frame,
+                is_error_frame=msg.is_error_frame, dlc=msg.dlc, data=bytes(msg.data),
+                channel=self.channel, is_rx=True,
+            ))
+        node.receive(msg)  # handled before this returns: the node keeps nothing of it
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         deadline = None if timeout is None else time.monotonic() + timeout
