@@ -22,6 +22,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "netft": ("forcelearn.tools.bench_netft", "Net F/T records/s and p99 latency, loopback UDP"),
     "cell": ("forcelearn.tools.bench_cell", "§5 run on the emulated cell: cell time / wall time"),
     "live": ("forcelearn.tools.bench_live", "§5 run with --live and a browser vs without"),
+    "baselines": (
+        "forcelearn.tools.bench_baselines",
+        "baselines study: CPU and wall ms per step of each method on the emulated cell",
+    ),
 }
 
 
