@@ -100,7 +100,8 @@ class Jr3EmulatorNode(Emulator):
         initial_counter: first frame counter (tests start near the 16-bit wrap).
         frame_hook: called on each outgoing frame after the faults.
         opcodes: the opcode map to speak.
-        bitrate: the bus bitrate for frame times, bit/s (None: frames cost no time).
+        bitrate: the bus bitrate for frame times, bit/s (None: frames cost no time); fixed
+            at construction.
         in_process: no bus and no thread: reached by ``forcelearn-jr3`` buses.
     """
 
@@ -137,7 +138,9 @@ class Jr3EmulatorNode(Emulator):
         self.counter = initial_counter & 0xFFFF
         self.clock = physics.clock
         self.bitrate = bitrate
-        self._frame_times: tuple[float | None, tuple[float, ...]] | None = None
+        self._frame_times = tuple(0.0 if bitrate is None else can_frame_time_s(n, bitrate)
+                                  for n in range(9))
+        """Each frame's time on the bus by payload length, s (asked for every frame)."""
         self.bus_wire = Wire(self.clock)
         """The CAN bus as a timeline: frames never overlap."""
         self.last_sample_s = -math.inf
@@ -267,12 +270,7 @@ class Jr3EmulatorNode(Emulator):
             until_next = self.emit_due()
 
     def _frame_time_s(self, data_bytes: int) -> float:
-        if self._frame_times is None or self._frame_times[0] != self.bitrate:
-            bitrate = self.bitrate
-            times = tuple(0.0 if bitrate is None else can_frame_time_s(n, bitrate)
-                          for n in range(9))
-            self._frame_times = (bitrate, times)  # per payload length: asked for every frame
-        return self._frame_times[1][data_bytes]
+        return self._frame_times[data_bytes]
 
     def _handle(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:

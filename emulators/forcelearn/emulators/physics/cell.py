@@ -95,20 +95,18 @@ class CellPhysics:
         self.motion: ArmMotion | None = None
         self._tool = tool or POINT_TOOL
         first = pose or Pose(0.0, 0.0, 0.0)
-        self._record(first)
+        self._pose: Pose | None = first
+        """The tool's pose (None: moved by a motion tick since last read; see :attr:`pose`)."""
+        self._pose_key: PoseKey = (first.x_mm, first.y_mm, first.z_mm, first.quaternion)
+        """Where the tool is as (x, y, z, quaternion): what the hot path compares."""
+        self._position_mm = first.position_mm
         self._rotation, self._gravity = self._orientation_terms(first.quaternion)
         self._wrench_key: tuple[float, ...] | None = None
         """The contact force the cached wrench was computed for (None: recompute)."""
         self._wrench = np.zeros(6)
 
-    def _record(self, pose: Pose) -> None:
-        """Keep ``pose`` with the two forms the hot path reads (a key to compare, an array)."""
-        self._pose: Pose | None = pose
-        self._pose_key = (pose.x_mm, pose.y_mm, pose.z_mm, pose.quaternion)
-        self._position_mm = pose.position_mm
-
     def _move_tool(self, key: PoseKey) -> None:
-        """:meth:`set_pose` from the motion's (x, y, z, quaternion), the Pose built when asked."""
+        """Record the tool at (x, y, z, quaternion); the Pose is built when :attr:`pose` is read."""
         if key[3] != self._pose_key[3]:
             self._rotation, self._gravity = self._orientation_terms(key[3])
         self._pose = None  # a motion tick moves the tool far more often than anyone reads it
@@ -190,11 +188,8 @@ class CellPhysics:
     def set_pose(self, pose: Pose) -> None:
         """Record the pose the tool has reached (by the motion model, or directly in tests)."""
         with self._lock:
-            if pose.quaternion != self._pose_key[3]:
-                self._rotation, self._gravity = self._orientation_terms(pose.quaternion)
-            self._record(pose)
-            if self._observer is not None:
-                self._observer.observe_pose(self._position_mm)
+            self._move_tool((pose.x_mm, pose.y_mm, pose.z_mm, pose.quaternion))
+            self._pose = pose
 
     def true_wrench(self) -> np.ndarray:
         """Return the noise-free wrench (6,) in the sensor frame, N and N·m.

@@ -73,11 +73,6 @@ class OpcodeMap:
         return {code: kind for kind, code in self.by_kind().items()}
 
 
-def kind_of_opcode(opcodes: OpcodeMap) -> dict[int, str]:
-    """Return the reverse table ``{opcode: kind}`` of a map."""
-    return opcodes.kind_by_opcode
-
-
 JR3_MBED_2023_12 = OpcodeMap(
     name="jr3-mbed-firmware CAN layer",
     version="2023-12",
