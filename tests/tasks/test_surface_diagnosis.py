@@ -42,3 +42,20 @@ def test_a_converged_run_has_no_diagnosis() -> None:
     """A converged run has no diagnosis."""
     monitor = StuckMonitor(-4.0, 15.0, 20)
     assert diagnose([_record(0, False)], 0, monitor) == (True, None)
+
+
+def test_the_edges_move_with_the_maps_wear_shift() -> None:
+    """A followed map's range moves with its wear shift: the edge is centre + shift ± range.
+
+    Commands 3 mm under the path sit at the deep edge of a map that has not
+    shifted, and at the centre of one that has followed the sponge 3 mm down.
+    """
+    path = tuple(-4.0 - 0.1 * k for k in range(20))
+    commands = [y - 3.0 for y in path]
+    unshifted = StuckMonitor(-4.0, 3.0, 20, path_y_mm=path, edge_trials=5)
+    assert [unshifted.update(_record(i, False), commands) for i in range(5)][4] is not None
+    shifted = StuckMonitor(-4.0, 3.0, 20, path_y_mm=path, edge_trials=5)
+    assert all(shifted.update(_record(i, False), commands, -3.0) is None for i in range(20))
+    deep = [y - 6.0 for y in commands]  # 3 mm under the shifted centre: its deep edge
+    warnings = [shifted.update(_record(i, False), deep, -3.0) for i in range(5)]
+    assert warnings[4] is not None and "deep end" in warnings[4]

@@ -242,6 +242,7 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
 
 def test_an_ended_but_unsaved_trial_is_rolled_back_before_outputs() -> None:
     """Interrupted between a trial's end and its checkpoint: outputs match the checkpoint."""
+    from forcelearn.tasks.surface import TrialTrace
     from forcelearn.tools.cell_config import load_cell_config
     from forcelearn.tools.surface_run import SurfaceRun
     from forcelearn.trainer import TrialLog, TrialRecord
@@ -249,7 +250,7 @@ def test_an_ended_but_unsaved_trial_is_rolled_back_before_outputs() -> None:
     run = SurfaceRun(load_cell_config(), trials=10, seed=0, out=Path("."))
     for i in range(3):
         run.result.records.append(TrialRecord(i, "generalized", 20, False, 0.1, 0.5, 9.0))
-        run.traces.append({"mean_y_mm": [1.0], "command_y_mm": [1.1]})
+        run.traces.append(TrialTrace(mean_y_mm=[1.0], command_y_mm=[1.1], shift_mm=0.0))
         run.result.steps += 20
         run.result.last_log = TrialLog(i, "generalized")
         if i < 2:
@@ -259,3 +260,38 @@ def test_an_ended_but_unsaved_trial_is_rolled_back_before_outputs() -> None:
     assert len(run.result.records) == len(run.traces) == 2
     assert run.result.steps == 40 and run.result.last_log.index == 1
     assert run.result.switch_trial is None and run.result.switch_log is None
+
+
+def test_the_checkpoint_keeps_each_trials_wear_shift(tmp_path: Path) -> None:
+    """Each trial's map shift survives the checkpoint; an older checkpoint without it reads 0.
+
+    The stuck monitor replays the traces on resume, so a lost shift would move
+    the range's edges of every trial before the resume.
+    """
+    import numpy as np
+
+    from forcelearn.errors import StateFileError
+    from forcelearn.tasks.surface import TrialTrace
+    from forcelearn.tools.cell_config import load_cell_config
+    from forcelearn.tools.surface_run import (
+        SurfaceRun,
+        _history_arrays,
+        _history_from_arrays,
+    )
+    from forcelearn.trainer import TrialRecord
+
+    run = SurfaceRun(load_cell_config(), trials=10, seed=0, out=tmp_path)
+    for i, shift in enumerate((0.0, -0.25, -0.5)):
+        run.result.records.append(TrialRecord(i, "generalized", 2, False, 0.1, 0.5, 9.0))
+        run.traces.append(TrialTrace(mean_y_mm=[1.0, 2.0], command_y_mm=[1.1, 2.1],
+                                     shift_mm=shift))
+    arrays = _history_arrays(run)
+    again = SurfaceRun(load_cell_config(), trials=10, seed=0, out=tmp_path)
+    _history_from_arrays(again, arrays)
+    assert again.traces == run.traces
+    old = {k: v for k, v in arrays.items() if k != "trace_shift_mm"}
+    _history_from_arrays(again, old)
+    assert [t["shift_mm"] for t in again.traces] == [0.0, 0.0, 0.0]
+    damaged = {**arrays, "trace_shift_mm": np.zeros(2)}
+    with pytest.raises(StateFileError, match="trial shifts"):
+        _history_from_arrays(again, damaged)

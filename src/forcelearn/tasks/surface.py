@@ -25,6 +25,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from typing import TypedDict
 
 import numpy as np
 
@@ -185,6 +186,17 @@ def step_centre_y_mm(path_y_mm: tuple[float, ...], centre_y_mm: float, step_inde
     if not path_y_mm:
         return centre_y_mm
     return path_y_mm[min(max(step_index, 0), len(path_y_mm) - 1)]
+
+
+class TrialTrace(TypedDict):
+    """What a run keeps of each trial's Y commands (mm)."""
+
+    mean_y_mm: list[float]
+    """The mean Y (y of μ) of every step."""
+    command_y_mm: list[float]
+    """The searched Y command of every step."""
+    shift_mm: float
+    """The map's wear shift the trial ran with (0: a map that does not follow wear)."""
 
 
 class SurfaceYOutput:

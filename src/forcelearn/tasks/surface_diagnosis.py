@@ -52,11 +52,18 @@ class StuckMonitor:
     warnings: list[str] = field(default_factory=list)
     _warned: set[str] = field(default_factory=set)
 
-    def update(self, record: TrialRecord, commands_y_mm: Sequence[float]) -> str | None:
-        """Account one trial; return a new warning (once per sign) or None."""
+    def update(
+        self, record: TrialRecord, commands_y_mm: Sequence[float], shift_mm: float = 0.0
+    ) -> str | None:
+        """Account one trial; return a new warning (once per sign) or None.
+
+        ``shift_mm`` is the map's wear shift during the trial (mm; see
+        :attr:`~forcelearn.tasks.surface.SurfaceYOutput.shift_mm`): the range's
+        ends moved with it.
+        """
         limit = self.max_offset_mm * (1.0 - self.edge_band)
         offsets = [
-            y - step_centre_y_mm(self.path_y_mm, self.centre_y_mm, k)
+            y - step_centre_y_mm(self.path_y_mm, self.centre_y_mm, k) - shift_mm
             for k, y in enumerate(commands_y_mm)
         ]
         low = sum(1 for d in offsets if d <= -limit)

@@ -8,6 +8,7 @@ from typing import Protocol
 import numpy as np
 from matplotlib.figure import Figure
 
+from forcelearn.tasks.surface import TrialTrace
 from forcelearn.tools.cell_config import CellConfig
 from forcelearn.trainer import TrainingResult
 
@@ -17,7 +18,7 @@ class SurfaceRun(Protocol):
 
     config: CellConfig
     result: TrainingResult
-    traces: list[dict[str, list[float]]]
+    traces: list[TrialTrace]
 
     @property
     def mid_trial(self) -> int:

@@ -46,7 +46,7 @@ import numpy as np
 from forcelearn.errors import ForcelearnError, StateFileError
 from forcelearn.learning import SRVLearner, load_extra_arrays, load_learner, save_learner
 from forcelearn.run_output import final_figures, write_step_log, write_summary, write_trials
-from forcelearn.tasks.surface import SurfaceTask
+from forcelearn.tasks.surface import SurfaceTask, TrialTrace
 from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
 from forcelearn.tasks.surface_probe import (
     OutputMapChoice,
@@ -87,8 +87,8 @@ class SurfaceRun:
     seed: int
     out: Path
     result: TrainingResult = dataclasses.field(default_factory=TrainingResult)
-    traces: list[dict[str, list[float]]] = dataclasses.field(default_factory=list)
-    """Per trial: the mean Y (y of μ) and the searched Y command of every step, mm."""
+    traces: list[TrialTrace] = dataclasses.field(default_factory=list)
+    """Per trial: the Y commands and the map's wear shift."""
     wall_s: float = 0.0
     saved: tuple[int, int, TrialLog | None] = (0, 0, None)
     """(trials, steps, last log) as of the last checkpoint written."""
@@ -146,12 +146,14 @@ def _history_arrays(run: SurfaceRun) -> dict[str, np.ndarray]:
         f"record_{name}": np.array([getattr(r, name) for r in records]) for name in _RECORD_FIELDS
     }
     steps = run.config.task.steps_per_trial
-    for key in ("mean_y_mm", "command_y_mm"):
-        table = np.full((len(run.traces), steps), np.nan)
-        for i, trace in enumerate(run.traces):
-            table[i, : len(trace[key])] = trace[key]
-        arrays[f"trace_{key}"] = table
+    means = np.full((len(run.traces), steps), np.nan)
+    commands = np.full((len(run.traces), steps), np.nan)
+    for i, trace in enumerate(run.traces):
+        means[i, : len(trace["mean_y_mm"])] = trace["mean_y_mm"]
+        commands[i, : len(trace["command_y_mm"])] = trace["command_y_mm"]
+    arrays["trace_mean_y_mm"], arrays["trace_command_y_mm"] = means, commands
     arrays["trace_length"] = np.array([len(t["mean_y_mm"]) for t in run.traces], dtype=np.int64)
+    arrays["trace_shift_mm"] = np.array([t["shift_mm"] for t in run.traces], dtype=float)
     return arrays
 
 
@@ -161,9 +163,21 @@ def _history_from_arrays(run: SurfaceRun, arrays: dict[str, np.ndarray]) -> None
         TrialRecord(**{name: arrays[f"record_{name}"][i].item() for name in _RECORD_FIELDS})
         for i in range(count)
     ]
+    lengths = arrays["trace_length"].tolist()
+    # checkpoints written before the shift was kept per trial: no shift known (0)
+    shifts = arrays.get("trace_shift_mm", np.zeros(len(lengths))).tolist()
+    if len(shifts) != len(lengths):
+        raise StateFileError(
+            f"{run.out / CHECKPOINT} keeps {len(shifts)} trial shifts for {len(lengths)} "
+            "trials (a damaged file); restore it from a backup or start a new run"
+        )
     run.traces = [
-        {key: arrays[f"trace_{key}"][i, :length].tolist() for key in ("mean_y_mm", "command_y_mm")}
-        for i, length in enumerate(arrays["trace_length"].tolist())
+        TrialTrace(
+            mean_y_mm=arrays["trace_mean_y_mm"][i, :length].tolist(),
+            command_y_mm=arrays["trace_command_y_mm"][i, :length].tolist(),
+            shift_mm=float(shifts[i]),
+        )
+        for i, length in enumerate(lengths)
     ]
 
 
@@ -289,17 +303,18 @@ def execute(
             path_y_mm=run.output_map.path_y_mm,
         )
         for record, trace in zip(run.result.records, run.traces, strict=True):  # resumed
-            monitor.update(record, trace["command_y_mm"])
+            monitor.update(record, trace["command_y_mm"], trace["shift_mm"])
 
         def after_trial(record: TrialRecord, trial_log: TrialLog, lrn: SRVLearner) -> None:
             run.traces.append(
-                {
-                    "mean_y_mm": [
+                TrialTrace(
+                    mean_y_mm=[
                         output.command_at_step(row["mean_0"], int(row["step"]) - 1)
                         for row in trial_log.rows
                     ],
-                    "command_y_mm": [row["command_0"] for row in trial_log.rows],
-                }
+                    command_y_mm=[row["command_0"] for row in trial_log.rows],
+                    shift_mm=output.shift_mm,  # the wear shift this trial ran with
+                )
             )
             run.wall_s = wall_before + time.perf_counter() - started
             run.map_shift_mm = output.shift_mm
@@ -310,7 +325,9 @@ def execute(
                 arrays=_history_arrays(run),
             )
             run.mark_saved()
-            warning = monitor.update(record, run.traces[-1]["command_y_mm"])
+            warning = monitor.update(
+                record, run.traces[-1]["command_y_mm"], run.traces[-1]["shift_mm"]
+            )
             if warning is not None:
                 log.warning("%s", warning)
                 if on_warning is not None:
