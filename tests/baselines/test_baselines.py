@@ -189,6 +189,28 @@ def test_after_the_envs_probe_the_methods_start_at_the_map_centre_with_its_stiff
     assert np.all(np.abs(search.path_mm) <= 8.0)
 
 
+def test_path_search_step_size_is_a_share_of_the_band_over_the_probes_stiffness() -> None:
+    """σ0 = 0.4 · tolerance / k̂: the same force spread on any sponge; fixed without a probe.
+
+    On the default cell (9.8 N, about 2 N/mm) that is 2 mm; a stiffer sponge gets
+    a smaller step, a softer one a larger step (never past the map's half-range).
+    """
+    tolerance = SPEC.tolerance
+    for stiffness in (0.3, 0.9, 1.6, 4.0):
+        search = PathSearchController(FAKE_ENV, seed=0)
+        info = {**PROBED, "probe_stiffness_n_per_mm": stiffness}
+        _play(search, [SPEC.desired_force_n] * 20, info=info)
+        expected = min(0.4 * tolerance / stiffness, 8.0)
+        assert search.sigma0_mm == pytest.approx(expected)
+        assert search.es.sigma0 == pytest.approx(expected)
+    blind = PathSearchController(FAKE_ENV, seed=0)
+    _play(blind, [SPEC.desired_force_n] * 20)
+    assert blind.sigma0_mm == 2.0
+    fixed = PathSearchController(FAKE_ENV, seed=0, params=PathSearchParams(sigma0_mm=0.7))
+    _play(fixed, [SPEC.desired_force_n] * 20, info=PROBED)
+    assert fixed.sigma0_mm == 0.7
+
+
 def test_path_search_evaluates_one_candidate_per_trial_and_tells_a_full_generation() -> None:
     """Four candidates, one per trial; the mean moves once the generation is told."""
     search = PathSearchController(FAKE_ENV, seed=0, params=PathSearchParams(popsize=4))

@@ -290,12 +290,20 @@ class ILCController:
         self.path_mm = np.clip(q_filter(updated, self.params.q_weights), -limit, limit)
 
 
+NO_PROBE_SIGMA0_MM = 2.0
+"""CMA-ES's initial step size without a probe's stiffness to scale it, mm."""
+
+
 @dataclass(frozen=True)
 class PathSearchParams:
     """CMA-ES over the Y path (offsets in mm)."""
 
-    sigma0_mm: float = 2.0
-    """Initial step size of the search, mm."""
+    sigma0_tolerance_share: float = 0.4
+    """Initial step size as a share of the failure tolerance over the probe's stiffness:
+    σ0 = share · tolerance / k̂ (mm), so a 1σ step moves the force by this share of the
+    band on any sponge (0.4: 2.0 mm on the default cell, 9.8 N over 2.0 N/mm)."""
+    sigma0_mm: float | None = None
+    """A fixed initial step size (mm) instead; also used without a probe (None: 2.0 mm)."""
     popsize: int = 0
     """Candidates per generation; 0: CMA-ES's default 4 + ⌊3 ln 20⌋ = 12."""
     probe_offset_mm: float = -4.0
@@ -322,6 +330,8 @@ class PathSearchController:
         self._asked: list[np.ndarray] = []
         self.path_mm = np.zeros(self.spec.steps_per_trial)
         self._errors: list[float] = []
+        self.sigma0_mm = math.nan
+        """The initial step size in use (mm), once the search has started."""
 
     def _start_search(self, prior: CellPrior) -> Any:
         import cma
@@ -335,7 +345,18 @@ class PathSearchController:
         if self.params.popsize:
             options["popsize"] = self.params.popsize
         mean = prior.first_path_mm(self.spec.steps_per_trial, self.params.probe_offset_mm)
-        return cma.CMAEvolutionStrategy(mean, self.params.sigma0_mm, options)
+        self.sigma0_mm = self._sigma0_mm(prior)
+        return cma.CMAEvolutionStrategy(mean, self.sigma0_mm, options)
+
+    def _sigma0_mm(self, prior: CellPrior) -> float:
+        """The initial step size (mm): fixed, else scaled to the band and the probe's k̂."""
+        params = self.params
+        if params.sigma0_mm is not None:
+            return params.sigma0_mm
+        if not prior.probed:
+            return NO_PROBE_SIGMA0_MM
+        sigma = params.sigma0_tolerance_share * self.spec.tolerance / prior.stiffness_n_per_mm
+        return float(min(sigma, prior.max_offset_mm))
 
     def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
         """Take the next candidate (ask a new generation when none is left)."""
