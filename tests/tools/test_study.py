@@ -39,6 +39,28 @@ def test_set_keys_resolve_and_values_take_the_default_type() -> None:
     assert config.learner.gamma == 0.7 and config.geometry.servo_lag == 0.2
 
 
+def test_an_unset_optional_key_takes_a_number_or_none() -> None:
+    """A key whose default is None is typed by its annotation (it was passed on as text).
+
+    ``none`` keeps it unset; a word where a number belongs fails before any run.
+    """
+    from forcelearn.tools.baselines_study import BaselinesConfig
+
+    grid = parse_sets(BaselinesConfig(), ["cma.sigma0_mm=1.5,none,2"])
+    assert grid == {"cma.sigma0_mm": [1.5, None, 2.0]}
+    assert all(isinstance(v, float) for v in (grid["cma.sigma0_mm"][0], grid["cma.sigma0_mm"][2]))
+    with pytest.raises(ConfigError, match="cannot read 'deep'"):
+        parse_sets(BaselinesConfig(), ["cma.sigma0_mm=deep"])
+    surface = get_task("surface").base_config()
+    grid = parse_sets(surface, ["task.tolerance_n=5", "sensor.log_path=jr3.blf",
+                                "sensor.full_scales=100:100:200:10:10:10"])
+    assert grid == {
+        "task.tolerance_n": [5.0],
+        "sensor.log_path": ["jr3.blf"],
+        "sensor.full_scales": [(100.0, 100.0, 200.0, 10.0, 10.0, 10.0)],
+    }
+
+
 def test_a_bad_key_is_named_with_the_valid_ones(capsys: pytest.CaptureFixture[str]) -> None:
     """An unknown --set key fails before any run, naming it and listing the keys."""
     with pytest.raises(ConfigError, match=r"unknown --set key 'gama'.*learner\.gamma"):

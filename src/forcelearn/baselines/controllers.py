@@ -301,7 +301,7 @@ class PathSearchParams:
     sigma0_tolerance_share: float = 0.4
     """Initial step size as a share of the failure tolerance over the probe's stiffness:
     σ0 = share · tolerance / k̂ (mm), so a 1σ step moves the force by this share of the
-    band on any sponge (0.4: 2.0 mm on the default cell, 9.8 N over 2.0 N/mm)."""
+    band on any sponge (0.4: about 2 mm on the default cell, 9.8 N over 2.05 N/mm)."""
     sigma0_mm: float | None = None
     """A fixed initial step size (mm) instead; also used without a probe (None: 2.0 mm)."""
     popsize: int = 0

@@ -6,6 +6,8 @@ a bare field name that is unique in the config (``gamma``) stands for its path,
 and ``d`` for ``learner.extent``. Values are typed by the default they replace:
 ``true``/``false`` for booleans, and for tuples ``a:b`` (one element per
 dimension) or a single value repeated for every dimension (``d=5`` is (5, 5)).
+A key whose default is unset (``None``, such as ``task.tolerance_n`` or
+``cma.sigma0_mm``) is typed by its field's annotation, and ``none`` keeps it unset.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import typing
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -25,7 +28,7 @@ ALIASES = {"d": "learner.extent"}
 RESERVED = {"trials", "seed", "source", "calibration_file"}
 """Top-level fields the study sets itself (or that are not parameters)."""
 
-Value = bool | int | float | str | tuple[Any, ...]
+Value = bool | int | float | str | tuple[Any, ...] | None
 
 
 def leaf_keys(config: Any, prefix: str = "") -> dict[str, Any]:
@@ -64,9 +67,17 @@ def resolve_key(config: Any, key: str) -> str:
     )
 
 
-def parse_value(key: str, text: str, default: Any) -> Value:
-    """Parse one ``--set`` value for ``key``, typed like its ``default``."""
+def parse_value(key: str, text: str, default: Any, hint: Any = None) -> Value:
+    """Parse one ``--set`` value for ``key``, typed like its ``default``.
+
+    An unset default (None) is typed by the field's annotation ``hint``
+    (``float | None``...); ``none`` keeps it unset.
+    """
     text = text.strip()
+    if default is None:
+        if text.lower() == "none":
+            return None
+        default = _example_of(hint)
     try:
         if isinstance(default, bool):
             lowered = text.lower()
@@ -88,6 +99,30 @@ def parse_value(key: str, text: str, default: Any) -> Value:
     return text
 
 
+def _example_of(hint: Any) -> Any:
+    """A value of the type an optional field holds when set (text when unknown)."""
+    kinds = [a for a in typing.get_args(hint) if a is not type(None)] or [hint]
+    kind = kinds[0]
+    if typing.get_origin(kind) is tuple:
+        return (_example_of((typing.get_args(kind) or (str,))[0]),)
+    examples: dict[Any, Any] = {bool: False, int: 0, float: 0.0}
+    return examples.get(kind, "")
+
+
+def field_hints(config: Any, prefix: str = "") -> dict[str, Any]:
+    """Every leaf's type annotation as ``{dotted.key: type}`` (the leaves of :func:`leaf_keys`)."""
+    hints: dict[str, Any] = {}
+    resolved = typing.get_type_hints(type(config))
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        path = f"{prefix}{f.name}"
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            hints.update(field_hints(value, path + "."))
+        else:
+            hints[path] = resolved.get(f.name)
+    return hints
+
+
 def format_value(value: Any) -> str:
     """Write a value back in ``--set`` syntax (tuples as ``a:b``)."""
     if isinstance(value, tuple):
@@ -101,6 +136,7 @@ def parse_sets(config: Any, sets: Sequence[str]) -> dict[str, list[Value]]:
     """Parse ``key=v1,v2,...`` strings into ``{dotted.key: [values]}`` (in the order given)."""
     grid: dict[str, list[Value]] = {}
     known = leaf_keys(config)
+    hints = field_hints(config)
     for item in sets:
         key, sep, values = item.partition("=")
         if not sep or not values.strip():
@@ -108,7 +144,8 @@ def parse_sets(config: Any, sets: Sequence[str]) -> dict[str, list[Value]]:
         path = resolve_key(config, key.strip())
         if path in grid:
             raise ConfigError(f"--set {path} is given twice; list all its values in one --set")
-        grid[path] = [parse_value(path, v, known[path]) for v in values.split(",")]
+        grid[path] = [parse_value(path, v, known[path], hints.get(path))
+                      for v in values.split(",")]
     return grid
 
 
