@@ -90,6 +90,13 @@ class Cell:
         self.time_s = 0.0
         """The robot's clock (s) at the end of the last wait: the cell's time."""
         self._pose: Pose | None = None
+        self.on_tare: Callable[[Pose], None] | None = None
+        """Called with the pose after every :meth:`tare` (e.g. to re-derive a calibration's
+        bias for the new zero)."""
+        self.tares = 0
+        """Tares done."""
+        self.tares_refused = 0
+        """Tares refused because the free-space reading was too large."""
 
     @property
     def pose(self) -> Pose:
@@ -191,6 +198,28 @@ class Cell:
                 f"{self.max_force_n} N; the robot was stopped"
             )
         return force
+
+    def tare(self, max_reading_n: float) -> bool:
+        """Zero the sensor here (the tool at rest in free space); True if it was zeroed.
+
+        The normal force is read first. If it is more than ``max_reading_n`` (N)
+        from zero, something touches the tool or the sensor jumped; zeroing then
+        would hide a real force, so it is refused (a warning, False).
+        """
+        force = self.measure_force_n()
+        if not abs(force) <= max_reading_n:
+            self.tares_refused += 1
+            log.warning(
+                "not zeroing the sensor: it reads %.2f N in free space, more than "
+                "task.tare_max_reading_n = %g N (is the tool touching something at the "
+                "retract pose, task.retract_y_mm?)", force, max_reading_n,
+            )
+            return False
+        self._guarded(self.sensor.zero_offsets)
+        self.tares += 1
+        if self.on_tare is not None:
+            self.on_tare(self.pose)
+        return True
 
     def stop(self) -> None:
         """Stop the robot now (best effort: a failing link is logged, not raised)."""

@@ -79,3 +79,36 @@ def test_a_bad_calibration_file_stops_the_session_before_any_device_opens(
     (tmp_path / "cell.toml").write_text('[calibration]\nfile = "cal.toml"\n')
     with pytest.raises(ConfigError, match=r"cal\.toml.*format_version is 9"):
         CellSession(load_cell_config(tmp_path / "cell.toml"))
+
+
+def _normal_force_back_upright_after_a_tilted_tare(session: CellSession) -> float:
+    """Tare at a 60 deg tilt, turn back to the start orientation; the normal force there (N)."""
+    cell = session.cell
+    here = cell.read_pose()
+    _tilted_normal_force(session)
+    assert cell.tare(max_reading_n=2.0)
+    tilted_pose = cell.read_pose()
+    for q in slerp_steps(tilted_pose.quaternion, here.quaternion, 10.0):
+        cell.move_to(Pose(here.x_mm, here.y_mm, here.z_mm, q))
+    cell.reset_filter()
+    return cell.measure_force_n(400)
+
+
+def test_a_tare_re_derives_the_calibrations_bias_for_the_pose_it_zeroed_at(
+        tmp_path: Path) -> None:
+    """Zeroing at a tilt stores that pose's tool weight; the compensation must follow it.
+
+    The session's tare hook re-derives the calibration's bias for the tare's
+    orientation, so upright again the tool reads ~0 N. Without the hook the
+    weight zeroed at the tilt shows up as a force of several N.
+    """
+    _write_calibration(tmp_path / "cal.toml")
+    (tmp_path / "cell.toml").write_text('[calibration]\nfile = "cal.toml"\n')
+    with CellSession(load_cell_config(tmp_path / "cell.toml"), seed=5) as session:
+        followed = _normal_force_back_upright_after_a_tilted_tare(session)
+    with CellSession(load_cell_config(tmp_path / "cell.toml"), seed=5) as session:
+        session.cell.on_tare = None
+        stale = _normal_force_back_upright_after_a_tilted_tare(session)
+    print(f"upright after a tilted tare: {followed:.3f} N re-derived, {stale:.3f} N not")
+    assert abs(followed) < 0.2
+    assert abs(stale) > 3.0

@@ -78,7 +78,8 @@ class FakeSensor:
         return WrenchSample(np.array([0.0, value, 0, 0, 0, 0]), 0.0, self.counter)
 
     def zero_offsets(self) -> None:
-        """Nothing to zero."""
+        """Count the zeroings."""
+        self.zeroed = getattr(self, "zeroed", 0) + 1
 
     def close(self) -> None:
         """Nothing to release."""
@@ -189,3 +190,20 @@ def test_sync_takes_the_controllers_target_as_the_pose() -> None:
     robot.pose = Pose(3.0, 4.0, 5.0)
     assert cell.sync() == Pose(3.0, 4.0, 5.0)
     assert cell.pose == Pose(3.0, 4.0, 5.0)
+
+
+def test_a_tare_zeroes_in_free_space_and_refuses_where_something_pushes() -> None:
+    """Free space within the limit: zeroed and the hook told the pose; a large reading: refused.
+
+    Zeroing under a real force would hide it from every later reading (and from
+    the force limit), so a reading over ``max_reading_n`` keeps the old zero.
+    """
+    cell, robot, sensor = make_cell([0.3, 0.2, 0.4, 6.0, 6.1, 5.9])
+    told: list[Pose] = []
+    cell.on_tare = told.append
+    assert cell.tare(max_reading_n=2.0) is True
+    assert getattr(sensor, "zeroed", 0) == 1 and told == [robot.pose]
+    assert cell.tare(max_reading_n=2.0) is False
+    assert getattr(sensor, "zeroed", 0) == 1 and len(told) == 1
+    assert (cell.tares, cell.tares_refused) == (1, 1)
+    assert robot.stops == 0

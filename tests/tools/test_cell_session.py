@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -129,3 +130,44 @@ def test_the_watchdog_is_longer_only_for_the_in_process_emulated_sensor(tmp_path
     explicit = tmp_path / "explicit.toml"
     explicit.write_text("[safety]\nstale_sensor_s = 0.2\n")
     assert load_cell_config(explicit).sensor.stale_timeout_s == 0.2
+
+
+def _drift_fy(session: CellSession, change_n: float) -> None:
+    """Move the emulated JR3's Fy bias by ``change_n`` (a drift since it was zeroed)."""
+    model = session.sensor_emulator.model
+    state = model.state_dict()
+    state["bias"] = state["bias"] + np.array([0.0, change_n, 0.0, 0.0, 0.0, 0.0])
+    model.load_state_dict(state)
+
+
+def _start_force_after_drift(tare: bool, change_n: float) -> tuple[float, float, CellSession]:
+    """(measured start force, true start force) of one trial after a drift of Fy's bias."""
+    config = load_cell_config()
+    config = dataclasses.replace(
+        config, task=dataclasses.replace(config.task, tare_each_trial=tare)
+    )
+    with CellSession(config, seed=1) as session:
+        _drift_fy(session, change_n)
+        task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
+        task.reset()
+        true_n = float(-session.physics.true_wrench()[1])  # the normal force: -Fy
+        return task.start_force_n, true_n, session
+
+
+def test_a_tare_before_the_press_takes_a_drifted_bias_out_of_the_start_force() -> None:
+    """Fy's bias drifts 1.5 N after zeroing: the start force is 1.5 N off unless tared.
+
+    With ``task.tare_each_trial`` the sensor is zeroed in free space above the
+    start (retract Y) before the press, so the measured force is the contact
+    force again. A drift past ``task.tare_max_reading_n`` (2 N) is not zeroed:
+    that much in free space may be a touch, which zeroing would hide.
+    """
+    drifted, true_drifted, untared = _start_force_after_drift(False, 1.5)
+    assert drifted - true_drifted == pytest.approx(-1.5, abs=0.3)  # the force axis is -Fy
+    assert untared.cell.tares == 0
+    tared, true_tared, session = _start_force_after_drift(True, 1.5)
+    assert tared - true_tared == pytest.approx(0.0, abs=0.3)
+    assert (session.cell.tares, session.cell.tares_refused) == (1, 0)
+    refused, true_refused, session = _start_force_after_drift(True, 3.0)
+    assert refused - true_refused == pytest.approx(-3.0, abs=0.3)
+    assert (session.cell.tares, session.cell.tares_refused) == (0, 1)

@@ -88,6 +88,12 @@ class SurfaceTaskSpec:
     1.3 ms correlation: a 25 ms burst filters to ~0.06 N; see docs/results/filter.md)."""
     settle_s: float = 0.05
     """Dwell in position before the force is measured, s (the robot's clock)."""
+    tare_each_trial: bool = False
+    """Zero the sensor in free space, above the start at the retract Y, before each trial's
+    press: the sensor's bias drift then never reaches the force the learner controls (off:
+    the paper's setup, zeroed once when the sensor opens)."""
+    tare_max_reading_n: float = 2.0
+    """A tare is refused (warned) when the free-space normal force reads more than this, N."""
 
     def __post_init__(self) -> None:
         for name in ("steps_per_trial", "input_parts", "samples_per_step"):
@@ -95,7 +101,10 @@ class SurfaceTaskSpec:
             least = 0 if name == "samples_per_step" else 1  # 0: from the measurement window
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise ConfigError(f"task.{name} = {value!r}: must be a whole number >= {least}")
-        positive = ("desired_force_n", "tolerance_n", "output_scale_mm", "max_offset_mm")
+        if not isinstance(self.tare_each_trial, bool):
+            raise ConfigError(f"task.tare_each_trial = {self.tare_each_trial!r}: true or false")
+        positive = ("desired_force_n", "tolerance_n", "output_scale_mm", "max_offset_mm",
+                    "tare_max_reading_n")
         for name in positive:
             value = getattr(self, name)
             if value is not None and not (_is_number(value) and value > 0):
@@ -354,6 +363,8 @@ class SurfaceTask:
             Pose(start.x_mm, self.spec.retract_y_mm, start.z_mm, start.quaternion),
             self.max_step_mm,
         )
+        if self.spec.tare_each_trial:
+            self.cell.tare(self.spec.tare_max_reading_n)
         self.cell.move_in_steps(start, self.max_step_mm, guard_force=True)
         self.cell.reset_filter()
         self.start_force_n = self.cell.measure_force_n()

@@ -39,6 +39,7 @@ from can.interfaces.slcan import slcanBus
 
 from forcelearn.calibration import Calibration, load_calibration
 from forcelearn.cell import Cell
+from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import ComputerLinkRobot
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
@@ -243,6 +244,12 @@ class CellSession:
         self.calibration = calibration
         cell.force_filter.set_measurement_variance(calibration.noise_variance(cfg.filter.axis))
         cell.compensation = calibration.compensation
+
+        def rezero(pose: Pose) -> None:  # a tare zeroed the tool's weight at this pose
+            self.calibration = calibration.rezeroed(pose.quaternion)
+            cell.compensation = self.calibration.compensation
+
+        cell.on_tare = rezero
         log.info(
             "calibration %s applied: R = %.4g, tool %.3f kg",
             cfg.calibration_file,
