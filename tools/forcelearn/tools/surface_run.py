@@ -100,6 +100,8 @@ class SurfaceRun:
     """Watches for stuck learning (edge of the range, no trial completing)."""
     map_shift_mm: float = 0.0
     """A map that follows wear: its shift as of the last whole trial (mm)."""
+    tares: tuple[int, int] = (0, 0)
+    """``task.tare_each_trial``: tares done and refused, as of the last whole trial."""
 
     def mark_saved(self) -> None:
         """Remember what the checkpoint on disk holds."""
@@ -200,6 +202,7 @@ def _run_state(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any
         "probe": run.probe.to_json() if run.probe is not None else None,
         "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
         "map_shift_mm": run.map_shift_mm,
+        "tares": list(run.tares),
     }
 
 
@@ -221,6 +224,14 @@ def _restore(run: SurfaceRun, state: dict[str, Any], arrays: dict[str, np.ndarra
     run.probe = ProbeResult.from_json(state["probe"]) if state["probe"] is not None else None
     run.output_map = OutputMapChoice(**state["output_map"])
     run.map_shift_mm = float(state.get("map_shift_mm", 0.0))
+    try:
+        done, refused = state.get("tares", (0, 0))  # none in older checkpoints
+        run.tares = (int(done), int(refused))
+    except (TypeError, ValueError) as exc:
+        raise StateFileError(
+            f"{run.out / CHECKPOINT} has a damaged tare count {state.get('tares')!r}; "
+            "restore it from a backup or start a new run"
+        ) from exc
 
 
 def prepare_run(
@@ -291,6 +302,7 @@ def execute(
         step_mm = abs(config.task.z_step_mm)
         output = run.output_map.output(step_mm)
         output.shift_mm = run.map_shift_mm  # a resumed run's tracked wear
+        cell, tares_before = session.cell, run.tares
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
         if checkpoint is not None:
             learner = load_learner(checkpoint, output=output)[0]
@@ -318,6 +330,7 @@ def execute(
             )
             run.wall_s = wall_before + time.perf_counter() - started
             run.map_shift_mm = output.shift_mm
+            run.tares = (tares_before[0] + cell.tares, tares_before[1] + cell.tares_refused)
             save_learner(
                 lrn,
                 run.out / CHECKPOINT,
@@ -433,6 +446,7 @@ def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
         "warnings": list(monitor.warnings),
         "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
         "map_shift_mm": run.map_shift_mm,
+        "tares": {"done": run.tares[0], "refused": run.tares[1]},
         "probe_stiffness_n_per_mm": (
             run.probe.stiffness_n_per_mm() if run.probe is not None else None
         ),
