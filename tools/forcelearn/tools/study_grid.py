@@ -31,19 +31,23 @@ RESERVED = {"trials", "seed", "source", "calibration_file"}
 Value = bool | int | float | str | tuple[Any, ...] | None
 
 
-def leaf_keys(config: Any, prefix: str = "") -> dict[str, Any]:
-    """Return every settable leaf of a nested config dataclass as ``{dotted.key: value}``."""
-    keys: dict[str, Any] = {}
+def _leaves(config: Any, prefix: str = "") -> Iterator[tuple[str, Any, Any]]:
+    """Every settable leaf of a nested config dataclass: (dotted.key, value, annotation)."""
+    hints = typing.get_type_hints(type(config))
     for f in dataclasses.fields(config):
         if not f.init or (not prefix and f.name in RESERVED):
             continue
         value = getattr(config, f.name)
         path = f"{prefix}{f.name}"
         if dataclasses.is_dataclass(value) and not isinstance(value, type):
-            keys.update(leaf_keys(value, path + "."))
+            yield from _leaves(value, path + ".")
         else:
-            keys[path] = value
-    return keys
+            yield path, value, hints.get(f.name)
+
+
+def leaf_keys(config: Any) -> dict[str, Any]:
+    """Return every settable leaf of a nested config dataclass as ``{dotted.key: value}``."""
+    return {path: value for path, value, _ in _leaves(config)}
 
 
 def resolve_key(config: Any, key: str) -> str:
@@ -109,20 +113,6 @@ def _example_of(hint: Any) -> Any:
     return examples.get(kind, "")
 
 
-def field_hints(config: Any, prefix: str = "") -> dict[str, Any]:
-    """Every leaf's type annotation as ``{dotted.key: type}`` (the leaves of :func:`leaf_keys`)."""
-    hints: dict[str, Any] = {}
-    resolved = typing.get_type_hints(type(config))
-    for f in dataclasses.fields(config):
-        value = getattr(config, f.name)
-        path = f"{prefix}{f.name}"
-        if dataclasses.is_dataclass(value) and not isinstance(value, type):
-            hints.update(field_hints(value, path + "."))
-        else:
-            hints[path] = resolved.get(f.name)
-    return hints
-
-
 def format_value(value: Any) -> str:
     """Write a value back in ``--set`` syntax (tuples as ``a:b``)."""
     if isinstance(value, tuple):
@@ -135,8 +125,7 @@ def format_value(value: Any) -> str:
 def parse_sets(config: Any, sets: Sequence[str]) -> dict[str, list[Value]]:
     """Parse ``key=v1,v2,...`` strings into ``{dotted.key: [values]}`` (in the order given)."""
     grid: dict[str, list[Value]] = {}
-    known = leaf_keys(config)
-    hints = field_hints(config)
+    leaves = {path: (value, hint) for path, value, hint in _leaves(config)}
     for item in sets:
         key, sep, values = item.partition("=")
         if not sep or not values.strip():
@@ -144,8 +133,8 @@ def parse_sets(config: Any, sets: Sequence[str]) -> dict[str, list[Value]]:
         path = resolve_key(config, key.strip())
         if path in grid:
             raise ConfigError(f"--set {path} is given twice; list all its values in one --set")
-        grid[path] = [parse_value(path, v, known[path], hints.get(path))
-                      for v in values.split(",")]
+        default, hint = leaves[path]
+        grid[path] = [parse_value(path, v, default, hint) for v in values.split(",")]
     return grid
 
 
