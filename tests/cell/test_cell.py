@@ -68,6 +68,7 @@ class FakeSensor:
         self.forces = list(forces)
         self.counter = 0
         self.stale = False
+        self.zeroed = 0
 
     def read(self) -> WrenchSample:
         """Return the next scripted sample."""
@@ -79,7 +80,7 @@ class FakeSensor:
 
     def zero_offsets(self) -> None:
         """Count the zeroings."""
-        self.zeroed = getattr(self, "zeroed", 0) + 1
+        self.zeroed += 1
 
     def close(self) -> None:
         """Nothing to release."""
@@ -202,8 +203,8 @@ def test_a_tare_zeroes_in_free_space_and_refuses_where_something_pushes() -> Non
     told: list[Pose] = []
     cell.on_tare = told.append
     assert cell.tare(max_reading_n=2.0) is True
-    assert getattr(sensor, "zeroed", 0) == 1 and told == [robot.pose]
+    assert sensor.zeroed == 1 and told == [robot.pose]
     assert cell.tare(max_reading_n=2.0) is False
-    assert getattr(sensor, "zeroed", 0) == 1 and len(told) == 1
+    assert sensor.zeroed == 1 and len(told) == 1
     assert (cell.tares, cell.tares_refused) == (1, 1)
     assert robot.stops == 0
