@@ -253,12 +253,14 @@ def test_an_ended_but_unsaved_trial_is_rolled_back_before_outputs() -> None:
         run.traces.append(TrialTrace(mean_y_mm=[1.0], command_y_mm=[1.1], shift_mm=0.0))
         run.result.steps += 20
         run.result.last_log = TrialLog(i, "generalized")
+        run.map_shift_mm, run.tares = -0.1 * i, (i + 1, 0)
         if i < 2:
             run.mark_saved()
     run.result.switch_trial, run.result.switch_log = 2, run.result.last_log
     run.rollback_to_saved()
     assert len(run.result.records) == len(run.traces) == 2
     assert run.result.steps == 40 and run.result.last_log.index == 1
+    assert run.map_shift_mm == -0.1 and run.tares == (2, 0)  # the unsaved trial's are gone
     assert run.result.switch_trial is None and run.result.switch_log is None
 
 

@@ -90,8 +90,8 @@ class SurfaceRun:
     traces: list[TrialTrace] = dataclasses.field(default_factory=list)
     """Per trial: the Y commands and the map's wear shift."""
     wall_s: float = 0.0
-    saved: tuple[int, int, TrialLog | None] = (0, 0, None)
-    """(trials, steps, last log) as of the last checkpoint written."""
+    saved: tuple[int, int, TrialLog | None, float, tuple[int, int]] = (0, 0, None, 0.0, (0, 0))
+    """(trials, steps, last log, map shift, tares) as of the last checkpoint written."""
     probe: ProbeResult | None = None
     """The surface probe's readings and fits (None: no probe)."""
     output_map: OutputMapChoice | None = None
@@ -105,11 +105,12 @@ class SurfaceRun:
 
     def mark_saved(self) -> None:
         """Remember what the checkpoint on disk holds."""
-        self.saved = (len(self.result.records), self.result.steps, self.result.last_log)
+        self.saved = (len(self.result.records), self.result.steps, self.result.last_log,
+                      self.map_shift_mm, self.tares)
 
     def rollback_to_saved(self) -> None:
         """Forget a trial that ended but was not checkpointed (interrupted in between)."""
-        trials, steps, last_log = self.saved
+        trials, steps, last_log, self.map_shift_mm, self.tares = self.saved
         result = self.result
         del result.records[trials:]
         del self.traces[trials:]
