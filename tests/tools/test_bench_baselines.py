@@ -1,10 +1,12 @@
-"""``forcelearn bench baselines``: the per-step figure of the long run beyond the short one."""
+"""``forcelearn bench baselines``: the per-step figure of the trials after the first ones."""
 
 from __future__ import annotations
 
 import argparse
 import re
 
+import gymnasium
+import numpy as np
 import pytest
 
 from forcelearn.tools import bench_baselines
@@ -37,3 +39,30 @@ def test_bad_options_are_refused_before_any_run(overrides: dict[str, object]):
     """SAC, unknown methods and an empty trial range stop with a message that says why."""
     with pytest.raises(SystemExit, match="bench baselines"):
         bench_baselines.run(_args(**overrides))
+
+
+class _TwoStepEnv(gymnasium.Env[np.ndarray, np.ndarray]):
+    """A trial of two steps, the second one truncated."""
+
+    observation_space = gymnasium.spaces.Box(-1.0, 1.0, (1,))
+    action_space = gymnasium.spaces.Box(-1.0, 1.0, (1,))
+
+    def reset(self, *, seed=None, options=None):
+        self.t = 0
+        return np.zeros(1, dtype=np.float32), {}
+
+    def step(self, action):
+        self.t += 1
+        return np.zeros(1, dtype=np.float32), 0.0, False, self.t == 2, {}
+
+
+def test_the_timer_counts_only_the_steps_from_its_first_trial_on():
+    """Three two-step trials timed from trial 1: four steps, and a clock that ran."""
+    timer = bench_baselines.TrialTimer(_TwoStepEnv(), first=1)
+    for _ in range(3):
+        timer.reset()
+        truncated = False
+        while not truncated:
+            truncated = timer.step(np.zeros(1, dtype=np.float32))[3]
+    assert timer.steps == 4 and timer.trial == 2
+    assert timer.wall_s > 0 and timer.cpu_s >= 0

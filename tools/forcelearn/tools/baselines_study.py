@@ -28,6 +28,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import gymnasium
+
 from forcelearn.baselines.controllers import (
     ForceController,
     ForceControlParams,
@@ -90,17 +92,25 @@ def variant_config(variant: str, base: CellConfig | None = None) -> CellConfig:
 
 
 def run_baseline(
-    config: BaselinesConfig, seed: int
+    config: BaselinesConfig,
+    seed: int,
+    wrap: Callable[[gymnasium.Env[Any, Any]], gymnasium.Env[Any, Any]] | None = None,
 ) -> tuple[dict[str, Any], dict[str, list[float]]]:
-    """Run one method on one variant for one seed; return the summary and per-trial curves."""
+    """Run one method on one variant for one seed; return the summary and per-trial curves.
+
+    ``wrap``, if given, wraps the environment the method's trials run through
+    (under the recorder), e.g. to time them; the controllers still read the
+    bare environment's task figures.
+    """
     from forcelearn.tools.envs import SurfaceEnv
 
     cell = variant_config(config.variant)
     env = SurfaceEnv(cell, seed=seed)
+    trial_env = wrap(env) if wrap is not None else env
     started = time.perf_counter()
     try:
         if config.method == "sac":
-            recorder: TrialRecorder = run_sac(env, seed, config.trials, config.sac)[0]
+            recorder: TrialRecorder = run_sac(trial_env, seed, config.trials, config.sac)[0]
         else:
             factories: dict[str, Callable[[], Controller]] = {
                 "srv": lambda: SRVController(env, cell.learner, seed),
@@ -109,7 +119,7 @@ def run_baseline(
                 "cma": lambda: PathSearchController(env, seed, config.cma),
             }
             controller = factories[config.method]()
-            recorder = run_controller(env, controller, config.trials, seed)
+            recorder = run_controller(trial_env, controller, config.trials, seed)
     finally:
         env.close()
     wall_s = time.perf_counter() - started
