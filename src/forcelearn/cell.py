@@ -15,7 +15,8 @@ Safety, always on:
 * every reading goes through the sensor driver, whose watchdog raises
   ``SensorStale`` when samples stop;
 * :meth:`Cell.measure_force_n` raises :class:`~forcelearn.errors.ForceLimitExceeded`
-  when the filtered force, or any single sample, passes ``max_force_n``;
+  when the filtered normal force, or the force magnitude of any single sample,
+  passes ``max_force_n``, or a sample saturated the sensor;
 * any device error stops the robot (best effort) before it propagates.
 """
 
@@ -33,6 +34,9 @@ from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded
 from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
 
 log = logging.getLogger(__name__)
+
+AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+"""Names of the wrench components, in order."""
 
 SYNC_WINDOW = 16
 """Samples requested at once from a batch sensor (a real adapter's transmit queue is short)."""
@@ -53,7 +57,8 @@ class Cell:
         force_filter: the Kalman filter of the normal force (its config picks
             the axis and sign of the normal force); a move-aware filter is
             told of every move the cell makes.
-        max_force_n: normal force (N) above which motion stops and the trial fails.
+        max_force_n: force (N) above which motion stops and the trial fails: the
+            filtered normal force, or the force magnitude of any sample.
         samples_per_step: sensor samples read (and filtered) after each move.
         compensation: optional bias and tool-gravity compensation (calibration).
         move_timeout_s: longest wait (robot's time) for a move to be in position.
@@ -182,8 +187,7 @@ class Cell:
         else:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
         compensated = [self._compensated(raw) for raw in batch]
-        config = self.force_filter.config
-        peak = max(config.sign * float(s.wrench[config.axis]) for s in compensated)
+        self._check_samples(compensated)
         on_burst = getattr(self.force_filter, "on_burst", None)
         if on_burst is not None:
             on_burst(compensated)
@@ -191,13 +195,46 @@ class Cell:
             for sample in compensated:
                 self.force_filter.on_sample(sample)
         force = self.force_filter.force_n
-        if max(peak, force) > self.max_force_n:
+        if abs(force) > self.max_force_n:
             self.stop()
             raise ForceLimitExceeded(
-                f"contact force {max(peak, force):.2f} N passed safety.max_force_n = "
+                f"filtered normal force {force:.2f} N passed safety.max_force_n = "
                 f"{self.max_force_n} N; the robot was stopped"
             )
         return force
+
+    def _check_samples(self, samples: list[WrenchSample]) -> None:
+        """Stop on a sample whose force magnitude passes the limit, or that saturated.
+
+        The limit is on |(Fx, Fy, Fz)|, not on the signed normal force alone: a
+        wrong ``[filter] axis`` or ``sign`` must not let the robot press on unseen.
+        A saturated axis means the sensor cannot tell the force, so it stops too.
+        """
+        forces = np.array([s.wrench[:3] for s in samples], dtype=float)
+        magnitudes = np.sqrt(np.einsum("ij,ij->i", forces, forces))
+        worst = int(np.argmax(magnitudes))
+        magnitude = float(magnitudes[worst])
+        any_saturated = any(any(s.saturated) for s in samples)
+        if magnitude <= self.max_force_n and not any_saturated:
+            return
+        self.stop()
+        config = self.force_filter.config
+        saturated = [AXES[i] for i in range(6) if any(s.saturated[i] for s in samples)]
+        if saturated:
+            raise ForceLimitExceeded(
+                f"the sensor is near its full scale on {', '.join(saturated)} (force "
+                f"{magnitude:.2f} N): the force is not known; the robot was stopped"
+            )
+        normal = config.sign * float(samples[worst].wrench[config.axis])
+        hint = (
+            f"; only {normal:.2f} N of it is along the normal ([filter] axis = {config.axis}, "
+            f"sign = {config.sign:g}): check that axis and sign"
+            if normal < 0.5 * magnitude else ""
+        )
+        raise ForceLimitExceeded(
+            f"contact force {magnitude:.2f} N passed safety.max_force_n = "
+            f"{self.max_force_n} N{hint}; the robot was stopped"
+        )
 
     def tare(self, max_reading_n: float) -> bool:
         """Zero the sensor here (the tool at rest in free space); True if it was zeroed.

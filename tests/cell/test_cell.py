@@ -69,12 +69,16 @@ class FakeSensor:
         self.counter = 0
         self.stale = False
         self.zeroed = 0
+        self.samples: list[WrenchSample] = []
+        """Whole samples, returned before the scripted forces."""
 
     def read(self) -> WrenchSample:
         """Return the next scripted sample."""
         if self.stale:
             raise SensorStale("no sample")
         self.counter += 1
+        if self.samples:
+            return self.samples.pop(0)
         value = self.forces.pop(0) if self.forces else 0.0
         return WrenchSample(np.array([0.0, value, 0, 0, 0, 0]), 0.0, self.counter)
 
@@ -110,6 +114,27 @@ def test_a_single_sample_over_the_limit_stops_the_robot() -> None:
     """One spike above max_force_n is enough: ForceLimitExceeded, robot stopped."""
     cell, robot, _ = make_cell([10.0, 80.0, 10.0])
     with pytest.raises(ForceLimitExceeded, match="max_force_n"):
+        cell.measure_force_n()
+    assert robot.stops == 1
+
+
+@pytest.mark.parametrize("wrench", [[0.0, -80.0, 0, 0, 0, 0], [70.0, 5.0, 0, 0, 0, 0],
+                                    [0.0, 5.0, -70.0, 0, 0, 0]])
+def test_a_force_off_the_normal_or_against_its_sign_still_stops_the_robot(wrench: list[float]):
+    """The limit is on the force's magnitude: a wrong axis or sign cannot press on unseen."""
+    cell, robot, sensor = make_cell([10.0, 10.0, 10.0])
+    sensor.samples = [WrenchSample(np.array(wrench), 0.0, 1)]
+    with pytest.raises(ForceLimitExceeded, match="check that axis and sign"):
+        cell.measure_force_n()
+    assert robot.stops == 1
+
+
+def test_a_saturated_sample_stops_the_robot_whatever_it_reads() -> None:
+    """Near full scale the force is not known: a stop, naming the axis."""
+    cell, robot, sensor = make_cell([10.0, 10.0])
+    flags = (False, False, False, False, True, False)
+    sensor.samples = [WrenchSample(np.array([0.0, 10.0, 0, 0, 0, 0]), 0.0, 1, flags)]
+    with pytest.raises(ForceLimitExceeded, match="full scale on My"):
         cell.measure_force_n()
     assert robot.stops == 1
 

@@ -93,6 +93,21 @@ def test_link_config_and_limits_name_bad_values() -> None:
         Limits(workspace_min_mm=(0, 0, 10), workspace_max_mm=(1, 1, 10))
 
 
+@pytest.mark.parametrize("setting", [{"bytesize": 24}, {"bytesize": 9}, {"stopbits": 0},
+                                     {"stopbits": 3}, {"parity": "X"}])
+def test_serial_settings_pyserial_would_refuse_are_config_errors(setting: dict[str, object]):
+    """A byte size, stop bits or parity no UART has is named before the port is opened."""
+    with pytest.raises(ConfigError, match=next(iter(setting))):
+        LinkConfig(url="x", **setting)  # type: ignore[arg-type]
+
+
+def test_every_serial_setting_pyserial_takes_is_accepted():
+    """Each byte size and stop-bit count pyserial accepts passes the check."""
+    for bytesize in (5, 6, 7, 8):
+        for stopbits in (1, 1.5, 2):
+            LinkConfig(url="x", bytesize=bytesize, stopbits=stopbits)
+
+
 def test_a_non_finite_reported_position_cannot_bypass_the_step_limit(
     emulator, connect, monkeypatch
 ) -> None:

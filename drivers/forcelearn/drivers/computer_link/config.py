@@ -76,6 +76,12 @@ class LinkConfig:
             raise ConfigError(f"baudrate must be positive, got {self.baudrate}")
         if self.parity not in serial.PARITY_NAMES:
             raise ConfigError(f"parity must be one of {sorted(serial.PARITY_NAMES)}")
+        if self.bytesize not in serial.Serial.BYTESIZES:
+            raise ConfigError(f"bytesize must be one of {list(serial.Serial.BYTESIZES)} bits, "
+                              f"got {self.bytesize!r}")
+        if self.stopbits not in serial.Serial.STOPBITS:
+            raise ConfigError(f"stopbits must be one of {list(serial.Serial.STOPBITS)}, "
+                              f"got {self.stopbits!r}")
         for name in ("ack_timeout_s", "reply_timeout_s"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
