@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from forcelearn.emulators.physics.sponge import stiffness_n_per_mm, surface_y_mm
+from forcelearn.errors import ForceLimitExceeded
 from forcelearn.tasks.surface import WEAR_GAIN, SurfaceTaskSpec, SurfaceYOutput
 from forcelearn.tasks.surface_probe import (
     ContactFit,
@@ -133,6 +134,31 @@ def test_no_surface_in_reach_is_a_probe_error() -> None:
         )
         with pytest.raises(ProbeError, match="no contact between"):
             probe.run()
+
+
+def test_an_unzeroed_sensor_at_the_retract_plane_is_named_as_a_possible_bias() -> None:
+    """The emulated JR3's 2 N bias, left in, reads like a touch: the message says both."""
+    config = load_cell_config()
+    config = replace(config, sensor=replace(config.sensor, zero_on_init=False))
+    with CellSession(config, seed=0) as session:
+        assert session.cell is not None
+        probe = SurfaceProbe(session.cell, config.task, ProbeSpec(points=(0.0,)), 10.0, -60.0)
+        with pytest.raises(ProbeError, match=r"already in contact.*sensor reads a bias"):
+            probe.run()
+
+
+def test_a_wrong_filter_sign_stops_the_probe_at_the_force_limit() -> None:
+    """Pressing harder reads more negative: the magnitude limit stops it, naming the sign."""
+    config = load_cell_config()
+    config = replace(config, filter=replace(config.filter, sign=1.0))
+    with CellSession(config, seed=0) as session:
+        assert session.cell is not None
+        probe = SurfaceProbe(session.cell, config.task, ProbeSpec(points=(0.0,)), 10.0, -60.0)
+        with pytest.raises(ForceLimitExceeded, match="check that axis and sign"):
+            probe.run()
+        assert session.physics is not None
+        true_force = session.physics.true_wrench()[:3]
+        assert np.linalg.norm(true_force) < 1.2 * config.safety.max_force_n
 
 
 def test_safety_defaults_leave_room_for_the_probe() -> None:

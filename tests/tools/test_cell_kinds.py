@@ -99,6 +99,13 @@ def test_errors_name_the_key(tmp_path: Path, text: str, named: str) -> None:
         load_cell_config(write(tmp_path, text))
 
 
+def test_an_rdt_rate_the_emulated_box_cannot_stream_is_a_config_error(tmp_path: Path) -> None:
+    """A real box may report any rate; the emulated one refuses, naming the key, before a run."""
+    config = load_cell_config(write(tmp_path, '[sensor]\nkind = "netft"\nrdt_rate_hz = 14000\n'))
+    with pytest.raises(ConfigError, match=r"sensor\.rdt_rate_hz = 14000"):
+        CellSession(config, seed=0)
+
+
 def test_emulated_egm_and_netft_share_one_arm_clock_and_physics() -> None:
     """EGM moves the shared arm the Net F/T emulator samples, on one clock."""
     config = load_cell_config(EXAMPLES / "egm-netft-cell.toml")

@@ -427,27 +427,23 @@ class SurfaceProbe:
         if baseline > spec.contact_force_n:
             raise ProbeError(
                 f"force {baseline:.2f} N at the retract plane (task.retract_y_mm = {top:g} mm, "
-                f"z = {z:g} mm): the tool is already in contact; raise task.retract_y_mm"
+                f"z = {z:g} mm): the tool is already in contact; raise task.retract_y_mm. "
+                "If nothing touches it, the sensor reads a bias: zero it in free space "
+                "(sensor.zero_on_init = true, or a calibration file)"
             )
         y = top
-        lowest = 0.0
         while True:  # approach
             y -= spec.approach_step_mm
             if y < floor:
-                fell = (
-                    f"; it fell to {lowest:.1f} N instead, as a wrong [filter] sign would make it"
-                    if lowest < -spec.contact_force_n else ""
-                )
                 raise ProbeError(
                     f"no contact between y = {top:g} and {floor:g} mm at z = {z:g} mm "
-                    f"(force stayed under {spec.contact_force_n:g} N above the baseline{fell}): "
+                    f"(force stayed under {spec.contact_force_n:g} N above the baseline): "
                     "check task.start_mm and task.retract_y_mm against where the surface is, "
                     "and [filter] axis and sign (the normal force is the sensor's component "
                     "axis times sign)"
                 )
             cell.move_in_steps(self._pose(x, y, z), self.max_step_mm, guard_force=True)
             early = cell.measure_force_n() - baseline
-            lowest = min(lowest, early)
             if early > spec.contact_force_n:
                 break
             self._record(index, z, y, "approach", early, early)

@@ -35,10 +35,14 @@ from forcelearn.emulators.egm import (
     egm_motion_params,
     start_emulated_egm,
 )
-from forcelearn.emulators.netft.server import NetFtEmulator, start_emulated_netft
+from forcelearn.emulators.netft.server import (
+    MAX_RDT_RATE_HZ,
+    NetFtEmulator,
+    start_emulated_netft,
+)
 from forcelearn.emulators.physics.arm_motion import ArmMotion
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.errors import ForcelearnError
+from forcelearn.errors import ConfigError, ForcelearnError
 from forcelearn.tools.cell_config import CellConfig
 
 log = logging.getLogger(__name__)
@@ -149,6 +153,11 @@ def open_netft(
         assert physics is not None
         options: dict[str, Any] = {"rdt_port": 0, "tcp_port": 0, "model": config.emulator.netft}
         if sensor.rdt_rate_hz is not None:
+            if sensor.rdt_rate_hz > MAX_RDT_RATE_HZ:
+                raise ConfigError(
+                    f"[sensor] sensor.rdt_rate_hz = {sensor.rdt_rate_hz:g}: the emulated box "
+                    f"streams at most {MAX_RDT_RATE_HZ:g} records/s"
+                )
             options["rdt_rate_hz"] = sensor.rdt_rate_hz
         emulator = start_emulated_netft(physics, physics.clock, seed, **options)
         ports = emulator.ports

@@ -59,6 +59,8 @@ log = logging.getLogger(__name__)
 
 HOST = "127.0.0.1"
 DEFAULT_RDT_RATE_HZ = 7000.0
+MAX_RDT_RATE_HZ = 10_000.0
+"""Fastest RDT rate the emulated box streams at, records/s."""
 """The Net F/T's maximum RDT output rate (manual §10: "up to 7000 Hz"); the factory
 setting of a given box may be lower: ``forcelearn check`` prints the box's ``comrdtrate``."""
 POLL_S = 0.02
@@ -179,8 +181,8 @@ class NetFtEmulator(Emulator):
         records_hook: RecordsHook | None = None,
         on_send: Callable[[Record], None] | None = None,
     ) -> None:
-        if not 0 < rdt_rate_hz <= 10_000:
-            raise ValueError(f"rdt_rate_hz={rdt_rate_hz} must be in (0, 10000]")
+        if not 0 < rdt_rate_hz <= MAX_RDT_RATE_HZ:
+            raise ValueError(f"rdt_rate_hz={rdt_rate_hz} must be in (0, {MAX_RDT_RATE_HZ:g}]")
         self.physics = physics
         self.clock = clock or SimClock()
         self.params = model or NetFtModelParams()
