@@ -30,13 +30,16 @@ from typing import ParamSpec, TypeVar
 import numpy as np
 
 from forcelearn.devices import BatchForceSensor, ForceSensor, Pose, Robot, WrenchSample
-from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded
+from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded, InvalidTarget
 from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
 
 log = logging.getLogger(__name__)
 
 AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 """Names of the wrench components, in order."""
+
+MAX_STEPS_PER_MOVE = 10_000
+"""Most steps one move is cut into (a tiny step limit would otherwise never arrive)."""
 
 SYNC_WINDOW = 16
 """Samples requested at once from a batch sensor (a real adapter's transmit queue is short)."""
@@ -154,6 +157,12 @@ class Cell:
         if distance == 0.0 and target.quaternion == start.quaternion:
             return 0  # already there: send nothing
         count = max(1, math.ceil(distance / (0.99 * max_step_mm)))
+        if count > MAX_STEPS_PER_MOVE:
+            raise InvalidTarget(
+                f"a move of {distance:.1f} mm in steps of at most {max_step_mm:g} mm "
+                f"(safety.max_step_mm) would take {count} steps, more than "
+                f"{MAX_STEPS_PER_MOVE}: raise safety.max_step_mm; nothing was sent"
+            )
         for i in range(1, count + 1):
             f = i / count
             self.move_to(

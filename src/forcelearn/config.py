@@ -5,12 +5,17 @@ from __future__ import annotations
 import dataclasses
 import os
 import tomllib
+import types
+import typing
 from collections.abc import Mapping
 from typing import Any, TypeVar
 
 from forcelearn.errors import ConfigError
 
 T = TypeVar("T")
+
+MAX_DURATION_S = 86_400.0
+"""Longest time (s) any ``*_s`` setting may be: longer ones overflow the OS's timers."""
 
 
 def read_toml(path: str | os.PathLike[str]) -> dict[str, Any]:
@@ -43,16 +48,91 @@ def build(cls: type[T], table: Mapping[str, Any] | None, section: str) -> T:
             f"unknown key(s) {', '.join(f'{section}.{k}' for k in unknown)}; "
             f"known keys of [{section}]: {', '.join(sorted(known))}"
         )
+    hints = _hints(cls)
     for key, value in table.items():
         if isinstance(value, list):
             table[key] = _tuples(value)
         _check_value(f"{section}.{key}", table[key], _default_of(known[key]))
+        if key.endswith("_s") and _is_number(table[key]) and not abs(table[key]) <= MAX_DURATION_S:
+            raise ConfigError(f"{section}.{key} = {table[key]!r}: a time of at most "
+                              f"{MAX_DURATION_S:g} s (a day)")
+        if key in hints and _matches(table[key], hints[key]) is False:
+            raise ConfigError(
+                f"{section}.{key} = {table[key]!r}: must be {_describe(hints[key])}"
+            )
     try:
         return cls(**table)
     except ConfigError as exc:
         raise ConfigError(f"[{section}] {exc}") from exc
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"[{section}] invalid value: {exc}") from exc
+
+
+def _hints(cls: type[Any]) -> dict[str, Any]:
+    """The resolved annotations of ``cls``'s fields ({} where they cannot be resolved)."""
+    try:
+        return typing.get_type_hints(cls)
+    except (NameError, TypeError):
+        return {}
+
+
+_SIMPLE = {
+    bool: lambda v: isinstance(v, bool),
+    int: lambda v: isinstance(v, int) and not isinstance(v, bool),
+    float: lambda v: _is_number(v),
+    str: lambda v: isinstance(v, str),
+    type(None): lambda v: v is None,
+}
+
+
+def _matches(value: Any, hint: Any) -> bool | None:
+    """Whether a TOML value fits a field's annotation; None where it cannot be told here.
+
+    Only plain types, their unions and tuples are checked; Literal values and
+    ranges are the dataclasses' own checks (with their own messages).
+    """
+    if hint in _SIMPLE:
+        return bool(_SIMPLE[hint](value))
+    origin = typing.get_origin(hint)
+    if origin in (typing.Union, types.UnionType):
+        verdicts = [_matches(value, arg) for arg in typing.get_args(hint)]
+        if any(v is True for v in verdicts):
+            return True
+        return False if all(v is False for v in verdicts) else None
+    if origin is tuple:
+        if not isinstance(value, tuple):
+            return False
+        args = typing.get_args(hint)
+        if len(args) == 2 and args[1] is Ellipsis:
+            items = [_matches(item, args[0]) for item in value]
+        elif args:
+            if len(value) != len(args):
+                return False
+            items = [_matches(item, arg) for item, arg in zip(value, args, strict=True)]
+        else:
+            return True
+        if any(v is False for v in items):
+            return False
+        return True if all(v is True for v in items) else None
+    return None
+
+
+def _describe(hint: Any) -> str:
+    """A field's annotation in words: 'a number', 'true or false', 'a number or unset'..."""
+    words = {bool: "true or false", int: "a whole number", float: "a number", str: "text",
+             type(None): "unset"}
+    if hint in words:
+        return words[hint]
+    if typing.get_origin(hint) is tuple:
+        args = typing.get_args(hint)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"a list, each item {_describe(args[0])}"
+        if args:
+            return f"a list of {len(args)}: " + ", ".join(_describe(arg) for arg in args)
+        return "a list"
+    if typing.get_origin(hint) in (typing.Union, types.UnionType):
+        return " or ".join(_describe(arg) for arg in typing.get_args(hint))
+    return str(hint)
 
 
 def _default_of(f: dataclasses.Field[Any]) -> Any:

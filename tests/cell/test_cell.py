@@ -10,6 +10,7 @@ from forcelearn.devices import Pose, WrenchSample
 from forcelearn.errors import (
     ConfigError,
     ForceLimitExceeded,
+    InvalidTarget,
     LinkTimeout,
     NotInPosition,
     SensorStale,
@@ -182,6 +183,15 @@ def test_guarded_long_moves_check_the_force_after_every_intermediate_step() -> N
         cell.move_in_steps(Pose(0.0, -40.0, 0.0), max_step_mm=10.0, guard_force=True)
     assert len(robot.moves) == 3  # stopped after the third step, never reached the target
     assert robot.stops == 1
+
+
+def test_a_move_that_would_take_too_many_steps_is_refused_before_any_is_sent() -> None:
+    """A step limit of a micrometre would cut 10 mm into 10,102 steps: InvalidTarget, no move."""
+    cell, robot, _ = make_cell([])
+    with pytest.raises(InvalidTarget, match=r"raise safety\.max_step_mm"):
+        cell.move_in_steps(Pose(10.0, 0.0, 0.0), 1e-3)
+    assert robot.moves == []
+    assert cell.move_in_steps(Pose(10.0, 0.0, 0.0), 1e-2) == 1011  # under the ceiling: moves
 
 
 def test_a_move_to_where_the_robot_already_is_sends_nothing() -> None:

@@ -72,6 +72,16 @@ def test_a_wild_sample_in_a_burst_is_left_out_and_counted() -> None:
     assert kf.outliers == 1
 
 
+def test_a_gate_narrower_than_the_samples_spacing_keeps_the_middle_sample() -> None:
+    """A variance far under the real noise (a config slip) gates all but one: no crash."""
+    config = ForceFilterConfig(noise_cutoff_hz=0.0, axis=1, sign=1.0,
+                               measurement_variance_n2=1e-12)
+    kf = MoveAwareForceFilter(config)
+    estimate = kf.on_burst(samples([19.0, 19.4, 20.0, 20.6]))
+    assert estimate in (19.4, 20.0)
+    assert kf.outliers == 3
+
+
 def test_sign_and_axis_pick_the_normal_force() -> None:
     """Sign -1 on Fy: pressing harder (more negative Fy) reads larger."""
     kf = MoveAwareForceFilter(ForceFilterConfig(axis=1, sign=-1.0))

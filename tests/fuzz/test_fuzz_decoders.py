@@ -83,6 +83,18 @@ def test_damaged_configs_raise_only_config_errors(
     fuzz.check_file(case, fuzz.apply_mutations(case.good, edits))
 
 
+@settings(max_examples=150, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(which=st.integers(0, 100), seed=st.integers(0, 2**32))
+def test_configs_with_odd_values_raise_only_config_errors(
+    cases: dict[str, fuzz.FileCase], which: int, seed: int
+) -> None:
+    """Settings of another type, length or size (NaN, inf, a table...): ConfigError or a value."""
+    configs = [c for name, c in cases.items() if name.startswith("config-")]
+    case = configs[which % len(configs)]
+    fuzz.check_file(case, fuzz.value_mutant(random.Random(seed), case.good))
+
+
 @settings(max_examples=100, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(at=st.integers(0, 1 << 20), digit=st.integers(0, 9))

@@ -99,3 +99,34 @@ def test_a_bad_home_pose_is_an_error_naming_the_key(tmp_path: Path, text: str) -
     path.write_text(text)
     with pytest.raises(ConfigError, match=r"emulator\.arm\.home"):
         load_cell_config(path)
+
+
+@pytest.mark.parametrize(
+    ("text", "named"),
+    [
+        ("[emulator.sensor]\nemulate_filter = 1\n", r"emulator\.sensor\.emulate_filter = 1: "
+                                                     "must be true or false"),
+        ("[safety]\nworkspace_min_mm = [700.0, -60.0]\n",
+         r"safety\.workspace_min_mm = \(700\.0, -60\.0\): must be a list of 3"),
+        ("[task]\ntolerance_n = \"5\"\n", r"task\.tolerance_n = '5': must be a number or unset"),
+        ("[robot]\nbaudrate = 9600.5\n", r"robot\.baudrate = 9600\.5: must be a whole number"),
+        ("[emulator.arm]\njoint_limits_deg = [[0, 1], [0, 1, 2]]\n",
+         r"emulator\.arm\.joint_limits_deg"),
+        ("[calibration]\nfile = 3\n", r"calibration\.file = 3"),
+        ("[emulator.arm]\nforearm_mm = 0.0\n", "forearm_mm must be a finite length > 0"),
+        ("[sensor]\ncutoff_hz = inf\n", r"cutoff_hz=inf is outside"),
+        ("[sensor]\nack_timeout_s = 1e12\n",
+         r"sensor\.ack_timeout_s = 1000000000000\.0: a time of at most"),
+        ("[emulator.sensor]\nnoise_std = [inf, 0.2, 0.2, 0.02, 0.02, 0.02]\n",
+         "noise_std must be finite"),
+        ("[safety]\nworkspace_max_mm = [1100.0, 60.0, inf]\n", "must be 3 finite numbers"),
+    ],
+)
+def test_a_value_of_the_wrong_type_length_or_size_names_the_key(
+    tmp_path: Path, text: str, named: str
+) -> None:
+    """Each setting is checked against its annotation (type, list length) before it is used."""
+    path = tmp_path / "cell.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=named):
+        load_cell_config(path)

@@ -151,7 +151,10 @@ class MoveAwareForceFilter:
             raise ValueError("a burst needs at least one sample")
         with self._lock:
             gate = config.jump_gate_sigma * math.sqrt(self._variance_n2)
-            keep = np.abs(values - np.median(values)) <= gate
+            distance = np.abs(values - np.median(values))
+            keep = distance <= gate
+            if not keep.any():  # a gate narrower than the samples' spacing: the middle one
+                keep[int(np.argmin(distance))] = True
             self.outliers += int(len(values) - keep.sum())
             mean, factor = burst_mean(values[keep], self.noise_correlation)
             self._kf.update(np.array([[mean]]), R=np.array([[self._variance_n2 * factor]]))

@@ -119,7 +119,8 @@ class SafetyLimits:
     """
 
     max_force_n: float = 60.0
-    """Largest normal force before the cell retracts (3 x the §5 target)."""
+    """Largest force before the cell retracts (3 x the §5 target): the filtered normal
+    force, and the magnitude of every sample's (Fx, Fy, Fz)."""
     max_step_mm: float = 10.0
     workspace_min_mm: tuple[float, float, float] = (700.0, -60.0, -130.0)
     workspace_max_mm: tuple[float, float, float] = (1100.0, 60.0, 700.0)
@@ -138,8 +139,9 @@ class SafetyLimits:
                 )
         for name in ("workspace_min_mm", "workspace_max_mm"):
             corner = getattr(self, name)
-            if len(corner) != 3:
-                raise ConfigError(f"safety.{name} = {corner!r}: must be 3 numbers (x, y, z), mm")
+            if len(corner) != 3 or not all(math.isfinite(v) for v in corner):
+                raise ConfigError(f"safety.{name} = {corner!r}: must be 3 finite numbers "
+                                  "(x, y, z), mm; the workspace cannot be switched off")
         Limits(self.workspace_min_mm, self.workspace_max_mm, self.max_step_mm)
 
 
@@ -336,7 +338,10 @@ def _load_robot(table: dict[str, Any], limits: Limits) -> LinkConfig | EgmConfig
         return replace(build(LinkConfig, table, "robot"), limits=limits)
     table.setdefault("host", EMULATED)
     if "max_speed_mm_s" in table:  # EGM's ramp-speed ceiling is a robot key, not a [safety] one
-        limits = replace(limits, max_speed_mm_s=table.pop("max_speed_mm_s"))
+        speed = table.pop("max_speed_mm_s")
+        if not (isinstance(speed, int | float) and not isinstance(speed, bool)):
+            raise ConfigError(f"[robot] robot.max_speed_mm_s = {speed!r}: must be a number, mm/s")
+        limits = replace(limits, max_speed_mm_s=speed)
     return build(EgmConfig, {**table, "limits": limits}, "robot")
 
 
@@ -430,6 +435,9 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         raise ConfigError("[calibration] takes one key, file")
     calibration_file = None
     if "file" in calibration:
+        if not isinstance(calibration["file"], str) or not calibration["file"]:
+            raise ConfigError(f"calibration.file = {calibration['file']!r}: the path of a "
+                              "calibration file written by forcelearn calibrate")
         calibration_file = Path(calibration["file"])
         if not calibration_file.is_absolute() and path is not None:
             calibration_file = Path(path).parent / calibration_file

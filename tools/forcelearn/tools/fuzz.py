@@ -24,6 +24,10 @@ calibration    a calibration file, mutated; ``load_calibration`` gives
 config         the example cell configs, mutated; ``read_toml`` and
                ``load_cell_config`` give ConfigError or a value (configs carry
                no digest, so only the first property is checked)
+values         the example cell configs, parsed, with one to three settings
+               replaced by an odd value (another type, a table, NaN, inf,
+               zero, a sign flip, a huge number); ``load_cell_config`` gives
+               ConfigError or a value
 =============  ==============================================================
 
 The hypothesis tests in ``tests/fuzz`` call the same ``check_*`` functions on
@@ -376,6 +380,49 @@ def config_case(folder: Path, example: Path) -> FileCase:
                     lambda a, b: True, ConfigError, compare=False)
 
 
+ODD_VALUES: tuple[object, ...] = ("", "nonsense", [], [1, 2], {"a": 1}, True, False, 0, -1,
+                                 0.0, 1e-12, 1e12, -1e12, float("nan"), float("inf"),
+                                 float("-inf"), 2**63 - 1)
+"""Replacement values of the ``values`` target (besides scaled copies of the setting's own)."""
+
+
+def _config_leaves(table: dict[str, Any], path: tuple[str, ...] = ()) -> list[tuple[str, ...]]:
+    leaves: list[tuple[str, ...]] = []
+    for key, value in table.items():
+        if isinstance(value, dict):
+            leaves.extend(_config_leaves(value, (*path, key)))
+        else:
+            leaves.append((*path, key))
+    return leaves
+
+
+def odd_value(rng: random.Random, value: object) -> object:
+    """An odd replacement for a setting: one of :data:`ODD_VALUES`, or its own value scaled."""
+    if isinstance(value, int | float) and not isinstance(value, bool) and rng.random() < 0.4:
+        scaled = value * rng.choice((-1, 0, 0.1, 10, 1000)) if value else rng.choice((-1, 1e6))
+        return int(scaled) if isinstance(value, int) else float(scaled)
+    if isinstance(value, list) and value and rng.random() < 0.4:
+        items = list(value)
+        items[rng.randrange(len(items))] = odd_value(rng, items[0])
+        return items if rng.random() < 0.7 else items[:-1]
+    return rng.choice(ODD_VALUES)
+
+
+def value_mutant(rng: random.Random, good: bytes) -> bytes:
+    """A parsed config with one to three settings replaced by :func:`odd_value`, as TOML."""
+    import tomllib
+
+    import tomli_w
+
+    data = tomllib.loads(good.decode())
+    for path in rng.sample(_config_leaves(data), rng.randint(1, 3)):
+        table = data
+        for key in path[:-1]:
+            table = table[key]
+        table[path[-1]] = odd_value(rng, table[path[-1]])
+    return tomli_w.dumps(data).encode()
+
+
 def file_mutations(rng: random.Random, case: FileCase) -> list[Mutation]:
     """Mutations for a file: for text files, digit changes are frequent."""
     mutations = random_mutations(rng, 3)
@@ -428,6 +475,11 @@ def run(
                 for _ in range(inputs):
                     frames = random_can_frames(rng)
                     tally.add(functools.partial(check_can, frames))
+            elif target == "values":
+                value_cases = [config_case(folder, e) for e in examples]
+                for i in range(inputs):
+                    case = value_cases[i % len(value_cases)]
+                    tally.add(functools.partial(check_file, case, value_mutant(rng, case.good)))
             else:
                 cases = {"state": lambda: [state_case(folder)],
                          "calibration": lambda: [calibration_case(folder)],
@@ -444,7 +496,7 @@ def run(
     return tallies
 
 
-TARGETS = ("link", "can", "state", "calibration", "config")
+TARGETS = ("link", "can", "state", "calibration", "config", "values")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -456,7 +508,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--examples", type=Path, nargs="*",
                         default=sorted(Path("examples").glob("*.toml")),
-                        help="cell configs to mutate for the config target")
+                        help="cell configs to mutate for the config and values targets")
     args = parser.parse_args(argv)
     logging.getLogger("forcelearn").setLevel(logging.CRITICAL)  # damaged input is expected here
     unknown = sorted(set(args.targets) - set(TARGETS))

@@ -235,7 +235,7 @@ class ComputerLinkRobot:
         if not np.all(np.isfinite(position)) or np.any(position < low) or np.any(position > high):
             raise SafetyStop(
                 f"refused target {np.round(position, 3).tolist()} mm: outside the workspace box "
-                f"{list(low)}..{list(high)} (limits.workspace_*_mm); nothing was sent"
+                f"{low.tolist()}..{high.tolist()} (limits.workspace_*_mm); nothing was sent"
             )
         step = float(np.linalg.norm(position - self._reference_locked().position_mm))
         if not step <= limits.max_step_mm:  # NaN (a non-finite reported pose) is refused too

@@ -78,11 +78,15 @@ class SensorModelParams:
         for name in ("full_scales", "noise_std", "initial_bias", "bias_drift_per_sqrt_s"):
             if len(getattr(self, name)) != 6:
                 raise ValueError(f"sensor model {name} needs 6 values (Fx..Mz)")
+            if not all(math.isfinite(v) for v in getattr(self, name)):
+                raise ValueError(f"sensor model {name} must be finite")
         if any(fs <= 0 or fs * 10 > 0xFFFF for fs in self.full_scales):
             raise ValueError("sensor model full_scales must be > 0 and fit the adapter's uint16")
         if min(self.noise_std) < 0 or min(self.bias_drift_per_sqrt_s) < 0:
             raise ValueError("sensor model noise_std and bias_drift_per_sqrt_s must be >= 0")
-        if self.zero_average_samples < 1 or self.sync_sample_period_s <= 0:
+        if self.zero_average_samples < 1 or not (
+            math.isfinite(self.sync_sample_period_s) and self.sync_sample_period_s > 0
+        ):
             raise ValueError("sensor model zero_average_samples >= 1, sync_sample_period_s > 0")
 
 

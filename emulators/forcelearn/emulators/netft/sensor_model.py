@@ -70,9 +70,11 @@ class NetFtModelParams:
         for name in ("ranges", "noise_std", "initial_bias", "bias_drift_per_sqrt_s"):
             if len(getattr(self, name)) != 6:
                 raise ValueError(f"netft model {name} needs 6 values (Fx..Tz)")
+            if not all(math.isfinite(v) for v in getattr(self, name)):
+                raise ValueError(f"netft model {name} must be finite")
         if self.force_unit not in FORCE_UNIT_SI or self.torque_unit not in TORQUE_UNIT_SI:
             raise ValueError(f"netft model units {self.force_unit!r}/{self.torque_unit!r} unknown")
-        if self.counts_per_force < 1 or self.counts_per_torque < 1:
+        if not (1 <= self.counts_per_force < math.inf and 1 <= self.counts_per_torque < math.inf):
             raise ValueError("netft model counts per unit must be >= 1")
         if min(self.ranges) <= 0 or not 0 < self.saturation_fraction <= 2:
             raise ValueError("netft model ranges > 0, saturation_fraction in (0, 2]")

@@ -84,6 +84,12 @@ class ArmConfig:
             raise ValueError("reply_latency_s must be >= 0")
         if len(self.joint_limits_deg) != 6:
             raise ValueError("joint_limits_deg needs six (low, high) pairs")
+        for name in ("upper_arm_mm", "forearm_mm"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite length > 0 mm, got {value!r}")
+        if not math.isfinite(self.shoulder_height_mm):
+            raise ValueError(f"shoulder_height_mm must be finite, got {self.shoulder_height_mm!r}")
         self.motion_params()  # validates the motion settings
 
     def motion_params(self) -> MotionParams:

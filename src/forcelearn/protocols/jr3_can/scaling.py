@@ -8,6 +8,8 @@ N*m (``FS_dNm / 10``) so that one formula serves all six axes.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 # Re-exported (explicitly, `X as X`): the check lives in the core.
@@ -62,6 +64,8 @@ def wrench_to_counts(wrench: np.ndarray, full_scales: np.ndarray) -> np.ndarray:
 
 def cutoff_to_wire(cutoff_hz: float) -> int:
     """Return a cut-off in Hz as the adapter's uint16 in 0.01 Hz (0.01..655.35 Hz)."""
+    if not math.isfinite(cutoff_hz):
+        raise ValueError(f"cutoff_hz={cutoff_hz} is outside 0.01..655.35 Hz")
     value = round(cutoff_hz * 100)
     if not 1 <= value <= 0xFFFF:
         raise ValueError(f"cutoff_hz={cutoff_hz} is outside 0.01..655.35 Hz")
