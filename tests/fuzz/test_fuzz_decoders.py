@@ -106,3 +106,10 @@ def test_calibration_digit_changes_never_load_a_different_value(
     digits = [i for i, b in enumerate(case.good) if 0x30 <= b <= 0x39]
     fuzz.check_file(case, fuzz.apply_mutations(case.good, [(1, digits[at % len(digits)],
                                                             0x30 + digit)]))
+
+
+def test_a_fuzzed_run_that_stops_with_forcelearns_message_counts_as_stopped(tmp_path: Path):
+    """The runs target's check: a wrong [filter] sign stops at the probe's first press."""
+    config = tmp_path / "cell.toml"
+    config.write_text("[filter]\nsign = 1.0\n")
+    assert fuzz.check_run(config, tmp_path / "run") == "stopped"

@@ -28,6 +28,10 @@ values         the example cell configs, parsed, with one to three settings
                replaced by an odd value (another type, a table, NaN, inf,
                zero, a sign flip, a huge number); ``load_cell_config`` gives
                ConfigError or a value
+runs           ``values`` mutants that load, each run for 2 trials in its own
+               process (``forcelearn run``, 180 s timeout): it ends, or stops
+               with forcelearn's one-line message, never a traceback or a hang
+               (not in the default targets: about 5 s an input)
 =============  ==============================================================
 
 The hypothesis tests in ``tests/fuzz`` call the same ``check_*`` functions on
@@ -423,6 +427,56 @@ def value_mutant(rng: random.Random, good: bytes) -> bytes:
     return tomli_w.dumps(data).encode()
 
 
+RUN_TIMEOUT_S = 180.0
+"""Longest a fuzzed 2-trial run may take before it counts as hung."""
+
+
+def loading_value_mutant(rng: random.Random, good: bytes, folder: Path) -> Path:
+    """Write a :func:`value_mutant` of ``good`` that ``load_cell_config`` accepts; its path."""
+    from forcelearn.errors import ConfigError
+    from forcelearn.tools.cell_config import load_cell_config
+
+    path = folder / "run-cell.toml"
+    while True:
+        path.write_bytes(value_mutant(rng, good))
+        try:
+            load_cell_config(path)
+            return path
+        except ConfigError:
+            continue
+
+
+def _emulated(example: Path) -> bool:
+    """Whether a config runs on the built-in emulated cell (robot and sensor)."""
+    from forcelearn.errors import ConfigError
+    from forcelearn.tools.cell_config import load_cell_config
+
+    try:
+        config = load_cell_config(example)
+    except ConfigError:
+        return False
+    return config.robot_emulated and config.sensor_emulated
+
+
+def check_run(config: Path, out: Path) -> str:
+    """``forcelearn run`` of 2 trials in a child process: "ran", "stopped", or a FuzzFailure."""
+    import shutil
+    import subprocess
+
+    shutil.rmtree(out, ignore_errors=True)
+    command = [sys.executable, "-m", "forcelearn.tools.cli", "run", "--config", str(config),
+               "--trials", "2", "--no-progress", "--out", str(out)]
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, timeout=RUN_TIMEOUT_S)
+    except subprocess.TimeoutExpired as exc:
+        raise FuzzFailure(f"a run of {config.name} raised a hang: no end within "
+                          f"{RUN_TIMEOUT_S:g} s") from exc
+    last = (done.stderr.strip().splitlines() or [""])[-1]
+    if "Traceback" in done.stderr or done.returncode not in (0, 1, 3):
+        raise FuzzFailure(f"a run of {config.name} raised exit {done.returncode}: {last}")
+    return "ran" if done.returncode in (0, 3) else "stopped"
+
+
 def file_mutations(rng: random.Random, case: FileCase) -> list[Mutation]:
     """Mutations for a file: for text files, digit changes are frequent."""
     mutations = random_mutations(rng, 3)
@@ -480,6 +534,11 @@ def run(
                 for i in range(inputs):
                     case = value_cases[i % len(value_cases)]
                     tally.add(functools.partial(check_file, case, value_mutant(rng, case.good)))
+            elif target == "runs":
+                goods = [e.read_bytes() for e in examples if _emulated(e)]
+                for i in range(inputs):
+                    config = loading_value_mutant(rng, goods[i % len(goods)], folder)
+                    tally.add(functools.partial(check_run, config, folder / "run"))
             else:
                 cases = {"state": lambda: [state_case(folder)],
                          "calibration": lambda: [calibration_case(folder)],
@@ -497,23 +556,26 @@ def run(
 
 
 TARGETS = ("link", "can", "state", "calibration", "config", "values")
+"""The default targets; ``runs`` is named on its own (it runs the cell)."""
+ALL_TARGETS = (*TARGETS, "runs")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: ``python -m forcelearn.tools.fuzz [--inputs N] [--seed S] [TARGET...]``."""
     parser = argparse.ArgumentParser(prog="python -m forcelearn.tools.fuzz",
                                      description=__doc__.splitlines()[0])
-    parser.add_argument("targets", nargs="*", help=f"any of {', '.join(TARGETS)} (default all)")
+    parser.add_argument("targets", nargs="*", help=f"any of {', '.join(ALL_TARGETS)} "
+                        f"(default: all but runs)")
     parser.add_argument("--inputs", type=int, default=100_000, help="inputs per target")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--examples", type=Path, nargs="*",
                         default=sorted(Path("examples").glob("*.toml")),
-                        help="cell configs to mutate for the config and values targets")
+                        help="cell configs to mutate (config, values and runs targets)")
     args = parser.parse_args(argv)
     logging.getLogger("forcelearn").setLevel(logging.CRITICAL)  # damaged input is expected here
-    unknown = sorted(set(args.targets) - set(TARGETS))
+    unknown = sorted(set(args.targets) - set(ALL_TARGETS))
     if unknown:
-        parser.error(f"unknown target(s) {unknown}; known: {', '.join(TARGETS)}")
+        parser.error(f"unknown target(s) {unknown}; known: {', '.join(ALL_TARGETS)}")
     tallies = run(args.targets or TARGETS, args.inputs, args.seed, args.examples)
     bad = sum(t.outcomes["foreign exception"] + t.outcomes["accepted corruption"]
               for t in tallies.values())
