@@ -120,6 +120,7 @@ def test_a_bad_home_pose_is_an_error_naming_the_key(tmp_path: Path, text: str) -
         ("[emulator.sensor]\nnoise_std = [inf, 0.2, 0.2, 0.02, 0.02, 0.02]\n",
          "noise_std must be finite"),
         ("[safety]\nworkspace_max_mm = [1100.0, 60.0, inf]\n", "must be 3 finite numbers"),
+        ("[task]\nsamples_per_step = 1000000\n", r"task\.samples_per_step = 1000000: at most"),
     ],
 )
 def test_a_value_of_the_wrong_type_length_or_size_names_the_key(
@@ -130,3 +131,14 @@ def test_a_value_of_the_wrong_type_length_or_size_names_the_key(
     path.write_text(text)
     with pytest.raises(ConfigError, match=named):
         load_cell_config(path)
+
+
+def test_samples_per_step_come_from_the_window_up_to_a_ceiling() -> None:
+    """The window's samples at the sensor's period, and a window that holds too many refused."""
+    from forcelearn.tasks.surface import MAX_SAMPLES_PER_STEP, SurfaceTaskSpec
+
+    assert SurfaceTaskSpec(measurement_window_s=0.025).samples_for(0.000325) == 77
+    assert SurfaceTaskSpec(samples_per_step=12).samples_for(0.000325) == 12
+    too_long = MAX_SAMPLES_PER_STEP * 0.000325 * 1.01
+    with pytest.raises(ConfigError, match="shorten the window"):
+        SurfaceTaskSpec(measurement_window_s=too_long).samples_for(0.000325)

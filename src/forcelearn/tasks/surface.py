@@ -52,6 +52,10 @@ def _is_number(value: object) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
+MAX_SAMPLES_PER_STEP = 10_000
+"""Most sensor samples one step may read (3.25 s of the JR3's SYNC rate, 1.4 s of Net F/T's)."""
+
+
 @dataclass(frozen=True)
 class SurfaceTaskSpec:
     """Targets, path, partition and output map of the §5 task (paper values as defaults).
@@ -101,6 +105,11 @@ class SurfaceTaskSpec:
             least = 0 if name == "samples_per_step" else 1  # 0: from the measurement window
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise ConfigError(f"task.{name} = {value!r}: must be a whole number >= {least}")
+        if self.samples_per_step > MAX_SAMPLES_PER_STEP:
+            raise ConfigError(
+                f"task.samples_per_step = {self.samples_per_step}: at most "
+                f"{MAX_SAMPLES_PER_STEP} (each step reads and filters them all)"
+            )
         if not isinstance(self.tare_each_trial, bool):
             raise ConfigError(f"task.tare_each_trial = {self.tare_each_trial!r}: true or false")
         positive = ("desired_force_n", "tolerance_n", "output_scale_mm", "max_offset_mm",
@@ -166,7 +175,14 @@ class SurfaceTaskSpec:
         """Samples per step: the configured count, or as many as fit the measurement window."""
         if self.samples_per_step:
             return self.samples_per_step
-        return max(1, round(self.measurement_window_s / sample_period_s))
+        count = max(1, round(self.measurement_window_s / sample_period_s))
+        if count > MAX_SAMPLES_PER_STEP:
+            raise ConfigError(
+                f"task.measurement_window_s = {self.measurement_window_s:g} s holds {count} "
+                f"samples of filter.sample_period_s = {sample_period_s:g} s, more than "
+                f"{MAX_SAMPLES_PER_STEP} a step: shorten the window"
+            )
+        return count
 
     @property
     def path_mm(self) -> float:

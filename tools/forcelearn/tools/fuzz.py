@@ -412,8 +412,11 @@ def odd_value(rng: random.Random, value: object) -> object:
     return rng.choice(ODD_VALUES)
 
 
-def value_mutant(rng: random.Random, good: bytes) -> bytes:
-    """A parsed config with one to three settings replaced by :func:`odd_value`, as TOML."""
+def value_mutant(rng: random.Random, good: bytes, changes: list[str] | None = None) -> bytes:
+    """A parsed config with one to three settings replaced by :func:`odd_value`, as TOML.
+
+    ``changes``, if given, receives each replacement as ``"key = value"``.
+    """
     import tomllib
 
     import tomli_w
@@ -424,6 +427,8 @@ def value_mutant(rng: random.Random, good: bytes) -> bytes:
         for key in path[:-1]:
             table = table[key]
         table[path[-1]] = odd_value(rng, table[path[-1]])
+        if changes is not None:
+            changes.append(f"{'.'.join(path)} = {table[path[-1]]!r}")
     return tomli_w.dumps(data).encode()
 
 
@@ -431,17 +436,21 @@ RUN_TIMEOUT_S = 180.0
 """Longest a fuzzed 2-trial run may take before it counts as hung."""
 
 
-def loading_value_mutant(rng: random.Random, good: bytes, folder: Path) -> Path:
-    """Write a :func:`value_mutant` of ``good`` that ``load_cell_config`` accepts; its path."""
+def loading_value_mutant(rng: random.Random, good: bytes, folder: Path) -> tuple[Path, str]:
+    """Write a :func:`value_mutant` of ``good`` that ``load_cell_config`` accepts.
+
+    Returns its path and its changes, ``"key = value; ..."``.
+    """
     from forcelearn.errors import ConfigError
     from forcelearn.tools.cell_config import load_cell_config
 
     path = folder / "run-cell.toml"
     while True:
-        path.write_bytes(value_mutant(rng, good))
+        changes: list[str] = []
+        path.write_bytes(value_mutant(rng, good, changes))
         try:
             load_cell_config(path)
-            return path
+            return path, "; ".join(changes)
         except ConfigError:
             continue
 
@@ -458,8 +467,11 @@ def _emulated(example: Path) -> bool:
     return config.robot_emulated and config.sensor_emulated
 
 
-def check_run(config: Path, out: Path) -> str:
-    """``forcelearn run`` of 2 trials in a child process: "ran", "stopped", or a FuzzFailure."""
+def check_run(config: Path, out: Path, changes: str = "") -> str:
+    """``forcelearn run`` of 2 trials in a child process: "ran", "stopped", or a FuzzFailure.
+
+    ``changes`` (what differs from the example) goes into a failure's message.
+    """
     import shutil
     import subprocess
 
@@ -469,11 +481,12 @@ def check_run(config: Path, out: Path) -> str:
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=RUN_TIMEOUT_S)
     except subprocess.TimeoutExpired as exc:
-        raise FuzzFailure(f"a run of {config.name} raised a hang: no end within "
+        raise FuzzFailure(f"a run with {changes or config.name} raised a hang: no end within "
                           f"{RUN_TIMEOUT_S:g} s") from exc
     last = (done.stderr.strip().splitlines() or [""])[-1]
     if "Traceback" in done.stderr or done.returncode not in (0, 1, 3):
-        raise FuzzFailure(f"a run of {config.name} raised exit {done.returncode}: {last}")
+        raise FuzzFailure(f"a run with {changes or config.name} raised exit "
+                          f"{done.returncode}: {last}")
     return "ran" if done.returncode in (0, 3) else "stopped"
 
 
@@ -537,8 +550,8 @@ def run(
             elif target == "runs":
                 goods = [e.read_bytes() for e in examples if _emulated(e)]
                 for i in range(inputs):
-                    config = loading_value_mutant(rng, goods[i % len(goods)], folder)
-                    tally.add(functools.partial(check_run, config, folder / "run"))
+                    config, changes = loading_value_mutant(rng, goods[i % len(goods)], folder)
+                    tally.add(functools.partial(check_run, config, folder / "run", changes))
             else:
                 cases = {"state": lambda: [state_case(folder)],
                          "calibration": lambda: [calibration_case(folder)],
