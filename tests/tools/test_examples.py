@@ -121,6 +121,8 @@ def test_a_bad_home_pose_is_an_error_naming_the_key(tmp_path: Path, text: str) -
          "noise_std must be finite"),
         ("[safety]\nworkspace_max_mm = [1100.0, 60.0, inf]\n", "must be 3 finite numbers"),
         ("[task]\nsamples_per_step = 1000000\n", r"task\.samples_per_step = 1000000: at most"),
+        ("[sensor]\nbitrate = -1000000\n", r"sensor\.bitrate = -1000000: a CAN bit rate"),
+        ("[sensor]\ninterface = \"\"\n", r"sensor\.interface and sensor\.channel"),
     ],
 )
 def test_a_value_of_the_wrong_type_length_or_size_names_the_key(

@@ -14,7 +14,7 @@ from forcelearn.drivers.netft.traffic_log import read_traffic_log
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.netft import NetFtEmulator, NetFtModelParams
 from forcelearn.errors import ConfigError, SensorProtocolError
-from forcelearn.protocols.netft import CalInfo, Record, decode_request
+from forcelearn.protocols.netft import CalInfo, Record, decode_request, encode_calinfo_request
 
 
 @pytest.mark.parametrize("source", ["tcp", "http"])
@@ -143,3 +143,25 @@ def test_records_hook_sees_the_burst(emulator: NetFtEmulator) -> None:
     assert [r.rdt_sequence for r in seen[0]] == [1, 2, 3]
     assert [r.rdt_sequence for r in seen[1]] == [1, 2]
     assert [r.ft_sequence for r in seen[1]] == [3, 4]
+
+
+@pytest.mark.parametrize("service", ["http_port", "tcp_port"])
+def test_a_client_hanging_up_mid_reply_prints_no_trace_and_the_box_serves_on(
+    emulator: NetFtEmulator, service: str, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """A driver whose timeout passed closes at once (RST); the box logs it and answers the next."""
+    import socket
+    import struct
+    import time
+
+    request = (b"GET /netftapi2.xml HTTP/1.0\r\n\r\n" if service == "http_port"
+               else encode_calinfo_request())
+    for _ in range(20):
+        client = socket.create_connection(("127.0.0.1", emulator.ports[service]))
+        client.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        client.sendall(request)
+        client.close()
+    time.sleep(0.3)
+    assert "Traceback" not in capfd.readouterr().err
+    with NetFtSensor(config_for(emulator, calibration_source="http")) as sensor:
+        assert sensor.calibration.counts_per_force > 0

@@ -163,6 +163,12 @@ class BusConfig:
     """slcan only: python-can's wait after opening the adapter, s (None: its default, 2 s)."""
 
     def __post_init__(self) -> None:
+        if not self.interface or not self.channel:
+            raise ConfigError("sensor.interface and sensor.channel must name a python-can bus "
+                              "(e.g. \"slcan\" and \"/dev/ttyACM0\")")
+        if not 0 < self.bitrate <= 8_000_000:
+            raise ConfigError(f"sensor.bitrate = {self.bitrate}: a CAN bit rate in bit/s, "
+                              "1..8000000 (the JR3 adapter: 1000000)")
         wait = self.sleep_after_open_s
         if wait is not None and (self.interface != "slcan" or not 0 <= wait <= 10):
             raise ConfigError(

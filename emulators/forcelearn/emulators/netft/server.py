@@ -38,6 +38,7 @@ import html
 import logging
 import socket
 import socketserver
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -138,12 +139,23 @@ class _XmlHandler(BaseHTTPRequestHandler):
         log.debug("netft http: " + format, *args)
 
 
-class _TcpServer(socketserver.ThreadingTCPServer):
+class _QuietOnHangUp:
+    """A client that hangs up mid-reply (its timeout passed) is logged, not printed as a trace."""
+
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        exc = sys.exc_info()[1]
+        if isinstance(exc, OSError):
+            log.debug("netft: client %s hung up: %s", client_address, exc)
+        else:
+            log.error("netft: a request from %s failed", client_address, exc_info=exc)
+
+
+class _TcpServer(_QuietOnHangUp, socketserver.ThreadingTCPServer):
     daemon_threads = True
     allow_reuse_address = True
 
 
-class _HttpServer(ThreadingHTTPServer):
+class _HttpServer(_QuietOnHangUp, ThreadingHTTPServer):
     daemon_threads = True
 
 
