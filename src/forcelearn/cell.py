@@ -29,14 +29,11 @@ from typing import ParamSpec, TypeVar
 
 import numpy as np
 
-from forcelearn.devices import BatchForceSensor, ForceSensor, Pose, Robot, WrenchSample
+from forcelearn.devices import AXES, BatchForceSensor, ForceSensor, Pose, Robot, WrenchSample
 from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded, InvalidTarget
 from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
 
 log = logging.getLogger(__name__)
-
-AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
-"""Names of the wrench components, in order."""
 
 MAX_STEPS_PER_MOVE = 10_000
 """Most steps one move is cut into (a tiny step limit would otherwise never arrive)."""

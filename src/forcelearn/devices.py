@@ -90,6 +90,10 @@ def quaternion_to_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
     )
 
 
+AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+"""Names of a wrench's six components, in :attr:`WrenchSample.wrench` order."""
+
+
 @dataclass(frozen=True)
 class WrenchSample:
     """One paired force/moment sample from a 6-axis sensor.

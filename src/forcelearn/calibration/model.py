@@ -15,6 +15,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from forcelearn.devices import AXES as AXES  # re-exported: the calibration file names axes
 from forcelearn.devices import Pose, quaternion_to_matrix
 
 FORMAT_VERSION = 2
@@ -23,7 +24,6 @@ STANDARD_GRAVITY_M_S2 = 9.80665
 MM_PER_M = 1000.0
 TOOL_DOWN = (0.0, 1.0, 0.0, 0.0)
 """Quaternion (w, x, y, z) of the tool pointing down: a half turn about world x."""
-AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 
 Vec3 = tuple[float, float, float]
 Vec6 = tuple[float, float, float, float, float, float]

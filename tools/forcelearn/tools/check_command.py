@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from forcelearn.devices import AXES
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.errors import LinkError, SafetyStop, SensorError, one_line
 from forcelearn.protocols.computer_link import messages
@@ -39,7 +40,6 @@ from forcelearn.tools.check_ethernet import (
     describe_netft,
 )
 
-AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 UNITS = ("N", "N", "N", "N*m", "N*m", "N*m")
 BATCH = 20
 """Samples per read_many call while sampling (a 20 ms slice at 1 kHz)."""

@@ -22,12 +22,12 @@ from typing import Any
 
 import numpy as np
 
+from forcelearn.devices import AXES
 from forcelearn.drivers.egm import EgmRobotDriver
 from forcelearn.drivers.netft import NetFtSensor
 from forcelearn.errors import SafetyStop
 from forcelearn.tools.cell_config import CellConfig
 
-AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 UNITS = ("N", "N", "N", "N*m", "N*m", "N*m")
 BATCH = 64
 """Records per read_many call while sampling (one burst request)."""
