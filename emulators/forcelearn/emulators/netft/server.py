@@ -60,10 +60,10 @@ log = logging.getLogger(__name__)
 
 HOST = "127.0.0.1"
 DEFAULT_RDT_RATE_HZ = 7000.0
-MAX_RDT_RATE_HZ = 10_000.0
-"""Fastest RDT rate the emulated box streams at, records/s."""
 """The Net F/T's maximum RDT output rate (manual §10: "up to 7000 Hz"); the factory
 setting of a given box may be lower: ``forcelearn check`` prints the box's ``comrdtrate``."""
+MAX_RDT_RATE_HZ = 10_000.0
+"""Fastest RDT rate the emulated box streams at, records/s."""
 POLL_S = 0.02
 """Longest the UDP thread blocks while idle, so ``close()`` returns promptly."""
 STREAM_POLL_S = 0.001
