@@ -7,7 +7,7 @@ import os
 import tomllib
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, TypeVar
 
 from forcelearn.errors import ConfigError
@@ -76,13 +76,14 @@ def _hints(cls: type[Any]) -> dict[str, Any]:
         return {}
 
 
-_SIMPLE = {
-    bool: lambda v: isinstance(v, bool),
-    int: lambda v: isinstance(v, int) and not isinstance(v, bool),
-    float: lambda v: _is_number(v),
-    str: lambda v: isinstance(v, str),
-    type(None): lambda v: v is None,
+_PLAIN: dict[Any, tuple[Callable[[Any], bool], str]] = {
+    bool: (lambda v: isinstance(v, bool), "true or false"),
+    int: (lambda v: isinstance(v, int) and not isinstance(v, bool), "a whole number"),
+    float: (lambda v: _is_number(v), "a number"),
+    str: (lambda v: isinstance(v, str), "text"),
+    type(None): (lambda v: v is None, "unset"),
 }
+"""Each plain annotation: its check of a TOML value, and its name in messages."""
 
 
 def _matches(value: Any, hint: Any) -> bool | None:
@@ -91,8 +92,8 @@ def _matches(value: Any, hint: Any) -> bool | None:
     Only plain types, their unions and tuples are checked; Literal values and
     ranges are the dataclasses' own checks (with their own messages).
     """
-    if hint in _SIMPLE:
-        return bool(_SIMPLE[hint](value))
+    if hint in _PLAIN:
+        return _PLAIN[hint][0](value)
     origin = typing.get_origin(hint)
     if origin in (typing.Union, types.UnionType):
         verdicts = [_matches(value, arg) for arg in typing.get_args(hint)]
@@ -119,10 +120,8 @@ def _matches(value: Any, hint: Any) -> bool | None:
 
 def _describe(hint: Any) -> str:
     """A field's annotation in words: 'a number', 'true or false', 'a number or unset'..."""
-    words = {bool: "true or false", int: "a whole number", float: "a number", str: "text",
-             type(None): "unset"}
-    if hint in words:
-        return words[hint]
+    if hint in _PLAIN:
+        return _PLAIN[hint][1]
     if typing.get_origin(hint) is tuple:
         args = typing.get_args(hint)
         if len(args) == 2 and args[1] is Ellipsis:

@@ -64,9 +64,7 @@ def wrench_to_counts(wrench: np.ndarray, full_scales: np.ndarray) -> np.ndarray:
 
 def cutoff_to_wire(cutoff_hz: float) -> int:
     """Return a cut-off in Hz as the adapter's uint16 in 0.01 Hz (0.01..655.35 Hz)."""
-    if not math.isfinite(cutoff_hz):
-        raise ValueError(f"cutoff_hz={cutoff_hz} is outside 0.01..655.35 Hz")
-    value = round(cutoff_hz * 100)
+    value = round(cutoff_hz * 100) if math.isfinite(cutoff_hz) else 0
     if not 1 <= value <= 0xFFFF:
         raise ValueError(f"cutoff_hz={cutoff_hz} is outside 0.01..655.35 Hz")
     return value
