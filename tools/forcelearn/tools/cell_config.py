@@ -47,7 +47,7 @@ that key is emulated too, so an empty config is the emulated cell.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Literal, TypedDict
 
@@ -344,10 +344,9 @@ def _load_robot(table: dict[str, Any], limits: Limits) -> LinkConfig | EgmConfig
         return replace(build(LinkConfig, table, "robot"), limits=limits)
     table.setdefault("host", EMULATED)
     if "max_speed_mm_s" in table:  # EGM's ramp-speed ceiling is a robot key, not a [safety] one
-        speed = table.pop("max_speed_mm_s")
-        if not (isinstance(speed, int | float) and not isinstance(speed, bool)):
-            raise ConfigError(f"[robot] robot.max_speed_mm_s = {speed!r}: must be a number, mm/s")
-        limits = replace(limits, max_speed_mm_s=speed)
+        current = {f.name: getattr(limits, f.name) for f in fields(limits)}
+        limits = build(Limits, {**current, "max_speed_mm_s": table.pop("max_speed_mm_s")},
+                       "robot")
     return build(EgmConfig, {**table, "limits": limits}, "robot")
 
 
