@@ -51,10 +51,14 @@ def test_seqno_zero_starts_a_new_session_and_holds_where_the_robot_is() -> None:
         g.reply()
     g.target = HOME.moved(dz_mm=-5)
     elsewhere = HOME.moved(dx_mm=3)
-    assert g.on_datagram(robot(0, elsewhere))
+    planned = g.planned
+    assert g.on_datagram(robot(0, elsewhere, tm_ms=100))  # a restart: its tm is newer
     assert g.stats.sessions == 2 and g.session == 2
-    assert g.target == elsewhere == g.planned
-    assert codec.decode_sensor(g.reply(), "rw7").seqno == 0
+    assert g.target == elsewhere and g.planned == planned  # the plan ramps, it does not jump
+    first = codec.decode_sensor(g.reply(), "rw7")
+    assert first.seqno == 0 and first.planned is not None and planned is not None
+    step = np.linalg.norm(first.planned.position_mm - planned.position_mm)
+    assert 0 < step <= g.speed_mm_s * g.config.sample_period_s + 1e-9
 
 
 def test_planned_pose_ramps_at_the_set_speed() -> None:
@@ -81,7 +85,8 @@ def test_states_that_stop_guidance_are_errors() -> None:
 
 
 def test_a_session_needs_a_cartesian_feedback_pose() -> None:
-    """A session needs a cartesian feedback pose."""
+    """A session needs a cartesian feedback pose: refused (counted, the reason kept), no raise."""
     g = Guidance(EgmConfig(port=0))
-    with pytest.raises(ProtocolError, match=r"\\Pose"):
-        g.on_datagram(robot(0, feedback=None))
+    assert not g.on_datagram(robot(0, feedback=None))
+    assert g.latest is None and g.stats.refused_sessions == 1
+    assert isinstance(g.refusal, ProtocolError) and r"\Pose" in str(g.refusal)

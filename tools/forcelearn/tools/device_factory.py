@@ -115,6 +115,8 @@ def open_egm(
         robot,
         host="127.0.0.1",
         port=0,
+        controller_host=None,  # the emulator sends from loopback, whatever the site's address
+        controller_port=None,
         lockstep=True,
         watchdog_s=max(robot.watchdog_s, EMULATED_EGM_WATCHDOG_S),
         first_message_timeout_s=EMULATED_EGM_FIRST_MESSAGE_S,

@@ -9,6 +9,7 @@ definition for both robot drivers.
 
 from __future__ import annotations
 
+import ipaddress
 import math
 from dataclasses import dataclass, field, fields
 from typing import Any
@@ -27,15 +28,22 @@ DEFAULT_PORT = 6510
 class EgmConfig:
     """Everything the EGM driver needs (s, mm, deg, mm/s).
 
-    The PC is the UDP server: the driver binds ``host:port`` and answers
-    whoever sends EgmRobot datagrams there (the controller's UDP Unicast
-    Device names this address as Remote Address / Remote Port Number).
+    The PC is the UDP server: the driver binds ``host:port`` (the controller's
+    UDP Unicast Device names this address as Remote Address / Remote Port
+    Number) and answers only the controller it is paired with:
+    ``controller_host`` (and ``controller_port``) when given, otherwise the
+    source of the first EgmRobot that starts a session, held for the
+    driver's life (docs/egm.md, "Pairing").
     """
 
     host: str = "127.0.0.1"
     """Address to bind: 127.0.0.1 for the emulator; the PC's cell-network address on site."""
     port: int = DEFAULT_PORT
     """UDP port to bind; 0 lets the OS pick one (tests), read it from ``driver.port``."""
+    controller_host: str | None = None
+    """The controller's IPv4 address; only its datagrams are used (None: the first valid sender)."""
+    controller_port: int | None = None
+    """The controller's source UDP port, if fixed (None: pinned from its first valid datagram)."""
     version: Version = "rw7"
     """Which egm.proto the controller speaks: "rw6" (IRC5, RobotWare 6) or "rw7" (OmniCore)."""
     sample_period_s: float = 0.004
@@ -61,6 +69,26 @@ class EgmConfig:
             raise ConfigError("robot.host must name an address to bind, e.g. 127.0.0.1")
         if not (isinstance(self.port, int) and 0 <= self.port <= 65535):
             raise ConfigError(f"robot.port must be 0..65535, got {self.port!r}")
+        if self.controller_host is not None:
+            try:
+                if not isinstance(self.controller_host, str):
+                    raise TypeError(self.controller_host)
+                ipaddress.IPv4Address(self.controller_host)
+            except (ipaddress.AddressValueError, TypeError):
+                raise ConfigError(
+                    f"robot.controller_host must be the controller's IPv4 address, e.g. "
+                    f"192.168.125.1, got {self.controller_host!r}"
+                ) from None
+        if self.controller_port is not None and not (
+            isinstance(self.controller_port, int)
+            and not isinstance(self.controller_port, bool)
+            and 1 <= self.controller_port <= 65535
+        ):
+            raise ConfigError(
+                f"robot.controller_port must be 1..65535, got {self.controller_port!r}"
+            )
+        if self.controller_port is not None and self.controller_host is None:
+            raise ConfigError("robot.controller_port needs robot.controller_host (the address)")
         if self.version not in VERSIONS:
             raise ConfigError(f"robot.version must be one of {VERSIONS}, got {self.version!r}")
         for name in (
@@ -87,6 +115,16 @@ class EgmConfig:
             )
         if not isinstance(self.lockstep, bool):
             raise ConfigError(f"robot.lockstep must be true or false, got {self.lockstep!r}")
+
+    @property
+    def max_seqno_ahead(self) -> int:
+        """Largest forward seqno jump taken as lost datagrams: one watchdog of cycles.
+
+        A longer gap means the controller was silent past ``watchdog_s``, which
+        ends a wait anyway; a datagram that claims more is implausible (a spoof
+        or a corrupt header) and ignored, so it cannot hide the real stream.
+        """
+        return max(1, math.ceil(self.watchdog_s / self.sample_period_s))
 
     @classmethod
     def from_dict(cls, table: dict[str, Any]) -> EgmConfig:

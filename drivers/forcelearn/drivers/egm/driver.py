@@ -46,13 +46,14 @@ import numpy as np
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.guidance import EgmStats, Guidance
+from forcelearn.drivers.egm.targets import TARGET_NORM_TOLERANCE, clean_target, unsafe_reason
 from forcelearn.errors import (
     ForcelearnError,
     GuidanceStopped,
+    InvalidTarget,
     LinkError,
     LinkTimeout,
     NotInPosition,
-    ProtocolError,
     SafetyStop,
 )
 from forcelearn.protocols.egm import codec
@@ -110,6 +111,7 @@ class EgmRobotDriver:
         self._pending: tuple[str, int] | None = None  # lockstep: address of an unanswered message
         self._fresh_count = 0  # fresh messages taken so far
         self._last_rx_s = 0.0  # host monotonic time of the latest fresh message (staleness)
+        self._send_errors = 0
         self._closed = threading.Event()
         self._thread: threading.Thread | None = None
         self._sock: DatagramSocket | None
@@ -129,14 +131,32 @@ class EgmRobotDriver:
     # -- receiving --------------------------------------------------------------------------
 
     def _serve(self) -> None:
-        """Real mode: answer every fresh message at once (runs in the receive thread)."""
-        sock = self._sock
-        assert sock is not None
+        """Real mode: answer every fresh message at once (runs in the receive thread).
+
+        Nothing received ends it (each datagram is used or counted); it ends
+        on close, or if the socket itself fails (``LinkError``, raised by the
+        next call). Anything else it meets is kept as a ``LinkError`` too, so
+        a caller never sees a stale-feedback timeout in its place.
+        """
+        try:
+            self._serve_loop()
+        except BaseException as exc:  # kept for the caller; the thread must say why it ended
+            with self._lock:
+                if self._failure is None and not self._closed.is_set():
+                    self._failure = LinkError(f"the EGM receive thread ended: {exc!r}")
+                    self._failure.__cause__ = exc
+                    log.error("EGM receive thread ended: %r", exc)
+                self._fresh.notify_all()
+
+    def _serve_loop(self) -> None:
+        sock = self._require_socket()
         while not self._closed.is_set():
             try:
                 data, address = sock.recvfrom(MAX_DATAGRAM)
             except TimeoutError:
                 continue
+            except (ConnectionResetError, ConnectionRefusedError):
+                continue  # an ICMP error of an earlier send (Windows reports them here)
             except OSError as exc:
                 if not self._closed.is_set():
                     with self._lock:
@@ -144,19 +164,27 @@ class EgmRobotDriver:
                         self._fresh.notify_all()
                 return
             with self._lock:
-                if self._failure is not None:
-                    continue  # a version mismatch stays fatal: never answer
-                try:
-                    fresh = self._take(data, address)
-                    if fresh:
-                        sock.sendto(self._guidance.reply(), address)
-                except (ProtocolError, OSError) as exc:
-                    self._failure = exc if isinstance(exc, ProtocolError) else LinkError(str(exc))
-                    log.error("EGM guidance stopped answering: %s", exc)
+                if self._take(data, address):
+                    self._answer(address)
                 self._fresh.notify_all()
 
-    def _take(self, data: bytes, address: tuple[str, int]) -> bool:
-        fresh = self._guidance.on_datagram(data)
+    def _answer(self, address: Any) -> None:
+        """Send the reply to the controller at ``address``; a failed send is logged, not fatal."""
+        try:
+            datagram = self._guidance.reply()
+        except SafetyStop as exc:
+            log.error("EGM answer withheld: %s", exc)
+            return
+        try:
+            self._require_socket().sendto(datagram, address)
+        except OSError as exc:
+            self._send_errors += 1
+            if self._send_errors == 1:
+                log.warning("cannot send EgmSensor to %s: %s (the controller will time out "
+                            "if this goes on)", address, exc)
+
+    def _take(self, data: bytes, address: Any) -> bool:
+        fresh = self._guidance.on_datagram(data, address, time.monotonic())
         if fresh:
             self._fresh_count += 1
             self._last_rx_s = time.monotonic()
@@ -170,31 +198,45 @@ class EgmRobotDriver:
             deadline = time.monotonic() + watchdog
             while self._fresh_count == seen:
                 remaining = deadline - time.monotonic()
-                if self._failure is not None:
-                    raise self._failure
+                self._check()
                 if remaining <= 0:
-                    raise LinkTimeout(self._silence(watchdog))
+                    raise self._silent(watchdog)
                 self._fresh.wait(remaining)
             return
         sock = self._require_socket()
         if self._pending is not None:
-            self._send(self._guidance.reply(), self._pending)
+            try:
+                reply = self._guidance.reply()
+            except SafetyStop as exc:
+                log.error("EGM answer withheld: %s", exc)
+            else:
+                self._send(reply, self._pending)
             self._pending = None
         deadline = time.monotonic() + watchdog
         while True:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise LinkTimeout(self._silence(watchdog))
+                raise self._silent(watchdog)
             sock.settimeout(remaining)
             try:
                 data, address = sock.recvfrom(MAX_DATAGRAM)
             except TimeoutError:
                 continue
+            except (ConnectionResetError, ConnectionRefusedError):
+                continue  # an ICMP error of an earlier send (Windows reports them here)
             except OSError as exc:
                 raise LinkError(f"EGM socket failed: {exc}") from exc
             if self._take(data, address):
                 self._pending = address
                 return
+
+    def _silent(self, watchdog: float) -> ForcelearnError:
+        """The error of a watchdog's silence: why the controller's stream was refused, if so."""
+        refusal = self._guidance.refusal
+        if refusal is not None:
+            return type(refusal)(f"{refusal} (no usable EgmRobot for {watchdog} s, "
+                                 "robot.watchdog_s)")
+        return LinkTimeout(self._silence(watchdog))
 
     def _silence(self, watchdog: float) -> str:
         return (
@@ -217,11 +259,21 @@ class EgmRobotDriver:
         self._require_socket()
         if self._failure is not None:
             raise self._failure
+        thread = self._thread
+        if thread is not None and not thread.is_alive() and not self._closed.is_set():
+            raise LinkError("the EGM receive thread ended; close this driver and open a new one")
 
     # -- session ----------------------------------------------------------------------------
 
     def wait_for_session(self, timeout_s: float | None = None) -> Pose:
-        """Wait (first_message_timeout_s) for the controller's first message; return its pose."""
+        """Wait (first_message_timeout_s) for the controller's first message; return its pose.
+
+        Datagrams that cannot start a session are ignored while waiting; at
+        the timeout, the reason of the latest one is raised (``EgmVersionMismatch``
+        naming ``robot.version``, ``SafetyStop`` for feedback outside the
+        workspace or not finite, ``ProtocolError`` for no Cartesian feedback),
+        else ``LinkTimeout``.
+        """
         limit = self.config.first_message_timeout_s if timeout_s is None else timeout_s
         deadline = time.monotonic() + limit
         with self._lock:
@@ -229,7 +281,7 @@ class EgmRobotDriver:
                 self._check()
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
-                    raise LinkTimeout(self._silence(limit))
+                    raise self._silent(limit)
                 if self.config.lockstep:
                     self._receive_first(remaining)
                 else:
@@ -243,7 +295,7 @@ class EgmRobotDriver:
         sock.settimeout(remaining)
         try:
             data, address = sock.recvfrom(MAX_DATAGRAM)
-        except TimeoutError:
+        except (TimeoutError, ConnectionResetError, ConnectionRefusedError):
             return
         except OSError as exc:
             raise LinkError(f"EGM socket failed: {exc}") from exc
@@ -313,48 +365,56 @@ class EgmRobotDriver:
         """Set a new target; the planned pose ramps to it at the set speed.
 
         Returns at once: use :meth:`wait_in_position` to know when it is reached.
+
+        Raises:
+            InvalidTarget: not a Pose of finite numbers with a unit 4-element
+                quaternion, or outside the workspace box (nothing sent).
+            SafetyStop: a step longer than ``limits.max_step_mm`` (nothing sent).
         """
-        norm = math.sqrt(sum(c * c for c in pose.quaternion))
-        if not abs(norm - 1.0) <= 1e-6:
-            raise ValueError(f"pose quaternion must be unit length, its norm is {norm:.6f}")
+        target = clean_target(pose)
         with self._lock:
             self._latest()
             self._guidance.require_running()
-            self._check_target(pose)
-            self._guidance.target = pose
+            self._check_target(target)
+            self._guidance.target = target
 
     def move_by(self, dx_mm: float = 0.0, dy_mm: float = 0.0, dz_mm: float = 0.0) -> None:
-        """Move the target by an increment, orientation kept."""
+        """Move the target by an increment, orientation kept (mm; checked as ``move_to``)."""
         with self._lock:
             self._latest()
             assert self._guidance.target is not None
-            self.move_to(self._guidance.target.moved(dx_mm, dy_mm, dz_mm))
+            base = self._guidance.target
+            try:
+                moved = base.moved(dx_mm, dy_mm, dz_mm)
+            except TypeError:
+                raise InvalidTarget(
+                    f"move_by takes numbers of mm, got {dx_mm!r}, {dy_mm!r}, {dz_mm!r}; "
+                    "nothing was sent"
+                ) from None
+            self.move_to(moved)
 
     def set_speed(self, speed_mm_s: float) -> None:
         """Set the ramp speed of the planned pose, mm/s (refused above limits.max_speed_mm_s)."""
         limit = self.config.limits.max_speed_mm_s
-        if not (math.isfinite(speed_mm_s) and 0 < speed_mm_s <= limit):
+        valid = isinstance(speed_mm_s, int | float) and not isinstance(speed_mm_s, bool)
+        if not (valid and math.isfinite(speed_mm_s) and 0 < speed_mm_s <= limit):
             raise SafetyStop(
-                f"refused speed {speed_mm_s} mm/s: allowed 0..{limit} (limits.max_speed_mm_s); "
+                f"refused speed {speed_mm_s!r} mm/s: allowed 0..{limit} (limits.max_speed_mm_s); "
                 "nothing was sent"
             )
         with self._lock:
-            self._guidance.speed_mm_s = speed_mm_s
+            self._guidance.speed_mm_s = float(speed_mm_s)
 
     def _check_target(self, target: Pose) -> None:
-        """Raise SafetyStop if ``target`` breaks a client-side limit (it is never sent)."""
+        """Raise InvalidTarget or SafetyStop if ``target`` breaks a limit (it is never sent)."""
         limits = self.config.limits
-        position = target.position_mm
-        low, high = np.asarray(limits.workspace_min_mm), np.asarray(limits.workspace_max_mm)
-        if not np.all(np.isfinite(position)) or np.any(position < low) or np.any(position > high):
-            raise SafetyStop(
-                f"refused target {np.round(position, 3).tolist()} mm: outside the workspace box "
-                f"{low.tolist()}..{high.tolist()} (limits.workspace_*_mm); nothing was sent"
-            )
+        reason = unsafe_reason(target, limits, TARGET_NORM_TOLERANCE)
+        if reason is not None:
+            raise InvalidTarget(f"refused target: {reason}; nothing was sent")
         reference = self._guidance.target
         assert reference is not None
-        step = float(np.linalg.norm(position - reference.position_mm))
-        if step > limits.max_step_mm:
+        step = float(np.linalg.norm(target.position_mm - reference.position_mm))
+        if not step <= limits.max_step_mm:
             raise SafetyStop(
                 f"refused a step of {step:.3f} mm: more than limits.max_step_mm = "
                 f"{limits.max_step_mm} mm; nothing was sent"

@@ -1,18 +1,36 @@
 """The driver's side of an EGM session as pure state: datagrams in, the next reply out (no I/O).
 
-:class:`Guidance` is fed every EgmRobot datagram (:meth:`Guidance.on_datagram`)
-and builds the EgmSensor answer (:meth:`Guidance.reply`). Rules:
+:class:`Guidance` is fed every datagram with its source address
+(:meth:`Guidance.on_datagram`) and builds the EgmSensor answer
+(:meth:`Guidance.reply`). Nothing a datagram holds raises here: each one is
+used, or counted and ignored. Rules, in the order they are applied:
 
-* The first datagram, and any later one with ``seqno == 0``, starts a
-  **session**: the reply seqno restarts at 0 and target and planned pose are
-  set to the feedback pose, so a restarted controller is held where it is.
+* **Pairing**: only the controller's datagrams are used: from
+  ``controller_host`` (and ``controller_port``) when configured, and from the
+  source of the first datagram that starts a session, pinned for the
+  driver's life. Any other sender counts as ``foreign_datagrams``.
+* A datagram that does not decode (or lacks a finite Cartesian feedback
+  pose) counts as ``bad_datagrams``; one that proves the other RobotWare
+  egm.proto as ``wrong_version`` (before a session, the refusal names
+  ``robot.version``).
+* The first datagram, and a later one with ``seqno == 0``, starts a
+  **session**, but only when its feedback pose is finite, unit and inside the
+  client workspace (else ``refused_sessions``, and :attr:`Guidance.refusal`
+  says why; the running session, if any, goes on). A seqno 0 whose header
+  ``tm`` is not newer than the latest one is a **replay** (``replays``)
+  unless the controller has been silent for ``watchdog_s``.
+  The new session's target is the feedback pose; the planned pose is *not*
+  reset: it ramps from where it was (restart or replay, no jump).
 * A datagram is **fresh** (and answered) only if its seqno is newer than the
-  latest one (mod 2**32). Skipped seqnos count as ``missed``; an equal seqno
-  is a ``duplicate``; an older one is ``out_of_order``; neither is answered
-  nor allowed to overwrite newer feedback.
+  latest one (mod 2**32) by at most ``max_seqno_ahead`` (one watchdog of
+  cycles; more is ``seqno_jumps``). Skipped seqnos count as ``missed``; an
+  equal seqno is a ``duplicate``; an older one is ``out_of_order``; none of
+  these is answered nor overwrites newer feedback.
 * Every reply moves the planned pose toward the target by at most
   ``speed_mm_s`` x ``sample_period_s`` (and ``TURN_DEG_S`` x period in
-  orientation): the controller is never asked for a jump.
+  orientation), then checks it against the workspace: the controller is
+  never asked for a jump nor for a pose outside the box, the first reply
+  included.
 * In position: the planned pose has reached the target, and the controller's
   feedback and its own planned pose are within ``in_position_mm`` /
   ``in_position_deg`` of it.
@@ -20,6 +38,7 @@ and builds the EgmSensor answer (:meth:`Guidance.reply`). Rules:
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import asdict, dataclass, replace
 from typing import Any
@@ -28,8 +47,17 @@ import numpy as np
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm.config import EgmConfig
-from forcelearn.errors import GuidanceStopped, ProtocolError
+from forcelearn.drivers.egm.targets import FEEDBACK_NORM_TOLERANCE, unsafe_reason
+from forcelearn.errors import (
+    EgmVersionMismatch,
+    ForcelearnError,
+    GuidanceStopped,
+    ProtocolError,
+    SafetyStop,
+)
 from forcelearn.protocols.egm import codec
+
+log = logging.getLogger(__name__)
 
 TURN_DEG_S = 45.0
 """Largest rate at which the planned orientation turns toward the target (assumption)."""
@@ -53,7 +81,26 @@ class EgmStats:
     sessions: int = 0
     """Sessions seen (1 after opening; +1 per controller restart)."""
     bad_datagrams: int = 0
-    """Datagrams that were not a readable EgmRobot; ignored."""
+    """Datagrams that were not a readable EgmRobot with a finite feedback pose; ignored."""
+    foreign_datagrams: int = 0
+    """Datagrams from another source than the paired controller; never answered nor read."""
+    wrong_version: int = 0
+    """Datagrams proving the other RobotWare egm.proto than robot.version; ignored."""
+    seqno_jumps: int = 0
+    """Datagrams whose seqno jumps ahead by more than max_seqno_ahead; ignored."""
+    replays: int = 0
+    """Seqno-0 datagrams not newer (header tm) than the latest one; ignored."""
+    refused_sessions: int = 0
+    """Session starts refused: feedback not finite, not unit or outside the workspace."""
+    unsent_replies: int = 0
+    """Replies withheld because the planned pose failed its check (never expected)."""
+
+
+def _finite(pose: Pose | None) -> bool:
+    """Whether ``pose`` is there and all 7 of its numbers are finite."""
+    return pose is not None and len(pose.quaternion) == 4 and all(
+        math.isfinite(v) for v in (pose.x_mm, pose.y_mm, pose.z_mm, *pose.quaternion)
+    )
 
 
 def angle_deg(q0: tuple[float, ...], q1: tuple[float, ...]) -> float:
@@ -83,6 +130,10 @@ def step_toward(pose: Pose, target: Pose, max_mm: float, max_deg: float) -> Pose
     return Pose(x, y, z, (w, qx, qy, qz))
 
 
+Source = Any
+"""A datagram's source address, as ``recvfrom`` gives it: (host, port) over UDP."""
+
+
 class Guidance:
     """What the driver knows of the controller and what it asks of it. Not thread-safe."""
 
@@ -98,18 +149,39 @@ class Guidance:
         self.speed_mm_s = config.speed_mm_s
         self.session = 0
         self.stats = EgmStats()
+        self.controller: Source | None = None
+        """The paired controller's address, pinned by the first session start."""
+        self.refusal: ForcelearnError | None = None
+        """Why the latest refused datagram could not start a session (None once one starts)."""
         self._next_seqno = 0
+        self._latest_s: float | None = None  # host time of the latest fresh datagram
 
     # -- input ------------------------------------------------------------------------------
 
-    def on_datagram(self, data: bytes) -> bool:
-        """Take one EgmRobot datagram; True if it is fresh and must be answered.
+    def on_datagram(
+        self, data: bytes, source: Source = None, now_s: float | None = None
+    ) -> bool:
+        """Take one datagram from ``source``; True if it is fresh and must be answered.
 
-        Raises ``EgmVersionMismatch`` if it proves the other egm.proto, and
-        ``ProtocolError`` if a session starts without a Cartesian feedback pose.
+        Never raises for what the datagram holds: a datagram that cannot be
+        used is counted (:class:`EgmStats`) and ignored. ``now_s`` (host
+        monotonic seconds) lets a seqno 0 restart a session after the
+        controller was silent for ``watchdog_s``; None: never silent.
         """
         self._count(received=1)
-        codec.check_version(data, self.config.version)
+        if not self._from_controller(source):
+            self._count(foreign_datagrams=1)
+            return False
+        try:
+            codec.check_version(data, self.config.version)
+        except EgmVersionMismatch as exc:
+            self._count(wrong_version=1)
+            if self.latest is None:
+                self.refusal = exc
+            return False
+        except ProtocolError:
+            self._count(bad_datagrams=1)
+            return False
         try:
             message = codec.decode_robot(data, self.config.version)
         except ProtocolError:
@@ -117,9 +189,12 @@ class Guidance:
             return False
         latest = self.latest
         if latest is None or (message.seqno == 0 and latest.seqno != 0):
-            self._start_session(message)
-            self.latest_raw = data
-            return True
+            if latest is not None and not self._newer_session(message, latest, now_s):
+                self._count(replays=1)
+                return False
+            if not self._start_session(message, source):
+                return False
+            return self._fresh(data, now_s)
         ahead = (message.seqno - latest.seqno) % _SEQNO_MOD
         if ahead == 0:
             self._count(duplicates=1)
@@ -127,22 +202,78 @@ class Guidance:
         if ahead >= _SEQNO_MOD // 2:
             self._count(out_of_order=1)
             return False
+        if ahead > self.config.max_seqno_ahead:
+            self._count(seqno_jumps=1)
+            return False
+        if not _finite(message.feedback):
+            self._count(bad_datagrams=1)  # no feedback, or not finite: nothing to read
+            return False
         self._count(missed=ahead - 1)
         self.latest = message
+        return self._fresh(data, now_s)
+
+    def _fresh(self, data: bytes, now_s: float | None) -> bool:
+        self.refusal = None  # the controller's stream goes on: an earlier refusal is moot
         self.latest_raw = data
+        self._latest_s = now_s
         return True
 
-    def _start_session(self, message: codec.RobotMessage) -> None:
-        if message.feedback is None:
-            raise ProtocolError(
-                "EgmRobot without feedBack.cartesian: run EGMSetupUC with \\Pose "
-                "(rapid/ForcelearnEGM.modx), not \\Joint"
-            )
+    def _from_controller(self, source: Source) -> bool:
+        """Whether ``source`` may be the paired controller (configured, then pinned)."""
+        if self.controller is not None:
+            return bool(source == self.controller)
+        host = self.config.controller_host
+        if host is None:
+            return True
+        try:
+            from_host, from_port = source[0], source[1]
+        except (TypeError, IndexError, KeyError):
+            return False
+        port = self.config.controller_port
+        return bool(from_host == host and (port is None or from_port == port))
+
+    def _newer_session(
+        self, message: codec.RobotMessage, latest: codec.RobotMessage, now_s: float | None
+    ) -> bool:
+        """Whether a seqno 0 is a restart: its tm is newer, or the controller fell silent."""
+        newer = 0 < (message.tm_ms - latest.tm_ms) % _SEQNO_MOD < _SEQNO_MOD // 2
+        silent = (
+            now_s is not None
+            and self._latest_s is not None
+            and now_s - self._latest_s > self.config.watchdog_s
+        )
+        return newer or silent
+
+    def _start_session(self, message: codec.RobotMessage, source: Source) -> bool:
+        """Adopt ``message`` as a new session's start if its feedback is safe; else refuse it."""
+        reason = unsafe_reason(message.feedback, self.config.limits, FEEDBACK_NORM_TOLERANCE)
+        if reason is not None:
+            self._count(refused_sessions=1)
+            if message.feedback is None:
+                self.refusal = ProtocolError(
+                    "EgmRobot without feedBack.cartesian: run EGMSetupUC with \\Pose "
+                    "(rapid/ForcelearnEGM.modx), not \\Joint"
+                )
+            else:
+                self.refusal = SafetyStop(
+                    f"refused to start an EGM session: the controller's feedback is {reason}; "
+                    "the robot is held (nothing answered): jog it inside the workspace box, "
+                    "then restart the RAPID program"
+                )
+            return False
+        assert message.feedback is not None
+        if self.controller is None:
+            self.controller = source
+            log.info("EGM controller paired: %s (held for this driver's life)", source)
         self.latest = message
-        self.target = self.planned = message.feedback
+        self.target = message.feedback
+        if self.planned is None:
+            self.planned = message.feedback  # first session: the ramp starts where the robot is
+        self.refusal = None
         self.session += 1
         self._next_seqno = 0
         self._count(sessions=1)
+        return True
 
     def _count(self, **increments: int) -> None:
         stats = self.stats
@@ -153,22 +284,39 @@ class Guidance:
     # -- output -----------------------------------------------------------------------------
 
     def reply(self) -> bytes:
-        """Return the EgmSensor answering the latest message, one ramp step nearer the target."""
+        """Return the EgmSensor answering the latest message, one ramp step nearer the target.
+
+        Raises ``SafetyStop`` (nothing sent, the planned pose kept) if the
+        stepped pose is not finite or leaves the workspace, which the checks
+        on targets and feedback should make impossible.
+        """
         if self.latest is None or self.planned is None or self.target is None:
             raise RuntimeError("no EGM session yet: nothing to answer")
         period = self.config.sample_period_s
-        self.planned = step_toward(
+        planned = step_toward(
             self.planned, self.target, self.speed_mm_s * period, TURN_DEG_S * period
         )
-        message = codec.SensorMessage(self._next_seqno, self.latest.tm_ms, self.planned)
+        reason = unsafe_reason(planned, self.config.limits, FEEDBACK_NORM_TOLERANCE)
+        if reason is not None:
+            self._count(unsent_replies=1)
+            raise SafetyStop(f"withheld an EgmSensor whose planned pose has {reason}")
+        self.planned = planned
+        message = codec.SensorMessage(self._next_seqno, self.latest.tm_ms, planned)
         self._next_seqno = (self._next_seqno + 1) % _SEQNO_MOD
         self._count(replies=1)
         return codec.encode_sensor(message, self.config.version)
 
     def hold(self) -> None:
-        """Make the present feedback pose both target and planned pose."""
-        if self.latest is not None and self.latest.feedback is not None:
-            self.target = self.planned = self.latest.feedback
+        """Make the present feedback pose the target; the planned pose ramps to it.
+
+        Feedback that may not be adopted (outside the workspace) leaves the
+        target at the planned pose: the robot stops where it was commanded.
+        """
+        if self.latest is None:
+            return
+        feedback = self.latest.feedback
+        safe = unsafe_reason(feedback, self.config.limits, FEEDBACK_NORM_TOLERANCE) is None
+        self.target = feedback if safe else self.planned
 
     # -- checkpoint (an emulated cell's bit-identical resume) -------------------------------
 
