@@ -134,6 +134,24 @@ def test_a_replayed_session_start_does_not_move_the_plan_beyond_the_ramp(cell: C
     assert robot.target is not None and robot.target.z_mm == pytest.approx(597.0)
 
 
+def test_a_forged_restart_from_the_controllers_address_does_not_cut_off_its_stream(
+    cell: Cell,
+) -> None:
+    """A seqno 0 (newer tm, 3 mm away) forged from the controller's address: its stream goes on."""
+    robot, controller, _ = cell
+    for _ in range(300):  # more than one watchdog of cycles: seqno 301 is no plausible jump from 0
+        controller.seqno += 1
+        controller.send(datagram(controller.seqno))
+    for _ in range(300):
+        assert controller.answer() is not None
+    controller.send(datagram(0, HOME.moved(dz_mm=-3.0), tm_ms=10**6))
+    assert controller.answer() is not None  # indistinguishable from a restart, but ramped
+    for _ in range(3):
+        assert controller.cycle() is not None
+    assert robot.stats.resumed_streams == 1
+    assert_ramped(controller.planned)
+
+
 def test_a_foreign_next_seqno_datagram_is_not_taken_as_feedback(cell: Cell) -> None:
     """Another host's datagram with the controller's next seqno: ignored, feedback unchanged."""
     robot, controller, intruder = cell

@@ -92,6 +92,8 @@ class EgmStats:
     """Seqno-0 datagrams not newer (header tm) than the latest one; ignored."""
     refused_sessions: int = 0
     """Session starts refused: feedback not finite, not unit or outside the workspace."""
+    resumed_streams: int = 0
+    """Seqno 0s undone: the stream they interrupted went on (a forged restart); answered."""
     unsent_replies: int = 0
     """Replies withheld because the planned pose failed its check (never expected)."""
 
@@ -154,6 +156,7 @@ class Guidance:
         self.refusal: ForcelearnError | None = None
         """Why the latest refused datagram could not start a session (None once one starts)."""
         self._next_seqno = 0
+        self._before_restart: codec.RobotMessage | None = None
         self._latest_s: float | None = None  # host time of the latest fresh datagram
 
     # -- input ------------------------------------------------------------------------------
@@ -194,23 +197,51 @@ class Guidance:
                 return False
             if not self._start_session(message, source):
                 return False
+            self._before_restart = latest
             return self._fresh(data, now_s)
         ahead = (message.seqno - latest.seqno) % _SEQNO_MOD
         if ahead == 0:
-            self._count(duplicates=1)
-            return False
-        if ahead >= _SEQNO_MOD // 2:
-            self._count(out_of_order=1)
-            return False
-        if ahead > self.config.max_seqno_ahead:
-            self._count(seqno_jumps=1)
+            counter = "duplicates"
+        elif ahead >= _SEQNO_MOD // 2:
+            counter = "out_of_order"
+        elif ahead > self.config.max_seqno_ahead:
+            counter = "seqno_jumps"
+        else:
+            counter = ""
+        if counter and self._resumes(message):
+            self._count(resumed_streams=1)
+            return self._fresh(data, now_s)
+        if counter:
+            self._count(**{counter: 1})
             return False
         if not _finite(message.feedback):
             self._count(bad_datagrams=1)  # no feedback, or not finite: nothing to read
             return False
+        if message.seqno != 0:
+            self._before_restart = None  # the new session is confirmed by its own stream
         self._count(missed=ahead - 1)
         self.latest = message
         return self._fresh(data, now_s)
+
+    def _resumes(self, message: codec.RobotMessage) -> bool:
+        """Whether ``message`` continues the stream a seqno 0 just interrupted; if so, take it.
+
+        Before the new session's seqno 1 arrives, a datagram 1..max_seqno_ahead
+        after the previous session's latest shows the seqno 0 was not the
+        controller's (it goes on counting): its stream is taken up again and the
+        target held at its feedback. A replay cannot do this (its seqno is not
+        newer than what was seen).
+        """
+        before = self._before_restart
+        if before is None or not _finite(message.feedback):
+            return False
+        ahead = (message.seqno - before.seqno) % _SEQNO_MOD
+        if not 0 < ahead <= self.config.max_seqno_ahead:
+            return False
+        self._before_restart = None
+        self.latest = message
+        self.hold()
+        return True
 
     def _fresh(self, data: bytes, now_s: float | None) -> bool:
         self.refusal = None  # the controller's stream goes on: an earlier refusal is moot
