@@ -28,6 +28,8 @@ values         the example cell configs, parsed, with one to three settings
                replaced by an odd value (another type, a table, NaN, inf,
                zero, a sign flip, a huge number); ``load_cell_config`` gives
                ConfigError or a value
+egm            hostile datagrams and calls to the real EGM driver over
+               loopback UDP (:mod:`forcelearn.tools.fuzz_egm`)
 runs           ``values`` mutants that load, each run for 2 trials in its own
                process (``forcelearn run``, 180 s timeout): it ends, or stops
                with forcelearn's one-line message, never a traceback or a hang
@@ -547,6 +549,11 @@ def run(
                 for i in range(inputs):
                     case = value_cases[i % len(value_cases)]
                     tally.add(functools.partial(check_file, case, value_mutant(rng, case.good)))
+            elif target == "egm":
+                from forcelearn.tools import fuzz_egm
+
+                counters = fuzz_egm.run_target(tally, inputs, rng)
+                print(f"{target:12s} driver counters {counters}", flush=True)
             elif target == "runs":
                 goods = [e.read_bytes() for e in examples if _emulated(e)]
                 for i in range(inputs):
@@ -568,7 +575,7 @@ def run(
     return tallies
 
 
-TARGETS = ("link", "can", "state", "calibration", "config", "values")
+TARGETS = ("link", "can", "state", "calibration", "config", "values", "egm")
 """The default targets; ``runs`` is named on its own (it runs the cell)."""
 ALL_TARGETS = (*TARGETS, "runs")
 
