@@ -15,7 +15,13 @@ from hypothesis import strategies as st
 from forcelearn.devices import Pose
 from forcelearn.protocols.egm import codec
 from forcelearn.tools import fuzz_egm
-from forcelearn.tools.fuzz import FuzzFailure
+from forcelearn.tools.fuzz import apply_mutations, random_mutations
+from forcelearn.tools.fuzz_egm import FuzzFailure
+
+
+def mutate(data: bytes, rng: random.Random) -> bytes:
+    """The harness's byte mutations."""
+    return apply_mutations(data, random_mutations(rng))
 
 
 @pytest.fixture(params=[("rw7", False), ("rw6", True)], ids=["rw7-first-sender", "rw6-configured"])
@@ -36,7 +42,7 @@ def test_hostile_inputs_never_end_the_session_nor_move_the_plan_beyond_the_ramp(
     """20 hostile inputs per example: every property of the target holds."""
     rng = random.Random(seed)
     for _ in range(20):
-        fuzz_egm.check_egm(rig, fuzz_egm.random_egm_input(rng, rig))
+        fuzz_egm.check_egm(rig, fuzz_egm.random_egm_input(rng, rig, mutate))
 
 
 def test_the_ramp_check_catches_a_jump(rig: fuzz_egm.EgmRig) -> None:

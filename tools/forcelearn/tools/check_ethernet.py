@@ -49,6 +49,10 @@ def check_egm(robot: EgmRobotDriver, say: Printer) -> Any:
     say(f"  robot   {stats.received} EgmRobot received, {stats.replies} answers (holds), "
         f"missed {stats.missed}, duplicates {stats.duplicates}, out of order "
         f"{stats.out_of_order}, unreadable {stats.bad_datagrams}")
+    say(f"  robot   paired with the controller at {robot.controller_address}; ignored: "
+        f"{stats.foreign_datagrams} from other hosts, {stats.wrong_version} of the other "
+        f"RobotWare, {stats.seqno_jumps} seqno jumps, {stats.replays} replayed starts, "
+        f"{stats.refused_sessions} refused session starts")
     robot.read_target()  # raises GuidanceStopped if the controller is not guided
     return robot.target
 

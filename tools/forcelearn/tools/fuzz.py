@@ -552,8 +552,13 @@ def run(
             elif target == "egm":
                 from forcelearn.tools import fuzz_egm
 
-                counters = fuzz_egm.run_target(tally, inputs, rng)
-                print(f"{target:12s} driver counters {counters}", flush=True)
+                egm = fuzz_egm.run_target(
+                    inputs, rng, lambda data, r: apply_mutations(data, random_mutations(r)))
+                unsafe = egm.outcomes.pop("unsafe", 0)  # hostile input obeyed: counted as
+                if unsafe:                               # an accepted corruption
+                    egm.outcomes["accepted corruption"] = unsafe
+                tally.inputs, tally.outcomes, tally.failures = inputs, egm.outcomes, egm.failures
+                print(f"{target:12s} driver counters {dict(egm.counters)}", flush=True)
             elif target == "runs":
                 goods = [e.read_bytes() for e in examples if _emulated(e)]
                 for i in range(inputs):

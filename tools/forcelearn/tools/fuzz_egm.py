@@ -48,9 +48,9 @@ import math
 import random
 import socket
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -59,7 +59,17 @@ from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
 from forcelearn.drivers.egm.guidance import TURN_DEG_S, angle_deg
 from forcelearn.errors import ForcelearnError
 from forcelearn.protocols.egm import codec
-from forcelearn.tools.fuzz import FuzzFailure, Tally, apply_mutations, random_mutations
+
+Mutate = Callable[[bytes, random.Random], bytes]
+"""Byte mutations of a datagram (``forcelearn.tools.fuzz`` passes its own)."""
+
+
+class FuzzFailure(AssertionError):
+    """A property of the target failed; the message says which.
+
+    Its own class, not ``forcelearn.tools.fuzz.FuzzFailure``: this module does
+    not import the harness (which imports it), so no import cycle.
+    """
 
 BLOCK = 2000
 """Inputs per driver; then a new driver, version and pairing mode."""
@@ -285,7 +295,7 @@ def _target(rng: random.Random, rig: EgmRig) -> object:
     return rng.choice(bad)
 
 
-def random_egm_input(rng: random.Random, rig: EgmRig) -> EgmInput:
+def random_egm_input(rng: random.Random, rig: EgmRig, mutate: Mutate) -> EgmInput:
     """Draw one hostile input for ``rig``'s present state."""
     kind = rng.choices(
         ["mutant", "truncation", "huge", "tiny", "foreign", "start", "replay", "jump",
@@ -295,8 +305,7 @@ def random_egm_input(rng: random.Random, rig: EgmRig) -> EgmInput:
     sender = 0 if rng.random() < 0.6 else rng.choice((1, 2))
     item = EgmInput(what=kind)
     if kind == "mutant":
-        item.datagrams.append((sender, apply_mutations(rig.next_datagram(),
-                                                       random_mutations(rng))))
+        item.datagrams.append((sender, mutate(rig.next_datagram(), rng)))
     elif kind == "truncation":
         good = rig.next_datagram()
         item.datagrams.append((sender, good[: rng.randrange(len(good))]))
@@ -357,25 +366,27 @@ def check_egm(rig: EgmRig, item: EgmInput) -> str:
     return outcome
 
 
-def _add(tally: Tally, rig: EgmRig, item: EgmInput) -> None:
-    """Count one input's outcome in ``tally`` as ``Tally.add`` does.
+@dataclass
+class EgmTally:
+    """Outcome of a run: counts by outcome, the first failures, the drivers' summed counters."""
 
-    Not ``Tally.add`` itself: under ``python -m forcelearn.tools.fuzz`` that
-    module is ``__main__`` and its FuzzFailure is another class than this one's.
-    """
-    tally.inputs += 1
-    try:
-        tally.outcomes[check_egm(rig, item)] += 1
-    except FuzzFailure as exc:
-        kind = "foreign exception" if "raised" in str(exc) else "accepted corruption"
-        tally.outcomes[kind] += 1
-        if len(tally.failures) < 10:
-            tally.failures.append(f"{item.what}: {exc}")
+    outcomes: Counter[str] = field(default_factory=Counter)
+    failures: list[str] = field(default_factory=list)
+    counters: Counter[str] = field(default_factory=Counter)
+
+    def add(self, rig: EgmRig, item: EgmInput) -> None:
+        """Play one input; a failure is "foreign exception" if something raised, else "unsafe"."""
+        try:
+            self.outcomes[check_egm(rig, item)] += 1
+        except FuzzFailure as exc:
+            self.outcomes["foreign exception" if "raised" in str(exc) else "unsafe"] += 1
+            if len(self.failures) < 10:
+                self.failures.append(f"{item.what}: {exc}")
 
 
-def run_target(tally: Tally, inputs: int, rng: random.Random) -> dict[str, Any]:
-    """Run ``inputs`` inputs in blocks of :data:`BLOCK`; return the drivers' summed counters."""
-    totals: dict[str, int] = {}
+def run_target(inputs: int, rng: random.Random, mutate: Mutate) -> EgmTally:
+    """Run ``inputs`` inputs in blocks of :data:`BLOCK`, a new driver per block."""
+    tally = EgmTally()
     done = 0
     block = 0
     while done < inputs:
@@ -383,12 +394,10 @@ def run_target(tally: Tally, inputs: int, rng: random.Random) -> dict[str, Any]:
         rig = EgmRig.open(version, pinned=block % 4 >= 2)
         try:
             for _ in range(min(BLOCK, inputs - done)):
-                item = random_egm_input(rng, rig)
-                _add(tally, rig, item)
+                tally.add(rig, random_egm_input(rng, rig, mutate))
                 done += 1
         finally:
-            for name, value in vars(rig.driver.stats).items():
-                totals[name] = totals.get(name, 0) + value
+            tally.counters.update(vars(rig.driver.stats))
             rig.close()
         block += 1
-    return totals
+    return tally

@@ -9,9 +9,12 @@
 The PC is the UDP server: the driver binds ``host:port`` and the controller
 sends an EgmRobot every sample period; each fresh one is answered with an
 EgmSensor whose planned pose ramps toward the last accepted target
-(:mod:`.guidance`). ``move_to`` only sets the target: it is checked against the
-client-side limits first (``SafetyStop``, and no datagram ever carries a
-refused target). Two modes:
+(:mod:`.guidance`). Only the paired controller is answered (``controller_host``
+/ ``controller_port``, else the first sender of a valid session start), and no
+datagram ends a session: what cannot be used is counted in :class:`EgmStats`.
+``move_to`` only sets the target: it is checked in full at the call first
+(``InvalidTarget`` / ``SafetyStop``, and no datagram ever carries a refused
+target). Two modes:
 
 * **real** (``lockstep = False``): a receive thread answers every message at
   once with the latest planned pose, as abb_libegm does; the controller's
@@ -22,11 +25,14 @@ refused target). Two modes:
   one, so the controller cycles spent between two host actions are fixed by
   the traffic alone (docs/egm.md, "Lockstep").
 
-Errors: ``SafetyStop`` (limit, nothing sent), ``LinkTimeout`` (the controller
-fell silent for ``watchdog_s``, feedback is stale, or not in position in
-time), ``GuidanceStopped`` (motors off, EGM stopped, RAPID stopped, or a
-controller restart dropped the target), ``EgmVersionMismatch``,
-``ProtocolError``, ``LinkError`` (socket).
+Errors: ``InvalidTarget`` (a malformed target or one outside the workspace,
+at the call, nothing sent), ``SafetyStop`` (step or speed limit; or the
+controller's session start was refused for feedback outside the workspace or
+not finite), ``LinkTimeout`` (the controller fell silent for ``watchdog_s``,
+feedback is stale, or not in position in time), ``GuidanceStopped`` (motors
+off, EGM stopped, RAPID stopped, or a controller restart dropped the target),
+``EgmVersionMismatch`` (only the other RobotWare's datagrams came),
+``ProtocolError``, ``LinkError`` (socket, or the receive thread ended).
 """
 
 from __future__ import annotations
@@ -349,9 +355,15 @@ class EgmRobotDriver:
 
     @property
     def stats(self) -> EgmStats:
-        """Traffic counters (received, replies, missed, duplicates, out of order, sessions)."""
+        """Traffic counters: received, replies, missed... and each kind of datagram ignored."""
         with self._lock:
             return self._guidance.stats
+
+    @property
+    def controller_address(self) -> Any:
+        """The paired controller's source address (host, port); None before the first session."""
+        with self._lock:
+            return self._guidance.controller
 
     @property
     def target(self) -> Pose | None:
