@@ -68,10 +68,10 @@ class Controller(Peer):
         self.pose = HOME
         self.planned: list[Pose] = []
 
-    def cycle(self, pose: Pose | None = None) -> codec.SensorMessage | None:
+    def cycle(self, pose: Pose | None = None, tm_offset_ms: int = 0) -> codec.SensorMessage | None:
         """Send the next cycle; return the answer (its planned pose becomes the feedback)."""
         self.seqno += 1
-        self.send(datagram(self.seqno, pose or self.pose))
+        self.send(datagram(self.seqno, pose or self.pose, tm_ms=4 * self.seqno + tm_offset_ms))
         reply = self.answer()
         if reply is not None and reply.planned is not None:
             self.planned.append(reply.planned)
@@ -140,15 +140,32 @@ def test_a_forged_restart_from_the_controllers_address_does_not_cut_off_its_stre
     """A seqno 0 (newer tm, 3 mm away) forged from the controller's address: its stream goes on."""
     robot, controller, _ = cell
     for _ in range(300):  # more than one watchdog of cycles: seqno 301 is no plausible jump from 0
-        controller.seqno += 1
-        controller.send(datagram(controller.seqno))
-    for _ in range(300):
-        assert controller.answer() is not None
+        assert controller.cycle() is not None
     controller.send(datagram(0, HOME.moved(dz_mm=-3.0), tm_ms=10**6))
     assert controller.answer() is not None  # indistinguishable from a restart, but ramped
     for _ in range(3):
         assert controller.cycle() is not None
     assert robot.stats.resumed_streams == 1
+    assert_ramped(controller.planned)
+
+
+def test_a_replayed_datagram_of_an_earlier_session_is_ignored(cell: Cell) -> None:
+    """Found by the fuzz: an old session's datagram whose seqno is ahead of the new session's."""
+    robot, controller, _ = cell
+    for _ in range(20):
+        controller.cycle()
+    captured = datagram(15, controller.pose, tm_ms=4 * 15)
+    controller.seqno = -1
+    controller.send(datagram(0, controller.pose, tm_ms=1000))  # a real restart, later
+    assert controller.answer() is not None
+    controller.seqno = 0
+    for _ in range(5):
+        controller.cycle(tm_offset_ms=1000)
+    controller.send(captured)  # seqno 15 > 5, within the bound, but its tm is older
+    assert controller.answer(0.2) is None
+    reply = controller.cycle(tm_offset_ms=1000)
+    assert reply is not None and reply.tm_ms == 4 * 6 + 1000
+    assert robot.stats.replays == 1 and robot.stats.sessions == 2
     assert_ramped(controller.planned)
 
 

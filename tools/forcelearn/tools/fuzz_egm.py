@@ -197,41 +197,39 @@ class EgmRig:
             if self.seqno == 0:
                 self.starts.append(data)
             self.send(0, data)
-            if self._await(self.tm_ms):
+            self._await(self.tm_ms)
+            latest = self.driver.read_status().seqno
+            if latest == self.seqno:  # the driver took this cycle (not a forgery's with our tm)
                 return "answered" if attempt == 0 else "delayed"
             self.delayed += 1
-            latest = self.driver.read_status().seqno
             if 0 <= (latest - self.seqno) % 2**32 <= self.bound:
                 self.seqno = latest  # a forged seqno within the bound took ours: catch up
             # else the controller just goes on with its next cycle, as a real one does
         raise FuzzFailure(f"an input ended the session: 3 cycles up to {self.seqno} got no "
                           f"answer ({self.driver.stats})")
 
-    def _await(self, tm_ms: int) -> bool:
-        """Read answers until the one to ``tm_ms``; check each.
+    def _await(self, tm_ms: int) -> None:
+        """Read and check answers until the driver has taken all sent and none more comes.
 
-        False once the driver has taken every datagram sent and none more came
-        (or after :data:`REPLY_TIMEOUT_S`).
+        Stops early at the answer to ``tm_ms`` once every datagram sent was
+        taken; gives up after :data:`REPLY_TIMEOUT_S`.
         """
         deadline = time.monotonic() + REPLY_TIMEOUT_S
+        answered = False
         while time.monotonic() < deadline:
+            taken = self.driver.stats.received >= self.sent
+            if answered and taken:
+                return
             self.controller.settimeout(POLL_S)
             try:
                 raw, _ = self.controller.recvfrom(65535)
             except TimeoutError:
-                if self.driver.stats.received >= self.sent:
-                    self.controller.settimeout(POLL_S)  # an answer may still be in flight
-                    try:
-                        raw, _ = self.controller.recvfrom(65535)
-                    except TimeoutError:
-                        return False
-                else:
-                    continue
+                if taken:
+                    return
+                continue
             reply = codec.decode_sensor(raw, self.version)
             self._check_reply(reply)
-            if reply.tm_ms == tm_ms % 2**32:
-                return True
-        return False
+            answered = answered or reply.tm_ms == tm_ms % 2**32
 
     def _check_reply(self, reply: codec.SensorMessage) -> None:
         planned = reply.planned

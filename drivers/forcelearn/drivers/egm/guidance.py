@@ -23,7 +23,8 @@ used, or counted and ignored. Rules, in the order they are applied:
   reset: it ramps from where it was (restart or replay, no jump).
 * A datagram is **fresh** (and answered) only if its seqno is newer than the
   latest one (mod 2**32) by at most ``max_seqno_ahead`` (one watchdog of
-  cycles; more is ``seqno_jumps``). Skipped seqnos count as ``missed``; an
+  cycles; more is ``seqno_jumps``) and its header ``tm`` is not older (else a
+  ``replays``: a datagram of an earlier session). Skipped seqnos count as ``missed``; an
   equal seqno is a ``duplicate``; an older one is ``out_of_order``; none of
   these is answered nor overwrites newer feedback.
 * Every reply moves the planned pose toward the target by at most
@@ -89,13 +90,19 @@ class EgmStats:
     seqno_jumps: int = 0
     """Datagrams whose seqno jumps ahead by more than max_seqno_ahead; ignored."""
     replays: int = 0
-    """Seqno-0 datagrams not newer (header tm) than the latest one; ignored."""
+    """Datagrams older (header tm) than the latest: a seqno 0 not newer, or a newer seqno
+    with an older tm (an earlier session's datagram); ignored."""
     refused_sessions: int = 0
     """Session starts refused: feedback not finite, not unit or outside the workspace."""
     resumed_streams: int = 0
     """Seqno 0s undone: the stream they interrupted went on (a forged restart); answered."""
     unsent_replies: int = 0
     """Replies withheld because the planned pose failed its check (never expected)."""
+
+
+def _older(tm_ms: int, than_ms: int) -> bool:
+    """Whether header tm ``tm_ms`` is before ``than_ms`` (ms, mod 2**32, half a range back)."""
+    return 0 < (than_ms - tm_ms) % _SEQNO_MOD <= _SEQNO_MOD // 2
 
 
 def _finite(pose: Pose | None) -> bool:
@@ -206,6 +213,8 @@ class Guidance:
             counter = "out_of_order"
         elif ahead > self.config.max_seqno_ahead:
             counter = "seqno_jumps"
+        elif _older(message.tm_ms, latest.tm_ms):
+            counter = "replays"  # a newer seqno with an older tm: an earlier session's datagram
         else:
             counter = ""
         if counter and self._resumes(message):
@@ -233,7 +242,7 @@ class Guidance:
         newer than what was seen).
         """
         before = self._before_restart
-        if before is None or not _finite(message.feedback):
+        if before is None or not _finite(message.feedback) or _older(message.tm_ms, before.tm_ms):
             return False
         ahead = (message.seqno - before.seqno) % _SEQNO_MOD
         if not 0 < ahead <= self.config.max_seqno_ahead:
