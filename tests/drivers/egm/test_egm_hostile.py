@@ -145,8 +145,8 @@ def test_a_forged_restart_from_the_controllers_address_does_not_cut_off_its_stre
     assert controller.answer() is not None  # indistinguishable from a restart, but ramped
     for _ in range(3):
         assert controller.cycle() is not None
-    assert robot.stats.resumed_streams == 1
     assert_ramped(controller.planned)
+    assert robot.stats.resumed_streams == 1
 
 
 def test_a_replayed_datagram_of_an_earlier_session_is_ignored(cell: Cell) -> None:
