@@ -169,6 +169,23 @@ def test_a_replayed_datagram_of_an_earlier_session_is_ignored(cell: Cell) -> Non
     assert_ramped(controller.planned)
 
 
+def test_a_forged_far_future_tm_holds_the_stream_back_only_a_few_cycles(cell: Cell) -> None:
+    """Found by the fuzz: the next seqno with tm + 2^31 - 10 from the controller's address."""
+    robot, controller, _ = cell
+    controller.cycle()
+    far_tm = 4 * controller.seqno + 2**31 - 10
+    forged = datagram(controller.seqno + 1, controller.pose, tm_ms=far_tm)
+    controller.send(forged)
+    assert controller.answer() is not None  # a plausible forgery: taken, and answered
+    answered = []
+    for _ in range(8):  # each real cycle now looks older than the forgery
+        controller.seqno += 1
+        controller.send(datagram(controller.seqno, controller.pose))
+        answered.append(controller.answer(0.05) is not None)
+    assert answered[:2] == [False, False] and all(answered[4:])
+    assert robot.stats.resyncs == 1
+
+
 def test_a_foreign_next_seqno_datagram_is_not_taken_as_feedback(cell: Cell) -> None:
     """Another host's datagram with the controller's next seqno: ignored, feedback unchanged."""
     robot, controller, intruder = cell

@@ -27,6 +27,9 @@ used, or counted and ignored. Rules, in the order they are applied:
   ``replays``: a datagram of an earlier session). Skipped seqnos count as ``missed``; an
   equal seqno is a ``duplicate``; an older one is ``out_of_order``; none of
   these is answered nor overwrites newer feedback.
+* A stream held back by a forged datagram is taken up again: after
+  ``RESYNC_AFTER`` refused datagrams with consecutive seqnos and rising tm,
+  and as many periods without a fresh one (``resyncs``).
 * Every reply moves the planned pose toward the target by at most
   ``speed_mm_s`` x ``sample_period_s`` (and ``TURN_DEG_S`` x period in
   orientation), then checks it against the workspace: the controller is
@@ -64,6 +67,9 @@ TURN_DEG_S = 45.0
 """Largest rate at which the planned orientation turns toward the target (assumption)."""
 
 _SEQNO_MOD = 1 << 32
+RESYNC_AFTER = 3
+"""Refused datagrams in a row (consecutive seqnos) and periods without a fresh one before
+the driver takes that chain up as the controller's stream (:meth:`Guidance._resyncs`)."""
 
 
 @dataclass(frozen=True)
@@ -96,6 +102,8 @@ class EgmStats:
     """Session starts refused: feedback not finite, not unit or outside the workspace."""
     resumed_streams: int = 0
     """Seqno 0s undone: the stream they interrupted went on (a forged restart); answered."""
+    resyncs: int = 0
+    """Times the stream was taken up again after a forged datagram held it back."""
     unsent_replies: int = 0
     """Replies withheld because the planned pose failed its check (never expected)."""
 
@@ -113,9 +121,23 @@ def _finite(pose: Pose | None) -> bool:
 
 
 def angle_deg(q0: tuple[float, ...], q1: tuple[float, ...]) -> float:
-    """Rotation angle between two unit quaternions, degrees."""
+    """Rotation angle between two quaternions, degrees (inf if either is not finite or zero).
+
+    Unit quaternions are used as they are; others are normalised first (a
+    controller's datagram may carry any four numbers).
+    """
+    n0, n1 = math.hypot(*q0), math.hypot(*q1)
+    if not (math.isfinite(n0) and math.isfinite(n1) and n0 > 0 and n1 > 0):
+        return math.inf
+    if abs(n0 - 1.0) > 1e-6 or abs(n1 - 1.0) > 1e-6:
+        q0, q1 = tuple(c / n0 for c in q0), tuple(c / n1 for c in q1)
     dot = abs(float(np.dot(q0, q1)))
     return math.degrees(2.0 * math.acos(min(1.0, dot)))
+
+
+def distance_mm(p0: Pose, p1: Pose) -> float:
+    """Distance between two poses' positions, mm (inf, never a warning, if it overflows)."""
+    return math.hypot(p0.x_mm - p1.x_mm, p0.y_mm - p1.y_mm, p0.z_mm - p1.z_mm)
 
 
 def step_toward(pose: Pose, target: Pose, max_mm: float, max_deg: float) -> Pose:
@@ -164,6 +186,7 @@ class Guidance:
         """Why the latest refused datagram could not start a session (None once one starts)."""
         self._next_seqno = 0
         self._before_restart: codec.RobotMessage | None = None
+        self._chain: tuple[codec.RobotMessage, int] | None = None  # refused, consecutive
         self._latest_s: float | None = None  # host time of the latest fresh datagram
 
     # -- input ------------------------------------------------------------------------------
@@ -200,6 +223,8 @@ class Guidance:
         latest = self.latest
         if latest is None or (message.seqno == 0 and latest.seqno != 0):
             if latest is not None and not self._newer_session(message, latest, now_s):
+                if self._resyncs(message, now_s):
+                    return self._fresh(data, now_s)
                 self._count(replays=1)
                 return False
             if not self._start_session(message, source):
@@ -219,6 +244,8 @@ class Guidance:
             counter = ""
         if counter and self._resumes(message):
             self._count(resumed_streams=1)
+            return self._fresh(data, now_s)
+        if counter and counter != "duplicates" and self._resyncs(message, now_s):
             return self._fresh(data, now_s)
         if counter:
             self._count(**{counter: 1})
@@ -252,7 +279,45 @@ class Guidance:
         self.hold()
         return True
 
+    def _resyncs(self, message: codec.RobotMessage, now_s: float | None) -> bool:
+        """Whether the stream is stuck and ``message`` ends a chain to take up; if so, take it.
+
+        A forged datagram far ahead (seqno within the bound, or tm) would make
+        every later datagram of the real controller look old. When no fresh
+        datagram came for :data:`RESYNC_AFTER` sample periods while
+        :data:`RESYNC_AFTER` refused ones came with consecutive seqnos and
+        rising tm, that chain is the controller's stream: the driver takes it
+        up (``resyncs``) and holds the target at its feedback, if safe. While
+        the controller's stream is fresh, no chain is taken (a replayed chain
+        cannot take over a live stream).
+        """
+        chain = self._chain
+        linked = (
+            chain is not None
+            and (message.seqno - chain[0].seqno) % _SEQNO_MOD == 1
+            and not _older(message.tm_ms, chain[0].tm_ms)
+        )
+        length = chain[1] + 1 if linked and chain is not None else 1
+        self._chain = (message, length)
+        stuck = (
+            now_s is not None
+            and self._latest_s is not None
+            and now_s - self._latest_s > RESYNC_AFTER * self.config.sample_period_s
+        )
+        safe = unsafe_reason(message.feedback, self.config.limits, FEEDBACK_NORM_TOLERANCE)
+        if length < RESYNC_AFTER or not stuck or safe is not None:
+            return False
+        self._chain = None
+        self._before_restart = None
+        self.latest = message
+        self.hold()
+        self._count(resyncs=1)
+        log.warning("EGM stream taken up again at seqno %d after a forged or stale datagram",
+                    message.seqno)
+        return True
+
     def _fresh(self, data: bytes, now_s: float | None) -> bool:
+        self._chain = None
         self.refusal = None  # the controller's stream goes on: an earlier refusal is moot
         self.latest_raw = data
         self._latest_s = now_s
@@ -435,7 +500,7 @@ class Guidance:
         poses = [m.feedback] + ([m.planned] if m.planned is not None else [])
         band_mm, band_deg = self.config.in_position_mm, self.config.in_position_deg
         return all(
-            float(np.linalg.norm(p.position_mm - target.position_mm)) <= band_mm
+            distance_mm(p, target) <= band_mm
             and angle_deg(p.quaternion, target.quaternion) <= band_deg
             for p in poses
         )
