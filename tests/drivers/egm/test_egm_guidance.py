@@ -90,3 +90,38 @@ def test_a_session_needs_a_cartesian_feedback_pose() -> None:
     assert not g.on_datagram(robot(0, feedback=None))
     assert g.latest is None and g.stats.refused_sessions == 1
     assert isinstance(g.refusal, ProtocolError) and r"\Pose" in str(g.refusal)
+
+
+def test_a_seqno_jump_beyond_one_watchdog_of_cycles_is_ignored() -> None:
+    """max_seqno_ahead = ceil(watchdog_s / period): the bound itself is taken, one more is not."""
+    g = Guidance(EgmConfig(port=0, watchdog_s=0.5))
+    bound = g.config.max_seqno_ahead
+    assert bound == 125
+    g.on_datagram(robot(0))
+    assert not g.on_datagram(robot(bound + 1))
+    assert g.on_datagram(robot(bound))
+    assert (g.stats.seqno_jumps, g.stats.missed) == (1, bound - 1)
+
+
+def test_a_seqno_zero_or_a_newer_seqno_with_an_older_tm_is_a_replay() -> None:
+    """Header tm decides: a seqno 0 must be newer to restart; a newer seqno with older tm is old."""
+    g = Guidance(EgmConfig(port=0))
+    g.on_datagram(robot(0))
+    g.on_datagram(robot(10))
+    assert not g.on_datagram(robot(0))  # tm 0 < 40
+    assert not g.on_datagram(robot(12, tm_ms=8))
+    assert g.stats.replays == 2 and g.session == 1
+    assert g.on_datagram(robot(0, tm_ms=44))  # a real restart
+    assert g.session == 2
+
+
+def test_pairing_pins_the_first_valid_sender() -> None:
+    """Before pairing anyone may start; after it, every other source is foreign."""
+    g = Guidance(EgmConfig(port=0))
+    assert not g.on_datagram(robot(0, HOME.moved(dx_mm=5000.0)), ("10.0.0.9", 1))  # refused
+    assert g.controller is None
+    assert g.on_datagram(robot(0), ("10.0.0.1", 6510))
+    assert g.controller == ("10.0.0.1", 6510)
+    assert not g.on_datagram(robot(1), ("10.0.0.1", 6511))
+    assert g.on_datagram(robot(1), ("10.0.0.1", 6510))
+    assert g.stats.foreign_datagrams == 1
