@@ -97,6 +97,9 @@ def test_check_then_run_reach_the_emulate_process(
         checked = cli("check", "--config", str(site), "--seconds", "0.2")
         assert checked.returncode == 0, checked.stdout + checked.stderr
         assert "the robot was not moved" in checked.stdout
+        if "egm" in options:  # the controller it paired with, and nothing ignored
+            assert "paired with the controller at ('127.0.0.1', " in checked.stdout
+            assert "ignored: 0 from other hosts, 0 of the other RobotWare" in checked.stdout
         out = tmp_path / "run"
         ran = cli("run", "--config", str(site), "--trials", "1", "--out", str(out),
                   "--no-progress")
