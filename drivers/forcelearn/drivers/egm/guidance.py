@@ -29,7 +29,7 @@ used, or counted and ignored. Rules, in the order they are applied:
   these is answered nor overwrites newer feedback.
 * A stream held back by a forged datagram is taken up again: after
   ``RESYNC_AFTER`` refused datagrams with consecutive seqnos and rising tm,
-  and as many periods without a fresh one (``resyncs``).
+  and as many periods without a fresh one (``resyncs``; the target is kept).
 * Every reply moves the planned pose toward the target by at most
   ``speed_mm_s`` x ``sample_period_s`` (and ``TURN_DEG_S`` x period in
   orientation), then checks it against the workspace: the controller is
@@ -287,7 +287,7 @@ class Guidance:
         datagram came for :data:`RESYNC_AFTER` sample periods while
         :data:`RESYNC_AFTER` refused ones came with consecutive seqnos and
         rising tm, that chain is the controller's stream: the driver takes it
-        up (``resyncs``) and holds the target at its feedback, if safe. While
+        up (``resyncs``; its feedback must be safe to adopt), target kept. While
         the controller's stream is fresh, no chain is taken (a replayed chain
         cannot take over a live stream).
         """
@@ -309,8 +309,7 @@ class Guidance:
             return False
         self._chain = None
         self._before_restart = None
-        self.latest = message
-        self.hold()
+        self.latest = message  # the target stays: it was checked when it was set
         self._count(resyncs=1)
         log.warning("EGM stream taken up again at seqno %d after a forged or stale datagram",
                     message.seqno)
