@@ -18,7 +18,7 @@ HOME = Pose(900.0, 0.0, 600.0, DOWN)
 def robot(seqno: int, pose: Pose = HOME, **kw: object) -> bytes:
     """An RW7 EgmRobot datagram of cycle ``seqno`` (4 ms cycles), guidance running."""
     values = dict(
-        seqno=seqno, tm_ms=4 * seqno, feedback=pose, planned=pose, time_s=0.004 * seqno,
+        seqno=seqno, tm_ms=4 * seqno, feedback=pose, planned=pose, time_us=4000 * seqno,
         motor=codec.MotorState.ON, mci=codec.MciState.RUNNING, rapid=codec.RapidState.RUNNING,
     )
     values.update(kw)
