@@ -22,7 +22,9 @@ Shoulder 750 mm above the base, upper arm 710 mm, forearm 850 mm to the tool
 centre point (no separate wrist offset). Inverse kinematics
 (:func:`tool_joints_deg`) takes the elbow-up branch and J4 = 0 at a wrist
 singularity (J5 = 0 or 180); forward kinematics (:func:`tool_pose`) is its
-inverse. This is not the geometry of a real IRB: a real controller reports
+inverse. A tool pointing straight down (the cell's home) is J5 = 180 deg,
+such a singularity: J4 = 0, and J6 carries the tool's turn about the
+vertical (180 deg at the home). This is not the geometry of a real IRB: a real controller reports
 its own robot's axes, and a program that reads joints must use the joints of
 the real robot, not these numbers.
 
