@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from forcelearn.devices import Pose, quaternion_to_matrix
 from forcelearn.emulators.egm.joints import limit_violation, tool_joints_deg, tool_pose
-from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig
+from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig, joint_angles_deg
 
 ARM = ArmConfig()
 
@@ -69,3 +69,21 @@ def test_out_of_reach_and_out_of_range_are_reported() -> None:
     assert "6 finite" in (limit_violation(ARM, (0.0, math.nan, -90.0, 0.0, 90.0, 0.0)) or "")
     with pytest.raises(ValueError, match="6 finite"):
         tool_pose(ARM, (0.0, 0.0, -90.0))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.floats(300.0, 1500.0), st.floats(-800.0, 800.0), st.floats(-200.0, 1400.0),
+    st.tuples(*[st.floats(-1.0, 1.0)] * 4).filter(lambda q: sum(c * c for c in q) > 0.01),
+)
+def test_the_same_joints_as_the_computer_link_emulators_arm(
+    x: float, y: float, z: float, q: tuple[float, float, float, float]
+) -> None:
+    """One arm in the cell: EGM reports the joints the computer-link emulator computes."""
+    norm = math.sqrt(sum(c * c for c in q))
+    pose = Pose(x, y, z, tuple(c / norm for c in q))  # type: ignore[arg-type]
+    ours, theirs = tool_joints_deg(ARM, pose), joint_angles_deg(ARM, pose)
+    if theirs is None:
+        assert ours is None
+        return
+    assert ours == pytest.approx(theirs, abs=1e-7)

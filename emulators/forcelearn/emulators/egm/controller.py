@@ -151,6 +151,7 @@ class EgmControllerModel:
         self.planned_joints = self._joints(physics.pose, ())
         """The planned axes in effect, degrees."""
         self._feedback_joints: tuple[float, ...] = self.planned_joints
+        self._feedback_joints_pose = physics.pose
         self.mci = codec.MciState.RUNNING
         self.rapid = codec.RapidState.RUNNING
         self.sessions = 1
@@ -309,7 +310,9 @@ class EgmControllerModel:
         if self.config.send_measured_force:
             force = tuple(float(v) for v in self.physics.true_wrench())
         gap = float(np.linalg.norm(self.pose.position_mm - self.planned.position_mm))
-        self._feedback_joints = self._joints(self.pose, self._feedback_joints)
+        if self.pose != self._feedback_joints_pose:  # at rest the axes stay
+            self._feedback_joints = self._joints(self.pose, self._feedback_joints)
+            self._feedback_joints_pose = self.pose
         time_us = self.config.clock_epoch_us + round(t_s * 1e6)
         message = codec.RobotMessage(
             seqno=self._seqno,
@@ -360,6 +363,7 @@ class EgmControllerModel:
             "planned_joints", self._joints(self.planned, self.planned_joints)))
         self._feedback_joints = tuple(float(j) for j in state.get(
             "feedback_joints", self._joints(self.pose, self._feedback_joints)))
+        self._feedback_joints_pose = self.pose
         self.wrong_mode = int(state.get("wrong_mode", 0))
         self.mci = codec.MciState[state["mci"]]
         self.rapid = codec.RapidState[state["rapid"]]
