@@ -47,7 +47,9 @@ What an EgmSensor is taken for (the mode is EGMSetupUC's ``\\Pose`` or
   ``speed = k * (pos_ref - pos) + speed_ref`` (p.26). With the servo's
   first-order lag of time constant tau (k = 1 / tau) this is exactly the lag
   acting toward ``pos_ref + speed_ref * tau``, which is how it is applied
-  (cartesian mm/s and deg/s in pose mode, joint deg/s in joint mode).
+  (cartesian mm/s and deg/s in pose mode; in joint mode the joints led by
+  deg/s x tau, through the forward kinematics, since the servo lags in
+  Cartesian space). A speedRef without six finite values is not used.
 """
 
 from __future__ import annotations
