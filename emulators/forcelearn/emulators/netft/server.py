@@ -79,6 +79,9 @@ setting of a given box may be lower: ``forcelearn check`` prints the box's ``com
 MAX_RDT_RATE_HZ = 7000.0
 """Fastest RDT rate the emulated box streams at, records/s: the Net F/T's maximum (manual
 §10, "up to 7000 Hz"; ATI's Ethernet Axia manual: internal sample rate 7000 per s)."""
+INTERNAL_SAMPLE_RATE_HZ = 7000.0
+"""The box's internal sample rate, samples/s: ``ft_sequence`` counts these from power-up,
+whatever the RDT output rate (manual §10 on ft_sequence; ATI's Ethernet Axia manual, same text)."""
 POLL_S = 0.02
 """Longest the UDP thread blocks while idle, so ``close()`` returns promptly."""
 STREAM_POLL_S = 0.001
@@ -236,7 +239,8 @@ class NetFtEmulator(Emulator):
         self.stats = EmulatorStats()
         self.ft_sequence = 0
         self.boot_s = 0.0
-        """Simulated time of the last (re)boot; ``ft_sequence`` counts internal samples since."""
+        """Simulated time of the last (re)boot; ``ft_sequence`` counts internal samples since
+        (:data:`INTERNAL_SAMPLE_RATE_HZ`)."""
         self.last_sample_s: float | None = None
         self._records_since_boot = 0
         self._lock = threading.RLock()
@@ -473,8 +477,8 @@ class NetFtEmulator(Emulator):
             dt = 0.0 if self.last_sample_s is None else t - self.last_sample_s
             counts = self.model.measure(self.physics.true_wrench(), dt)
             self.last_sample_s = t
-            # the box samples at its internal rate (here = the RDT rate) streaming or not
-            ft = round((t - self.boot_s) * self.rdt_rate_hz)
+            # the box samples at its internal rate (7000/s) streaming or not, whatever the RDT rate
+            ft = round((t - self.boot_s) * INTERNAL_SAMPLE_RATE_HZ)
             self.ft_sequence = ft % protocol.SEQUENCE_MODULUS
             seq = first_seq + i
             records.append(Record(seq, self.ft_sequence, self.faults.status, counts))
