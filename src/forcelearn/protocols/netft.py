@@ -96,8 +96,30 @@ TORQUE_UNITS: dict[int, tuple[str, float]] = {
 }
 """READCALINFO torque unit code -> (name as ``scfgtu`` spells it, newton-metres per unit)."""
 
+TORQUE_UNIT_SPELLINGS: dict[str, str] = {"Nm": "N-m", "Nmm": "N-mm", "kNm": "kN-m",
+                                          "kg-cm": "kgf-cm"}
+"""How a real box spells torque units on its web pages -> forcelearn's name. A live
+netftapi2.xml (Gamma SI-330-30, firmware 2.2.59, quoted in a public client's tests) has
+``<scfgtu>Nm</scfgtu>``; netft/pyNetFT's XML parser maps ``Nm``, ``Nmm`` and ``kg-cm`` to
+``N-m``, ``N-mm``, ``kgf-cm``; ``kNm`` is the same client's table of the manual's units."""
+
 FORCE_UNIT_SI = {name: factor for name, factor in FORCE_UNITS.values()}
-TORQUE_UNIT_SI = {name: factor for name, factor in TORQUE_UNITS.values()}
+_TORQUE_SI_BY_NAME = {name: factor for name, factor in TORQUE_UNITS.values()}
+TORQUE_UNIT_SI = _TORQUE_SI_BY_NAME | {
+    spelling: _TORQUE_SI_BY_NAME[name] for spelling, name in TORQUE_UNIT_SPELLINGS.items()}
+"""Torque unit name (forcelearn's or the box's spelling) -> newton-metres per unit."""
+
+
+def canonical_unit(name: str) -> str:
+    """The name forcelearn uses for a unit (``"Nm"`` -> ``"N-m"``); others come back unchanged."""
+    return TORQUE_UNIT_SPELLINGS.get(name, name)
+
+
+def unit_codes(force_unit: str, torque_unit: str) -> tuple[int, int]:
+    """The READCALINFO codes of two unit names (either spelling); unknown names raise KeyError."""
+    force = {n: c for c, (n, _) in FORCE_UNITS.items()}[force_unit]
+    torque = {n: c for c, (n, _) in TORQUE_UNITS.items()}[canonical_unit(torque_unit)]
+    return force, torque
 
 
 class Command(enum.IntEnum):

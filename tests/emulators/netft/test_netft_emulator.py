@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -200,3 +201,19 @@ def test_a_buffered_request_that_is_not_whole_buffers_ends_with_a_short_datagram
     sizes = [len(b) for b in batches if isinstance(b, list)]
     seqs = [r.rdt_sequence for b in batches if isinstance(b, list) for r in b]
     assert sizes == [4, 4, 2] and seqs == list(range(1, 11))
+
+
+@pytest.mark.parametrize("source", ["http", "tcp"])
+def test_a_box_that_spells_newton_metres_nm_is_read_and_agrees_with_n_m(source: str) -> None:
+    """A box that spells the torque unit "Nm" is read as N-m and agrees with "N-m".
+
+    A live netftapi2.xml (firmware 2.2.59, quoted in a public client's tests) says
+    ``<scfgtu>Nm</scfgtu>``; before, the driver refused it as an unknown unit.
+    """
+    model = replace(QUIET, torque_unit="Nm", counts_per_torque=1_000_000)
+    with start(contact_physics(), model=model) as emu, NetFtSensor(
+        config_for(emu, calibration_source=source, torque_unit="N-m", zero_on_init=False)
+    ) as sensor:
+        assert emu.xml_fields["scfgtu"] == "Nm"
+        assert sensor.calibration.si_per_count[3:] == pytest.approx([1e-6] * 3)
+        assert np.allclose(sensor.read().wrench, emu.physics.true_wrench(), atol=1e-5)

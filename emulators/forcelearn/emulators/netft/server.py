@@ -251,8 +251,8 @@ class NetFtEmulator(Emulator):
         self._stream_t0 = 0.0
         self._stream_sent = 0
         self._stream_batch = 1
-        force_code = {n: c for c, (n, _) in protocol.FORCE_UNITS.items()}[self.params.force_unit]
-        torque_code = {n: c for c, (n, _) in protocol.TORQUE_UNITS.items()}[self.params.torque_unit]
+        force_code, torque_code = protocol.unit_codes(self.params.force_unit,
+                                                      self.params.torque_unit)
         self.calinfo = protocol.CalInfo(force_code, torque_code, self.params.counts_per_force,
                                         self.params.counts_per_torque)
         """What READCALINFO answers (a test may replace it with nonsense)."""
