@@ -103,3 +103,10 @@ def test_an_index_the_emulated_box_does_not_hold_is_404() -> None:
     """The emulated box holds one configuration and one calibration (a documented choice)."""
     with start_box() as box, pytest.raises(urllib.error.HTTPError, match="404"):
         page(box, "/netftcalapi.xml?index=1")
+
+
+def test_runrate_is_the_internal_rate_and_comrdtrate_the_output_rate() -> None:
+    """A live page of a box set to 100/s: ``<runrate>7000</runrate>``, ``<comrdtrate>100``."""
+    with start_box(rdt_rate_hz=100) as box:
+        cfg = fields(page(box, "/netftapi2.xml"))
+    assert (float(cfg["runrate"]), float(cfg["comrdtrate"])) == (7000, 100)

@@ -265,7 +265,7 @@ class NetFtEmulator(Emulator):
             "cfgmr": ";".join(f"{r:g}" for r in self._ranges_in_units()),
             "comrdtrate": f"{self.rdt_rate_hz:g}",
             "setuserfilter": str(filter_index),
-            "runrate": f"{self.rdt_rate_hz:g}",
+            "runrate": f"{INTERNAL_SAMPLE_RATE_HZ:g}",  # the internal rate, not the RDT rate
             "comrdtbsiz": str(self.rdt_buffer_size),
             "setcfgsel": "0",
             "cfgcalsel": "0",
