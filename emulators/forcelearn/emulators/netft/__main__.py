@@ -44,11 +44,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     physics = (CellPhysics(Sponge(), Pose(0.0, -8.0, -40.0), tool=ToolParams())
                if args.contact else CellPhysics())
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
-    emulator = start_emulated_netft(
-        physics, SimClock(args.time_scale), args.seed, rdt_port=args.rdt_port,
-        tcp_port=args.tcp_port, http_port=args.http_port, rdt_rate_hz=args.rate_hz,
-        rdt_buffer_size=args.rdt_buffer_size,
-    )
+    try:
+        emulator = start_emulated_netft(
+            physics, SimClock(args.time_scale), args.seed, rdt_port=args.rdt_port,
+            tcp_port=args.tcp_port, http_port=args.http_port, rdt_rate_hz=args.rate_hz,
+            rdt_buffer_size=args.rdt_buffer_size,
+        )
+    except ValueError as exc:  # a rate or buffer size the box cannot have
+        parser.error(str(exc))
     with emulator, contextlib.suppress(KeyboardInterrupt):
         print(json.dumps({"host": emulator.host, **emulator.ports}), flush=True)
         sys.stdin.read()  # until the parent closes our stdin
