@@ -31,7 +31,7 @@ def datagram(seqno: int, pose: Pose | None = HOME, version: codec.Version = "rw7
     """An EgmRobot of cycle ``seqno`` (4 ms cycles), guidance running."""
     return codec.encode_robot(codec.RobotMessage(
         seqno=seqno, tm_ms=4 * seqno if tm_ms is None else tm_ms, feedback=pose, planned=pose,
-        time_s=0.004 * seqno, motor=codec.MotorState.ON, mci=codec.MciState.RUNNING,
+        time_us=4000 * seqno, motor=codec.MotorState.ON, mci=codec.MciState.RUNNING,
         rapid=codec.RapidState.RUNNING, measured_force=(0.0,) * 6 if force else None,
         fc_active=False if force else None,
     ), version)

@@ -106,7 +106,7 @@ def _robot(seqno: int, tm_ms: int, pose: Pose, version: codec.Version) -> bytes:
     """A controller's EgmRobot with version evidence (a measured force), guidance running."""
     return codec.encode_robot(codec.RobotMessage(
         seqno=seqno % 2**32, tm_ms=tm_ms % 2**32, feedback=pose, planned=pose,
-        time_s=tm_ms / 1000.0, motor=codec.MotorState.ON, mci=codec.MciState.RUNNING,
+        time_us=tm_ms * 1000, motor=codec.MotorState.ON, mci=codec.MciState.RUNNING,
         rapid=codec.RapidState.RUNNING, measured_force=(0.0,) * 6,
         fc_active=False if version == "rw7" else None,
     ), version)

@@ -185,6 +185,8 @@ class Guidance:
         self.refusal: ForcelearnError | None = None
         """Why the latest refused datagram could not start a session (None once one starts)."""
         self._next_seqno = 0
+        self.origin_us: int | None = None
+        """feedBack.time (µs since 1970) of the first message that had one: controller time 0."""
         self._before_restart: codec.RobotMessage | None = None
         self._chain: tuple[codec.RobotMessage, int] | None = None  # refused, consecutive
         self._latest_s: float | None = None  # host time of the latest fresh datagram
@@ -316,6 +318,10 @@ class Guidance:
         return True
 
     def _fresh(self, data: bytes, now_s: float | None) -> bool:
+        """Keep ``data`` as the latest (``self.latest`` is its message); True: answer it."""
+        latest = self.latest
+        if self.origin_us is None and latest is not None and latest.time_us is not None:
+            self.origin_us = latest.time_us  # only a datagram taken sets the controller's time 0
         self._chain = None
         self.refusal = None  # the controller's stream goes on: an earlier refusal is moot
         self.latest_raw = data
@@ -437,6 +443,7 @@ class Guidance:
             "speed_mm_s": self.speed_mm_s,
             "session": self.session,
             "next_seqno": self._next_seqno,
+            "origin_us": self.origin_us,
             "stats": asdict(self.stats),
         }
 
@@ -460,17 +467,29 @@ class Guidance:
         self.speed_mm_s = float(state["speed_mm_s"])
         self.session = int(state["session"])
         self._next_seqno = int(state["next_seqno"])
+        origin = state.get("origin_us")
+        self.origin_us = None if origin is None else int(origin)
         self.stats = EgmStats(**state["stats"])
 
     # -- queries ----------------------------------------------------------------------------
 
     def controller_time_s(self) -> float:
-        """The controller's time of the latest message: feedBack.time, else header.tm."""
+        """The controller's time of the latest message, s: feedBack.time, else header.tm.
+
+        feedBack.time is the controller's clock in µs since 1970 (manual
+        3HAC073318 p.38); it is counted from the first message the driver
+        read (:attr:`origin_us`) in whole µs, so differences keep full
+        resolution. The clock itself is :attr:`controller_clock_us`.
+        """
         if self.latest is None:
             return 0.0
-        if self.latest.time_s is not None:
-            return self.latest.time_s
+        if self.latest.time_us is not None and self.origin_us is not None:
+            return (self.latest.time_us - self.origin_us) / 1e6
         return self.latest.tm_ms / 1000.0
+
+    def controller_clock_us(self) -> int | None:
+        """feedBack.time of the latest message: µs since 1970-01-01 UTC (None if not sent)."""
+        return None if self.latest is None else self.latest.time_us
 
     def require_running(self) -> None:
         """Raise ``GuidanceStopped`` unless motors are on, EGM runs and RAPID runs.
