@@ -15,7 +15,8 @@ state x        the contact force, N, constant while the cell stands still
 move           ``on_move(expected_change_n, change_std_n)``: predict with
                x += expected change, P += change_std^2 (filterpy ``predict``
                with u = the change and Q = its variance)
-burst          N samples z_i, ``dt`` apart, of x plus noise that is a
+burst          N samples z_i, ``dt`` apart (the median sensor time between
+               them, ``sensor_dt_s``, else ``sample_period_s``), of x plus noise that is a
                first-order (Ornstein-Uhlenbeck) process of variance R and
                sample-to-sample correlation a = exp(-2 pi noise_cutoff_hz dt).
                The burst's information about x is exactly its generalised
@@ -100,9 +101,19 @@ class MoveAwareForceFilter:
 
     @property
     def noise_correlation(self) -> float:
-        """a: the correlation of the noise of two consecutive samples (0 = white)."""
+        """a: the noise correlation of two samples ``sample_period_s`` apart (0 = white)."""
+        return self.correlation_over(self.config.sample_period_s)
+
+    def correlation_over(self, dt_s: float) -> float:
+        """The noise correlation of two samples ``dt_s`` seconds apart (0 = white)."""
         cutoff = self.config.noise_cutoff_hz
-        return math.exp(-2.0 * math.pi * cutoff * self.config.sample_period_s) if cutoff else 0.0
+        return math.exp(-2.0 * math.pi * cutoff * dt_s) if cutoff else 0.0
+
+    def burst_period_s(self, samples: Sequence[WrenchSample]) -> float:
+        """The time between the burst's samples, s: the median of what the sensor says
+        (``sensor_dt_s``), else ``sample_period_s``."""
+        steps = [s.sensor_dt_s for s in samples[1:] if s.sensor_dt_s is not None]
+        return float(np.median(steps)) if steps else self.config.sample_period_s
 
     def set_measurement_variance(self, variance_n2: float) -> None:
         """Set R (N^2), the sensor's noise variance on the axis (e.g. from calibration)."""
@@ -156,7 +167,8 @@ class MoveAwareForceFilter:
             if not keep.any():  # a gate narrower than the samples' spacing: the middle one
                 keep[int(np.argmin(distance))] = True
             self.outliers += int(len(values) - keep.sum())
-            mean, factor = burst_mean(values[keep], self.noise_correlation)
+            correlation = self.correlation_over(self.burst_period_s(samples))
+            mean, factor = burst_mean(values[keep], correlation)
             self._kf.update(np.array([[mean]]), R=np.array([[self._variance_n2 * factor]]))
             self._started = True
             return float(self._kf.x[0, 0])
