@@ -158,27 +158,36 @@ def test_cutoff_change_is_acknowledged(make_node: NodeFactory, make_sensor: Sens
 def test_sync_stepping_gives_one_sample_per_sync(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """Each read sends one SYNC and returns the pair with the next counter, nothing lost."""
+    """Each read sends one SYNC; the pair comes at the adapter's next 1 ms loop turn, so the
+    counter (sensor frames, 128.5 µs each) steps by 7 or 8 and each sample carries ~1 ms of
+    sensor time. (This test used to expect the counter to step by 1 per sample: the old,
+    wrong emulator.)"""
     node = make_node(initial_counter=100)
     sensor = make_sensor()
-    counters = [sensor.read().counter for _ in range(50)]
-    assert counters == list(range(100, 150))
-    assert node.stats.samples == 50
+    samples = [sensor.read() for _ in range(50)]
+    steps = {(b.counter - a.counter) % 65536 for a, b in zip(samples, samples[1:], strict=False)}
+    assert steps <= {7, 8} and steps
+    assert all(s.sensor_dt_s == pytest.approx(((s.counter - p.counter) % 65536) * 128.5e-6)
+               for p, s in zip(samples, samples[1:], strict=False))
+    assert node.stats.samples == 50 and node.stats.syncs == 50
     stats = sensor.stats
     assert (stats.samples, stats.dropped_samples, stats.unpaired_frames) == (50, 0, 0)
 
 
-def test_read_many_pipelines_syncs_and_returns_consecutive_samples(
+def test_read_many_sends_one_sync_per_sample_across_the_counter_wrap(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """read_many(200, window=4) returns exactly 200 consecutive samples, one per SYNC sent."""
-    node = make_node(initial_counter=65500)
+    """read_many(200, window=4) sends exactly 200 SYNCs (one in flight: the adapter answers
+    one per turn), returns 200 samples ~1 ms of sensor time apart, the wrap included."""
+    node = make_node(initial_counter=65000)
     sensor = make_sensor()
     samples = sensor.read_many(200, window=4)
     counters = [s.counter for s in samples]
-    assert counters == [(65500 + i) % 65536 for i in range(200)]
+    assert any(b < a for a, b in zip(counters, counters[1:], strict=False))  # it wrapped
+    dts = [s.sensor_dt_s for s in samples[1:]]
+    assert all(dt is not None and round(dt / 128.5e-6) in (7, 8) for dt in dts)
+    assert node.stats.syncs == 200 and node.stats.syncs_merged == 0
     assert node.stats.samples == 200
-    assert sensor.read().counter == (65500 + 200) % 65536
 
 
 def test_saturation_is_flagged_near_full_scale(
@@ -257,7 +266,8 @@ def test_traffic_log_uses_python_can_writers(
 
 @pytest.mark.parametrize(
     ("key", "value"),
-    [("node_id", 0), ("mode", "both"), ("cutoff_hz", 0.0), ("period_us", 0),
+    [("node_id", 0), ("mode", "both"), ("cutoff_hz", -1.0), ("cutoff_hz", 0.001),
+     ("period_us", 0),
      ("full_scales", (1.0, 2.0)), ("stale_timeout_s", 0.0), ("opcodes_version", "1999")],
 )
 def test_config_errors_name_the_key(key: str, value: object) -> None:

@@ -56,6 +56,8 @@ log = logging.getLogger(__name__)
 
 NOTIFIER_POLL_S = 0.05
 STOP_ACK_TIMEOUT_S = 0.1
+SYNC_ATTEMPTS = 4
+"""SYNCs sent for one sample before SensorStale, each waited for stale_timeout_s / 4."""
 
 
 class Jr3CanSensor:
@@ -81,6 +83,7 @@ class Jr3CanSensor:
         self._listener = Jr3Listener(
             self.config.node_id, self.config.opcodes, self.config.near_saturation_counts, writer
         )
+        self._listener.unpaired_are_lost_samples = self.config.mode == "async"
         if on_sample is not None:
             self._listener.callbacks.append(on_sample)
         self._command_lock = threading.Lock()
@@ -128,9 +131,9 @@ class Jr3CanSensor:
         start: codec.Message = codec.StartSync(cutoff)
         if cfg.mode == "async":
             start = codec.StartAsync(cutoff, cfg.period_us)
-        ack = self._command(start)
-        self._listener.restart_pairing()  # a started sensor counts from 0
-        if not ack.ready:
+        # a started sensor counts from 0, and its first data may come before the ACK
+        self._listener.restart_pairing()
+        if not self._command(start).ready:
             raise SensorError(
                 f"JR3 node {cfg.node_id} refused to start {cfg.mode} mode: check the sensor "
                 "cable to the adapter and power-cycle the adapter"
@@ -246,17 +249,17 @@ class Jr3CanSensor:
     def _sync_sample(self) -> WrenchSample | None:
         """Send one SYNC and wait for its pair; None if a bootup interrupts.
 
-        A SYNC with no pair within half the stale timeout is counted lost (with
-        the frames of it that never came) and sent once more; a second miss
-        raises SensorStale.
+        A SYNC with no pair within a quarter of the stale timeout is counted lost
+        (with the frames of it that never came) and sent again; after
+        ``SYNC_ATTEMPTS`` misses in a row (the whole stale timeout) SensorStale.
         """
         lst = self._listener
-        half = self.config.stale_timeout_s / 2
-        for _attempt in range(2):
+        wait_s = self.config.stale_timeout_s / SYNC_ATTEMPTS
+        for _attempt in range(SYNC_ATTEMPTS):
             with lst.cond:
                 seq, frames = lst.seq, lst.data_frames
             self._send(codec.Sync())
-            got = self._wait_for(lambda: lst.seq > seq or lst.bootup_pending, half)
+            got = self._wait_for(lambda: lst.seq > seq or lst.bootup_pending, wait_s)
             with lst.cond:
                 if lst.bootup_pending:
                     return None

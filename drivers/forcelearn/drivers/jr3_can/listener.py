@@ -38,11 +38,12 @@ class Jr3Stats:
     frames: int = 0
     samples: int = 0
     dropped_samples: int = 0
-    """Samples known lost: SYNCs the adapter did not answer with a pair (sync mode), plus
-    counter gaps with a firmware whose counter counts pairs sent. Never the counter's steps
-    of a current adapter: those are sensor time."""
+    """Samples known lost: SYNCs the adapter did not answer with a pair (sync mode), or
+    frames left without a partner (async mode), plus counter gaps with a firmware whose
+    counter counts pairs sent. Never the steps of a current adapter's counter: those are
+    sensor time."""
     unanswered_syncs: int = 0
-    """SYNCs after which no pair came within half the stale timeout."""
+    """SYNCs after which no pair came within a quarter of the stale timeout."""
     lost_frames: int = 0
     """Force or moment frames of unanswered SYNCs that never came (sync mode)."""
     unpaired_frames: int = 0
@@ -90,6 +91,9 @@ class Jr3Listener(can.Listener):
         self._stats = Jr3Stats()
         self.data_frames = 0
         """Force and moment frames received (for the driver's count of lost frames)."""
+        self.unpaired_are_lost_samples = False
+        """Async mode: each unpaired frame is a sample lost (a pair lost whole leaves no
+        trace: the counter is sensor time). Sync mode counts unanswered SYNCs instead."""
 
     def set_full_scales(self, full_scales: np.ndarray | None) -> None:
         """Use these six full scales (N, N*m) from now on; None stops scaling."""
@@ -101,7 +105,13 @@ class Jr3Listener(can.Listener):
     @property
     def dropped_samples(self) -> int:
         """Samples known lost so far (cheap; no snapshot)."""
-        return self._pairer.dropped + self._stats.unanswered_syncs
+        return self._lost_samples()
+
+    def _lost_samples(self) -> int:
+        lost = self._pairer.dropped + self._stats.unanswered_syncs
+        if self.unpaired_are_lost_samples:
+            lost += self._pairer.unpaired
+        return lost
 
     def count_unanswered_sync(self, frames_missing: int) -> None:
         """The driver's SYNC got no pair: one sample and ``frames_missing`` (0..2) frames lost."""
@@ -118,7 +128,7 @@ class Jr3Listener(can.Listener):
         """Return a snapshot of the counts."""
         with self.cond:
             s = self._stats
-            s.dropped_samples = self._pairer.dropped + s.unanswered_syncs
+            s.dropped_samples = self._lost_samples()
             s.unpaired_frames = self._pairer.unpaired
             s.pending_frames = self._pairer.pending
             s.duplicate_samples = self._pairer.duplicates

@@ -184,6 +184,7 @@ class Jr3EmulatorNode(Emulator):
         self.last_sample_s = -math.inf
         """Time of the sensor frame the last sample read, s."""
         self._last_counts: list[int] | None = None
+        self._last_async_s: float | None = None
         self._loop_origin_s = 0.0
         self._sync_flag_s: float | None = None
         """Arrival of the first SYNC of the pending flag (None: no flag)."""
@@ -471,6 +472,7 @@ class Jr3EmulatorNode(Emulator):
         self.cutoff_hz = cutoff_from_wire(cutoff_centi_hz)
         self.period_us = period_us
         self._next_emit = time.monotonic()
+        self._last_async_s = None
 
     def _stop_sensor(self) -> None:
         """The firmware's stopSensorThread: counter 0, offsets and filter state gone."""
@@ -502,7 +504,11 @@ class Jr3EmulatorNode(Emulator):
         return (self._counter_base + self._frames_at(t_s)) & 0xFFFF
 
     def _emit_async_sample(self) -> None:
-        t = max(self.clock.now_s, self.last_sample_s + self.period_us * 1e-6)
+        """The async thread's next send: ``period_us`` of simulated time after its last."""
+        t = self.clock.now_s
+        if self._last_async_s is not None:
+            t = max(t, self._last_async_s + self.period_us * 1e-6)
+        self._last_async_s = t
         self.clock.advance_to(t)
         self._emit_sample()
 
