@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -274,3 +275,56 @@ def test_config_errors_name_the_key(key: str, value: object) -> None:
     """A bad configuration value raises ConfigError (a ValueError) naming its key."""
     with pytest.raises(ConfigError, match=key):
         Jr3Config(**{key: value})
+
+
+def test_reset_restarts_pairing_without_a_bootup(
+    make_node: NodeFactory, make_sensor: SensorFactory
+) -> None:
+    """The adapter ACKs a reset with no bootup and counts from 0 again: the driver restarts
+    pairing itself, so the first sample after it carries no sensor time from the old count."""
+    node = make_node()
+    sensor = make_sensor()
+    for _ in range(30):
+        sensor.read()
+    sensor.reset()
+    sample = sensor.read()
+    assert sample.sensor_dt_s is None and sample.counter < 30
+    assert sensor.read().sensor_dt_s is not None
+    stats = sensor.stats
+    assert (stats.bootups, stats.duplicate_samples, stats.dropped_samples) == (0, 0, 0)
+    assert node.stats.bootups == 0
+
+
+def test_cutoff_zero_asks_the_adapter_for_unfiltered_data(
+    make_node: NodeFactory, make_sensor: SensorFactory
+) -> None:
+    """``cutoff_hz = 0`` is sent as 0: the adapter's raw decoupled data."""
+    node = make_node()
+    sensor = make_sensor(cutoff_hz=0.0)
+    sensor.initialise()
+    assert (node.mode, node.cutoff_hz, sensor.cutoff_hz) == ("sync", 0.0, 0.0)
+
+
+def test_default_config_zeroes_on_initialisation(
+    make_node: NodeFactory, bus: can.BusABC
+) -> None:
+    """Jr3Config() zeroes (as the public host driver always does): the adapter's offsets are 0
+    after power-up, so without it the sensor's 1.5..3 N bias would be in every reading."""
+    node = make_node()
+    with Jr3CanSensor(bus, Jr3Config(zero_settle_s=0.0)) as sensor:
+        readings = np.array([s.wrench for s in sensor.read_many(50)])
+        assert node.model.offset[:3].tolist() != [0.0, 0.0, 0.0]
+    assert node.model.offset[:3].tolist() == [0.0, 0.0, 0.0]  # the stop on close lost them
+    assert np.abs(readings[:, :3].mean(axis=0)).max() < 0.2
+
+
+def test_sample_period_is_what_the_adapter_delivers() -> None:
+    """Sync: one sample per 1 ms loop turn; async: the streaming period."""
+    bus = can.Bus(interface="virtual", channel=f"period-{os.getpid()}")
+    try:
+        assert Jr3CanSensor(bus, Jr3Config()).sample_period_s == 0.001
+        async_sensor = Jr3CanSensor(bus, Jr3Config(mode="async", period_us=2500))
+        assert async_sensor.sample_period_s == 0.0025
+        async_sensor.close()
+    finally:
+        bus.shutdown()
