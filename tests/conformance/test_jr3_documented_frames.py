@@ -38,8 +38,11 @@ def test_every_readme_opcode_is_in_our_default_map() -> None:
 
 
 def test_the_readmes_cansend_example_is_start_async_2_hz_10_ms_node_1() -> None:
-    """``cansend can0 201#C80010270000``: "an ASYNC publisher on ID 1 with a period of 10 ms
-    (10000 us = 0x2710) and a cutoff frequency of 2 Hz (200 Hz*0.01 = 0x00C8)"."""
+    """The readmes cansend example is start async 2 hz 10 ms node 1.
+
+    ``cansend can0 201#C80010270000``: "an ASYNC publisher on ID 1 with a period of 10 ms (10000 us
+    = 0x2710) and a cutoff frequency of 2 Hz (200 Hz*0.01 = 0x00C8)".
+    """
     result = _decode(0x201, "C80010270000")
     assert result.node_id == 1
     assert result.message == codec.StartAsync(cutoff_centi_hz=200, period_us=10_000)
@@ -88,8 +91,11 @@ def test_full_scale_acks_carry_three_uint16_after_the_state_byte() -> None:
 
 
 def test_force_and_moment_frames_scale_as_the_readme_says() -> None:
-    """"(3x) 2 LSB bytes: Fx, Fy, Fz (integer, signed), 2 MSB bytes: frame counter";
-    value x full scale / 16384 for forces, / (16384 x 10) for moments with FS in dN*m."""
+    """Force and moment frames scale as the readme says.
+
+    "(3x) 2 LSB bytes: Fx, Fy, Fz (integer, signed), 2 MSB bytes: frame counter"; value x full scale
+    / 16384 for forces, / (16384 x 10) for moments with FS in dN*m.
+    """
     forces = _decode(0x601, struct.pack("<3hH", 8192, -16384, 1, 65535).hex()).message
     moments = _decode(0x681, struct.pack("<3hH", 16384, -8192, 0, 65535).hex()).message
     assert forces == codec.Forces((8192, -16384, 1), 65535)
@@ -108,8 +114,11 @@ def test_sync_is_the_bare_opcode_and_a_node_id_on_it_is_not_sync() -> None:
 
 
 def test_the_adapter_reads_short_fields_as_zero_and_ignores_extra_bytes() -> None:
-    """main.cpp's parseCutOffFrequency / parseAsyncPeriod: a field whose bytes are not all in
-    the payload reads 0; longer payloads are not refused. Our adapter-side decoder agrees."""
+    """The adapter reads short fields as zero and ignores extra bytes.
+
+    main.cpp's parseCutOffFrequency / parseAsyncPeriod: a field whose bytes are not all in the
+    payload reads 0; longer payloads are not refused. Our adapter-side decoder agrees.
+    """
     as_adapter = codec.decode_as_adapter
     assert as_adapter(0x181, b"", 1) == codec.StartSync(0)
     assert as_adapter(0x181, b"\xc8", 1) == codec.StartSync(0)

@@ -99,8 +99,11 @@ def _sync_pair(bus: can.BusABC) -> tuple[tuple[int, ...], int]:
 
 
 def test_get_state_is_a_one_byte_ack_ready_from_power_up(quiet: tuple) -> None:
-    """"The get state command is a no-op that can be used to ping the controller"; ready
-    (0x00) once the power-up initialisation succeeded, before any start."""
+    """Get state is a one byte ack ready from power up.
+
+    "The get state command is a no-op that can be used to ping the controller"; ready (0x00) once
+    the power-up initialisation succeeded, before any start.
+    """
     _, bus = quiet
     _send(bus, 0x401)
     assert _drain(bus) == [(0x101, b"\x00")]
@@ -109,9 +112,12 @@ def test_get_state_is_a_one_byte_ack_ready_from_power_up(quiet: tuple) -> None:
 def test_the_counter_counts_sensor_frames_at_128_5_us(
     quiet: tuple, physics: CellPhysics
 ) -> None:
-    """Δcounter / Δtime is the sensor's frame rate (1 / 128.5 µs = 7782 Hz), whatever the
-    host asks for; it wraps at 65536."""
-    node, bus = quiet
+    """The counter counts sensor frames at 128 5 us.
+
+    Δcounter / Δtime is the sensor's frame rate (1 / 128.5 µs = 7782 Hz), whatever the host asks
+    for; it wraps at 65536.
+    """
+    _, bus = quiet
     _send(bus, 0x181, struct.pack("<H", 12500))
     assert _drain(bus) == [(0x101, b"\x00")]
     times, counters = [], []
@@ -126,8 +132,11 @@ def test_the_counter_counts_sensor_frames_at_128_5_us(
 
 
 def test_one_answer_per_loop_turn_however_many_syncs(quiet: tuple, physics: CellPhysics) -> None:
-    """A SYNC only sets a flag; each 1 ms turn answers it once: 5 SYNCs sent within one turn
-    get one pair, and a burst of SYNCs over several ms gets at most one pair per ms."""
+    """One answer per loop turn however many syncs.
+
+    A SYNC only sets a flag; each 1 ms turn answers it once: 5 SYNCs sent within one turn get one
+    pair, and a burst of SYNCs over several ms gets at most one pair per ms.
+    """
     _, bus = quiet
     _send(bus, 0x181, struct.pack("<H", 12500))
     _drain(bus)
@@ -147,7 +156,7 @@ def test_one_answer_per_loop_turn_however_many_syncs(quiet: tuple, physics: Cell
 
 def test_sync_is_answered_in_async_mode_too(quiet: tuple, physics: CellPhysics) -> None:
     """main.cpp answers the SYNC flag whenever the sensor runs (``acquire``), async included."""
-    node, bus = quiet
+    _, bus = quiet
     _send(bus, 0x201, struct.pack("<HI", 200, 1_000_000))  # async, 1 s period
     frames = _drain(bus)
     assert (0x101, b"\x00") in frames
@@ -156,9 +165,12 @@ def test_sync_is_answered_in_async_mode_too(quiet: tuple, physics: CellPhysics) 
 
 
 def test_stop_clears_the_counter_and_the_offsets(quiet: tuple) -> None:
-    """stopSensorThread: counter := 0, and the offsets (local to the sensor thread) are lost;
-    so after stop and start the raw bias is back and the counter counts from 0 again."""
-    node, bus = quiet
+    """Stop clears the counter and the offsets.
+
+    stopSensorThread: counter := 0, and the offsets (local to the sensor thread) are lost; so after
+    stop and start the raw bias is back and the counter counts from 0 again.
+    """
+    _, bus = quiet
     _send(bus, 0x181)  # no payload: cut-off 0, unfiltered
     _drain(bus)
     raw, _ = _sync_pair(bus)
@@ -179,9 +191,12 @@ def test_stop_clears_the_counter_and_the_offsets(quiet: tuple) -> None:
 def test_reset_blocks_for_the_eeprom_then_acks_ready_with_no_bootup(
     quiet: tuple, physics: CellPhysics
 ) -> None:
-    """RESET: the loop re-reads 256 EEPROM bytes, then ACKs ready; no bootup frame (0x701) is
-    sent, the sensor is stopped (a SYNC gets nothing) and the counter restarts from 0."""
-    node, bus = quiet
+    """Reset blocks for the eeprom then acks ready with no bootup.
+
+    RESET: the loop re-reads 256 EEPROM bytes, then ACKs ready; no bootup frame (0x701) is sent, the
+    sensor is stopped (a SYNC gets nothing) and the counter restarts from 0.
+    """
+    _, bus = quiet
     _send(bus, 0x181, struct.pack("<H", 12500))
     _drain(bus)
     for _ in range(20):
@@ -207,8 +222,11 @@ def test_bootup_only_at_power_up(quiet: tuple) -> None:
 
 
 def test_payload_lengths_are_lenient(quiet: tuple) -> None:
-    """Missing bytes read 0 and extra bytes are ignored: a start with one byte is unfiltered,
-    a set filter with 4 bytes takes the first two, a stop with a payload stops."""
+    """Payload lengths are lenient.
+
+    Missing bytes read 0 and extra bytes are ignored: a start with one byte is unfiltered, a set
+    filter with 4 bytes takes the first two, a stop with a payload stops.
+    """
     node, bus = quiet
     _send(bus, 0x181, b"\x10")
     assert _drain(bus) == [(0x101, b"\x00")]
@@ -223,9 +241,12 @@ def test_payload_lengths_are_lenient(quiet: tuple) -> None:
 
 
 def test_cutoff_zero_is_unfiltered(noisy: tuple) -> None:
-    """smoothingFactor = 1 at cut-off 0: samples 1 ms apart share no noise, while a 10 Hz
-    low-pass (time constant 16 ms) makes them nearly equal."""
-    node, bus = noisy
+    """Cutoff zero is unfiltered.
+
+    SmoothingFactor = 1 at cut-off 0: samples 1 ms apart share no noise, while a 10 Hz low-pass
+    (time constant 16 ms) makes them nearly equal.
+    """
+    _, bus = noisy
 
     def lag1(cutoff_centi_hz: int) -> float:
         _send(bus, 0x181, struct.pack("<H", cutoff_centi_hz))

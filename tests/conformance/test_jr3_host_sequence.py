@@ -12,6 +12,7 @@ a 0.1 s wait, zero offsets; stop on close; the whole initialisation again after 
 from __future__ import annotations
 
 import collections
+import itertools
 import struct
 from typing import Any
 
@@ -69,8 +70,11 @@ def _sensor(bus: DocumentedAdapter, **config: Any) -> Jr3CanSensor:
 
 
 def test_sync_initialisation_is_the_host_drivers_sequence() -> None:
-    """No full scales configured: ping, start sync (12500 = 125 Hz), forces, moments, zero;
-    by default, as Jr3Mbed, which always zeroes. Close sends stop."""
+    """Sync initialisation is the host drivers sequence.
+
+    No full scales configured: ping, start sync (12500 = 125 Hz), forces, moments, zero; by default,
+    as Jr3Mbed, which always zeroes. Close sends stop.
+    """
     bus = DocumentedAdapter()
     with _sensor(bus, cutoff_hz=125.0):
         pass
@@ -86,8 +90,11 @@ def test_sync_initialisation_is_the_host_drivers_sequence() -> None:
 
 
 def test_async_with_configured_full_scales_skips_the_queries() -> None:
-    """Jr3Mbed with ``fullScales`` set and ``asyncPeriod`` 0.01 s, ``filter`` 2 Hz: ping,
-    start async C8 00 10 27 00 00 (the README's example payload), zero; no full-scale query."""
+    """Async with configured full scales skips the queries.
+
+    Jr3Mbed with ``fullScales`` set and ``asyncPeriod`` 0.01 s, ``filter`` 2 Hz: ping, start async
+    C8 00 10 27 00 00 (the README's example payload), zero; no full-scale query.
+    """
     bus = DocumentedAdapter()
     sensor = _sensor(bus, mode="async", cutoff_hz=2.0, period_us=10_000,
                      full_scales=(200.0, 200.0, 400.0, 20.0, 20.0, 20.0))
@@ -138,7 +145,7 @@ def test_a_read_sends_one_sync_per_sample() -> None:
         bus.sent.clear()
         samples = sensor.read_many(20, window=8)
     assert [can_id for can_id, _ in bus.sent] == [0x080] * 20 + [0x281]
-    steps = {b.counter - a.counter for a, b in zip(samples, samples[1:], strict=False)}
+    steps = {b.counter - a.counter for a, b in itertools.pairwise(samples)}
     assert steps == {8}  # the counter's steps are the adapter's, never called losses
     assert sensor.stats.dropped_samples == 0
     bus.shutdown()

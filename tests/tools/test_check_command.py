@@ -14,8 +14,8 @@ from forcelearn.drivers.jr3_can.listener import Jr3Stats
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.errors import SafetyStop
 from forcelearn.protocols.computer_link.messages import Status
-from forcelearn.tools.cell_config import EmulatorConfig, load_cell_config
 from forcelearn.protocols.jr3_can.codec import Frame
+from forcelearn.tools.cell_config import EmulatorConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.tools.check_command import check_session
 from forcelearn.tools.cli import main
@@ -173,9 +173,12 @@ def _dropped(out: str) -> tuple[int, int, int, int]:
 
 
 def test_a_60_s_check_of_the_emulated_jr3_drops_nothing() -> None:
-    """60 s of the sensor's time (its frame counter; simulated here, so a few seconds of wall
-    time): about 1,000 samples/s (one per adapter loop turn) and 0 samples dropped. Before the
-    emulator followed the firmware, the driver counted every counter step above 1 as lost."""
+    """A 60 s check of the emulated jr3 drops nothing.
+
+    60 s of the sensor's time (its frame counter; simulated here, so a few seconds of wall time):
+    about 1,000 samples/s (one per adapter loop turn) and 0 samples dropped. Before the emulator
+    followed the firmware, the driver counted every counter step above 1 as lost.
+    """
     with CellSession(load_cell_config(), seed=0) as session:
         out = _check_lines(session, 60.0)
         assert session.sensor_emulator is not None
@@ -189,8 +192,11 @@ def test_a_60_s_check_of_the_emulated_jr3_drops_nothing() -> None:
 
 
 def test_frames_dropped_in_the_emulator_are_counted_exactly() -> None:
-    """The emulator's frame hook drops 7 force or moment frames (two of them one whole pair):
-    check reports 6 samples dropped (SYNCs unanswered), 7 frames lost, 5 frames unpaired."""
+    """Frames dropped in the emulator are counted exactly.
+
+    The emulator's frame hook drops 7 force or moment frames (two of them one whole pair): check
+    reports 6 samples dropped (SYNCs unanswered), 7 frames lost, 5 frames unpaired.
+    """
     # pair k is frames 2k-1 (force) and 2k (moment): 41 and 42 are one pair lost whole
     drop = {11, 41, 42, 100, 333, 1001, 1500}
     seen = [0]

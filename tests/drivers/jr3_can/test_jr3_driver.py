@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import time
 from collections.abc import Callable
@@ -159,17 +160,19 @@ def test_cutoff_change_is_acknowledged(make_node: NodeFactory, make_sensor: Sens
 def test_sync_stepping_gives_one_sample_per_sync(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """Each read sends one SYNC; the pair comes at the adapter's next 1 ms loop turn, so the
-    counter (sensor frames, 128.5 µs each) steps by 7 or 8 and each sample carries ~1 ms of
-    sensor time. (This test used to expect the counter to step by 1 per sample: the old,
-    wrong emulator.)"""
+    """Sync stepping gives one sample per sync.
+
+    Each read sends one SYNC; the pair comes at the adapter's next 1 ms loop turn, so the counter
+    (sensor frames, 128.5 µs each) steps by 7 or 8 and each sample carries ~1 ms of sensor time.
+    (This test used to expect the counter to step by 1 per sample: the old, wrong emulator.)
+    """
     node = make_node(initial_counter=100)
     sensor = make_sensor()
     samples = [sensor.read() for _ in range(50)]
-    steps = {(b.counter - a.counter) % 65536 for a, b in zip(samples, samples[1:], strict=False)}
+    steps = {(b.counter - a.counter) % 65536 for a, b in itertools.pairwise(samples)}
     assert steps <= {7, 8} and steps
     assert all(s.sensor_dt_s == pytest.approx(((s.counter - p.counter) % 65536) * 128.5e-6)
-               for p, s in zip(samples, samples[1:], strict=False))
+               for p, s in itertools.pairwise(samples))
     assert node.stats.samples == 50 and node.stats.syncs == 50
     stats = sensor.stats
     assert (stats.samples, stats.dropped_samples, stats.unpaired_frames) == (50, 0, 0)
@@ -178,13 +181,16 @@ def test_sync_stepping_gives_one_sample_per_sync(
 def test_read_many_sends_one_sync_per_sample_across_the_counter_wrap(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """read_many(200, window=4) sends exactly 200 SYNCs (one in flight: the adapter answers
-    one per turn), returns 200 samples ~1 ms of sensor time apart, the wrap included."""
+    """Read many sends one sync per sample across the counter wrap.
+
+    read_many(200, window=4) sends exactly 200 SYNCs (one in flight: the adapter answers one per
+    turn), returns 200 samples ~1 ms of sensor time apart, the wrap included.
+    """
     node = make_node(initial_counter=65000)
     sensor = make_sensor()
     samples = sensor.read_many(200, window=4)
     counters = [s.counter for s in samples]
-    assert any(b < a for a, b in zip(counters, counters[1:], strict=False))  # it wrapped
+    assert any(b < a for a, b in itertools.pairwise(counters))  # it wrapped
     dts = [s.sensor_dt_s for s in samples[1:]]
     assert all(dt is not None and round(dt / 128.5e-6) in (7, 8) for dt in dts)
     assert node.stats.syncs == 200 and node.stats.syncs_merged == 0
@@ -280,8 +286,11 @@ def test_config_errors_name_the_key(key: str, value: object) -> None:
 def test_reset_restarts_pairing_without_a_bootup(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """The adapter ACKs a reset with no bootup and counts from 0 again: the driver restarts
-    pairing itself, so the first sample after it carries no sensor time from the old count."""
+    """Reset restarts pairing without a bootup.
+
+    The adapter ACKs a reset with no bootup and counts from 0 again: the driver restarts pairing
+    itself, so the first sample after it carries no sensor time from the old count.
+    """
     node = make_node()
     sensor = make_sensor()
     for _ in range(30):
@@ -308,8 +317,11 @@ def test_cutoff_zero_asks_the_adapter_for_unfiltered_data(
 def test_default_config_zeroes_on_initialisation(
     make_node: NodeFactory, bus: can.BusABC
 ) -> None:
-    """Jr3Config() zeroes (as the public host driver always does): the adapter's offsets are 0
-    after power-up, so without it the sensor's 1.5..3 N bias would be in every reading."""
+    """Default config zeroes on initialisation.
+
+    Jr3Config() zeroes (as the public host driver always does): the adapter's offsets are 0 after
+    power-up, so without it the sensor's 1.5..3 N bias would be in every reading.
+    """
     node = make_node()
     with Jr3CanSensor(bus, Jr3Config(zero_settle_s=0.0)) as sensor:
         readings = np.array([s.wrench for s in sensor.read_many(50)])

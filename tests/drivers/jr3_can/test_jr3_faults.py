@@ -52,9 +52,12 @@ def _data_frame_dropper(*numbers: int) -> Callable[[Frame], Frame | None]:
 def test_async_streaming_rate_and_no_loss(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """Async at 2 ms streams into the callback; each sample carries ~2 ms of sensor time (the
-    counter counts ~7.8 kHz sensor frames), nothing is counted lost. (This test used to expect
-    counters stepping by 1: the old, wrong emulator.)"""
+    """Async streaming rate and no loss.
+
+    Async at 2 ms streams into the callback; each sample carries ~2 ms of sensor time (the counter
+    counts ~7.8 kHz sensor frames), nothing is counted lost. (This test used to expect counters
+    stepping by 1: the old, wrong emulator.)
+    """
     make_node()
     got: list[WrenchSample] = []
     enough = threading.Event()
@@ -80,8 +83,11 @@ def test_async_streaming_rate_and_no_loss(
 def test_sensor_time_spans_a_lost_pair_across_the_counter_wrap(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """Async, two whole pairs lost where the counter wraps: the next sample carries the
-    sensor time of three periods (wrap-aware); a pair lost whole leaves no unpaired frame."""
+    """Sensor time spans a lost pair across the counter wrap.
+
+    Async, two whole pairs lost where the counter wraps: the next sample carries the sensor time of
+    three periods (wrap-aware); a pair lost whole leaves no unpaired frame.
+    """
     got: list[WrenchSample] = []
 
     def lose_around_wrap(frame: Frame) -> Frame | None:
@@ -104,8 +110,11 @@ def test_sensor_time_spans_a_lost_pair_across_the_counter_wrap(
 def test_unpaired_frames_never_make_a_sample(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """The 8th moment frame lost: its force frame stays unpaired, that SYNC is counted
-    unanswered with one frame lost, one more SYNC fetches the next pair."""
+    """Unpaired frames never make a sample.
+
+    The 8th moment frame lost: its force frame stays unpaired, that SYNC is counted unanswered with
+    one frame lost, one more SYNC fetches the next pair.
+    """
     node = make_node(frame_hook=_data_frame_dropper(16))
     sensor = make_sensor()
     samples = [sensor.read() for _ in range(12)]
@@ -116,8 +125,11 @@ def test_unpaired_frames_never_make_a_sample(
 
 
 def test_read_many_replaces_lost_pairs(make_node: NodeFactory, make_sensor: SensorFactory) -> None:
-    """With 5 % of frames lost, read_many(150) still returns 150 samples; every SYNC with no
-    pair is counted, and the frames lost are counted exactly."""
+    """Read many replaces lost pairs.
+
+    With 5 % of frames lost, read_many(150) still returns 150 samples; every SYNC with no pair is
+    counted, and the frames lost are counted exactly.
+    """
     node = make_node(seed=2)
     sensor = make_sensor(stale_timeout_s=0.2)
     sensor.initialise()

@@ -77,8 +77,11 @@ def test_answers_every_command(wire: tuple[Jr3EmulatorNode, can.BusABC]) -> None
 
 
 def test_cutoff_zero_starts_unfiltered(wire: tuple[Jr3EmulatorNode, can.BusABC]) -> None:
-    """A start with cut-off 0 is accepted (ACK ready): the adapter sends unfiltered data.
-    (This test used to expect a refusal: the old, wrong emulator.)"""
+    """Cutoff zero starts unfiltered.
+
+    A start with cut-off 0 is accepted (ACK ready): the adapter sends unfiltered data. (This test
+    used to expect a refusal: the old, wrong emulator.)
+    """
     node, host = wire
     assert _messages(_ask(host, codec.StartSync(0))) == [Ack(0)]
     assert (node.mode, node.cutoff_hz) == ("sync", 0.0)
@@ -87,9 +90,12 @@ def test_cutoff_zero_starts_unfiltered(wire: tuple[Jr3EmulatorNode, can.BusABC])
 def test_ignores_other_nodes_and_reads_short_payloads_as_zero(
     wire: tuple[Jr3EmulatorNode, can.BusABC],
 ) -> None:
-    """Commands for node 4 get no answer; a start sync with one payload byte is taken as
-    cut-off 0 (a field whose bytes are not all there reads 0) and ACKed, as the firmware.
-    (This test used to expect the short command rejected: the old, wrong emulator.)"""
+    """Ignores other nodes and reads short payloads as zero.
+
+    Commands for node 4 get no answer; a start sync with one payload byte is taken as cut-off 0 (a
+    field whose bytes are not all there reads 0) and ACKed, as the firmware. (This test used to
+    expect the short command rejected: the old, wrong emulator.)
+    """
     node, host = wire
     host.send(can.Message(arbitration_id=0x404, data=b"", is_extended_id=False))
     host.send(can.Message(arbitration_id=0x183, data=b"\x01", is_extended_id=False))

@@ -92,8 +92,11 @@ def test_frames_cross_the_adapter_both_ways(
 def test_the_jr3_driver_initialises_and_reads_through_slcan(
     adapter: SlcanAdapterEmulator, channel: str
 ) -> None:
-    """Full scales, zeroed means and ~1 ms of sensor time per sample (7 or 8 frames of the
-    counter: one answer per adapter loop turn), all through the LAWICEL pty."""
+    """The jr3 driver initialises and reads through slcan.
+
+    Full scales, zeroed means and ~1 ms of sensor time per sample (7 or 8 frames of the counter: one
+    answer per adapter loop turn), all through the LAWICEL pty.
+    """
     model = SensorModelParams()
     with Jr3EmulatorNode(CellPhysics(), channel=channel, node_id=5, model=model, seed=3), \
             _slcan(adapter) as bus, \

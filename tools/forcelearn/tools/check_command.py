@@ -31,8 +31,8 @@ import numpy as np
 from forcelearn.devices import AXES, WrenchSample
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.errors import LinkError, SafetyStop, SensorError, one_line
-from forcelearn.protocols.jr3_can.opcodes import CounterMeaning
 from forcelearn.protocols.computer_link import messages
+from forcelearn.protocols.jr3_can.opcodes import CounterMeaning
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.tools.check_ethernet import (

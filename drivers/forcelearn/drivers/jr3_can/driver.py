@@ -259,7 +259,11 @@ class Jr3CanSensor:
             with lst.cond:
                 seq, frames = lst.seq, lst.data_frames
             self._send(codec.Sync())
-            got = self._wait_for(lambda: lst.seq > seq or lst.bootup_pending, wait_s)
+
+            def answered(before: int = seq) -> bool:
+                return lst.seq > before or lst.bootup_pending
+
+            got = self._wait_for(answered, wait_s)
             with lst.cond:
                 if lst.bootup_pending:
                     return None
@@ -350,7 +354,9 @@ class Jr3CanSensor:
         """Wait until ``predicate()`` (checked under the listener's lock) or the timeout.
 
         With a Notifier (async) this waits on the condition; without one (sync)
-        it receives from the bus in this thread and feeds the listener.
+        it receives from the bus in this thread and feeds the listener. Past the
+        deadline it still takes what the bus already holds before giving up, so a
+        host thread stalled by its machine does not call an answer that came lost.
         """
         lst = self._listener
         deadline = time.monotonic() + timeout_s
@@ -365,16 +371,18 @@ class Jr3CanSensor:
                     continue
             if failed:
                 self._check_open()  # raises SensorBusError (outside the lock)
-            if remaining <= 0:
+            if remaining <= 0 and self._notifier is not None:
                 return False
             try:
-                msg = self.bus.recv(remaining)
+                msg = self.bus.recv(max(remaining, 0.0))
             except can.CanError as exc:
                 raise SensorBusError(
                     f"CAN receive failed: {exc}; check the CAN interface and restart"
                 ) from exc
             if msg is not None:
                 lst.on_message_received(msg)
+            elif remaining <= 0:
+                return False
 
     # ---- life cycle -----------------------------------------------------
     def close(self) -> None:

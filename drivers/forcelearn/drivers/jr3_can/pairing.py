@@ -82,8 +82,10 @@ class Pairer:
         return (self._forces is not None) + (self._moments is not None)
 
     def restart(self) -> None:
-        """Forget pending frames and the last counter (after a start, reset or bootup the
-        adapter's counter starts again from 0)."""
+        """Forget pending frames and the last counter.
+
+        After a start, reset or bootup the adapter's counter starts again from 0.
+        """
         self.unpaired += (self._forces is not None) + (self._moments is not None)
         self._forces = self._moments = None
         self._last_counter = None

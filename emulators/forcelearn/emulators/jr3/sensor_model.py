@@ -185,8 +185,10 @@ class SensorModel:
         self._filtered_noise = [0.0] * 6
 
     def power_cycle(self) -> None:
-        """Forget the offset, as the adapter does on stop, reset and power-up (the bias stays:
-        it is physical)."""
+        """Forget the offset, as the adapter does on stop, reset and power-up.
+
+        The bias stays: it is physical.
+        """
         self._offset = [0.0] * 6
 
     def state_dict(self) -> dict[str, Any]:
