@@ -97,7 +97,9 @@ def test_sensor_time_spans_a_lost_pair_across_the_counter_wrap(
 
     # the counter starts 20 frames before the wrap; periods of 1 ms are ~7.8 frames
     make_node(initial_counter=65536 - 20, frame_hook=lose_around_wrap)
-    sensor = make_sensor(mode="async", period_us=1000, on_sample=got.append)
+    # full scales configured: every sample from the first is scaled and reaches the callback
+    sensor = make_sensor(mode="async", period_us=1000, on_sample=got.append,
+                         full_scales=(200.0, 200.0, 400.0, 20.0, 20.0, 20.0))
     sensor.initialise()
     assert _wait_until(lambda: any(0 < s.counter < 1000 for s in got))
     after = next(s for s in got if s.counter < 1000)

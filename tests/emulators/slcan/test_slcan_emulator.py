@@ -100,7 +100,9 @@ def test_the_jr3_driver_initialises_and_reads_through_slcan(
     model = SensorModelParams()
     with Jr3EmulatorNode(CellPhysics(), channel=channel, node_id=5, model=model, seed=3), \
             _slcan(adapter) as bus, \
-            Jr3CanSensor(bus, Jr3Config(node_id=5, zero_on_init=True)) as sensor:
+            Jr3CanSensor(bus, Jr3Config(node_id=5, zero_on_init=True,
+                                        stale_timeout_s=2.0)) as sensor:
+        # (a long stale time: a loaded host's pty round trip must not pass for a lost answer)
         samples = sensor.read_many(400)
     assert sensor.full_scales is not None
     assert sensor.full_scales.tolist() == pytest.approx(list(model.full_scales), rel=1e-3)
