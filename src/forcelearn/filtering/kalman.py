@@ -38,6 +38,8 @@ from forcelearn.devices import WrenchSample
 from forcelearn.errors import ConfigError
 
 COUNTER_MODULUS = 1 << 16
+MAX_CACHED_PERIODS = 64
+"""Step lengths whose F and Q the stream filter keeps."""
 MAX_PREDICT_GAP = 1000
 """Longer gaps (in samples) restart the filter instead of predicting through them."""
 
@@ -102,6 +104,7 @@ class ForceFilter:
         self._kf = KalmanFilter(dim_x=2, dim_z=1)
         self._kf.H = np.array([[1.0, 0.0]])
         self._dt = math.nan
+        self._models: dict[float, tuple[np.ndarray, np.ndarray]] = {}
         self._set_period(self.config.sample_period_s)
         self._lock = threading.Lock()
         self.set_measurement_variance(self.config.measurement_variance_n2)
@@ -151,12 +154,21 @@ class ForceFilter:
             return self._step(measurement_n)
 
     def _set_period(self, dt: float) -> None:
-        """Use a step of ``dt`` seconds for the next predictions (F and Q rebuilt on change)."""
+        """Use a step of ``dt`` seconds for the next predictions.
+
+        F and Q are kept per step length: a JR3 adapter's samples alternate between two.
+        """
         if dt == self._dt:
             return
         self._dt = dt
-        self._kf.F = np.array([[1.0, dt], [0.0, 1.0]])
-        self._kf.Q = Q_discrete_white_noise(dim=2, dt=dt, var=self.config.rate_noise_var)
+        cached = self._models.get(dt)
+        if cached is None:
+            if len(self._models) >= MAX_CACHED_PERIODS:
+                self._models.clear()
+            cached = (np.array([[1.0, dt], [0.0, 1.0]]),
+                      Q_discrete_white_noise(dim=2, dt=dt, var=self.config.rate_noise_var))
+            self._models[dt] = cached
+        self._kf.F, self._kf.Q = cached
 
     def on_sample(self, sample: WrenchSample) -> None:
         """Driver callback: filter the configured axis over the time the sample says.
