@@ -4,8 +4,10 @@ Every multi-byte field is big-endian (network order). Nothing here opens a
 socket; the driver and the emulator both use these functions, so they speak
 the same bytes. Decoders of what the *box* sends never raise: a datagram of
 the wrong size or header comes back as :class:`Rejected`, which the caller
-counts. Sources: ATI Net F/T manual 9620-05 §10 (RDT), netft_utils
-``netft_rdt_driver.cpp`` (READCALINFO layout), CameronDevine/NetFT.
+counts. Sources: ATI Net F/T manual 9620-05 §10 (RDT); ATI's Ethernet Axia
+manual 9620-05-C (the same RDT protocol: request and record semantics, quoted
+in docs/netft.md); netft_utils ``netft_rdt_driver.cpp`` (READCALINFO layout),
+CameronDevine/NetFT, netft/pyNetFT (command codes 0x0003 and 0x0041).
 
 RDT request (host -> box, UDP port 49152), 8 bytes, ``>HHI``:
 
@@ -14,16 +16,20 @@ offset  type  field
 ======  ====  ==========================================================
 0       u16   header, always 0x1234
 2       u16   command: 0x0000 stop, 0x0002 start real-time streaming,
-                0x0042 set software bias
+                0x0003 start buffered streaming, 0x0041 reset threshold
+                latch, 0x0042 set software bias
 4       u32   sample count: records to send, 0 = until stopped
 ======  ====  ==========================================================
 
-RDT record (box -> host), 36 bytes, ``>III6i``:
+RDT record (box -> host), 36 bytes, ``>III6i``; a real-time datagram holds
+one record, a buffered one (0x0003) up to the box's RDT buffer size
+(``comrdtbsiz``, 1..40) records back to back:
 
 ======  ====  ==========================================================
 offset  type  field
 ======  ====  ==========================================================
 0       u32   rdt_sequence: 1 for the first record of each request, +1 each
+                record (also inside a buffered datagram)
 4       u32   ft_sequence: the box's internal sample number (restarts at boot)
 8       u32   status: system status code, 0 when healthy
 12      i32   Fx, Fy, Fz in counts (value = counts / counts per force)
@@ -56,6 +62,9 @@ RDT_PORT = 49152
 CALIBRATION_TCP_PORT = 49151
 HTTP_PORT = 80
 CALIBRATION_XML_PATH = "/netftapi2.xml"
+"""The box's settings page (counts per unit of the active configuration, units, RDT rate)."""
+CALIBRATION_API_XML_PATH = "/netftcalapi.xml"
+"""The box's calibration page (root ``netftCalibration``: ``calcpf``, ``calcpt``, units...)."""
 SEQUENCE_MODULUS = 1 << 32
 
 REQUEST = struct.Struct(">HHI")
@@ -63,6 +72,8 @@ RECORD = struct.Struct(">III6i")
 CALINFO_REQUEST_SIZE = 20
 CALINFO_REPLY = struct.Struct(">HBBII6H")
 READCALINFO = 0x01
+MAX_RECORDS_PER_DATAGRAM = 40
+"""Largest RDT buffer size (``comrdtbsiz``): 40 x 36 = 1440 bytes fit one Ethernet frame."""
 INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
 
 FORCE_UNITS: dict[int, tuple[str, float]] = {
@@ -85,15 +96,40 @@ TORQUE_UNITS: dict[int, tuple[str, float]] = {
 }
 """READCALINFO torque unit code -> (name as ``scfgtu`` spells it, newton-metres per unit)."""
 
+TORQUE_UNIT_SPELLINGS: dict[str, str] = {"Nm": "N-m", "Nmm": "N-mm", "kNm": "kN-m",
+                                          "kg-cm": "kgf-cm"}
+"""How a real box spells torque units on its web pages -> forcelearn's name. A live
+netftapi2.xml (Gamma SI-330-30, firmware 2.2.59, quoted in a public client's tests) has
+``<scfgtu>Nm</scfgtu>``; netft/pyNetFT's XML parser maps ``Nm``, ``Nmm`` and ``kg-cm`` to
+``N-m``, ``N-mm``, ``kgf-cm``; ``kNm`` is the same client's table of the manual's units."""
+
 FORCE_UNIT_SI = {name: factor for name, factor in FORCE_UNITS.values()}
-TORQUE_UNIT_SI = {name: factor for name, factor in TORQUE_UNITS.values()}
+_TORQUE_SI_BY_NAME = {name: factor for name, factor in TORQUE_UNITS.values()}
+TORQUE_UNIT_SI = _TORQUE_SI_BY_NAME | {
+    spelling: _TORQUE_SI_BY_NAME[name] for spelling, name in TORQUE_UNIT_SPELLINGS.items()}
+"""Torque unit name (forcelearn's or the box's spelling) -> newton-metres per unit."""
+
+
+def canonical_unit(name: str) -> str:
+    """The name forcelearn uses for a unit (``"Nm"`` -> ``"N-m"``); others come back unchanged."""
+    return TORQUE_UNIT_SPELLINGS.get(name, name)
+
+
+def unit_codes(force_unit: str, torque_unit: str) -> tuple[int, int]:
+    """The READCALINFO codes of two unit names (either spelling); unknown names raise KeyError."""
+    force = {n: c for c, (n, _) in FORCE_UNITS.items()}[force_unit]
+    torque = {n: c for c, (n, _) in TORQUE_UNITS.items()}[canonical_unit(torque_unit)]
+    return force, torque
 
 
 class Command(enum.IntEnum):
-    """RDT commands forcelearn sends (manual Table 10.1)."""
+    """RDT commands (manual Table 10.1; forcelearn's driver sends stop, real-time and bias)."""
 
     STOP = 0x0000
     START_REALTIME = 0x0002
+    START_BUFFERED = 0x0003
+    """Records batched ``comrdtbsiz`` to a datagram."""
+    RESET_THRESHOLD_LATCH = 0x0041
     SET_BIAS = 0x0042
 
 
@@ -154,6 +190,20 @@ def decode_record(data: bytes) -> Record | Rejected:
         return Rejected("RECORD_SIZE", bytes(data))
     rdt, ft, status, *counts = RECORD.unpack(data)
     return Record(rdt, ft, status, tuple(counts))
+
+
+def encode_datagram(records: list[Record]) -> bytes:
+    """Return one RDT datagram: the records back to back (one, or a buffered batch)."""
+    return b"".join(encode_record(record) for record in records)
+
+
+def decode_datagram(data: bytes) -> list[Record] | Rejected:
+    """Decode a datagram of 1..40 records (real-time or buffered streaming); never raises."""
+    count, rest = divmod(len(data), RECORD.size)
+    if rest or not 1 <= count <= MAX_RECORDS_PER_DATAGRAM:
+        return Rejected("DATAGRAM_SIZE", bytes(data))
+    return [Record(rdt, ft, status, tuple(counts))
+            for rdt, ft, status, *counts in RECORD.iter_unpack(data)]
 
 
 @dataclass(frozen=True, slots=True)

@@ -15,7 +15,7 @@ ROBOT = codec.RobotMessage(
     tm_ms=28,
     feedback=Pose(900.0, 0.0, 600.0, DOWN),
     planned=Pose(900.0, 0.0, 599.5, DOWN),
-    time_s=0.028,
+    time_us=28_000,
     motor=codec.MotorState.ON,
     mci=codec.MciState.RUNNING,
     rapid=codec.RapidState.RUNNING,
@@ -66,6 +66,39 @@ def test_sensor_message_golden_bytes_and_round_trip(version: codec.Version) -> N
     data = codec.encode_sensor(SENSOR, version)
     assert data.hex() == GOLDEN_SENSOR  # the fields guidance uses are the same in RW6 and RW7
     assert codec.decode_sensor(data, version) == SENSOR
+
+
+@pytest.mark.parametrize("version", codec.VERSIONS)
+def test_joints_clocks_and_speed_ref_round_trip_with_their_field_numbers(
+    version: codec.Version,
+) -> None:
+    """feedBack/planned joints and times, planned.joints and speedRef: ABB's field numbers.
+
+    EgmFeedBack/EgmPlanned: joints = 1, time = 4 (EgmClock sec = 1, usec = 2);
+    EgmSensor: planned = 2, speedRef = 3 (EgmSpeedRef joints = 1, cartesians = 2).
+    """
+    clock_us = 1_767_225_600_004_000  # 2026-01-01T00:00:00.004Z
+    robot = codec.RobotMessage(
+        seqno=1, tm_ms=4, feedback=ROBOT.feedback, planned=ROBOT.planned,
+        joints_deg=(0.0, 37.5, -109.0, 0.0, 180.0, 180.0), time_us=clock_us,
+        planned_joints_deg=(0.5, 37.0, -108.0, 0.0, 179.0, 180.0),
+        planned_time_us=clock_us + 20_000,
+    )
+    decoded = codec.decode_robot(codec.encode_robot(robot, version), version)
+    assert decoded == robot and decoded.time_s == pytest.approx(1_767_225_600.004)
+    pb = codec.proto_module(version).EgmRobot.FromString(codec.encode_robot(robot, version))
+    assert (pb.feedBack.time.sec, pb.feedBack.time.usec) == (1_767_225_600, 4000)
+    assert list(pb.planned.joints.joints) == list(robot.planned_joints_deg)
+    sensor = codec.SensorMessage(
+        2, 4, None, planned_joints_deg=(1.0, 2.0, -90.0, 0.0, 90.0, 0.0),
+        speed_ref=(50.0, 0.0, 0.0, 0.0, 0.0, 10.0), speed_ref_joints_deg_s=(1.0,) * 6,
+    )
+    data = codec.encode_sensor(sensor, version)
+    assert codec.decode_sensor(data, version) == sensor
+    fields = {number: value for number, _, value in codec.wire_fields(data)}
+    speed = {number: value for number, _, value in codec.wire_fields(fields[3])}
+    assert set(speed) == {1, 2}
+    assert {number for number, _, _ in codec.wire_fields(fields[2])} == {1}  # joints only
 
 
 def test_a_parser_of_the_other_version_misreads_force_silently() -> None:

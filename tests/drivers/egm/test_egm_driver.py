@@ -45,6 +45,29 @@ def test_move_and_wait_in_position_moves_the_emulated_robot(
     assert 0.07 < status.controller_time_s < 0.2
 
 
+@pytest.mark.parametrize("version", codec.VERSIONS)
+def test_status_carries_joints_clock_and_fc_active(
+    egm_pair: MakePair, version: codec.Version
+) -> None:
+    """The driver reads the six axes, the controller's clock since 1970 and RW7 fcActive."""
+    robot, emu = egm_pair(driver={"version": version}, controller={"version": version})
+    before = robot.read_status()
+    assert len(before.joints_deg) == 6 and len(before.planned_joints_deg) == 6
+    assert robot.read_joints_deg() == before.joints_deg
+    epoch = emu.config.clock_epoch_us
+    assert before.controller_clock_us is not None
+    assert epoch <= before.controller_clock_us < epoch + 1_000_000  # the cell's first second
+    robot.move_by(dx_mm=5.0)
+    robot.wait_in_position(timeout_s=1.0)
+    after = robot.read_status()
+    assert after.joints_deg != before.joints_deg
+    assert after.controller_clock_us is not None and before.controller_clock_us is not None
+    assert after.controller_clock_us - before.controller_clock_us == round(
+        (after.controller_time_s - before.controller_time_s) * 1e6)
+    assert after.fc_active is (False if version == "rw7" else None)
+    assert after.measured_force is not None and len(after.measured_force) == 6
+
+
 def run_sequence(make: MakePair) -> tuple[float, int, list[Pose]]:
     """Three moves with waits; return simulated time, cycles and the poses reached."""
     robot, emu = make()

@@ -18,7 +18,7 @@ HOME = Pose(900.0, 0.0, 600.0, DOWN)
 def robot(seqno: int, pose: Pose = HOME, **kw: object) -> bytes:
     """An RW7 EgmRobot datagram of cycle ``seqno`` (4 ms cycles), guidance running."""
     values = dict(
-        seqno=seqno, tm_ms=4 * seqno, feedback=pose, planned=pose, time_s=0.004 * seqno,
+        seqno=seqno, tm_ms=4 * seqno, feedback=pose, planned=pose, time_us=4000 * seqno,
         motor=codec.MotorState.ON, mci=codec.MciState.RUNNING, rapid=codec.RapidState.RUNNING,
     )
     values.update(kw)
@@ -85,3 +85,21 @@ def test_a_session_needs_a_cartesian_feedback_pose() -> None:
     g = Guidance(EgmConfig(port=0))
     with pytest.raises(ProtocolError, match=r"\\Pose"):
         g.on_datagram(robot(0, feedback=None))
+
+
+def test_controller_time_counts_whole_microseconds_from_the_first_message() -> None:
+    """feedBack.time is µs since 1970: waits use differences from the first one, exact to 1 µs.
+
+    As float seconds since 1970 the 4 ms steps would carry errors of about 1e-7 s,
+    more than the waits' 1e-9 s tolerance.
+    """
+    epoch = 1_767_225_600_000_000  # 2026-01-01T00:00:00Z
+    g = Guidance(EgmConfig(port=0))
+    g.on_datagram(robot(0, time_us=epoch + 12_000))
+    assert g.controller_time_s() == 0.0 and g.controller_clock_us() == epoch + 12_000
+    for k in range(1, 2500):
+        g.on_datagram(robot(k, time_us=epoch + 12_000 + 4000 * k))
+    assert g.controller_time_s() == pytest.approx(0.004 * 2499, abs=1e-12)
+    restored = Guidance(EgmConfig(port=0))
+    restored.load_state_dict(g.state_dict())
+    assert restored.controller_time_s() == g.controller_time_s()

@@ -57,3 +57,22 @@ def test_decoders_never_raise(data: bytes) -> None:
     for decode in (protocol.decode_record, protocol.decode_request,
                    protocol.decode_calinfo_reply):
         assert decode(data) is not None
+
+
+def test_buffered_command_golden_bytes() -> None:
+    """0x0003 start buffered streaming and 0x0041 reset threshold latch (manual Table 10.1)."""
+    encode = protocol.encode_request
+    assert encode(Request(Command.START_BUFFERED, 100)).hex() == "1234000300000064"
+    assert encode(Request(Command.RESET_THRESHOLD_LATCH, 0)).hex() == "1234004100000000"
+
+
+def test_a_buffered_datagram_is_records_back_to_back() -> None:
+    """One datagram carries 1..40 records of 36 bytes; anything else is rejected, not raised."""
+    records = [Record(i, 100 + i, 0, (i, -i, 0, 0, 0, i)) for i in range(1, 41)]
+    data = protocol.encode_datagram(records)
+    assert len(data) == 40 * 36 and data[:36] == protocol.encode_record(records[0])
+    assert protocol.decode_datagram(data) == records
+    assert protocol.decode_datagram(data[:36]) == records[:1]
+    for bad in (b"", data[:35], data[:37], data + data[:36]):
+        rejected = protocol.decode_datagram(bad)
+        assert isinstance(rejected, Rejected) and rejected.reason == "DATAGRAM_SIZE"

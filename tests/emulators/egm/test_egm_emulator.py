@@ -62,6 +62,12 @@ def peer() -> Iterator[Peer]:
     p.sock.close()
 
 
+def sim_s(message: codec.RobotMessage) -> float:
+    """Simulated time of an EgmRobot: its feedBack.time less the default clock epoch, s."""
+    assert message.time_us is not None
+    return (message.time_us - EgmControllerConfig().clock_epoch_us) / 1e6
+
+
 def run(peer: Peer, emulator: EgmControllerEmulator, cycles: int,
         plan: dict[int, Pose] | None = None) -> list[codec.RobotMessage]:
     """Answer ``cycles`` fresh messages (the pose of ``plan`` from that count on)."""
@@ -90,7 +96,8 @@ def test_session_starts_at_seqno_zero_on_the_simulated_sample_clock(peer: Peer) 
     """Seqno 0, 1, 2...; feedBack.time and tm step by exactly 4 ms of simulated time."""
     seen = run(peer, emulator_for(peer), 6)
     assert [m.seqno for m in seen] == list(range(6))
-    assert [m.time_s for m in seen] == [pytest.approx(0.004 * k, abs=1e-9) for k in range(6)]
+    epoch = EgmControllerConfig().clock_epoch_us
+    assert [m.time_us for m in seen] == [epoch + 4000 * k for k in range(6)]
     assert [m.tm_ms for m in seen] == [0, 4, 8, 12, 16, 20]
     assert all(m.mci is codec.MciState.RUNNING and m.motor is codec.MotorState.ON for m in seen)
 
@@ -100,7 +107,7 @@ def test_answers_are_read_next_cycle_and_act_after_the_control_lag(peer: Peer) -
     target = HOME.moved(dz_mm=-1.0)
     seen = run(peer, emulator_for(peer), 12, plan={0: target})
     assert seen[1].planned == target
-    assert all(m.feedback == HOME for m in seen if m.time_s <= 0.024 + 1e-9)
+    assert all(m.feedback == HOME for m in seen if sim_s(m) <= 0.024 + 1e-9)
     assert seen[11].feedback.z_mm < 600.0
 
 
@@ -112,7 +119,7 @@ def test_next_cycle_after_another_device_moved_the_clock(peer: Peer) -> None:
         clock.advance_to(0.010)  # e.g. a sensor exchange while the controller waited
         peer.answer(address, HOME)
         second, _ = peer.receive()
-    assert (first.time_s, second.time_s) == (0.0, pytest.approx(0.012))
+    assert (sim_s(first), sim_s(second)) == (0.0, pytest.approx(0.012))
 
 
 @pytest.mark.parametrize(
@@ -172,7 +179,7 @@ def test_comm_timeout_stops_guidance_and_reports_it(peer: Peer) -> None:
             message, _ = peer.receive()
     assert message.mci is codec.MciState.STOPPED and message.rapid is codec.RapidState.STOPPED
     # the answer to cycle 2 is read at cycle 3 (12 ms); 20 ms later guidance ends
-    assert message.time_s == pytest.approx(0.012 + 0.020, abs=1e-9)
+    assert sim_s(message) == pytest.approx(0.012 + 0.020, abs=1e-9)
 
 
 def test_a_planned_pose_outside_the_workspace_is_a_motion_error(peer: Peer) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -165,3 +166,54 @@ def test_a_client_hanging_up_mid_reply_prints_no_trace_and_the_box_serves_on(
     assert "Traceback" not in capfd.readouterr().err
     with NetFtSensor(config_for(emulator, calibration_source="http")) as sensor:
         assert sensor.calibration.counts_per_force > 0
+
+
+def test_the_rdt_rate_is_capped_at_the_boxs_7000_per_s() -> None:
+    """The Net F/T streams at most 7000 records/s (manual §10); the emulator refuses more."""
+    with start(rdt_rate_hz=7000):
+        pass
+    with pytest.raises(ValueError, match="7000"):
+        start(rdt_rate_hz=7001)
+
+
+@pytest.mark.parametrize("size", [0, 41])
+def test_an_rdt_buffer_size_outside_1_to_40_is_refused(size: int) -> None:
+    """The box's comrdtbsiz is 1..40 (40 records of 36 bytes fill one Ethernet frame)."""
+    with pytest.raises(ValueError, match="rdt_buffer_size"):
+        start(rdt_buffer_size=size)
+
+
+def test_a_buffered_request_that_is_not_whole_buffers_ends_with_a_short_datagram() -> None:
+    """Our choice where the manual is silent: N records, the last datagram holds the rest."""
+    import socket
+
+    from forcelearn.protocols.netft import Command, Request, decode_datagram, encode_request
+
+    with start(model=QUIET, rdt_buffer_size=4) as emu, \
+            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.connect((emu.host, emu.ports["rdt_port"]))
+        sock.settimeout(2.0)
+        sock.send(encode_request(Request(Command.START_BUFFERED, 10)))
+        batches = [decode_datagram(sock.recv(65536)) for _ in range(3)]
+        assert emu.wait_handled(1)  # the request's sends (and their counts) are done
+        assert emu.stats.datagrams_sent == 3 and emu.stats.records_sent == 10
+    assert all(isinstance(b, list) for b in batches)
+    sizes = [len(b) for b in batches if isinstance(b, list)]
+    seqs = [r.rdt_sequence for b in batches if isinstance(b, list) for r in b]
+    assert sizes == [4, 4, 2] and seqs == list(range(1, 11))
+
+
+@pytest.mark.parametrize("source", ["http", "tcp"])
+def test_a_box_that_spells_newton_metres_nm_is_read_and_agrees_with_n_m(source: str) -> None:
+    """A box that spells the torque unit "Nm" is read as N-m and agrees with "N-m".
+
+    A live netftapi2.xml (firmware 2.2.59, quoted in a public client's tests) says
+    ``<scfgtu>Nm</scfgtu>``; before, the driver refused it as an unknown unit.
+    """
+    model = replace(QUIET, torque_unit="Nm", counts_per_torque=1_000_000)
+    with start(contact_physics(), model=model) as emu, NetFtSensor(
+        config_for(emu, calibration_source=source, torque_unit="N-m", zero_on_init=False)
+    ) as sensor:
+        assert emu.xml_fields["scfgtu"] == "Nm"
+        assert sensor.calibration.si_per_count[3:] == pytest.approx([1e-6] * 3)
+        assert np.allclose(sensor.read().wrench, emu.physics.true_wrench(), atol=1e-5)

@@ -110,6 +110,7 @@ def open_egm(
         workspace_min_mm=arm.workspace_min_mm,
         workspace_max_mm=arm.workspace_max_mm,
         max_speed_mm_s=arm.max_speed_mm_s,
+        arm=arm,
     )
     driver_config = replace(
         robot,

@@ -84,10 +84,21 @@ class EgmStatus:
     convergence_met: bool | None
     utilization_pct: float | None
     measured_force: tuple[float, ...] | None
+    """measuredForce.force, N and N·m. RW7 with ``fc_active`` false: the raw sensor force
+    ("Will show raw sensor force when force control is not active", manual p.36), kept."""
     in_position: bool
     controller_time_s: float
+    """Controller time since the driver's first message, s (feedBack.time differences)."""
     seqno: int
     stats: EgmStats
+    fc_active: bool | None = None
+    """RW7 measuredForce.fcActive: the controller's Force Control is active (None: RW6)."""
+    controller_clock_us: int | None = None
+    """feedBack.time: the controller's clock, µs since 1970-01-01 UTC (None if not sent)."""
+    joints_deg: tuple[float, ...] = ()
+    """feedBack.joints: the measured axes, degrees (empty if not sent)."""
+    planned_joints_deg: tuple[float, ...] = ()
+    """planned.joints: the planned axes, degrees (empty if not sent)."""
 
 
 class EgmRobotDriver:
@@ -293,6 +304,10 @@ class EgmRobotDriver:
                 controller_time_s=self._guidance.controller_time_s(),
                 seqno=m.seqno,
                 stats=self._guidance.stats,
+                fc_active=m.fc_active,
+                controller_clock_us=m.time_us,
+                joints_deg=m.joints_deg,
+                planned_joints_deg=m.planned_joints_deg,
             )
 
     @property

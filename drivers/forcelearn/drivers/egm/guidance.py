@@ -99,6 +99,8 @@ class Guidance:
         self.session = 0
         self.stats = EgmStats()
         self._next_seqno = 0
+        self.origin_us: int | None = None
+        """feedBack.time (µs since 1970) of the first message that had one: controller time 0."""
 
     # -- input ------------------------------------------------------------------------------
 
@@ -115,6 +117,8 @@ class Guidance:
         except ProtocolError:
             self._count(bad_datagrams=1)
             return False
+        if self.origin_us is None and message.time_us is not None:
+            self.origin_us = message.time_us
         latest = self.latest
         if latest is None or (message.seqno == 0 and latest.seqno != 0):
             self._start_session(message)
@@ -185,6 +189,7 @@ class Guidance:
             "speed_mm_s": self.speed_mm_s,
             "session": self.session,
             "next_seqno": self._next_seqno,
+            "origin_us": self.origin_us,
             "stats": asdict(self.stats),
         }
 
@@ -208,17 +213,29 @@ class Guidance:
         self.speed_mm_s = float(state["speed_mm_s"])
         self.session = int(state["session"])
         self._next_seqno = int(state["next_seqno"])
+        origin = state.get("origin_us")
+        self.origin_us = None if origin is None else int(origin)
         self.stats = EgmStats(**state["stats"])
 
     # -- queries ----------------------------------------------------------------------------
 
     def controller_time_s(self) -> float:
-        """The controller's time of the latest message: feedBack.time, else header.tm."""
+        """The controller's time of the latest message, s: feedBack.time, else header.tm.
+
+        feedBack.time is the controller's clock in µs since 1970 (manual
+        3HAC073318 p.38); it is counted from the first message the driver
+        read (:attr:`origin_us`) in whole µs, so differences keep full
+        resolution. The clock itself is :attr:`controller_clock_us`.
+        """
         if self.latest is None:
             return 0.0
-        if self.latest.time_s is not None:
-            return self.latest.time_s
+        if self.latest.time_us is not None and self.origin_us is not None:
+            return (self.latest.time_us - self.origin_us) / 1e6
         return self.latest.tm_ms / 1000.0
+
+    def controller_clock_us(self) -> int | None:
+        """feedBack.time of the latest message: µs since 1970-01-01 UTC (None if not sent)."""
+        return None if self.latest is None else self.latest.time_us
 
     def require_running(self) -> None:
         """Raise ``GuidanceStopped`` unless motors are on, EGM runs and RAPID runs.

@@ -322,7 +322,8 @@ class NetFtSensor:
         for key, expected, reported in pairs:
             if expected is None or reported is None:
                 continue
-            same = (expected == reported if isinstance(expected, str)
+            same = (protocol.canonical_unit(expected) == protocol.canonical_unit(str(reported))
+                    if isinstance(expected, str)
                     else abs(float(expected) - float(reported)) <= 1e-9 * abs(float(expected)))
             if not same:
                 raise ConfigError(

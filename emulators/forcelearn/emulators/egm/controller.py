@@ -18,6 +18,38 @@ driver. One :class:`EgmControllerModel` is one robot running
   on (\\StreamStart), and EgmSensor datagrams are ignored until
   :meth:`EgmControllerModel.restart` (the operator restarts the program:
   a new session, seqno 0).
+
+What every EgmRobot carries beside the poses (manual 3HAC073318 RW7, p.35-38):
+
+* ``feedBack.joints`` / ``planned.joints``: the six axes in degrees, from
+  the cell's arm model (:mod:`.joints`), for the reached and the planned pose;
+* ``feedBack.time``: the controller's clock, seconds and microseconds since
+  1970-01-01 UTC: ``clock_epoch_us`` (the cell's start, default
+  2026-01-01T00:00:00Z, fixed so that runs stay byte-identical) plus the
+  simulated time; ``planned.time`` ("when the robot will be in the planned
+  position") is that plus the control lag;
+* RW7 ``measuredForce``: ``fcActive`` is true only while the controller's own
+  Force Control runs (``force_control_active``; ForcelearnEGM.modx runs none),
+  and ``force`` holds the sensor force either way ("Will show raw sensor force
+  when force control is not active", p.36).
+
+What an EgmSensor is taken for (the mode is EGMSetupUC's ``\\Pose`` or
+``\\Joint``, ``mode``):
+
+* pose mode: ``planned.cartesian``; joint mode: ``planned.joints`` (six
+  angles in degrees, checked against the axis ranges, then reached through
+  the arm's forward kinematics). A datagram with only the other mode's field
+  carries no position data for this mode: the controller keeps the latest
+  reference (p.26: "If no position data had been sent, motion control
+  continues to use the latest position data"); it is counted in
+  ``wrong_mode`` and logged, never silently dropped;
+* ``speedRef``: the speed feed-forward of the control law
+  ``speed = k * (pos_ref - pos) + speed_ref`` (p.26). With the servo's
+  first-order lag of time constant tau (k = 1 / tau) this is exactly the lag
+  acting toward ``pos_ref + speed_ref * tau``, which is how it is applied
+  (cartesian mm/s and deg/s in pose mode; in joint mode the joints led by
+  deg/s x tau, through the forward kinematics, since the servo lags in
+  Cartesian space). A speedRef without six finite values is not used.
 """
 
 from __future__ import annotations
@@ -25,13 +57,15 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from forcelearn.devices import Pose
+from forcelearn.emulators.egm import joints as arm_joints
 from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ProtocolError
 from forcelearn.protocols.egm import codec
 
@@ -42,6 +76,12 @@ HOME = Pose(900.0, 0.0, 600.0, (0.0, 1.0, 0.0, 0.0))
 
 CONVERGENCE_MM = 1.0
 """EGMActPose convergence default (±1 mm, manual p.58): sets mciConvergenceMet."""
+
+DEFAULT_CLOCK_EPOCH_US = 1_767_225_600_000_000
+"""The controller clock at the cell's start: 2026-01-01T00:00:00Z in µs since 1970 (fixed)."""
+
+Mode = Literal["pose", "joint"]
+MODES: tuple[Mode, ...] = ("pose", "joint")
 
 
 @dataclass(frozen=True)
@@ -60,11 +100,24 @@ class EgmControllerConfig:
     max_speed_mm_s: float = 1000.0
     """TCP speed that counts as 100 % utilizationRate (assumption)."""
     send_measured_force: bool = True
-    """Send measuredForce (the physics' true wrench as the controller's estimate)."""
+    """Send measuredForce (the physics' true wrench as the controller's sensor force)."""
+    force_control_active: bool = False
+    """RW7 fcActive: the controller's own Force Control runs (ForcelearnEGM.modx runs none)."""
+    mode: Mode = "pose"
+    """EGMSetupUC \\Pose (planned.cartesian guides) or \\Joint (planned.joints guides)."""
+    clock_epoch_us: int = DEFAULT_CLOCK_EPOCH_US
+    """feedBack.time at simulated time 0, µs since 1970-01-01 UTC."""
+    arm: ArmConfig = field(default_factory=ArmConfig)
+    """The arm whose six axes are reported (geometry and axis ranges; :mod:`.joints`)."""
 
     def __post_init__(self) -> None:
         if self.version not in codec.VERSIONS:
             raise ValueError(f"version must be one of {codec.VERSIONS}, got {self.version!r}")
+        if self.mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        epoch = self.clock_epoch_us
+        if isinstance(epoch, bool) or not isinstance(epoch, int) or not 0 <= epoch < 1 << 63:
+            raise ValueError(f"clock_epoch_us must be an int of µs since 1970 >= 0, got {epoch!r}")
         ticks = self.sample_period_s / 0.004
         if self.sample_period_s <= 0 or abs(ticks - round(ticks)) > 1e-9:
             raise ValueError(f"sample_period_s must be a multiple of 0.004 s, got "
@@ -97,6 +150,10 @@ class EgmControllerModel:
         self.pose = physics.pose
         self.planned = physics.pose
         """The planned pose in effect (the latest EgmSensor read)."""
+        self.planned_joints = self._joints(physics.pose, ())
+        """The planned axes in effect, degrees."""
+        self._feedback_joints: tuple[float, ...] = self.planned_joints
+        self._feedback_joints_pose = physics.pose
         self.mci = codec.MciState.RUNNING
         self.rapid = codec.RapidState.RUNNING
         self.sessions = 1
@@ -104,6 +161,8 @@ class EgmControllerModel:
         """EgmSensor planned poses taken (not counting ignored or refused ones)."""
         self.ignored = 0
         """EgmSensor datagrams ignored (unreadable, or guidance not running)."""
+        self.wrong_mode = 0
+        """EgmSensor datagrams with position data only for the other mode (reference kept)."""
         self._seqno = 0
         self._last_read_s = t_s
         self._last_pose_s = (t_s, physics.pose)
@@ -130,6 +189,12 @@ class EgmControllerModel:
         else:
             self.motion.command(self.pose, t_s - self.config.servo.control_lag_s)
         self.planned = self.pose
+        self.planned_joints = self._joints(self.pose, self.planned_joints)
+
+    def _joints(self, pose: Pose, fallback: tuple[float, ...]) -> tuple[float, ...]:
+        """The arm's axes at ``pose`` (deg); ``fallback`` if the arm cannot reach it."""
+        joints = arm_joints.tool_joints_deg(self.config.arm, pose)
+        return fallback if joints is None else joints
 
     def apply_sensor(self, datagram: bytes, t_s: float) -> None:
         """Read one EgmSensor at the cycle of time ``t_s``."""
@@ -143,18 +208,79 @@ class EgmControllerModel:
             self.ignored += 1
             return
         self._last_read_s = t_s
+        if self.config.mode == "joint":
+            self._apply_joints(message, t_s)
+            return
         target = message.planned
         if target is None:
-            return  # header only: the controller keeps the last planned pose
+            if message.planned_joints_deg:
+                self._count_wrong_mode(t_s, "planned.joints", "\\Pose")
+            return  # no position data: the controller keeps the last planned pose
         refusal = self._refusal(target)
         if refusal:
-            log.warning("EGM motion error at %.3f s: %s", t_s, refusal)
-            self._hold(t_s)
-            self.mci = codec.MciState.ERROR
+            self._motion_error(t_s, refusal)
             return
         self.planned = target
-        self.motion.command(target, t_s)
+        self.planned_joints = self._joints(target, self.planned_joints)
+        self.motion.command(self._feed_forward_pose(target, message.speed_ref), t_s)
         self.targets_read += 1
+
+    def _apply_joints(self, message: codec.SensorMessage, t_s: float) -> None:
+        """Joint mode: follow planned.joints (deg) through the arm's forward kinematics."""
+        joints = message.planned_joints_deg
+        if not joints:
+            if message.planned is not None:
+                self._count_wrong_mode(t_s, "planned.cartesian", "\\Joint")
+            return
+        refusal = arm_joints.limit_violation(self.config.arm, joints)
+        target = None
+        if refusal is None:
+            target = arm_joints.tool_pose(self.config.arm, joints)
+            refusal = self._refusal(target)
+        if refusal or target is None:
+            self._motion_error(t_s, refusal or "unreachable joints")
+            return
+        speed = message.speed_ref_joints_deg_s
+        commanded = target
+        if speed is not None and len(speed) == 6 and all(math.isfinite(v) for v in speed):
+            tau = self.config.servo.time_constant_s
+            commanded = arm_joints.tool_pose(
+                self.config.arm, tuple(j + v * tau for j, v in zip(joints, speed, strict=True))
+            )
+        self.planned = target
+        self.planned_joints = tuple(float(j) for j in joints)
+        self.motion.command(commanded, t_s)
+        self.targets_read += 1
+
+    def _feed_forward_pose(self, target: Pose, speed_ref: tuple[float, ...] | None) -> Pose:
+        """``target`` led by speedRef x tau: the lag's fixed point under the speed feed-forward."""
+        if speed_ref is None or len(speed_ref) != 6 or not all(math.isfinite(v) for v in speed_ref):
+            return target
+        tau = self.config.servo.time_constant_s
+        x, y, z = (float(c) for c in target.position_mm + np.asarray(speed_ref[:3]) * tau)
+        turn = np.radians(np.asarray(speed_ref[3:])) * tau  # rotation vector, base frame
+        angle = float(np.linalg.norm(turn))
+        quaternion = target.quaternion
+        if angle > 0.0:
+            axis = turn / angle
+            w, s = math.cos(angle / 2.0), math.sin(angle / 2.0)
+            turn_q = (w, *(float(c) * s for c in axis))
+            quaternion = arm_joints.multiply_quaternions(turn_q, target.quaternion)
+        return Pose(x, y, z, quaternion)
+
+    def _motion_error(self, t_s: float, reason: str) -> None:
+        log.warning("EGM motion error at %.3f s: %s", t_s, reason)
+        self._hold(t_s)
+        self.mci = codec.MciState.ERROR
+
+    def _count_wrong_mode(self, t_s: float, field_name: str, setup: str) -> None:
+        self.wrong_mode += 1
+        if self.wrong_mode == 1:
+            log.warning(
+                "EgmSensor at %.3f s carries only %s, which EGMSetupUC %s does not read: the "
+                "controller keeps its latest reference (counted in wrong_mode)",
+                t_s, field_name, setup,
+            )
 
     def _refusal(self, pose: Pose) -> str | None:
         position = pose.position_mm
@@ -165,7 +291,10 @@ class EgmControllerModel:
         high = np.asarray(self.config.workspace_max_mm)
         if np.any(position < low) or np.any(position > high):
             return f"planned position {np.round(position, 3).tolist()} mm is outside the workspace"
-        return None
+        joints = arm_joints.tool_joints_deg(self.config.arm, pose)
+        if joints is None:
+            return f"planned position {np.round(position, 3).tolist()} mm is out of the arm's reach"
+        return arm_joints.limit_violation(self.config.arm, joints)
 
     def robot_datagram(self, t_s: float) -> bytes:
         """Advance to the cycle at ``t_s`` and return its EgmRobot datagram."""
@@ -183,19 +312,26 @@ class EgmControllerModel:
         if self.config.send_measured_force:
             force = tuple(float(v) for v in self.physics.true_wrench())
         gap = float(np.linalg.norm(self.pose.position_mm - self.planned.position_mm))
+        if self.pose != self._feedback_joints_pose:  # at rest the axes stay
+            self._feedback_joints = self._joints(self.pose, self._feedback_joints)
+            self._feedback_joints_pose = self.pose
+        time_us = self.config.clock_epoch_us + round(t_s * 1e6)
         message = codec.RobotMessage(
             seqno=self._seqno,
             tm_ms=round(t_s * 1000),
             feedback=self.pose,
             planned=self.planned,
-            time_s=t_s,
+            joints_deg=self._feedback_joints,
+            time_us=time_us,
+            planned_joints_deg=self.planned_joints,
+            planned_time_us=time_us + round(self.config.servo.control_lag_s * 1e6),
             motor=codec.MotorState.ON,
             mci=self.mci,
             rapid=self.rapid,
             convergence_met=gap <= CONVERGENCE_MM,
             utilization_pct=min(100.0, 100.0 * speed / self.config.max_speed_mm_s),
             measured_force=force,
-            fc_active=False if force is not None else None,
+            fc_active=self.config.force_control_active if force is not None else None,
         )
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
         return codec.encode_robot(message, self.config.version)
@@ -208,6 +344,9 @@ class EgmControllerModel:
         return {
             "pose": _pose_list(self.pose),
             "planned": _pose_list(self.planned),
+            "planned_joints": list(self.planned_joints),
+            "feedback_joints": list(self._feedback_joints),
+            "wrong_mode": self.wrong_mode,
             "mci": self.mci.name,
             "rapid": self.rapid.name,
             "sessions": self.sessions,
@@ -222,6 +361,12 @@ class EgmControllerModel:
         """Restore :meth:`state_dict`."""
         self.pose = _list_pose(state["pose"])
         self.planned = _list_pose(state["planned"])
+        self.planned_joints = tuple(float(j) for j in state.get(
+            "planned_joints", self._joints(self.planned, self.planned_joints)))
+        self._feedback_joints = tuple(float(j) for j in state.get(
+            "feedback_joints", self._joints(self.pose, self._feedback_joints)))
+        self._feedback_joints_pose = self.pose
+        self.wrong_mode = int(state.get("wrong_mode", 0))
         self.mci = codec.MciState[state["mci"]]
         self.rapid = codec.RapidState[state["rapid"]]
         self.sessions = int(state["sessions"])

@@ -31,7 +31,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--tcp-port", type=int, default=None,
                         help="READCALINFO port (default 49151 where free; 0: any free port)")
     parser.add_argument("--http-port", type=int, default=0, help="web port (0: any free port)")
-    parser.add_argument("--rate-hz", type=float, default=DEFAULT_RDT_RATE_HZ, help="RDT rate")
+    parser.add_argument("--rate-hz", type=float, default=DEFAULT_RDT_RATE_HZ,
+                        help="RDT rate, records/s (at most 7000)")
+    parser.add_argument("--rdt-buffer-size", type=int, default=1,
+                        help="records per datagram of buffered streaming, 1..40 (comrdtbsiz)")
     parser.add_argument("--time-scale", type=float, default=0.0,
                         help="pace: 0 as fast as possible, 1 real time")
     parser.add_argument("--seed", type=int, default=0, help="noise seed")
@@ -41,10 +44,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     physics = (CellPhysics(Sponge(), Pose(0.0, -8.0, -40.0), tool=ToolParams())
                if args.contact else CellPhysics())
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
-    emulator = start_emulated_netft(
-        physics, SimClock(args.time_scale), args.seed, rdt_port=args.rdt_port,
-        tcp_port=args.tcp_port, http_port=args.http_port, rdt_rate_hz=args.rate_hz,
-    )
+    try:
+        emulator = start_emulated_netft(
+            physics, SimClock(args.time_scale), args.seed, rdt_port=args.rdt_port,
+            tcp_port=args.tcp_port, http_port=args.http_port, rdt_rate_hz=args.rate_hz,
+            rdt_buffer_size=args.rdt_buffer_size,
+        )
+    except ValueError as exc:  # a rate or buffer size the box cannot have
+        parser.error(str(exc))
     with emulator, contextlib.suppress(KeyboardInterrupt):
         print(json.dumps({"host": emulator.host, **emulator.ports}), flush=True)
         sys.stdin.read()  # until the parent closes our stdin

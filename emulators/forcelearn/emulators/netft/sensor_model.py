@@ -33,6 +33,9 @@ bias drift                    0.01 N/sqrt(s);             thermal drift (assumpt
                               0.0005 N·m/sqrt(s)          against noise within one step
 ============================  ==========================  ================================
 
+Units are spelled as a box spells them on its web pages: ``N`` and ``Nm`` (a live
+netftapi2.xml says ``<scfgtu>Nm</scfgtu>``; forcelearn's own name ``N-m`` works too).
+
 Randomness comes from one seeded ``numpy.random.Generator``; ``state_dict``
 and ``load_state_dict`` carry it with the bias and the software bias, so a
 resumed run is bit-identical.
@@ -58,7 +61,7 @@ class NetFtModelParams:
     counts_per_force: int = 1_000_000
     counts_per_torque: int = 1_000_000
     force_unit: str = "N"
-    torque_unit: str = "N-m"
+    torque_unit: str = "Nm"
     ranges: Six = (130.0, 130.0, 400.0, 10.0, 10.0, 10.0)
     saturation_fraction: float = 1.0
     noise_std: Six = (0.05, 0.05, 0.05, 0.0025, 0.0025, 0.0025)

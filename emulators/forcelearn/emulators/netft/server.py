@@ -1,20 +1,33 @@
-"""An emulated ATI Net F/T box on loopback: RDT over UDP, READCALINFO over TCP, netftapi2.xml.
+"""An emulated ATI Net F/T box on loopback: RDT over UDP, READCALINFO over TCP, two XML pages.
 
 The emulator reuses the driver's pure codec (:mod:`forcelearn.protocols.netft`),
 so it speaks exactly the bytes a box does, and differs from one only in what
 is behind the wire: the shared :class:`~forcelearn.emulators.physics.cell.CellPhysics`
 and a :class:`~.sensor_model.NetFtSensorModel`. Every server binds 127.0.0.1.
 
-==========================  =================================================
-request (UDP)               answer
-==========================  =================================================
-start, sample count N > 0   N records (``rdt_sequence`` 1..N), then silence
-start, sample count 0       records at the RDT rate (wall-time paced) until a
-                            new command
-stop                        nothing; streaming stops
-set software bias           nothing; the present reading becomes zero
-anything else               counted in ``stats.rejected``, ignored
-==========================  =================================================
+===============================  ============================================
+request (UDP)                    answer
+===============================  ============================================
+start real-time (0x0002), N > 0  N records (``rdt_sequence`` 1..N), one per
+                                 datagram, then silence
+start real-time, N = 0           records at the RDT rate (wall-time paced)
+                                 until stop or a new start
+start buffered (0x0003), N > 0   the same N records, ``rdt_buffer_size`` to a
+                                 datagram (a last, shorter datagram holds the
+                                 rest: our choice, the manual is silent)
+start buffered, N = 0            full datagrams at RDT rate / buffer size
+stop (0x0000)                    nothing; streaming stops
+set software bias (0x0042)       nothing; the present reading becomes zero
+reset threshold latch (0x0041)   nothing (threshold monitoring not modelled)
+wrong size or header             nothing; counted in ``stats.rejected``
+any other command                nothing; counted in ``stats.rejected``; a
+                                 stream goes on
+===============================  ============================================
+
+HTTP: ``/netftapi2.xml`` (settings) and ``/netftcalapi.xml`` (calibration,
+root ``netftCalibration``); ``?index=0`` or no index selects the one
+configuration and calibration the emulated box holds, any other page or index
+is 404. The fields and their sources: docs/netft.md.
 
 Time
 ----
@@ -45,6 +58,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
+from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 
@@ -62,8 +76,12 @@ HOST = "127.0.0.1"
 DEFAULT_RDT_RATE_HZ = 7000.0
 """The Net F/T's maximum RDT output rate (manual §10: "up to 7000 Hz"); the factory
 setting of a given box may be lower: ``forcelearn check`` prints the box's ``comrdtrate``."""
-MAX_RDT_RATE_HZ = 10_000.0
-"""Fastest RDT rate the emulated box streams at, records/s."""
+MAX_RDT_RATE_HZ = 7000.0
+"""Fastest RDT rate the emulated box streams at, records/s: the Net F/T's maximum (manual
+§10, "up to 7000 Hz"; ATI's Ethernet Axia manual: internal sample rate 7000 per s)."""
+INTERNAL_SAMPLE_RATE_HZ = 7000.0
+"""The box's internal sample rate, samples/s: ``ft_sequence`` counts these from power-up,
+whatever the RDT output rate (manual §10 on ft_sequence; ATI's Ethernet Axia manual, same text)."""
 POLL_S = 0.02
 """Longest the UDP thread blocks while idle, so ``close()`` returns promptly."""
 STREAM_POLL_S = 0.001
@@ -82,6 +100,7 @@ class EmulatorStats:
     rejected: int = 0
     records_generated: int = 0
     records_sent: int = 0
+    datagrams_sent: int = 0
     bias_commands: int = 0
     reboots: int = 0
     calinfo_requests: int = 0
@@ -125,10 +144,15 @@ class _XmlHandler(BaseHTTPRequestHandler):
     def do_GET(self) -> None:
         emulator: NetFtEmulator = self.server.emulator  # type: ignore[attr-defined]
         emulator.stats.http_requests += 1
-        if self.path != protocol.CALIBRATION_XML_PATH:
+        url = urlsplit(self.path)
+        index = parse_qs(url.query).get("index", ["0"])
+        pages = {protocol.CALIBRATION_XML_PATH: emulator.netftapi2_xml,
+                 protocol.CALIBRATION_API_XML_PATH: emulator.netftcalapi_xml}
+        page = pages.get(url.path)
+        if page is None or index != ["0"]:  # one configuration, one calibration
             self.send_error(404)
             return
-        body = emulator.netftapi2_xml()
+        body = page()
         self.send_response(200)
         self.send_header("Content-Type", "text/xml")
         self.send_header("Content-Length", str(len(body)))
@@ -171,7 +195,8 @@ class NetFtEmulator(Emulator):
         rdt_port, tcp_port: None = the box's port (49152, 49151) where free, else
             any free one; 0 = any free port; else exactly that port.
         http_port: the web server's port (0 = any free one; a box uses 80).
-        rdt_rate_hz: the RDT output rate (``comrdtrate``).
+        rdt_rate_hz: the RDT output rate (``comrdtrate``), records/s, at most 7000.
+        rdt_buffer_size: records per datagram of buffered streaming (``comrdtbsiz``, 1..40).
         filter_index: the low-pass selection reported (``setuserfilter``; not modelled).
         records_hook: called with each request's records after the faults.
         on_send: called with each record just before it is sent (benchmarks time it).
@@ -189,12 +214,17 @@ class NetFtEmulator(Emulator):
         tcp_port: int | None = None,
         http_port: int = 0,
         rdt_rate_hz: float = DEFAULT_RDT_RATE_HZ,
+        rdt_buffer_size: int = 1,
         filter_index: int = 0,
         records_hook: RecordsHook | None = None,
         on_send: Callable[[Record], None] | None = None,
     ) -> None:
         if not 0 < rdt_rate_hz <= MAX_RDT_RATE_HZ:
-            raise ValueError(f"rdt_rate_hz={rdt_rate_hz} must be in (0, {MAX_RDT_RATE_HZ:g}]")
+            raise ValueError(f"rdt_rate_hz={rdt_rate_hz} must be in (0, {MAX_RDT_RATE_HZ:g}]: "
+                             "the Net F/T streams at most 7000 records/s")
+        if not 1 <= rdt_buffer_size <= protocol.MAX_RECORDS_PER_DATAGRAM:
+            raise ValueError(f"rdt_buffer_size={rdt_buffer_size} must be in "
+                             f"1..{protocol.MAX_RECORDS_PER_DATAGRAM} (the box's comrdtbsiz)")
         self.physics = physics
         self.clock = clock or SimClock()
         self.params = model or NetFtModelParams()
@@ -202,13 +232,15 @@ class NetFtEmulator(Emulator):
         self.records_hook = records_hook
         self.on_send = on_send
         self.rdt_rate_hz = float(rdt_rate_hz)
+        self.rdt_buffer_size = int(rdt_buffer_size)
         self.filter_index = filter_index
         self.rng = np.random.default_rng(seed)
         self.model = NetFtSensorModel(self.params, self.rng)
         self.stats = EmulatorStats()
         self.ft_sequence = 0
         self.boot_s = 0.0
-        """Simulated time of the last (re)boot; ``ft_sequence`` counts internal samples since."""
+        """Simulated time of the last (re)boot; ``ft_sequence`` counts internal samples since
+        (:data:`INTERNAL_SAMPLE_RATE_HZ`)."""
         self.last_sample_s: float | None = None
         self._records_since_boot = 0
         self._lock = threading.RLock()
@@ -218,8 +250,9 @@ class NetFtEmulator(Emulator):
         self._stream_wall0 = 0.0
         self._stream_t0 = 0.0
         self._stream_sent = 0
-        force_code = {n: c for c, (n, _) in protocol.FORCE_UNITS.items()}[self.params.force_unit]
-        torque_code = {n: c for c, (n, _) in protocol.TORQUE_UNITS.items()}[self.params.torque_unit]
+        self._stream_batch = 1
+        force_code, torque_code = protocol.unit_codes(self.params.force_unit,
+                                                      self.params.torque_unit)
         self.calinfo = protocol.CalInfo(force_code, torque_code, self.params.counts_per_force,
                                         self.params.counts_per_torque)
         """What READCALINFO answers (a test may replace it with nonsense)."""
@@ -232,9 +265,25 @@ class NetFtEmulator(Emulator):
             "cfgmr": ";".join(f"{r:g}" for r in self._ranges_in_units()),
             "comrdtrate": f"{self.rdt_rate_hz:g}",
             "setuserfilter": str(filter_index),
-            "runrate": f"{self.rdt_rate_hz:g}",
+            "runrate": f"{INTERNAL_SAMPLE_RATE_HZ:g}",  # the internal rate, not the RDT rate
+            "comrdtbsiz": str(self.rdt_buffer_size),
+            "setcfgsel": "0",
+            "cfgcalsel": "0",
         }
         """The elements of netftapi2.xml (a test may change them)."""
+        self.calibration_fields: dict[str, str] = {
+            "calsn": "FT00000",
+            "calpn": "forcelearn-emulated",
+            "caldt": "2026/01/01",
+            "calfu": str(force_code),
+            "caltu": str(torque_code),
+            "scalfu": self.params.force_unit,
+            "scaltu": self.params.torque_unit,
+            "calcpf": str(self.params.counts_per_force),
+            "calcpt": str(self.params.counts_per_torque),
+            "calmr": self.xml_fields["cfgmr"],
+        }
+        """The elements of netftcalapi.xml, root ``netftCalibration`` (a test may change them)."""
         self._udp = _bind(socket.SOCK_DGRAM, rdt_port, protocol.RDT_PORT)
         tcp_sock = _bind(socket.SOCK_STREAM, tcp_port, protocol.CALIBRATION_TCP_PORT)
         self._tcp = _TcpServer(tcp_sock.getsockname(), _CalInfoHandler, bind_and_activate=False)
@@ -287,8 +336,11 @@ class NetFtEmulator(Emulator):
 
     def netftapi2_xml(self) -> bytes:
         """The body of ``/netftapi2.xml`` from :attr:`xml_fields`."""
-        inner = "".join(f"<{k}>{html.escape(v)}</{k}>" for k, v in self.xml_fields.items())
-        return f'<?xml version="1.0" encoding="utf-8"?><netft>{inner}</netft>'.encode()
+        return _xml_page("netft", self.xml_fields)
+
+    def netftcalapi_xml(self) -> bytes:
+        """The body of ``/netftcalapi.xml`` from :attr:`calibration_fields`."""
+        return _xml_page("netftCalibration", self.calibration_fields)
 
     def state_dict(self) -> dict[str, Any]:
         """What a bit-identical resume needs: model (rng, biases), sequences, last sample time."""
@@ -366,20 +418,24 @@ class NetFtEmulator(Emulator):
             self.stats.bias_commands += 1
             self.model.set_software_bias(self.physics.true_wrench())
             return
-        self._stream_to = None  # any other command takes precedence over the last
+        if request.command == Command.RESET_THRESHOLD_LATCH:
+            return  # no thresholds are modelled, so no latch to reset
+        if request.command not in (Command.STOP, Command.START_REALTIME, Command.START_BUFFERED):
+            self.stats.rejected += 1  # not a command the box knows: ignored, a stream goes on
+            return
+        self._stream_to = None  # stop, or a new start that takes precedence over the last
         if request.command == Command.STOP:
             return
-        if request.command != Command.START_REALTIME:
-            self.stats.rejected += 1
-            return
+        batch = self.rdt_buffer_size if request.command == Command.START_BUFFERED else 1
         if request.sample_count == 0:
             self._stream_to = address
             self._stream_wall0 = time.monotonic()
             self._stream_t0 = self._next_sample_time()
             self._stream_sent = 0
+            self._stream_batch = batch
             return
         records, times = self._generate(1, request.sample_count, self._next_sample_time())
-        self._send(records, times, address, pace=True)
+        self._send(records, times, address, pace=True, batch=batch)
 
     def _stream_due(self) -> None:
         period = 1.0 / self.rdt_rate_hz
@@ -387,16 +443,18 @@ class NetFtEmulator(Emulator):
             if self._stream_to is None:
                 return
             address = self._stream_to
+            batch = self._stream_batch
             due = int((time.monotonic() - self._stream_wall0) * self.rdt_rate_hz) + 1
             if due - self._stream_sent > MAX_STREAM_CATCH_UP:  # never burst after a stall
                 self._stream_sent = due - MAX_STREAM_CATCH_UP
             n = due - self._stream_sent
+            n -= n % batch  # a buffered datagram leaves when its last record is sampled
             if n <= 0:
                 return
             first = self._stream_sent + 1
             records, times = self._generate(first, n, self._stream_t0 + (first - 1) * period)
-            self._stream_sent = due
-        self._send(records, times, address, pace=False)
+            self._stream_sent += n
+        self._send(records, times, address, pace=False, batch=batch)
 
     def _next_sample_time(self) -> float:
         now = self.clock.now_s
@@ -419,8 +477,8 @@ class NetFtEmulator(Emulator):
             dt = 0.0 if self.last_sample_s is None else t - self.last_sample_s
             counts = self.model.measure(self.physics.true_wrench(), dt)
             self.last_sample_s = t
-            # the box samples at its internal rate (here = the RDT rate) streaming or not
-            ft = round((t - self.boot_s) * self.rdt_rate_hz)
+            # the box samples at its internal rate (7000/s) streaming or not, whatever the RDT rate
+            ft = round((t - self.boot_s) * INTERNAL_SAMPLE_RATE_HZ)
             self.ft_sequence = ft % protocol.SEQUENCE_MODULUS
             seq = first_seq + i
             records.append(Record(seq, self.ft_sequence, self.faults.status, counts))
@@ -439,7 +497,8 @@ class NetFtEmulator(Emulator):
         return out, times
 
     def _send(self, records: list[Record], times: dict[int, float],
-              address: tuple[str, int], *, pace: bool) -> None:
+              address: tuple[str, int], *, pace: bool, batch: int = 1) -> None:
+        """Send ``records`` ``batch`` to a datagram, each when its last record is sampled."""
         if not times:
             return
         paced = pace and self.clock.time_scale > 0
@@ -448,20 +507,23 @@ class NetFtEmulator(Emulator):
             self.clock.advance_to(times[0])
             if pace:
                 self.clock.hold()
-        for record in records:
-            t = times.get(record.rdt_sequence, times[0])
+        for start in range(0, len(records), batch):
+            datagram = records[start:start + batch]
+            t = times.get(datagram[-1].rdt_sequence, times[0])
             if paced and t - held_at >= PACE_SLICE_S:
                 self.clock.advance_to(t)
                 self.clock.hold()
                 held_at = t
             if self.on_send is not None:
-                self.on_send(record)
+                for record in datagram:
+                    self.on_send(record)
             try:
-                self._udp.sendto(protocol.encode_record(record), address)
+                self._udp.sendto(protocol.encode_datagram(datagram), address)
             except OSError:
                 log.debug("netft emulator: send to %s failed", address, exc_info=True)
                 continue
-            self.stats.records_sent += 1
+            self.stats.records_sent += len(datagram)
+            self.stats.datagrams_sent += 1
         if paced:
             self.clock.advance_to(times[0])
 
@@ -479,6 +541,12 @@ class NetFtEmulator(Emulator):
         f = protocol.FORCE_UNIT_SI[self.params.force_unit]
         t = protocol.TORQUE_UNIT_SI[self.params.torque_unit]
         return [r / (f if i < 3 else t) for i, r in enumerate(self.params.ranges)]
+
+
+def _xml_page(root: str, fields: dict[str, str]) -> bytes:
+    """An XML page as the box serves it: one root element, one child element per field."""
+    inner = "".join(f"<{k}>{html.escape(v)}</{k}>" for k, v in fields.items())
+    return f'<?xml version="1.0" encoding="utf-8"?><{root}>{inner}</{root}>'.encode()
 
 
 def start_emulated_netft(physics: CellPhysics, clock: SimClock | None = None, seed: int = 0,

@@ -11,12 +11,22 @@ value                       EGM field               units
 ``seqno``                   header.seqno            +1 per message; 0 starts a session
 ``tm_ms``                   header.tm               sender's time stamp, ms (mod 2**32)
 ``feedback``                feedBack.cartesian      mm, quaternion (w, x, y, z) = (u0..u3)
-``time_s``                  feedBack.time           s (EgmClock sec + usec)
+``time_us``                 feedBack.time           µs since 1970-01-01 UTC (EgmClock sec, usec)
 ``planned``                 planned.cartesian       mm, quaternion
-``joints_deg``              feedBack.joints         degrees
-``measured_force``          measuredForce.force     N / N·m as the controller estimates them
+``joints_deg``              feedBack.joints         degrees, the robot's 6 axes
+``planned_joints_deg``      planned.joints          degrees
+``planned_time_us``         planned.time            µs since 1970: when the robot will be at
+                                                    the planned position
+``measured_force``          measuredForce.force     N / N·m: RW7 with ``fc_active`` false, the
+                                                    raw sensor force (manual p.36)
+``fc_active``               measuredForce.fcActive  RW7 only: force control active
 ``utilization_pct``         utilizationRate         % of the motion capacity EGM used
 ==========================  ======================  =======================================
+
+An EgmSensor (:class:`SensorMessage`) carries the planned pose (pose mode),
+the planned joints (joint mode) and ``speedRef``, the speed feed-forward
+(cartesian mm/s and deg/s, or joint deg/s; manual 3HAC073318 p.26:
+``speed = k * (pos_ref - pos) + speed_ref``).
 
 Version evidence (:func:`detect_version`) is read from the raw wire, not from
 the parsed message, because a parser built from the wrong file does not fail:
@@ -82,7 +92,13 @@ class RobotMessage:
     feedback: Pose | None = None
     planned: Pose | None = None
     joints_deg: tuple[float, ...] = ()
-    time_s: float | None = None
+    """feedBack.joints, degrees (empty if not sent)."""
+    time_us: int | None = None
+    """feedBack.time: microseconds since 1970-01-01 UTC (the controller's clock)."""
+    planned_joints_deg: tuple[float, ...] = ()
+    """planned.joints, degrees (empty if not sent)."""
+    planned_time_us: int | None = None
+    """planned.time: microseconds since 1970 at which the robot will be at the planned position."""
     motor: MotorState = MotorState.UNDEFINED
     mci: MciState = MciState.UNDEFINED
     rapid: RapidState = RapidState.UNDEFINED
@@ -90,16 +106,27 @@ class RobotMessage:
     utilization_pct: float | None = None
     measured_force: tuple[float, ...] | None = None
     fc_active: bool | None = None
-    """RW7 only: EgmMeasuredForce.fcActive (force control active)."""
+    """RW7 only: EgmMeasuredForce.fcActive (force control active; false: raw sensor force)."""
+
+    @property
+    def time_s(self) -> float | None:
+        """feedBack.time in seconds since 1970 (float: about 0.24 µs resolution today)."""
+        return None if self.time_us is None else self.time_us / 1e6
 
 
 @dataclass(frozen=True)
 class SensorMessage:
-    """One EgmSensor (PC to controller) for pose guidance."""
+    """One EgmSensor (PC to controller) for position guidance; ``None``/empty: not sent."""
 
     seqno: int
     tm_ms: int
     planned: Pose | None
+    planned_joints_deg: tuple[float, ...] = ()
+    """planned.joints, degrees (joint mode: EGMSetupUC \\Joint, EGMActJoint)."""
+    speed_ref: tuple[float, ...] | None = None
+    """speedRef.cartesians: x, y, z in mm/s, then rx, ry, rz in deg/s (feed-forward)."""
+    speed_ref_joints_deg_s: tuple[float, ...] | None = None
+    """speedRef.joints: deg/s per axis (feed-forward in joint mode)."""
 
 
 def proto_module(version: str) -> ModuleType:
@@ -119,9 +146,12 @@ def _set_pose(target: Any, pose: Pose) -> None:
     q.u0, q.u1, q.u2, q.u3 = pose.quaternion
 
 
-def _set_clock(clock: Any, time_s: float) -> None:
-    total_us = round(time_s * 1e6)
-    clock.sec, clock.usec = divmod(max(total_us, 0), 1_000_000)
+def _set_clock(clock: Any, time_us: int) -> None:
+    clock.sec, clock.usec = divmod(max(time_us, 0), 1_000_000)
+
+
+def _clock_us(clock: Any) -> int:
+    return int(clock.sec) * 1_000_000 + int(clock.usec)
 
 
 def encode_robot(message: RobotMessage, version: Version) -> bytes:
@@ -134,10 +164,14 @@ def encode_robot(message: RobotMessage, version: Version) -> bytes:
         _set_pose(pb.feedBack.cartesian, message.feedback)
     if message.joints_deg:
         pb.feedBack.joints.joints.extend(message.joints_deg)
-    if message.time_s is not None:
-        _set_clock(pb.feedBack.time, message.time_s)
+    if message.time_us is not None:
+        _set_clock(pb.feedBack.time, message.time_us)
+    if message.planned_joints_deg:
+        pb.planned.joints.joints.extend(message.planned_joints_deg)
     if message.planned is not None:
         _set_pose(pb.planned.cartesian, message.planned)
+    if message.planned_time_us is not None:
+        _set_clock(pb.planned.time, message.planned_time_us)
     pb.motorState.state = int(message.motor)
     pb.mciState.state = int(message.mci)
     pb.rapidExecState.state = int(message.rapid)
@@ -159,8 +193,14 @@ def encode_sensor(message: SensorMessage, version: Version) -> bytes:
     pb.header.seqno = message.seqno & 0xFFFFFFFF
     pb.header.tm = message.tm_ms & 0xFFFFFFFF
     pb.header.mtype = MSGTYPE_CORRECTION
+    if message.planned_joints_deg:
+        pb.planned.joints.joints.extend(message.planned_joints_deg)
     if message.planned is not None:
         _set_pose(pb.planned.cartesian, message.planned)
+    if message.speed_ref_joints_deg_s is not None:
+        pb.speedRef.joints.joints.extend(message.speed_ref_joints_deg_s)
+    if message.speed_ref is not None:
+        pb.speedRef.cartesians.value.extend(message.speed_ref)
     datagram: bytes = pb.SerializeToString()
     return datagram
 
@@ -207,7 +247,9 @@ def decode_robot(data: bytes, version: Version) -> RobotMessage:
         feedback=_pose(fb.cartesian) if fb.HasField("cartesian") else None,
         planned=_pose(pb.planned.cartesian) if pb.planned.HasField("cartesian") else None,
         joints_deg=tuple(fb.joints.joints),
-        time_s=(fb.time.sec * 1_000_000 + fb.time.usec) / 1e6 if fb.HasField("time") else None,
+        time_us=_clock_us(fb.time) if fb.HasField("time") else None,
+        planned_joints_deg=tuple(pb.planned.joints.joints),
+        planned_time_us=_clock_us(pb.planned.time) if pb.planned.HasField("time") else None,
         motor=MotorState(pb.motorState.state),
         mci=MciState(pb.mciState.state),
         rapid=RapidState(pb.rapidExecState.state),
@@ -223,11 +265,14 @@ def decode_sensor(data: bytes, version: Version) -> SensorMessage:
     pb = _parse("EgmSensor", data, version)
     if pb.header.mtype != MSGTYPE_CORRECTION:
         raise ProtocolError(f"EgmSensor with mtype {pb.header.mtype}, expected CORRECTION (3)")
-    planned = pb.planned
+    planned, speed = pb.planned, pb.speedRef
     return SensorMessage(
         seqno=pb.header.seqno,
         tm_ms=pb.header.tm,
         planned=_pose(planned.cartesian) if planned.HasField("cartesian") else None,
+        planned_joints_deg=tuple(planned.joints.joints),
+        speed_ref=tuple(speed.cartesians.value) if speed.HasField("cartesians") else None,
+        speed_ref_joints_deg_s=tuple(speed.joints.joints) if speed.HasField("joints") else None,
     )
 
 
