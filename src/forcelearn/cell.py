@@ -22,6 +22,7 @@ Safety, always on:
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections.abc import Callable
@@ -275,7 +276,7 @@ class Cell:
         if self.compensation is None:
             return sample
         wrench = self.compensation(sample.wrench, self.pose)
-        return WrenchSample(wrench, sample.timestamp_s, sample.counter, sample.saturated)
+        return dataclasses.replace(sample, wrench=wrench)  # keeps its time, counter, flags
 
     def _guarded(self, call: Callable[_P, _R], *args: _P.args, **kwargs: _P.kwargs) -> _R:
         try:

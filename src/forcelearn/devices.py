@@ -100,13 +100,17 @@ class WrenchSample:
 
     ``wrench`` is (Fx, Fy, Fz, Mx, My, Mz) in N and N·m, sensor frame;
     ``timestamp_s`` is the host's monotonic receive time; ``counter`` is the
-    sensor's frame counter; ``saturated`` flags axes near full scale.
+    sensor's frame counter; ``saturated`` flags axes near full scale;
+    ``sensor_dt_s`` is the sensor's own time since the previous sample of the
+    stream, s, when the device tells it (a JR3 adapter: counter steps x its
+    frame period), None when it does not or for the first sample after a start.
     """
 
     wrench: np.ndarray
     timestamp_s: float
     counter: int
     saturated: tuple[bool, ...] = field(default=(False,) * 6)
+    sensor_dt_s: float | None = None
 
     @property
     def force_n(self) -> np.ndarray:

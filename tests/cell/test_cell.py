@@ -243,3 +243,22 @@ def test_a_tare_zeroes_in_free_space_and_refuses_where_something_pushes() -> Non
     assert sensor.zeroed == 1 and len(told) == 1
     assert (cell.tares, cell.tares_refused) == (1, 1)
     assert robot.stops == 0
+
+
+def test_compensation_keeps_each_samples_sensor_time() -> None:
+    """A compensated sample keeps the sensor time the driver measured (the filter steps by it)."""
+    robot, sensor = FakeRobot(), FakeSensor([])
+    sensor.samples = [WrenchSample(np.array([0.0, 5.0, 0, 0, 0, 0]), 0.0, 8 * i,
+                                   sensor_dt_s=None if i == 0 else 0.001028)
+                      for i in range(3)]
+    seen: list[WrenchSample] = []
+
+    class Recording(ForceFilter):
+        def on_sample(self, sample: WrenchSample) -> None:
+            seen.append(sample)
+            super().on_sample(sample)
+
+    cell = Cell(robot, sensor, Recording(ForceFilterConfig(axis=1, sign=1.0)), 50.0,
+                samples_per_step=3, compensation=lambda wrench, pose: wrench - 1.0)
+    assert cell.measure_force_n() == pytest.approx(4.0, abs=0.01)
+    assert [s.sensor_dt_s for s in seen] == [None, 0.001028, 0.001028]

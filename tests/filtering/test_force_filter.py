@@ -153,3 +153,23 @@ def test_async_stream_from_the_driver_feeds_the_filter() -> None:
           f"filtered {estimate:.3f} N, {stats.samples} samples")
     assert true_n == pytest.approx(target_n, rel=0.01)
     assert estimate == pytest.approx(true_now, abs=0.1)
+
+
+def test_a_sample_with_its_sensor_time_is_one_step_of_that_length() -> None:
+    """A sample with its sensor time is one step of that length.
+
+    A JR3 adapter's counter steps by ~8 sensor frames per 1 ms sample: with the sample's sensor time
+    the stream filter makes one 1 ms step, exactly as a filter of 1 ms period fed consecutive
+    counters; before issue 28 it predicted 7 extra steps for every sample.
+    """
+    config = ForceFilterConfig(model="stream", sample_period_s=0.001)
+    timed, counted = ForceFilter(config), ForceFilter(config)
+    rng = np.random.default_rng(3)
+    for i in range(200):
+        z = 10.0 + 0.05 * i + 0.2 * rng.standard_normal()
+        wrench = np.array([0.0, z, 0.0, 0.0, 0.0, 0.0])
+        timed.on_sample(WrenchSample(wrench, 0.0, (8 * i) % 65536,
+                                     sensor_dt_s=None if i == 0 else 8 * 125e-6))
+        counted.on_sample(WrenchSample(wrench, 0.0, i))
+    assert timed.force_n == pytest.approx(counted.force_n, rel=1e-12)
+    assert timed.rate_n_per_s == pytest.approx(counted.rate_n_per_s, rel=1e-12)

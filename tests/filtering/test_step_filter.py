@@ -95,12 +95,35 @@ def test_in_the_tasks_pattern_the_filter_beats_the_plain_mean_and_a_third_of_sig
 ) -> None:
     """Moves with force steps of 0-3 N, a settle, the default burst, the emulator's noise.
 
-    Error RMS against the true force <= 0.35 x the raw noise std and never
-    above the burst's plain mean (3 seeds x 10 paths x 20 moves).
+    Error RMS against the true force <= 0.35 x the raw noise std and not above the burst's
+    plain mean by more than this run's resolution (3 seeds x 10 paths x 20 moves). With one
+    sample per 1 ms adapter turn the samples share little noise (a ~ 0.45), so the GLS mean's
+    edge over the plain mean is under 1 % (its exact variance is checked in
+    test_gls_mean_is_never_worse_than_the_plain_mean); 600 bursts cannot resolve it, so the
+    comparison allows 1 % (it was exact when the emulator answered 77 SYNCs 325 µs apart).
     """
     result = experiment.run(step_n, experiment.DEFAULT_BURST, (0, 1, 2), paths=10, stream=False)
     sigma = result.noise_std_n
     assert result.rms_n["moves"] <= 0.35 * sigma
-    assert result.rms_n["moves"] <= result.rms_n["mean"] * 1.0001
+    assert result.rms_n["moves"] <= result.rms_n["mean"] * 1.01
     assert abs(result.bias_n["moves"]) < 0.05 * sigma
     assert result.rms_n["raw"] > 0.8 * sigma  # the experiment's noise is the emulator's
+
+
+@pytest.mark.parametrize("burst", [2, 3, 25, 77])
+def test_gls_mean_is_never_worse_than_the_plain_mean(burst: int) -> None:
+    """Gls mean is never worse than the plain mean.
+
+    For the adapter's uneven spacing (7 or 8 sensor frames) the GLS variance factor is the exact
+    variance of the best linear mean: at most the plain mean's (computed from the covariance
+    matrix), equal to it only when the noise is white.
+    """
+    steps = np.array(experiment.burst_steps_s(burst)[1:])
+    a = np.exp(-2.0 * np.pi * experiment.CUTOFF_HZ * steps)
+    times = np.concatenate(([0.0], np.cumsum(steps)))
+    cov = np.exp(-2.0 * np.pi * experiment.CUTOFF_HZ * np.abs(times[:, None] - times[None, :]))
+    _, factor = burst_mean(np.zeros(burst), a)
+    ones = np.ones(burst)
+    assert factor == pytest.approx(1.0 / (ones @ np.linalg.solve(cov, ones)), rel=1e-9)
+    assert factor <= (ones @ cov @ ones) / burst**2
+    assert burst_mean(np.zeros(burst), np.zeros(burst - 1))[1] == pytest.approx(1.0 / burst)

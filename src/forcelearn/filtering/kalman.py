@@ -38,6 +38,8 @@ from forcelearn.devices import WrenchSample
 from forcelearn.errors import ConfigError
 
 COUNTER_MODULUS = 1 << 16
+MAX_CACHED_PERIODS = 64
+"""Step lengths whose F and Q the stream filter keeps."""
 MAX_PREDICT_GAP = 1000
 """Longer gaps (in samples) restart the filter instead of predicting through them."""
 
@@ -51,9 +53,11 @@ class ForceFilterConfig:
             for a cell that moves, settles and reads a burst: the §5 task) or
             "stream" (:class:`ForceFilter`, a constant-rate track of a
             continuous stream with jump restart and outlier rejection).
-        sample_period_s: time between sensor samples: in sync mode at 1 Mbit/s
-            one SYNC and two 8-byte frames, 55 + 2 x 135 µs (worst-case bit
-            stuffing) = 325 µs; in async mode the streaming period.
+        sample_period_s: time between sensor samples when the samples do not tell it,
+            s. A sample that carries the sensor's own time since the previous one
+            (``WrenchSample.sensor_dt_s``: a JR3 adapter's frame counter) is filtered
+            with that instead. The default is a JR3 adapter in sync mode: one sample per
+            1 ms turn of its main loop; a Net F/T's is its RDT period.
         measurement_variance_n2: R, the sensor's noise variance on the axis.
             Default (0.2 N)^2, the emulated JR3's; the calibration tool measures it.
         rate_noise_var: q of the stream model's discrete white-noise model, (N/s^2)^2.
@@ -68,7 +72,7 @@ class ForceFilterConfig:
     """
 
     model: str = "moves"
-    sample_period_s: float = 0.000325
+    sample_period_s: float = 0.001
     measurement_variance_n2: float = 0.04
     rate_noise_var: float = 5.0e4
     jump_gate_sigma: float = 5.0
@@ -97,11 +101,11 @@ class ForceFilter:
 
     def __init__(self, config: ForceFilterConfig | None = None) -> None:
         self.config = config or ForceFilterConfig()
-        dt = self.config.sample_period_s
         self._kf = KalmanFilter(dim_x=2, dim_z=1)
-        self._kf.F = np.array([[1.0, dt], [0.0, 1.0]])
         self._kf.H = np.array([[1.0, 0.0]])
-        self._kf.Q = Q_discrete_white_noise(dim=2, dt=dt, var=self.config.rate_noise_var)
+        self._dt = math.nan
+        self._models: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._set_period(self.config.sample_period_s)
         self._lock = threading.Lock()
         self.set_measurement_variance(self.config.measurement_variance_n2)
         self.reset()
@@ -149,10 +153,41 @@ class ForceFilter:
         with self._lock:
             return self._step(measurement_n)
 
+    def _set_period(self, dt: float) -> None:
+        """Use a step of ``dt`` seconds for the next predictions.
+
+        F and Q are kept per step length: a JR3 adapter's samples alternate between two.
+        """
+        if dt == self._dt:
+            return
+        self._dt = dt
+        cached = self._models.get(dt)
+        if cached is None:
+            if len(self._models) >= MAX_CACHED_PERIODS:
+                self._models.clear()
+            cached = (np.array([[1.0, dt], [0.0, 1.0]]),
+                      Q_discrete_white_noise(dim=2, dt=dt, var=self.config.rate_noise_var))
+            self._models[dt] = cached
+        self._kf.F, self._kf.Q = cached
+
     def on_sample(self, sample: WrenchSample) -> None:
-        """Driver callback: filter the configured axis, predicting through counter gaps."""
+        """Driver callback: filter the configured axis over the time the sample says.
+
+        With the sensor's own time since the previous sample (``sensor_dt_s``), one
+        step of that length; without it, one step of ``sample_period_s`` per
+        counter step (predicting through gaps).
+        """
         z = self.config.sign * float(sample.wrench[self.config.axis])
         with self._lock:
+            if sample.sensor_dt_s is not None:
+                self._last_counter = sample.counter
+                if sample.sensor_dt_s > MAX_PREDICT_GAP * self.config.sample_period_s:
+                    self._started = False
+                elif sample.sensor_dt_s > 0:
+                    self._set_period(sample.sensor_dt_s)
+                self._step(z)
+                return
+            self._set_period(self.config.sample_period_s)
             if self._last_counter is not None:
                 gap = (sample.counter - self._last_counter) % COUNTER_MODULUS - 1
                 if gap > MAX_PREDICT_GAP:
@@ -199,7 +234,7 @@ class ForceFilter:
     def _restart(self, z: float) -> None:
         kf = self._kf
         r = float(kf.R[0, 0])
-        dt = self.config.sample_period_s
+        dt = self._dt
         kf.x = np.array([[z], [0.0]])
         # rate unknown: allow a change of one noise sigma per sample period
         kf.P = np.diag([r, r / dt**2])

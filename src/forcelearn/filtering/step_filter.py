@@ -15,11 +15,13 @@ state x        the contact force, N, constant while the cell stands still
 move           ``on_move(expected_change_n, change_std_n)``: predict with
                x += expected change, P += change_std^2 (filterpy ``predict``
                with u = the change and Q = its variance)
-burst          N samples z_i, ``dt`` apart, of x plus noise that is a
+burst          N samples z_i, ``dt`` apart (the median sensor time between
+               them, ``sensor_dt_s``, else ``sample_period_s``), of x plus noise that is a
                first-order (Ornstein-Uhlenbeck) process of variance R and
-               sample-to-sample correlation a = exp(-2 pi noise_cutoff_hz dt).
-               The burst's information about x is exactly its generalised
-               least-squares mean and that mean's variance:
+               sample-to-sample correlation a_i = exp(-2 pi noise_cutoff_hz dt_i)
+               (one per gap: the spacing may vary). The burst's information
+               about x is exactly its generalised least-squares mean and that
+               mean's variance (:func:`burst_mean`); evenly spaced:
                m = [(1-a)(z_1 + z_N) + (1-a)^2 (z_2 + ... + z_N-1)] / D,
                var m = R (1 + a) / (2 + (N - 2)(1 - a)),  D = 2(1-a) + (N-2)(1-a)^2
                (for N = 1: m = z_1, var R). One filterpy ``update`` with z = m
@@ -54,11 +56,18 @@ _UNKNOWN_VAR_N2 = 1.0e8
 """Variance of a force nothing is known about yet (N^2)."""
 
 
-def burst_mean(values: Sequence[float], correlation: float) -> tuple[float, float]:
-    """GLS mean of a burst under AR(1) noise of unit variance: (mean, variance factor).
+def burst_mean(
+    values: Sequence[float], correlation: float | Sequence[float]
+) -> tuple[float, float]:
+    """GLS mean of a burst under first-order (Markov) noise of unit variance.
 
-    The variance of the mean is the noise variance times the returned factor
-    (1 / N for white noise, larger when ``correlation`` > 0).
+    ``correlation`` is the noise correlation of consecutive samples: one number for
+    evenly spaced samples, or one per gap (``len(values) - 1``) when the spacing varies
+    (a JR3 adapter's samples are 7 or 8 sensor frames apart). Returns (mean, variance
+    factor): the variance of the mean is the noise variance times the factor (1 / N for
+    white noise, larger when the correlations are > 0). The weights are the row sums of
+    the noise's tridiagonal precision matrix: 1 / (1 + a_1) and 1 / (1 + a_N-1) at the
+    ends, 1 / (1 + a_i-1) - a_i / (1 + a_i) between.
     """
     z = np.asarray(values, dtype=float)
     n = len(z)
@@ -66,11 +75,15 @@ def burst_mean(values: Sequence[float], correlation: float) -> tuple[float, floa
         raise ValueError("a burst needs at least one sample")
     if n == 1:
         return float(z[0]), 1.0
-    a = correlation
-    ends, middle = z[0] + z[-1], float(z[1:-1].sum())
-    weight = 2.0 * (1.0 - a) + (n - 2) * (1.0 - a) ** 2
-    mean = ((1.0 - a) * ends + (1.0 - a) ** 2 * middle) / weight
-    return float(mean), (1.0 + a) / (2.0 + (n - 2) * (1.0 - a))
+    a = np.broadcast_to(np.asarray(correlation, dtype=float), (n - 1,))
+    before = 1.0 / (1.0 + a)  # the gap before each of samples 2..N
+    after = a / (1.0 + a)  # the gap after each of samples 1..N-1
+    weights = np.zeros(n)
+    weights[0] = before[0]
+    weights[1:] += before
+    weights[1:-1] -= after[1:]
+    total = float(weights.sum())
+    return float(weights @ z / total), 1.0 / total
 
 
 class MoveAwareForceFilter:
@@ -100,9 +113,23 @@ class MoveAwareForceFilter:
 
     @property
     def noise_correlation(self) -> float:
-        """a: the correlation of the noise of two consecutive samples (0 = white)."""
+        """a: the noise correlation of two samples ``sample_period_s`` apart (0 = white)."""
+        return self.correlation_over(self.config.sample_period_s)
+
+    def correlation_over(self, dt_s: float) -> float:
+        """The noise correlation of two samples ``dt_s`` seconds apart (0 = white)."""
         cutoff = self.config.noise_cutoff_hz
-        return math.exp(-2.0 * math.pi * cutoff * self.config.sample_period_s) if cutoff else 0.0
+        return math.exp(-2.0 * math.pi * cutoff * dt_s) if cutoff else 0.0
+
+    def burst_times_s(self, samples: Sequence[WrenchSample]) -> np.ndarray:
+        """The burst's sample times from its first, s.
+
+        The sensor's own time between samples (``sensor_dt_s``) where the sample tells it,
+        else ``sample_period_s``.
+        """
+        period = self.config.sample_period_s
+        steps = [period if s.sensor_dt_s is None else s.sensor_dt_s for s in samples[1:]]
+        return np.concatenate(([0.0], np.cumsum(steps)))
 
     def set_measurement_variance(self, variance_n2: float) -> None:
         """Set R (N^2), the sensor's noise variance on the axis (e.g. from calibration)."""
@@ -156,7 +183,10 @@ class MoveAwareForceFilter:
             if not keep.any():  # a gate narrower than the samples' spacing: the middle one
                 keep[int(np.argmin(distance))] = True
             self.outliers += int(len(values) - keep.sum())
-            mean, factor = burst_mean(values[keep], self.noise_correlation)
+            gaps_s = np.diff(self.burst_times_s(samples)[keep])
+            cutoff = config.noise_cutoff_hz
+            correlations = np.exp(-2.0 * math.pi * cutoff * gaps_s) if cutoff else 0.0 * gaps_s
+            mean, factor = burst_mean(values[keep], correlations)
             self._kf.update(np.array([[mean]]), R=np.array([[self._variance_n2 * factor]]))
             self._started = True
             return float(self._kf.x[0, 0])

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -158,27 +160,41 @@ def test_cutoff_change_is_acknowledged(make_node: NodeFactory, make_sensor: Sens
 def test_sync_stepping_gives_one_sample_per_sync(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """Each read sends one SYNC and returns the pair with the next counter, nothing lost."""
+    """Sync stepping gives one sample per sync.
+
+    Each read sends one SYNC; the pair comes at the adapter's next 1 ms loop turn, so the counter
+    (sensor frames, 128.5 µs each) steps by 7 or 8 and each sample carries ~1 ms of sensor time.
+    (This test used to expect the counter to step by 1 per sample: the old, wrong emulator.)
+    """
     node = make_node(initial_counter=100)
     sensor = make_sensor()
-    counters = [sensor.read().counter for _ in range(50)]
-    assert counters == list(range(100, 150))
-    assert node.stats.samples == 50
+    samples = [sensor.read() for _ in range(50)]
+    steps = {(b.counter - a.counter) % 65536 for a, b in itertools.pairwise(samples)}
+    assert steps <= {7, 8} and steps
+    assert all(s.sensor_dt_s == pytest.approx(((s.counter - p.counter) % 65536) * 128.5e-6)
+               for p, s in itertools.pairwise(samples))
+    assert node.stats.samples == 50 and node.stats.syncs == 50
     stats = sensor.stats
     assert (stats.samples, stats.dropped_samples, stats.unpaired_frames) == (50, 0, 0)
 
 
-def test_read_many_pipelines_syncs_and_returns_consecutive_samples(
+def test_read_many_sends_one_sync_per_sample_across_the_counter_wrap(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """read_many(200, window=4) returns exactly 200 consecutive samples, one per SYNC sent."""
-    node = make_node(initial_counter=65500)
+    """Read many sends one sync per sample across the counter wrap.
+
+    read_many(200, window=4) sends exactly 200 SYNCs (one in flight: the adapter answers one per
+    turn), returns 200 samples ~1 ms of sensor time apart, the wrap included.
+    """
+    node = make_node(initial_counter=65000)
     sensor = make_sensor()
     samples = sensor.read_many(200, window=4)
     counters = [s.counter for s in samples]
-    assert counters == [(65500 + i) % 65536 for i in range(200)]
+    assert any(b < a for a, b in itertools.pairwise(counters))  # it wrapped
+    dts = [s.sensor_dt_s for s in samples[1:]]
+    assert all(dt is not None and round(dt / 128.5e-6) in (7, 8) for dt in dts)
+    assert node.stats.syncs == 200 and node.stats.syncs_merged == 0
     assert node.stats.samples == 200
-    assert sensor.read().counter == (65500 + 200) % 65536
 
 
 def test_saturation_is_flagged_near_full_scale(
@@ -257,10 +273,70 @@ def test_traffic_log_uses_python_can_writers(
 
 @pytest.mark.parametrize(
     ("key", "value"),
-    [("node_id", 0), ("mode", "both"), ("cutoff_hz", 0.0), ("period_us", 0),
+    [("node_id", 0), ("mode", "both"), ("cutoff_hz", -1.0), ("cutoff_hz", 0.001),
+     ("period_us", 0),
      ("full_scales", (1.0, 2.0)), ("stale_timeout_s", 0.0), ("opcodes_version", "1999")],
 )
 def test_config_errors_name_the_key(key: str, value: object) -> None:
     """A bad configuration value raises ConfigError (a ValueError) naming its key."""
     with pytest.raises(ConfigError, match=key):
         Jr3Config(**{key: value})
+
+
+def test_reset_restarts_pairing_without_a_bootup(
+    make_node: NodeFactory, make_sensor: SensorFactory
+) -> None:
+    """Reset restarts pairing without a bootup.
+
+    The adapter ACKs a reset with no bootup and counts from 0 again: the driver restarts pairing
+    itself, so the first sample after it carries no sensor time from the old count.
+    """
+    node = make_node()
+    sensor = make_sensor()
+    for _ in range(30):
+        sensor.read()
+    sensor.reset()
+    sample = sensor.read()
+    assert sample.sensor_dt_s is None and sample.counter < 30
+    assert sensor.read().sensor_dt_s is not None
+    stats = sensor.stats
+    assert (stats.bootups, stats.duplicate_samples, stats.dropped_samples) == (0, 0, 0)
+    assert node.stats.bootups == 0
+
+
+def test_cutoff_zero_asks_the_adapter_for_unfiltered_data(
+    make_node: NodeFactory, make_sensor: SensorFactory
+) -> None:
+    """``cutoff_hz = 0`` is sent as 0: the adapter's raw decoupled data."""
+    node = make_node()
+    sensor = make_sensor(cutoff_hz=0.0)
+    sensor.initialise()
+    assert (node.mode, node.cutoff_hz, sensor.cutoff_hz) == ("sync", 0.0, 0.0)
+
+
+def test_default_config_zeroes_on_initialisation(
+    make_node: NodeFactory, bus: can.BusABC
+) -> None:
+    """Default config zeroes on initialisation.
+
+    Jr3Config() zeroes (as the public host driver always does): the adapter's offsets are 0 after
+    power-up, so without it the sensor's 1.5..3 N bias would be in every reading.
+    """
+    node = make_node()
+    with Jr3CanSensor(bus, Jr3Config(zero_settle_s=0.0)) as sensor:
+        readings = np.array([s.wrench for s in sensor.read_many(50)])
+        assert node.model.offset[:3].tolist() != [0.0, 0.0, 0.0]
+    assert node.model.offset[:3].tolist() == [0.0, 0.0, 0.0]  # the stop on close lost them
+    assert np.abs(readings[:, :3].mean(axis=0)).max() < 0.2
+
+
+def test_sample_period_is_what_the_adapter_delivers() -> None:
+    """Sync: one sample per 1 ms loop turn; async: the streaming period."""
+    bus = can.Bus(interface="virtual", channel=f"period-{os.getpid()}")
+    try:
+        assert Jr3CanSensor(bus, Jr3Config()).sample_period_s == 0.001
+        async_sensor = Jr3CanSensor(bus, Jr3Config(mode="async", period_us=2500))
+        assert async_sensor.sample_period_s == 0.0025
+        async_sensor.close()
+    finally:
+        bus.shutdown()

@@ -31,10 +31,33 @@ def _wait_until(condition: Callable[[], bool], timeout_s: float = 3.0) -> bool:
     return False
 
 
+FRAME_S = 128.5e-6
+"""The adapter's sensor frame: the counter's unit of time."""
+
+
+def _data_frame_dropper(*numbers: int) -> Callable[[Frame], Frame | None]:
+    """A frame hook that drops the force or moment frames with these 1-based numbers."""
+    seen = [0]
+
+    def hook(frame: Frame) -> Frame | None:
+        if frame.arbitration_id >> 7 in (0x600 >> 7, 0x680 >> 7):
+            seen[0] += 1
+            if seen[0] in numbers:
+                return None
+        return frame
+
+    return hook
+
+
 def test_async_streaming_rate_and_no_loss(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """Async at 2 ms streams into the callback with consecutive counters; the rate is printed."""
+    """Async streaming rate and no loss.
+
+    Async at 2 ms streams into the callback; each sample carries ~2 ms of sensor time (the counter
+    counts ~7.8 kHz sensor frames), nothing is counted lost. (This test used to expect counters
+    stepping by 1: the old, wrong emulator.)
+    """
     make_node()
     got: list[WrenchSample] = []
     enough = threading.Event()
@@ -52,76 +75,84 @@ def test_async_streaming_rate_and_no_loss(
     rate = (len(window) - 1) / span_s
     print(f"async streaming: {rate:.0f} samples/s (nominal 500)")
     assert rate > 100
-    assert np.all(np.diff([s.counter for s in window]) == 1)
+    dts = [s.sensor_dt_s for s in window[1:]]
+    assert all(dt is not None and abs(dt - 0.002) <= FRAME_S for dt in dts)
     assert sensor.stats.dropped_samples == 0
 
 
-def test_dropped_samples_are_counted_across_the_counter_wrap(
+def test_sensor_time_spans_a_lost_pair_across_the_counter_wrap(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """Frames with counters 65535 and 0 lost: the driver counts exactly 2 dropped samples."""
+    """Sensor time spans a lost pair across the counter wrap.
 
-    def lose_wrap(frame: Frame) -> Frame | None:
+    Async, two whole pairs lost where the counter wraps: the next sample carries the sensor time of
+    three periods (wrap-aware); a pair lost whole leaves no unpaired frame.
+    """
+    got: list[WrenchSample] = []
+
+    def lose_around_wrap(frame: Frame) -> Frame | None:
         is_sample = frame.arbitration_id >> 7 in (0x600 >> 7, 0x680 >> 7)
         counter = int.from_bytes(frame.data[6:8], "little") if is_sample else -1
-        return None if counter in (65535, 0) else frame
+        return None if counter >= 65536 - 8 or 0 <= counter < 8 else frame
 
-    make_node(initial_counter=65525, frame_hook=lose_wrap)
-    got: list[WrenchSample] = []
-    sensor = make_sensor(mode="async", period_us=1000, on_sample=got.append)
+    # the counter starts 20 frames before the wrap; periods of 1 ms are ~7.8 frames
+    make_node(initial_counter=65536 - 20, frame_hook=lose_around_wrap)
+    # full scales configured: every sample from the first is scaled and reaches the callback
+    sensor = make_sensor(mode="async", period_us=1000, on_sample=got.append,
+                         full_scales=(200.0, 200.0, 400.0, 20.0, 20.0, 20.0))
     sensor.initialise()
-    assert _wait_until(lambda: any(s.counter == 5 for s in got))
-    counters = [s.counter for s in got]
-    assert 65534 in counters and 1 in counters and 65535 not in counters and 0 not in counters
-    assert sensor.stats.dropped_samples == 2
+    assert _wait_until(lambda: any(0 < s.counter < 1000 for s in got))
+    after = next(s for s in got if s.counter < 1000)
+    assert after.sensor_dt_s is not None and after.sensor_dt_s > 0.0019
+    assert after.sensor_dt_s == pytest.approx(round(after.sensor_dt_s / 0.001) * 0.001,
+                                              abs=FRAME_S)
     assert sensor.stats.unpaired_frames == 0
 
 
 def test_unpaired_frames_never_make_a_sample(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """A lost moment frame leaves its force frame unpaired: no sample with that counter."""
+    """Unpaired frames never make a sample.
 
-    def lose_moment_7(frame: Frame) -> Frame | None:
-        is_moment = frame.arbitration_id >> 7 == 0x680 >> 7
-        return None if is_moment and frame.data[6:8] == (7).to_bytes(2, "little") else frame
-
-    make_node(frame_hook=lose_moment_7)
+    The 8th moment frame lost: its force frame stays unpaired, that SYNC is counted unanswered with
+    one frame lost, one more SYNC fetches the next pair.
+    """
+    node = make_node(frame_hook=_data_frame_dropper(16))
     sensor = make_sensor()
-    counters = []
-    for _ in range(12):
-        try:
-            counters.append(sensor.read().counter)
-        except SensorStale:
-            counters.append(None)
-    assert counters[7] is None and 7 not in counters
-    assert counters[8] == 8
-    assert sensor.stats.unpaired_frames == 1 and sensor.stats.dropped_samples == 1
+    samples = [sensor.read() for _ in range(12)]
+    assert len(samples) == 12 and node.stats.syncs == 13
+    stats = sensor.stats
+    assert (stats.unpaired_frames, stats.dropped_samples) == (1, 1)
+    assert (stats.unanswered_syncs, stats.lost_frames) == (1, 1)
 
 
 def test_read_many_replaces_lost_pairs(make_node: NodeFactory, make_sensor: SensorFactory) -> None:
-    """With 5 % of frames lost, read_many(300) still returns 300 samples and counts the gaps."""
-    make_node(seed=2, faults=FaultConfig(drop_probability=0.05))
-    sensor = make_sensor()
-    samples = sensor.read_many(300, window=4)
-    counters = np.array([s.counter for s in samples])
-    assert len(samples) == 300 and np.all(np.diff(counters) >= 1)
-    assert sensor.stats.dropped_samples == counters[-1] - counters[0] + 1 - 300 > 0
+    """Read many replaces lost pairs.
+
+    With 5 % of frames lost, read_many(150) still returns 150 samples; every SYNC with no pair is
+    counted, and the frames lost are counted exactly.
+    """
+    node = make_node(seed=2)
+    sensor = make_sensor(stale_timeout_s=0.2)
+    sensor.initialise()
+    node.set_faults(FaultConfig(drop_probability=0.05))
+    samples = sensor.read_many(150, window=4)
+    assert len(samples) == 150
+    stats = sensor.stats
+    assert stats.dropped_samples == stats.unanswered_syncs == node.stats.syncs - 150 > 0
+    assert stats.lost_frames == node.stats.frames_lost
 
 
 def test_read_many_asks_again_when_the_last_pair_is_lost(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
-    """The 10th pair lost with nothing after it to reveal the gap: one more SYNC fetches #11."""
-
-    def lose_9(frame: Frame) -> Frame | None:
-        is_sample = frame.arbitration_id >> 7 in (0x600 >> 7, 0x680 >> 7)
-        return None if is_sample and frame.data[6:8] == (9).to_bytes(2, "little") else frame
-
-    make_node(frame_hook=lose_9)
+    """The 10th pair lost whole: one more SYNC fetches a 10th sample, both frames counted."""
+    node = make_node(frame_hook=_data_frame_dropper(19, 20))
     sensor = make_sensor()
-    counters = [s.counter for s in sensor.read_many(10, window=4)]
-    assert counters == [0, 1, 2, 3, 4, 5, 6, 7, 8, 10]
+    samples = sensor.read_many(10, window=4)
+    assert len(samples) == 10 and node.stats.syncs == 11
+    stats = sensor.stats
+    assert (stats.unanswered_syncs, stats.lost_frames, stats.unpaired_frames) == (1, 2, 0)
 
 
 @pytest.mark.parametrize("mode", ["sync", "async"])
@@ -156,7 +187,7 @@ def test_bootup_mid_run_reinitialises(
     sensor = make_sensor(mode=mode, zero_on_init=True)
     sensor.read()
     node.inject_bootup()
-    assert node.mode == "idle" and not node.initialised
+    assert node.mode == "idle" and node.initialised  # powered up and ready, not streaming
     if mode == "async":  # the Notifier sees it at once; sync mode sees it on the next read
         assert _wait_until(lambda: sensor.stats.bootups == 1)
     sample = sensor.read()
@@ -195,7 +226,8 @@ def test_lossy_corrupting_bus_is_counted_never_fatal(
     print("lossy bus:", stats)
     assert got == 150
     assert stats.rejected["BAD_LENGTH"] > 0
-    assert stats.dropped_samples > 0 and stats.unpaired_frames > 0
+    assert stats.unpaired_frames > 0
+    assert stats.dropped_samples == stats.unpaired_frames  # async: a lone frame is a lost sample
 
 
 @pytest.mark.parametrize("route", ["virtual"])  # spies or breaks the virtual bus itself
@@ -212,9 +244,9 @@ def test_garbage_frames_from_another_node_do_not_disturb(
             noise.send(can.Message(arbitration_id=int(rng.integers(0, 0x800)),
                                    data=rng.bytes(size), is_extended_id=False))
         noise.send(can.Message(arbitration_id=0x1234567, data=b"", is_extended_id=True))
-        counters = [sensor.read().counter for _ in range(20)]
+        samples = [sensor.read() for _ in range(20)]
     stats = sensor.stats
-    assert counters == list(range(counters[0], counters[0] + 20))
+    assert len(samples) == 20 and stats.dropped_samples == 0
     assert stats.rejected_total + stats.other_nodes > 150
     assert stats.rejected["EXTENDED_ID"] == 1
 

@@ -7,6 +7,7 @@ from hypothesis import strategies as st
 
 from forcelearn.drivers.jr3_can.pairing import Pairer, counter_gap
 from forcelearn.protocols.jr3_can.codec import Forces, Moments
+from forcelearn.protocols.jr3_can.opcodes import CounterMeaning
 
 
 def _f(counter: int) -> Forces:
@@ -46,9 +47,27 @@ def test_mismatched_counters_do_not_pair_and_are_counted() -> None:
     assert pair is not None and pair.counter == 2
 
 
-def test_dropped_samples_counted_across_the_wrap() -> None:
-    """Pairs 65533, 65534, then 1, 2: two samples (65535, 0) were dropped."""
+def test_sensor_frame_counter_steps_are_elapsed_time_not_losses() -> None:
+    """Sensor frame counter steps are elapsed time not losses.
+
+    The current firmware's counter counts sensor frames: pairs 65530, 65537 -> 1, 9 step by 7, 8
+    frames across the wrap; nothing is called dropped. (This test used to count such steps as
+    dropped samples: the meaning of the firmware before 2023-12-27, kept below.)
+    """
     pairer = Pairer()
+    counters = [65530, 1, 9]
+    pairs = [pairer.push(_f(c)) or pairer.push(_m(c)) for c in counters]
+    assert [p.elapsed for p in pairs if p] == [None, 7, 8]
+    assert [p.dropped for p in pairs if p] == [0, 0, 0] and pairer.dropped == 0
+
+
+def test_dropped_samples_counted_across_the_wrap_with_a_message_counter() -> None:
+    """Dropped samples counted across the wrap with a message counter.
+
+    Firmware 2023-09-25..2023-12-26 counted pairs sent: 65533, 65534, then 1, 2 lost two samples
+    (65535, 0).
+    """
+    pairer = Pairer(CounterMeaning.TRANSMITTED_SAMPLES)
     counters = [65533, 65534, 1, 2]
     pairs = [pairer.push(_f(c)) or pairer.push(_m(c)) for c in counters]
     assert [p.counter for p in pairs if p] == counters

@@ -92,11 +92,17 @@ def test_frames_cross_the_adapter_both_ways(
 def test_the_jr3_driver_initialises_and_reads_through_slcan(
     adapter: SlcanAdapterEmulator, channel: str
 ) -> None:
-    """Full scales, zeroed means and consecutive counters, all through the LAWICEL pty."""
+    """The jr3 driver initialises and reads through slcan.
+
+    Full scales, zeroed means and ~1 ms of sensor time per sample (7 or 8 frames of the counter: one
+    answer per adapter loop turn), all through the LAWICEL pty.
+    """
     model = SensorModelParams()
     with Jr3EmulatorNode(CellPhysics(), channel=channel, node_id=5, model=model, seed=3), \
             _slcan(adapter) as bus, \
-            Jr3CanSensor(bus, Jr3Config(node_id=5, zero_on_init=True)) as sensor:
+            Jr3CanSensor(bus, Jr3Config(node_id=5, zero_on_init=True,
+                                        stale_timeout_s=2.0)) as sensor:
+        # (a long stale time: a loaded host's pty round trip must not pass for a lost answer)
         samples = sensor.read_many(400)
     assert sensor.full_scales is not None
     assert sensor.full_scales.tolist() == pytest.approx(list(model.full_scales), rel=1e-3)
@@ -104,7 +110,8 @@ def test_the_jr3_driver_initialises_and_reads_through_slcan(
     assert np.abs(wrenches[:, :3].mean(axis=0)).max() < 0.2  # zeroed: 1.5-3 N bias gone
     assert wrenches[:, :3].std(axis=0) == pytest.approx(model.noise_std[:3], rel=0.25)
     counters = np.array([s.counter for s in samples])
-    assert (np.diff(counters) % 65536 == 1).all()
+    assert set((np.diff(counters) % 65536).tolist()) <= {7, 8}
+    assert sensor.stats.dropped_samples == 0
     assert adapter.model.frames_received >= 2 * 400
 
 

@@ -1,10 +1,11 @@
 """Benchmark: JR3 sync-mode paired samples per second through the virtual CAN bus.
 
 The real driver steps the emulated adapter: each read sends SYNC, the emulator
-thread samples the shared physics and its sensor model and answers with a
-force and a moment frame, and the driver pairs them. Both ends run in this
-process (two threads, one GIL), so the figure is what an emulated training
-run gets, not the real adapter's rate (about 4.5 kHz at 1 Mbit/s).
+thread answers it at its next simulated 1 ms loop turn with a force and a
+moment frame from the shared physics and its sensor model, and the driver
+pairs them. Both ends run in this process (two threads, one GIL), so the
+figure is what an emulated training run gets in wall time, not the real
+adapter's rate: one sample per 1 ms loop turn, about 1,000/s.
 """
 
 from __future__ import annotations
@@ -33,14 +34,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=int, default=5, help="timed repeats")
     parser.add_argument("--seed", type=int, default=0, help="emulator noise seed")
     parser.add_argument("--window", type=int, default=16,
-                        help="SYNCs per batch for the read_many figure (default 16)")
+                        help="window passed to read_many (default 16; the driver keeps one "
+                             "SYNC in flight whatever it is)")
 
 
 def measure(samples: int, seed: int = 0, window: int = 0) -> float:
     """Return paired samples/s of sync stepping (sponge contact).
 
     ``window=0``: one ``read()`` per sample (send SYNC, wait for the pair);
-    ``window>0``: ``read_many`` sending SYNCs in batches of ``window``.
+    ``window>0``: ``read_many`` (one SYNC in flight too: the adapter answers one per turn).
     """
     channel = f"bench-jr3-{os.getpid()}-{seed}-{time.monotonic_ns()}"
     physics = CellPhysics(Sponge(), Pose(0.0, -8.0, -40.0), tool=ToolParams())
@@ -65,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     """Print paired samples/s per repeat, median and best, for read() and read_many()."""
     print(f"JR3 sync stepping through the virtual bus, {args.samples} samples x {args.repeats}")
     for label, window in (("read() one SYNC at a time", 0),
-                          (f"read_many(), batches of {args.window} SYNCs", args.window)):
+                          (f"read_many(window={args.window})", args.window)):
         rates = [measure(args.samples, args.seed + i, window) for i in range(args.repeats)]
         shown = ", ".join(f"{r:,.0f}" for r in rates)
         print(f"  {label}: {shown} /s")

@@ -126,7 +126,10 @@ class CellSession:
             self.sensor,
             make_force_filter(cfg.filter),
             max_force_n=cfg.safety.max_force_n,
-            samples_per_step=cfg.task.samples_for(cfg.filter.sample_period_s),
+            # as many samples as the sensor delivers in the window (a JR3: one per ms)
+            samples_per_step=cfg.task.samples_for(
+                getattr(self.sensor, "sample_period_s", cfg.filter.sample_period_s)
+            ),
             move_timeout_s=cfg.safety.move_timeout_s,
             # in the ideal profile nothing takes time, so there is nothing to dwell for
             settle_s=0.0 if cfg.robot_emulated and cfg.emulator.ideal else cfg.task.settle_s,

@@ -3,8 +3,10 @@
 On site, run this first. It opens the robot link and the CAN bus as the config
 says (:class:`~forcelearn.tools.cell_session.CellSession`), identifies the
 controller, reads the pose and status, initialises the JR3 adapter and reads
-samples for ``--seconds`` (1 s): mean and noise (standard deviation) per
-axis, and the sample rate achieved. It sends no motion command: only
+samples for ``--seconds`` (1 s) of the sensor's own time (its frame counter:
+wall time on site, simulated time on an emulated cell): mean and noise
+(standard deviation) per axis, the sample rate achieved, and the samples
+known lost (SYNCs unanswered, frames lost, frames left unpaired). It sends no motion command: only
 IDENTIFY, READ_POSITION, READ_STATUS, and the STOP every close sends; it
 reads the controller's move counter before and after and fails if it changed.
 
@@ -26,10 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from forcelearn.devices import AXES
+from forcelearn.devices import AXES, WrenchSample
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.errors import LinkError, SafetyStop, SensorError, one_line
 from forcelearn.protocols.computer_link import messages
+from forcelearn.protocols.jr3_can.opcodes import CounterMeaning
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.tools.check_ethernet import (
@@ -132,16 +135,16 @@ def _check_sensor(sensor: Jr3CanSensor, config: CellConfig, seconds: float, say:
         say(f"  sensor  full scales {' '.join(f'{s:g}' for s in scales[:3])} N, "
             f"{' '.join(f'{s:g}' for s in scales[3:])} N*m")
     stats_before = sensor.stats
-    samples = []
-    start = time.monotonic()
-    while time.monotonic() - start < seconds:
-        samples += sensor.read_many(BATCH)
-    elapsed = time.monotonic() - start
+    samples, elapsed, clock = read_for(sensor, seconds)
     stats = sensor.stats
     wrench = np.array([s.wrench for s in samples])
     mean, noise = wrench.mean(axis=0), wrench.std(axis=0)
-    say(f"  sensor  {len(samples)} samples in {elapsed:.2f} s: {len(samples) / elapsed:.0f} "
-        f"samples/s; dropped {stats.dropped_samples - stats_before.dropped_samples}, "
+    say(f"  sensor  {len(samples)} samples in {elapsed:.2f} s of {clock} time: "
+        f"{len(samples) / elapsed:.0f} samples/s; "
+        f"dropped {stats.dropped_samples - stats_before.dropped_samples} "
+        f"(SYNCs unanswered {stats.unanswered_syncs - stats_before.unanswered_syncs}, "
+        f"frames lost {stats.lost_frames - stats_before.lost_frames}, "
+        f"unpaired {stats.unpaired_frames - stats_before.unpaired_frames}), "
         f"bootups {stats.bootups - stats_before.bootups}, "
         f"rejected frames {stats.rejected_total - stats_before.rejected_total}")
     say("          axis        mean   noise (std)")
@@ -153,6 +156,31 @@ def _check_sensor(sensor: Jr3CanSensor, config: CellConfig, seconds: float, say:
     if config.calibration_file is not None:
         state = "found" if config.calibration_file.is_file() else "MISSING"
         say(f"  sensor  calibration file {config.calibration_file}: {state}")
+
+
+def read_for(sensor: Jr3CanSensor, seconds: float) -> tuple[list[WrenchSample], float, str]:
+    """Read samples for ``seconds`` of the sensor's own time: (samples, seconds, "sensor").
+
+    The adapter's frame counter is the sensor's clock (each sample's ``sensor_dt_s``):
+    on site it runs with the wall clock, on an emulated cell with the simulated one, so
+    a 60 s check of an emulated sensor reads 60 s worth of samples in a few seconds.
+    Samples that do not carry their sensor time (older firmware) are read for
+    ``seconds`` of wall time: (samples, seconds, "wall").
+    """
+    samples: list[WrenchSample] = []
+    opcodes = getattr(getattr(sensor, "config", None), "opcodes", None)
+    on_sensor_clock = getattr(opcodes, "counter", None) is CounterMeaning.SENSOR_FRAMES
+    sensor_s = 0.0
+    start = time.monotonic()
+    while True:
+        batch = sensor.read_many(BATCH)
+        samples += batch
+        if on_sensor_clock:  # None: the first sample after a (re)start, no time known
+            sensor_s += sum(s.sensor_dt_s or 0.0 for s in batch)
+            if sensor_s >= seconds:
+                return samples, sensor_s, "sensor"
+        elif (wall_s := time.monotonic() - start) >= seconds:
+            return samples, wall_s, "wall"
 
 
 def missing_devices(config: CellConfig) -> list[str]:

@@ -3,7 +3,9 @@
 Each path is ``MOVES`` moves. Between two moves the true normal force steps by
 ±``step_n`` (random sign); the move and settle take ``MOVE_S`` (the adapter's
 noise forgets itself in that time), then a burst of ``burst`` samples is read
-``SAMPLE_PERIOD_S`` apart, the spacing of sync mode at 1 Mbit/s. The samples
+as a real JR3 adapter delivers them in sync mode: one per 1 ms turn of its main
+loop, each the latest complete sensor frame (128.5 µs frames, so 7 or 8 frames
+apart); the filters are told that sensor time, as the driver tells them. The samples
 come from the emulator's own sensor model (its noise, the adapter's low-pass
 at the cell's 125 Hz cut-off, quantisation; bias and drift off: zeroing's
 job) and are scaled back to newtons as the driver does. After each burst the
@@ -22,6 +24,7 @@ docs/results/filter.md and draws its figure.
 from __future__ import annotations
 
 import argparse
+import itertools
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -30,11 +33,14 @@ import numpy as np
 from forcelearn.devices import WrenchSample
 from forcelearn.emulators.jr3.sensor_model import SensorModel
 from forcelearn.filtering import ForceFilter, ForceFilterConfig, MoveAwareForceFilter
+from forcelearn.protocols.jr3_can.opcodes import ADAPTER_LOOP_PERIOD_S, SENSOR_FRAME_PERIOD_S
 from forcelearn.protocols.jr3_can.scaling import counts_to_wrench
 from forcelearn.tools.filter_experiment import quiet_drift_model
 
-SAMPLE_PERIOD_S = 0.000325
-"""Sync mode at 1 Mbit/s: one SYNC and two 8-byte frames."""
+SAMPLE_PERIOD_S = ADAPTER_LOOP_PERIOD_S
+"""Sync mode: the adapter answers one SYNC per 1 ms turn of its main loop."""
+FRAME_S = SENSOR_FRAME_PERIOD_S
+"""A sample is the latest complete sensor frame: its time is on this grid."""
 CUTOFF_HZ = 125.0
 """The cell's JR3 adapter cut-off."""
 MOVE_S = 0.4
@@ -43,9 +49,10 @@ MOVES = 20
 FORCE_N = 19.61
 METHODS = ("raw", "mean", "moves", "stream")
 STEPS_N = (0.0, 0.3, 1.0, 2.0, 3.0)
-BURSTS = (3, 10, 30, 77, 150)
-DEFAULT_BURST = 77
-"""Samples in the default 25 ms window at 325 µs."""
+BURSTS = (3, 10, 25, 77, 150)
+DEFAULT_BURST = 25
+"""Samples in the default 25 ms window: one per adapter loop turn (before issue 28 the
+emulator answered every SYNC, 77 samples 325 µs apart; a real adapter cannot)."""
 
 
 @dataclass(frozen=True)
@@ -97,17 +104,18 @@ def run(
                     force += step_n * rng.choice((-1.0, 1.0))
                     moves.on_move()
                 wrench = np.array([0.0, force, 0.0, 0.0, 0.0, 0.0])
-                values = []
-                for i in range(burst):
-                    dt = MOVE_S if i == 0 else SAMPLE_PERIOD_S
-                    counts = np.array(model.measure(wrench, dt, CUTOFF_HZ))
+                values, dts = [], burst_steps_s(burst)
+                for i, step_s in enumerate(dts):
+                    counts = np.array(model.measure(wrench, MOVE_S if i == 0 else step_s,
+                                                    CUTOFF_HZ))
                     values.append(float(counts_to_wrench(counts, full_scales)[1]))
                     if stream:
-                        tracker.update(values[-1])
+                        since_last = MOVE_S if i == 0 else step_s  # the move, then the burst
+                        tracker.on_sample(_as_samples(values[-1:], [since_last])[0])
                 estimates = {
                     "raw": values[-1],
                     "mean": float(np.mean(values)),
-                    "moves": moves.on_burst(_as_samples(values)),
+                    "moves": moves.on_burst(_as_samples(values, dts)),
                 }
                 if stream:
                     estimates["stream"] = tracker.force_n
@@ -122,10 +130,25 @@ def run(
     )
 
 
-def _as_samples(values: list[float]) -> list[WrenchSample]:
-    """Wrap newtons on Fy as WrenchSamples (the filter reads the configured axis)."""
+def burst_steps_s(burst: int) -> list[float]:
+    """Sensor time between consecutive samples of a burst, s (the first: 0, unknown).
+
+    Sample i is the latest sensor frame at ``i`` loop turns: frame ``floor(i x 1 ms / 128.5
+    µs)``, so the steps are 7 or 8 frames (0.90 or 1.03 ms).
+    """
+    frames = [int(i * SAMPLE_PERIOD_S / FRAME_S + 1e-9) for i in range(burst)]
+    return [0.0] + [(b - a) * FRAME_S for a, b in itertools.pairwise(frames)]
+
+
+def _as_samples(values: list[float], steps_s: list[float]) -> list[WrenchSample]:
+    """Wrap newtons on Fy as WrenchSamples with their sensor time.
+
+    The filter reads the configured axis and the time between samples.
+    """
     return [
-        WrenchSample(np.array([0.0, v, 0.0, 0.0, 0.0, 0.0]), 0.0, i) for i, v in enumerate(values)
+        WrenchSample(np.array([0.0, v, 0.0, 0.0, 0.0, 0.0]), 0.0, i,
+                     sensor_dt_s=dt if dt > 0 else None)
+        for i, (v, dt) in enumerate(zip(values, steps_s, strict=True))
     ]
 
 
@@ -168,7 +191,7 @@ def plot(results: list[BurstResult], out: Path) -> Path:
         ax.axhline(0.35, color="grey", lw=0.8, ls="--")
         ax.set_xscale("log")
         ax.set_title(f"force steps of {step:.1f} N between moves", fontsize=9)
-        ax.set_xlabel("samples per burst (325 µs apart)")
+        ax.set_xlabel("samples per burst (one per 1 ms adapter loop turn)")
         if k == 0:
             ax.set_ylabel("error RMS / raw noise σ")
             ax.legend(fontsize=8)

@@ -18,11 +18,14 @@ class Jr3Config:
         node_id: the adapter's node id (1..127).
         mode: ``"sync"`` (one sample per SYNC the host sends) or ``"async"``
             (the adapter streams every ``period_us``).
-        cutoff_hz: the adapter's low-pass cut-off (0.01..655.35 Hz).
+        cutoff_hz: the adapter's low-pass cut-off (0.01..655.35 Hz; 0: unfiltered, the
+            raw decoupled data).
         period_us: async streaming period in microseconds.
         full_scales: six full scales (N, N, N, N*m, N*m, N*m); None reads them
             from the adapter at initialisation.
-        zero_on_init: zero the offsets at each initialisation (tool in free space!).
+        zero_on_init: zero the offsets at each initialisation (tool in free space!). On by
+            default, as the public host driver: the adapter's offsets are 0 after every
+            power-up, reset and stop, so a host that does not zero reads the raw bias.
         zero_settle_s: wait before zeroing, so the adapter's filter settles.
         ack_timeout_s: how long to wait for each ACK.
         stale_timeout_s: no sample within this time raises ``SensorStale``.
@@ -37,7 +40,7 @@ class Jr3Config:
     cutoff_hz: float = 125.0
     period_us: int = 1000
     full_scales: tuple[float, float, float, float, float, float] | None = None
-    zero_on_init: bool = False
+    zero_on_init: bool = True
     zero_settle_s: float = 0.1
     ack_timeout_s: float = 0.25
     stale_timeout_s: float = 0.1

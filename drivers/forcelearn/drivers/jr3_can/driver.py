@@ -5,17 +5,28 @@ pcan, kvaser, slcan, virtual...); the driver never shuts it down. Two ways to
 read:
 
 * **sync** (default): :meth:`Jr3CanSensor.read` sends SYNC and receives in the
-  caller's thread until the matching force/moment pair arrives; emulated runs
-  go as fast as the host and the emulator can.
+  caller's thread until the matching force/moment pair arrives (about 1 ms on a
+  real adapter: it answers at its next loop turn); emulated runs go as fast as
+  the host and the emulator can.
 * **async**: the adapter streams every ``period_us``; a ``can.Notifier`` thread
   feeds :class:`~.listener.Jr3Listener`, which calls ``on_sample`` callbacks
   (e.g. the force filter) for every paired sample; :meth:`read` returns the
   newest fresh one.
 
 Initialisation (on :meth:`initialise`, on entering ``with``, and again on the
-first read after a bootup frame): get state, start sync or async with the
-cut-off, read the full scales unless configured, wait ``zero_settle_s`` and
-zero the offsets if configured. :meth:`close` sends stop and is idempotent.
+first read after a bootup frame), as the public host driver (yarp-devices
+Jr3Mbed) does it: get state, start sync or async with the cut-off (0:
+unfiltered), read the full scales unless configured, wait ``zero_settle_s``
+and zero the offsets (``zero_on_init``, on by default: the adapter's offsets are
+0 after every power-up, reset and stop, so without zeroing every reading holds
+the sensor's raw bias). :meth:`close` sends stop and is idempotent.
+
+Counter and losses: the adapter's frame counter counts sensor frames
+(~7.8 kHz), so each sample carries the sensor time since the previous one
+(``sensor_dt_s``); losses are counted where they are known: a SYNC with no
+pair (``unanswered_syncs``, ``lost_frames``) and frames without a partner
+(``unpaired_frames``). Sync mode keeps one SYNC in flight (the adapter answers
+one per 1 ms loop turn).
 
 Errors: :class:`SensorTimeout` (no ACK), :class:`SensorStale` (no sample in
 ``stale_timeout_s``), :class:`SensorBusError` (python-can errors, converted with
@@ -45,6 +56,8 @@ log = logging.getLogger(__name__)
 
 NOTIFIER_POLL_S = 0.05
 STOP_ACK_TIMEOUT_S = 0.1
+SYNC_ATTEMPTS = 4
+"""SYNCs sent for one sample before SensorStale, each waited for stale_timeout_s / 4."""
 
 
 class Jr3CanSensor:
@@ -70,6 +83,7 @@ class Jr3CanSensor:
         self._listener = Jr3Listener(
             self.config.node_id, self.config.opcodes, self.config.near_saturation_counts, writer
         )
+        self._listener.unpaired_are_lost_samples = self.config.mode == "async"
         if on_sample is not None:
             self._listener.callbacks.append(on_sample)
         self._command_lock = threading.Lock()
@@ -117,6 +131,8 @@ class Jr3CanSensor:
         start: codec.Message = codec.StartSync(cutoff)
         if cfg.mode == "async":
             start = codec.StartAsync(cutoff, cfg.period_us)
+        # a started sensor counts from 0, and its first data may come before the ACK
+        self._listener.restart_pairing()
         if not self._command(start).ready:
             raise SensorError(
                 f"JR3 node {cfg.node_id} refused to start {cfg.mode} mode: check the sensor "
@@ -163,8 +179,13 @@ class Jr3CanSensor:
         self._cutoff_hz = wire / 100.0
 
     def reset(self) -> None:
-        """Reset the adapter; the next read initialises it again."""
+        """Reset the adapter (it stops and re-reads its EEPROM); the next read initialises it.
+
+        The adapter sends no bootup after a reset and its counter starts again
+        from 0, so pairing restarts here.
+        """
         self._command(codec.Reset())
+        self._listener.restart_pairing()
         self._initialised = False
 
     # ---- reading --------------------------------------------------------
@@ -185,14 +206,14 @@ class Jr3CanSensor:
             "power supply"
         )
 
-    def read_many(self, count: int, window: int = 4) -> list[WrenchSample]:
+    def read_many(self, count: int, window: int = 1) -> list[WrenchSample]:
         """Return ``count`` consecutive fresh samples (e.g. to average per robot step).
 
-        Sync mode sends SYNCs in batches of up to ``window`` and sends the next
-        batch when every answer of the last one is in (or known lost by its
-        counter gap); batching saves a thread hand-over per sample on emulated
-        runs. Keep ``window`` small on a real adapter (its transmit queue is
-        short). Async mode reads one by one.
+        Sync mode keeps one SYNC in flight, whatever ``window`` asks (it is kept
+        for :class:`~forcelearn.devices.BatchForceSensor`): the adapter answers
+        at most one SYNC per 1 ms loop turn, so a second SYNC sent before the
+        answer would only trigger the other nodes on the bus. The samples come
+        about 1 ms apart in sensor time. Async mode reads one by one.
 
         Raises:
             SensorStale: no sample for ``stale_timeout_s``; SensorError etc. as :meth:`read`.
@@ -202,60 +223,73 @@ class Jr3CanSensor:
         if self.config.mode == "async":
             return [self.read() for _ in range(count)]
         self._ensure_initialised()
-        lst = self._listener
         out: list[WrenchSample] = []
-        dropped_before = lst.dropped_samples
-        lst.callbacks.append(out.append)
-        try:
-            sent = presumed_lost = 0
-            waited_once = False
-            while len(out) < count:
-                lost = lst.dropped_samples - dropped_before + presumed_lost
-                if sent - len(out) - lost <= 0:  # batch drained: send the next batch
-                    for _ in range(min(window, count - len(out))):
-                        self._send(codec.Sync())
-                        sent += 1
-                have = len(out)
+        for _ in range(count):
+            sample = self._sync_sample()
+            if sample is None:
+                raise SensorStale(
+                    f"JR3 node {self.config.node_id} rebooted during read_many; "
+                    "read again (it re-initialises)"
+                )
+            out.append(sample)
+        return out
 
-                def arrived(n: int = have) -> bool:
-                    return len(out) > n or lst.bootup_pending
+    @property
+    def sample_period_s(self) -> float:
+        """The nominal time between the samples this driver delivers, s.
 
-                if self._wait_for(arrived, self.config.stale_timeout_s / 2):
-                    waited_once = False
-                elif not waited_once:  # the last pairs in flight were lost: ask again
-                    waited_once = True
-                    presumed_lost = sent - len(out) - (lst.dropped_samples - dropped_before)
-                else:
-                    raise SensorStale(
-                        f"no sample from JR3 node {self.config.node_id} within "
-                        f"{self.config.stale_timeout_s} s: check the adapter; stop the robot"
-                    )
+        Sync: one per adapter loop turn (1 ms) when SYNCs follow the answers;
+        async: the streaming period. The sensor's own time between two samples
+        is on each sample (``sensor_dt_s``, from the frame counter).
+        """
+        if self.config.mode == "async":
+            return max(self.config.period_us * 1e-6, self.config.opcodes.sensor_frame_period_s)
+        return self.config.opcodes.loop_period_s
+
+    def _sync_sample(self) -> WrenchSample | None:
+        """Send one SYNC and wait for its pair; None if a bootup interrupts.
+
+        A SYNC with no pair within a quarter of the stale timeout is counted lost
+        (with the frames of it that never came) and sent again; after
+        ``SYNC_ATTEMPTS`` misses in a row (the whole stale timeout) SensorStale.
+        """
+        lst = self._listener
+        wait_s = self.config.stale_timeout_s / SYNC_ATTEMPTS
+        for _attempt in range(SYNC_ATTEMPTS):
+            with lst.cond:
+                seq, frames = lst.seq, lst.data_frames
+            self._send(codec.Sync())
+
+            def answered(before: int = seq) -> bool:
+                return lst.seq > before or lst.bootup_pending
+
+            got = self._wait_for(answered, wait_s)
+            with lst.cond:
                 if lst.bootup_pending:
-                    raise SensorStale(
-                        f"JR3 node {self.config.node_id} rebooted during read_many; "
-                        "read again (it re-initialises)"
-                    )
-        finally:
-            lst.callbacks.remove(out.append)
-        with lst.cond:
-            self._last_seq = lst.seq
-        return out[:count]
+                    return None
+                if got:
+                    self._last_seq = lst.seq
+                    return lst.latest
+                missing = max(0, 2 - (lst.data_frames - frames))
+            lst.count_unanswered_sync(missing)
+        raise SensorStale(
+            f"no sample from JR3 node {self.config.node_id} within "
+            f"{self.config.stale_timeout_s} s: check the adapter is powered and streaming; "
+            "stop the robot"
+        )
 
     def _next_sample(self) -> WrenchSample | None:
         """Wait for a sample newer than the last read; None if a bootup interrupts."""
         lst = self._listener
         cfg = self.config
         if cfg.mode == "sync":
-            with lst.cond:
+            return self._sync_sample()
+        with lst.cond:
+            fresh = lst.latest is not None and (
+                time.monotonic() - lst.latest.timestamp_s < cfg.stale_timeout_s
+            )
+            if not fresh:
                 self._last_seq = lst.seq
-            self._send(codec.Sync())
-        else:
-            with lst.cond:
-                fresh = lst.latest is not None and (
-                    time.monotonic() - lst.latest.timestamp_s < cfg.stale_timeout_s
-                )
-                if not fresh:
-                    self._last_seq = lst.seq
         got = self._wait_for(lambda: lst.seq > self._last_seq or lst.bootup_pending,
                              cfg.stale_timeout_s)
         with lst.cond:
@@ -320,7 +354,9 @@ class Jr3CanSensor:
         """Wait until ``predicate()`` (checked under the listener's lock) or the timeout.
 
         With a Notifier (async) this waits on the condition; without one (sync)
-        it receives from the bus in this thread and feeds the listener.
+        it receives from the bus in this thread and feeds the listener. Past the
+        deadline it still takes what the bus already holds before giving up, so a
+        host thread stalled by its machine does not call an answer that came lost.
         """
         lst = self._listener
         deadline = time.monotonic() + timeout_s
@@ -335,16 +371,18 @@ class Jr3CanSensor:
                     continue
             if failed:
                 self._check_open()  # raises SensorBusError (outside the lock)
-            if remaining <= 0:
+            if remaining <= 0 and self._notifier is not None:
                 return False
             try:
-                msg = self.bus.recv(remaining)
+                msg = self.bus.recv(max(remaining, 0.0))
             except can.CanError as exc:
                 raise SensorBusError(
                     f"CAN receive failed: {exc}; check the CAN interface and restart"
                 ) from exc
             if msg is not None:
                 lst.on_message_received(msg)
+            elif remaining <= 0:
+                return False
 
     # ---- life cycle -----------------------------------------------------
     def close(self) -> None:

@@ -22,7 +22,7 @@ import numpy as np
 from forcelearn.devices import WrenchSample
 from forcelearn.drivers.jr3_can.pairing import Pairer
 from forcelearn.protocols.jr3_can import codec
-from forcelearn.protocols.jr3_can.opcodes import OpcodeMap
+from forcelearn.protocols.jr3_can.opcodes import CounterMeaning, OpcodeMap
 from forcelearn.protocols.jr3_can.scaling import COUNTS_PER_FULL_SCALE
 
 log = logging.getLogger(__name__)
@@ -38,6 +38,14 @@ class Jr3Stats:
     frames: int = 0
     samples: int = 0
     dropped_samples: int = 0
+    """Samples known lost: SYNCs the adapter did not answer with a pair (sync mode), or
+    frames left without a partner (async mode), plus counter gaps with a firmware whose
+    counter counts pairs sent. Never the steps of a current adapter's counter: those are
+    sensor time."""
+    unanswered_syncs: int = 0
+    """SYNCs after which no pair came within a quarter of the stale timeout."""
+    lost_frames: int = 0
+    """Force or moment frames of unanswered SYNCs that never came (sync mode)."""
     unpaired_frames: int = 0
     pending_frames: int = 0
     """Force or moment frames waiting for their partner (0..2)."""
@@ -77,8 +85,15 @@ class Jr3Listener(can.Listener):
         self.bootup_pending = False
         self.bus_error: Exception | None = None
         self._scale: np.ndarray | None = None
-        self._pairer = Pairer()
+        self._pairer = Pairer(opcodes.counter)
+        self._frame_period_s = (opcodes.sensor_frame_period_s
+                                if opcodes.counter is CounterMeaning.SENSOR_FRAMES else None)
         self._stats = Jr3Stats()
+        self.data_frames = 0
+        """Force and moment frames received (for the driver's count of lost frames)."""
+        self.unpaired_are_lost_samples = False
+        """Async mode: each unpaired frame is a sample lost (a pair lost whole leaves no
+        trace: the counter is sensor time). Sync mode counts unanswered SYNCs instead."""
 
     def set_full_scales(self, full_scales: np.ndarray | None) -> None:
         """Use these six full scales (N, N*m) from now on; None stops scaling."""
@@ -89,14 +104,31 @@ class Jr3Listener(can.Listener):
 
     @property
     def dropped_samples(self) -> int:
-        """Samples lost between paired counters so far (cheap; no snapshot)."""
-        return self._pairer.dropped
+        """Samples known lost so far (cheap; no snapshot)."""
+        return self._lost_samples()
+
+    def _lost_samples(self) -> int:
+        lost = self._pairer.dropped + self._stats.unanswered_syncs
+        if self.unpaired_are_lost_samples:
+            lost += self._pairer.unpaired
+        return lost
+
+    def count_unanswered_sync(self, frames_missing: int) -> None:
+        """The driver's SYNC got no pair: one sample and ``frames_missing`` (0..2) frames lost."""
+        with self.cond:
+            self._stats.unanswered_syncs += 1
+            self._stats.lost_frames += frames_missing
+
+    def restart_pairing(self) -> None:
+        """The adapter's counter starts again (start, reset): forget the last one."""
+        with self.cond:
+            self._pairer.restart()
 
     def stats(self) -> Jr3Stats:
         """Return a snapshot of the counts."""
         with self.cond:
             s = self._stats
-            s.dropped_samples = self._pairer.dropped
+            s.dropped_samples = self._lost_samples()
             s.unpaired_frames = self._pairer.unpaired
             s.pending_frames = self._pairer.pending
             s.duplicate_samples = self._pairer.duplicates
@@ -134,6 +166,7 @@ class Jr3Listener(can.Listener):
                 self._stats.other_nodes += 1
                 return
             if isinstance(message, codec.Forces | codec.Moments):
+                self.data_frames += 1
                 sample = self._pair(message)
             elif isinstance(message, codec.Ack):
                 self.acks.append(message)
@@ -160,11 +193,15 @@ class Jr3Listener(can.Listener):
         saturated: tuple[bool, ...] = _NOT_SATURATED
         if max(pair.raw) >= limit or min(pair.raw) <= -limit:
             saturated = tuple(abs(v) >= limit for v in pair.raw)
+        sensor_dt_s = None
+        if pair.elapsed is not None and self._frame_period_s is not None:
+            sensor_dt_s = pair.elapsed * self._frame_period_s
         sample = WrenchSample(
             wrench=np.array(pair.raw, dtype=float) * self._scale,
             timestamp_s=time.monotonic(),
             counter=pair.counter,
             saturated=saturated,
+            sensor_dt_s=sensor_dt_s,
         )
         self._stats.samples += 1
         self.latest = sample

@@ -1,9 +1,12 @@
-"""Pure pairing of force and moment frames, and gap counting across the 16-bit wrap.
+"""Pure pairing of force and moment frames, and the counter's steps across the 16-bit wrap.
 
 A force frame and a moment frame form one sample only when their frame
-counters match. Frames whose partner never comes are counted as unpaired;
-samples missing between two paired counters (modulo 65536) are counted as
-dropped. No clock, no bus: the listener feeds frames in arrival order.
+counters match. Frames whose partner never comes are counted as unpaired.
+What a step of the counter between two pairs means depends on the firmware
+(:class:`~forcelearn.protocols.jr3_can.opcodes.CounterMeaning`): since
+2023-12-27 it counts sensor frames, so the step is sensor time (``elapsed``)
+and says nothing of losses; before, it counted pairs sent, so a gap is that
+many dropped samples. No clock, no bus: the listener feeds frames in arrival order.
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from forcelearn.protocols.jr3_can.codec import COUNTER_MODULUS, Forces, Moments
+from forcelearn.protocols.jr3_can.opcodes import CounterMeaning
 
 
 def counter_gap(previous: int, current: int) -> int:
@@ -24,11 +28,17 @@ def counter_gap(previous: int, current: int) -> int:
 
 @dataclass(frozen=True, slots=True)
 class Pair:
-    """A matched force/moment pair: six raw counts and their counter; ``dropped`` before it."""
+    """A matched force/moment pair: six raw counts and their counter.
+
+    ``elapsed``: counter steps since the previous pair (wrap-aware; None for the
+    first pair after a start); ``dropped``: samples known lost before it (only
+    when the counter counts pairs sent).
+    """
 
     raw: tuple[int, int, int, int, int, int]
     counter: int
     dropped: int
+    elapsed: int | None = None
 
 
 def _forces_first(a: Forces | Moments, b: Forces | Moments) -> tuple[Forces, Moments]:
@@ -43,13 +53,18 @@ def _forces_first(a: Forces | Moments, b: Forces | Moments) -> tuple[Forces, Mom
 class Pairer:
     """Match frames by counter and count what is lost; one instance per stream.
 
+    Args:
+        counter: what the counter counts (the firmware's meaning).
+
     Attributes:
         unpaired: frames discarded because no partner with the same counter came.
-        dropped: sample counters skipped between consecutive pairs (wrap-aware).
+        dropped: samples skipped between consecutive pairs (wrap-aware), counted
+            only when the counter counts pairs sent (older firmware).
         duplicates: pairs whose counter repeated the previous one (discarded).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, counter: CounterMeaning = CounterMeaning.SENSOR_FRAMES) -> None:
+        self.gaps_are_losses = counter is CounterMeaning.TRANSMITTED_SAMPLES
         self.unpaired = 0
         self.dropped = 0
         self.duplicates = 0
@@ -67,7 +82,10 @@ class Pairer:
         return (self._forces is not None) + (self._moments is not None)
 
     def restart(self) -> None:
-        """Forget pending frames and the last counter (after a bootup the counter restarts)."""
+        """Forget pending frames and the last counter.
+
+        After a start, reset or bootup the adapter's counter starts again from 0.
+        """
         self.unpaired += (self._forces is not None) + (self._moments is not None)
         self._forces = self._moments = None
         self._last_counter = None
@@ -106,12 +124,14 @@ class Pairer:
 
     def _complete(self, forces: Forces, moments: Moments) -> Pair | None:
         dropped = 0
+        elapsed: int | None = None
         if self._last_counter is not None:
             gap = counter_gap(self._last_counter, forces.counter)
             if gap < 0:
                 self.duplicates += 1
                 return None
-            dropped = gap
+            elapsed = gap + 1
+            dropped = gap if self.gaps_are_losses else 0
         self._last_counter = forces.counter
         self.dropped += dropped
-        return Pair((*forces.raw, *moments.raw), forces.counter, dropped)
+        return Pair((*forces.raw, *moments.raw), forces.counter, dropped, elapsed)

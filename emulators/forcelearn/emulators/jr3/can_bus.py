@@ -11,8 +11,9 @@ sensor model; options below); later buses on the channel join it, as python-can'
 the bus may open before the node, as on a real bus.
 
 Frames cost no thread hand-over: :meth:`Jr3EmulatorBus.send` hands the frame
-to the node, which answers before ``send`` returns; ``recv`` then returns the
-answers. In async mode the node streams on the host's wall clock, emitted by
+to the node; when ``recv`` finds nothing to return, the host is waiting, so the
+node runs its next loop turn (:meth:`Jr3EmulatorNode.serve_pending`) and its
+answers are returned. In async mode the node streams on the host's wall clock, emitted by
 whichever thread waits in ``recv`` (the driver's ``can.Notifier``).
 """
 
@@ -124,6 +125,10 @@ class Jr3EmulatorBus(can.BusABC):
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             until_sample = self.node.emit_due()
+            with self._cond:
+                waiting = bool(self._rx)
+            if not waiting and self.node.serve_pending():  # the host waits: the loop turns
+                continue
             with self._cond:
                 if self._rx:
                     return self._rx.popleft(), False

@@ -36,8 +36,9 @@ initial bias                  1.5, -2.0, 3.0 N;         JR3 offsets are not zero
                               0.05, -0.08, 0.03 N*m
 bias drift                    0.02 N/sqrt(s);           thermal drift: ~0.2 N over 100 s, small
                               0.002 N*m/sqrt(s)         against noise within one step
-sync sample period            125 µs                    the JR3's 8 kHz DSP rate: two samples
-                                                        are never closer than this
+sensor frame period           128.5 µs                  the adapter firmware's figure for
+                                                        one complete frame (~7.8 kHz): the
+                                                        frame counter's unit
 emulate filter                on                        the adapter's low-pass (cut-off set by
                                                         the host) on signal and noise
 ============================  ========================  ====================================
@@ -55,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from forcelearn.protocols.jr3_can.opcodes import SENSOR_FRAME_PERIOD_S
 from forcelearn.protocols.jr3_can.scaling import COUNTS_PER_FULL_SCALE, INT16_MAX, INT16_MIN
 
 Six = tuple[float, float, float, float, float, float]
@@ -69,8 +71,9 @@ class SensorModelParams:
     initial_bias: Six = (1.5, -2.0, 3.0, 0.05, -0.08, 0.03)
     bias_drift_per_sqrt_s: Six = (0.02, 0.02, 0.02, 0.002, 0.002, 0.002)
     zero_average_samples: int = 16
-    sync_sample_period_s: float = 0.000125
-    """The sensor's internal sample period, s (JR3: 8 kHz)."""
+    sync_sample_period_s: float = SENSOR_FRAME_PERIOD_S
+    """One complete 6-axis frame of the sensor, s: the frame counter's unit (128.5 µs, the
+    adapter firmware's figure, ~7.8 kHz)."""
     emulate_filter: bool = True
     """Apply the adapter's low-pass at the host's cut-off to the signal and the noise."""
 
@@ -176,8 +179,16 @@ class SensorModel:
         noise = np.asarray(self._noise) * self.rng.standard_normal((n, 6)).mean(axis=0)
         self._offset = (np.asarray(true_wrench, dtype=float) + self.bias + noise).tolist()
 
+    def restart(self) -> None:
+        """The adapter's sensor thread starts again: its filter state is new (offset kept)."""
+        self._lowpass = None
+        self._filtered_noise = [0.0] * 6
+
     def power_cycle(self) -> None:
-        """Forget the offset, as the adapter does on reboot (the bias stays: it is physical)."""
+        """Forget the offset, as the adapter does on stop, reset and power-up.
+
+        The bias stays: it is physical.
+        """
         self._offset = [0.0] * 6
 
     def state_dict(self) -> dict[str, Any]:

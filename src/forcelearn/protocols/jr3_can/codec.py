@@ -307,3 +307,53 @@ def _parse(kind: str, data: bytes | bytearray) -> Message | None:
         return None
     (cutoff,) = _U16.unpack(data)
     return StartSync(cutoff) if kind == "start_sync" else SetFilter(cutoff)
+
+
+_SENSOR_TO_HOST = frozenset({"ack", "forces", "moments", "bootup"})
+
+
+def _field(data: bytes | bytearray, offset: int, layout: struct.Struct) -> int:
+    """One little-endian field, or 0 when the payload does not hold all of its bytes."""
+    if len(data) < offset + layout.size:
+        return 0
+    (value,) = layout.unpack_from(data, offset)
+    return int(value)
+
+
+_U32 = struct.Struct("<I")
+
+
+def decode_as_adapter(
+    arbitration_id: int,
+    data: bytes | bytearray,
+    node_id: int,
+    *,
+    is_extended_id: bool = False,
+    opcodes: OpcodeMap = DEFAULT_OPCODES,
+) -> Message | None:
+    """What the adapter firmware makes of a frame it hears: SYNC, a command for it, or None.
+
+    As jr3-mbed-firmware-can's ``main.cpp``: SYNC is the exact identifier of the
+    ``sync`` opcode, whatever its payload; any other frame is for this node when
+    the identifier's low 7 bits are ``node_id``, and is dispatched on its opcode.
+    Lengths are not enforced: a field whose bytes are not all there reads 0 (a
+    start with no payload is unfiltered; a start async without its 4 period bytes
+    has period 0) and extra bytes are ignored. Opcodes the adapter does not act on
+    (its own ACK, data and bootup codes, unknown ones) give None, as it ignores them.
+    """
+    if is_extended_id or not 0 <= arbitration_id <= MAX_STANDARD_ID:
+        return None
+    if arbitration_id == opcodes.sync:
+        return Sync()
+    if arbitration_id & NODE_ID_BITS != node_id:
+        return None
+    kind = opcodes.kind_by_opcode.get(arbitration_id & ~NODE_ID_BITS & MAX_STANDARD_ID)
+    if kind is None or kind in _SENSOR_TO_HOST or kind == "sync":
+        return None
+    if kind == "start_sync":
+        return StartSync(_field(data, 0, _U16))
+    if kind == "set_filter":
+        return SetFilter(_field(data, 0, _U16))
+    if kind == "start_async":
+        return StartAsync(_field(data, 0, _U16), _field(data, _U16.size, _U32))
+    return _EMPTY_KINDS[kind]

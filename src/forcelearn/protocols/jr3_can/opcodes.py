@@ -27,11 +27,29 @@ kind                      opcode  direction        payload (little-endian)
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, fields
 from functools import cached_property
 
 NODE_ID_BITS = 0x7F
 """Low 7 bits of an identifier carry the node id; the opcode is a multiple of 0x80."""
+
+SENSOR_FRAME_PERIOD_S = 128.5e-6
+"""One complete 6-axis frame of the JR3 sensor as the adapter reads it, s (about 7.78 kHz):
+the firmware's ``samplingPeriod`` (jr3-mbed-firmware, Jr3Controller.hpp)."""
+ADAPTER_LOOP_PERIOD_S = 0.001
+"""The adapter's main loop: it answers a pending SYNC and the queued commands once per turn,
+then sleeps 1 ms (jr3-mbed-firmware-can, main.cpp)."""
+
+
+class CounterMeaning(enum.Enum):
+    """What the 16-bit frame counter of the force and moment frames counts, per firmware."""
+
+    SENSOR_FRAMES = "sensor_frames"
+    """Since 2023-12-27: complete sensor frames (~7.8 kHz) since streaming started; 0 on
+    start, stop and reset; the difference of two counters is sensor time."""
+    TRANSMITTED_SAMPLES = "transmitted_samples"
+    """2023-09-25 .. 2023-12-26: one per force/moment pair sent; a gap is a lost sample."""
 
 
 @dataclass(frozen=True)
@@ -54,6 +72,12 @@ class OpcodeMap:
     forces: int
     moments: int
     bootup: int
+    counter: CounterMeaning = CounterMeaning.SENSOR_FRAMES
+    """What the frame counter counts with this firmware."""
+    sensor_frame_period_s: float = SENSOR_FRAME_PERIOD_S
+    """Sensor time per counter step (SENSOR_FRAMES), s."""
+    loop_period_s: float = ADAPTER_LOOP_PERIOD_S
+    """The adapter's main-loop period: at most one SYNC answered per turn, s."""
 
     def __post_init__(self) -> None:
         codes = self.by_kind()
@@ -91,7 +115,8 @@ JR3_MBED_2023_12 = OpcodeMap(
     moments=0x680,
     bootup=0x700,
 )
-"""The December 2023 opcode map of the open JR3-to-CAN adapter firmware."""
+"""The December 2023 opcode map of the open JR3-to-CAN adapter firmware (unchanged to 2026-02):
+the counter counts sensor frames, one SYNC answered per 1 ms loop turn."""
 
 OPCODE_MAPS: dict[str, OpcodeMap] = {JR3_MBED_2023_12.version: JR3_MBED_2023_12}
 """Known opcode maps by version string; add older firmware maps here."""

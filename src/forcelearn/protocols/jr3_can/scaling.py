@@ -63,10 +63,17 @@ def wrench_to_counts(wrench: np.ndarray, full_scales: np.ndarray) -> np.ndarray:
 
 
 def cutoff_to_wire(cutoff_hz: float) -> int:
-    """Return a cut-off in Hz as the adapter's uint16 in 0.01 Hz (0.01..655.35 Hz)."""
-    value = round(cutoff_hz * 100) if math.isfinite(cutoff_hz) else 0
+    """Return a cut-off in Hz as the adapter's uint16 in 0.01 Hz (0.01..655.35 Hz; 0: unfiltered).
+
+    The adapter takes 0 as "no low-pass" (the raw decoupled data at the sensor's rate).
+    """
+    value = round(cutoff_hz * 100) if math.isfinite(cutoff_hz) else -1
+    if cutoff_hz == 0:
+        return 0
     if not 1 <= value <= 0xFFFF:
-        raise ValueError(f"cutoff_hz={cutoff_hz} is outside 0.01..655.35 Hz")
+        raise ValueError(
+            f"cutoff_hz={cutoff_hz} is outside 0.01..655.35 Hz (0 asks for unfiltered data)"
+        )
     return value
 
 
