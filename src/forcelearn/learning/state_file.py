@@ -32,6 +32,7 @@ import json
 import lzma
 import os
 import struct
+import tokenize
 import zipfile
 import zlib
 from collections.abc import Callable, Mapping
@@ -108,7 +109,7 @@ def load_learner(
         return _learner_from_arrays(data, output)
     except StateFileError as exc:  # another format or version: the advice is in the message
         raise StateFileError(f"{os.fspath(path)!r}: {exc}") from exc
-    except (KeyError, ValueError, TypeError, OverflowError, json.JSONDecodeError) as exc:
+    except (LookupError, ValueError, TypeError, ArithmeticError, json.JSONDecodeError) as exc:
         raise StateFileError(
             f"{os.fspath(path)!r} is damaged: {type(exc).__name__}: {_describe(exc)}; "
             "restore it from a backup or start a new run"
@@ -123,11 +124,22 @@ def load_extra_arrays(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
 
 _ZIP_MAGIC = b"PK\x03\x04"
 _READ_ERRORS = (
-    OSError, ValueError, EOFError, KeyError, TypeError, MemoryError, NotImplementedError,
-    RuntimeError, UnicodeDecodeError, struct.error, zipfile.BadZipFile, zlib.error,
-    lzma.LZMAError,
+    OSError, ValueError, EOFError, LookupError, TypeError, ArithmeticError, MemoryError,
+    NotImplementedError, RuntimeError, SyntaxError, tokenize.TokenError, struct.error,
+    zipfile.BadZipFile, zlib.error, lzma.LZMAError,
 )
-"""What numpy and zipfile raise on a damaged archive (damaged headers reach all of these)."""
+"""What numpy and zipfile raise on a damaged archive (numpy 2.x ``lib/_format_impl.py``).
+
+zipfile: BadZipFile, zlib.error, lzma.LZMAError, EOFError, NotImplementedError (a
+compression method it lacks), RuntimeError (an "encrypted" flag), OSError, a
+UnicodeDecodeError of a member name. numpy's ``.npy`` reader: ValueError for most
+damage (magic, version, header text, keys, shape, dtype, short data), but its header
+parser also lets through ``tokenize.TokenError`` and ``SyntaxError``/``IndentationError``
+(from re-tokenizing a version 1/2 header that ``ast.literal_eval`` refused),
+``IndexError`` and ``TypeError`` (a malformed ``descr``), ``RecursionError`` (a deeply
+nested one), ``OverflowError`` (a shape beyond int64) and ``MemoryError`` (a shape too
+large to allocate). LookupError covers IndexError and KeyError, ArithmeticError
+OverflowError, RuntimeError RecursionError."""
 
 
 def _read_archive(
