@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import importlib
 import logging
 import random
 import sys
@@ -547,6 +548,9 @@ def run(
                 for i in range(inputs):
                     case = value_cases[i % len(value_cases)]
                     tally.add(functools.partial(check_file, case, value_mutant(rng, case.good)))
+            elif target in EXTRA_TARGETS:  # the socket targets, in their own modules
+                importlib.import_module(EXTRA_TARGETS[target]).run_target(
+                    target, rng, inputs, tally)
             elif target == "runs":
                 goods = [e.read_bytes() for e in examples if _emulated(e)]
                 for i in range(inputs):
@@ -568,7 +572,14 @@ def run(
     return tallies
 
 
-TARGETS = ("link", "can", "state", "calibration", "config", "values")
+EXTRA_TARGETS = {
+    **dict.fromkeys(("netft-xml", "netft-http", "netft-tcp", "netft-rdt"),
+                    "forcelearn.tools.fuzz_netft"),
+    **dict.fromkeys(("live-http", "live-slow"), "forcelearn.tools.fuzz_live"),
+}
+"""Targets run by another module's ``run_target(target, rng, inputs, tally)`` (imported by
+name when run: they import this module's helpers)."""
+TARGETS = ("link", "can", "state", "calibration", "config", "values", *EXTRA_TARGETS)
 """The default targets; ``runs`` is named on its own (it runs the cell)."""
 ALL_TARGETS = (*TARGETS, "runs")
 
@@ -597,4 +608,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # The module's own copy, not __main__'s: the socket targets' modules import it, and a
+    # FuzzFailure they raise must be the class Tally.add catches.
+    from forcelearn.tools.fuzz import main as _main
+
+    sys.exit(_main())
