@@ -34,6 +34,7 @@ import json
 import logging
 import re
 import socket
+import sys
 import threading
 import time
 from contextlib import suppress
@@ -118,6 +119,8 @@ class _Handler(BaseHTTPRequestHandler):
     # The library's own refusals (a malformed request line, headers): one plain line too.
     error_message_format = "%(code)d %(message)s\n"
     error_content_type = "text/plain; charset=utf-8"
+    # Refusals before the version is known carry a status line (HTTP/0.9 would have none).
+    default_request_version = "HTTP/1.0"
 
     def setup(self) -> None:
         super().setup()
@@ -137,6 +140,12 @@ class _Handler(BaseHTTPRequestHandler):
     def parse_request(self) -> bool:
         ok = super().parse_request()  # reads the headers
         self.server.unwatch(self.connection)
+        if ok and (self.request_version == "HTTP/0.9" or len(self.requestline.split()) != 3):
+            self.request_version = "HTTP/1.0"  # so that the refusal has a status line
+            self.close_connection = True
+            self.send_error(HTTPStatus.BAD_REQUEST, "the request line must be "
+                            "METHOD PATH HTTP/1.x (HTTP/0.9 is not served)")
+            return False
         return ok
 
     def do_GET(self) -> None:
@@ -163,6 +172,13 @@ class _Handler(BaseHTTPRequestHandler):
         else:
             self._send(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain")
 
+    def send_error(self, code: int, message: str | None = None,
+                   explain: str | None = None) -> None:
+        """The library's refusal, always with a status line (never an HTTP/0.9 bare body)."""
+        if self.request_version == "HTTP/0.9":
+            self.request_version = "HTTP/1.0"
+        super().send_error(code, message, explain)
+
     def _refuse(self) -> None:
         self._send(HTTPStatus.METHOD_NOT_ALLOWED, b"read-only\n", "text/plain", allow="GET")
 
@@ -171,7 +187,10 @@ class _Handler(BaseHTTPRequestHandler):
     def _host_allowed(self) -> bool:
         if not self.server.loopback_only:
             return True
-        host = urlsplit("//" + self.headers.get("Host", "")).hostname or ""
+        try:
+            host = urlsplit("//" + self.headers.get("Host", "")).hostname or ""
+        except ValueError:  # "[::1" and the like: no host name at all
+            return False
         return host in LOCAL_HOSTS or is_loopback(host)
 
     def _send(self, status: HTTPStatus, body: bytes, kind: str, **headers: str) -> None:
@@ -237,6 +256,7 @@ class _Handler(BaseHTTPRequestHandler):
 class _Server(ThreadingHTTPServer):
     daemon_threads = True
     allow_reuse_address = True
+    request_queue_size = 64  # listen backlog: a burst of clients is accepted (or 503'd) at once
 
     def __init__(
         self,
@@ -258,9 +278,21 @@ class _Server(ThreadingHTTPServer):
         self.streams: set[threading.Thread] = set()
         self.loopback_only = is_loopback(address[0])
         self.refused = 0
+        self.failures: list[str] = []
+        """Exceptions (other than a client going away) that ended a request's thread."""
         self._lock = threading.Lock()
         self._open = 0
         self._deadlines: dict[socket.socket, float] = {}
+
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        """A client that went away is routine (debug log); anything else is logged and kept."""
+        exc = sys.exc_info()[1]
+        if isinstance(exc, OSError):
+            log.debug("live page client %s went away: %s", client_address, exc)
+            return
+        self.failures.append(f"{type(exc).__name__}: {exc}")
+        log.error("the live page server failed on a request from %s", client_address,
+                  exc_info=True)
 
     # ---- idle connections: a deadline per request header, reaped by the serving thread
     def watch(self, connection: socket.socket) -> None:
