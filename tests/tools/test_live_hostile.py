@@ -156,3 +156,18 @@ def test_malformed_request_line_is_a_one_line_400(live: LiveServer, request_line
     else:  # no version understood: the answer is the body alone, as HTTP/0.9 has it
         body, status = answer, int(answer.split()[0])
     assert status in (400, 414, 505) and body.count(b"\n") == 1, answer[:300]
+
+
+@pytest.mark.parametrize("host", ["[::1", "[::1:8080", "[zz]", "127.0.0.1]"])
+def test_a_malformed_host_is_refused_not_a_server_error(live: LiveServer, host: str) -> None:
+    """Found by the live-http fuzz target: ``Host: [::1`` raised ValueError in the handler."""
+    answer = exchange(live, f"GET /api/state HTTP/1.1\r\nHost: {host}\r\n"
+                      "Connection: close\r\n\r\n".encode())
+    assert answer.startswith(b"HTTP/1.") and int(answer.split()[1]) == 403, answer[:200]
+
+
+def test_an_http_0_9_request_gets_a_status_line(live: LiveServer) -> None:
+    """Found by the fuzz: HTTP/0.9 requests and early refusals had no status line."""
+    for line in (b"GET /", b"GET / HTTP/0.9", b"GET GET / HTTP/0.9"):
+        answer = exchange(live, line + b"\r\n\r\n")
+        assert answer.startswith(b"HTTP/1.") and answer.split()[1] == b"400", answer[:200]

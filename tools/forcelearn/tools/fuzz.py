@@ -60,6 +60,7 @@ import can
 import numpy as np
 
 from forcelearn.errors import ForcelearnError
+from forcelearn.tools.fuzz_loaders import calibration_value_mutant, npz_header_mutant
 
 if TYPE_CHECKING:
     from forcelearn.devices import WrenchSample
@@ -332,8 +333,13 @@ def state_case(folder: Path) -> FileCase:
     path = folder / "learner.npz"
     save_learner(learner, path, metadata={"run": "fuzz", "trial": 1})
     good = path.read_bytes()
+
+    def header_mutant(rng: random.Random, good: bytes) -> bytes:
+        return npz_header_mutant(rng, good,
+                                 lambda data: apply_mutations(data, random_mutations(rng)))
+
     return FileCase(good, load_learner(path), folder / "mutant.npz", load_learner, _same_learner,
-                    StateFileError)
+                    StateFileError, extra={"mutant": header_mutant})
 
 
 def calibration_case(folder: Path) -> FileCase:
@@ -371,6 +377,15 @@ def calibration_case(folder: Path) -> FileCase:
     save_calibration(cal, path)
     return FileCase(path.read_bytes(), cal, folder / "mutant.toml", load_calibration,
                     lambda a, b: a == b, ConfigError)
+
+
+def calibration_values_case(folder: Path) -> FileCase:
+    """The calibration, with odd values and a recomputed digest: only property 1 holds."""
+    case = calibration_case(folder)
+    return FileCase(case.good, None, folder / "mutant-values.toml", case.load, case.same,
+                    case.error, compare=False,
+                    extra={"mutant": lambda rng, good: calibration_value_mutant(rng, good,
+                                                                                odd_value)})
 
 
 def config_case(folder: Path, example: Path) -> FileCase:
@@ -558,11 +573,17 @@ def run(
                     tally.add(functools.partial(check_run, config, folder / "run", changes))
             else:
                 cases = {"state": lambda: [state_case(folder)],
-                         "calibration": lambda: [calibration_case(folder)],
+                         "calibration": lambda: [calibration_case(folder),
+                                                 calibration_values_case(folder)],
                          "config": lambda: [config_case(folder, e) for e in examples]}[target]()
                 for i in range(inputs):
                     case = cases[i % len(cases)]
-                    data = apply_mutations(case.good, file_mutations(rng, case))
+                    mutant = cast("Callable[[random.Random, bytes], bytes] | None",
+                                  case.extra.get("mutant"))
+                    if mutant is not None and (not case.compare or rng.random() < 0.5):
+                        data = mutant(rng, case.good)
+                    else:
+                        data = apply_mutations(case.good, file_mutations(rng, case))
                     tally.add(functools.partial(check_file, case, data))
             elapsed = time.monotonic() - started
             print(f"{target:12s} {tally.inputs:8d} inputs  {elapsed:7.1f} s  "
