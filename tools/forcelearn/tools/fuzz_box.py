@@ -61,9 +61,12 @@ class ScriptedServer:
         self._scripts.put(script)
 
     def _accept(self) -> None:
+        self._listener.settimeout(0.1)  # closing a socket does not wake accept(): poll
         while not self._stop.is_set():
             try:
                 conn, _ = self._listener.accept()
+            except TimeoutError:
+                continue
             except OSError:
                 return
             try:
@@ -95,8 +98,8 @@ class ScriptedServer:
     def close(self) -> None:
         """Stop accepting; serving threads end with their connections."""
         self._stop.set()
-        self._listener.close()
         self._thread.join(timeout=5)
+        self._listener.close()
 
     def __enter__(self) -> ScriptedServer:
         return self
