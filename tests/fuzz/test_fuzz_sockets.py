@@ -62,7 +62,7 @@ def test_the_state_target_reaches_numpy_header_errors(tmp_path: Path) -> None:
 
     from forcelearn.tools.fuzz_loaders import npz_header_mutant
 
-    case = fuzz.state_case(tmp_path)
+    case = fuzz.state_header_case(tmp_path)
     rng = random.Random(1)
     kinds = set()
     with warnings.catch_warnings():

@@ -78,3 +78,24 @@ def test_the_rebuilt_archive_itself_loads(tmp_path: Path) -> None:
     path = saved_with(tmp_path, "weights.npy", npy_v1(header, weights.astype("<f8").tobytes()))
     learner, _ = load_learner(path)
     assert np.array_equal(learner.weights, weights)
+
+
+@pytest.mark.parametrize(("old", "new"), [(b"'<f8'", b"'<f4'"), (b"'<f8'", b"'<f2'")])
+def test_a_header_damaged_on_disk_is_refused_not_half_read(tmp_path: Path, old: bytes,
+                                                           new: bytes) -> None:
+    """One byte of a header changed on disk ("<f8" to "<f4"), CRC not redone: refused.
+
+    Found by the state fuzz target: numpy reads only the bytes a header announces, so
+    zipfile never reached the end of a member over 4 kB and never checked its CRC; the
+    damaged predictions loaded as other numbers.
+    """
+    grid = BoxGrid([Dimension("a", 0.0, 1.0, 40), Dimension("b", -1.0, 1.0, 30)])
+    good = tmp_path / "good.npz"
+    save_learner(SRVLearner(grid, 2, SRVParams(), rng=1), good)
+    data = good.read_bytes()
+    at = data.index(b"predictions.npy")
+    at = data.index(old, at)  # the member's .npy header (np.savez stores members as they are)
+    damaged = tmp_path / "damaged.npz"
+    damaged.write_bytes(data[:at] + new + data[at + len(old):])
+    with pytest.raises(StateFileError, match=r"damaged\.npz"):
+        load_learner(damaged)

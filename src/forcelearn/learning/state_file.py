@@ -162,7 +162,18 @@ def _read_archive(
         with np.load(path, allow_pickle=False) as archive:
             if not isinstance(archive, np.lib.npyio.NpzFile):
                 raise StateFileError(f"{where} is not a learner state (not an .npz archive)")
-            return {key: archive[key] for key in archive.files if wanted(key)}
+            # numpy reads only the bytes a member's header announces, so zipfile never
+            # reaches the member's end and never checks its CRC: a header damaged on disk
+            # ("<f8" to "<f4") would load half the data as other numbers. Check every CRC,
+            # and that each member holds exactly the data its header announces.
+            damaged = archive.zip.testzip()
+            if damaged is not None:
+                raise StateFileError(f"{where} is damaged: its member {damaged!r} fails its CRC "
+                                     f"check; {advice}")
+            arrays = {key: archive[key] for key in archive.files if wanted(key)}
+            for key, array in arrays.items():
+                _check_member_size(archive.zip, key, array, where, advice)
+            return arrays
     except StateFileError:
         raise
     except _READ_ERRORS as exc:
@@ -170,6 +181,24 @@ def _read_archive(
             f"{where} is not a readable learner state ({type(exc).__name__}: {_describe(exc)}); "
             f"{advice}"
         ) from exc
+
+
+def _check_member_size(archive: zipfile.ZipFile, key: str, array: np.ndarray, where: str,
+                       advice: str) -> None:
+    """Refuse a member whose data is not exactly what its ``.npy`` header announces."""
+    name = f"{key}.npy" if f"{key}.npy" in archive.namelist() else key
+    info = archive.getinfo(name)
+    with archive.open(info) as member:
+        preamble = member.read(12)
+    size_format = "<H" if preamble[6:7] == b"\x01" else "<I"
+    start = 8 + struct.calcsize(size_format)
+    (header_length,) = struct.unpack(size_format, preamble[8:start])
+    if info.file_size != start + header_length + array.nbytes:
+        raise StateFileError(
+            f"{where} is damaged: {key!r} holds {info.file_size - start - header_length} bytes "
+            f"of data but its header announces {array.nbytes} ({array.dtype}, "
+            f"{array.shape}); {advice}"
+        )
 
 
 def _describe(exc: BaseException) -> str:

@@ -18,9 +18,13 @@ can            CAN frames (valid ones mutated, and random ones) through the
                back to the same bytes, every sample must equal a received
                force/moment pair scaled, and every frame is accounted for
 state          a saved learner state file, mutated; ``load_learner`` gives
-               StateFileError or the very learner that was saved
+               StateFileError or the very learner that was saved; every other
+               input has a member's .npy header damaged inside an intact
+               archive (``fuzz_loaders``; first property only)
 calibration    a calibration file, mutated; ``load_calibration`` gives
-               ConfigError or the very calibration that was saved
+               ConfigError or the very calibration that was saved; every
+               other input has odd values and a recomputed digest (first
+               property only: the physical bounds must refuse)
 config         the example cell configs, mutated; ``read_toml`` and
                ``load_cell_config`` give ConfigError or a value (configs carry
                no digest, so only the first property is checked)
@@ -333,13 +337,25 @@ def state_case(folder: Path) -> FileCase:
     path = folder / "learner.npz"
     save_learner(learner, path, metadata={"run": "fuzz", "trial": 1})
     good = path.read_bytes()
+    return FileCase(good, load_learner(path), folder / "mutant.npz", load_learner, _same_learner,
+                    StateFileError)
+
+
+def state_header_case(folder: Path) -> FileCase:
+    """The learner state with a member's ``.npy`` header damaged and the zip CRCs redone.
+
+    Only property 1 holds: with the CRC recomputed the damage is an edit (``<f8`` to
+    ``>f8`` is one bit and loads byte-swapped weights), which no check short of a digest
+    could see; zip's CRC catches the same damage on disk.
+    """
+    case = state_case(folder)
 
     def header_mutant(rng: random.Random, good: bytes) -> bytes:
         return npz_header_mutant(rng, good,
                                  lambda data: apply_mutations(data, random_mutations(rng)))
 
-    return FileCase(good, load_learner(path), folder / "mutant.npz", load_learner, _same_learner,
-                    StateFileError, extra={"mutant": header_mutant})
+    return FileCase(case.good, None, folder / "mutant-header.npz", case.load, case.same,
+                    case.error, compare=False, extra={"mutant": header_mutant})
 
 
 def calibration_case(folder: Path) -> FileCase:
@@ -572,7 +588,7 @@ def run(
                     config, changes = loading_value_mutant(rng, goods[i % len(goods)], folder)
                     tally.add(functools.partial(check_run, config, folder / "run", changes))
             else:
-                cases = {"state": lambda: [state_case(folder)],
+                cases = {"state": lambda: [state_case(folder), state_header_case(folder)],
                          "calibration": lambda: [calibration_case(folder),
                                                  calibration_values_case(folder)],
                          "config": lambda: [config_case(folder, e) for e in examples]}[target]()
@@ -580,7 +596,7 @@ def run(
                     case = cases[i % len(cases)]
                     mutant = cast("Callable[[random.Random, bytes], bytes] | None",
                                   case.extra.get("mutant"))
-                    if mutant is not None and (not case.compare or rng.random() < 0.5):
+                    if mutant is not None:
                         data = mutant(rng, case.good)
                     else:
                         data = apply_mutations(case.good, file_mutations(rng, case))
@@ -599,7 +615,9 @@ EXTRA_TARGETS = {
     **dict.fromkeys(("live-http", "live-slow"), "forcelearn.tools.fuzz_live"),
 }
 """Targets run by another module's ``run_target(target, rng, inputs, tally)`` (imported by
-name when run: they import this module's helpers)."""
+name when run: they import this module's helpers): netft-* (``fuzz_netft``: the Net F/T's
+XML, HTTP, READCALINFO and RDT over loopback, lying and dripping servers included) and
+live-* (``fuzz_live``: the live server's HTTP and slow clients); docs/fuzzing.md."""
 TARGETS = ("link", "can", "state", "calibration", "config", "values", *EXTRA_TARGETS)
 """The default targets; ``runs`` is named on its own (it runs the cell)."""
 ALL_TARGETS = (*TARGETS, "runs")
