@@ -166,13 +166,16 @@ def _read_archive(
             # reaches the member's end and never checks its CRC: a header damaged on disk
             # ("<f8" to "<f4") would load half the data as other numbers. Check every CRC,
             # and that each member holds exactly the data its header announces.
-            damaged = archive.zip.testzip()
+            members = archive.zip
+            if members is None:  # pragma: no cover - np.load keeps the archive open here
+                raise StateFileError(f"{where} is not a learner state (closed archive)")
+            damaged = members.testzip()
             if damaged is not None:
                 raise StateFileError(f"{where} is damaged: its member {damaged!r} fails its CRC "
                                      f"check; {advice}")
             arrays = {key: archive[key] for key in archive.files if wanted(key)}
             for key, array in arrays.items():
-                _check_member_size(archive.zip, key, array, where, advice)
+                _check_member_size(members, key, array, where, advice)
             return arrays
     except StateFileError:
         raise
