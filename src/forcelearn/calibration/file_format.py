@@ -10,8 +10,11 @@ The reader refuses any other ``format_version``, unknown or missing keys,
 wrong lengths, non-finite numbers, implausible full scales, a node id outside
 1..127, a cut-off <= 0, a covariance that is not symmetric positive
 semi-definite with positive variances, a non-positive mass, non-unit
-quaternions, a pose count that disagrees with the poses and a digest that
-disagrees with the content; every message names the key. The table of keys
+quaternions, a pose count that disagrees with the poses, a digest that
+disagrees with the content, and (beside the digest, which proves only that the
+file is the one written) any value beyond its physical bound
+(:mod:`.bounds`: a cut-off above 10 kHz, a tool heavier than the sensor can
+weigh, a bias beyond the full scale...); every message names the key. The table of keys
 is in docs/calibration.md.
 """
 
@@ -29,6 +32,7 @@ import numpy as np
 import tomli_w
 
 from forcelearn.atomic import atomic_write_bytes
+from forcelearn.calibration.bounds import check_bounds
 from forcelearn.calibration.model import (
     FORMAT_VERSION,
     Calibration,
@@ -260,8 +264,10 @@ def from_document(data: Mapping[str, Any], source: str = "calibration") -> Calib
         c.done()
     top.done()
     _check_digest(data, source)
-    return Calibration(created=created, sensor=sensor, noise=noise, tool=tool,
-                       matrix_check=check)
+    cal = Calibration(created=created, sensor=sensor, noise=noise, tool=tool,
+                      matrix_check=check)
+    check_bounds(cal, source)
+    return cal
 
 
 def _read_tool(t: _Table, source: str) -> ToolLoad:

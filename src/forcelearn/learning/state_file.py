@@ -32,6 +32,7 @@ import json
 import lzma
 import os
 import struct
+import tokenize
 import zipfile
 import zlib
 from collections.abc import Callable, Mapping
@@ -108,7 +109,7 @@ def load_learner(
         return _learner_from_arrays(data, output)
     except StateFileError as exc:  # another format or version: the advice is in the message
         raise StateFileError(f"{os.fspath(path)!r}: {exc}") from exc
-    except (KeyError, ValueError, TypeError, OverflowError, json.JSONDecodeError) as exc:
+    except (LookupError, ValueError, TypeError, ArithmeticError, json.JSONDecodeError) as exc:
         raise StateFileError(
             f"{os.fspath(path)!r} is damaged: {type(exc).__name__}: {_describe(exc)}; "
             "restore it from a backup or start a new run"
@@ -123,11 +124,22 @@ def load_extra_arrays(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
 
 _ZIP_MAGIC = b"PK\x03\x04"
 _READ_ERRORS = (
-    OSError, ValueError, EOFError, KeyError, TypeError, MemoryError, NotImplementedError,
-    RuntimeError, UnicodeDecodeError, struct.error, zipfile.BadZipFile, zlib.error,
-    lzma.LZMAError,
+    OSError, ValueError, EOFError, LookupError, TypeError, ArithmeticError, MemoryError,
+    NotImplementedError, RuntimeError, SyntaxError, tokenize.TokenError, struct.error,
+    zipfile.BadZipFile, zlib.error, lzma.LZMAError,
 )
-"""What numpy and zipfile raise on a damaged archive (damaged headers reach all of these)."""
+"""What numpy and zipfile raise on a damaged archive (numpy 2.x ``lib/_format_impl.py``).
+
+zipfile: BadZipFile, zlib.error, lzma.LZMAError, EOFError, NotImplementedError (a
+compression method it lacks), RuntimeError (an "encrypted" flag), OSError, a
+UnicodeDecodeError of a member name. numpy's ``.npy`` reader: ValueError for most
+damage (magic, version, header text, keys, shape, dtype, short data), but its header
+parser also lets through ``tokenize.TokenError`` and ``SyntaxError``/``IndentationError``
+(from re-tokenizing a version 1/2 header that ``ast.literal_eval`` refused),
+``IndexError`` and ``TypeError`` (a malformed ``descr``), ``RecursionError`` (a deeply
+nested one), ``OverflowError`` (a shape beyond int64) and ``MemoryError`` (a shape too
+large to allocate). LookupError covers IndexError and KeyError, ArithmeticError
+OverflowError, RuntimeError RecursionError."""
 
 
 def _read_archive(
@@ -150,7 +162,21 @@ def _read_archive(
         with np.load(path, allow_pickle=False) as archive:
             if not isinstance(archive, np.lib.npyio.NpzFile):
                 raise StateFileError(f"{where} is not a learner state (not an .npz archive)")
-            return {key: archive[key] for key in archive.files if wanted(key)}
+            # numpy reads only the bytes a member's header announces, so zipfile never
+            # reaches the member's end and never checks its CRC: a header damaged on disk
+            # ("<f8" to "<f4") would load half the data as other numbers. Check every CRC,
+            # and that each member holds exactly the data its header announces.
+            members = archive.zip
+            if members is None:  # pragma: no cover - np.load keeps the archive open here
+                raise StateFileError(f"{where} is not a learner state (closed archive)")
+            damaged = members.testzip()
+            if damaged is not None:
+                raise StateFileError(f"{where} is damaged: its member {damaged!r} fails its CRC "
+                                     f"check; {advice}")
+            arrays = {key: archive[key] for key in archive.files if wanted(key)}
+            for key, array in arrays.items():
+                _check_member_size(members, key, array, where, advice)
+            return arrays
     except StateFileError:
         raise
     except _READ_ERRORS as exc:
@@ -158,6 +184,24 @@ def _read_archive(
             f"{where} is not a readable learner state ({type(exc).__name__}: {_describe(exc)}); "
             f"{advice}"
         ) from exc
+
+
+def _check_member_size(archive: zipfile.ZipFile, key: str, array: np.ndarray, where: str,
+                       advice: str) -> None:
+    """Refuse a member whose data is not exactly what its ``.npy`` header announces."""
+    name = f"{key}.npy" if f"{key}.npy" in archive.namelist() else key
+    info = archive.getinfo(name)
+    with archive.open(info) as member:
+        preamble = member.read(12)
+    size_format = "<H" if preamble[6:7] == b"\x01" else "<I"
+    start = 8 + struct.calcsize(size_format)
+    (header_length,) = struct.unpack(size_format, preamble[8:start])
+    if info.file_size != start + header_length + array.nbytes:
+        raise StateFileError(
+            f"{where} is damaged: {key!r} holds {info.file_size - start - header_length} bytes "
+            f"of data but its header announces {array.nbytes} ({array.dtype}, "
+            f"{array.shape}); {advice}"
+        )
 
 
 def _describe(exc: BaseException) -> str:

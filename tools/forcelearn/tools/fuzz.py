@@ -18,9 +18,13 @@ can            CAN frames (valid ones mutated, and random ones) through the
                back to the same bytes, every sample must equal a received
                force/moment pair scaled, and every frame is accounted for
 state          a saved learner state file, mutated; ``load_learner`` gives
-               StateFileError or the very learner that was saved
+               StateFileError or the very learner that was saved; every other
+               input has a member's .npy header damaged inside an intact
+               archive (``fuzz_loaders``; first property only)
 calibration    a calibration file, mutated; ``load_calibration`` gives
-               ConfigError or the very calibration that was saved
+               ConfigError or the very calibration that was saved; every
+               other input has odd values and a recomputed digest (first
+               property only: the physical bounds must refuse)
 config         the example cell configs, mutated; ``read_toml`` and
                ``load_cell_config`` give ConfigError or a value (configs carry
                no digest, so only the first property is checked)
@@ -46,6 +50,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import importlib
 import logging
 import random
 import sys
@@ -61,6 +66,7 @@ import can
 import numpy as np
 
 from forcelearn.errors import ForcelearnError
+from forcelearn.tools.fuzz_loaders import calibration_value_mutant, npz_header_mutant
 
 if TYPE_CHECKING:
     from forcelearn.devices import WrenchSample
@@ -337,6 +343,23 @@ def state_case(folder: Path) -> FileCase:
                     StateFileError)
 
 
+def state_header_case(folder: Path) -> FileCase:
+    """The learner state with a member's ``.npy`` header damaged and the zip CRCs redone.
+
+    Only property 1 holds: with the CRC recomputed the damage is an edit (``<f8`` to
+    ``>f8`` is one bit and loads byte-swapped weights), which no check short of a digest
+    could see; zip's CRC catches the same damage on disk.
+    """
+    case = state_case(folder)
+
+    def header_mutant(rng: random.Random, good: bytes) -> bytes:
+        return npz_header_mutant(rng, good,
+                                 lambda data: apply_mutations(data, random_mutations(rng)))
+
+    return FileCase(case.good, None, folder / "mutant-header.npz", case.load, case.same,
+                    case.error, compare=False, extra={"mutant": header_mutant})
+
+
 def calibration_case(folder: Path) -> FileCase:
     """A calibration with every section filled, saved to ``folder``."""
     from forcelearn.calibration import (
@@ -372,6 +395,15 @@ def calibration_case(folder: Path) -> FileCase:
     save_calibration(cal, path)
     return FileCase(path.read_bytes(), cal, folder / "mutant.toml", load_calibration,
                     lambda a, b: a == b, ConfigError)
+
+
+def calibration_values_case(folder: Path) -> FileCase:
+    """The calibration, with odd values and a recomputed digest: only property 1 holds."""
+    case = calibration_case(folder)
+    return FileCase(case.good, None, folder / "mutant-values.toml", case.load, case.same,
+                    case.error, compare=False,
+                    extra={"mutant": lambda rng, good: calibration_value_mutant(rng, good,
+                                                                                odd_value)})
 
 
 def config_case(folder: Path, example: Path) -> FileCase:
@@ -559,18 +591,27 @@ def run(
                     egm.outcomes["accepted corruption"] = unsafe
                 tally.inputs, tally.outcomes, tally.failures = inputs, egm.outcomes, egm.failures
                 print(f"{target:12s} driver counters {dict(egm.counters)}", flush=True)
+            elif target in EXTRA_TARGETS:  # the socket targets, in their own modules
+                importlib.import_module(EXTRA_TARGETS[target]).run_target(
+                    target, rng, inputs, tally)
             elif target == "runs":
                 goods = [e.read_bytes() for e in examples if _emulated(e)]
                 for i in range(inputs):
                     config, changes = loading_value_mutant(rng, goods[i % len(goods)], folder)
                     tally.add(functools.partial(check_run, config, folder / "run", changes))
             else:
-                cases = {"state": lambda: [state_case(folder)],
-                         "calibration": lambda: [calibration_case(folder)],
+                cases = {"state": lambda: [state_case(folder), state_header_case(folder)],
+                         "calibration": lambda: [calibration_case(folder),
+                                                 calibration_values_case(folder)],
                          "config": lambda: [config_case(folder, e) for e in examples]}[target]()
                 for i in range(inputs):
                     case = cases[i % len(cases)]
-                    data = apply_mutations(case.good, file_mutations(rng, case))
+                    mutant = cast("Callable[[random.Random, bytes], bytes] | None",
+                                  case.extra.get("mutant"))
+                    if mutant is not None:
+                        data = mutant(rng, case.good)
+                    else:
+                        data = apply_mutations(case.good, file_mutations(rng, case))
                     tally.add(functools.partial(check_file, case, data))
             elapsed = time.monotonic() - started
             print(f"{target:12s} {tally.inputs:8d} inputs  {elapsed:7.1f} s  "
@@ -580,7 +621,16 @@ def run(
     return tallies
 
 
-TARGETS = ("link", "can", "state", "calibration", "config", "values", "egm")
+EXTRA_TARGETS = {
+    **dict.fromkeys(("netft-xml", "netft-http", "netft-tcp", "netft-rdt"),
+                    "forcelearn.tools.fuzz_netft"),
+    **dict.fromkeys(("live-http", "live-slow"), "forcelearn.tools.fuzz_live"),
+}
+"""Targets run by another module's ``run_target(target, rng, inputs, tally)`` (imported by
+name when run: they import this module's helpers): netft-* (``fuzz_netft``: the Net F/T's
+XML, HTTP, READCALINFO and RDT over loopback, lying and dripping servers included) and
+live-* (``fuzz_live``: the live server's HTTP and slow clients); docs/fuzzing.md."""
+TARGETS = ("link", "can", "state", "calibration", "config", "values", "egm", *EXTRA_TARGETS)
 """The default targets; ``runs`` is named on its own (it runs the cell)."""
 ALL_TARGETS = (*TARGETS, "runs")
 
@@ -609,4 +659,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # The module's own copy, not __main__'s: the socket targets' modules import it, and a
+    # FuzzFailure they raise must be the class Tally.add catches.
+    from forcelearn.tools.fuzz import main as _main
+
+    sys.exit(_main())

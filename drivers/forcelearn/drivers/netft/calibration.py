@@ -11,20 +11,29 @@ Two sources, the same :class:`Calibration`:
 
 Whatever the source, :func:`check_calibration` refuses values no real box
 sends (zero, negative, not finite or implausible counts per unit, unknown
-units) with :class:`~forcelearn.errors.SensorProtocolError`: a wrong scale
-would turn every reading into a wrong force.
+units, a filter index outside 0..15) with
+:class:`~forcelearn.errors.SensorProtocolError`: a wrong scale would turn every
+reading into a wrong force.
+
+Nothing the box (or a host posing as it) sends escapes as a foreign exception:
+a body that is not XML, declares an unknown encoding or is larger than
+:data:`MAX_XML_BYTES` is a SensorProtocolError, a broken HTTP exchange a
+SensorBusError, and ``timeout_s`` bounds the whole read, connection to last
+byte (:mod:`.deadline`): a box dripping one byte at a time is a SensorTimeout
+after ``timeout_s``, not a start-up that never ends.
 """
 
 from __future__ import annotations
 
 import http.client
 import math
-import socket
+import time
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 import numpy as np
 
+from forcelearn.drivers.netft.deadline import DeadlineHTTPConnection, connect_by
 from forcelearn.errors import SensorBusError, SensorError, SensorProtocolError, SensorTimeout
 from forcelearn.protocols import netft as protocol
 
@@ -34,7 +43,15 @@ a value outside this range is a garbled reply, not a calibration (assumption: tw
 margin each way below and above any ATI calibration seen)."""
 RDT_RATE_RANGE_HZ = (1.0, 10_000.0)
 """RDT output rates a box can be set to (the Net F/T's maximum is 7000 Hz; Axia 7912 Hz)."""
+FILTER_INDEX_RANGE = (0, 15)
+"""Low-pass selections ``setuserfilter`` may name. The Net F/T manual lists 0 (no filter)
+to 8; the range leaves room for firmware that adds settings, and refuses a NaN, a
+fraction or a garbled number."""
 MAX_XML_BYTES = 1 << 20
+"""Largest ``/netftapi2.xml`` body read (bytes); the box's is about 10 kB."""
+XML_ERRORS = (ET.ParseError, LookupError, ValueError)
+"""What ``ElementTree.fromstring`` raises on hostile bytes: a syntax error, an unknown
+encoding declaration (LookupError), bytes the declared codec cannot decode (ValueError)."""
 
 
 @dataclass(frozen=True)
@@ -97,6 +114,13 @@ def check_calibration(cal: Calibration) -> Calibration:
                 f"the Net F/T ({cal.source}) reports an RDT rate of {cal.rdt_rate_hz!r} Hz; "
                 f"expected {low:g}..{high:g} Hz: check its communication settings page"
             )
+    if cal.filter_index is not None:
+        low_f, high_f = FILTER_INDEX_RANGE
+        if not low_f <= cal.filter_index <= high_f:
+            raise SensorProtocolError(
+                f"the Net F/T ({cal.source}) reports low-pass filter index (setuserfilter) "
+                f"{cal.filter_index}; expected {low_f}..{high_f}: check its settings page"
+            )
     if cal.ranges_si is not None and (
         len(cal.ranges_si) != 6 or not all(math.isfinite(r) and r > 0 for r in cal.ranges_si)
     ):
@@ -127,8 +151,11 @@ def parse_netftapi2(xml: bytes) -> Calibration:
     """Parse ``/netftapi2.xml`` into a checked :class:`Calibration` (pure)."""
     try:
         root = ET.fromstring(xml)
-    except ET.ParseError as exc:
-        raise SensorProtocolError(f"the Net F/T's netftapi2.xml is not XML: {exc}") from exc
+    except XML_ERRORS as exc:
+        raise SensorProtocolError(
+            f"the Net F/T's netftapi2.xml is not XML ({type(exc).__name__}: {exc}): "
+            "is this a Net F/T's web server?"
+        ) from exc
 
     def text(tag: str, required: bool = True) -> str | None:
         node = root.find(f".//{tag}")
@@ -149,9 +176,21 @@ def parse_netftapi2(xml: bytes) -> Calibration:
                 f"the Net F/T's netftapi2.xml <{tag}> is {raw!r}, not a number"
             ) from exc
 
+    def index(tag: str) -> int | None:
+        value = number(tag, required=False)
+        if value is None:
+            return None
+        if not (math.isfinite(value) and value.is_integer()
+                and FILTER_INDEX_RANGE[0] <= value <= FILTER_INDEX_RANGE[1]):
+            raise SensorProtocolError(
+                f"the Net F/T's netftapi2.xml <{tag}> is {value!r}, not a filter index "
+                f"{FILTER_INDEX_RANGE[0]}..{FILTER_INDEX_RANGE[1]}"
+            )
+        return int(value)
+
     force_unit, torque_unit = text("scfgfu"), text("scfgtu")
     rate = number("comrdtrate", required=False)
-    filt = number("setuserfilter", required=False)
+    filt = index("setuserfilter")
     ranges_si = None
     raw_ranges = text("cfgmr", required=False)
     if raw_ranges is not None and force_unit in protocol.FORCE_UNIT_SI and (
@@ -166,15 +205,19 @@ def parse_netftapi2(xml: bytes) -> Calibration:
         ranges_si = tuple(r * (f_si if i < 3 else t_si) for i, r in enumerate(ranges))
     return check_calibration(Calibration(
         number("cfgcpf"), number("cfgcpt"), force_unit, torque_unit,  # type: ignore[arg-type]
-        rdt_rate_hz=rate, filter_index=None if filt is None else int(filt),
+        rdt_rate_hz=rate, filter_index=filt,
         ranges_si=ranges_si, source="http",
     ))
 
 
 def read_calibration_tcp(host: str, port: int, timeout_s: float) -> Calibration:
-    """Ask the box for READCALINFO over TCP; return the checked calibration."""
+    """Ask the box for READCALINFO over TCP; return the checked calibration.
+
+    ``timeout_s`` bounds the whole exchange (connect, request, reply).
+    """
+    deadline = time.monotonic() + timeout_s
     try:
-        with socket.create_connection((host, port), timeout=timeout_s) as sock:
+        with connect_by(host, port, deadline) as sock:
             sock.sendall(protocol.encode_calinfo_request())
             reply = b""
             while len(reply) < protocol.CALINFO_REPLY.size:
@@ -184,10 +227,10 @@ def read_calibration_tcp(host: str, port: int, timeout_s: float) -> Calibration:
                 reply += chunk
     except TimeoutError as exc:
         raise SensorTimeout(
-            f"no READCALINFO reply from the Net F/T at {host}:{port} within {timeout_s} s: "
-            "check its IP address, cable and power"
+            f"no complete READCALINFO reply from the Net F/T at {host}:{port} within "
+            f"{timeout_s} s: check its IP address, cable and power"
         ) from exc
-    except OSError as exc:
+    except (OSError, UnicodeError) as exc:
         raise SensorBusError(
             f"cannot read the Net F/T's calibration over TCP at {host}:{port}: {exc}; "
             "check the IP address and that the box is powered"
@@ -203,24 +246,44 @@ def read_calibration_tcp(host: str, port: int, timeout_s: float) -> Calibration:
 
 def read_calibration_http(host: str, port: int, timeout_s: float,
                           path: str = protocol.CALIBRATION_XML_PATH) -> Calibration:
-    """GET ``/netftapi2.xml`` from the box; return the checked calibration."""
-    conn = http.client.HTTPConnection(host, port, timeout=timeout_s)
+    """GET ``/netftapi2.xml`` from the box; return the checked calibration.
+
+    ``timeout_s`` bounds the whole exchange, connection to last byte; a body
+    over :data:`MAX_XML_BYTES` is refused.
+    """
+    deadline = time.monotonic() + timeout_s
+    where = f"GET {path} from the Net F/T at {host}:{port}"
+    conn = DeadlineHTTPConnection(host, port, deadline)
     try:
         conn.request("GET", path)
         response = conn.getresponse()
-        body = response.read(MAX_XML_BYTES)
         status = response.status
+        body = response.read(MAX_XML_BYTES + 1)
+        # http.client's read(amt) returns a short body quietly when the server closes
+        # early; ``length`` is what the Content-Length announced and never came.
+        missing = response.length if len(body) <= MAX_XML_BYTES else None
     except TimeoutError as exc:
         raise SensorTimeout(
-            f"no answer to GET {path} from the Net F/T at {host}:{port} within {timeout_s} s"
+            f"no complete answer to {where} within {timeout_s} s: check its IP address, "
+            "and that nothing else answers on that port"
         ) from exc
-    except (OSError, http.client.HTTPException) as exc:
+    except (OSError, http.client.HTTPException, ValueError, OverflowError) as exc:
         raise SensorBusError(
-            f"cannot GET {path} from the Net F/T at {host}:{port}: {exc}; check the IP "
-            "address, and that the web server is on"
+            f"cannot {where}: {type(exc).__name__}: {exc}; check the IP address, and that "
+            "the web server is on"
         ) from exc
     finally:
         conn.close()
     if status != 200:
         raise SensorError(f"the Net F/T at {host}:{port} answered GET {path} with HTTP {status}")
+    if len(body) > MAX_XML_BYTES:
+        raise SensorProtocolError(
+            f"the answer to {where} is larger than {MAX_XML_BYTES} bytes; a Net F/T's "
+            "netftapi2.xml is about 10 kB: is this a Net F/T?"
+        )
+    if missing:
+        raise SensorBusError(
+            f"the answer to {where} ended {missing} bytes short of its Content-Length: "
+            "the connection broke, or this is not a Net F/T"
+        )
     return parse_netftapi2(body)

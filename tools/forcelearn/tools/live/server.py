@@ -10,8 +10,16 @@
                     first trials and the status
 ==================  =============================================================
 
-Nothing else is served: every other method gets 405, every other path 404.
-No request changes the model, the run or the robot. Each page has its own
+Nothing else is served: every other method gets 405, every other path 404,
+a bad query value (``since`` not a trial index in ASCII digits) 400 with a
+one-line reason. No request changes the model, the run or the robot.
+
+Clients cannot hold the server: a connection that has not sent a whole
+request header within :data:`IDLE_TIMEOUT_S` of opening (or of its last
+answer) is closed, idle keep-alive and half-sent requests alike, however
+slowly it drips bytes; at most :data:`MAX_CONNECTIONS` are open at once (the
+next gets 503 and is closed). The server runs in its own threads, so the run
+never waits for a client. Each page has its own
 thread that reads the model at most once per push interval: a slow page
 makes fewer, larger frames (the publications folded into a frame are counted
 as ``dropped_updates``); a page that stops reading for ``write_timeout_s``
@@ -24,7 +32,12 @@ from __future__ import annotations
 import ipaddress
 import json
 import logging
+import re
+import socket
+import sys
 import threading
+import time
+from contextlib import suppress
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
@@ -42,6 +55,44 @@ STATIC_TYPES = {
     ".js": "text/javascript; charset=utf-8",
 }
 LOCAL_HOSTS = {"127.0.0.1", "localhost", "::1", "[::1]"}
+IDLE_TIMEOUT_S = 5.0
+"""Longest a connection may take to send a whole request header (s), counted from its
+opening or its last answer; also the longest one read or write may wait. A browser
+sends its header at once; the page's event stream, once answered, is not idle."""
+MAX_CONNECTIONS = 32
+"""Most connections open at once; the next is answered 503 and closed. A page uses 2 to 6
+(its event stream and its files), so a few pages and tabs fit."""
+MAX_QUERY_FIELDS = 8
+"""Most ``name=value`` fields a query may carry."""
+SINCE_DIGITS = 9
+"""``since`` is at most this many ASCII digits (trials 0..999,999,999)."""
+
+
+class BadRequest(ValueError):
+    """A request the server refuses with 400; the message is the one-line reason."""
+
+
+def parse_since(query: str) -> int:
+    """The ``since`` of ``/api/state``'s query (0 when absent).
+
+    Raises:
+        BadRequest: too many fields, ``since`` twice, or not 1..9 ASCII digits
+            (``²``, ``-1``, ``NaN``, ``1e3``, full-width digits and a huge
+            number are all refused, not guessed at).
+    """
+    try:
+        fields = parse_qs(query, keep_blank_values=True, max_num_fields=MAX_QUERY_FIELDS)
+    except ValueError:
+        raise BadRequest(f"the query has more than {MAX_QUERY_FIELDS} fields") from None
+    values = fields.get("since")
+    if values is None:
+        return 0
+    if len(values) != 1:
+        raise BadRequest("since is given more than once")
+    if not re.fullmatch(f"[0-9]{{1,{SINCE_DIGITS}}}", values[0]):
+        raise BadRequest(f"since must be a trial index, 1 to {SINCE_DIGITS} ASCII digits "
+                         f"(0-9), got {values[0][:40]!r}")
+    return int(values[0])
 
 
 def is_loopback(host: str) -> bool:
@@ -65,9 +116,37 @@ def static_file(name: str) -> bytes | None:
 class _Handler(BaseHTTPRequestHandler):
     server: _Server
     protocol_version = "HTTP/1.1"
+    # The library's own refusals (a malformed request line, headers): one plain line too.
+    error_message_format = "%(code)d %(message)s\n"
+    error_content_type = "text/plain; charset=utf-8"
+    # Refusals before the version is known carry a status line (HTTP/0.9 would have none).
+    default_request_version = "HTTP/1.0"
+
+    def setup(self) -> None:
+        super().setup()
+        self.connection.settimeout(self.server.idle_timeout_s)  # each read or write, at most
 
     def log_message(self, format: str, *args: Any) -> None:
         log.debug("%s " + format, self.address_string(), *args)
+
+    def handle_one_request(self) -> None:
+        # The whole header must arrive by the deadline; the server's reaper closes late ones.
+        self.server.watch(self.connection)
+        try:
+            super().handle_one_request()
+        finally:
+            self.server.unwatch(self.connection)
+
+    def parse_request(self) -> bool:
+        ok = super().parse_request()  # reads the headers
+        self.server.unwatch(self.connection)
+        if ok and (self.request_version == "HTTP/0.9" or len(self.requestline.split()) != 3):
+            self.request_version = "HTTP/1.0"  # so that the refusal has a status line
+            self.close_connection = True
+            self.send_error(HTTPStatus.BAD_REQUEST, "the request line must be "
+                            "METHOD PATH HTTP/1.x (HTTP/0.9 is not served)")
+            return False
+        return ok
 
     def do_GET(self) -> None:
         if not self._host_allowed():
@@ -79,14 +158,26 @@ class _Handler(BaseHTTPRequestHandler):
         elif url.path.startswith("/static/"):
             self._send_static(url.path.removeprefix("/static/"))
         elif url.path == "/api/state":
-            since = parse_qs(url.query).get("since", ["0"])[0]
-            state = self.server.model.snapshot(int(since) if since.isdigit() else 0)
+            try:
+                since = parse_since(url.query)
+            except BadRequest as exc:
+                self._send(HTTPStatus.BAD_REQUEST, f"bad request: {exc}\n".encode(),
+                           "text/plain; charset=utf-8")
+                return
+            state = self.server.model.snapshot(since)
             body = json.dumps(state, separators=(",", ":")).encode()
             self._send(HTTPStatus.OK, body, "application/json")
         elif url.path == "/api/events":
             self._stream()
         else:
             self._send(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain")
+
+    def send_error(self, code: int, message: str | None = None,
+                   explain: str | None = None) -> None:
+        """The library's refusal, always with a status line (never an HTTP/0.9 bare body)."""
+        if self.request_version == "HTTP/0.9":
+            self.request_version = "HTTP/1.0"
+        super().send_error(code, message, explain)
 
     def _refuse(self) -> None:
         self._send(HTTPStatus.METHOD_NOT_ALLOWED, b"read-only\n", "text/plain", allow="GET")
@@ -96,7 +187,10 @@ class _Handler(BaseHTTPRequestHandler):
     def _host_allowed(self) -> bool:
         if not self.server.loopback_only:
             return True
-        host = urlsplit("//" + self.headers.get("Host", "")).hostname or ""
+        try:
+            host = urlsplit("//" + self.headers.get("Host", "")).hostname or ""
+        except ValueError:  # "[::1" and the like: no host name at all
+            return False
         return host in LOCAL_HOSTS or is_loopback(host)
 
     def _send(self, status: HTTPStatus, body: bytes, kind: str, **headers: str) -> None:
@@ -162,6 +256,7 @@ class _Handler(BaseHTTPRequestHandler):
 class _Server(ThreadingHTTPServer):
     daemon_threads = True
     allow_reuse_address = True
+    request_queue_size = 64  # listen backlog: a burst of clients is accepted (or 503'd) at once
 
     def __init__(
         self,
@@ -169,15 +264,98 @@ class _Server(ThreadingHTTPServer):
         model: LiveModel,
         push_interval_s: float,
         write_timeout_s: float,
+        idle_timeout_s: float = IDLE_TIMEOUT_S,
+        max_connections: int = MAX_CONNECTIONS,
     ):
         super().__init__(address, _Handler)
         self.model = model
         self.push_interval_s = push_interval_s
         self.write_timeout_s = write_timeout_s
+        self.idle_timeout_s = idle_timeout_s
+        self.max_connections = max_connections
         self.heartbeat_s = 15.0
         self.closing = threading.Event()
         self.streams: set[threading.Thread] = set()
         self.loopback_only = is_loopback(address[0])
+        self.refused = 0
+        self.failures: list[str] = []
+        """Exceptions (other than a client going away) that ended a request's thread."""
+        self._lock = threading.Lock()
+        self._open = 0
+        self._deadlines: dict[socket.socket, float] = {}
+
+    def handle_error(self, request: Any, client_address: Any) -> None:
+        """A client that went away is routine (debug log); anything else is logged and kept."""
+        exc = sys.exc_info()[1]
+        if isinstance(exc, OSError):
+            log.debug("live page client %s went away: %s", client_address, exc)
+            return
+        self.failures.append(f"{type(exc).__name__}: {exc}")
+        log.error("the live page server failed on a request from %s", client_address,
+                  exc_info=True)
+
+    # ---- idle connections: a deadline per request header, reaped by the serving thread
+    def watch(self, connection: socket.socket) -> None:
+        """Close ``connection`` unless :meth:`unwatch` comes within the idle timeout."""
+        with self._lock:
+            self._deadlines[connection] = time.monotonic() + self.idle_timeout_s
+
+    def unwatch(self, connection: socket.socket) -> None:
+        """The connection's request header is in (or it is closing)."""
+        with self._lock:
+            self._deadlines.pop(connection, None)
+
+    def service_actions(self) -> None:
+        """Called by ``serve_forever`` at each poll: shut the connections past their deadline."""
+        now = time.monotonic()
+        with self._lock:
+            late = [c for c, deadline in self._deadlines.items() if deadline <= now]
+            for connection in late:
+                del self._deadlines[connection]
+        for connection in late:  # the handler's blocked read returns: it ends and closes
+            with suppress(OSError):
+                connection.shutdown(socket.SHUT_RDWR)
+
+    # ---- the connection cap ---------------------------------------------------
+    def process_request(self, request: Any, client_address: Any) -> None:
+        """Serve ``request`` in its own thread, or answer 503 when the cap is reached."""
+        with self._lock:
+            full = self._open >= self.max_connections
+            if not full:
+                self._open += 1
+        if full:
+            self.refused += 1
+            body = f"too many connections (at most {self.max_connections})\n".encode()
+            head = (f"HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\n"
+                    f"Content-Length: {len(body)}\r\nRetry-After: 5\r\n"
+                    "Connection: close\r\n\r\n").encode()
+            with suppress(OSError):
+                request.setblocking(False)  # never wait for a client that does not read
+                request.send(head + body)
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self._release()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        """The handler's thread; frees its place under the cap when it ends."""
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._release()
+
+    def _release(self) -> None:
+        with self._lock:
+            self._open -= 1
+
+    @property
+    def open_connections(self) -> int:
+        """Connections being served now."""
+        with self._lock:
+            return self._open
 
 
 class LiveServer:
@@ -189,6 +367,10 @@ class LiveServer:
         port: TCP port (0: any free port; :attr:`url` tells which).
         push_interval_s: the least time between two frames to one page.
         write_timeout_s: a page that takes longer to read a frame is disconnected.
+        idle_timeout_s: a connection that sends no whole request header for this
+            long is closed (None: :data:`IDLE_TIMEOUT_S`).
+        max_connections: connections served at once; more get 503 (None:
+            :data:`MAX_CONNECTIONS`).
     """
 
     def __init__(
@@ -198,8 +380,16 @@ class LiveServer:
         port: int = 0,
         push_interval_s: float = 0.25,
         write_timeout_s: float = 10.0,
+        idle_timeout_s: float | None = None,
+        max_connections: int | None = None,
     ):
-        self._server = _Server((host, port), model, push_interval_s, write_timeout_s)
+        idle_timeout_s = IDLE_TIMEOUT_S if idle_timeout_s is None else idle_timeout_s
+        max_connections = MAX_CONNECTIONS if max_connections is None else max_connections
+        if not (idle_timeout_s > 0 and max_connections >= 1):
+            raise ValueError(f"idle_timeout_s={idle_timeout_s} must be > 0 and "
+                             f"max_connections={max_connections} >= 1")
+        self._server = _Server((host, port), model, push_interval_s, write_timeout_s,
+                               idle_timeout_s, max_connections)
         self._thread = threading.Thread(
             target=self._server.serve_forever, name="live-server", daemon=True
         )
@@ -213,6 +403,16 @@ class LiveServer:
         name = host.decode() if isinstance(host, bytes) else str(host)
         shown = f"[{name}]" if ":" in name else name
         return f"http://{shown}:{port}/"
+
+    @property
+    def open_connections(self) -> int:
+        """Connections being served now (at most ``max_connections``)."""
+        return self._server.open_connections
+
+    @property
+    def refused_connections(self) -> int:
+        """Connections answered 503 because the cap was reached."""
+        return self._server.refused
 
     def close(self) -> None:
         """Stop serving; open pages get a last frame (bounded wait), then the stream ends."""
