@@ -14,7 +14,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import warnings
 from typing import Any
 
@@ -70,10 +69,18 @@ class Emulator:
 
     def __del__(self) -> None:
         if self._started and not self._closed:
-            warnings.warn(
-                f"{type(self).__name__} was not closed: call close() or use it in a with block",
-                ResourceWarning,
-                stacklevel=2,
-            )
-            with contextlib.suppress(Exception):
+            # At interpreter exit the warnings and contextlib modules may already be gone
+            # (module globals set to None): a plain try keeps shutdown quiet.
+            try:  # noqa: SIM105 (contextlib may be gone at exit)
+                warnings.warn(
+                    f"{type(self).__name__} was not closed: call close() or use it in a with "
+                    "block",
+                    ResourceWarning,
+                    stacklevel=2,
+                )
+            except Exception:
+                pass
+            try:  # noqa: SIM105
                 self.close()
+            except Exception:
+                pass
