@@ -610,12 +610,16 @@ def configured_map(task: SurfaceTaskSpec) -> OutputMapChoice:
 
 
 
-def probe_and_map(probe: SurfaceProbe) -> tuple[ProbeResult | None, OutputMapChoice]:
+def probe_and_map(
+    probe: SurfaceProbe, refine: bool = False
+) -> tuple[ProbeResult | None, OutputMapChoice]:
     """Run ``probe`` (when enabled and the map is not all configured); choose the output map.
 
     Returns the probe's result (``None`` when it did not run; ``probe.result``
     holds what it read even when this raised) and the map. The native run and
     the Gymnasium env both start this way, so they learn on the same map.
+    ``refine``: probe the ``refine_points`` too (the learner's warm start takes
+    the probe's path, so the path's waves matter even under a constant centre).
 
     Raises:
         ProbeError: no surface found, or the desired force is out of reach.
@@ -623,11 +627,13 @@ def probe_and_map(probe: SurfaceProbe) -> tuple[ProbeResult | None, OutputMapCho
     task, spec = probe.task, probe.spec
     if not spec.enabled or task.map_configured:
         return None, configured_map(task)
-    return map_from_probe(probe)
+    return map_from_probe(probe, refine)
 
 
-def map_from_probe(probe: SurfaceProbe) -> tuple[ProbeResult, OutputMapChoice]:
-    """Run ``probe``, then its refinement when the map follows the surface; choose the map.
+def map_from_probe(
+    probe: SurfaceProbe, refine: bool = False
+) -> tuple[ProbeResult, OutputMapChoice]:
+    """Run ``probe``, then its refinement when the map follows the surface (or ``refine``).
 
     ``forcelearn probe`` calls this directly (it probes even when the whole
     map is configured, whose keys then win).
@@ -642,8 +648,9 @@ def map_from_probe(probe: SurfaceProbe) -> tuple[ProbeResult, OutputMapChoice]:
         or (spec.follow_surface == "auto"
             and constant_centre_error_ratio(result, task) > FOLLOW_ABOVE)
     )
-    if follow:
-        log.info("a constant map centre would leave the tolerance along the path: "
-                 "probing %d more points and following the surface", len(spec.refine_points))
+    if follow or refine:
+        log.info("probing %d more points (%s)", len(spec.refine_points),
+                 "following the surface: a constant map centre would leave the tolerance "
+                 "along the path" if follow else "the learner starts on the probe's path")
         probe.run(spec.refine_points)
     return result, choose_output_map(result, task, spec, probe.floor_y_mm, follow)

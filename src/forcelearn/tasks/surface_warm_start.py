@@ -5,12 +5,16 @@
 * ``"probe"`` (the default): every box's mean μ starts at the action whose Y
   command is the probe's target, the Y where its fits (interpolated in Z)
   give the desired force at the step that box commands; every box's
-  predicted evaluation r̂ starts at what the probe does not know there,
-  k · σ_y / tolerance (σ_y: the target's standard error from the fit's
-  contact and stiffness errors, with the fit's residual force in quadrature),
+  predicted evaluation r̂ starts at what the probe does not know there, in
+  tolerances: k · σ_y (σ_y: the target's standard error from the fit's
+  contact and stiffness errors), the fit's residual force, and the foam's
+  relaxation the probe saw (its early reading above the relaxed one, as a
+  share of the desired force: a pass reads between the two), in quadrature;
   so the search width σ = s(r̂) is that uncertainty. The learner then learns
-  what the probe could not know (the foam's relaxation at the pass's speed,
-  the wear, the waviness between probed points).
+  what the probe could not know (the relaxation at the pass's speed, the
+  wear, the surface between probed points). With this start the probe also
+  measures its ``refine_points`` (:func:`probe_and_map`'s ``refine``), so the
+  path has the surface's waves.
 * ``"cold"``: μ = 0 (the map's centre) and r̂ = ``learner.initial_prediction``
   in every box: the §5 experiment as published, the learner finding the path
   by random search.
@@ -51,24 +55,39 @@ def check_learner_start(value: object) -> str:
 def step_targets(probe: ProbeResult, task: SurfaceTaskSpec) -> tuple[np.ndarray, np.ndarray]:
     """Per step of a trial: the probe's target Y (mm) and its uncertainty as an evaluation.
 
-    The uncertainty r̂ = k · σ_y / tolerance, with σ_y² = σ_c² + (F / k²)² σ_k²
-    (target y = y_c − F / k) and the fit's residual force added in quadrature,
-    interpolated in Z between the probed points like the target.
+    The uncertainty r̂ = |(k · σ_y, residual, relaxation)| / tolerance, with
+    σ_y² = σ_c² + (F / k²)² σ_k² (target y = y_c − F / k) and the relaxation
+    :func:`relaxation_share` × F, interpolated in Z between the probed points
+    like the target.
     """
     targets = probe.target_path_mm(task)
     z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
     force = task.desired_force_n
+    relaxed = relaxation_share(probe) * force
     by_z: dict[float, list[float]] = {}
     for fit in probe.fits:
         k = fit.stiffness_n_per_mm
         sigma_y = math.hypot(fit.contact_y_std, force / k**2 * fit.stiffness_std)
-        r_hat = math.hypot(k * sigma_y, fit.residual_rms_n) / task.tolerance
+        r_hat = math.hypot(k * sigma_y, fit.residual_rms_n, relaxed) / task.tolerance
         by_z.setdefault(fit.z_mm, []).append(r_hat)
     z_fit = np.array(sorted(by_z))
     r_fit = np.array([float(np.mean(by_z[z])) for z in z_fit])
     if len(z_fit) == 1:
         return targets, np.full(len(z_steps), float(r_fit[0]))
     return targets, np.asarray(np.interp(z_steps, z_fit, r_fit), dtype=float)
+
+
+def relaxation_share(probe: ProbeResult, least_force_n: float = 1.0) -> float:
+    """Median share by which the probe's early readings passed its relaxed ones (0: none seen).
+
+    Over the press readings above ``least_force_n`` (N): (early − relaxed) / relaxed.
+    """
+    shares = [
+        (row["early_force_n"] - row["force_n"]) / row["force_n"]
+        for row in probe.rows
+        if row["phase"] == "press" and row["force_n"] > least_force_n
+    ]
+    return max(float(np.median(shares)), 0.0) if shares else 0.0
 
 
 def warm_start(

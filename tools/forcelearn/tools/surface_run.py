@@ -516,7 +516,9 @@ def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:
         config.safety.workspace_min_mm[1],
     )
     try:
-        run.probe, run.output_map = probe_and_map(probe)
+        run.probe, run.output_map = probe_and_map(
+            probe, refine=config.learner_start == "probe"
+        )
     except BaseException:
         if probe.result.rows:
             write_probe_files(run.out, probe.result, None)
