@@ -5,7 +5,6 @@ from __future__ import annotations
 from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
 from forcelearn.trainer import TrialRecord
 
-
 DESIRED_N = 19.6133
 BAND_N = 0.05 * DESIRED_N
 

@@ -149,7 +149,9 @@ class SurfaceEnv(TaskEnv):
             cell, config.task, config.probe, config.safety.max_step_mm,
             config.safety.workspace_min_mm[1],
         )
-        self.probe, self.output_map = probe_and_map(probe)
+        self.probe, self.output_map = probe_and_map(
+            probe, refine=config.learner_start == "probe"
+        )
         self._output = self.output_map.output(abs(self.task_spec.z_step_mm))
         return SurfaceTask(cell, self.task_spec, config.safety.max_step_mm, self._output)
 

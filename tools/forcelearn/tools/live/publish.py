@@ -116,9 +116,11 @@ def surface_meta(config: CellConfig, trials_target: int, source: str = "live") -
 
 
 def surface_extras(run: Any) -> RowExtras:
-    """Adds ``mean_y_mm`` (the learner's mean μ as a Y command: Fig. 12's solid line),
-    ``map_centre_y_mm`` (the output map's centre at the step, its wear shift included)
-    and ``map_shift_mm`` (the wear shift the map has moved by since the probe).
+    """Adds the row's Y figures in mm: mean μ, the map's centre and its wear shift.
+
+    ``mean_y_mm`` (the learner's mean μ as a Y command: Fig. 12's solid line),
+    ``map_centre_y_mm`` (the output map's centre at the step, its wear shift
+    included) and ``map_shift_mm`` (how far the map has followed the wear).
 
     ``run`` is the ``SurfaceRun``: its output map is known only once the run has
     probed the surface (or restored the probe), so it is read at each row.
