@@ -11,12 +11,17 @@ needs more compression, and the backing does not move). After every trial
   the step's own surface Y drops out); without enough spread (commands held
   at the range's end) the probe's stiffness, which wear only lowers, so the
   depth it predicts is a lower bound;
-* per step, the mean command and force; where most steps press at the deep
-  end of the output range and read less than the desired force minus the
-  band, the force is out of reach: the Y that would give it is
+* per step, the mean command and force; where steps (at least
+  ``MIN_STEP_SHARE`` of them: a soft patch of foam is enough) press within
+  ``AT_END_MM`` of the deep end of the output range on average over the
+  window, and the force there, extrapolated to the end with the stiffness,
+  stays under the desired force minus the band, the force is out of reach
+  there: the Y that would give it is
   ȳ − (F_d − F̄) / k. Below the deepest allowed Y (``probe.max_depth_mm``
   below the probed contact, the workspace) it is the **foam** that cannot
   give it; above, it is the **range** (its wear shift held at the limit).
+  Depths are given below the probed contact at that step (where the backing's
+  distance was measured from).
   The symmetric case (the range's top still presses too hard) is **range top**.
 """
 
@@ -30,10 +35,13 @@ import numpy as np
 
 FEASIBILITY_WINDOW = 10
 """Trials the run's estimate looks back over (the convergence window)."""
-AT_END_MM = 0.5
-"""A mean command within this of the range's end counts as pressing at the end, mm."""
+AT_END_MM = 2.0
+"""A mean command within this of the range's end counts as pressing at its end, mm (the force
+is extrapolated the rest of the way)."""
 MIN_SPREAD_MM = 0.05
 """Least RMS spread of the commands within a step for the run's own stiffness estimate, mm."""
+MIN_STEP_SHARE = 0.1
+"""Least share of a trial's steps out of reach for a finding (2 of 20)."""
 STIFFNESS_CLIP = (0.1, 1.5)
 """The run's stiffness estimate is held within these multiples of the probe's."""
 
@@ -56,13 +64,15 @@ class Feasibility:
     needed_y_mm: float
     """The Y that would give the desired force (the worn stiffness)."""
     needed_depth_mm: float
-    """The compression the desired force needs below the estimated contact."""
+    """How far below the probed contact the desired force needs to press."""
     contact_y_mm: float
-    """The estimated contact Y at that step (worn surface)."""
+    """The probed contact Y at that step (interpolated in Z, before any wear)."""
     allowed_bottom_y_mm: float
     """The deepest Y allowed."""
     allowed_depth_mm: float
-    """Compression allowed below the estimated contact."""
+    """How far below the probed contact the map may press."""
+    force_at_bottom_n: float
+    """The force the run's figures give at the deepest allowed Y there."""
     range_end_y_mm: float
     """The output range's end there (shift included)."""
     worn_stiffness_n_per_mm: float
@@ -84,16 +94,15 @@ class Feasibility:
             f"and read {self.force_n:.1f} N of the desired {self.desired_force_n:.1f} N"
         )
         if self.reason == "foam":
-            reachable = k * self.allowed_depth_mm
             return (
                 f"the desired force is out of the foam's reach: {where}; with the {stiffness} "
-                f"it needs {self.needed_depth_mm:.1f} mm of compression (y = "
-                f"{self.needed_y_mm:.1f} mm) but {self.allowed_depth_mm:.1f} mm are allowed "
-                f"below the contact at y = {self.contact_y_mm:.1f} mm (deepest y = "
+                f"it needs y = {self.needed_y_mm:.1f} mm, {self.needed_depth_mm:.1f} mm below "
+                f"the probed contact (y = {self.contact_y_mm:.1f} mm), but "
+                f"{self.allowed_depth_mm:.1f} mm are allowed (deepest y = "
                 f"{self.allowed_bottom_y_mm:.1f} mm: probe.max_depth_mm, "
-                "safety.workspace_min_mm); the foam gives at most about "
-                f"{reachable:.1f} N there: lower task.desired_force_n, or use a thicker or "
-                "stiffer foam"
+                "safety.workspace_min_mm; beyond it the backing); the foam gives about "
+                f"{self.force_at_bottom_n:.1f} N there: lower task.desired_force_n, or use a "
+                "thicker or stiffer foam"
             )
         if self.reason == "range":
             return (
@@ -140,6 +149,7 @@ def assess(
     forces_n: Sequence[Sequence[float]],
     range_bottom_y_mm: Sequence[Sequence[float]],
     range_top_y_mm: Sequence[Sequence[float]],
+    contact_y_mm: Sequence[float],
     *,
     trial: int,
     desired_force_n: float,
@@ -149,8 +159,9 @@ def assess(
 ) -> Feasibility | None:
     """The desired force out of reach over these trials (module docstring), or None.
 
-    Each argument but the keywords holds one row per trial of the window and one
-    value per step (mm or N; rows may be shorter: failed trials).
+    The first four arguments hold one row per trial of the window and one value
+    per step (mm or N; rows may be shorter: failed trials); ``contact_y_mm`` the
+    probed contact Y of each step (mm).
     """
     steps = max((len(row) for row in commands_y_mm), default=0)
     if steps == 0 or not math.isfinite(probe_stiffness_n_per_mm):
@@ -179,16 +190,18 @@ def assess(
         mean = {name: np.nanmean(np.where(ran, arr, np.nan), axis=0)[seen]
                 for name, arr in (("y", y), ("f", f), ("bottom", bottom), ("top", top))}
     index = np.flatnonzero(seen)
-    deep = (mean["y"] <= mean["bottom"] + AT_END_MM) & (mean["f"] < desired_force_n - band_n)
-    shallow = (mean["y"] >= mean["top"] - AT_END_MM) & (mean["f"] > desired_force_n + band_n)
+    at_bottom = mean["f"] + k * np.maximum(mean["y"] - mean["bottom"], 0.0)
+    at_top = mean["f"] - k * np.maximum(mean["top"] - mean["y"], 0.0)
+    deep = (mean["y"] <= mean["bottom"] + AT_END_MM) & (at_bottom < desired_force_n - band_n)
+    shallow = (mean["y"] >= mean["top"] - AT_END_MM) & (at_top > desired_force_n + band_n)
     needed = mean["y"] - (desired_force_n - mean["f"]) / k
-    contact = mean["y"] + mean["f"] / k
-    half = len(index) / 2
-    if deep.sum() >= half:
+    contact = np.asarray(contact_y_mm, dtype=float)[index]
+    least = max(1, round(MIN_STEP_SHARE * steps))
+    if deep.sum() >= least:
         worst = int(np.argmin(np.where(deep, needed - allowed_bottom_y_mm, np.inf)))
         reason = "foam" if float(np.median(needed[deep])) < allowed_bottom_y_mm else "range"
         end = float(mean["bottom"][worst])
-    elif shallow.sum() >= half:
+    elif shallow.sum() >= least:
         worst = int(np.argmax(np.where(shallow, needed, -np.inf)))
         reason, end = "range top", float(mean["top"][worst])
     else:
@@ -201,10 +214,11 @@ def assess(
         force_n=float(mean["f"][worst]),
         desired_force_n=desired_force_n,
         needed_y_mm=float(needed[worst]),
-        needed_depth_mm=desired_force_n / k,
+        needed_depth_mm=float(contact[worst] - needed[worst]),
         contact_y_mm=float(contact[worst]),
         allowed_bottom_y_mm=allowed_bottom_y_mm,
         allowed_depth_mm=float(contact[worst]) - allowed_bottom_y_mm,
+        force_at_bottom_n=float(mean["f"][worst] + k * (mean["y"][worst] - allowed_bottom_y_mm)),
         range_end_y_mm=end,
         worn_stiffness_n_per_mm=k,
         stiffness_source=source,

@@ -332,6 +332,16 @@ class ProbeResult:
         z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
         return self._targets_at(task, z_steps)
 
+    def contact_path_mm(self, task: SurfaceTaskSpec) -> np.ndarray:
+        """Contact Y (mm) of the fits at each step's Z, interpolated like :meth:`target_path_mm`."""
+        z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
+        by_z: dict[float, list[float]] = {}
+        for f in self.fits:
+            by_z.setdefault(f.z_mm, []).append(f.contact_y_mm)
+        z_fit = np.array(sorted(by_z))
+        y_fit = np.array([float(np.mean(by_z[z])) for z in z_fit])
+        return np.asarray(np.interp(z_steps, z_fit, y_fit), dtype=float)
+
     def target_at_z_mm(self, task: SurfaceTaskSpec, z_mm: float) -> float:
         """Y (mm) where the fits, interpolated in Z, give the desired force at ``z_mm``."""
         return float(self._targets_at(task, np.array([z_mm]))[0])

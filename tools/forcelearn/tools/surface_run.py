@@ -477,6 +477,7 @@ def feasibility_check(run: SurfaceRun) -> Callable[[int], Feasibility | None]:
         bottom = allowed_bottom_y_mm(probe, config.probe, config.safety.workspace_min_mm[1])
     task, half = config.task, choice.max_offset_mm
     k_probe = probe.stiffness_n_per_mm()
+    contacts = probe.contact_path_mm(task).tolist()
 
     def check(trial: int) -> Feasibility | None:
         window = run.traces[-FEASIBILITY_WINDOW:]
@@ -490,6 +491,7 @@ def feasibility_check(run: SurfaceRun) -> Callable[[int], Feasibility | None]:
             [t["force_n"] for t in window],
             [[c - half for c in row] for row in centres],
             [[c + half for c in row] for row in centres],
+            contacts,
             trial=trial,
             desired_force_n=task.desired_force_n,
             band_n=CONVERGENCE_TOLERANCE * task.desired_force_n,
