@@ -25,6 +25,7 @@ from forcelearn.learning import SRVLearner, SRVParams
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
 from forcelearn.tasks.surface import SurfaceTask, SurfaceTaskSpec
 from forcelearn.tasks.surface_probe import SurfaceProbe, probe_and_map
+from forcelearn.tasks.surface_warm_start import warm_start
 from forcelearn.tools.cell_config import load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.trainer import TrialRecord, train
@@ -76,15 +77,17 @@ def test_srv_through_the_surface_env_gives_the_native_trainers_trials() -> None:
         assert session.cell is not None
         probe = SurfaceProbe(session.cell, config.task, config.probe,
                              config.safety.max_step_mm, config.safety.workspace_min_mm[1])
-        result, choice = probe_and_map(probe)
+        result, choice = probe_and_map(probe, refine=True)  # the default warm start's probe
         output = choice.output()
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
         learner = SRVLearner(task.grid, 1, config.learner, rng=seed, output=output)
+        assert result is not None
+        warm_start(learner, result, config.task, output)
         native = train(learner, task, trials).records
     assert result is not None and choice.source == "probe"
     env = SurfaceEnv(config)
     try:
-        controller = SRVController(env, config.learner, seed)
+        controller = SRVController(env, config.learner, seed, config.learner_start)
         recorder = run_controller(env, controller, trials, seed, stop_early=False)
         assert env.output_map == choice
         assert env.probe is not None

@@ -244,17 +244,21 @@ def test_the_probe_follows_the_surface_only_where_a_constant_centre_fails(
 
 
 def test_a_map_that_tracks_wear_shifts_every_centre_by_the_start_forces_missing_depth() -> None:
-    """Less start force than desired: deeper by WEAR_GAIN x the missing force / k, per trial."""
+    """Less start force than the first trial's: deeper by WEAR_GAIN x the missing force / k."""
     output = SurfaceYOutput(-1.0, 0.5, 3.0, (-1.0, -2.0), 5.0, -0.5, 4.0)
-    output.track_wear(start_force_n=3.0, desired_force_n=5.0)  # 2 N short on 4 N/mm
+    output.track_wear(start_force_n=5.0)  # the first trial: the reference, no move
+    assert output.wear_reference_n == 5.0
+    assert output.shift_mm == 0.0
+    output.track_wear(start_force_n=3.0)  # 2 N short on 4 N/mm
     assert output.shift_mm == pytest.approx(-WEAR_GAIN * 0.5)
     assert output(np.array([0.0]), np.array([5.0]))[0] == pytest.approx(-2.0 + output.shift_mm)
-    output.track_wear(start_force_n=7.0, desired_force_n=5.0)  # too much: back up
+    output.track_wear(start_force_n=7.0)  # too much: back up
     assert output.shift_mm == pytest.approx(0.0)
-    output.track_wear(start_force_n=float("nan"), desired_force_n=5.0)  # no reading: no move
+    output.track_wear(start_force_n=float("nan"))  # no reading: no move
     assert output.shift_mm == pytest.approx(0.0)
     fixed = SurfaceYOutput(-1.0, 0.5, 3.0)  # no stiffness given: the map never moves
-    fixed.track_wear(start_force_n=0.0, desired_force_n=5.0)
+    fixed.track_wear(start_force_n=5.0)
+    fixed.track_wear(start_force_n=0.0)
     assert fixed.shift_mm == 0.0
 
 
@@ -274,7 +278,8 @@ def test_wear_moves_the_map_only_as_far_as_its_range_stays_allowed(
         task.retract_y_mm - 1.0
     )
     output = choice.output(5.0)
+    output.wear_reference_n = task.desired_force_n
     for _ in range(200):  # no force at all, trial after trial
-        output.track_wear(start_force_n=0.0, desired_force_n=task.desired_force_n)
+        output.track_wear(start_force_n=0.0)
     assert output.shift_mm == pytest.approx(low)
     assert sum("held at the limit" in r.getMessage() for r in caplog.records) == 1

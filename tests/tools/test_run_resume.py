@@ -250,7 +250,9 @@ def test_an_ended_but_unsaved_trial_is_rolled_back_before_outputs() -> None:
     run = SurfaceRun(load_cell_config(), trials=10, seed=0, out=Path("."))
     for i in range(3):
         run.result.records.append(TrialRecord(i, "generalized", 20, False, 0.1, 0.5, 9.0))
-        run.traces.append(TrialTrace(mean_y_mm=[1.0], command_y_mm=[1.1], shift_mm=0.0))
+        run.traces.append(
+            TrialTrace(mean_y_mm=[1.0], command_y_mm=[1.1], shift_mm=0.0, force_n=[9.0])
+        )
         run.result.steps += 20
         run.result.last_log = TrialLog(i, "generalized")
         run.map_shift_mm, run.tares = -0.1 * i, (i + 1, 0)
@@ -286,14 +288,15 @@ def test_the_checkpoint_keeps_each_trials_wear_shift(tmp_path: Path) -> None:
     for i, shift in enumerate((0.0, -0.25, -0.5)):
         run.result.records.append(TrialRecord(i, "generalized", 2, False, 0.1, 0.5, 9.0))
         run.traces.append(TrialTrace(mean_y_mm=[1.0, 2.0], command_y_mm=[1.1, 2.1],
-                                     shift_mm=shift))
+                                     shift_mm=shift, force_n=[9.0, 9.5]))
     arrays = _history_arrays(run)
     again = SurfaceRun(load_cell_config(), trials=10, seed=0, out=tmp_path)
     _history_from_arrays(again, arrays)
     assert again.traces == run.traces
-    old = {k: v for k, v in arrays.items() if k != "trace_shift_mm"}
+    old = {k: v for k, v in arrays.items() if k not in ("trace_shift_mm", "trace_force_n")}
     _history_from_arrays(again, old)
     assert [t["shift_mm"] for t in again.traces] == [0.0, 0.0, 0.0]
+    assert all(np.isnan(t["force_n"]).all() for t in again.traces)  # not kept before: NaN
     damaged = {**arrays, "trace_shift_mm": np.zeros(2)}
     with pytest.raises(StateFileError, match="trial shifts"):
         _history_from_arrays(again, damaged)

@@ -21,7 +21,7 @@ def test_a_resumed_run_does_not_probe_again_and_keeps_the_map(
     assert main(["run", "--out", str(out), "--trials", "2", "--no-progress"]) == 0
     first = json.loads((out / "summary.json").read_text())
     assert first["output_map"]["source"] == "probe"
-    assert len(first["probe_fits"]) == 3
+    assert len(first["probe_fits"]) == 7  # the warm start's path: 3 points and 4 refine points
     assert (out / "probe.csv").exists() and (out / "probe.png").exists()
 
     def no_probe(*args: object, **kwargs: object) -> None:

@@ -19,7 +19,8 @@ bounded by its half-range. ``pi``, ``ilc`` and ``cma`` start from the probe's
 surface model, the path where its fits give the desired force at each step
 (``probe_path_mm``: the feedforward of ``pi``, the first path of ``ilc``, the
 initial mean of ``cma``); ``srv`` starts at μ = 0 (the map's centre, through
-its output map), as the paper's learner starts from nothing. ``pi`` and
+its output map), as the paper's learner starts from nothing, or with
+``start = "probe"`` on the probe's path (``[run] learner_start``). ``pi`` and
 ``ilc`` take the probe's stiffness k̂. Without a probe (``[probe] enabled =
 false``, or a configured map) they fall back to what an operator would try
 first: a constant offset ``probe_offset_mm`` (−4 mm) below the centre, with
@@ -39,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from forcelearn.learning import Action, SRVLearner, SRVParams
+from forcelearn.tasks.surface_warm_start import check_learner_start, warm_start
 from forcelearn.trainer import TrialRecord
 
 MIN_STIFFNESS_N_PER_MM = 0.2
@@ -104,15 +106,27 @@ class SRVController:
 
     name = "srv"
 
-    def __init__(self, env: Any, params: SRVParams, seed: int):
+    def __init__(self, env: Any, params: SRVParams, seed: int, start: str = "cold"):
         n_outputs = int(env.action_space.shape[0])
         self.env = env
         self.learner = SRVLearner(env.grid, n_outputs, params, rng=seed, output=env.learner_action)
         self._action: Action | None = None
         self.switch_trial: int | None = None
+        self.start = check_learner_start(start)
+        """"cold" (μ = 0) or "probe" (the warm start of ``[run] learner_start``)."""
+        self._started = False
 
     def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
-        """Nothing to prepare."""
+        """Before the first trial, with ``start = "probe"``: the probe's warm start."""
+        if self._started:
+            return
+        self._started = True
+        probe = getattr(self.env, "probe", None)
+        if self.start == "probe" and probe is not None and probe.fits:
+            spec = self.env.task_spec
+            warm_start(
+                self.learner, probe, spec, self.env.output_map.output(abs(spec.z_step_mm))
+            )
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         """S3-S4: draw a ~ N(μ, σ) in the input box; the output map makes it an env action."""

@@ -222,6 +222,8 @@ class TrialTrace(TypedDict):
     """The searched Y command of every step."""
     shift_mm: float
     """The map's wear shift the trial ran with (0: a map that does not follow wear)."""
+    force_n: list[float]
+    """The filtered force of every step, N (NaN: a checkpoint from before it was kept)."""
 
 
 class SurfaceYOutput:
@@ -230,9 +232,9 @@ class SurfaceYOutput:
     With ``path_y_mm`` (one centre per step, the surface probe's path) the
     centre follows the surface: the step is the one that starts at the
     travel ``x`` (mm), x / ``step_mm``. With ``wear_stiffness_n_per_mm`` set
-    the map also follows the sponge's wear: :class:`SurfaceTask` moves
-    :attr:`shift_mm` (added to every centre and to the start press) from each
-    trial's start force (:meth:`track_wear`).
+    (every map the probe chose) the map also follows the sponge's wear:
+    :class:`SurfaceTask` moves :attr:`shift_mm` (added to every centre and to
+    the start press) from each trial's start force (:meth:`track_wear`).
     """
 
     def __init__(
@@ -245,6 +247,7 @@ class SurfaceYOutput:
         start_press_y_mm: float | None = None,
         wear_stiffness_n_per_mm: float | None = None,
         shift_range_mm: tuple[float, float] | None = None,
+        wear_reference_n: float | None = None,
     ):
         self.start_y_mm = start_y_mm
         """The centre Y (mm): the command at action 0 (the mean centre with a path)."""
@@ -260,6 +263,10 @@ class SurfaceYOutput:
         """How far the sponge has moved since the probe, as tracked (mm, − deeper)."""
         self.shift_range_mm = shift_range_mm
         """Least and most shift (mm); a wear that would move the map further is not followed."""
+        self.wear_reference_n = wear_reference_n
+        """The start force the tracking holds (N): the first trial's (None: not yet read)."""
+        self.held_mm = 0.0
+        """How far the last tracked shift passed :attr:`shift_range_mm` (mm, − deeper)."""
         self._held = False
 
     def centre_of_step(self, step_index: int) -> float:
@@ -277,21 +284,29 @@ class SurfaceYOutput:
         travel = np.array([step_index * self.step_mm])
         return float(self(np.array([a]), travel)[0])
 
-    def track_wear(self, start_force_n: float, desired_force_n: float) -> None:
+    def track_wear(self, start_force_n: float) -> None:
         """Move :attr:`shift_mm` by ``WEAR_GAIN`` × the start-force error / stiffness.
 
-        The start press aims at the desired force: less force means the surface
-        has sunk (set) or softened, so the map goes deeper by the depth that
-        force is missing (a half step per trial, against the sensor's noise),
-        never past :attr:`shift_range_mm` (a warning says so).
+        The reference is the first trial's start force (the same press and the
+        same settle every trial, so the foam's relaxation reads the same): less
+        force means the surface has sunk (set) or softened, so the map and the
+        start press go deeper by the depth that force is missing (a half step
+        per trial, against the sensor's noise), never past
+        :attr:`shift_range_mm` (the allowed depth and the retract plane; a
+        warning says so once, :attr:`held_mm` keeps by how much).
         """
         k = self.wear_stiffness_n_per_mm
         if k is None or not math.isfinite(start_force_n):
             return
-        shift = self.shift_mm + WEAR_GAIN * (start_force_n - desired_force_n) / k
+        if self.wear_reference_n is None:
+            self.wear_reference_n = start_force_n
+            return
+        shift = self.shift_mm + WEAR_GAIN * (start_force_n - self.wear_reference_n) / k
+        self.held_mm = 0.0
         if self.shift_range_mm is not None:
             low, high = self.shift_range_mm
             held = min(max(shift, low), high)
+            self.held_mm = shift - held
             if held != shift and not self._held:
                 self._held = True  # once a run
                 log.warning(
@@ -357,13 +372,13 @@ class SurfaceTask:
         return self.cell.time_s - self._trial_start_s
 
     def start_pose(self) -> Pose:
-        """Where each trial presses in first: ``start_mm``, or the output map's start press."""
+        """Where each trial presses in: ``start_mm`` or the map's start press, + its shift."""
         start = self.spec.start_pose()
         output = self._output
-        if output is None or output.start_press_y_mm is None:
+        if output is None:
             return start
-        return Pose(start.x_mm, output.start_press_y_mm + output.shift_mm, start.z_mm,
-                    start.quaternion)
+        press_y = start.y_mm if output.start_press_y_mm is None else output.start_press_y_mm
+        return Pose(start.x_mm, press_y + output.shift_mm, start.z_mm, start.quaternion)
 
     def reset(self) -> np.ndarray:
         """Retract, travel clear of the sponge to above the start, press in, measure the force.
@@ -385,7 +400,7 @@ class SurfaceTask:
         self.cell.reset_filter()
         self.start_force_n = self.cell.measure_force_n()
         if self._output is not None:
-            self._output.track_wear(self.start_force_n, self.desired_force_n)
+            self._output.track_wear(self.start_force_n)
         self._step = 0
         return np.array([0.0])
 

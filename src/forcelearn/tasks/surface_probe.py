@@ -48,13 +48,18 @@ per step, the Y where the fits, interpolated in Z, give the desired force.
 The half-range is then 3 mm + ``wear_margin`` × the needed depth around it,
 and each trial's start press goes to the path's Y at the start Z (not
 ``start_mm``'s Y, which on a stiff sponge presses several times the desired
-force). The map then also follows the sponge's wear: the start press aims at
-the desired force, so its error each trial says how far the surface has sunk
-or softened, and the whole map (centres and start press) shifts by half that
-depth per trial (:meth:`SurfaceYOutput.track_wear`); on a stiff sponge at a
-small force the wear's 2 mm of set is several tolerances, more than the
-learner's specialized phase follows. On the default cell a constant centre
-stays, with no tracking (the paper's task: the learner follows the wear).
+force). On the default cell a constant centre stays (the paper's task).
+
+Following the wear (every map the probe chose, constant or path): each
+trial's start press is the same press with the same settle, so its force
+against the first trial's says how far the surface has sunk or softened, and
+the whole map (centres and start press) shifts by half that depth per trial
+(:meth:`SurfaceYOutput.track_wear`, with the probe's stiffness), within
+``shift_range_mm``: as far as the range stays between the deepest allowed Y
+and 1 mm under the retract plane. On a stiff sponge at a small force the
+wear's 2 mm of set is several tolerances, more than the learner's
+specialized phase follows; on a soft one the softening takes the desired
+force towards the range's deep end.
 """
 
 from __future__ import annotations
@@ -243,10 +248,13 @@ class OutputMapChoice:
     start_press_y_mm: float | None = None
     """Following the surface: Y of each trial's start press (mm); None: ``task.start_mm``."""
     wear_stiffness_n_per_mm: float | None = None
-    """Following the surface: the stiffness the map tracks wear with (None: no tracking)."""
+    """The stiffness the map tracks wear with (the probe's; None: no tracking)."""
     shift_range_mm: tuple[float, float] | None = None
     """Following wear: the least and most shift (mm) that keep the whole range between
     the deepest allowed Y and 1 mm under the retract plane (None: no tracking)."""
+    allowed_bottom_y_mm: float | None = None
+    """The deepest Y allowed (mm): ``probe.max_depth_mm`` below the deepest probed contact,
+    or the workspace floor (None: no probe, or a checkpoint from before it was kept)."""
 
     def __post_init__(self) -> None:  # JSON gives lists
         object.__setattr__(self, "path_y_mm", tuple(float(v) for v in self.path_y_mm))
@@ -323,6 +331,16 @@ class ProbeResult:
         """
         z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
         return self._targets_at(task, z_steps)
+
+    def contact_path_mm(self, task: SurfaceTaskSpec) -> np.ndarray:
+        """Contact Y (mm) of the fits at each step's Z, interpolated like :meth:`target_path_mm`."""
+        z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
+        by_z: dict[float, list[float]] = {}
+        for f in self.fits:
+            by_z.setdefault(f.z_mm, []).append(f.contact_y_mm)
+        z_fit = np.array(sorted(by_z))
+        y_fit = np.array([float(np.mean(by_z[z])) for z in z_fit])
+        return np.asarray(np.interp(z_steps, z_fit, y_fit), dtype=float)
 
     def target_at_z_mm(self, task: SurfaceTaskSpec, z_mm: float) -> float:
         """Y (mm) where the fits, interpolated in Z, give the desired force at ``z_mm``."""
@@ -523,9 +541,7 @@ def choose_output_map(
     depths = np.array([task.desired_force_n / f.stiffness_n_per_mm for f in fits])
     needed = float(np.max(depths))
     top_contact = max(f.contact_y_mm for f in fits)
-    allowed_bottom = max(
-        min(f.contact_y_mm for f in fits) - spec.max_depth_mm, workspace_min_y_mm
-    )
+    allowed_bottom = allowed_bottom_y_mm(result, spec, workspace_min_y_mm)
     allowed = top_contact - allowed_bottom
     if NEEDED_DEPTH_MARGIN * needed > allowed:
         raise ProbeError(
@@ -565,16 +581,29 @@ def choose_output_map(
             f"task.retract_y_mm = {task.retract_y_mm:g} mm, deepest allowed y = "
             f"{allowed_bottom:.2f} mm"
         )
-    wear_k, shift_range = None, None
-    if path:  # wear may move the map only as far as its range stays allowed
-        wear_k = k
-        shift_range = (
-            min(0.0, allowed_bottom - (min(path) - half)),
-            max(0.0, task.retract_y_mm - 1.0 - (max(path) + half)),
-        )
-    return OutputMapChoice(
-        centre, scale, half, needed, allowed, source, path, start_press, wear_k, shift_range
+    # wear may move the map (and the start press) only as far as its range stays allowed
+    lowest = min(path) if path else centre
+    press = task.start_mm[1] if start_press is None else start_press
+    highest = max((max(path) if path else centre) + half, press)
+    shift_range = (
+        min(0.0, allowed_bottom - (lowest - half)),
+        max(0.0, task.retract_y_mm - 1.0 - highest),
     )
+    return OutputMapChoice(
+        centre, scale, half, needed, allowed, source, path, start_press, k, shift_range,
+        allowed_bottom,
+    )
+
+
+def allowed_bottom_y_mm(
+    result: ProbeResult, spec: ProbeSpec, workspace_min_y_mm: float
+) -> float:
+    """The deepest Y (mm) a map may command.
+
+    ``probe.max_depth_mm`` below the deepest probed contact, or the workspace
+    floor (``safety.workspace_min_mm``), whichever is higher.
+    """
+    return max(min(f.contact_y_mm for f in result.fits) - spec.max_depth_mm, workspace_min_y_mm)
 
 
 def configured_map(task: SurfaceTaskSpec) -> OutputMapChoice:
@@ -591,12 +620,16 @@ def configured_map(task: SurfaceTaskSpec) -> OutputMapChoice:
 
 
 
-def probe_and_map(probe: SurfaceProbe) -> tuple[ProbeResult | None, OutputMapChoice]:
+def probe_and_map(
+    probe: SurfaceProbe, refine: bool = False
+) -> tuple[ProbeResult | None, OutputMapChoice]:
     """Run ``probe`` (when enabled and the map is not all configured); choose the output map.
 
     Returns the probe's result (``None`` when it did not run; ``probe.result``
     holds what it read even when this raised) and the map. The native run and
     the Gymnasium env both start this way, so they learn on the same map.
+    ``refine``: probe the ``refine_points`` too (the learner's warm start takes
+    the probe's path, so the path's waves matter even under a constant centre).
 
     Raises:
         ProbeError: no surface found, or the desired force is out of reach.
@@ -604,11 +637,13 @@ def probe_and_map(probe: SurfaceProbe) -> tuple[ProbeResult | None, OutputMapCho
     task, spec = probe.task, probe.spec
     if not spec.enabled or task.map_configured:
         return None, configured_map(task)
-    return map_from_probe(probe)
+    return map_from_probe(probe, refine)
 
 
-def map_from_probe(probe: SurfaceProbe) -> tuple[ProbeResult, OutputMapChoice]:
-    """Run ``probe``, then its refinement when the map follows the surface; choose the map.
+def map_from_probe(
+    probe: SurfaceProbe, refine: bool = False
+) -> tuple[ProbeResult, OutputMapChoice]:
+    """Run ``probe``, then its refinement when the map follows the surface (or ``refine``).
 
     ``forcelearn probe`` calls this directly (it probes even when the whole
     map is configured, whose keys then win).
@@ -623,8 +658,9 @@ def map_from_probe(probe: SurfaceProbe) -> tuple[ProbeResult, OutputMapChoice]:
         or (spec.follow_surface == "auto"
             and constant_centre_error_ratio(result, task) > FOLLOW_ABOVE)
     )
-    if follow:
-        log.info("a constant map centre would leave the tolerance along the path: "
-                 "probing %d more points and following the surface", len(spec.refine_points))
+    if follow or refine:
+        log.info("probing %d more points (%s)", len(spec.refine_points),
+                 "following the surface: a constant map centre would leave the tolerance "
+                 "along the path" if follow else "the learner starts on the probe's path")
         probe.run(spec.refine_points)
     return result, choose_output_map(result, task, spec, probe.floor_y_mm, follow)

@@ -42,6 +42,7 @@ from forcelearn.baselines.controllers import (
 from forcelearn.baselines.runner import Controller, TrialRecorder, run_controller
 from forcelearn.baselines.sac import SACParams, run_sac
 from forcelearn.errors import ConfigError, LinkError, SensorError
+from forcelearn.tasks.surface_warm_start import check_learner_start
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.study_grid import CURVES, RunSpec, apply_overrides, result_row
 from forcelearn.trainer import converged_trial, criterion_trial
@@ -66,12 +67,17 @@ class BaselinesConfig:
     variant: str = "default"
     """default, fast_wear or soft (module docstring)."""
     trials: int = 300
+    learner_start: str = "cold"
+    """The cell's ``[run] learner_start``: "cold" (the study as first documented: the env's
+    probe of 3 points, srv at μ = 0) or "probe" (the probe adds its refine points, every
+    method gets that path, srv starts on it)."""
     pi: ForceControlParams = field(default_factory=ForceControlParams)
     ilc: ILCParams = field(default_factory=ILCParams)
     cma: PathSearchParams = field(default_factory=PathSearchParams)
     sac: SACParams = field(default_factory=SACParams)
 
     def __post_init__(self) -> None:
+        check_learner_start(self.learner_start)
         if self.method not in METHODS:
             raise ConfigError(f"method = {self.method!r}: one of {', '.join(METHODS)}")
         if self.variant not in VARIANTS:
@@ -104,7 +110,7 @@ def run_baseline(
     """
     from forcelearn.tools.envs import SurfaceEnv
 
-    cell = variant_config(config.variant)
+    cell = replace(variant_config(config.variant), learner_start=config.learner_start)
     env = SurfaceEnv(cell, seed=seed)
     trial_env = wrap(env) if wrap is not None else env
     started = time.perf_counter()
@@ -113,7 +119,7 @@ def run_baseline(
             recorder: TrialRecorder = run_sac(trial_env, seed, config.trials, config.sac)[0]
         else:
             factories: dict[str, Callable[[], Controller]] = {
-                "srv": lambda: SRVController(env, cell.learner, seed),
+                "srv": lambda: SRVController(env, cell.learner, seed, config.learner_start),
                 "pi": lambda: ForceController(env, config.pi),
                 "ilc": lambda: ILCController(env, config.ilc),
                 "cma": lambda: PathSearchController(env, seed, config.cma),

@@ -26,7 +26,8 @@ table          holds
 ``[task]``     the §5 surface task (:class:`SurfaceTaskSpec`)
 ``[learner]``  SRV hyperparameters (§5 values as defaults)
 ``[probe]``    the surface probe before learning (:class:`ProbeSpec`)
-``[run]``      ``trials``, ``seed``
+``[run]``      ``trials``, ``seed``, ``stop_after_converged``, ``learner_start``
+               ("probe", the default, or "cold": :mod:`forcelearn.tasks.surface_warm_start`)
 ``[emulator]`` ``time_scale`` (0: as fast as possible; 1: real time), ``profile``
                ("realistic", or "ideal": no time on wires, instant arm, no
                relaxation, no adapter filter); physics of the emulated cell:
@@ -67,6 +68,7 @@ from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
 from forcelearn.tasks.surface import SurfaceTaskSpec, check_task_limits
 from forcelearn.tasks.surface_probe import ProbeSpec
+from forcelearn.tasks.surface_warm_start import check_learner_start
 
 EMULATED = "emulated"
 ROBOT_KINDS = ("computer_link", "egm")
@@ -75,6 +77,8 @@ SENSOR_KINDS = ("jr3", "netft")
 """``[sensor] kind``: the JR3 behind its CAN adapter, or an ATI Net F/T box (Ethernet)."""
 DEFAULT_TRIALS = 300
 """Trials of a run when neither the config nor the command line says."""
+DEFAULT_LEARNER_START = "probe"
+"""``[run] learner_start`` of a new run: the probe's warm start (docs/surface.md says why)."""
 EMULATED_STALE_SENSOR_S = 10.0
 """Stale-sensor watchdog of the in-process emulated sensor when the file sets none, s.
 
@@ -255,7 +259,13 @@ class CellConfig:
     stop_after_converged: int = 0
     """``[run] stop_after_converged``: end a run this many trials after it converged (0: never;
     studies use it to spend no time on runs already decided)."""
+    learner_start: str = DEFAULT_LEARNER_START
+    """``[run] learner_start``: "probe" (the SRV units start on the probe's path, their
+    spread from its uncertainty) or "cold" (μ = 0, the paper's §5); docs/surface.md."""
     source: Path | None = None
+
+    def __post_init__(self) -> None:
+        check_learner_start(self.learner_start)
 
     @property
     def robot_kind(self) -> str:
@@ -431,6 +441,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         "emulator",
     )
     run_table = dict(data.get("run", {}))
+    learner_start = check_learner_start(run_table.pop("learner_start", DEFAULT_LEARNER_START))
     stop_after = run_table.pop("stop_after_converged", 0)
     if isinstance(stop_after, bool) or not isinstance(stop_after, int) or stop_after < 0:
         raise ConfigError(f"run.stop_after_converged = {stop_after!r}: a whole number >= 0")
@@ -464,5 +475,6 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         trials=trials,
         seed=seed,
         stop_after_converged=stop_after,
+        learner_start=learner_start,
         source=Path(path) if path else None,
     )

@@ -20,13 +20,14 @@ from pathlib import Path
 from tqdm import tqdm
 
 from forcelearn.learning import SRVLearner
-from forcelearn.tools.live.publish import surface_extras, surface_meta
+from forcelearn.tools.live.publish import LivePublisher, surface_extras, surface_meta
 from forcelearn.tools.live.session import add_live_arguments, live_run
 from forcelearn.tools.surface_run import execute, prepare_run
 from forcelearn.trainer import TrialRecord
 
 NOT_CONVERGED = 3
-"""Exit status of a run that ended unconverged under ``--require-converged``."""
+"""Exit status under ``--require-converged`` of a run that did not end in band (unconverged,
+or converged and out of band at its end)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -40,7 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--require-converged",
         action="store_true",
-        help=f"exit with status {NOT_CONVERGED} when the run ends unconverged",
+        help=f"exit with status {NOT_CONVERGED} when the run did not end in band "
+        "(not converged, or out of band over its last 10 trials)",
     )
     add_live_arguments(parser)
 
@@ -74,6 +76,10 @@ def run(args: argparse.Namespace) -> int:
     meta = surface_meta(surface_run.config, surface_run.trials)
     live = live_run(meta, args, out, surface_extras(surface_run))
 
+    def warn(publisher: LivePublisher, text: str) -> None:
+        bar.write(f"forcelearn run: WARNING {text}", sys.stderr)
+        publisher.event("Warning", text)
+
     def progress(record: TrialRecord, learner: SRVLearner) -> None:
         nonlocal cell_s
         cell_s += record.cell_time_s
@@ -95,8 +101,10 @@ def run(args: argparse.Namespace) -> int:
                 checkpoint,
                 on_trial=progress,
                 on_step=publisher.on_step,
-                on_warning=lambda text: bar.write(f"forcelearn run: WARNING {text}", sys.stderr),
+                on_warning=lambda text: warn(publisher, text),
             )
+            if summary["diagnosis"]:  # the end verdict on the live page and in the journal
+                publisher.event("Diagnosis", summary["diagnosis"])
     except KeyboardInterrupt:
         print(
             f"\nforcelearn run: interrupted; the robot was stopped and the last whole trial "
@@ -108,8 +116,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"run directory: {out}")
     if args.live:
         print(f"see the run again with: forcelearn view {out}")
-    if not summary["converged"]:
-        print(f"forcelearn run: NOT CONVERGED: {summary['diagnosis']}", file=sys.stderr)
+    if not (summary["converged"] and summary["in_band_at_end"]):
+        verdict = "NOT CONVERGED" if not summary["converged"] else "NOT IN BAND AT THE END"
+        print(f"forcelearn run: {verdict}: {summary['diagnosis']}", file=sys.stderr)
         return NOT_CONVERGED if args.require_converged else 0
     return 0
 

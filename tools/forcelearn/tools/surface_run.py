@@ -10,9 +10,11 @@ The run directory holds:
                        trial, so a run killed at any instant resumes from a whole
                        trial.
 ``config.toml``        the cell config the run started with (resume reads it)
-``summary.json``       task, seed, trials, phase_switch_trial, criterion_trial,
-                       converged_trial, converged, diagnosis, final_force_rms_n,
-                       final_mean_r, steps, wall_s, steps_per_s, output_map,
+``summary.json``       task, seed, learner_start, trials, phase_switch_trial,
+                       criterion_trial, converged_trial, converged,
+                       in_band_at_end, trials_out_of_band_after_convergence,
+                       diagnosis, feasibility, final_force_rms_n, final_mean_r,
+                       map_shift_mm, steps, wall_s, steps_per_s, output_map,
                        probe (fits), ...
 ``probe.csv``          the surface probe's readings (``probe.png`` its figure)
 ``trials.csv``         one row per trial
@@ -22,9 +24,13 @@ The run directory holds:
 
 A new run first probes the surface (:mod:`forcelearn.tasks.surface_probe`)
 and takes its output map from the fit; the probe and the map are kept in the
-checkpoint, so a resumed run does not probe again. During the run a
+checkpoint, so a resumed run does not probe again. The learner starts from the
+probe's path (``[run] learner_start = "probe"``) or from μ = 0 (``"cold"``,
+:mod:`forcelearn.tasks.surface_warm_start`). During the run a
 :class:`~forcelearn.tasks.surface_diagnosis.StuckMonitor` warns (once, through
-``on_warning`` and the log) when learning is stuck.
+``on_warning`` and the log) when learning is stuck, and
+:func:`~forcelearn.tasks.surface_feasibility.assess` when the run's own
+estimates say the desired force is out of reach after wear.
 
 A resumed run re-opens the cell, restores the learner (with its random
 generator) and, on an emulated cell, the emulators' state, then continues with
@@ -46,17 +52,21 @@ import numpy as np
 from forcelearn.errors import ForcelearnError, StateFileError
 from forcelearn.learning import SRVLearner, load_extra_arrays, load_learner, save_learner
 from forcelearn.run_output import final_figures, write_step_log, write_summary, write_trials
-from forcelearn.tasks.surface import SurfaceTask, TrialTrace
+from forcelearn.tasks.surface import SurfaceTask, TrialTrace, step_centre_y_mm
 from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
+from forcelearn.tasks.surface_feasibility import FEASIBILITY_WINDOW, Feasibility, assess
 from forcelearn.tasks.surface_probe import (
     OutputMapChoice,
     ProbeResult,
     SurfaceProbe,
+    allowed_bottom_y_mm,
     probe_and_map,
 )
+from forcelearn.tasks.surface_warm_start import OLD_CHECKPOINT_START, warm_start
 from forcelearn.tools.cell_config import CellConfig, load_cell_config
 from forcelearn.tools.cell_session import CellSession
 from forcelearn.trainer import (
+    CONVERGENCE_TOLERANCE,
     StepHook,
     TrainingResult,
     TrialLog,
@@ -74,8 +84,11 @@ class _ConvergedStop(Exception):
 
 CHECKPOINT = "checkpoint.npz"
 CONFIG_COPY = "config.toml"
-RUN_STATE_VERSION = 4
-"""4: the probe's result and the output map in the metadata (issue 11)."""
+RUN_STATE_VERSION = 5
+"""4: the probe's result and the output map in the metadata (issue 11); 5: the learner's
+start, the wear tracking's reference force and the feasibility (issue 31). A version-4
+checkpoint still resumes: cold start, and the wear tracking it ran with."""
+READABLE_VERSIONS = (4, 5)
 
 
 @dataclasses.dataclass
@@ -90,8 +103,10 @@ class SurfaceRun:
     traces: list[TrialTrace] = dataclasses.field(default_factory=list)
     """Per trial: the Y commands and the map's wear shift."""
     wall_s: float = 0.0
-    saved: tuple[int, int, TrialLog | None, float, tuple[int, int]] = (0, 0, None, 0.0, (0, 0))
-    """(trials, steps, last log, map shift, tares) as of the last checkpoint written."""
+    saved: tuple[int, int, TrialLog | None, float, tuple[int, int], float | None] = (
+        0, 0, None, 0.0, (0, 0), None
+    )
+    """(trials, steps, last log, map shift, tares, wear reference) as of the last checkpoint."""
     probe: ProbeResult | None = None
     """The surface probe's readings and fits (None: no probe)."""
     output_map: OutputMapChoice | None = None
@@ -102,15 +117,27 @@ class SurfaceRun:
     """A map that follows wear: its shift as of the last whole trial (mm)."""
     tares: tuple[int, int] = (0, 0)
     """``task.tare_each_trial``: tares done and refused, as of the last whole trial."""
+    learner_start: str = OLD_CHECKPOINT_START
+    """How the learner started: "probe" (warm) or "cold" (set by :func:`execute`)."""
+    wear_reference_n: float | None = None
+    """The start force the wear tracking holds (the first trial's), N."""
+    feasibility: Feasibility | None = None
+    """The latest 'out of reach' estimate the run made (None: never)."""
+    feasibility_now: bool = False
+    """True when the latest trial's window still says the force is out of reach."""
+    feasibility_first_trial: int | None = None
+    """The trial at which the run first found the force out of reach."""
 
     def mark_saved(self) -> None:
         """Remember what the checkpoint on disk holds."""
         self.saved = (len(self.result.records), self.result.steps, self.result.last_log,
-                      self.map_shift_mm, self.tares)
+                      self.map_shift_mm, self.tares, self.wear_reference_n)
 
     def rollback_to_saved(self) -> None:
         """Forget a trial that ended but was not checkpointed (interrupted in between)."""
-        trials, steps, last_log, self.map_shift_mm, self.tares = self.saved
+        trials, steps, last_log, self.map_shift_mm, self.tares, self.wear_reference_n = (
+            self.saved
+        )
         result = self.result
         del result.records[trials:]
         del self.traces[trials:]
@@ -151,10 +178,13 @@ def _history_arrays(run: SurfaceRun) -> dict[str, np.ndarray]:
     steps = run.config.task.steps_per_trial
     means = np.full((len(run.traces), steps), np.nan)
     commands = np.full((len(run.traces), steps), np.nan)
+    forces = np.full((len(run.traces), steps), np.nan)
     for i, trace in enumerate(run.traces):
         means[i, : len(trace["mean_y_mm"])] = trace["mean_y_mm"]
         commands[i, : len(trace["command_y_mm"])] = trace["command_y_mm"]
+        forces[i, : len(trace["force_n"])] = trace["force_n"]
     arrays["trace_mean_y_mm"], arrays["trace_command_y_mm"] = means, commands
+    arrays["trace_force_n"] = forces
     arrays["trace_length"] = np.array([len(t["mean_y_mm"]) for t in run.traces], dtype=np.int64)
     arrays["trace_shift_mm"] = np.array([t["shift_mm"] for t in run.traces], dtype=float)
     return arrays
@@ -174,11 +204,14 @@ def _history_from_arrays(run: SurfaceRun, arrays: dict[str, np.ndarray]) -> None
             f"{run.out / CHECKPOINT} keeps {len(shifts)} trial shifts for {len(lengths)} "
             "trials (a damaged file); restore it from a backup or start a new run"
         )
+    # checkpoints written before the forces were kept per step: none known (NaN)
+    forces = arrays.get("trace_force_n", np.full(arrays["trace_command_y_mm"].shape, np.nan))
     run.traces = [
         TrialTrace(
             mean_y_mm=arrays["trace_mean_y_mm"][i, :length].tolist(),
             command_y_mm=arrays["trace_command_y_mm"][i, :length].tolist(),
             shift_mm=float(shifts[i]),
+            force_n=forces[i, :length].tolist(),
         )
         for i, length in enumerate(lengths)
     ]
@@ -204,14 +237,22 @@ def _run_state(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any
         "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
         "map_shift_mm": run.map_shift_mm,
         "tares": list(run.tares),
+        "learner_start": run.learner_start,
+        "wear_reference_n": run.wear_reference_n,
+        "feasibility": (
+            dataclasses.asdict(run.feasibility) if run.feasibility is not None else None
+        ),
+        "feasibility_now": run.feasibility_now,
+        "feasibility_first_trial": run.feasibility_first_trial,
     }
 
 
 def _restore(run: SurfaceRun, state: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-    if state.get("run_state_version") != RUN_STATE_VERSION or state.get("task") != "surface":
+    version = state.get("run_state_version")
+    if version not in READABLE_VERSIONS or state.get("task") != "surface":
         raise StateFileError(
             f"{run.out / CHECKPOINT} is not a surface-run checkpoint of version "
-            f"{RUN_STATE_VERSION}; start a new run in another folder"
+            f"{' or '.join(map(str, READABLE_VERSIONS))}; start a new run in another folder"
         )
     result = run.result
     _history_from_arrays(run, arrays)
@@ -225,6 +266,18 @@ def _restore(run: SurfaceRun, state: dict[str, Any], arrays: dict[str, np.ndarra
     run.probe = ProbeResult.from_json(state["probe"]) if state["probe"] is not None else None
     run.output_map = OutputMapChoice(**state["output_map"])
     run.map_shift_mm = float(state.get("map_shift_mm", 0.0))
+    # before version 5: the cold start, and a map that tracked wear held the desired force
+    run.learner_start = str(state.get("learner_start", OLD_CHECKPOINT_START))
+    if "wear_reference_n" in state:
+        reference = state["wear_reference_n"]
+        run.wear_reference_n = None if reference is None else float(reference)
+    elif run.output_map.wear_stiffness_n_per_mm is not None:
+        run.wear_reference_n = float(run.config.task.desired_force_n)
+    feasibility = state.get("feasibility")
+    run.feasibility = Feasibility(**feasibility) if feasibility else None
+    run.feasibility_now = bool(state.get("feasibility_now", False))
+    first = state.get("feasibility_first_trial")
+    run.feasibility_first_trial = None if first is None else int(first)
     try:
         done, refused = state.get("tares", (0, 0))  # none in older checkpoints
         run.tares = (int(done), int(refused))
@@ -303,18 +356,22 @@ def execute(
         step_mm = abs(config.task.z_step_mm)
         output = run.output_map.output(step_mm)
         output.shift_mm = run.map_shift_mm  # a resumed run's tracked wear
+        output.wear_reference_n = run.wear_reference_n
         cell, tares_before = session.cell, run.tares
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
         if checkpoint is not None:
             learner = load_learner(checkpoint, output=output)[0]
         else:
             learner = SRVLearner(task.grid, 1, config.learner, rng=run.seed, output=output)
+            run.learner_start = start_learner(learner, run, output)
         monitor = run.monitor = StuckMonitor(
             run.output_map.centre_y_mm,
             run.output_map.max_offset_mm,
             config.task.steps_per_trial,
             path_y_mm=run.output_map.path_y_mm,
+            source=run.output_map.source,
         )
+        feasibility_of = feasibility_check(run)
         for record, trace in zip(run.result.records, run.traces, strict=True):  # resumed
             monitor.update(record, trace["command_y_mm"], trace["shift_mm"])
 
@@ -327,10 +384,19 @@ def execute(
                     ],
                     command_y_mm=[row["command_0"] for row in trial_log.rows],
                     shift_mm=output.shift_mm,  # the wear shift this trial ran with
+                    force_n=[row["force_n"] for row in trial_log.rows],
                 )
             )
             run.wall_s = wall_before + time.perf_counter() - started
             run.map_shift_mm = output.shift_mm
+            run.wear_reference_n = output.wear_reference_n
+            found = feasibility_of(record.index)
+            run.feasibility_now = found is not None
+            new_finding = found is not None and run.feasibility_first_trial is None
+            if found is not None:
+                run.feasibility = found
+                if run.feasibility_first_trial is None:
+                    run.feasibility_first_trial = record.index
             run.tares = (tares_before[0] + cell.tares, tares_before[1] + cell.tares_refused)
             save_learner(
                 lrn,
@@ -342,6 +408,10 @@ def execute(
             warning = monitor.update(
                 record, run.traces[-1]["command_y_mm"], run.traces[-1]["shift_mm"]
             )
+            if new_finding and found is not None:
+                log.warning("%s", found.text())
+                if on_warning is not None:
+                    on_warning(found.text())
             if warning is not None:
                 log.warning("%s", warning)
                 if on_warning is not None:
@@ -379,6 +449,59 @@ def execute(
     return write_outputs(run, learner)
 
 
+def start_learner(learner: SRVLearner, run: SurfaceRun, output: Any) -> str:
+    """Start a new run's learner as ``[run] learner_start`` says; return the start applied.
+
+    The warm start needs the probe: without one (``[probe] enabled = false``,
+    or the whole map configured) the learner starts cold, and the log says so.
+    """
+    if run.config.learner_start == "probe":
+        if run.probe is not None and run.probe.fits:
+            warm_start(learner, run.probe, run.config.task, output)
+            return "probe"
+        log.warning(
+            "run.learner_start = \"probe\" needs the surface probe, which did not run "
+            "([probe] enabled = false, or the whole output map is in [task]): the learner "
+            "starts cold (mu = 0)"
+        )
+    return "cold"
+
+
+def feasibility_check(run: SurfaceRun) -> Callable[[int], Feasibility | None]:
+    """The run's 'is the force still in reach' test over its last trials (none without a probe)."""
+    choice, probe, config = run.output_map, run.probe, run.config
+    if choice is None or probe is None or not probe.fits:
+        return lambda trial: None
+    bottom = choice.allowed_bottom_y_mm
+    if bottom is None:  # a checkpoint from before it was kept
+        bottom = allowed_bottom_y_mm(probe, config.probe, config.safety.workspace_min_mm[1])
+    task, half = config.task, choice.max_offset_mm
+    k_probe = probe.stiffness_n_per_mm()
+    contacts = probe.contact_path_mm(task).tolist()
+
+    def check(trial: int) -> Feasibility | None:
+        window = run.traces[-FEASIBILITY_WINDOW:]
+        centres = [
+            [step_centre_y_mm(choice.path_y_mm, choice.centre_y_mm, j) + t["shift_mm"]
+             for j in range(len(t["command_y_mm"]))]
+            for t in window
+        ]
+        return assess(
+            [t["command_y_mm"] for t in window],
+            [t["force_n"] for t in window],
+            [[c - half for c in row] for row in centres],
+            [[c + half for c in row] for row in centres],
+            contacts,
+            trial=trial,
+            desired_force_n=task.desired_force_n,
+            band_n=CONVERGENCE_TOLERANCE * task.desired_force_n,
+            probe_stiffness_n_per_mm=k_probe,
+            allowed_bottom_y_mm=bottom,
+        )
+
+    return check
+
+
 def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:
     """Probe the surface (if enabled and needed) and set the run's output map; write probe files.
 
@@ -395,7 +518,9 @@ def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:
         config.safety.workspace_min_mm[1],
     )
     try:
-        run.probe, run.output_map = probe_and_map(probe)
+        run.probe, run.output_map = probe_and_map(
+            probe, refine=config.learner_start == "probe"
+        )
     except BaseException:
         if probe.result.rows:
             write_probe_files(run.out, probe.result, None)
@@ -434,19 +559,30 @@ def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
         result.records, config.task.steps_per_trial, config.task.desired_force_n
     )
     monitor = run.monitor or StuckMonitor(0.0, 1.0, config.task.steps_per_trial)
-    converged, diagnosis = diagnose(result.records, converged_at, monitor)
+    verdict = diagnose(
+        result.records, converged_at, monitor, config.task.desired_force_n, run.feasibility
+    )
+    warnings = list(monitor.warnings)
+    if run.feasibility is not None:
+        warnings.append(run.feasibility.text())
     return {
         "task": "surface",
         "seed": run.seed,
+        "learner_start": run.learner_start,
         "trials": len(result.records),
         "phase_switch_trial": result.switch_trial,
         "criterion_trial": criterion_trial(result.records, config.learner.success_trials),
         "converged_trial": converged_at,
-        "converged": converged,
-        "diagnosis": diagnosis,
-        "warnings": list(monitor.warnings),
+        **verdict,
+        "feasibility": {
+            "out_of_reach_at_end": run.feasibility_now,
+            "first_trial": run.feasibility_first_trial,
+            "latest": dataclasses.asdict(run.feasibility) if run.feasibility else None,
+        },
+        "warnings": warnings,
         "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
         "map_shift_mm": run.map_shift_mm,
+        "wear_reference_n": run.wear_reference_n,
         "tares": {"done": run.tares[0], "refused": run.tares[1]},
         "probe_stiffness_n_per_mm": (
             run.probe.stiffness_n_per_mm() if run.probe is not None else None

@@ -45,7 +45,9 @@ class SurfaceEnv(TaskEnv):
     emulated cell) the surface probe runs first, exactly as ``forcelearn run``
     starts (docs/surface.md): it finds the contact and the stiffness and
     chooses the map's centre Y (where the desired force is expected), its
-    half-range and the learner's scale. ``[probe] enabled = false`` or a fully
+    half-range and the learner's scale; with ``[run] learner_start = "probe"``
+    (the default) it also probes its refine points, so ``probe_path_mm`` has
+    the surface's waves. ``[probe] enabled = false`` or a fully
     configured map (``task.output_centre_y_mm``, ``output_scale_mm``,
     ``max_offset_mm``) skip it; the map is then the configured one, or the
     fallback (start Y, 2 mm, 15 mm). ``env.output_map`` holds it and
@@ -149,7 +151,9 @@ class SurfaceEnv(TaskEnv):
             cell, config.task, config.probe, config.safety.max_step_mm,
             config.safety.workspace_min_mm[1],
         )
-        self.probe, self.output_map = probe_and_map(probe)
+        self.probe, self.output_map = probe_and_map(
+            probe, refine=config.learner_start == "probe"
+        )
         self._output = self.output_map.output(abs(self.task_spec.z_step_mm))
         return SurfaceTask(cell, self.task_spec, config.safety.max_step_mm, self._output)
 

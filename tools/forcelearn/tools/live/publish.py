@@ -116,7 +116,11 @@ def surface_meta(config: CellConfig, trials_target: int, source: str = "live") -
 
 
 def surface_extras(run: Any) -> RowExtras:
-    """Adds ``mean_y_mm``: the learner's mean μ as a Y command (Fig. 12's solid line).
+    """Adds the row's Y figures in mm: mean μ, the map's centre and its wear shift.
+
+    ``mean_y_mm`` (the learner's mean μ as a Y command: Fig. 12's solid line),
+    ``map_centre_y_mm`` (the output map's centre at the step, its wear shift
+    included) and ``map_shift_mm`` (how far the map has followed the wear).
 
     ``run`` is the ``SurfaceRun``: its output map is known only once the run has
     probed the surface (or restored the probe), so it is read at each row.
@@ -134,7 +138,12 @@ def surface_extras(run: Any) -> RowExtras:
         output = choice.output(step_mm) if choice is not None else fallback
         if choice is not None:  # a map that follows wear: where it has moved to
             output.shift_mm = float(getattr(run, "map_shift_mm", 0.0))
-        return {"mean_y_mm": output.command_at_step(row["mean_0"], int(row["step"]) - 1)}
+        step = int(row["step"]) - 1
+        return {
+            "mean_y_mm": output.command_at_step(row["mean_0"], step),
+            "map_centre_y_mm": output.command_at_step(0.0, step),
+            "map_shift_mm": output.shift_mm,
+        }
 
     return extras
 

@@ -85,6 +85,11 @@ function drawY() {
   };
   add(state.previous, "previous", "#9aa1ab");
   add(state.present, "present", "#1565c0");
+  const p = state.present;
+  if (p && p.rows.length && p.rows[0].map_centre_y_mm !== undefined) {
+    const shift = p.rows[p.rows.length - 1].map_shift_mm || 0;
+    series.push({ x: col(p, "step"), y: col(p, "map_centre_y_mm"), color: "#6d4c41", dash: [2, 2], width: 1, label: `map centre (wear shift ${shift.toFixed(2)} mm)` });
+  }
   Plot.draw(document.getElementById("plot-y"), {
     xlabel: "step", ylabel: "Y command (mm)", xlim: [0.5, state.meta.steps_per_trial + 0.5], series,
   });
