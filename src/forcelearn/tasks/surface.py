@@ -199,6 +199,9 @@ class SurfaceTaskSpec:
         return Pose(*self.start_mm, self.orientation or IDENTITY_QUATERNION)
 
 
+RECENTRE_SHARE = 0.5
+"""The range is re-centred on the learner once the mean of its μ passes this share of the
+half-range (:meth:`SurfaceYOutput.recentre_on`)."""
 WEAR_GAIN = 0.5
 """Share of the start press's depth error corrected per trial when the map follows wear."""
 
@@ -221,7 +224,8 @@ class TrialTrace(TypedDict):
     command_y_mm: list[float]
     """The searched Y command of every step."""
     shift_mm: float
-    """The map's wear shift the trial ran with (0: a map that does not follow wear)."""
+    """How far the range's centre had moved when the trial ran (mm): the wear shift plus the
+    re-centring on the learner (0: a map that moved neither way)."""
     force_n: list[float]
     """The filtered force of every step, N (NaN: a checkpoint from before it was kept)."""
 
@@ -267,16 +271,24 @@ class SurfaceYOutput:
         """The start force the tracking holds (N): the first trial's (None: not yet read)."""
         self.held_mm = 0.0
         """How far the last tracked shift passed :attr:`shift_range_mm` (mm, − deeper)."""
+        self.recentre_mm = 0.0
+        """How far the range has been re-centred on the learner's drift (mm, − deeper;
+        :meth:`recentre_on`): moves every centre, not the start press."""
         self._held = False
+
+    @property
+    def displacement_mm(self) -> float:
+        """How far the range's centre has moved since the probe (mm): wear shift + re-centring."""
+        return self.shift_mm + self.recentre_mm
 
     def centre_of_step(self, step_index: int) -> float:
         """The centre Y (mm) of step ``step_index`` (0: the first), shift included."""
-        return step_centre_y_mm(self.path_y_mm, self.start_y_mm, step_index) + self.shift_mm
+        return step_centre_y_mm(self.path_y_mm, self.start_y_mm, step_index) + self.displacement_mm
 
     def centre_at(self, x: np.ndarray | None) -> float:
         """The centre Y (mm) of the step that starts at travel ``x`` (mm), shift included."""
         if not self.path_y_mm or x is None or np.size(x) == 0:
-            return self.start_y_mm + self.shift_mm
+            return self.start_y_mm + self.displacement_mm
         return self.centre_of_step(round(float(np.ravel(x)[0]) / self.step_mm))
 
     def command_at_step(self, a: float, step_index: int) -> float:
@@ -304,7 +316,8 @@ class SurfaceYOutput:
         shift = self.shift_mm + WEAR_GAIN * (start_force_n - self.wear_reference_n) / k
         self.held_mm = 0.0
         if self.shift_range_mm is not None:
-            low, high = self.shift_range_mm
+            low, high = self.shift_range_mm  # bounds the whole displacement, re-centring too
+            low, high = low - self.recentre_mm, high - self.recentre_mm
             held = min(max(shift, low), high)
             self.held_mm = shift - held
             if held != shift and not self._held:
@@ -316,6 +329,35 @@ class SurfaceYOutput:
                 )
             shift = held
         self.shift_mm = shift
+
+    def recentre_on(self, means: np.ndarray) -> float:
+        """Re-centre the range on the learner's drift; return the move (mm, 0: none).
+
+        ``means`` are the learner's μ of every box (action units, changed in
+        place). When their mean sits beyond ``RECENTRE_SHARE`` of the
+        half-range, the range's centre moves by that drift and every μ loses
+        it, so each command stays the same (y = centre + scale · μ) while the
+        range's ends move with what the learner found: a sponge whose wear the
+        start press does not show (softening deep below the start press's
+        depth) no longer pins the learner at an edge. Maps without wear
+        tracking (a configured one, no probe) are never moved; the whole
+        displacement stays within :attr:`shift_range_mm`.
+        """
+        if self.wear_stiffness_n_per_mm is None or self.shift_range_mm is None:
+            return 0.0
+        drift_mm = float(np.mean(means)) * self.scale_mm
+        if abs(drift_mm) < RECENTRE_SHARE * self.max_offset_mm:
+            return 0.0
+        low, high = self.shift_range_mm
+        now = self.displacement_mm
+        move = min(max(now + drift_mm, low), high) - now
+        if move == 0.0:
+            return 0.0
+        self.recentre_mm += move
+        means -= move / self.scale_mm
+        log.info("the output range follows the learner's drift: re-centred %+.2f mm (%+.2f mm "
+                 "in all)", move, self.recentre_mm)
+        return move
 
     def __call__(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
         """Return the Y command (mm) for action ``a`` at travel ``x``."""

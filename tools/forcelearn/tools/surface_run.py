@@ -103,10 +103,11 @@ class SurfaceRun:
     traces: list[TrialTrace] = dataclasses.field(default_factory=list)
     """Per trial: the Y commands and the map's wear shift."""
     wall_s: float = 0.0
-    saved: tuple[int, int, TrialLog | None, float, tuple[int, int], float | None] = (
-        0, 0, None, 0.0, (0, 0), None
-    )
-    """(trials, steps, last log, map shift, tares, wear reference) as of the last checkpoint."""
+    saved: tuple[
+        int, int, TrialLog | None, tuple[float, float], tuple[int, int], float | None
+    ] = (0, 0, None, (0.0, 0.0), (0, 0), None)
+    """(trials, steps, last log, (map shift, re-centring), tares, wear reference) as of the last
+    checkpoint."""
     probe: ProbeResult | None = None
     """The surface probe's readings and fits (None: no probe)."""
     output_map: OutputMapChoice | None = None
@@ -115,6 +116,9 @@ class SurfaceRun:
     """Watches for stuck learning (edge of the range, no trial completing)."""
     map_shift_mm: float = 0.0
     """A map that follows wear: its shift as of the last whole trial (mm)."""
+    map_recentre_mm: float = 0.0
+    """A map that follows wear: its re-centring on the learner's drift, as of the last whole
+    trial (mm; :meth:`~forcelearn.tasks.surface.SurfaceYOutput.recentre_on`)."""
     tares: tuple[int, int] = (0, 0)
     """``task.tare_each_trial``: tares done and refused, as of the last whole trial."""
     learner_start: str = OLD_CHECKPOINT_START
@@ -131,13 +135,13 @@ class SurfaceRun:
     def mark_saved(self) -> None:
         """Remember what the checkpoint on disk holds."""
         self.saved = (len(self.result.records), self.result.steps, self.result.last_log,
-                      self.map_shift_mm, self.tares, self.wear_reference_n)
+                      (self.map_shift_mm, self.map_recentre_mm), self.tares,
+                      self.wear_reference_n)
 
     def rollback_to_saved(self) -> None:
         """Forget a trial that ended but was not checkpointed (interrupted in between)."""
-        trials, steps, last_log, self.map_shift_mm, self.tares, self.wear_reference_n = (
-            self.saved
-        )
+        trials, steps, last_log, shifts, self.tares, self.wear_reference_n = self.saved
+        self.map_shift_mm, self.map_recentre_mm = shifts
         result = self.result
         del result.records[trials:]
         del self.traces[trials:]
@@ -236,6 +240,7 @@ def _run_state(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any
         "probe": run.probe.to_json() if run.probe is not None else None,
         "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
         "map_shift_mm": run.map_shift_mm,
+        "map_recentre_mm": run.map_recentre_mm,
         "tares": list(run.tares),
         "learner_start": run.learner_start,
         "wear_reference_n": run.wear_reference_n,
@@ -266,6 +271,7 @@ def _restore(run: SurfaceRun, state: dict[str, Any], arrays: dict[str, np.ndarra
     run.probe = ProbeResult.from_json(state["probe"]) if state["probe"] is not None else None
     run.output_map = OutputMapChoice(**state["output_map"])
     run.map_shift_mm = float(state.get("map_shift_mm", 0.0))
+    run.map_recentre_mm = float(state.get("map_recentre_mm", 0.0))  # none before it existed
     # before version 5: the cold start, and a map that tracked wear held the desired force
     run.learner_start = str(state.get("learner_start", OLD_CHECKPOINT_START))
     if "wear_reference_n" in state:
@@ -356,6 +362,7 @@ def execute(
         step_mm = abs(config.task.z_step_mm)
         output = run.output_map.output(step_mm)
         output.shift_mm = run.map_shift_mm  # a resumed run's tracked wear
+        output.recentre_mm = run.map_recentre_mm  # and its re-centring on the learner
         output.wear_reference_n = run.wear_reference_n
         cell, tares_before = session.cell, run.tares
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
@@ -383,12 +390,14 @@ def execute(
                         for row in trial_log.rows
                     ],
                     command_y_mm=[row["command_0"] for row in trial_log.rows],
-                    shift_mm=output.shift_mm,  # the wear shift this trial ran with
+                    shift_mm=output.displacement_mm,  # the range's move this trial ran with
                     force_n=[row["force_n"] for row in trial_log.rows],
                 )
             )
             run.wall_s = wall_before + time.perf_counter() - started
+            output.recentre_on(lrn.weights[..., 0])  # before the save: μ and centre together
             run.map_shift_mm = output.shift_mm
+            run.map_recentre_mm = output.recentre_mm
             run.wear_reference_n = output.wear_reference_n
             found = feasibility_of(record.index)
             run.feasibility_now = found is not None
@@ -582,6 +591,7 @@ def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
         "warnings": warnings,
         "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
         "map_shift_mm": run.map_shift_mm,
+        "map_recentre_mm": run.map_recentre_mm,
         "wear_reference_n": run.wear_reference_n,
         "tares": {"done": run.tares[0], "refused": run.tares[1]},
         "probe_stiffness_n_per_mm": (

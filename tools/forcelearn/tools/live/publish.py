@@ -120,7 +120,8 @@ def surface_extras(run: Any) -> RowExtras:
 
     ``mean_y_mm`` (the learner's mean μ as a Y command: Fig. 12's solid line),
     ``map_centre_y_mm`` (the output map's centre at the step, its wear shift
-    included) and ``map_shift_mm`` (how far the map has followed the wear).
+    included) and ``map_shift_mm`` (how far the map's centre has moved: the wear it followed
+    plus its re-centring on the learner).
 
     ``run`` is the ``SurfaceRun``: its output map is known only once the run has
     probed the surface (or restored the probe), so it is read at each row.
@@ -138,11 +139,12 @@ def surface_extras(run: Any) -> RowExtras:
         output = choice.output(step_mm) if choice is not None else fallback
         if choice is not None:  # a map that follows wear: where it has moved to
             output.shift_mm = float(getattr(run, "map_shift_mm", 0.0))
+            output.recentre_mm = float(getattr(run, "map_recentre_mm", 0.0))
         step = int(row["step"]) - 1
         return {
             "mean_y_mm": output.command_at_step(row["mean_0"], step),
             "map_centre_y_mm": output.command_at_step(0.0, step),
-            "map_shift_mm": output.shift_mm,
+            "map_shift_mm": output.displacement_mm,
         }
 
     return extras
