@@ -20,6 +20,7 @@ def commands(output: SurfaceYOutput, actions: np.ndarray) -> np.ndarray:
 
 
 def test_a_drift_past_the_share_moves_the_centre_and_keeps_every_command() -> None:
+    """A drift past half the half-range moves the centre; every command stays the same."""
     output = tracking_map()
     means = np.full(20, -3.0)  # -6 mm: beyond half of the 10 mm half-range
     means[::2] = -2.5
@@ -35,6 +36,7 @@ def test_a_drift_past_the_share_moves_the_centre_and_keeps_every_command() -> No
 
 
 def test_a_small_drift_moves_nothing() -> None:
+    """Under the share, neither the centre nor any μ moves."""
     output = tracking_map()
     means = np.full(20, 0.9 * RECENTRE_SHARE * 10.0 / 2.0)
     kept = means.copy()
@@ -43,6 +45,7 @@ def test_a_small_drift_moves_nothing() -> None:
 
 
 def test_the_whole_displacement_stays_in_the_allowed_range() -> None:
+    """Wear shift plus re-centring never leave ``shift_range_mm``."""
     output = tracking_map(shift_range=(-4.0, 3.0))
     output.shift_mm = -1.5  # wear already followed
     means = np.full(20, -4.0)  # -8 mm of drift
@@ -57,6 +60,7 @@ def test_the_whole_displacement_stays_in_the_allowed_range() -> None:
 
 
 def test_a_map_that_does_not_follow_wear_is_never_recentred() -> None:
+    """A configured or fallback map (no stiffness to track with) stays put."""
     output = SurfaceYOutput(-7.0, 2.0, 10.0)  # configured or fallback map
     means = np.full(20, -4.0)
     assert output.recentre_on(means) == 0.0

@@ -19,6 +19,7 @@ def run(*args: str) -> None:
 def test_recentring_is_kept_across_a_resume(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """A run split by a resume ends byte-identical to the whole run, re-centring included."""
     # re-centre on any drift, so every trial moves the range and its μ (the default share
     # of the half-range is never reached on the default cell)
     monkeypatch.setattr(surface, "RECENTRE_SHARE", 0.0)
