@@ -11,42 +11,12 @@ import re
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 
-from forcelearn.calibration import (
-    Calibration,
-    MatrixCheck,
-    SensorInfo,
-    dumps,
-    estimate_noise,
-    fit_tool_load,
-    load_calibration,
-)
+from forcelearn.calibration import dumps, load_calibration
 from forcelearn.calibration.file_format import content_digest, to_document
-from forcelearn.calibration.model import TOOL_DOWN
-from forcelearn.devices import quaternion_to_matrix
 from forcelearn.errors import ConfigError
-
-QUATERNIONS = [TOOL_DOWN, (0.92388, 0.38268, 0.0, 0.0), (0.92388, 0.0, 0.38268, 0.0),
-               (0.92388, 0.0, 0.0, 0.38268)]
-
-
-def good_calibration() -> Calibration:
-    """A plausible calibration: a 1.5 kg tool on a 200/400 N, 20 N*m sensor."""
-    rng = np.random.default_rng(0)
-    mass, com = 1.5, np.array([0.0, 0.0, 0.08])
-    readings = []
-    for q in QUATERNIONS:
-        g = quaternion_to_matrix(q).T @ np.array([0.0, 0.0, -9.80665 * mass])
-        readings.append(np.concatenate([g, np.cross(com, g)]) + rng.normal(scale=1e-3, size=6))
-    tool = fit_tool_load(QUATERNIONS, np.array(readings), names=["a", "b", "c", "d"],
-                         samples=[100] * 4)
-    noise = estimate_noise(rng.normal(scale=0.2, size=(200, 6)), np.arange(200) * 1e-3)
-    check = MatrixCheck(12, tuple(tuple(float(i == j) for j in range(6)) for i in range(6)),
-                        (0.01,) * 6, (0.02,) * 6)
-    sensor = SensorInfo("JR3", "SN-1", 1, (200.0, 200.0, 400.0, 20.0, 20.0, 20.0), 125.0, "emu")
-    return Calibration("2024-05-01T12:00:00+00:00", sensor, noise, tool, check)
+from forcelearn.tools.fuzz import filled_calibration as good_calibration
 
 
 def write_with(path: Path, section: str, key: str, value: Any, index: int | None = None) -> Path:

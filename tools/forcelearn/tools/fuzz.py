@@ -69,6 +69,7 @@ from forcelearn.errors import ForcelearnError
 from forcelearn.tools.fuzz_loaders import calibration_value_mutant, npz_header_mutant
 
 if TYPE_CHECKING:
+    from forcelearn.calibration import Calibration
     from forcelearn.devices import WrenchSample
     from forcelearn.learning import SRVLearner
 
@@ -360,20 +361,21 @@ def state_header_case(folder: Path) -> FileCase:
                     case.error, compare=False, extra={"mutant": header_mutant})
 
 
-def calibration_case(folder: Path) -> FileCase:
-    """A calibration with every section filled, saved to ``folder``."""
+def filled_calibration() -> Calibration:
+    """A plausible calibration with every section filled: a 1.5 kg tool on a 200/400 N sensor.
+
+    Moment full scales 20 N*m; the sensor's model name holds an emoji, to exercise the
+    file's text encoding.
+    """
     from forcelearn.calibration import (
         Calibration,
         MatrixCheck,
         SensorInfo,
         estimate_noise,
         fit_tool_load,
-        load_calibration,
-        save_calibration,
     )
     from forcelearn.calibration.model import TOOL_DOWN
     from forcelearn.devices import quaternion_to_matrix
-    from forcelearn.errors import ConfigError
 
     rng = np.random.default_rng(0)
     quaternions = [TOOL_DOWN, (0.92388, 0.38268, 0.0, 0.0), (0.92388, 0.0, 0.38268, 0.0),
@@ -390,7 +392,15 @@ def calibration_case(folder: Path) -> FileCase:
                         (0.01,) * 6, (0.02,) * 6)
     sensor = SensorInfo("JR3 67M25 😀", "SN-1", 1, (200.0, 200.0, 400.0, 20.0, 20.0, 20.0),
                         125.0, "emulator")
-    cal = Calibration("2024-05-01T12:00:00+00:00", sensor, noise, tool, check)
+    return Calibration("2024-05-01T12:00:00+00:00", sensor, noise, tool, check)
+
+
+def calibration_case(folder: Path) -> FileCase:
+    """A calibration with every section filled (:func:`filled_calibration`), saved to ``folder``."""
+    from forcelearn.calibration import load_calibration, save_calibration
+    from forcelearn.errors import ConfigError
+
+    cal = filled_calibration()
     path = folder / "calibration.toml"
     save_calibration(cal, path)
     return FileCase(path.read_bytes(), cal, folder / "mutant.toml", load_calibration,
