@@ -90,6 +90,23 @@ def quaternion_to_matrix(q: tuple[float, float, float, float]) -> np.ndarray:
     )
 
 
+def multiply_quaternions(
+    a: tuple[float, ...], b: tuple[float, float, float, float]
+) -> tuple[float, float, float, float]:
+    """Return the Hamilton product ``a * b`` of two quaternions (w, x, y, z).
+
+    As rotations: b, then a (in the world frame).
+    """
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
 AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 """Names of a wrench's six components, in :attr:`WrenchSample.wrench` order."""
 

@@ -10,10 +10,10 @@ from forcelearn.emulators.egm.controller import (
     EgmControllerConfig,
     EgmControllerModel,
 )
-from forcelearn.emulators.egm.joints import tool_joints_deg, tool_pose
+from forcelearn.emulators.egm.joints import tool_pose
 from forcelearn.emulators.egm.servo import ServoParams
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig
+from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig, joint_angles_deg
 from forcelearn.protocols.egm import codec
 
 ARM = ArmConfig()
@@ -38,16 +38,16 @@ def test_joints_and_clock_in_every_message() -> None:
     """feedBack/planned joints are the arm's six axes; the clock is µs since 1970 from the epoch."""
     model = model_of(clock_epoch_us=1_700_000_000_123_456)
     first = cycle(model, 0)
-    home = tool_joints_deg(ARM, HOME)
+    home = joint_angles_deg(ARM, HOME)
     assert first.joints_deg == home and first.planned_joints_deg == home
     assert first.time_us == 1_700_000_000_123_456
     assert first.planned_time_us == 1_700_000_000_123_456 + 20_000  # + the 20 ms control lag
     target = HOME.moved(dx_mm=20.0)
     seen = [cycle(model, k, codec.SensorMessage(k, 0, target)) for k in range(1, 60)]
     assert seen[-1].time_us == 1_700_000_000_123_456 + 59 * 4000
-    assert seen[-1].planned_joints_deg == tool_joints_deg(ARM, target)
+    assert seen[-1].planned_joints_deg == joint_angles_deg(ARM, target)
     assert seen[-1].feedback is not None
-    assert seen[-1].joints_deg == tool_joints_deg(ARM, seen[-1].feedback)
+    assert seen[-1].joints_deg == joint_angles_deg(ARM, seen[-1].feedback)
     assert seen[-1].joints_deg != home
     assert cycle(model_of(), 0).time_us == DEFAULT_CLOCK_EPOCH_US
 
@@ -81,7 +81,7 @@ def test_speed_ref_feed_forward_removes_the_servo_lag() -> None:
 def test_joint_mode_follows_planned_joints() -> None:
     """EGMSetupUC with the Joint switch: the arm goes to planned.joints, echoed as planned."""
     model = model_of(mode="joint")
-    home = tool_joints_deg(ARM, HOME)
+    home = joint_angles_deg(ARM, HOME)
     assert home is not None
     goal = (home[0] + 5.0, home[1] + 3.0, *home[2:])
     message = cycle(model, 0)
@@ -97,7 +97,7 @@ def test_joint_mode_follows_planned_joints() -> None:
 def test_joint_mode_refuses_joints_out_of_range_with_a_motion_error() -> None:
     """A J2 beyond its range stops EGM (MCI_ERROR) and the arm holds."""
     model = model_of(mode="joint")
-    home = tool_joints_deg(ARM, HOME)
+    home = joint_angles_deg(ARM, HOME)
     assert home is not None
     bad = (home[0], 130.0, *home[2:])
     message = cycle(model, 1, codec.SensorMessage(1, 0, None, planned_joints_deg=bad))
@@ -109,7 +109,7 @@ def test_joint_mode_refuses_joints_out_of_range_with_a_motion_error() -> None:
 def test_the_other_modes_field_is_counted_and_the_reference_kept(mode: str) -> None:
     """Only the other mode's position data: no motion, still running, counted in wrong_mode."""
     model = model_of(mode=mode)
-    home = tool_joints_deg(ARM, HOME)
+    home = joint_angles_deg(ARM, HOME)
     assert home is not None
     other = (
         codec.SensorMessage(1, 0, None, planned_joints_deg=(home[0] + 10.0, *home[1:]))

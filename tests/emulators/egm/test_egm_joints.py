@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from forcelearn.devices import Pose, quaternion_to_matrix
-from forcelearn.emulators.egm.joints import limit_violation, tool_joints_deg, tool_pose
+from forcelearn.emulators.egm.joints import limit_violation, tool_pose
 from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig, joint_angles_deg
 
 ARM = ArmConfig()
@@ -28,7 +28,7 @@ def test_forward_kinematics_of_a_hand_computed_pose() -> None:
 
 def test_home_pose_joints_are_degrees_within_the_ranges() -> None:
     """The cell's home (900, 0, 600) mm, tool down: J1 = 0, wrist at J5 = 180 deg."""
-    joints = tool_joints_deg(ARM, HOME)
+    joints = joint_angles_deg(ARM, HOME)
     assert joints is not None and len(joints) == 6
     assert joints[0] == pytest.approx(0.0) and joints[4] == pytest.approx(180.0)
     assert limit_violation(ARM, joints) is None
@@ -50,7 +50,7 @@ def test_inverse_kinematics_inverts_forward_kinematics(
     yaw = math.radians(joints[0])
     if pose.x_mm * math.cos(yaw) + pose.y_mm * math.sin(yaw) < 1.0:
         return  # tool behind or on the base axis: reached with J1 turned 180 deg (or any J1)
-    back = tool_joints_deg(ARM, pose)
+    back = joint_angles_deg(ARM, pose)
     assert back is not None
     assert back == pytest.approx(joints, abs=1e-6)
     again = tool_pose(ARM, back)
@@ -60,7 +60,7 @@ def test_inverse_kinematics_inverts_forward_kinematics(
 
 def test_out_of_reach_and_out_of_range_are_reported() -> None:
     """A pose beyond the two links has no joints; each axis range is checked by number."""
-    assert tool_joints_deg(ARM, Pose(3000.0, 0.0, 750.0, HOME.quaternion)) is None
+    assert joint_angles_deg(ARM, Pose(3000.0, 0.0, 750.0, HOME.quaternion)) is None
     assert limit_violation(ARM, (0.0, 0.0, -90.0, 0.0, 90.0, 0.0)) is None
     reason = limit_violation(ARM, (0.0, 120.0, -90.0, 0.0, 90.0, 0.0))
     assert reason is not None and "J2" in reason and "-70..110" in reason
@@ -69,21 +69,3 @@ def test_out_of_reach_and_out_of_range_are_reported() -> None:
     assert "6 finite" in (limit_violation(ARM, (0.0, math.nan, -90.0, 0.0, 90.0, 0.0)) or "")
     with pytest.raises(ValueError, match="6 finite"):
         tool_pose(ARM, (0.0, 0.0, -90.0))
-
-
-@settings(max_examples=60, deadline=None)
-@given(
-    st.floats(300.0, 1500.0), st.floats(-800.0, 800.0), st.floats(-200.0, 1400.0),
-    st.tuples(*[st.floats(-1.0, 1.0)] * 4).filter(lambda q: sum(c * c for c in q) > 0.01),
-)
-def test_the_same_joints_as_the_computer_link_emulators_arm(
-    x: float, y: float, z: float, q: tuple[float, float, float, float]
-) -> None:
-    """One arm in the cell: EGM reports the joints the computer-link emulator computes."""
-    norm = math.sqrt(sum(c * c for c in q))
-    pose = Pose(x, y, z, tuple(c / norm for c in q))  # type: ignore[arg-type]
-    ours, theirs = tool_joints_deg(ARM, pose), joint_angles_deg(ARM, pose)
-    if theirs is None:
-        assert ours is None
-        return
-    assert ours == pytest.approx(theirs, abs=1e-7)

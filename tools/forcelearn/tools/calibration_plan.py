@@ -38,21 +38,10 @@ import numpy as np
 
 from forcelearn.calibration import MAX_CONDITION, TOOL_DOWN
 from forcelearn.config import read_toml
+from forcelearn.devices import multiply_quaternions
 from forcelearn.errors import ConfigError
 
 Quaternion = tuple[float, float, float, float]
-
-
-def multiply(a: Quaternion, b: Quaternion) -> Quaternion:
-    """Return the Hamilton product a * b (rotation b, then a, in the world frame)."""
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return (
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    )
 
 
 def tilted(axis_world: tuple[float, float, float], angle_deg: float) -> Quaternion:
@@ -65,7 +54,7 @@ def tilted(axis_world: tuple[float, float, float], angle_deg: float) -> Quaterni
     ax, ay, az = (float(c) for c in axis)
     sin_half = math.sin(half)
     turn = (math.cos(half), ax * sin_half / norm, ay * sin_half / norm, az * sin_half / norm)
-    q = np.asarray(multiply(turn, TOOL_DOWN))
+    q = np.asarray(multiply_quaternions(turn, TOOL_DOWN))
     w, x, y, z = (float(c) for c in q / np.linalg.norm(q))
     return (w, x, y, z)
 

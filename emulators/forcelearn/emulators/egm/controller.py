@@ -61,11 +61,11 @@ from typing import Any, Literal
 
 import numpy as np
 
-from forcelearn.devices import Pose
+from forcelearn.devices import Pose, multiply_quaternions
 from forcelearn.emulators.egm import joints as arm_joints
 from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+from forcelearn.emulators.robot_controller.kinematics import ArmConfig, joint_angles_deg
 from forcelearn.errors import ProtocolError
 from forcelearn.protocols.egm import codec
 
@@ -193,7 +193,7 @@ class EgmControllerModel:
 
     def _joints(self, pose: Pose, fallback: tuple[float, ...]) -> tuple[float, ...]:
         """The arm's axes at ``pose`` (deg); ``fallback`` if the arm cannot reach it."""
-        joints = arm_joints.tool_joints_deg(self.config.arm, pose)
+        joints = joint_angles_deg(self.config.arm, pose)
         return fallback if joints is None else joints
 
     def apply_sensor(self, datagram: bytes, t_s: float) -> None:
@@ -265,7 +265,7 @@ class EgmControllerModel:
             axis = turn / angle
             w, s = math.cos(angle / 2.0), math.sin(angle / 2.0)
             turn_q = (w, *(float(c) * s for c in axis))
-            quaternion = arm_joints.multiply_quaternions(turn_q, target.quaternion)
+            quaternion = multiply_quaternions(turn_q, target.quaternion)
         return Pose(x, y, z, quaternion)
 
     def _motion_error(self, t_s: float, reason: str) -> None:
@@ -291,7 +291,7 @@ class EgmControllerModel:
         high = np.asarray(self.config.workspace_max_mm)
         if np.any(position < low) or np.any(position > high):
             return f"planned position {np.round(position, 3).tolist()} mm is outside the workspace"
-        joints = arm_joints.tool_joints_deg(self.config.arm, pose)
+        joints = joint_angles_deg(self.config.arm, pose)
         if joints is None:
             return f"planned position {np.round(position, 3).tolist()} mm is out of the arm's reach"
         return arm_joints.limit_violation(self.config.arm, joints)

@@ -20,7 +20,8 @@ J4, J5, J6  wrist: Z-Y-Z Euler angles of the tool orientation      -180..180,
 
 Shoulder 750 mm above the base, upper arm 710 mm, forearm 850 mm to the tool
 centre point (no separate wrist offset). Inverse kinematics
-(:func:`tool_joints_deg`) takes the elbow-up branch and J4 = 0 at a wrist
+(``robot_controller.kinematics.joint_angles_deg``, the computer-link
+emulator's own: one arm, one computation) takes the elbow-up branch and J4 = 0 at a wrist
 singularity (J5 = 0 or 180); forward kinematics (:func:`tool_pose`) is its
 inverse. A tool pointing straight down (the cell's home) is J5 = 180 deg,
 such a singularity: J4 = 0, and J6 carries the tool's turn about the
@@ -34,52 +35,10 @@ quaternion (w, x, y, z).
 
 from __future__ import annotations
 
-import functools
 import math
 
-from forcelearn.devices import Pose
+from forcelearn.devices import Pose, multiply_quaternions
 from forcelearn.emulators.robot_controller.kinematics import ArmConfig
-
-Joints = tuple[float, float, float, float, float, float]
-
-
-def tool_joints_deg(arm: ArmConfig, pose: Pose) -> Joints | None:
-    """Return J1..J6 (deg) that put the tool at ``pose``, or None if the links cannot reach it.
-
-    The numbers of ``robot_controller.kinematics.joint_angles_deg`` (the same
-    arm), computed in plain floats: it runs twice per EGM cycle.
-    """
-    x, y, z = pose.x_mm, pose.y_mm, pose.z_mm
-    reach, height = math.hypot(x, y), z - arm.shoulder_height_mm
-    a, b = arm.upper_arm_mm, arm.forearm_mm
-    cos_elbow = (reach * reach + height * height - a * a - b * b) / (2 * a * b)
-    if not -1.0 <= cos_elbow <= 1.0:
-        return None
-    j3 = -math.acos(cos_elbow)  # elbow up
-    upper = math.atan2(height, reach) - math.atan2(b * math.sin(j3), a + b * math.cos(j3))
-    j4, j5, j6 = _wrist_deg(pose.quaternion)
-    return (
-        math.degrees(math.atan2(y, x)), math.degrees(math.pi / 2 - upper), math.degrees(j3),
-        j4, j5, j6,
-    )
-
-
-@functools.lru_cache(maxsize=1024)
-def _wrist_deg(q: tuple[float, float, float, float]) -> tuple[float, float, float]:
-    """Z-Y-Z Euler angles (deg) of a quaternion (w, x, y, z), normalised; J4 = 0 at J5 0 or 180."""
-    norm = math.sqrt(sum(c * c for c in q))
-    w, x, y, z = (c / norm for c in q)
-    r22 = 1 - 2 * (x * x + y * y)
-    beta = math.acos(max(-1.0, min(1.0, r22)))
-    if math.sin(beta) < 1e-9:
-        r10, r11 = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z)
-        return 0.0, math.degrees(beta), math.degrees(math.atan2(r10, r11))
-    r02, r12 = 2 * (x * z + w * y), 2 * (y * z - w * x)
-    r20, r21 = 2 * (x * z - w * y), 2 * (y * z + w * x)
-    return (
-        math.degrees(math.atan2(r12, r02)), math.degrees(beta),
-        math.degrees(math.atan2(r21, -r20)),
-    )
 
 
 def limit_violation(arm: ArmConfig, joints_deg: tuple[float, ...]) -> str | None:
@@ -99,20 +58,6 @@ def _axis_quaternion(axis: int, angle_deg: float) -> tuple[float, float, float, 
     q = [math.cos(half), 0.0, 0.0, 0.0]
     q[1 + axis] = math.sin(half)
     return q[0], q[1], q[2], q[3]
-
-
-def multiply_quaternions(
-    a: tuple[float, ...], b: tuple[float, float, float, float]
-) -> tuple[float, float, float, float]:
-    """Hamilton product ``a * b`` of two quaternions (w, x, y, z)."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
 
 
 def tool_pose(arm: ArmConfig, joints_deg: tuple[float, ...]) -> Pose:

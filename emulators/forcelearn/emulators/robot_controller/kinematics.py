@@ -26,12 +26,13 @@ defaults and their sources are in :mod:`forcelearn.emulators.physics.arm_motion`
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from forcelearn.devices import Pose, quaternion_to_matrix
+from forcelearn.devices import Pose
 from forcelearn.emulators.physics.arm_motion import MotionParams
 
 TOOL_DOWN = (0.0, 1.0, 0.0, 0.0)
@@ -109,31 +110,41 @@ class ArmConfig:
 def joint_angles_deg(
     config: ArmConfig, pose: Pose
 ) -> tuple[float, float, float, float, float, float] | None:
-    """Return (J1..J6) in degrees for ``pose``, or None if the links cannot reach it."""
+    """Return (J1..J6) in degrees for ``pose``, or None if the links cannot reach it.
+
+    Plain floats (no numpy): the EGM emulator computes it twice per 4 ms cycle.
+    """
     x, y, z = pose.x_mm, pose.y_mm, pose.z_mm
-    j1 = math.atan2(y, x)
-    r = math.hypot(x, y)
-    h = z - config.shoulder_height_mm
+    r, h = math.hypot(x, y), z - config.shoulder_height_mm
     a, b = config.upper_arm_mm, config.forearm_mm
     cos_elbow = (r * r + h * h - a * a - b * b) / (2 * a * b)
     if not -1.0 <= cos_elbow <= 1.0:
         return None
     j3 = -math.acos(cos_elbow)  # elbow up
     upper_from_horizontal = math.atan2(h, r) - math.atan2(b * math.sin(j3), a + b * math.cos(j3))
-    j2 = math.pi / 2 - upper_from_horizontal
-    wrist = _zyz_euler(pose.quaternion)
-    return (math.degrees(j1), math.degrees(j2), math.degrees(j3), *wrist)
+    j4, j5, j6 = _zyz_euler(pose.quaternion)
+    return (
+        math.degrees(math.atan2(y, x)), math.degrees(math.pi / 2 - upper_from_horizontal),
+        math.degrees(j3), j4, j5, j6,
+    )
 
 
+@functools.lru_cache(maxsize=1024)
 def _zyz_euler(q: tuple[float, float, float, float]) -> tuple[float, float, float]:
-    """Z-Y-Z Euler angles (deg) of a quaternion (w, x, y, z); J4 = 0 when J5 is 0 or 180."""
-    r = quaternion_to_matrix(q)
-    beta = math.acos(max(-1.0, min(1.0, r[2, 2])))
+    """Z-Y-Z Euler angles (deg) of a quaternion (w, x, y, z), normalised; J4 = 0 at J5 0 or 180."""
+    norm = math.sqrt(sum(c * c for c in q))
+    w, x, y, z = (c / norm for c in q)
+    r22 = 1 - 2 * (x * x + y * y)
+    beta = math.acos(max(-1.0, min(1.0, r22)))
     if math.sin(beta) < 1e-9:
-        return 0.0, math.degrees(beta), math.degrees(math.atan2(r[1, 0], r[1, 1]))
-    alpha = math.atan2(r[1, 2], r[0, 2])
-    gamma = math.atan2(r[2, 1], -r[2, 0])
-    return math.degrees(alpha), math.degrees(beta), math.degrees(gamma)
+        r10, r11 = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z)
+        return 0.0, math.degrees(beta), math.degrees(math.atan2(r10, r11))
+    r02, r12 = 2 * (x * z + w * y), 2 * (y * z - w * x)
+    r20, r21 = 2 * (x * z - w * y), 2 * (y * z + w * x)
+    return (
+        math.degrees(math.atan2(r12, r02)), math.degrees(beta),
+        math.degrees(math.atan2(r21, -r20)),
+    )
 
 
 def check_target(config: ArmConfig, pose: Pose) -> tuple[str, str] | None:
