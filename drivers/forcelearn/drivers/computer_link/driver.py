@@ -38,9 +38,9 @@ import serial
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link.config import POLL_S, LinkConfig
 from forcelearn.drivers.computer_link.link import PORT_ERRORS, Link
+from forcelearn.drivers.targets import unit_quaternion
 from forcelearn.errors import (
     ForcelearnError,
-    InvalidTarget,
     LinkError,
     NotInPosition,
     SafetyStop,
@@ -191,7 +191,7 @@ class ComputerLinkRobot:
             InvalidTarget: the quaternion is not 4 finite numbers of unit length.
             SafetyStop: the target breaks a limit. In both cases nothing was sent.
         """
-        _check_quaternion(pose.quaternion)
+        unit_quaternion(pose.quaternion, "pose quaternion")
         with self._lock:
             self._check_target(pose)  # before packing: huge values are refused, not overflowed
             body = m.pose_body((pose.x_mm, pose.y_mm, pose.z_mm), pose.quaternion)
@@ -289,20 +289,3 @@ class ComputerLinkRobot:
                 ResourceWarning,
                 stacklevel=2,
             )
-
-
-def _check_quaternion(quaternion: object) -> None:
-    """Raise InvalidTarget unless ``quaternion`` is 4 finite numbers of unit norm."""
-    try:
-        values = [float(c) for c in quaternion]  # type: ignore[attr-defined]
-    except (TypeError, ValueError) as exc:
-        raise InvalidTarget(f"pose quaternion must be 4 numbers (w, x, y, z): {exc}") from None
-    if len(values) != 4 or not all(math.isfinite(c) for c in values):
-        raise InvalidTarget(
-            f"pose quaternion must be 4 finite numbers (w, x, y, z), got {values}; nothing was sent"
-        )
-    norm = math.sqrt(sum(c * c for c in values))
-    if not abs(norm - 1.0) <= 1e-6:
-        raise InvalidTarget(
-            f"pose quaternion must be unit length, its norm is {norm:.6f}; nothing was sent"
-        )

@@ -52,7 +52,8 @@ import numpy as np
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.guidance import EgmStats, Guidance
-from forcelearn.drivers.egm.targets import TARGET_NORM_TOLERANCE, clean_target, unsafe_reason
+from forcelearn.drivers.egm.targets import clean_target, unsafe_reason
+from forcelearn.drivers.targets import TARGET_NORM_TOLERANCE
 from forcelearn.errors import (
     ForcelearnError,
     GuidanceStopped,

@@ -12,25 +12,11 @@ import math
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link.config import Limits
+from forcelearn.drivers.targets import finite_number, unit_quaternion
 from forcelearn.errors import InvalidTarget
 
-TARGET_NORM_TOLERANCE = 1e-6
-"""A caller's quaternion must have a norm within this of 1 (as the computer link asks)."""
 FEEDBACK_NORM_TOLERANCE = 1e-3
 """The controller's feedback quaternion may be this far off unit norm (it is float arithmetic)."""
-
-
-def _number(value: object, what: str) -> float:
-    """``value`` as a finite float (numpy scalars too; not a bool or text), else InvalidTarget."""
-    try:
-        if isinstance(value, bool | str | bytes):
-            raise TypeError(value)
-        number = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError, OverflowError):
-        raise InvalidTarget(f"{what} must be a number, got {value!r}; nothing was sent") from None
-    if not math.isfinite(number):
-        raise InvalidTarget(f"{what} must be finite, got {number}; nothing was sent")
-    return number
 
 
 def clean_target(pose: object) -> Pose:
@@ -42,26 +28,8 @@ def clean_target(pose: object) -> Pose:
     """
     if not isinstance(pose, Pose):
         raise InvalidTarget(f"a target must be a Pose, got {type(pose).__name__}; nothing was sent")
-    x, y, z = (_number(getattr(pose, a), f"target {a}") for a in ("x_mm", "y_mm", "z_mm"))
-    try:
-        items = list(pose.quaternion)
-    except TypeError:
-        raise InvalidTarget(
-            f"target quaternion must be 4 numbers (w, x, y, z), got {pose.quaternion!r}; "
-            "nothing was sent"
-        ) from None
-    if len(items) != 4:
-        raise InvalidTarget(
-            f"target quaternion must be 4 numbers (w, x, y, z), got {len(items)}: {items}; "
-            "nothing was sent"
-        )
-    w, qx, qy, qz = (_number(c, "target quaternion element") for c in items)
-    norm = math.sqrt(w * w + qx * qx + qy * qy + qz * qz)
-    if not abs(norm - 1.0) <= TARGET_NORM_TOLERANCE:
-        raise InvalidTarget(
-            f"target quaternion must be unit length, its norm is {norm:.6f}; nothing was sent"
-        )
-    return Pose(x, y, z, (w, qx, qy, qz))
+    x, y, z = (finite_number(getattr(pose, a), f"target {a}") for a in ("x_mm", "y_mm", "z_mm"))
+    return Pose(x, y, z, unit_quaternion(pose.quaternion, "target quaternion"))
 
 
 def unsafe_reason(pose: Pose | None, limits: Limits, tolerance: float) -> str | None:
