@@ -78,7 +78,7 @@ def test_every_module_imports() -> None:
     """No module is broken by a move (a study script nobody's test imports, say)."""
     code = (
         "import importlib, pkgutil, forcelearn\n"
-        "skip = ('protocol_forcelearn-robot', '.startup')\n"
+        "skip = ('protocol_forcelearn-robot', '.startup', '.__main__')\n"
         "bad = []\n"
         "for m in pkgutil.walk_packages(forcelearn.__path__, 'forcelearn.'):\n"
         "    if m.name.endswith(skip):\n"
@@ -137,7 +137,7 @@ def test_only_the_chosen_subcommand_module_is_imported() -> None:
         check=True,
     )
     loaded = helped.stdout.strip().splitlines()[-1]
-    assert "forcelearn.tools.sim'" in loaded and "run_command" not in loaded
+    assert "forcelearn.tools.commands.sim'" in loaded and "run_command" not in loaded
 
 
 def test_wheel_ships_the_live_page(wheel: Path) -> None:

@@ -22,12 +22,12 @@ from forcelearn.baselines.runner import TrialRecorder, run_controller, should_st
 from forcelearn.emulators.physics.two_link_arm import ContourGeometry, TwoLinkContourCell
 from forcelearn.envs import ContourEnv, SurfaceEnv
 from forcelearn.learning import SRVLearner, SRVParams
+from forcelearn.site.config import load_cell_config
+from forcelearn.site.session import CellSession
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
 from forcelearn.tasks.surface import SurfaceTask, SurfaceTaskSpec
 from forcelearn.tasks.surface_probe import SurfaceProbe, probe_and_map
 from forcelearn.tasks.surface_warm_start import warm_start
-from forcelearn.tools.cell_config import load_cell_config
-from forcelearn.tools.cell_session import CellSession
 from forcelearn.trainer import TrialRecord, train
 
 SPEC = SurfaceTaskSpec()
@@ -250,7 +250,7 @@ def test_recorder_scores_any_agent_by_the_trainers_formulas() -> None:
 @pytest.mark.convergence
 def test_ilc_converges_on_the_emulated_cell(tmp_path: Path) -> None:
     """ILC through the env meets the convergence rule on the default cell within 40 trials."""
-    from forcelearn.tools.baselines_study import BaselinesConfig, run_baseline
+    from forcelearn.tools.study.baselines import BaselinesConfig, run_baseline
 
     summary, curves = run_baseline(BaselinesConfig(method="ilc", trials=40), seed=0)
     assert summary["converged_trial"] is not None

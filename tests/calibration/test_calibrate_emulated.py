@@ -19,11 +19,16 @@ from forcelearn.calibration import load_calibration
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import CalibrationError, RobotFault, SafetyStop, SensorStale
-from forcelearn.tools.calibrate import calibrate
-from forcelearn.tools.calibration_plan import CalibrationPlan, NamedPose, slerp_steps, tilted
-from forcelearn.tools.cell_config import load_cell_config
-from forcelearn.tools.cell_session import CellSession
+from forcelearn.site.config import load_cell_config
+from forcelearn.site.session import CellSession
 from forcelearn.tools.cli import main
+from forcelearn.tools.commands.calibrate import calibrate
+from forcelearn.tools.experiments.calibration_plan import (
+    CalibrationPlan,
+    NamedPose,
+    slerp_steps,
+    tilted,
+)
 
 SEEDS = range(*(int(v) for v in os.environ.get("FORCELEARN_CALIBRATION_SEEDS", "0:5").split(":")))
 """Seeds of the accuracy test; FORCELEARN_CALIBRATION_SEEDS=5:25 measures 20 more."""

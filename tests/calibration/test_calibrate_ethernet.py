@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from forcelearn.calibration import load_calibration
-from forcelearn.tools.calibrate import calibrate
-from forcelearn.tools.calibration_plan import CalibrationPlan
-from forcelearn.tools.cell_config import load_cell_config
+from forcelearn.site.config import load_cell_config
+from forcelearn.tools.commands.calibrate import calibrate
+from forcelearn.tools.experiments.calibration_plan import CalibrationPlan
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "egm-netft-cell.toml"
 FAST = CalibrationPlan(record_s=0.5, samples_per_pose=800, settle_s=0.2, settle_timeout_s=5.0)

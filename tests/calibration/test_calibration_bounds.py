@@ -16,7 +16,7 @@ import pytest
 from forcelearn.calibration import dumps, load_calibration
 from forcelearn.calibration.file_format import content_digest, to_document
 from forcelearn.errors import ConfigError
-from forcelearn.tools.fuzz import filled_calibration as good_calibration
+from forcelearn.tools.fuzz.targets import filled_calibration as good_calibration
 
 
 def write_with(path: Path, section: str, key: str, value: Any, index: int | None = None) -> Path:

@@ -22,7 +22,7 @@ from forcelearn.calibration import (
 from forcelearn.emulators.physics.cell import quaternion_to_matrix
 from forcelearn.emulators.physics.tool import ToolParams, gravity_wrench
 from forcelearn.errors import ConfigError
-from forcelearn.tools.calibration_plan import DEFAULT_POSES
+from forcelearn.tools.experiments.calibration_plan import DEFAULT_POSES
 
 
 @pytest.fixture()

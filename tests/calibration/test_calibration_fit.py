@@ -29,7 +29,7 @@ from forcelearn.devices import Pose
 from forcelearn.emulators.physics.cell import quaternion_to_matrix as emulator_rotation
 from forcelearn.emulators.physics.tool import STANDARD_GRAVITY_M_S2, ToolParams, gravity_wrench
 from forcelearn.errors import CalibrationError
-from forcelearn.tools.calibration_plan import DEFAULT_POSES, tilted
+from forcelearn.tools.experiments.calibration_plan import DEFAULT_POSES, tilted
 
 BIAS = np.array([0.4, -0.3, -8.1, 0.012, -0.02, 0.031])
 

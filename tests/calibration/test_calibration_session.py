@@ -18,9 +18,9 @@ from forcelearn.devices import Pose
 from forcelearn.emulators.physics.cell import quaternion_to_matrix
 from forcelearn.emulators.physics.tool import ToolParams, gravity_wrench
 from forcelearn.errors import ConfigError
-from forcelearn.tools.calibration_plan import DEFAULT_POSES, slerp_steps, tilted
-from forcelearn.tools.cell_config import load_cell_config
-from forcelearn.tools.cell_session import CellSession
+from forcelearn.site.config import load_cell_config
+from forcelearn.site.session import CellSession
+from forcelearn.tools.experiments.calibration_plan import DEFAULT_POSES, slerp_steps, tilted
 
 FY_VARIANCE = 0.0625
 """R the file gives axis 1 (Fy, the filter's axis): (0.25 N)^2, not the default 0.04."""

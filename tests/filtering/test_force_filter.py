@@ -19,7 +19,7 @@ from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge, surface_y_mm
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilter, ForceFilterConfig
-from forcelearn.tools import filter_experiment
+from forcelearn.tools.experiments import filter as filter_experiment
 
 SEEDS = range(6)
 NOISE_N = 0.2

@@ -10,7 +10,7 @@ import pytest
 from forcelearn.devices import WrenchSample
 from forcelearn.filtering import ForceFilterConfig, MoveAwareForceFilter
 from forcelearn.filtering.step_filter import burst_mean
-from forcelearn.tools import filter_burst_experiment as experiment
+from forcelearn.tools.experiments import filter_burst as experiment
 
 
 def samples(values: list[float] | np.ndarray) -> list[WrenchSample]:

@@ -1,6 +1,6 @@
 """Bounded fuzz of every decoder fed from outside: link, CAN, state file, TOML files.
 
-Properties (checked by the ``check_*`` functions of ``forcelearn.tools.fuzz``):
+Properties (checked by the ``check_*`` functions of ``forcelearn.tools.fuzz.targets``):
 no exception outside forcelearn's tree, and nothing accepted that was not
 sent or saved. The long run (>= 10^5 inputs per target) is documented in
 docs/fuzzing.md.
@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from forcelearn.tools import fuzz
+from forcelearn.tools.fuzz import targets as fuzz
 
 EXAMPLES = sorted((Path(__file__).parents[2] / "examples").glob("*.toml"))
 mutations = st.lists(

@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 
 from forcelearn.devices import Pose
 from forcelearn.protocols.egm import codec
-from forcelearn.tools import fuzz_egm
-from forcelearn.tools.fuzz import apply_mutations, random_mutations
-from forcelearn.tools.fuzz_egm import FuzzFailure
+from forcelearn.tools.fuzz import egm as fuzz_egm
+from forcelearn.tools.fuzz.egm import FuzzFailure
+from forcelearn.tools.fuzz.targets import apply_mutations, random_mutations
 
 
 def mutate(data: bytes, rng: random.Random) -> bytes:

@@ -10,8 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from forcelearn.tools import fuzz, fuzz_live, fuzz_netft
-from forcelearn.tools.fuzz_box import ScriptedServer
+from forcelearn.tools.fuzz import live as fuzz_live
+from forcelearn.tools.fuzz import netft as fuzz_netft
+from forcelearn.tools.fuzz import targets as fuzz
+from forcelearn.tools.fuzz.box import ScriptedServer
 
 
 @pytest.mark.parametrize(("target", "inputs"), [("netft-xml", 300), ("netft-http", 30),
@@ -60,7 +62,7 @@ def test_the_state_target_reaches_numpy_header_errors(tmp_path: Path) -> None:
 
     import numpy as np
 
-    from forcelearn.tools.fuzz_loaders import npz_header_mutant
+    from forcelearn.tools.fuzz.loaders import npz_header_mutant
 
     case = fuzz.state_header_case(tmp_path)
     rng = random.Random(1)

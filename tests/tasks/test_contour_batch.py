@@ -9,8 +9,8 @@ from forcelearn.emulators.physics.two_link_arm import ContourGeometry, TwoLinkCo
 from forcelearn.emulators.physics.two_link_batch import TwoLinkContourCells
 from forcelearn.errors import ConfigError
 from forcelearn.learning import SRVParams
-from forcelearn.tools.contour_batch import run_contour_batch
-from forcelearn.tools.contour_experiment import ContourConfig, run_contour
+from forcelearn.tools.experiments.contour import ContourConfig, run_contour
+from forcelearn.tools.experiments.contour_batch import run_contour_batch
 
 TIMING = {"wall_s", "steps_per_s", "batch_size"}
 

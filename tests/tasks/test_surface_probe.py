@@ -9,6 +9,8 @@ import pytest
 
 from forcelearn.emulators.physics.sponge import stiffness_n_per_mm, surface_y_mm
 from forcelearn.errors import ForceLimitExceeded
+from forcelearn.site.config import SafetyLimits, load_cell_config
+from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface import WEAR_GAIN, SurfaceTaskSpec, SurfaceYOutput
 from forcelearn.tasks.surface_probe import (
     ContactFit,
@@ -21,8 +23,6 @@ from forcelearn.tasks.surface_probe import (
     fit_contact,
     probe_and_map,
 )
-from forcelearn.tools.cell_config import SafetyLimits, load_cell_config
-from forcelearn.tools.cell_session import CellSession
 
 
 def test_fit_recovers_a_known_line_with_its_uncertainty() -> None:

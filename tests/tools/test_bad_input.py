@@ -6,8 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from forcelearn.tools import cell_session, probe_command, surface_run
+from forcelearn.site import session as cell_session
 from forcelearn.tools.cli import main
+from forcelearn.tools.commands import probe as probe_command
+from forcelearn.tools.experiments import surface_run
 
 CASES = [
     ("[task]\ndesired_force_n = 80.0\n", "task.desired_force_n"),

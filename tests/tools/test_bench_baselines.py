@@ -9,7 +9,7 @@ import gymnasium
 import numpy as np
 import pytest
 
-from forcelearn.tools import bench_baselines
+from forcelearn.tools.benchmarks import baselines as bench_baselines
 
 
 def _args(**overrides: object) -> argparse.Namespace:

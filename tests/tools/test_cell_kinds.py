@@ -12,8 +12,8 @@ from forcelearn.drivers.egm import EgmConfig
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.netft import NetFtConfig
 from forcelearn.errors import ConfigError
-from forcelearn.tools.cell_config import EMULATED_STALE_SENSOR_S, load_cell_config
-from forcelearn.tools.cell_session import CellSession
+from forcelearn.site.config import EMULATED_STALE_SENSOR_S, load_cell_config
+from forcelearn.site.session import CellSession
 from forcelearn.tools.cli import main
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

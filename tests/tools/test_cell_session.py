@@ -10,9 +10,9 @@ import pytest
 
 from forcelearn.emulators.jr3.faults import FaultConfig
 from forcelearn.errors import ConfigError, SensorStale
+from forcelearn.site.config import load_cell_config
+from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface import SurfaceTask
-from forcelearn.tools.cell_config import load_cell_config
-from forcelearn.tools.cell_session import CellSession
 
 
 @pytest.fixture()

@@ -15,11 +15,11 @@ from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.errors import SafetyStop
 from forcelearn.protocols.computer_link.messages import Status
 from forcelearn.protocols.jr3_can.codec import Frame
-from forcelearn.tools.cell_config import EmulatorConfig, load_cell_config
-from forcelearn.tools.cell_session import CellSession
-from forcelearn.tools.check_command import check_session
+from forcelearn.site.config import EmulatorConfig, load_cell_config
+from forcelearn.site.emulated_cell import EmulatedCell
+from forcelearn.site.session import CellSession
 from forcelearn.tools.cli import main
-from forcelearn.tools.emulated_cell import EmulatedCell
+from forcelearn.tools.commands.check import check_session
 
 
 @pytest.fixture(autouse=True)
@@ -144,7 +144,7 @@ def test_check_names_every_missing_device_and_the_slcan_delay_hint(tmp_path, cap
     """Issue 12.8: with both ports gone, check names both, not only the first it opens."""
     import argparse
 
-    from forcelearn.tools import check_command
+    from forcelearn.tools.commands import check as check_command
 
     site = tmp_path / "site.toml"
     site.write_text(

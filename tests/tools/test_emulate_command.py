@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from forcelearn.tools.cell_config import load_cell_config
+from forcelearn.site.config import load_cell_config
 
 STARTUP_S = 20.0
 STOP_S = 10.0

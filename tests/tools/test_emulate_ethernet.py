@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from forcelearn.tools.cell_config import load_cell_config
+from forcelearn.site.config import load_cell_config
 
 STARTUP_S = 60.0
 CLIENT_S = 300.0

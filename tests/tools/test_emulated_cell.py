@@ -8,8 +8,8 @@ import pytest
 import serial
 
 from forcelearn.errors import ConfigError
-from forcelearn.tools.cell_config import BusConfig, load_cell_config
-from forcelearn.tools.emulated_cell import EmulatedCell
+from forcelearn.site.config import BusConfig, load_cell_config
+from forcelearn.site.emulated_cell import EmulatedCell
 
 
 def _open_session(cell: EmulatedCell) -> None:

@@ -18,9 +18,9 @@ from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
+from forcelearn.site.config import BusConfig, SafetyLimits, load_cell_config
 from forcelearn.tasks.surface import SurfaceTaskSpec
 from forcelearn.tasks.surface_probe import ProbeSpec
-from forcelearn.tools.cell_config import BusConfig, SafetyLimits, load_cell_config
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 EMULATED = EXAMPLES / "emulated-cell.toml"

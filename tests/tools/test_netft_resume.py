@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 
 from forcelearn.emulators.netft.sensor_model import NetFtSensorModel
-from forcelearn.tools.cell_config import load_cell_config
-from forcelearn.tools.cell_session import CellSession
+from forcelearn.site.config import load_cell_config
+from forcelearn.site.session import CellSession
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

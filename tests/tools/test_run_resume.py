@@ -81,7 +81,7 @@ PAUSING_CLI = """
 import signal
 import sys
 signal.signal(signal.SIGINT, signal.default_int_handler)  # even under a background job
-import forcelearn.tools.run_command as rc
+import forcelearn.tools.commands.run as rc
 stop_at = int(sys.argv[1])
 original = rc.execute
 def execute(run, checkpoint, on_trial=None, **hooks):
@@ -200,7 +200,7 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
     """The JR3 goes silent after trial 3: SensorStale ends the run, robot stopped, 3 trials kept."""
     from forcelearn.emulators.jr3.faults import FaultConfig
     from forcelearn.errors import SensorStale
-    from forcelearn.tools import surface_run
+    from forcelearn.tools.experiments import surface_run
 
     sessions = []
     stops: list[bool] = []
@@ -242,9 +242,9 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
 
 def test_an_ended_but_unsaved_trial_is_rolled_back_before_outputs() -> None:
     """Interrupted between a trial's end and its checkpoint: outputs match the checkpoint."""
+    from forcelearn.site.config import load_cell_config
     from forcelearn.tasks.surface import TrialTrace
-    from forcelearn.tools.cell_config import load_cell_config
-    from forcelearn.tools.surface_run import SurfaceRun
+    from forcelearn.tools.experiments.surface_run import SurfaceRun
     from forcelearn.trainer import TrialLog, TrialRecord
 
     run = SurfaceRun(load_cell_config(), trials=10, seed=0, out=Path("."))
@@ -275,9 +275,9 @@ def test_the_checkpoint_keeps_each_trials_wear_shift(tmp_path: Path) -> None:
     import numpy as np
 
     from forcelearn.errors import StateFileError
+    from forcelearn.site.config import load_cell_config
     from forcelearn.tasks.surface import TrialTrace
-    from forcelearn.tools.cell_config import load_cell_config
-    from forcelearn.tools.surface_run import (
+    from forcelearn.tools.experiments.surface_run import (
         SurfaceRun,
         _history_arrays,
         _history_from_arrays,

@@ -82,7 +82,7 @@ def test_config_errors_name_the_key(
 
 def test_example_configs_load() -> None:
     """Every shipped contour example is a valid config."""
-    from forcelearn.tools.contour_experiment import load_config
+    from forcelearn.tools.experiments.contour import load_config
 
     root = Path(__file__).resolve().parents[2] / "examples"
     config = load_config(root / "contour-plain.toml")

@@ -9,10 +9,10 @@ import pytest
 
 from forcelearn.errors import ConfigError
 from forcelearn.tools.cli import main
-from forcelearn.tools.contour_experiment import ContourConfig
-from forcelearn.tools.study_grid import apply_overrides, grid_points, parse_sets
-from forcelearn.tools.study_runner import run_study
-from forcelearn.tools.study_tasks import get_task
+from forcelearn.tools.experiments.contour import ContourConfig
+from forcelearn.tools.study.grid import apply_overrides, grid_points, parse_sets
+from forcelearn.tools.study.runner import run_study
+from forcelearn.tools.study.tasks import get_task
 
 TIMING = {"wall_s", "steps_per_s", "batch_size"}
 POINTS = grid_points({"learner.gamma": [0.8, 0.9], "learner.extent": [(3, 3), (5, 5)]})
@@ -44,7 +44,7 @@ def test_an_unset_optional_key_takes_a_number_or_none() -> None:
 
     ``none`` keeps it unset; a word where a number belongs fails before any run.
     """
-    from forcelearn.tools.baselines_study import BaselinesConfig
+    from forcelearn.tools.study.baselines import BaselinesConfig
 
     grid = parse_sets(BaselinesConfig(), ["cma.sigma0_mm=1.5,none,2"])
     assert grid == {"cma.sigma0_mm": [1.5, None, 2.0]}

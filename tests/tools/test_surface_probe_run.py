@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from forcelearn.tasks.surface_diagnosis import StuckMonitor
-from forcelearn.tools import surface_run
 from forcelearn.tools.cli import main
+from forcelearn.tools.experiments import surface_run
 
 
 def test_a_resumed_run_does_not_probe_again_and_keeps_the_map(

@@ -65,7 +65,7 @@ def frozen(monkeypatch: pytest.MonkeyPatch) -> None:
 @pytest.mark.usefixtures("frozen")
 def test_the_warm_learners_first_trial_is_the_probes_path(tmp_path: Path) -> None:
     """By default the SRV means of trial 0 command where the probe's fits give the force."""
-    from forcelearn.tools.cell_config import load_cell_config
+    from forcelearn.site.config import load_cell_config
 
     code, out = _run(tmp_path, "warm", None, "--trials", "1")
     assert code == 0

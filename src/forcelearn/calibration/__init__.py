@@ -1,8 +1,8 @@
 """Sensor calibration: bias, noise and tool load, the fits that find them, and their file.
 
-``forcelearn calibrate`` (:mod:`forcelearn.tools.calibrate`) measures; this
+``forcelearn calibrate`` (:mod:`forcelearn.tools.commands.calibrate`) measures; this
 package fits (:mod:`.fit`), holds the result (:mod:`.model`) and stores it
-(:mod:`.file_format`); :class:`~forcelearn.tools.cell_session.CellSession`
+(:mod:`.file_format`); :class:`~forcelearn.site.session.CellSession`
 loads the file, gives the Kalman filter R from the noise variance and installs
 :meth:`Calibration.compensation` on the cell. All of it is pure but the file
 I/O.

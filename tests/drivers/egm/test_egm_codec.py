@@ -164,7 +164,7 @@ def test_the_example_egm_cell_config_loads() -> None:
     """examples/egm-cell.toml's [robot] table is a valid EgmConfig (through the cell config)."""
     from pathlib import Path
 
-    from forcelearn.tools.cell_config import load_cell_config
+    from forcelearn.site.config import load_cell_config
 
     path = Path(__file__).parents[3] / "examples" / "egm-cell.toml"
     config = load_cell_config(path).robot

@@ -21,8 +21,8 @@ from forcelearn.emulators.egm import (
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import GuidanceStopped, LinkError
 from forcelearn.protocols.egm import codec
-from forcelearn.tools.cell_config import load_cell_config
-from forcelearn.tools.cell_session import CellSession
+from forcelearn.site.config import load_cell_config
+from forcelearn.site.session import CellSession
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
 HOME = Pose(900.0, 0.0, 600.0, (0.0, 1.0, 0.0, 0.0))

@@ -4,10 +4,10 @@
 id                          what
 ==========================  =====================================================
 ``forcelearn/Contour-v0``   §4 two-link contour tracking, pure simulation
-                            (:class:`~forcelearn.tools.envs.contour.ContourEnv`)
+                            (:class:`~forcelearn.envs.contour.ContourEnv`)
 ``forcelearn/Surface-v0``   §5 roller on the sponge, emulated cell through the
                             real drivers, or a real cell from a site config
-                            (:class:`~forcelearn.tools.envs.surface.SurfaceEnv`)
+                            (:class:`~forcelearn.envs.surface.SurfaceEnv`)
 ==========================  =====================================================
 
 Gymnasium ≥ 1.0 loads no plugins by itself; any of these works after
@@ -19,7 +19,7 @@ Gymnasium ≥ 1.0 loads no plugins by itself; any of these works after
 
 Importing this module registers both ids (idempotently), without a
 ``max_episode_steps``: the environments truncate at the end of their own path.
-The classes live in :mod:`forcelearn.tools.envs` (they open cells through the
+The classes live in :mod:`forcelearn.envs` (they open cells through the
 tools' cell session); this module is their public face.
 """
 
@@ -27,8 +27,8 @@ from __future__ import annotations
 
 from gymnasium.envs.registration import register, registry
 
-from forcelearn.tools.envs.contour import ContourEnv
-from forcelearn.tools.envs.surface import SurfaceEnv
+from forcelearn.envs.contour import ContourEnv
+from forcelearn.envs.surface import SurfaceEnv
 
 CONTOUR_ID = "forcelearn/Contour-v0"
 SURFACE_ID = "forcelearn/Surface-v0"
@@ -39,9 +39,9 @@ __all__ = ["CONTOUR_ID", "SURFACE_ID", "ContourEnv", "SurfaceEnv", "register_env
 def register_envs() -> None:
     """Register the forcelearn ids with Gymnasium (a second call does nothing)."""
     if CONTOUR_ID not in registry:
-        register(CONTOUR_ID, entry_point="forcelearn.tools.envs.contour:ContourEnv")
+        register(CONTOUR_ID, entry_point="forcelearn.envs.contour:ContourEnv")
     if SURFACE_ID not in registry:
-        register(SURFACE_ID, entry_point="forcelearn.tools.envs.surface:SurfaceEnv")
+        register(SURFACE_ID, entry_point="forcelearn.envs.surface:SurfaceEnv")
 
 
 register_envs()

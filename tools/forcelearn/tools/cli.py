@@ -18,22 +18,28 @@ from forcelearn.errors import ForcelearnError, one_line
 
 # name -> (module implementing it, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
-    "run": ("forcelearn.tools.run_command", "learn force tracking on the cell (paper §5)"),
+    "run": ("forcelearn.tools.commands.run", "learn force tracking on the cell (paper §5)"),
     "probe": (
-        "forcelearn.tools.probe_command",
+        "forcelearn.tools.commands.probe",
         "find the surface (contact, stiffness) and the output map a run would use",
     ),
-    "sim": ("forcelearn.tools.sim", "run a simulated task (paper §4 contour tracking)"),
+    "sim": ("forcelearn.tools.commands.sim", "run a simulated task (paper §4 contour tracking)"),
     "study": (
-        "forcelearn.tools.study_command",
+        "forcelearn.tools.commands.study",
         "sweep settings x seeds on local cores or a Dask cluster",
     ),
-    "bench": ("forcelearn.tools.bench", "print speed figures of the learner, link and sensor"),
-    "calibrate": ("forcelearn.tools.calibrate", "measure sensor bias, noise and tool load"),
-    "check": ("forcelearn.tools.check_command", "check a cell's devices without moving the robot"),
-    "emulate": ("forcelearn.tools.emulate_command", "serve the emulated cell on two ptys (slcan)"),
+    "bench": (
+        "forcelearn.tools.commands.bench",
+        "print speed figures of the learner, link and sensor",
+    ),
+    "calibrate": (
+        "forcelearn.tools.commands.calibrate",
+        "measure sensor bias, noise and tool load",
+    ),
+    "check": ("forcelearn.tools.commands.check", "check a cell's devices without moving the robot"),
+    "emulate": ("forcelearn.tools.commands.emulate", "serve the emulated cell on two ptys (slcan)"),
     "view": (
-        "forcelearn.tools.view_command",
+        "forcelearn.tools.commands.view",
         "serve the read-only live page of a run directory (finished or in progress)",
     ),
 }

@@ -1,7 +1,7 @@
 """Configuration of the computer-link driver: port, timing, retries and client-side limits.
 
 Frozen dataclasses, validated on construction (the cell config,
-:mod:`forcelearn.tools.cell_config`, reads the ``[robot]`` table into them).
+:mod:`forcelearn.site.config`, reads the ``[robot]`` table into them).
 """
 
 from __future__ import annotations

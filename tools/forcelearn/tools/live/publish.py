@@ -16,8 +16,8 @@ from forcelearn.tools.live.model import LiveMeta, LiveModel
 from forcelearn.trainer import TrialLog, TrialRecord
 
 if TYPE_CHECKING:
-    from forcelearn.tools.cell_config import CellConfig
-    from forcelearn.tools.contour_experiment import ContourConfig
+    from forcelearn.site.config import CellConfig
+    from forcelearn.tools.experiments.contour import ContourConfig
 
 RowExtras = Callable[[dict[str, float]], dict[str, float]]
 

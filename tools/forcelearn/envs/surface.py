@@ -1,0 +1,217 @@
+"""``forcelearn/Surface-v0``: paper §5, the roller on the sponge, through the real drivers.
+
+By default the cell is the emulated one (robot-controller emulator on a pty,
+JR3 emulator on a virtual CAN bus, reached through the real computer-link and
+JR3 drivers; one simulated clock). ``config="site.toml"`` drives a real cell.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from forcelearn.envs.base import TaskEnv, box
+from forcelearn.tasks.surface import SurfaceTask, SurfaceYOutput
+from forcelearn.tasks.surface_probe import (
+    OutputMapChoice,
+    ProbeResult,
+    SurfaceProbe,
+    configured_map,
+    probe_and_map,
+)
+
+log = logging.getLogger(__name__)
+
+
+class SurfaceEnv(TaskEnv):
+    """Paper §5: press a roller into a sponge with 2 kgf while moving down 5 mm per step.
+
+    ## Description
+    A position-controlled robot holds a roller against a sponge; each step
+    moves the tool 5 mm down (−Z) and to the commanded Y (normal to the
+    sponge, + is away from it); the force is the JR3 reading through the
+    Kalman filter after the robot is in position and has settled. The sponge
+    varies along the path, relaxes after a press and wears with every pass,
+    so the best Y path drifts from trial to trial. Task:
+    ``forcelearn.tasks.surface``; cell: ``forcelearn.cell``; devices:
+    ``forcelearn.site.session``.
+
+    ## Output map (the same as ``forcelearn run``'s)
+    When a cell is opened (the first reset, and every seeded reset on the
+    emulated cell) the surface probe runs first, exactly as ``forcelearn run``
+    starts (docs/surface.md): it finds the contact and the stiffness and
+    chooses the map's centre Y (where the desired force is expected), its
+    half-range and the learner's scale; with ``[run] learner_start = "probe"``
+    (the default) it also probes its refine points, so ``probe_path_mm`` has
+    the surface's waves. ``[probe] enabled = false`` or a fully
+    configured map (``task.output_centre_y_mm``, ``output_scale_mm``,
+    ``max_offset_mm``) skip it; the map is then the configured one, or the
+    fallback (start Y, 2 mm, 15 mm). ``env.output_map`` holds it and
+    ``reset``'s info carries it (``output_map``, a dict in mm) with the probe's
+    stiffness (``probe_stiffness_n_per_mm``) and its surface model as a path
+    (``probe_path_mm``: per step, the Y offset from the centre where the fits
+    give the desired force), both ``None`` without a probe.
+
+    ## Action space: ``Box(-1, 1, (1,), float64)``
+    | index | meaning | unit after scaling |
+    |---|---|---|
+    | 0 | Y offset from the map's centre | ± the map's half-range, mm |
+
+    Actions outside [-1, 1] are clipped. Y = centre + half-range · action.
+
+    ## Observation space: ``Box(float64, (3,))``
+    | index | meaning | unit | bounds |
+    |---|---|---|---|
+    | 0 | distance travelled along the path before the next step | mm | [0, 100] |
+    | 1 | filtered normal force after the last move (after reset: at the start pose) | N | ± 60 |
+    | 2 | last Y command relative to the map's centre (0 after reset) | mm | ± D |
+
+    The force bound is ``safety.max_force_n``; D, the widest half-range any
+    map can have, is the retract plane's height above the workspace floor
+    (``task.retract_y_mm`` − ``safety.workspace_min_mm[1]``). Observations are
+    clipped to the bounds.
+
+    ## Reward
+    −r with r = |force − 19.61 N| / tolerance (``task.tolerance_n``, default half the
+    desired force).
+
+    ## Start state
+    The tool retracts, travels clear of the sponge and presses in at the start
+    pose (900, −4, 0) mm; ``info["start_force_n"]`` is the force measured there
+    (it falls as the sponge wears). ``reset(seed=s)`` on the emulated cell opens
+    a *fresh* cell (new sponge, sensor noise seeded with s); ``reset()`` without
+    a seed keeps the cell and its wear. On a real cell the seed reopens nothing.
+
+    ## Episode end
+    * terminated: |force error| > 10 N, or the safety force limit stopped the
+      robot (r = 2), the paper's failure; the tool retracts;
+    * truncated: 20 steps done without failure (the path's end).
+
+    ## Arguments
+    ``config``: a ``CellConfig``, or the path of a cell TOML (``None``: the
+    emulated default, docs/surface.md); ``seed``: sensor-noise seed used when
+    the first reset gives none; ``render_mode``: ``None`` or ``"rgb_array"``
+    (the force trace of the episode). ``close()`` stops the robot and closes
+    the devices.
+    """
+
+    def __init__(
+        self,
+        config: Any | str | Path | None = None,
+        seed: int | None = None,
+        render_mode: str | None = None,
+    ):
+        super().__init__(render_mode)
+        # The devices live in the drivers/tools folders; imported here so the core
+        # package does not import them at module level (docs/architecture.md).
+        from forcelearn.site.config import CellConfig, load_cell_config
+
+        if config is None or isinstance(config, str | Path):
+            config = load_cell_config(config)
+        if not isinstance(config, CellConfig):
+            raise TypeError(f"config must be a CellConfig, a TOML path or None, got {config!r}")
+        self.config = config
+        self.task_spec = config.task
+        self.default_seed = config.seed if seed is None else int(seed)
+        self.session: Any | None = None
+        self.output_map: OutputMapChoice = configured_map(config.task)
+        """The output map of the open cell (before the first reset: the configured one)."""
+        self._output: SurfaceYOutput = self.output_map.output(abs(config.task.z_step_mm))
+        """Its output function, with the wear it tracks (the task moves its shift)."""
+        self.probe: ProbeResult | None = None
+        """What the latest probe read and fitted (``None``: no probe ran)."""
+        self._y_offset_mm = 0.0
+        spec, limit = self.task_spec, config.safety.max_force_n
+        self.task_steps_per_trial = spec.steps_per_trial
+        self.task_desired_force_n = spec.desired_force_n
+        self.action_space = box([-1.0], [1.0])
+        widest = spec.retract_y_mm - config.safety.workspace_min_mm[1]
+        self.observation_space = box([0.0, -limit, -widest], [spec.path_mm, limit, widest])
+
+    @property
+    def emulated(self) -> bool:
+        """True when the robot or the sensor is the built-in emulator."""
+        return bool(self.config.robot_emulated or self.config.sensor_emulated)
+
+    def _needs_new_task(self, seed: int | None) -> bool:
+        return self.task is None or (seed is not None and self.emulated)
+
+    def _open_task(self, seed: int | None) -> SurfaceTask:
+        from forcelearn.site.session import CellSession
+
+        config = self.config
+        self.session = CellSession(config, seed=self.default_seed if seed is None else seed)
+        cell = self.session.cell
+        assert cell is not None  # opened, or CellSession raised
+        probe = SurfaceProbe(
+            cell, config.task, config.probe, config.safety.max_step_mm,
+            config.safety.workspace_min_mm[1],
+        )
+        self.probe, self.output_map = probe_and_map(
+            probe, refine=config.learner_start == "probe"
+        )
+        self._output = self.output_map.output(abs(self.task_spec.z_step_mm))
+        return SurfaceTask(cell, self.task_spec, config.safety.max_step_mm, self._output)
+
+    def _reset_info(self) -> dict[str, Any]:
+        probe, choice = self.probe, self.output_map
+        centres = np.array(
+            [self._output.centre_of_step(k) for k in range(self.task_spec.steps_per_trial)]
+        )
+        return {
+            "output_map": dataclasses.asdict(choice),
+            "probe_stiffness_n_per_mm": probe.stiffness_n_per_mm() if probe else None,
+            "probe_path_mm": (
+                (probe.target_path_mm(self.task_spec) - centres).tolist() if probe else None
+            ),
+        }
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Retract, return to the start pose, press in; see the class docstring."""
+        self._y_offset_mm = 0.0
+        return super().reset(seed=seed, options=options)
+
+    def _command(self, action: np.ndarray) -> np.ndarray:
+        self._y_offset_mm = float(action[0]) * self.output_map.max_offset_mm
+        return np.array([self._output.centre_at(self._x) + self._y_offset_mm])
+
+    def _observation(self, x: np.ndarray, force_n: float) -> np.ndarray:
+        obs = np.array([x[0], force_n, self._y_offset_mm], dtype=float)
+        clipped: np.ndarray = np.clip(obs, self.observation_space.low, self.observation_space.high)
+        return clipped
+
+    def close_task(self) -> None:
+        """Stop the robot, close the drivers and stop the emulators."""
+        session, self.session = self.session, None
+        if session is not None:
+            try:
+                if session.cell is not None:
+                    session.cell.stop()
+            finally:
+                session.close()
+        super().close_task()
+
+    # -- what a learner over BOXES needs (forcelearn.baselines.srv) --------------------------
+    def learner_input(self, obs: np.ndarray) -> np.ndarray:
+        """The SRV learner's input: distance travelled, mm."""
+        return np.asarray(obs[:1], dtype=float)
+
+    def learner_action(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Map the learner's action a (action units) to this env's action in [-1, 1].
+
+        The native output map: Y offset = scale · a, clipped to ± the half-range.
+        """
+        choice = self.output_map
+        offset = np.clip(a * choice.scale_mm, -choice.max_offset_mm, choice.max_offset_mm)
+        return offset / choice.max_offset_mm
+
+    @property
+    def grid(self) -> Any:
+        """The BOXES partition of the native task (distance travelled)."""
+        return self.task_spec.grid()

@@ -1,0 +1,1 @@
+"""Speed benchmarks run by ``forcelearn bench NAME``: they print figures, never timed tests."""

@@ -1,0 +1,1 @@
+"""One module per ``forcelearn NAME`` subcommand: ``add_arguments(parser)`` and ``run(args)``."""

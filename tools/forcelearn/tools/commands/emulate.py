@@ -1,0 +1,153 @@
+"""``forcelearn emulate``: run the emulated cell as its own process, reachable as on site.
+
+Starts the robot-controller emulator on one pseudo-terminal and the JR3
+emulator behind an emulated slcan (LAWICEL) USB-CAN adapter on a second one
+(:class:`~forcelearn.site.emulated_cell.EmulatedCell`), prints both paths and
+a site config that reaches them, and serves until SIGINT or SIGTERM. From
+another shell::
+
+    forcelearn emulate --write-config /tmp/emulated-site.toml
+    forcelearn check --config /tmp/emulated-site.toml
+
+``--robot egm`` and ``--sensor netft`` (defaults: the config's kinds) serve the
+Ethernet devices instead (:class:`~forcelearn.site.emulated_devices.EmulatedDevices`):
+the EGM controller on loopback UDP toward ``--egm-port``, the Net F/T box on
+its UDP/TCP/HTTP ports.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import tempfile
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from forcelearn.atomic import atomic_write_bytes
+from forcelearn.site.config import CellConfig, load_cell_config
+from forcelearn.site.emulated_cell import EmulatedCell
+from forcelearn.site.emulated_devices import ROBOTS, SENSORS, EmulatedDevices
+
+WAIT_SLICE_S = 0.2
+"""How often the main thread looks at the stop flag (s)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``forcelearn emulate``."""
+    parser.add_argument(
+        "--config", type=Path, help="cell config whose [emulator] tables shape the cell"
+    )
+    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise (0)")
+    parser.add_argument(
+        "--write-config", type=Path, metavar="FILE", help="also write the site config to FILE"
+    )
+    parser.add_argument(
+        "--link-dir", type=Path, metavar="DIR", default=default_link_dir(),
+        help="folder for the stable port symlinks 'robot' and 'jr3-slcan' named in the site "
+        f"config (default {default_link_dir()})",
+    )
+    parser.add_argument(
+        "--fresh-per-connection", action="store_true",
+        help="give each client session a fresh cell (new sponge, sensor as at start); by "
+        "default the cell remembers wear between sessions, as a real one does",
+    )
+    parser.add_argument(
+        "--robot", choices=ROBOTS, help="computer link or EGM (default: the config's [robot] kind)"
+    )
+    parser.add_argument(
+        "--sensor", choices=SENSORS, help="JR3 or Net F/T (default: the config's [sensor] kind)"
+    )
+    parser.add_argument(
+        "--egm-port", type=int, default=0,
+        help="the PC's UDP port the EGM controller sends to (default: a free one)",
+    )
+
+
+def default_link_dir() -> Path:
+    """Per-user folder of the stable symlinks (one running emulator per folder)."""
+    return Path(tempfile.gettempdir()) / f"forcelearn-emulate-{os.getuid()}"
+
+
+@contextmanager
+def _stop_on_signals(stop: threading.Event) -> Iterator[None]:
+    """Set ``stop`` on SIGINT and SIGTERM (main thread only); restore the handlers after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.signal(sig, lambda *_: stop.set()) for sig in signals}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
+    """Serve the emulated cell until a signal (or ``stop``, for callers in-process)."""
+    config = load_cell_config(args.config)
+    stop = stop or threading.Event()
+    robot = getattr(args, "robot", None) or (
+        "egm" if config.robot_kind == "egm" else "link"
+    )
+    sensor = getattr(args, "sensor", None) or config.sensor_kind
+    if (robot, sensor) != ("link", "jr3"):
+        return _run_devices(args, config, robot, sensor, stop)
+    cell = EmulatedCell(config, seed=args.seed, link_dir=args.link_dir,
+                        fresh_per_connection=args.fresh_per_connection)
+    sessions = ("a fresh cell per client session" if args.fresh_per_connection
+                else "the cell remembers wear between client sessions")
+    with _stop_on_signals(stop), cell:
+        print(
+            f"forcelearn emulate: emulated cell running, PID {os.getpid()} (seed {args.seed}, "
+            f"{sessions}); Ctrl-C or `kill {os.getpid()}` stops it",
+            flush=True,
+        )
+        print(f"robot link (computer link, pty): {cell.robot_path}")
+        print(
+            f"JR3 sensor (slcan CAN adapter, pty, node {config.jr3.node_id}, "
+            f"{config.bus.bitrate} bit/s): {cell.slcan_path}"
+        )
+        if args.write_config is not None:
+            atomic_write_bytes(args.write_config, cell.site_config().encode())
+            print(f"site config written to {args.write_config}")
+        print("\n" + cell.site_config(), flush=True)
+        while not stop.wait(WAIT_SLICE_S):
+            pass
+        print(
+            f"forcelearn emulate: stopping: {cell.robot.move_count} robot moves executed, "
+            f"{cell.sensor.stats.samples} JR3 samples sent, "
+            f"{cell.adapter.model.frames_sent} frames from the slcan host, "
+            f"{cell.sessions} client sessions",
+            flush=True,
+        )
+    return 0
+
+
+def _run_devices(
+    args: argparse.Namespace, config: CellConfig, robot: str, sensor: str, stop: threading.Event
+) -> int:
+    """Serve an emulated cell with EGM and/or Net F/T until a signal (or ``stop``)."""
+    port = getattr(args, "egm_port", 0)
+    with _stop_on_signals(stop), EmulatedDevices(
+        config, seed=args.seed, robot=robot, sensor=sensor, egm_port=port
+    ) as devices:
+        print(
+            f"forcelearn emulate: emulated cell running (seed {args.seed}); "
+            "Ctrl-C or SIGTERM stops it",
+            flush=True,
+        )
+        for line in devices.describe():
+            print(line)
+        site = devices.site_config()
+        if args.write_config is not None:
+            atomic_write_bytes(args.write_config, site.encode())
+            print(f"site config written to {args.write_config}")
+        print("\n" + site, flush=True)
+        while not stop.wait(WAIT_SLICE_S):
+            pass
+        print(f"forcelearn emulate: stopping: {devices.summary()}", flush=True)
+    return 0

@@ -1,0 +1,1 @@
+"""Figure makers (PNG, matplotlib Agg): runs, probe, calibration, filter, step timeline."""

@@ -1,0 +1,1 @@
+"""Mutation fuzzing of every decoder and server that takes bytes from outside (docs/fuzzing.md)."""

@@ -1,0 +1,1 @@
+"""Programs that each write one docs/results page (``python -m forcelearn.tools.results.NAME``)."""

@@ -1,0 +1,1 @@
+"""The engine of ``forcelearn study``: grid, runner (local or Dask), tasks, report."""
