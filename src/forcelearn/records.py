@@ -44,6 +44,8 @@ class BurstRecord:
         start_s: sensor time of the first sample on the cell clock, s.
         span_s: sensor time from the first to the last sample, s.
         filtered_n: the force filter's estimate the learner was given, N.
+        wrench_mean: mean of the burst's compensated wrench in the sensor frame
+            (Fx, Fy, Fz in N, Tx, Ty, Tz in N·m): friction along the motion shows here.
     """
 
     mean_n: float
@@ -54,6 +56,7 @@ class BurstRecord:
     start_s: float
     span_s: float
     filtered_n: float
+    wrench_mean: tuple[float, float, float, float, float, float] | None = None
 
 
 @dataclass(frozen=True)
