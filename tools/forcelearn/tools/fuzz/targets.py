@@ -374,8 +374,7 @@ def filled_calibration() -> Calibration:
         estimate_noise,
         fit_tool_load,
     )
-    from forcelearn.calibration.model import TOOL_DOWN
-    from forcelearn.devices import quaternion_to_matrix
+    from forcelearn.devices import STANDARD_GRAVITY_M_S2, TOOL_DOWN, quaternion_to_matrix
 
     rng = np.random.default_rng(0)
     quaternions = [TOOL_DOWN, (0.92388, 0.38268, 0.0, 0.0), (0.92388, 0.0, 0.38268, 0.0),
@@ -383,7 +382,7 @@ def filled_calibration() -> Calibration:
     mass, com = 1.5, np.array([0.0, 0.0, 0.08])
     readings = []
     for q in quaternions:
-        g = quaternion_to_matrix(q).T @ np.array([0.0, 0.0, -9.80665 * mass])
+        g = quaternion_to_matrix(q).T @ np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2 * mass])
         readings.append(np.concatenate([g, np.cross(com, g)]) + rng.normal(scale=1e-3, size=6))
     tool = fit_tool_load(quaternions, np.array(readings), names=["a", "b", "c", "d"],
                          samples=[100] * 4)
