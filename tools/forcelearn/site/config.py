@@ -389,7 +389,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
 def load_robot(table: dict[str, Any], limits: Limits) -> Any:
     """``[robot]``: its kind's builder (:data:`~forcelearn.site.kinds.ROBOT_KINDS`)."""
     name = table.pop("kind", DEFAULT_ROBOT_KIND)
-    if name not in ROBOT_KINDS:  # an alias is a command-line spelling, not a config value
+    if not isinstance(name, str) or name not in ROBOT_KINDS:  # an alias is a CLI spelling
         raise ConfigError(f"robot.kind = {name!r}: one of {list(ROBOT_KINDS)}")
     kind = robot_kind(name)
     if "limits" in table:

@@ -86,18 +86,18 @@ class FuzzFailure(AssertionError):
 def apply_mutations(data: bytes, mutations: Iterable[Mutation]) -> bytes:
     """Return ``data`` with each mutation applied in turn (positions taken modulo the size)."""
     out = bytearray(data)
-    for kind, position, value in mutations:
+    for operation, position, value in mutations:
         size = len(out)
         at = position % (size + 1)
-        if kind == 0 and size:
+        if operation == 0 and size:
             out[at % size] ^= 1 << (value % 8)
-        elif kind == 1 and size:
+        elif operation == 1 and size:
             out[at % size] = value & 0xFF
-        elif kind == 2:
+        elif operation == 2:
             out[at:at] = bytes((value & 0xFF,)) * (1 + (value >> 8) % 3)
-        elif kind == 3 and size:
+        elif operation == 3 and size:
             del out[at : at + 1 + (value >> 8) % 3]
-        elif kind == 4:
+        elif operation == 4:
             del out[at:]
     return bytes(out)
 
@@ -106,9 +106,9 @@ def random_mutations(rng: random.Random, max_count: int = 4) -> list[Mutation]:
     """Draw 1..max_count mutations, biased towards the protocol's special bytes."""
     mutations = []
     for _ in range(rng.randint(1, max_count)):
-        kind = rng.choices(range(MUTATION_KINDS), weights=(4, 3, 3, 2, 1))[0]
+        operation = rng.choices(range(MUTATION_KINDS), weights=(4, 3, 3, 2, 1))[0]
         byte = rng.choice(INTERESTING_BYTES) if rng.random() < 0.5 else rng.randrange(256)
-        mutations.append((kind, rng.randrange(1 << 20), byte | rng.randrange(4) << 8))
+        mutations.append((operation, rng.randrange(1 << 20), byte | rng.randrange(4) << 8))
     return mutations
 
 
