@@ -11,8 +11,8 @@ trainer a :class:`~forcelearn.cell.Cell`::
     config = load_cell_config("examples/egm-cell.toml")   # or None: the emulated cell
     with CellSession(config, seed=0) as session:
         cell = session.cell
-        cell.move_to(config.task.start_pose())
-        print(f"{cell.measure_force_n():.2f} N")
+        cell.move_in_steps(config.task.start_pose(), config.safety.max_step_mm)
+        print(f"{cell.measure_force_n():.2f} N")   # the filtered normal force
 
 :class:`EmulatedCell` serves the emulated devices of any two kinds to
 another process (what ``forcelearn emulate`` runs); :func:`robot_kind` and
