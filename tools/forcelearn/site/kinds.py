@@ -146,14 +146,6 @@ class DeviceKind(ABC):
     config_type: type[Any]
     """The driver's frozen config dataclass the table builds."""
 
-    def device_config(self, config: AnyCellConfig) -> Any:
-        """The cell's config of this device (``ConfigError`` if the cell has another kind)."""
-        device = getattr(config, self.role)
-        if not isinstance(device, self.config_type):
-            actual = getattr(config, f"{self.role}_kind")
-            raise ConfigError(f"the {self.role} is of kind {actual!r}, not {self.name}")
-        return device
-
     def device_config_or_default(self, config: AnyCellConfig) -> Any:
         """The cell's config of this device, or the kind's defaults if the cell has another."""
         device = getattr(config, self.role)
