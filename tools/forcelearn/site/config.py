@@ -286,14 +286,16 @@ class CellConfig:
     def robot_device(self) -> RobotKind:
         """The robot's entry of the kinds table."""
         kind = kind_of("robot", self.robot)
-        assert isinstance(kind, RobotKind)
+        if not isinstance(kind, RobotKind):  # pragma: no cover - kind_of reads ROBOT_KINDS
+            raise TypeError(f"{kind!r} is not a RobotKind")
         return kind
 
     @property
     def sensor_device(self) -> SensorKind:
         """The sensor's entry of the kinds table."""
         kind = kind_of("sensor", self.sensor)
-        assert isinstance(kind, SensorKind)
+        if not isinstance(kind, SensorKind):  # pragma: no cover - kind_of reads SENSOR_KINDS
+            raise TypeError(f"{kind!r} is not a SensorKind")
         return kind
 
     @property

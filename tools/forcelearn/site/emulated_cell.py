@@ -32,7 +32,7 @@ import contextlib
 import copy
 import logging
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -256,13 +256,11 @@ class EmulatedCell:
 
 def _pick(
     named: str | None, configured: str, emulated: bool, in_process: bool,
-    lookup: Any,
+    lookup: Callable[[str], DeviceKind],
 ) -> DeviceKind | None:
     """The kind to emulate: the one named, else the config's (in process: if it is emulated)."""
     if named is not None:
-        kind: DeviceKind = lookup(named)
-        return kind
+        return lookup(named)
     if in_process and not emulated:
         return None
-    configured_kind: DeviceKind = lookup(configured)
-    return configured_kind
+    return lookup(configured)

@@ -259,7 +259,8 @@ def robot_kind(name: str) -> RobotKind:
     if entry is None:
         raise ConfigError(f"robot.kind = {name!r}: one of {list(ROBOT_KINDS)}")
     kind = _resolve(entry)
-    assert isinstance(kind, RobotKind), f"{name}: a robot kind in ROBOT_KINDS"
+    if not isinstance(kind, RobotKind):
+        raise TypeError(f"ROBOT_KINDS[{name!r}] is a {type(kind).__name__}, not a RobotKind")
     return kind
 
 
@@ -269,7 +270,8 @@ def sensor_kind(name: str) -> SensorKind:
     if entry is None:
         raise ConfigError(f"sensor.kind = {name!r}: one of {list(SENSOR_KINDS)}")
     kind = _resolve(entry)
-    assert isinstance(kind, SensorKind), f"{name}: a sensor kind in SENSOR_KINDS"
+    if not isinstance(kind, SensorKind):
+        raise TypeError(f"SENSOR_KINDS[{name!r}] is a {type(kind).__name__}, not a SensorKind")
     return kind
 
 
