@@ -30,6 +30,7 @@ from typing import ParamSpec, TypeVar
 
 import numpy as np
 
+from forcelearn.calibration.model import Calibration
 from forcelearn.devices import AXES, BatchForceSensor, ForceSensor, Pose, Robot, WrenchSample
 from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded, InvalidTarget
 from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
@@ -61,9 +62,13 @@ class Cell:
         max_force_n: force (N) above which motion stops and the trial fails: the
             filtered normal force, or the force magnitude of any sample.
         samples_per_step: sensor samples read (and filtered) after each move.
-        compensation: optional bias and tool-gravity compensation (calibration).
+        compensation: optional wrench compensation hook (a calibration brings its own).
         move_timeout_s: longest wait (robot's time) for a move to be in position.
         settle_s: dwell in position before the force is measured, s.
+        calibration: the sensor's calibration (``forcelearn calibrate``), valid for the
+            zero the sensor has now: the filter takes R from its noise on the filter's
+            axis, every sample loses its bias and the tool's weight, and every
+            :meth:`tare` re-derives its bias for the pose it zeroed at.
     """
 
     def __init__(
@@ -76,6 +81,7 @@ class Cell:
         compensation: WrenchCompensation | None = None,
         move_timeout_s: float = 10.0,
         settle_s: float = 0.05,
+        calibration: Calibration | None = None,
     ):
         if not (math.isfinite(move_timeout_s) and move_timeout_s > 0):
             raise ConfigError(f"move_timeout_s must be a finite number > 0, got {move_timeout_s!r}")
@@ -90,15 +96,23 @@ class Cell:
         self.force_filter = force_filter
         self.max_force_n = float(max_force_n)
         self.samples_per_step = int(samples_per_step)
+        self.calibration = calibration
+        """The calibration in force (re-derived at every tare), or None."""
         self.compensation = compensation
+        if calibration is not None:
+            if compensation is not None:
+                raise ConfigError("give a Cell a calibration or a compensation, not both")
+            force_filter.set_measurement_variance(
+                calibration.noise_variance(force_filter.config.axis)
+            )
+            self.compensation = calibration.compensation
         self.move_timeout_s = float(move_timeout_s)
         self.settle_s = float(settle_s)
         self.time_s = 0.0
         """The robot's clock (s) at the end of the last wait: the cell's time."""
         self._pose: Pose | None = None
         self.on_tare: Callable[[Pose], None] | None = None
-        """Called with the pose after every :meth:`tare` (e.g. to re-derive a calibration's
-        bias for the new zero)."""
+        """Called with the pose after every :meth:`tare` (after the calibration followed it)."""
         self.tares = 0
         """Tares done."""
         self.tares_refused = 0
@@ -261,6 +275,9 @@ class Cell:
             return False
         self._guarded(self.sensor.zero_offsets)
         self.tares += 1
+        if self.calibration is not None:  # the zero now holds the tool's weight at this pose
+            self.calibration = self.calibration.rezeroed(self.pose.quaternion)
+            self.compensation = self.calibration.compensation
         if self.on_tare is not None:
             self.on_tare(self.pose)
         return True

@@ -19,6 +19,10 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 IDENTITY_QUATERNION: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+TOOL_DOWN: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 0.0)
+"""Quaternion (w, x, y, z) of a tool pointing straight down: a half turn about world x."""
+STANDARD_GRAVITY_M_S2 = 9.80665
+"""Standard gravity g, m/s^2 (one kilogram-force is g newtons)."""
 
 
 FORCE_FULL_SCALE_RANGE_N = (1.0, 40_000.0)

@@ -95,19 +95,19 @@ def _normal_force_back_upright_after_a_tilted_tare(session: CellSession) -> floa
 
 
 def test_a_tare_re_derives_the_calibrations_bias_for_the_pose_it_zeroed_at(
-        tmp_path: Path) -> None:
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Zeroing at a tilt stores that pose's tool weight; the compensation must follow it.
 
-    The session's tare hook re-derives the calibration's bias for the tare's
-    orientation, so upright again the tool reads ~0 N. Without the hook the
-    weight zeroed at the tilt shows up as a force of several N.
+    The cell re-derives its calibration's bias for the tare's orientation, so
+    upright again the tool reads ~0 N. Without that the weight zeroed at the
+    tilt shows up as a force of several N.
     """
     _write_calibration(tmp_path / "cal.toml")
     (tmp_path / "cell.toml").write_text('[calibration]\nfile = "cal.toml"\n')
     with CellSession(load_cell_config(tmp_path / "cell.toml"), seed=5) as session:
         followed = _normal_force_back_upright_after_a_tilted_tare(session)
     with CellSession(load_cell_config(tmp_path / "cell.toml"), seed=5) as session:
-        session.cell.on_tare = None
+        monkeypatch.setattr(Calibration, "rezeroed", lambda self, quaternion: self)  # no follow
         stale = _normal_force_back_upright_after_a_tilted_tare(session)
     print(f"upright after a tilted tare: {followed:.3f} N re-derived, {stale:.3f} N not")
     assert abs(followed) < 0.2

@@ -115,8 +115,7 @@ def test_emulated_egm_and_netft_share_one_arm_clock_and_physics() -> None:
     """EGM moves the shared arm the Net F/T emulator samples, on one clock."""
     config = load_cell_config(EXAMPLES / "egm-netft-cell.toml")
     with CellSession(config, seed=3) as session:
-        assert session.egm is not None and session.netft is not None
-        egm, netft = session.egm.emulator, session.netft.emulator
+        egm, netft = session.robot_emulator, session.sensor_emulator
         assert egm is not None and netft is not None
         assert egm.physics is session.physics and netft.physics is session.physics
         assert egm.clock is session.physics.clock is netft.clock

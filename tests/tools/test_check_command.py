@@ -17,6 +17,7 @@ from forcelearn.protocols.computer_link.messages import Status
 from forcelearn.protocols.jr3_can.codec import Frame
 from forcelearn.site.config import EmulatorConfig, load_cell_config
 from forcelearn.site.emulated_cell import EmulatedCell
+from forcelearn.site.jr3_kind import Jr3FarEnd
 from forcelearn.site.session import CellSession
 from forcelearn.tools.cli import main
 from forcelearn.tools.commands.check import check_session
@@ -64,9 +65,10 @@ def test_check_through_slcan_reports_the_devices_and_never_moves_the_robot(
     for axis, noise in zip(("Fx", "Fy", "Fz"), (0.2, 0.2, 0.2), strict=True):
         mean, std = _axis(out, axis)
         assert abs(mean) < 0.3 and std == pytest.approx(noise, rel=0.3)
-    assert cell.robot.move_count == 0
-    assert cell.robot.pose.position_mm.tolist() == [900.0, 0.0, 600.0]
-    assert cell.adapter.model.frames_sent > 100  # the SYNCs really went through the adapter
+    assert cell.robot is not None and cell.robot.emulator.move_count == 0
+    assert cell.robot.emulator.pose.position_mm.tolist() == [900.0, 0.0, 600.0]
+    assert isinstance(cell.sensor, Jr3FarEnd) and cell.sensor.adapter is not None
+    assert cell.sensor.adapter.model.frames_sent > 100  # the SYNCs really went through the adapter
 
 
 def test_check_honours_the_emulated_cells_node_id_and_noise(
@@ -121,7 +123,7 @@ def test_each_failure_names_the_device_and_what_to_check(
     out = capsys.readouterr().out
     failure = next(line for line in out.splitlines() if line.startswith("FAILED"))
     assert f"FAILED  {device}:" in failure and hint in failure
-    assert cell.robot.move_count == 0
+    assert cell.robot is not None and cell.robot.emulator.move_count == 0
 
 
 def test_a_move_counter_that_changes_during_the_check_fails_it() -> None:

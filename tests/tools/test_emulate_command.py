@@ -153,6 +153,9 @@ def test_emulate_prints_its_pid_and_stable_links_that_survive_a_restart(
     second.wait_for(r'^channel = "', STARTUP_S)
     config = load_cell_config(site)  # the file written by the first emulator
     assert Path(config.robot.url).exists() and Path(config.bus.channel).exists()
+    # a loaded host is no real sensor: allow it pauses (the real cell's 0.1 s watchdog failed
+    # this check at a load average of 16), as the other cross-process tests here do
+    site.write_text(site.read_text() + "\n[safety]\nstale_sensor_s = 10.0\n")
     env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
     checked = subprocess.run(
         [sys.executable, "-m", "forcelearn.tools.cli", "check", "--config", str(site),
@@ -229,3 +232,20 @@ def test_a_run_through_emulate_in_another_process_equals_the_in_process_run(
     local = run(out=tmp_path / "local")
     assert remote == local
     assert emulator.stop(signal.SIGTERM) == 0
+
+
+def test_the_old_robot_spelling_link_still_serves_the_computer_link(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--robot link`` (before the kinds got one name each) warns and serves computer_link."""
+    from forcelearn.tools.cli import build_parser
+    from forcelearn.tools.commands import emulate
+
+    argv = ["emulate", "--robot", "link", "--link-dir", str(tmp_path)]
+    args = build_parser(argv).parse_args(argv)
+    stop = threading.Event()
+    stop.set()  # serve, print, stop at once
+    assert emulate.run(args, stop) == 0
+    captured = capsys.readouterr()
+    assert "--robot link is deprecated; write --robot computer_link" in captured.err
+    assert f"robot link (computer link, pty): {tmp_path / 'robot'}" in captured.out

@@ -14,7 +14,7 @@ from forcelearn.site.emulated_cell import EmulatedCell
 
 def _open_session(cell: EmulatedCell) -> None:
     """Open the CAN channel as python-can's slcan does (``O``), and wait for its reply."""
-    with serial.serial_for_url(cell.slcan_path, timeout=5.0) as port:
+    with serial.serial_for_url(cell.paths()["jr3-slcan"], timeout=5.0) as port:
         port.write(b"O\r")
         assert port.read_until(b"\r") == b"\r"  # the reply comes after the session hook ran
         port.write(b"C\r")
@@ -33,7 +33,7 @@ def test_sessions_start_fresh_only_when_asked(tmp_path: Path, fresh: bool) -> No
         _open_session(cell)
         assert cell.sessions == 2
         assert cell.sponge.state_dict() == (start if fresh else worn)
-        assert Path(cell.slcan_path) == tmp_path / "jr3-slcan"
+        assert Path(cell.paths()["jr3-slcan"]) == tmp_path / "jr3-slcan"
     assert not (tmp_path / "jr3-slcan").exists()
 
 

@@ -23,7 +23,7 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 def _state_of(session: CellSession) -> dict[str, Any]:
-    assert session.netft is not None and session.netft.emulator is not None
+    assert session.sensor_emulator is not None
     return json.loads(json.dumps(session.emulator_state()["netft"]))
 
 

@@ -16,14 +16,13 @@ from typing import Any, cast
 import numpy as np
 
 from forcelearn.devices import AXES as AXES  # re-exported: the calibration file names axes
+from forcelearn.devices import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY_M_S2  # re-exported
+from forcelearn.devices import TOOL_DOWN as TOOL_DOWN  # re-exported: the default zero pose
 from forcelearn.devices import Pose, quaternion_to_matrix
 
 FORMAT_VERSION = 2
 """Version of the calibration file format this code writes and reads."""
-STANDARD_GRAVITY_M_S2 = 9.80665
 MM_PER_M = 1000.0
-TOOL_DOWN = (0.0, 1.0, 0.0, 0.0)
-"""Quaternion (w, x, y, z) of the tool pointing down: a half turn about world x."""
 
 Vec3 = tuple[float, float, float]
 Vec6 = tuple[float, float, float, float, float, float]

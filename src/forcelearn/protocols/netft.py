@@ -57,6 +57,8 @@ import enum
 import struct
 from dataclasses import dataclass
 
+from forcelearn.devices import STANDARD_GRAVITY_M_S2
+
 HEADER = 0x1234
 RDT_PORT = 49152
 CALIBRATION_TCP_PORT = 49151
@@ -81,8 +83,8 @@ FORCE_UNITS: dict[int, tuple[str, float]] = {
     2: ("N", 1.0),
     3: ("klbf", 4448.2216152605),
     4: ("kN", 1000.0),
-    5: ("kgf", 9.80665),
-    6: ("gf", 0.00980665),
+    5: ("kgf", STANDARD_GRAVITY_M_S2),
+    6: ("gf", STANDARD_GRAVITY_M_S2 / 1000.0),
 }
 """READCALINFO force unit code -> (name as netftapi2.xml ``scfgfu`` spells it, newtons per unit)."""
 

@@ -30,14 +30,14 @@ from typing import TypedDict
 import numpy as np
 
 from forcelearn.cell import Cell
-from forcelearn.devices import IDENTITY_QUATERNION, Pose
+from forcelearn.devices import IDENTITY_QUATERNION, STANDARD_GRAVITY_M_S2, Pose
 from forcelearn.errors import ConfigError, ForceLimitExceeded
 from forcelearn.learning import BoxGrid, Dimension
 from forcelearn.trainer import StepOutcome
 
 log = logging.getLogger(__name__)
 
-KGF_N = 9.80665
+KGF_N = STANDARD_GRAVITY_M_S2
 """One kilogram-force in newtons."""
 SAFETY_R = 2.0
 """Evaluation given to a step stopped by the force limit (a failure, learned as one)."""

@@ -8,7 +8,9 @@ from typing import Any
 
 import pytest
 
+from forcelearn.config import build
 from forcelearn.devices import Pose
+from forcelearn.drivers.computer_link.config import Limits
 from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm import (
@@ -53,7 +55,9 @@ def egm_pair(egm_route: str) -> Iterator[Callable[..., Pair]]:
             wait: bool = True,
         ) -> Pair:
             driver_cfg = {"port": 0, "lockstep": True, "watchdog_s": 5.0} | (driver or {})
-            config = EgmConfig.from_dict(driver_cfg)
+            if "limits" in driver_cfg:
+                driver_cfg["limits"] = Limits(**driver_cfg["limits"])
+            config = build(EgmConfig, driver_cfg, "robot")
             emulator_kw = {
                 "physics": CellPhysics(pose=HOME),
                 "clock": SimClock(),

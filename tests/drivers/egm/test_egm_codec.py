@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from forcelearn.config import build
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.errors import ConfigError, EgmVersionMismatch, ProtocolError
@@ -145,19 +146,19 @@ def test_broken_datagrams_raise_protocol_error() -> None:
 
 
 def test_config_errors_name_the_key() -> None:
-    """Config errors name the key."""
-    assert EgmConfig.from_dict({"kind": "egm", "port": 0, "version": "rw6"}).version == "rw6"
+    """Config errors name the key (the cell config's parser, forcelearn.config.build)."""
+    assert build(EgmConfig, {"port": 0, "version": "rw6"}, "robot").version == "rw6"
     for table, key in [
         ({"prot": 1}, "prot"),
         ({"port": 70000}, "robot.port"),
         ({"version": "rw5"}, "robot.version"),
         ({"sample_period_s": 0.005}, "robot.sample_period_s"),
         ({"watchdog_s": 0}, "robot.watchdog_s"),
-        ({"limits": {"max_step": 1}}, "max_step"),
+        ({"max_step_mm": 1}, "robot.max_step_mm"),  # a limit: [safety]'s (cell config)
         ({"speed_mm_s": 500.0}, "robot.limits.max_speed_mm_s"),
     ]:
         with pytest.raises(ConfigError, match=key):
-            EgmConfig.from_dict(table)
+            build(EgmConfig, table, "robot")
 
 
 def test_the_example_egm_cell_config_loads() -> None:

@@ -327,4 +327,4 @@ def test_a_configured_controller_address_and_port_exclude_every_other_sender() -
 def test_bad_controller_address_keys_are_config_errors(table: dict[str, object], key: str) -> None:
     """Controller address keys are checked at load and named."""
     with pytest.raises(ConfigError, match=rf"robot\.{key} (must|needs)"):
-        EgmConfig.from_dict({"port": 0, **table})
+        EgmConfig(port=0, **table)  # type: ignore[arg-type]

@@ -108,7 +108,7 @@ class SurfaceEnv(TaskEnv):
         super().__init__(render_mode)
         # The devices live in the drivers/tools folders; imported here so the core
         # package does not import them at module level (docs/architecture.md).
-        from forcelearn.site.config import CellConfig, load_cell_config
+        from forcelearn.site import CellConfig, load_cell_config
 
         if config is None or isinstance(config, str | Path):
             config = load_cell_config(config)
@@ -141,7 +141,7 @@ class SurfaceEnv(TaskEnv):
         return self.task is None or (seed is not None and self.emulated)
 
     def _open_task(self, seed: int | None) -> SurfaceTask:
-        from forcelearn.site.session import CellSession
+        from forcelearn.site import CellSession
 
         config = self.config
         self.session = CellSession(config, seed=self.default_seed if seed is None else seed)

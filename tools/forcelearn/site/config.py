@@ -39,7 +39,8 @@ table          holds
 ``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``
 =============  ===============================================================
 
-One rule selects an emulated device: the key that says where the device is
+The kinds are the entries of :mod:`forcelearn.site.kinds`; each builds its
+device table. One rule selects an emulated device: the key that says where the device is
 (``url`` of the computer link, ``interface`` of the JR3's CAN bus, ``host``
 of EGM and of the Net F/T) set to ``"emulated"``; a table that does not set
 that key is emulated too, so an empty config is the emulated cell.
@@ -48,7 +49,7 @@ that key is emulated too, so an empty config is the emulated cell.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, TypedDict
 
@@ -66,15 +67,21 @@ from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
+from forcelearn.site.kinds import (
+    DEFAULT_ROBOT_KIND,
+    DEFAULT_SENSOR_KIND,
+    ROBOT_KINDS,
+    RobotKind,
+    SensorKind,
+    kind_of,
+    robot_kind,
+    sensor_kind,
+)
 from forcelearn.tasks.surface import SurfaceTaskSpec, check_task_limits
 from forcelearn.tasks.surface_probe import ProbeSpec
 from forcelearn.tasks.surface_warm_start import check_learner_start
 
 EMULATED = "emulated"
-ROBOT_KINDS = ("computer_link", "egm")
-"""``[robot] kind``: the ABB computer link (serial) or Externally Guided Motion (UDP)."""
-SENSOR_KINDS = ("jr3", "netft")
-"""``[sensor] kind``: the JR3 behind its CAN adapter, or an ATI Net F/T box (Ethernet)."""
 DEFAULT_TRIALS = 300
 """Trials of a run when neither the config nor the command line says."""
 DEFAULT_LEARNER_START = "probe"
@@ -90,8 +97,6 @@ runs or from re-sending SYNCs, which would change the emulated noise sequence
 presumes samples lost after half the watchdog and asks again). Results are
 identical as long as no stall of the host lasts longer than half of it."""
 
-NETFT_RDT_HZ = 7000.0
-"""The Net F/T's RDT rate when the config names none (the emulator's default), Hz."""
 EMULATED_LINK_TIMEOUT_S = 10.0
 """ACK and reply timeouts of the robot link to the in-process emulator when the file sets none, s.
 
@@ -269,13 +274,29 @@ class CellConfig:
 
     @property
     def robot_kind(self) -> str:
-        """``"computer_link"`` or ``"egm"``."""
-        return "egm" if isinstance(self.robot, EgmConfig) else "computer_link"
+        """``[robot] kind``: its name in :data:`~forcelearn.site.kinds.ROBOT_KINDS`."""
+        return self.robot_device.name
 
     @property
     def sensor_kind(self) -> str:
-        """``"jr3"`` or ``"netft"``."""
-        return "netft" if isinstance(self.sensor, NetFtConfig) else "jr3"
+        """``[sensor] kind``: its name in :data:`~forcelearn.site.kinds.SENSOR_KINDS`."""
+        return self.sensor_device.name
+
+    @property
+    def robot_device(self) -> RobotKind:
+        """The robot's entry of the kinds table."""
+        kind = kind_of("robot", self.robot)
+        if not isinstance(kind, RobotKind):  # pragma: no cover - kind_of reads ROBOT_KINDS
+            raise TypeError(f"{kind!r} is not a RobotKind")
+        return kind
+
+    @property
+    def sensor_device(self) -> SensorKind:
+        """The sensor's entry of the kinds table."""
+        kind = kind_of("sensor", self.sensor)
+        if not isinstance(kind, SensorKind):  # pragma: no cover - kind_of reads SENSOR_KINDS
+            raise TypeError(f"{kind!r} is not a SensorKind")
+        return kind
 
     @property
     def link(self) -> LinkConfig:
@@ -308,19 +329,135 @@ class CellConfig:
     @property
     def robot_emulated(self) -> bool:
         """True when the robot goes to the built-in emulator."""
-        if isinstance(self.robot, EgmConfig):
-            return self.robot.host == EMULATED
-        return self.robot.url == EMULATED
+        return self.robot_device.emulated(self.robot)
 
     @property
     def sensor_emulated(self) -> bool:
         """True when the sensor goes to the built-in emulator."""
-        if isinstance(self.sensor, NetFtConfig):
-            return self.sensor.host == EMULATED
-        return self.bus.interface == EMULATED
+        return self.sensor_device.emulated(self.sensor, self.bus)
 
 
-_BUS_KEYS = {"interface", "channel", "bitrate", "sleep_after_open_s"}
+SECTIONS = frozenset({
+    "robot", "sensor", "filter", "safety", "task", "learner", "run", "emulator", "calibration",
+    "probe",
+})
+"""The tables of a cell config."""
+
+
+def load_cell_config(path: str | Path | None = None) -> CellConfig:
+    """Read a cell config (or return the emulated default); errors name the key.
+
+    Each table has its builder below; the rules that carry a value from one
+    table into another are the named functions after them.
+    """
+    data = read_toml(path) if path else {}
+    check_sections(data, set(SECTIONS))
+    safety = build(SafetyLimits, data.get("safety"), "safety")
+    robot = load_robot(dict(data.get("robot", {})), robot_limits(safety))
+    sensor_table = dict(data.get("sensor", {}))
+    kind = sensor_kind(sensor_table.pop("kind", DEFAULT_SENSOR_KIND))  # ConfigError names them
+    bus = load_bus(kind, sensor_table)
+    sensor = load_sensor(kind, sensor_table, safety)
+    safety = emulated_sensor_watchdog(safety, kind.emulated(sensor, bus), data.get("safety", {}))
+    sensor = replace(sensor, stale_timeout_s=safety.stale_sensor_s)
+    task = build(SurfaceTaskSpec, data.get("task"), "task")
+    check_task_limits(task, safety.max_force_n, safety.workspace_min_mm, safety.workspace_max_mm)
+    stop_after, learner_start, trials, seed = load_run(dict(data.get("run", {})))
+    return CellConfig(
+        robot=robot,
+        bus=bus,
+        sensor=sensor,
+        filter=build(ForceFilterConfig, filter_table(kind, sensor, data.get("filter", {})),
+                     "filter"),
+        safety=safety,
+        task=task,
+        learner=build(
+            SRVParams, {**SECTION_LEARNER_DEFAULTS, **data.get("learner", {})}, "learner"
+        ),
+        emulator=load_emulator(kind, dict(data.get("emulator", {}))),
+        probe=build(ProbeSpec, data.get("probe"), "probe"),
+        calibration_file=load_calibration_file(data.get("calibration", {}), path),
+        trials=trials,
+        seed=seed,
+        stop_after_converged=stop_after,
+        learner_start=learner_start,
+        source=Path(path) if path else None,
+    )
+
+
+# -- one builder per table ---------------------------------------------------------------
+
+
+def load_robot(table: dict[str, Any], limits: Limits) -> Any:
+    """``[robot]``: its kind's builder (:data:`~forcelearn.site.kinds.ROBOT_KINDS`)."""
+    name = table.pop("kind", DEFAULT_ROBOT_KIND)
+    if not isinstance(name, str) or name not in ROBOT_KINDS:  # an alias is a CLI spelling
+        raise ConfigError(f"robot.kind = {name!r}: one of {list(ROBOT_KINDS)}")
+    kind = robot_kind(name)
+    if "limits" in table:
+        raise ConfigError("robot.limits: set the limits in [safety] (one place for all limits)")
+    return kind.load(table, limits)
+
+
+def load_bus(kind: SensorKind, table: dict[str, Any]) -> BusConfig:
+    """The CAN bus keys of ``[sensor]`` (popped from ``table``); the default for a bus-less kind."""
+    bus_table = kind.take_bus(table)
+    return BusConfig() if bus_table is None else build(BusConfig, bus_table, "sensor")
+
+
+def load_sensor(kind: SensorKind, table: dict[str, Any], safety: SafetyLimits) -> Any:
+    """``[sensor]`` (bus keys removed): its kind's builder, with the watchdog of [safety]."""
+    if "stale_timeout_s" in table:
+        raise ConfigError("sensor.stale_timeout_s: set safety.stale_sensor_s instead")
+    table.setdefault("zero_on_init", True)
+    return kind.load({**table, "stale_timeout_s": safety.stale_sensor_s})
+
+
+def load_emulator(kind: SensorKind, table: dict[str, Any]) -> EmulatorConfig:
+    """``[emulator]``: pace, profile, physics; ``[emulator.sensor]`` is the sensor kind's model."""
+    check_sections(table, {"sponge", "sensor", "arm", "egm", "time_scale", "profile"})
+    pace: dict[str, Any] = {k: table.pop(k) for k in ("time_scale", "profile") if k in table}
+    models: dict[str, Any] = {}
+    if "sensor" in table:
+        if kind.model_field is None or kind.model_type is None:
+            raise ConfigError(f"emulator.sensor: the {kind.label} emulator takes no model table")
+        models[kind.model_field] = build(kind.model_type, table["sensor"], "emulator.sensor")
+    return build(
+        EmulatorConfig,
+        {
+            **pace,
+            "sponge": build(SpongeParams, table.get("sponge"), "emulator.sponge"),
+            "arm": build(ArmConfig, _with_home_pose(table.get("arm")), "emulator.arm"),
+            "egm": build(ServoParams, table.get("egm"), "emulator.egm"),
+            **models,
+        },
+        "emulator",
+    )
+
+
+def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:
+    """``[run]``: (stop_after_converged, learner_start, trials, seed)."""
+    learner_start = check_learner_start(table.pop("learner_start", DEFAULT_LEARNER_START))
+    stop_after = table.pop("stop_after_converged", 0)
+    if isinstance(stop_after, bool) or not isinstance(stop_after, int) or stop_after < 0:
+        raise ConfigError(f"run.stop_after_converged = {stop_after!r}: a whole number >= 0")
+    trials, seed = read_run_table({"run": table}, DEFAULT_TRIALS)
+    return stop_after, learner_start, trials, seed
+
+
+def load_calibration_file(table: dict[str, Any], config_path: str | Path | None) -> Path | None:
+    """``[calibration] file``, relative to the config file's folder."""
+    if set(table) - {"file"}:
+        raise ConfigError("[calibration] takes one key, file")
+    if "file" not in table:
+        return None
+    if not isinstance(table["file"], str) or not table["file"]:
+        raise ConfigError(f"calibration.file = {table['file']!r}: the path of a "
+                          "calibration file written by forcelearn calibrate")
+    calibration_file = Path(table["file"])
+    if not calibration_file.is_absolute() and config_path is not None:
+        calibration_file = Path(config_path).parent / calibration_file
+    return calibration_file
 
 
 def _with_home_pose(arm: dict[str, Any] | None) -> dict[str, Any] | None:
@@ -332,149 +469,31 @@ def _with_home_pose(arm: dict[str, Any] | None) -> dict[str, Any] | None:
     return {**arm, "home": build(Pose, arm["home"], "emulator.arm.home")}
 
 
-def _kind(table: dict[str, Any], section: str, kinds: tuple[str, ...]) -> str:
-    """Pop ``kind`` from a device table (default: the first of ``kinds``); name a bad one."""
-    kind = table.pop("kind", kinds[0])
-    if kind not in kinds:
-        raise ConfigError(f"{section}.kind = {kind!r}: one of {list(kinds)}")
-    known: str = kind  # one of ``kinds``
-    return known
+# -- the rules that carry values between tables -------------------------------------------
 
 
-def _load_robot(table: dict[str, Any], limits: Limits) -> LinkConfig | EgmConfig:
-    """``[robot]`` by its kind; the limits always come from ``[safety]``."""
-    kind = _kind(table, "robot", ROBOT_KINDS)
-    if "limits" in table:
-        raise ConfigError("robot.limits: set the limits in [safety] (one place for all limits)")
-    if kind == "computer_link":
-        table = {"url": EMULATED, **table}
-        if table["url"] == EMULATED:
-            for key in ("ack_timeout_s", "reply_timeout_s"):
-                table.setdefault(key, EMULATED_LINK_TIMEOUT_S)
-        return replace(build(LinkConfig, table, "robot"), limits=limits)
-    table.setdefault("host", EMULATED)
-    if "max_speed_mm_s" in table:  # EGM's ramp-speed ceiling is a robot key, not a [safety] one
-        current = {f.name: getattr(limits, f.name) for f in fields(limits)}
-        limits = build(Limits, {**current, "max_speed_mm_s": table.pop("max_speed_mm_s")},
-                       "robot")
-    return build(EgmConfig, {**table, "limits": limits}, "robot")
+def robot_limits(safety: SafetyLimits) -> Limits:
+    """The robot driver's limits are [safety]'s workspace and step: one place for all limits."""
+    return Limits(safety.workspace_min_mm, safety.workspace_max_mm, safety.max_step_mm)
 
 
-def load_cell_config(path: str | Path | None = None) -> CellConfig:
-    """Read a cell config (or return the emulated default); errors name the key."""
-    data = read_toml(path) if path else {}
-    check_sections(
-        data,
-        {
-            "robot",
-            "sensor",
-            "filter",
-            "safety",
-            "task",
-            "learner",
-            "run",
-            "emulator",
-            "calibration",
-            "probe",
-        },
-    )
-    safety = build(SafetyLimits, data.get("safety"), "safety")
-    limits = Limits(safety.workspace_min_mm, safety.workspace_max_mm, safety.max_step_mm)
-    robot = _load_robot(dict(data.get("robot", {})), limits)
+def emulated_sensor_watchdog(
+    safety: SafetyLimits, sensor_emulated: bool, safety_table: dict[str, Any]
+) -> SafetyLimits:
+    """An emulated sensor's watchdog is EMULATED_STALE_SENSOR_S unless [safety] names one.
 
-    sensor_table = dict(data.get("sensor", {}))
-    sensor_kind = _kind(sensor_table, "sensor", SENSOR_KINDS)
-    bus = BusConfig()
-    if sensor_kind == "jr3":
-        bus = build(
-            BusConfig,
-            {k: sensor_table.pop(k) for k in list(sensor_table) if k in _BUS_KEYS},
-            "sensor",
-        )
-        emulated_sensor = bus.interface == EMULATED
-    else:
-        sensor_table.setdefault("host", EMULATED)
-        emulated_sensor = sensor_table["host"] == EMULATED
-    if emulated_sensor and "stale_sensor_s" not in data.get("safety", {}):
-        safety = replace(safety, stale_sensor_s=EMULATED_STALE_SENSOR_S)
-    if "stale_timeout_s" in sensor_table:
-        raise ConfigError("sensor.stale_timeout_s: set safety.stale_sensor_s instead")
-    sensor_table.setdefault("zero_on_init", True)
-    sensor_cls: type[Jr3Config] | type[NetFtConfig] = (
-        Jr3Config if sensor_kind == "jr3" else NetFtConfig
-    )
-    sensor = build(
-        sensor_cls, {**sensor_table, "stale_timeout_s": safety.stale_sensor_s}, "sensor"
-    )
+    The emulated sensor is a thread of this process: its only silence is a stall
+    of the host (see :data:`EMULATED_STALE_SENSOR_S`).
+    """
+    if sensor_emulated and "stale_sensor_s" not in safety_table:
+        return replace(safety, stale_sensor_s=EMULATED_STALE_SENSOR_S)
+    return safety
 
-    filter_table = {
-        "axis": 1,
-        "sign": -1.0,
-        # the adapter's low-pass colours the noise (the Net F/T emulator's is white)
-        "noise_cutoff_hz": getattr(sensor, "cutoff_hz", 0.0),
-        **({"sample_period_s": 1.0 / (getattr(sensor, "rdt_rate_hz", None) or NETFT_RDT_HZ)}
-           if sensor_kind == "netft" else {}),
-        **data.get("filter", {}),
-    }
-    emulator_table = dict(data.get("emulator", {}))
-    check_sections(emulator_table, {"sponge", "sensor", "arm", "egm", "time_scale", "profile"})
-    pace = {k: emulator_table.pop(k) for k in ("time_scale", "profile") if k in emulator_table}
-    sensor_model = emulator_table.get("sensor")
-    emulator = build(
-        EmulatorConfig,
-        {
-            **pace,
-            "sponge": build(SpongeParams, emulator_table.get("sponge"), "emulator.sponge"),
-            "sensor": build(
-                SensorModelParams,
-                sensor_model if sensor_kind == "jr3" else None,
-                "emulator.sensor",
-            ),
-            "netft": build(
-                NetFtModelParams,
-                sensor_model if sensor_kind == "netft" else None,
-                "emulator.sensor",
-            ),
-            "arm": build(ArmConfig, _with_home_pose(emulator_table.get("arm")), "emulator.arm"),
-            "egm": build(ServoParams, emulator_table.get("egm"), "emulator.egm"),
-        },
-        "emulator",
-    )
-    run_table = dict(data.get("run", {}))
-    learner_start = check_learner_start(run_table.pop("learner_start", DEFAULT_LEARNER_START))
-    stop_after = run_table.pop("stop_after_converged", 0)
-    if isinstance(stop_after, bool) or not isinstance(stop_after, int) or stop_after < 0:
-        raise ConfigError(f"run.stop_after_converged = {stop_after!r}: a whole number >= 0")
-    trials, seed = read_run_table({"run": run_table}, DEFAULT_TRIALS)
-    calibration = dict(data.get("calibration", {}))
-    if set(calibration) - {"file"}:
-        raise ConfigError("[calibration] takes one key, file")
-    calibration_file = None
-    if "file" in calibration:
-        if not isinstance(calibration["file"], str) or not calibration["file"]:
-            raise ConfigError(f"calibration.file = {calibration['file']!r}: the path of a "
-                              "calibration file written by forcelearn calibrate")
-        calibration_file = Path(calibration["file"])
-        if not calibration_file.is_absolute() and path is not None:
-            calibration_file = Path(path).parent / calibration_file
-    task = build(SurfaceTaskSpec, data.get("task"), "task")
-    check_task_limits(task, safety.max_force_n, safety.workspace_min_mm, safety.workspace_max_mm)
-    return CellConfig(
-        robot=robot,
-        bus=bus,
-        sensor=sensor,
-        filter=build(ForceFilterConfig, filter_table, "filter"),
-        safety=safety,
-        task=task,
-        learner=build(
-            SRVParams, {**SECTION_LEARNER_DEFAULTS, **data.get("learner", {})}, "learner"
-        ),
-        emulator=emulator,
-        probe=build(ProbeSpec, data.get("probe"), "probe"),
-        calibration_file=calibration_file,
-        trials=trials,
-        seed=seed,
-        stop_after_converged=stop_after,
-        learner_start=learner_start,
-        source=Path(path) if path else None,
-    )
+
+def filter_table(kind: SensorKind, sensor: Any, table: dict[str, Any]) -> dict[str, Any]:
+    """``[filter]`` over its defaults: the normal force is -Fy, and the sensor's own.
+
+    The sensor kind adds what follows from the device (the JR3 adapter's
+    low-pass colours the noise; a Net F/T's sample period is its RDT rate's).
+    """
+    return {"axis": 1, "sign": -1.0, **kind.filter_defaults(sensor), **table}

@@ -1,8 +1,8 @@
 """Configuration of the EGM driver: where to listen, which egm.proto, timing, bands and limits.
 
-A frozen dataclass validated on construction; :meth:`EgmConfig.from_dict` reads
-the ``[robot]`` table of a TOML file (``kind = "egm"`` is skipped, it is the
-cell's business) and names any bad key. The client-side limits are the
+A frozen dataclass validated on construction; the cell config
+(:mod:`forcelearn.site.config`) reads the ``[robot]`` table into it with
+:func:`forcelearn.config.build`, which names any bad key. The client-side limits are the
 computer link's :class:`~forcelearn.drivers.computer_link.config.Limits`, one
 definition for both robot drivers.
 """
@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import ipaddress
 import math
-from dataclasses import dataclass, field, fields
-from typing import Any
+from dataclasses import dataclass, field
 
 from forcelearn.drivers.computer_link.config import Limits
 from forcelearn.errors import ConfigError
@@ -126,20 +125,3 @@ class EgmConfig:
         """
         return max(1, math.ceil(self.watchdog_s / self.sample_period_s))
 
-    @classmethod
-    def from_dict(cls, table: dict[str, Any]) -> EgmConfig:
-        """Build from a ``[robot]`` TOML table (``limits`` a sub-table); unknown keys are errors."""
-        values = {k: v for k, v in table.items() if k != "kind"}
-        known = {f.name for f in fields(cls)}
-        unknown = set(values) - known
-        if unknown:
-            raise ConfigError(f"unknown robot key(s) for EGM: {', '.join(sorted(unknown))}")
-        if "limits" in values:
-            bad = set(values["limits"]) - {f.name for f in fields(Limits)}
-            if bad:
-                raise ConfigError(f"unknown robot.limits key(s): {', '.join(sorted(bad))}")
-            limits: dict[str, Any] = {  # TOML values: Limits.__post_init__ checks them
-                k: tuple(v) if isinstance(v, list) else v for k, v in values["limits"].items()
-            }
-            values["limits"] = Limits(**limits)
-        return cls(**values)

@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-STANDARD_GRAVITY_M_S2 = 9.80665
+from forcelearn.devices import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY_M_S2  # re-exported
+
 MM_PER_M = 1000.0
 
 

@@ -32,11 +32,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from forcelearn.devices import TOOL_DOWN as TOOL_DOWN  # re-exported: the home pose's
 from forcelearn.devices import Pose
 from forcelearn.emulators.physics.arm_motion import MotionParams
-
-TOOL_DOWN = (0.0, 1.0, 0.0, 0.0)
-"""Quaternion (w, x, y, z) of a tool pointing straight down (180 deg about x)."""
 
 QUATERNION_TOLERANCE = 1e-3
 

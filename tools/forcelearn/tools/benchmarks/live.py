@@ -35,12 +35,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed")
 
 
-def _run(kind: str, trials: int, seed: int, folder: Path) -> float:
-    """One ``forcelearn run`` of ``kind``; its wall time of the trials, s."""
-    out = folder / f"{kind}-{time.monotonic_ns()}"
+def _run(mode: str, trials: int, seed: int, folder: Path) -> float:
+    """One ``forcelearn run`` of ``mode``; its wall time of the trials, s."""
+    out = folder / f"{mode}-{time.monotonic_ns()}"
     command = [sys.executable, "-m", "forcelearn.tools.cli", "run", "--no-progress",
                "--trials", str(trials), "--seed", str(seed), "--out", str(out)]
-    if kind != "plain":
+    if mode != "plain":
         command += ["--live", "--live-port", "0"]
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                text=True)
@@ -51,7 +51,7 @@ def _run(kind: str, trials: int, seed: int, folder: Path) -> float:
         for line in process.stderr:
             stderr_tail = [*stderr_tail[-20:], line]
             match = _URL.search(line)
-            if match and kind == "browser":
+            if match and mode == "browser":
                 browser = Chromium()
                 browser.navigate(match.group(1))
                 break
@@ -64,7 +64,7 @@ def _run(kind: str, trials: int, seed: int, folder: Path) -> float:
         if browser is not None:
             browser.close()
     if code != 0:
-        raise RuntimeError(f"forcelearn run ({kind}) exited {code}: {''.join(stderr_tail)}")
+        raise RuntimeError(f"forcelearn run ({mode}) exited {code}: {''.join(stderr_tail)}")
     return float(json.loads((out / "summary.json").read_text())["wall_s"])
 
 
@@ -74,17 +74,17 @@ def run(args: argparse.Namespace) -> int:
         print("forcelearn bench live: no chromium on PATH (apt-get install chromium)",
               file=sys.stderr)
         return 1
-    walls: dict[str, list[float]] = {kind: [] for kind in KINDS}
+    walls: dict[str, list[float]] = {mode: [] for mode in KINDS}
     with tempfile.TemporaryDirectory(prefix="forcelearn-bench-live-") as tmp:
         for repeat in range(args.repeats):
-            for kind in KINDS:
-                wall = _run(kind, args.trials, args.seed, Path(tmp))
-                walls[kind].append(wall)
-                print(f"repeat {repeat + 1}, {kind:8s}: {args.trials} trials in {wall:.1f} s",
+            for mode in KINDS:
+                wall = _run(mode, args.trials, args.seed, Path(tmp))
+                walls[mode].append(wall)
+                print(f"repeat {repeat + 1}, {mode:8s}: {args.trials} trials in {wall:.1f} s",
                       flush=True)
     plain = statistics.median(walls["plain"])
-    for kind in KINDS:
-        median = statistics.median(walls[kind])
-        print(f"{kind:8s}: median wall {median:.1f} s, {100 * (median / plain - 1):+.1f} % "
+    for mode in KINDS:
+        median = statistics.median(walls[mode])
+        print(f"{mode:8s}: median wall {median:.1f} s, {100 * (median / plain - 1):+.1f} % "
               "against plain")
     return 0

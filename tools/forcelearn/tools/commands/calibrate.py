@@ -44,8 +44,7 @@ from forcelearn.calibration import (
     save_calibration,
 )
 from forcelearn.errors import CalibrationError, ConfigError, ForcelearnError
-from forcelearn.site.config import NETFT_RDT_HZ, CellConfig, load_cell_config
-from forcelearn.site.session import CellSession
+from forcelearn.site import CellConfig, CellSession, load_cell_config
 from forcelearn.tools.experiments.calibration_plan import CalibrationPlan, load_poses
 from forcelearn.tools.experiments.calibration_run import Ask, Calibrator
 from forcelearn.tools.figures.calibration import write_residual_png
@@ -225,39 +224,12 @@ def _matrix_lines(check: MatrixCheck) -> list[str]:
 def _sensor_info(
     config: CellConfig, opened: CellSession, sensor_model: str | None, serial: str
 ) -> SensorInfo:
-    """What the calibration file records of the sensor and robot, for every device kind."""
+    """What the calibration file records of the sensor and robot (the kinds say)."""
     robot, sensor = opened.robot, opened.sensor
     if robot is None or sensor is None:  # pragma: no cover
         raise CalibrationError("the cell session did not open its devices")
-    if config.robot_kind == "egm":
-        robot_name = f"ABB EGM {robot.config.version}"
-    else:
-        robot_name = robot.controller_model
-    if config.sensor_kind == "netft":
-        cal = sensor.calibration
-        scales = config.sensor.full_scales or (cal.ranges_si if cal is not None else None)
-        return SensorInfo(
-            model=sensor_model if sensor_model is not None else (
-                "ATI Net F/T (forcelearn emulator)" if config.sensor_emulated else "ATI Net F/T"),
-            serial=serial,
-            full_scales=tuple(float(v) for v in scales) if scales else (0.0,) * 6,
-            # the box filters by index (setuserfilter), not by a cut-off: the recorded
-            # noise's bandwidth is the RDT stream's Nyquist frequency
-            cutoff_hz=0.5 * (
-                (cal.rdt_rate_hz if cal is not None else None)
-                or config.netft.rdt_rate_hz
-                or NETFT_RDT_HZ
-            ),
-            robot=robot_name,
-        )
-    if sensor.full_scales is None:  # pragma: no cover
-        raise CalibrationError("the JR3 did not report its full scales")
-    return SensorInfo(
-        model=sensor_model if sensor_model is not None else (
-            "JR3 (forcelearn emulator)" if config.sensor_emulated else ""),
-        serial=serial,
-        node_id=config.jr3.node_id,
-        full_scales=tuple(float(v) for v in sensor.full_scales),
-        cutoff_hz=sensor.cutoff_hz,
-        robot=robot_name,
+    robot_name = config.robot_device.calibration_name(robot)
+    info: SensorInfo = config.sensor_device.calibration_info(
+        config, sensor, robot_name, sensor_model, serial
     )
+    return info

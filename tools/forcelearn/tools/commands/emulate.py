@@ -1,18 +1,18 @@
 """``forcelearn emulate``: run the emulated cell as its own process, reachable as on site.
 
-Starts the robot-controller emulator on one pseudo-terminal and the JR3
-emulator behind an emulated slcan (LAWICEL) USB-CAN adapter on a second one
-(:class:`~forcelearn.site.emulated_cell.EmulatedCell`), prints both paths and
-a site config that reaches them, and serves until SIGINT or SIGTERM. From
-another shell::
+Serves the far ends of a robot and a sensor of any kinds
+(:class:`~forcelearn.site.EmulatedCell`; ``--robot`` and ``--sensor``, default
+the config's kinds), prints where they are and a site config that reaches
+them, and serves until SIGINT or SIGTERM. By default the robot-controller
+emulator on one pseudo-terminal and the JR3 emulator behind an emulated slcan
+(LAWICEL) USB-CAN adapter on a second one; ``--robot egm`` the EGM controller
+on loopback UDP toward ``--egm-port``, ``--sensor netft`` the Net F/T box on
+its UDP/TCP/HTTP ports. From another shell::
 
     forcelearn emulate --write-config /tmp/emulated-site.toml
     forcelearn check --config /tmp/emulated-site.toml
 
-``--robot egm`` and ``--sensor netft`` (defaults: the config's kinds) serve the
-Ethernet devices instead (:class:`~forcelearn.site.emulated_devices.EmulatedDevices`):
-the EGM controller on loopback UDP toward ``--egm-port``, the Net F/T box on
-its UDP/TCP/HTTP ports.
+``--robot link`` is the old spelling of ``--robot computer_link`` (deprecated).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import signal
+import sys
 import tempfile
 import threading
 from collections.abc import Iterator
@@ -27,9 +28,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from forcelearn.atomic import atomic_write_bytes
-from forcelearn.site.config import CellConfig, load_cell_config
-from forcelearn.site.emulated_cell import EmulatedCell
-from forcelearn.site.emulated_devices import ROBOTS, SENSORS, EmulatedDevices
+from forcelearn.site import ROBOT_KINDS, SENSOR_KINDS, EmulatedCell, load_cell_config
+from forcelearn.site.kinds import ALIASES
 
 WAIT_SLICE_S = 0.2
 """How often the main thread looks at the stop flag (s)."""
@@ -46,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--link-dir", type=Path, metavar="DIR", default=default_link_dir(),
-        help="folder for the stable port symlinks 'robot' and 'jr3-slcan' named in the site "
+        help="folder for the stable pty symlinks ('robot', 'jr3-slcan') named in the site "
         f"config (default {default_link_dir()})",
     )
     parser.add_argument(
@@ -55,10 +55,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "default the cell remembers wear between sessions, as a real one does",
     )
     parser.add_argument(
-        "--robot", choices=ROBOTS, help="computer link or EGM (default: the config's [robot] kind)"
+        "--robot", choices=[*ROBOT_KINDS, *ALIASES],
+        help=f"one of {', '.join(ROBOT_KINDS)} (default: the config's [robot] kind)",
     )
     parser.add_argument(
-        "--sensor", choices=SENSORS, help="JR3 or Net F/T (default: the config's [sensor] kind)"
+        "--sensor", choices=list(SENSOR_KINDS),
+        help=f"one of {', '.join(SENSOR_KINDS)} (default: the config's [sensor] kind)",
     )
     parser.add_argument(
         "--egm-port", type=int, default=0,
@@ -90,14 +92,16 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
     """Serve the emulated cell until a signal (or ``stop``, for callers in-process)."""
     config = load_cell_config(args.config)
     stop = stop or threading.Event()
-    robot = getattr(args, "robot", None) or (
-        "egm" if config.robot_kind == "egm" else "link"
-    )
+    robot = getattr(args, "robot", None) or config.robot_kind
+    if robot in ALIASES:
+        print(f"forcelearn emulate: --robot {robot} is deprecated; write --robot "
+              f"{ALIASES[robot]}", file=sys.stderr)
+        robot = ALIASES[robot]
     sensor = getattr(args, "sensor", None) or config.sensor_kind
-    if (robot, sensor) != ("link", "jr3"):
-        return _run_devices(args, config, robot, sensor, stop)
-    cell = EmulatedCell(config, seed=args.seed, link_dir=args.link_dir,
-                        fresh_per_connection=args.fresh_per_connection)
+    cell = EmulatedCell(
+        config, seed=args.seed, robot=robot, sensor=sensor, link_dir=args.link_dir,
+        fresh_per_connection=args.fresh_per_connection, egm_port=getattr(args, "egm_port", 0),
+    )
     sessions = ("a fresh cell per client session" if args.fresh_per_connection
                 else "the cell remembers wear between client sessions")
     with _stop_on_signals(stop), cell:
@@ -106,48 +110,15 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
             f"{sessions}); Ctrl-C or `kill {os.getpid()}` stops it",
             flush=True,
         )
-        print(f"robot link (computer link, pty): {cell.robot_path}")
-        print(
-            f"JR3 sensor (slcan CAN adapter, pty, node {config.jr3.node_id}, "
-            f"{config.bus.bitrate} bit/s): {cell.slcan_path}"
-        )
-        if args.write_config is not None:
-            atomic_write_bytes(args.write_config, cell.site_config().encode())
-            print(f"site config written to {args.write_config}")
-        print("\n" + cell.site_config(), flush=True)
-        while not stop.wait(WAIT_SLICE_S):
-            pass
-        print(
-            f"forcelearn emulate: stopping: {cell.robot.move_count} robot moves executed, "
-            f"{cell.sensor.stats.samples} JR3 samples sent, "
-            f"{cell.adapter.model.frames_sent} frames from the slcan host, "
-            f"{cell.sessions} client sessions",
-            flush=True,
-        )
-    return 0
-
-
-def _run_devices(
-    args: argparse.Namespace, config: CellConfig, robot: str, sensor: str, stop: threading.Event
-) -> int:
-    """Serve an emulated cell with EGM and/or Net F/T until a signal (or ``stop``)."""
-    port = getattr(args, "egm_port", 0)
-    with _stop_on_signals(stop), EmulatedDevices(
-        config, seed=args.seed, robot=robot, sensor=sensor, egm_port=port
-    ) as devices:
-        print(
-            f"forcelearn emulate: emulated cell running (seed {args.seed}); "
-            "Ctrl-C or SIGTERM stops it",
-            flush=True,
-        )
-        for line in devices.describe():
+        for line in cell.describe():
             print(line)
-        site = devices.site_config()
+        site = cell.site_config()
         if args.write_config is not None:
             atomic_write_bytes(args.write_config, site.encode())
             print(f"site config written to {args.write_config}")
         print("\n" + site, flush=True)
         while not stop.wait(WAIT_SLICE_S):
             pass
-        print(f"forcelearn emulate: stopping: {devices.summary()}", flush=True)
+        print(f"forcelearn emulate: stopping: {cell.summary()}, {cell.sessions} client sessions",
+              flush=True)
     return 0

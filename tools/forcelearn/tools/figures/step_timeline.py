@@ -20,8 +20,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from forcelearn.emulators.clock import Wire
-from forcelearn.site.config import load_cell_config
-from forcelearn.site.session import CellSession
+from forcelearn.emulators.jr3.node import Jr3EmulatorNode
+from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
+from forcelearn.site import CellSession, load_cell_config
 from forcelearn.tasks.surface import SurfaceTask
 
 DEFAULT_OUT = Path("docs/results/step_timeline.png")
@@ -47,7 +48,9 @@ def record_step(seed: int = 0) -> dict[str, Any]:
         assert session.sensor_emulator is not None and session.physics is not None
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
         task.reset()
-        engine, node = session.robot_emulator.engine, session.sensor_emulator
+        robot_emulator: RobotControllerEmulator = session.robot_emulator
+        node: Jr3EmulatorNode = session.sensor_emulator
+        engine = robot_emulator.engine
         physics = session.physics
         logs: dict[str, Any] = {"pc_to_robot": [], "robot_to_pc": [], "can": [], "samples": []}
         _logging(engine.rx_wire, logs["pc_to_robot"])

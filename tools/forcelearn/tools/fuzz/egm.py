@@ -298,44 +298,44 @@ def _target(rng: random.Random, rig: EgmRig) -> object:
 
 def random_egm_input(rng: random.Random, rig: EgmRig, mutate: Mutate) -> EgmInput:
     """Draw one hostile input for ``rig``'s present state."""
-    kind = rng.choices(
+    attack = rng.choices(
         ["mutant", "truncation", "huge", "tiny", "foreign", "start", "replay", "jump",
          "version", "evil", "restart", "move", "stop"],
         weights=(20, 6, 2, 4, 6, 8, 8, 8, 5, 6, 3, 12, 2),
     )[0]
     sender = 0 if rng.random() < 0.6 else rng.choice((1, 2))
-    item = EgmInput(what=kind)
-    if kind == "mutant":
+    item = EgmInput(what=attack)
+    if attack == "mutant":
         item.datagrams.append((sender, mutate(rig.next_datagram(), rng)))
-    elif kind == "truncation":
+    elif attack == "truncation":
         good = rig.next_datagram()
         item.datagrams.append((sender, good[: rng.randrange(len(good))]))
-    elif kind == "huge":
+    elif attack == "huge":
         item.datagrams.append((sender, rng.randbytes(rng.choice((65507, 9000, 1000)))))
-    elif kind == "tiny":
+    elif attack == "tiny":
         item.datagrams.append((sender, rng.choice((b"\x0b", rng.randbytes(rng.randrange(9))))))
-    elif kind == "foreign":
+    elif attack == "foreign":
         for _ in range(rng.randint(1, 3)):
             pose = rng.choice(EVIL_POSES) if rng.random() < 0.5 else rig.pose.moved(5.0)
             item.datagrams.append((rng.choice((1, 2)), rig.next_datagram(1, pose)))
-    elif kind == "start":
+    elif attack == "start":
         item.datagrams.append((sender, _robot(0, rng.randrange(2**32), rng.choice(EVIL_POSES),
                                               rig.version)))
-    elif kind == "replay":
+    elif attack == "replay":
         pool = rig.starts if rng.random() < 0.5 else rig.history
         item.datagrams.append((sender, rng.choice(pool)))
-    elif kind == "jump":
+    elif attack == "jump":
         delta = rng.choice((2, rig.bound, rig.bound + 1, 2**31 - 2, 2**31, -1,
                             rng.randrange(2**32)))
         item.datagrams.append((sender, rig.next_datagram(delta)))
-    elif kind == "version":
+    elif attack == "version":
         other: codec.Version = "rw6" if rig.version == "rw7" else "rw7"
         item.datagrams.append((sender, rig.next_datagram(1, version=other)))
-    elif kind == "evil":
+    elif attack == "evil":
         item.datagrams.append((sender, rig.next_datagram(1, rng.choice(EVIL_POSES))))
-    elif kind == "restart":
+    elif attack == "restart":
         item.restart = True
-    elif kind == "move":
+    elif attack == "move":
         target = _target(rng, rig)
         item.call = lambda driver: driver.move_to(target)  # type: ignore[arg-type]
     else:

@@ -218,34 +218,34 @@ SLOW_KINDS = ("silent", "drip", "half", "unread")
 
 
 def slow_batch(port: int, kinds: list[str], max_connections: int) -> list[tuple[str, float]]:
-    """Open one client per kind at once; (kind, seconds until the server closed it) each.
+    """Open one client per behaviour at once; (behaviour, seconds until the server closed it) each.
 
     -1 seconds: still open at the deadline (a hang).
     """
     request = b"GET /api/events HTTP/1.1\r\nHost: 127.0.0.1\r\n" + b"X-Slow: " + b"a" * 400
     socks = []
-    for kind in kinds:
+    for behaviour in kinds:
         sock = socket.create_connection(("127.0.0.1", port), timeout=5)
         sock.setblocking(False)
-        if kind == "half":
+        if behaviour == "half":
             sock.send(request[:30])
-        elif kind == "unread":
+        elif behaviour == "unread":
             sock.send(b"GET /static/live.js HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" * 50)
         socks.append(sock)
     started = time.monotonic()
     done: dict[int, float] = {}
     sent = [0] * len(socks)
     while len(done) < len(socks) and time.monotonic() - started < IDLE_S + SLACK_S:
-        for i, (kind, sock) in enumerate(zip(kinds, socks, strict=True)):
+        for i, (behaviour, sock) in enumerate(zip(kinds, socks, strict=True)):
             if i in done:
                 continue
             try:
-                if kind == "drip" and sent[i] < len(request):
+                if behaviour == "drip" and sent[i] < len(request):
                     sock.send(request[sent[i] : sent[i] + 1])
                     sent[i] += 1
                 # "unread" reads nothing until the idle timeout has long passed (the server's
                 # write must have timed out by then), then drains what was sent to see the end
-                reading = kind != "unread" or time.monotonic() - started > IDLE_S + 1.0
+                reading = behaviour != "unread" or time.monotonic() - started > IDLE_S + 1.0
                 while reading:
                     chunk = sock.recv(65536)
                     if not chunk:
@@ -258,13 +258,13 @@ def slow_batch(port: int, kinds: list[str], max_connections: int) -> list[tuple[
         time.sleep(0.05)
     for sock in socks:
         sock.close()
-    return [(kind, done.get(i, -1.0)) for i, kind in enumerate(kinds)]
+    return [(behaviour, done.get(i, -1.0)) for i, behaviour in enumerate(kinds)]
 
 
-def check_slow(kind: str, seconds: float) -> str:
+def check_slow(behaviour: str, seconds: float) -> str:
     """A slow client must have been closed by the server in time."""
     if seconds < 0:
-        raise FuzzFailure(f"the server raised a hang: a {kind} client was still connected "
+        raise FuzzFailure(f"the server raised a hang: a {behaviour} client was still connected "
                           f"{IDLE_S + SLACK_S:g} s after it opened (idle timeout {IDLE_S} s)")
     return "closed"
 
@@ -286,8 +286,8 @@ def run_target(target: str, rng: random.Random, inputs: int, tally: Tally) -> No
                 count = min(remaining, rng.randint(1, 150))
                 kinds = [rng.choice(SLOW_KINDS) for _ in range(count)]
                 results = slow_batch(port, kinds, server._server.max_connections)
-                for kind, seconds in results:
-                    tally.add(lambda k=kind, s=seconds: check_slow(k, s))  # type: ignore[misc]
+                for behaviour, seconds in results:
+                    tally.add(lambda k=behaviour, s=seconds: check_slow(k, s))  # type: ignore[misc]
                 remaining -= count
                 after = b"GET /api/state HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n"
                 deadline = time.monotonic() + SLACK_S

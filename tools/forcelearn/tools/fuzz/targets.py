@@ -86,18 +86,18 @@ class FuzzFailure(AssertionError):
 def apply_mutations(data: bytes, mutations: Iterable[Mutation]) -> bytes:
     """Return ``data`` with each mutation applied in turn (positions taken modulo the size)."""
     out = bytearray(data)
-    for kind, position, value in mutations:
+    for operation, position, value in mutations:
         size = len(out)
         at = position % (size + 1)
-        if kind == 0 and size:
+        if operation == 0 and size:
             out[at % size] ^= 1 << (value % 8)
-        elif kind == 1 and size:
+        elif operation == 1 and size:
             out[at % size] = value & 0xFF
-        elif kind == 2:
+        elif operation == 2:
             out[at:at] = bytes((value & 0xFF,)) * (1 + (value >> 8) % 3)
-        elif kind == 3 and size:
+        elif operation == 3 and size:
             del out[at : at + 1 + (value >> 8) % 3]
-        elif kind == 4:
+        elif operation == 4:
             del out[at:]
     return bytes(out)
 
@@ -106,9 +106,9 @@ def random_mutations(rng: random.Random, max_count: int = 4) -> list[Mutation]:
     """Draw 1..max_count mutations, biased towards the protocol's special bytes."""
     mutations = []
     for _ in range(rng.randint(1, max_count)):
-        kind = rng.choices(range(MUTATION_KINDS), weights=(4, 3, 3, 2, 1))[0]
+        operation = rng.choices(range(MUTATION_KINDS), weights=(4, 3, 3, 2, 1))[0]
         byte = rng.choice(INTERESTING_BYTES) if rng.random() < 0.5 else rng.randrange(256)
-        mutations.append((kind, rng.randrange(1 << 20), byte | rng.randrange(4) << 8))
+        mutations.append((operation, rng.randrange(1 << 20), byte | rng.randrange(4) << 8))
     return mutations
 
 
@@ -374,8 +374,7 @@ def filled_calibration() -> Calibration:
         estimate_noise,
         fit_tool_load,
     )
-    from forcelearn.calibration.model import TOOL_DOWN
-    from forcelearn.devices import quaternion_to_matrix
+    from forcelearn.devices import STANDARD_GRAVITY_M_S2, TOOL_DOWN, quaternion_to_matrix
 
     rng = np.random.default_rng(0)
     quaternions = [TOOL_DOWN, (0.92388, 0.38268, 0.0, 0.0), (0.92388, 0.0, 0.38268, 0.0),
@@ -383,7 +382,7 @@ def filled_calibration() -> Calibration:
     mass, com = 1.5, np.array([0.0, 0.0, 0.08])
     readings = []
     for q in quaternions:
-        g = quaternion_to_matrix(q).T @ np.array([0.0, 0.0, -9.80665 * mass])
+        g = quaternion_to_matrix(q).T @ np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2 * mass])
         readings.append(np.concatenate([g, np.cross(com, g)]) + rng.normal(scale=1e-3, size=6))
     tool = fit_tool_load(quaternions, np.array(readings), names=["a", "b", "c", "d"],
                          samples=[100] * 4)

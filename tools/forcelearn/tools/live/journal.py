@@ -73,17 +73,17 @@ def _record(data: dict[str, Any]) -> TrialRecord:
 
 def apply_line(model: LiveModel, line: dict[str, Any]) -> bool:
     """Apply one journal line to the model; True when it ends the run."""
-    kind, wall_s = line.get("t"), float(line.get("w") or 0.0)
-    if kind == "meta":  # a run (re)starts: a resumed run appends to its journal
+    line_type, wall_s = line.get("t"), float(line.get("w") or 0.0)
+    if line_type == "meta":  # a run (re)starts: a resumed run appends to its journal
         model.reopen()
-    elif kind == "step":
+    elif line_type == "step":
         row = {k: (math.nan if v is None else v) for k, v in line["row"].items()}
         model.step(int(line["trial"]), str(line["phase"]), row, wall_s)
-    elif kind == "trial":
+    elif line_type == "trial":
         model.trial(_record(line["record"]), bool(line.get("switched")), wall_s)
-    elif kind == "event":
+    elif line_type == "event":
         model.event(str(line["kind"]), str(line["message"]), wall_s)
-    elif kind == "end":
+    elif line_type == "end":
         model.finish(wall_s, line.get("error"))
         return True
     return False

@@ -92,19 +92,11 @@ class LivePublisher:
 
 def surface_meta(config: CellConfig, trials_target: int, source: str = "live") -> LiveMeta:
     """The meta of a surface run: task facts and the devices it drives."""
-    robot_kind = "EGM" if config.robot_kind == "egm" else "computer link"
-    sensor_kind = "Net F/T" if config.sensor_kind == "netft" else "JR3"
-    if config.robot_emulated:
-        robot = f"emulated {robot_kind} controller"
-    else:
-        where = getattr(config.robot, "url", None) or getattr(config.robot, "port", "")
-        robot = f"{robot_kind} {where}"
-    if config.sensor_emulated:
-        sensor = f"emulated {sensor_kind}"
-    elif config.sensor_kind == "netft":
-        sensor = f"Net F/T at {getattr(config.sensor, 'host', '')}"
-    else:
-        sensor = f"JR3 on {config.bus.interface}:{config.bus.channel}"
+    robot_kind, sensor_kind = config.robot_device, config.sensor_device
+    robot = (f"emulated {robot_kind.label} controller" if config.robot_emulated
+             else robot_kind.location(config))
+    sensor = (f"emulated {sensor_kind.label}" if config.sensor_emulated
+              else sensor_kind.location(config))
     return LiveMeta(
         task="surface",
         desired_force_n=config.task.desired_force_n,

@@ -43,16 +43,16 @@ class SlowCrowd:
         self._thread = threading.Thread(target=self._run, name="slow-crowd", daemon=True)
         self._thread.start()
 
-    def _open(self, kind: str) -> socket.socket | None:
+    def _open(self, behaviour: str) -> socket.socket | None:
         try:
             sock = socket.create_connection(self.address, timeout=2)
         except OSError:
             return None
         sock.setblocking(False)
         try:
-            if kind == "half":
+            if behaviour == "half":
                 sock.send(REQUEST[:30])
-            elif kind == "unread":
+            elif behaviour == "unread":
                 sock.send(b"GET /static/live.js HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n" * 50)
         except OSError:
             pass
@@ -62,19 +62,19 @@ class SlowCrowd:
         clients: list[tuple[str, socket.socket, int]] = []
         while not self._stop.is_set():
             while len(clients) < self.count and not self._stop.is_set():
-                kind = KINDS[len(clients) % len(KINDS)]
-                sock = self._open(kind)
+                behaviour = KINDS[len(clients) % len(KINDS)]
+                sock = self._open(behaviour)
                 if sock is None:
                     break
-                clients.append((kind, sock, 0))
+                clients.append((behaviour, sock, 0))
             kept = []
-            for kind, sock, sent in clients:
+            for behaviour, sock, sent in clients:
                 alive = True
                 try:
-                    if kind == "drip" and sent < len(REQUEST):
+                    if behaviour == "drip" and sent < len(REQUEST):
                         sock.send(REQUEST[sent : sent + 1])
                         sent += 1
-                    if kind != "unread":
+                    if behaviour != "unread":
                         data = sock.recv(65536)
                         if not data:
                             alive = False
@@ -85,7 +85,7 @@ class SlowCrowd:
                 except OSError:
                     alive = False
                 if alive:
-                    kept.append((kind, sock, sent))
+                    kept.append((behaviour, sock, sent))
                 else:
                     self.closed_by_server += 1
                     sock.close()
@@ -138,13 +138,13 @@ def main(argv: list[str] | None = None) -> int:
     walls: dict[str, list[float]] = {"alone": [], "crowd": []}
     with tempfile.TemporaryDirectory(prefix="forcelearn-slow-") as tmp:
         for repeat in range(args.repeats):
-            for kind in ("alone", "crowd"):
-                wall, crowd = one_run(args.trials, args.seed, args.clients if kind == "crowd"
+            for setting in ("alone", "crowd"):
+                wall, crowd = one_run(args.trials, args.seed, args.clients if setting == "crowd"
                                       else 0, Path(tmp))
-                walls[kind].append(wall)
+                walls[setting].append(wall)
                 extra = (f"  server closed {crowd.closed_by_server} slow connections, "
                          f"{crowd.refused} answered 503" if crowd else "")
-                print(f"repeat {repeat}  {kind:6s} {wall:7.2f} s{extra}", flush=True)
+                print(f"repeat {repeat}  {setting:6s} {wall:7.2f} s{extra}", flush=True)
     alone, crowd_wall = statistics.median(walls["alone"]), statistics.median(walls["crowd"])
     print(f"median: alone {alone:.2f} s, with {args.clients} slow clients {crowd_wall:.2f} s "
           f"({100 * (crowd_wall / alone - 1):+.1f} %)")

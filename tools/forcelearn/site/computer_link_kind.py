@@ -1,0 +1,175 @@
+"""``[robot] kind = "computer_link"``: an ABB S4 controller over its serial computer link.
+
+Real: pyserial opens ``[robot] url`` (a port name or a pyserial URL).
+Emulated (``url = "emulated"``, the default): the robot-controller emulator,
+in this process as ``forcelearn-robot://NAME`` (the same bytes as a pty,
+answered in the driver's thread) or, for ``forcelearn emulate``, on a
+pseudo-terminal another process opens.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from forcelearn.config import build
+from forcelearn.drivers.computer_link import ComputerLinkRobot
+from forcelearn.drivers.computer_link.config import Limits, LinkConfig
+from forcelearn.emulators.clock import serial_char_time_s
+from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
+from forcelearn.errors import LinkError, SafetyStop
+from forcelearn.protocols.computer_link import messages
+from forcelearn.site.config import EMULATED, EMULATED_LINK_TIMEOUT_S, CellConfig
+from forcelearn.site.kinds import FarEnd, FarEndOptions, Printer, RobotKind
+
+ROBOT_LINK = "robot"
+"""Name of the stable symlink to the robot's pty (``forcelearn emulate --link-dir``)."""
+EMULATE_HINT = (" (for `forcelearn emulate`, name the stable links it prints, which survive "
+                "restarts, rather than the /dev/pts paths)")
+
+
+def link_char_time_s(config: CellConfig) -> float:
+    """Seconds per character of the emulated robot link (0 in the ideal profile)."""
+    if config.emulator.ideal:
+        return 0.0
+    robot = KIND.device_config_or_default(config)
+    return serial_char_time_s(robot.baudrate, robot.bytesize, robot.parity, robot.stopbits)
+
+
+class ComputerLinkFarEnd(FarEnd):
+    """The robot-controller emulator on a pty (``emulate``) or in process (``run``)."""
+
+    def __init__(self, config: CellConfig, physics: CellPhysics, in_process: bool) -> None:
+        super().__init__()
+        self.emulator: RobotControllerEmulator = RobotControllerEmulator(
+            "inproc" if in_process else "pty",
+            config=config.emulator.effective().arm,
+            physics=physics,
+            char_time_s=link_char_time_s(config),
+        )
+        self.emulators = [self.emulator]
+
+    def state_dict(self) -> dict[str, Any]:
+        """The controller's motion and the link's wire timelines."""
+        state: dict[str, Any] = self.emulator.engine.state_dict()
+        return state
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        self.emulator.engine.load_state_dict(state)
+
+    def links(self) -> dict[str, str]:
+        """The pty, linked as ``robot``."""
+        return {ROBOT_LINK: self.emulator.address}
+
+    def describe(self, paths: dict[str, str]) -> str:
+        """Where another process reaches the controller."""
+        return f"robot link (computer link, pty): {paths[ROBOT_LINK]}"
+
+    def site_lines(self, paths: dict[str, str]) -> list[str]:
+        """The ``[robot]`` table reaching the pty."""
+        return [f'url = "{paths[ROBOT_LINK]}"']
+
+    def summary(self) -> str:
+        """Moves the controller executed."""
+        return f"{self.emulator.move_count} robot moves executed"
+
+
+class ComputerLinkKind(RobotKind):
+    """The computer link (see the module doc)."""
+
+    name = "computer_link"
+    label = "computer link"
+    config_type = LinkConfig
+
+    def load(self, table: dict[str, Any], limits: Limits) -> LinkConfig:
+        """``url`` defaults to the emulator, whose timeouts default to EMULATED_LINK_TIMEOUT_S."""
+        table = {"url": EMULATED, **table}
+        if table["url"] == EMULATED:
+            for key in ("ack_timeout_s", "reply_timeout_s"):
+                table.setdefault(key, EMULATED_LINK_TIMEOUT_S)
+        return replace(build(LinkConfig, table, "robot"), limits=limits)
+
+    def emulated(self, robot: LinkConfig) -> bool:
+        """``url = "emulated"``."""
+        return robot.url == EMULATED
+
+    def describe(self, config: CellConfig) -> str:
+        """Port and framing, or the emulator."""
+        if config.robot_emulated:
+            return "built-in robot-controller emulator on a pty"
+        robot = config.link
+        return (f"port {robot.url} at {robot.baudrate} baud, {robot.bytesize}"
+                f"{robot.parity}{robot.stopbits:g}")
+
+    def location(self, config: CellConfig) -> str:
+        """The port."""
+        return f"{self.label} {config.link.url}"
+
+    def missing(self, config: CellConfig) -> list[str]:
+        """The serial port, if it is a path that does not exist."""
+        url = config.link.url
+        if config.robot_emulated or "://" in url or Path(url).exists():
+            return []
+        return [f"robot link: port {url} does not exist; check [robot] url and the cable"
+                + EMULATE_HINT]
+
+    def far_end(
+        self, config: CellConfig, physics: CellPhysics, options: FarEndOptions
+    ) -> ComputerLinkFarEnd:
+        """The robot-controller emulator (``start()`` serves it)."""
+        return ComputerLinkFarEnd(config, physics, options.in_process)
+
+    def open(
+        self, config: CellConfig, far_end: FarEnd | None, stack: contextlib.ExitStack
+    ) -> ComputerLinkRobot:
+        """The driver on the configured port, or on the in-process emulator's URL."""
+        robot_config = config.link
+        if far_end is not None:
+            robot_config = replace(robot_config, url=far_end.emulator.start())
+        try:
+            robot = ComputerLinkRobot(robot_config)
+        except LinkError as exc:  # keeps its type (LinkTimeout, ProtocolError...)
+            exc.add_note(
+                "check [robot] url (port name), baudrate and framing, that the "
+                "controller is on and its computer link enabled"
+            )
+            raise
+        stack.callback(robot.close)
+        if far_end is not None:
+            far_end.driver = robot
+        return robot
+
+    def check(self, robot: ComputerLinkRobot, say: Printer) -> Callable[[], None]:
+        """Identify, pose, status; afterwards, fail if the move counter changed."""
+        major, minor = messages.PROTOCOL_VERSION
+        say(f"  robot   controller {robot.controller_model!r}, computer link {major}.x "
+            f"(this driver speaks {major}.{minor})")
+        pose = robot.read_pose()
+        say(f"  robot   pose x {pose.x_mm:.2f}  y {pose.y_mm:.2f}  z {pose.z_mm:.2f} mm, "
+            f"quaternion (w x y z) {' '.join(f'{q:.4f}' for q in pose.quaternion)}")
+        before = robot.read_status()
+        say(f"  robot   {'MOVING' if before.moving else 'still'}, last error "
+            f"{before.last_error}, {before.move_count} moves since power-up")
+
+        def unmoved() -> None:
+            after = robot.read_status()
+            if after.move_count != before.move_count:
+                raise SafetyStop(
+                    f"the controller's move counter went from {before.move_count} to "
+                    f"{after.move_count} during the check: something else commands this "
+                    "robot; stop and find it before running"
+                )
+
+        return unmoved
+
+    def calibration_name(self, robot: ComputerLinkRobot) -> str:
+        """The model the controller identifies as."""
+        return robot.controller_model
+
+
+KIND = ComputerLinkKind()

@@ -1,0 +1,270 @@
+"""``[robot] kind = "egm"``: an ABB controller guided by Externally Guided Motion over UDP.
+
+Real: the driver binds ``[robot] host:port`` and answers the controller.
+Emulated (``host = "emulated"``): the driver runs in lockstep (the one
+simulated clock; docs/egm.md "Lockstep") with the EGM controller emulator,
+which drives the cell's shared arm
+(:class:`~forcelearn.emulators.egm.PhysicsMotion`), so the sponge and the
+sensor see the arm EGM moves. In this process the controller is
+:class:`~forcelearn.emulators.egm.InProcessEgmController` (the same bytes with
+no UDP hand-over per 4 ms cycle), or with ``egm_route="udp"`` the UDP
+emulator's thread toward the driver's loopback port; for ``forcelearn
+emulate`` it sends from 127.0.0.1 to the PC's ``--egm-port``, repeating its
+waiting cycle until a driver answers, so one client may follow another.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+from collections.abc import Callable
+from dataclasses import fields, replace
+from typing import Any
+
+from forcelearn.config import build
+from forcelearn.drivers.computer_link.config import Limits
+from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver, open_egm_robot
+from forcelearn.emulators.egm import (
+    EgmControllerConfig,
+    EgmControllerEmulator,
+    EgmEmulatorBase,
+    InProcessEgmController,
+    PhysicsMotion,
+    egm_motion_params,
+    start_emulated_egm,
+)
+from forcelearn.emulators.physics.arm_motion import ArmMotion
+from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.errors import SafetyStop
+from forcelearn.site.config import EMULATED, CellConfig
+from forcelearn.site.kinds import FarEnd, FarEndOptions, Printer, RobotKind
+
+EMULATED_EGM_WATCHDOG_S = 5.0
+"""Watchdog of the emulated EGM link, s (wall time: the emulator is a thread of a loaded host)."""
+EMULATED_EGM_FIRST_MESSAGE_S = 10.0
+"""How long the emulated cell waits for the EGM emulator's first cycle, s (wall time)."""
+EGM_ROUTES = ("in_process", "udp")
+
+
+def free_udp_port() -> int:
+    """A UDP port on 127.0.0.1 free right now (for the PC side of EGM)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def egm_arm(config: CellConfig, physics: CellPhysics) -> ArmMotion:
+    """Attach (once) and return the shared arm moved by EGM: the cell's arm with EGM's servo."""
+    if physics.motion is None:
+        arm = config.emulator.effective().arm
+        params = egm_motion_params(arm.motion_params(), config.emulator.egm, arm.max_speed_mm_s)
+        physics.attach_motion(ArmMotion(params, arm.home))
+    assert physics.motion is not None
+    return physics.motion
+
+
+def controller_config(config: CellConfig) -> EgmControllerConfig:
+    """The emulated controller: the config's RobotWare and cycle, the cell's arm and servo."""
+    robot = KIND.device_config_or_default(config)
+    arm = config.emulator.effective().arm
+    return EgmControllerConfig(
+        version=robot.version,
+        sample_period_s=robot.sample_period_s,
+        servo=config.emulator.egm,
+        workspace_min_mm=arm.workspace_min_mm,
+        workspace_max_mm=arm.workspace_max_mm,
+        max_speed_mm_s=arm.max_speed_mm_s,
+        arm=arm,
+    )
+
+
+class EgmFarEnd(FarEnd):
+    """The EGM controller emulator, in process (``run``) or on loopback UDP (``emulate``).
+
+    The UDP route of ``run`` starts its controller only once the driver has
+    bound its port (:meth:`connect`).
+    """
+
+    def __init__(self, config: CellConfig, physics: CellPhysics, options: FarEndOptions) -> None:
+        super().__init__()
+        if options.egm_route not in EGM_ROUTES:
+            raise ValueError(f"egm_route must be one of {EGM_ROUTES}, got {options.egm_route!r}")
+        egm_arm(config, physics)
+        self.physics = physics
+        self.controller = controller_config(config)
+        self.version = self.controller.version
+        self.route = options.egm_route if options.in_process else "served"
+        self.pc_port = 0
+        """The PC's UDP port the controller sends to (``emulate``)."""
+        self.emulator: EgmEmulatorBase | None = None
+        if self.route == "in_process":
+            self._add(InProcessEgmController(
+                physics=physics, clock=physics.clock, config=self.controller,
+                motion=PhysicsMotion(physics),
+            ))
+        elif self.route == "served":
+            self.pc_port = options.egm_port or free_udp_port()
+            self._add(EgmControllerEmulator(
+                self.pc_port, physics=physics, clock=physics.clock, config=self.controller,
+                motion=PhysicsMotion(physics), lockstep=True,
+            ))
+
+    def _add(self, emulator: EgmEmulatorBase) -> None:
+        self.emulator = emulator
+        self.emulators.append(emulator)
+
+    def connect(self, driver_port: int) -> None:
+        """UDP route of ``run``: start the controller toward the driver's bound port."""
+        self._add(start_emulated_egm(
+            self.physics, self.physics.clock, driver_port, self.controller,
+            motion=PhysicsMotion(self.physics),
+        ))
+
+    def state_dict(self) -> dict[str, Any]:
+        """The controller's cycle state and, in a session, the driver's."""
+        assert self.emulator is not None
+        state = {"controller": self.emulator.state_dict()}
+        if self.driver is not None:
+            state["driver"] = self.driver.state_dict()
+        return state
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict` (while the controller waits for the PC's answer)."""
+        assert self.emulator is not None
+        self.emulator.load_state_dict(state["controller"])
+        if self.driver is not None and "driver" in state:
+            self.driver.load_state_dict(state["driver"])
+
+    def describe(self, paths: dict[str, str]) -> str:
+        """Where the controller sends from and to."""
+        assert isinstance(self.emulator, EgmControllerEmulator)
+        return (f"robot EGM ({self.version}, UDP from 127.0.0.1:{self.emulator.port} to the PC "
+                f"at 127.0.0.1:{self.pc_port}, lockstep)")
+
+    def site_lines(self, paths: dict[str, str]) -> list[str]:
+        """The ``[robot]`` table of the PC side."""
+        return [
+            'kind = "egm"',
+            'host = "127.0.0.1"',
+            f"port = {self.pc_port}",
+            f'version = "{self.version}"',
+            "lockstep = true       # the emulator keeps step with the driver (one clock)",
+            "watchdog_s = 5.0",
+        ]
+
+    def summary(self) -> str:
+        """Cycles run and targets read."""
+        assert self.emulator is not None
+        return (f"{self.emulator.cycles} EGM cycles, {self.emulator.model.targets_read} "
+                "planned poses read")
+
+
+class EgmKind(RobotKind):
+    """EGM (see the module doc)."""
+
+    name = "egm"
+    label = "EGM"
+    config_type = EgmConfig
+
+    def load(self, table: dict[str, Any], limits: Limits) -> EgmConfig:
+        """``host`` defaults to the emulator; ``max_speed_mm_s`` joins [safety]'s limits."""
+        table.setdefault("host", EMULATED)
+        if "max_speed_mm_s" in table:  # EGM's ramp-speed ceiling is a robot key
+            current = {f.name: getattr(limits, f.name) for f in fields(limits)}
+            limits = build(Limits, {**current, "max_speed_mm_s": table.pop("max_speed_mm_s")},
+                           "robot")
+        return build(EgmConfig, {**table, "limits": limits}, "robot")
+
+    def emulated(self, robot: EgmConfig) -> bool:
+        """``host = "emulated"``."""
+        return robot.host == EMULATED
+
+    def describe(self, config: CellConfig) -> str:
+        """The address the driver listens on, or the emulator."""
+        if config.robot_emulated:
+            return "built-in EGM controller emulator on loopback UDP (lockstep)"
+        robot = config.egm
+        return (f"EGM {robot.version}: listening on UDP {robot.host}:{robot.port} for the "
+                "controller (start the ForcelearnEGM RAPID program)")
+
+    def location(self, config: CellConfig) -> str:
+        """The port the driver listens on."""
+        return f"{self.label} {config.egm.port}"
+
+    def far_end(
+        self, config: CellConfig, physics: CellPhysics, options: FarEndOptions
+    ) -> EgmFarEnd:
+        """The EGM controller emulator on the cell's shared arm."""
+        return EgmFarEnd(config, physics, options)
+
+    def open(
+        self, config: CellConfig, far_end: FarEnd | None, stack: contextlib.ExitStack
+    ) -> EgmRobotDriver:
+        """The driver: on the real controller, or in lockstep with the emulator."""
+        robot = config.egm
+        if far_end is None:
+            driver = open_egm_robot(robot)
+            stack.callback(driver.close)
+            return driver
+        assert isinstance(far_end, EgmFarEnd)
+        driver_config = replace(
+            robot,
+            host="127.0.0.1",
+            port=0,
+            controller_host=None,  # the emulator sends from loopback, whatever the site's
+            controller_port=None,
+            lockstep=True,
+            watchdog_s=max(robot.watchdog_s, EMULATED_EGM_WATCHDOG_S),
+            first_message_timeout_s=EMULATED_EGM_FIRST_MESSAGE_S,
+        )
+        if isinstance(far_end.emulator, InProcessEgmController):
+            driver = EgmRobotDriver(driver_config, sock=far_end.emulator.socket())
+        else:
+            driver = EgmRobotDriver(driver_config)
+        stack.callback(driver.close)  # closed before its controller: its last answer goes out
+        far_end.driver = driver
+        if far_end.emulator is None:
+            far_end.connect(driver.port)
+        driver.wait_for_session()
+        return driver
+
+    def check(self, robot: EgmRobotDriver, say: Printer) -> Callable[[], None]:
+        """The session as it holds; afterwards, fail if the target ever moved."""
+        config = robot.config
+        pose = robot.read_pose()
+        status = robot.read_status()
+        say(f"  robot   EGM session ({config.version}) on UDP {config.host}:{robot.port}: "
+            f"motors {status.motor.name}, EGM {status.mci.name}, RAPID {status.rapid.name}, "
+            f"controller time {status.controller_time_s:.3f} s")
+        say(f"  robot   pose x {pose.x_mm:.2f}  y {pose.y_mm:.2f}  z {pose.z_mm:.2f} mm, "
+            f"quaternion (w x y z) {' '.join(f'{q:.4f}' for q in pose.quaternion)}")
+        stats = status.stats
+        say(f"  robot   {stats.received} EgmRobot received, {stats.replies} answers (holds), "
+            f"missed {stats.missed}, duplicates {stats.duplicates}, out of order "
+            f"{stats.out_of_order}, unreadable {stats.bad_datagrams}")
+        say(f"  robot   paired with the controller at {robot.controller_address}; ignored: "
+            f"{stats.foreign_datagrams} from other hosts, {stats.wrong_version} of the other "
+            f"RobotWare, {stats.seqno_jumps} seqno jumps, {stats.replays} replayed starts, "
+            f"{stats.refused_sessions} refused session starts")
+        robot.read_target()  # raises GuidanceStopped if the controller is not guided
+        before = robot.target
+
+        def unmoved() -> None:
+            after = robot.target
+            if after != before:
+                raise SafetyStop(
+                    f"the EGM target changed from {before} to {after} during the check: "
+                    "something in this process commanded the robot"
+                )
+            status = robot.read_status()
+            say(f"  robot   still guided: EGM {status.mci.name}, RAPID {status.rapid.name}; "
+                "no target was sent other than the pose it reported")
+
+        return unmoved
+
+    def calibration_name(self, robot: EgmRobotDriver) -> str:
+        """"ABB EGM" and the RobotWare of the session."""
+        return f"ABB EGM {robot.config.version}"
+
+
+KIND = EgmKind()
