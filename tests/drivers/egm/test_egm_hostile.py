@@ -10,6 +10,7 @@ import math
 import random
 import socket
 from collections.abc import Callable, Iterator
+from contextlib import closing
 
 import numpy as np
 import pytest
@@ -251,7 +252,7 @@ def test_a_three_element_quaternion_is_refused_where_it_is_passed(cell: Cell) ->
 
 def test_a_session_starting_from_nan_feedback_is_refused_and_never_sends_nan() -> None:
     """Seqno 0 with x = NaN: no answer, SafetyStop at the wait; a sound cycle then starts it."""
-    with EgmRobotDriver(EgmConfig(port=0, lockstep=False, stale_after_s=1.0)) as robot:
+    with closing(EgmRobotDriver(EgmConfig(port=0, lockstep=False, stale_after_s=1.0))) as robot:
         controller = Controller(robot.port)
         try:
             controller.send(datagram(0, Pose(math.nan, 0.0, 600.0, DOWN)))
@@ -269,7 +270,7 @@ def test_a_session_starting_from_nan_feedback_is_refused_and_never_sends_nan() -
 
 def test_a_session_outside_the_workspace_is_refused() -> None:
     """Feedback x = 2500 mm at the start: refused with SafetyStop, nothing answered."""
-    with EgmRobotDriver(EgmConfig(port=0, lockstep=False)) as robot:
+    with closing(EgmRobotDriver(EgmConfig(port=0, lockstep=False))) as robot:
         controller = Controller(robot.port)
         try:
             controller.send(datagram(0, Pose(2500.0, 0.0, 600.0, DOWN)))
@@ -300,7 +301,7 @@ def test_a_configured_controller_address_and_port_exclude_every_other_sender() -
     probe.bind(("127.0.0.1", 0))
     port = probe.getsockname()[1]
     config = EgmConfig(port=0, lockstep=False, controller_host="127.0.0.1", controller_port=port)
-    with EgmRobotDriver(config) as robot:
+    with closing(EgmRobotDriver(config)) as robot:
         other = Peer(robot.port)
         try:
             other.send(datagram(0))

@@ -7,6 +7,7 @@ import socket
 import subprocess
 import sys
 from collections.abc import Iterator
+from contextlib import closing
 
 import pytest
 
@@ -199,7 +200,7 @@ def test_lag_servo_dead_time_then_first_order() -> None:
 
 def test_two_processes_driver_and_emulator(tmp_path: object) -> None:
     """The emulator in its own process (python -m ... prints its port) guides the real driver."""
-    with EgmRobotDriver(EgmConfig(port=0, lockstep=True, watchdog_s=10.0)) as robot:
+    with closing(EgmRobotDriver(EgmConfig(port=0, lockstep=True, watchdog_s=10.0))) as robot:
         process = subprocess.Popen(
             [sys.executable, "-m", "forcelearn.emulators.egm", "--remote-port", str(robot.port)],
             stdout=subprocess.PIPE, text=True,

@@ -9,8 +9,10 @@ Every call blocks for at most the documented retries times the configured
 timeouts and raises typed errors: ``SafetyStop`` (a client-side limit refused
 the command, nothing was sent), ``RobotFault`` (the controller refused, with
 its code), ``LinkTimeout``, ``ProtocolError`` or ``LinkError``. Calls are
-serialised by a lock, so several threads may share one driver. Leaving the
-``with`` block (or :meth:`close`) stops the robot and closes the port.
+serialised by a lock, so several threads may share one driver. The driver is
+ready once constructed (the port is open and the controller identified), so
+entering ``with`` adds nothing; leaving it (or :meth:`close`) stops the robot
+and closes the port (:mod:`forcelearn.drivers.lifecycle`).
 
 A move returns when the controller has *accepted* it; :meth:`wait_in_position`
 then polls READ_STATUS back to back (each poll costs its bytes' time on the
@@ -30,7 +32,6 @@ import logging
 import math
 import threading
 import time
-import warnings
 
 import numpy as np
 import serial
@@ -38,6 +39,7 @@ import serial
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link.config import POLL_S, LinkConfig
 from forcelearn.drivers.computer_link.link import PORT_ERRORS, Link
+from forcelearn.drivers.lifecycle import Driver
 from forcelearn.drivers.targets import unit_quaternion
 from forcelearn.errors import (
     ForcelearnError,
@@ -50,7 +52,7 @@ from forcelearn.protocols.computer_link import messages as m
 log = logging.getLogger(__name__)
 
 
-class ComputerLinkRobot:
+class ComputerLinkRobot(Driver):
     """Driver of one robot controller on one serial link (satisfies ``Robot``).
 
     Opening the link identifies the controller (``ProtocolError`` if it speaks
@@ -66,6 +68,7 @@ class ComputerLinkRobot:
         self._reference: Pose | None = None
         self.controller_model = ""
         self._open()
+        self._acquired = True
 
     def _open(self) -> None:
         cfg = self.config
@@ -98,12 +101,17 @@ class ComputerLinkRobot:
         apply, never to where the robot happened to be.
         """
         with self._lock:
+            if self.closed:
+                raise self._closed_error()
             self._close_port()
             self._open()
 
     def _require_link(self) -> Link:
         if self._link is None:
-            raise LinkError("robot link is closed; open a new ComputerLinkRobot")
+            raise self._closed_error() if self.closed else LinkError(
+                f"robot link on {self.config.url} is not open (a reconnect failed): call "
+                "reconnect() or open()"
+            )
         return self._link
 
     # -- reading ---------------------------------------------------------------------------
@@ -252,19 +260,32 @@ class ComputerLinkRobot:
             raise
         self._reference = target
 
-    # -- lifetime --------------------------------------------------------------------------
+    # -- lifetime (forcelearn.drivers.lifecycle) -------------------------------------------
 
-    def close(self) -> None:
-        """Stop the robot (best effort) and close the port; safe to call twice."""
+    def _is_ready(self) -> bool:
+        return self._link is not None
+
+    def _make_ready(self) -> None:
         with self._lock:
-            if self._link is None:
-                return
+            self._open()
+
+    def _release(self) -> None:
+        """Stop the robot (best effort) and close the port."""
+        with self._lock:
             try:
-                self.stop()
+                if self._link is not None:
+                    self.stop()
             except ForcelearnError as exc:
                 log.warning("could not stop the robot while closing the link: %s", exc)
             finally:
                 self._close_port()
+
+    def _closed_error(self) -> LinkError:
+        return LinkError(f"the robot link on {self.config.url} is closed; open a new "
+                         "ComputerLinkRobot")
+
+    def _label(self) -> str:
+        return f"ComputerLinkRobot on {self.config.url}"
 
     def _close_port(self) -> None:
         self._link = None
@@ -274,18 +295,3 @@ class ComputerLinkRobot:
             except PORT_ERRORS as exc:
                 log.warning("closing %s failed: %s", self.config.url, exc)
             self._port = None
-
-    def __enter__(self) -> ComputerLinkRobot:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    def __del__(self) -> None:
-        if getattr(self, "_link", None) is not None:
-            warnings.warn(
-                f"ComputerLinkRobot on {self.config.url} was not closed; "
-                "use it as a context manager so the robot is stopped",
-                ResourceWarning,
-                stacklevel=2,
-            )

@@ -43,7 +43,7 @@ import math
 import socket
 import threading
 import time
-import warnings
+import weakref
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -53,6 +53,7 @@ from forcelearn.devices import Pose
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.guidance import EgmStats, Guidance
 from forcelearn.drivers.egm.targets import clean_target, unsafe_reason
+from forcelearn.drivers.lifecycle import Driver, opened
 from forcelearn.drivers.targets import TARGET_NORM_TOLERANCE
 from forcelearn.errors import (
     ForcelearnError,
@@ -109,15 +110,15 @@ class EgmStatus:
     """planned.joints: the planned axes, degrees (empty if not sent)."""
 
 
-class EgmRobotDriver:
+class EgmRobotDriver(Driver):
     """Driver of one robot over one EGM UDP channel (satisfies ``Robot`` once a session runs).
 
     Constructing it binds the socket (``port`` tells which, when 0 was asked);
-    :meth:`wait_for_session` then waits for the controller's first message.
-    :func:`open_egm_robot` does both. ``sock`` replaces the bound UDP socket
-    with a ready one (the emulated cell's in-process controller,
-    ``InProcessEgmController.socket()``; lockstep only); ``host`` and ``port``
-    are then not used.
+    :meth:`wait_for_session` (or :meth:`open`, or entering ``with``) then
+    waits for the controller's first message. :func:`open_egm_robot` does
+    both. ``sock`` replaces the bound UDP socket with a ready one (the
+    emulated cell's in-process controller, ``InProcessEgmController.socket()``;
+    lockstep only); ``host`` and ``port`` are then not used.
     """
 
     def __init__(self, config: EgmConfig, sock: DatagramSocket | None = None) -> None:
@@ -130,7 +131,7 @@ class EgmRobotDriver:
         self._fresh_count = 0  # fresh messages taken so far
         self._last_rx_s = 0.0  # host monotonic time of the latest fresh message (staleness)
         self._send_errors = 0
-        self._closed = threading.Event()
+        self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
         self._sock: DatagramSocket | None
         if sock is not None:
@@ -142,49 +143,56 @@ class EgmRobotDriver:
         self.port: int = self._sock.getsockname()[1]
         if not config.lockstep:
             self._sock.settimeout(POLL_S)
-            self._thread = threading.Thread(target=self._serve, name="egm-driver", daemon=True)
+            self._thread = threading.Thread(
+                target=_serve, args=(weakref.ref(self),), name="egm-driver", daemon=True
+            )
             self._thread.start()
+        self._acquired = True
         log.info("EGM driver listening on %s:%d (%s)", config.host, self.port, config.version)
 
     # -- receiving --------------------------------------------------------------------------
 
-    def _serve(self) -> None:
-        """Real mode: answer every fresh message at once (runs in the receive thread).
+    def _serve_once(self) -> bool:
+        """Real mode: receive one datagram (or POLL_S of silence) and answer it at once.
 
-        Nothing received ends it (each datagram is used or counted); it ends
-        on close, or if the socket itself fails (``LinkError``, raised by the
-        next call). Anything else it meets is kept as a ``LinkError`` too, so
-        a caller never sees a stale-feedback timeout in its place.
+        Returns False when the receive thread must end. Nothing received ends
+        it (each datagram is used or counted); it ends on close, or if the
+        socket itself fails (``LinkError``, raised by the next call). Anything
+        else it meets is kept as a ``LinkError`` too, so a caller never sees a
+        stale-feedback timeout in its place.
         """
         try:
-            self._serve_loop()
+            return self._receive_and_answer()
         except BaseException as exc:  # kept for the caller; the thread must say why it ended
             with self._lock:
-                if self._failure is None and not self._closed.is_set():
+                if self._failure is None and not self._stopping.is_set():
                     self._failure = LinkError(f"the EGM receive thread ended: {exc!r}")
                     self._failure.__cause__ = exc
                     log.error("EGM receive thread ended: %r", exc)
                 self._fresh.notify_all()
+            return False
 
-    def _serve_loop(self) -> None:
+    def _receive_and_answer(self) -> bool:
+        if self._stopping.is_set():
+            return False
         sock = self._require_socket()
-        while not self._closed.is_set():
-            try:
-                data, address = sock.recvfrom(MAX_DATAGRAM)
-            except TimeoutError:
-                continue
-            except (ConnectionResetError, ConnectionRefusedError):
-                continue  # an ICMP error of an earlier send (Windows reports them here)
-            except OSError as exc:
-                if not self._closed.is_set():
-                    with self._lock:
-                        self._failure = LinkError(f"EGM socket failed: {exc}")
-                        self._fresh.notify_all()
-                return
-            with self._lock:
-                if self._take(data, address):
-                    self._answer(address)
-                self._fresh.notify_all()
+        try:
+            data, address = sock.recvfrom(MAX_DATAGRAM)
+        except TimeoutError:
+            return True
+        except (ConnectionResetError, ConnectionRefusedError):
+            return True  # an ICMP error of an earlier send (Windows reports them here)
+        except OSError as exc:
+            if not self._stopping.is_set():
+                with self._lock:
+                    self._failure = LinkError(f"EGM socket failed: {exc}")
+                    self._fresh.notify_all()
+            return False
+        with self._lock:
+            if self._take(data, address):
+                self._answer(address)
+            self._fresh.notify_all()
+        return True
 
     def _answer(self, address: Any) -> None:
         """Send the reply to the controller at ``address``; a failed send is logged, not fatal."""
@@ -270,7 +278,7 @@ class EgmRobotDriver:
 
     def _require_socket(self) -> DatagramSocket:
         if self._sock is None:
-            raise LinkError("EGM driver is closed; open a new one")
+            raise self._closed_error()
         return self._sock
 
     def _check(self) -> None:
@@ -278,7 +286,7 @@ class EgmRobotDriver:
         if self._failure is not None:
             raise self._failure
         thread = self._thread
-        if thread is not None and not thread.is_alive() and not self._closed.is_set():
+        if thread is not None and not thread.is_alive() and not self._stopping.is_set():
             raise LinkError("the EGM receive thread ended; close this driver and open a new one")
 
     # -- session ----------------------------------------------------------------------------
@@ -538,44 +546,54 @@ class EgmRobotDriver:
             self._check()
             self._guidance.load_state_dict(state)
 
-    # -- lifetime ---------------------------------------------------------------------------
+    # -- lifetime (forcelearn.drivers.lifecycle) -------------------------------------------
 
-    def close(self) -> None:
+    def _is_ready(self) -> bool:
+        with self._lock:
+            return self._guidance.latest is not None
+
+    def _make_ready(self) -> None:
+        self.wait_for_session()
+
+    def _release(self) -> None:
         """Hold the pose (best effort: one last answer in lockstep) and release the socket.
 
-        Safe to call twice. The controller then sees silence and ends guidance
-        after its CommTimeout.
+        The controller then sees silence and ends guidance after its CommTimeout.
         """
         with self._lock:
-            if self._sock is None:
-                return
             if self._guidance.latest is not None:
                 self._guidance.hold()
                 if self._pending is not None and self._failure is None:
                     with contextlib.suppress(ForcelearnError):
                         self._send(self._guidance.reply(), self._pending)
                     self._pending = None
-            self._closed.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5 * POLL_S + 1.0)
+            self._stopping.set()
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=5 * POLL_S + 1.0)  # (collected in its own thread: it ends now)
         with self._lock:
             if self._sock is not None:
                 self._sock.close()
                 self._sock = None
 
-    def __enter__(self) -> EgmRobotDriver:
-        return self
+    def _closed_error(self) -> LinkError:
+        return LinkError(f"the EGM driver on port {self.port} is closed; open a new one")
 
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
+    def _label(self) -> str:
+        return f"EgmRobotDriver on port {self.port}"
 
-    def __del__(self) -> None:
-        if getattr(self, "_sock", None) is not None:
-            warnings.warn(
-                f"EgmRobotDriver on port {self.port} was not closed; use it as a context manager",
-                ResourceWarning,
-                stacklevel=2,
-            )
+
+def _serve(driver_ref: weakref.ref[EgmRobotDriver]) -> None:
+    """The real-mode receive thread: answer every fresh message until the driver closes.
+
+    It holds the driver only while it serves one datagram, so a driver dropped
+    without :meth:`~EgmRobotDriver.close` is still collected, warns and closes.
+    """
+    while True:
+        driver = driver_ref()
+        if driver is None or not driver._serve_once():
+            return
+        del driver
 
 
 def _bind(host: str, port: int) -> socket.socket:
@@ -590,7 +608,13 @@ def _bind(host: str, port: int) -> socket.socket:
 
 
 def open_egm_robot(config: EgmConfig, timeout_s: float | None = None) -> EgmRobotDriver:
-    """Bind, wait for the controller's first message and return the ready driver."""
+    """Bind, wait for the controller's first message and return the ready driver.
+
+    ``timeout_s`` replaces ``config.first_message_timeout_s``; the driver is
+    closed if no session starts.
+    """
+    if timeout_s is None:
+        return opened(EgmRobotDriver(config))
     driver = EgmRobotDriver(config)
     try:
         driver.wait_for_session(timeout_s)

@@ -13,13 +13,15 @@ read:
   (e.g. the force filter) for every paired sample; :meth:`read` returns the
   newest fresh one.
 
-Initialisation (on :meth:`initialise`, on entering ``with``, and again on the
-first read after a bootup frame), as the public host driver (yarp-devices
-Jr3Mbed) does it: get state, start sync or async with the cut-off (0:
-unfiltered), read the full scales unless configured, wait ``zero_settle_s``
-and zero the offsets (``zero_on_init``, on by default: the adapter's offsets are
-0 after every power-up, reset and stop, so without zeroing every reading holds
-the sensor's raw bias). :meth:`close` sends stop and is idempotent.
+Initialisation (on :meth:`initialise`; on :meth:`~.Jr3CanSensor.open` and
+entering ``with`` unless done; on the first read; again after a bootup
+frame), as the public host driver (yarp-devices Jr3Mbed) does it: get
+state, start sync or async with the cut-off (0: unfiltered), read the full
+scales unless configured, wait ``zero_settle_s`` and zero the offsets
+(``zero_on_init``, on by default: the adapter's offsets are 0 after every
+power-up, reset and stop, so without zeroing every reading holds the
+sensor's raw bias). :meth:`close` sends stop and is idempotent
+(:mod:`forcelearn.drivers.lifecycle`).
 
 Counter and losses: the adapter's frame counter counts sensor frames
 (~7.8 kHz), so each sample carries the sensor time since the previous one
@@ -38,9 +40,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-import warnings
 from collections.abc import Callable
-from types import TracebackType
 
 import can
 import numpy as np
@@ -48,6 +48,7 @@ import numpy as np
 from forcelearn.devices import WrenchSample
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.listener import Jr3Listener, Jr3Stats, SampleCallback
+from forcelearn.drivers.lifecycle import Driver
 from forcelearn.errors import SensorBusError, SensorError, SensorStale, SensorTimeout
 from forcelearn.protocols.jr3_can import codec
 from forcelearn.protocols.jr3_can.scaling import cutoff_to_wire, full_scales_from_wire
@@ -60,7 +61,7 @@ SYNC_ATTEMPTS = 4
 """SYNCs sent for one sample before SensorStale, each waited for stale_timeout_s / 4."""
 
 
-class Jr3CanSensor:
+class Jr3CanSensor(Driver):
     """A JR3 sensor behind a JR3-to-CAN adapter.
 
     Args:
@@ -90,11 +91,15 @@ class Jr3CanSensor:
         self._full_scales: np.ndarray | None = None
         self._cutoff_hz = self.config.cutoff_hz
         self._initialised = False
-        self._closed = False
         self._last_seq = 0
         self._notifier: can.Notifier | None = None
         if self.config.mode == "async":
-            self._notifier = can.Notifier(bus, [self._listener], timeout=NOTIFIER_POLL_S)
+            try:
+                self._notifier = can.Notifier(bus, [self._listener], timeout=NOTIFIER_POLL_S)
+            except BaseException:
+                self._listener.stop()
+                raise
+        self._acquired = True
 
     # ---- properties -----------------------------------------------------
     @property
@@ -312,8 +317,8 @@ class Jr3CanSensor:
             self.initialise()
 
     def _check_open(self) -> None:
-        if self._closed:
-            raise SensorError("the JR3 sensor is closed; create a new one")
+        if self.closed:
+            raise self._closed_error()
         if self._listener.bus_error is not None:
             if self._notifier is not None:  # its thread would spin on the failing bus
                 self._notifier.stop(timeout=1.0)
@@ -384,11 +389,15 @@ class Jr3CanSensor:
             elif remaining <= 0:
                 return False
 
-    # ---- life cycle -----------------------------------------------------
-    def close(self) -> None:
-        """Send stop (best effort), stop the Notifier and the log; safe to call twice."""
-        if self._closed:
-            return
+    # ---- life cycle (forcelearn.drivers.lifecycle) ------------------------
+    def _is_ready(self) -> bool:
+        return self._initialised
+
+    def _make_ready(self) -> None:
+        self.initialise()
+
+    def _release(self) -> None:
+        """Send stop (best effort), stop the Notifier and the log."""
         try:
             if self._initialised and self._listener.bus_error is None:
                 self._command(codec.Stop(), min(self.config.ack_timeout_s, STOP_ACK_TIMEOUT_S))
@@ -396,32 +405,13 @@ class Jr3CanSensor:
             log.warning("JR3 node %d: stop not acknowledged on close (%s)",
                         self.config.node_id, exc)
         finally:
-            self._closed = True
             if self._notifier is not None:
                 self._notifier.stop(timeout=1.0)
             self._listener.stop()
 
-    def __del__(self) -> None:
-        if getattr(self, "_closed", True) is False:
-            warnings.warn(
-                f"Jr3CanSensor for node {self.config.node_id} was not closed; use it as a "
-                "context manager (closing stops the adapter's streaming and the Notifier)",
-                ResourceWarning,
-                stacklevel=2,
-            )
+    def _closed_error(self) -> SensorError:
+        return SensorError(f"the JR3 sensor (node {self.config.node_id}) is closed; "
+                           "create a new one")
 
-    def __enter__(self) -> Jr3CanSensor:
-        try:
-            self.initialise()
-        except BaseException:
-            self.close()
-            raise
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
+    def _label(self) -> str:
+        return f"Jr3CanSensor for node {self.config.node_id}"

@@ -11,11 +11,13 @@ Two ways to read (``NetFtConfig.mode``):
 * **stream**: one request with sample count 0 (until stopped); :meth:`read`
   returns the newest record received, :meth:`read_many` the next ``count``.
 
-Initialisation (:meth:`initialise`, on entering ``with``, on the first read):
+Initialisation (:meth:`initialise`; :meth:`~NetFtSensor.open` and entering
+``with`` unless done; the first read):
 read the calibration from the box (HTTP ``/netftapi2.xml`` or TCP
 READCALINFO), refuse it if a configured value disagrees (both numbers in the
 message), optionally send "set software bias", and in stream mode start
-streaming. :meth:`close` sends stop and is idempotent.
+streaming. :meth:`close` sends stop and is idempotent
+(:mod:`forcelearn.drivers.lifecycle`).
 
 Every record goes through :class:`~.sequence.SequenceTracker` (lost,
 duplicated, out-of-order; a reboot when ``ft_sequence`` goes back) and the
@@ -35,15 +37,14 @@ from __future__ import annotations
 import logging
 import socket
 import time
-import warnings
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from types import TracebackType
 
 import numpy as np
 
 from forcelearn.devices import WrenchSample
+from forcelearn.drivers.lifecycle import Driver, opened
 from forcelearn.drivers.netft.calibration import (
     Calibration,
     read_calibration_http,
@@ -93,7 +94,7 @@ class NetFtStats:
         return sum(self.rejected.values())
 
 
-class NetFtSensor:
+class NetFtSensor(Driver):
     """An ATI Net F/T box reached over UDP (RDT) and TCP or HTTP (calibration).
 
     Args:
@@ -111,23 +112,27 @@ class NetFtSensor:
         self._scale = np.ones(6)
         self._limits: np.ndarray | None = None
         self._position = 0  # host stream position: records asked for so far
-        self._closed = False
         self._streaming = False
         self._log = TrafficLog(self.config.log_path) if self.config.log_path else None
+        sock: socket.socket | None = None
         try:
-            self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             try:
-                self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RCVBUF_BYTES)
             except OSError:  # pragma: no cover - a platform without the option
                 log.debug("could not enlarge the UDP receive buffer")
-            self._sock.connect((self.config.host, self.config.rdt_port))
+            sock.connect((self.config.host, self.config.rdt_port))
         except OSError as exc:
+            if sock is not None:
+                sock.close()
             if self._log is not None:
                 self._log.close()
             raise SensorBusError(
                 f"cannot open UDP to the Net F/T at {self.config.host}:{self.config.rdt_port}: "
                 f"{exc}; check the host's network settings"
             ) from exc
+        self._sock = sock
+        self._acquired = True
 
     # ---- properties -----------------------------------------------------
     @property
@@ -373,15 +378,18 @@ class NetFtSensor:
             self.initialise()
 
     def _check_open(self) -> None:
-        if self._closed:
-            raise SensorError("the Net F/T sensor is closed; create a new one")
+        if self.closed:
+            raise self._closed_error()
 
-    # ---- life cycle -----------------------------------------------------
-    def close(self) -> None:
-        """Send stop (best effort), close the socket and the log; safe to call twice."""
-        if self._closed:
-            return
-        self._closed = True
+    # ---- life cycle (forcelearn.drivers.lifecycle) ------------------------
+    def _is_ready(self) -> bool:
+        return self._calibration is not None
+
+    def _make_ready(self) -> None:
+        self.initialise()
+
+    def _release(self) -> None:
+        """Send stop (best effort), close the socket and the log."""
         try:
             self._send(protocol.Request(protocol.Command.STOP, 0))
         except SensorBusError as exc:
@@ -391,35 +399,15 @@ class NetFtSensor:
             if self._log is not None:
                 self._log.close()
 
-    def __del__(self) -> None:
-        if getattr(self, "_closed", True) is False:
-            warnings.warn(
-                f"NetFtSensor on {self.config.host} was not closed; use it as a context manager "
-                "(closing stops the box's stream)",
-                ResourceWarning,
-                stacklevel=2,
-            )
+    def _closed_error(self) -> SensorError:
+        return SensorError(f"the Net F/T sensor at {self.config.host} is closed; "
+                           "create a new one")
 
-    def __enter__(self) -> NetFtSensor:
-        try:
-            self.initialise()
-        except BaseException:
-            self.close()
-            raise
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        self.close()
+    def _label(self) -> str:
+        return f"NetFtSensor on {self.config.host}"
 
 
 def open_netft_sensor(config: NetFtConfig, *,
                       on_sample: SampleCallback | None = None) -> NetFtSensor:
-    """Open and initialise a Net F/T sensor (the factory the cell session will call)."""
-    sensor = NetFtSensor(config, on_sample=on_sample)
-    try:
-        sensor.initialise()
-    except BaseException:
-        sensor.close()
-        raise
-    return sensor
+    """Open and initialise a Net F/T sensor (closed again if that fails)."""
+    return opened(NetFtSensor(config, on_sample=on_sample))

@@ -323,6 +323,12 @@ class NetFtEmulator(Emulator):
                 "tcp_port": self._tcp.server_address[1],
                 "http_port": self._http.server_address[1]}
 
+    @property
+    def streaming(self) -> bool:
+        """True while a "start streaming" with sample count 0 runs (until a stop or a new start)."""
+        with self._lock:
+            return self._stream_to is not None
+
     # ---- public control -------------------------------------------------
     def set_faults(self, faults: NetFtFaults) -> None:
         """Change the wire faults now."""

@@ -18,6 +18,7 @@ host's, not the robot controller's (4.032 ms on a real robot, manual p.17).
 from __future__ import annotations
 
 import argparse
+from contextlib import closing
 
 import numpy as np
 
@@ -37,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def measure(cycles: int, warmup: int) -> tuple[np.ndarray, np.ndarray]:
     """Return (cycle periods, reply latencies) in seconds over ``cycles`` timed cycles."""
     config = EgmConfig(port=0, lockstep=False, watchdog_s=1.0, stale_after_s=1.0)
-    with EgmRobotDriver(config) as robot:
+    with closing(EgmRobotDriver(config)) as robot:  # opened below, once its port is served
         emulator = EgmControllerEmulator(
             robot.port, clock=SimClock(time_scale=1.0), lockstep=False, record_timing=True
         )
