@@ -35,7 +35,7 @@ import warnings
 import numpy as np
 import serial
 
-from forcelearn.devices import Pose
+from forcelearn.devices import InPositionWait, Pose
 from forcelearn.drivers.computer_link.config import POLL_S, LinkConfig
 from forcelearn.drivers.computer_link.link import PORT_ERRORS, Link
 from forcelearn.drivers.targets import unit_quaternion
@@ -65,6 +65,8 @@ class ComputerLinkRobot:
         self._link: Link | None = None
         self._reference: Pose | None = None
         self.controller_model = ""
+        self.last_wait: InPositionWait | None = None
+        """How the last :meth:`wait_in_position` ended (no pose: reading it costs an exchange)."""
         self._open()
 
     def _open(self) -> None:
@@ -161,6 +163,7 @@ class ComputerLinkRobot:
                     if status.time_s - since >= settle_s or status.time_s == previous:
                         # settled; or a clock that stands still (an emulated cell where
                         # nothing takes time): dwelling could change nothing
+                        self.last_wait = InPositionWait(since, None)
                         return status.time_s
                 else:
                     since = None
