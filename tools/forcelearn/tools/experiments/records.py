@@ -30,6 +30,7 @@ import json
 import logging
 import math
 import os
+import struct
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -323,9 +324,15 @@ def scan_records(path: Path) -> RecordsScan:
     topics: dict[int, str] = {}
     trials: list[TrialRecords] = []
     pending = TrialRecords(trial=-1)
+    stream = io.BytesIO(data)
+    records = StreamReader(stream, skip_magic=False).records
+    read_to = 0  # the end of the last record read whole, bytes
     dropped = False
-    try:
-        for record in StreamReader(io.BytesIO(data), skip_magic=False).records:
+    while True:
+        try:
+            record = next(records, None)
+            if record is None:
+                break
             if isinstance(record, Channel):
                 topics[record.id] = record.topic
             elif isinstance(record, Message):
@@ -335,12 +342,14 @@ def scan_records(path: Path) -> RecordsScan:
                         raise ValueError(f"trial {done.trial} follows trial {trials[-1].trial}")
                     trials.append(done)
                     pending = TrialRecords(trial=-1)
-    except EndOfFile as exc:
-        if finished:
-            raise _damaged(path, "a record runs past the end of the file") from exc
-        dropped = True  # the writer died mid-record
-    except (McapError, ValueError, KeyError, TypeError) as exc:
-        raise _damaged(path, str(exc)) from exc
+            read_to = stream.tell()
+        except (McapError, ValueError, KeyError, TypeError, struct.error) as exc:
+            if finished or stream.tell() < len(data):
+                why = "a record runs past the end" if isinstance(exc, EndOfFile) else str(exc)
+                raise _damaged(path, why) from exc
+            # the writer died inside the last record: the tail is dropped
+            dropped = read_to < len(data)
+            break
     dropped = dropped or bool(pending.steps or pending.tares)
     if dropped:
         log.warning(
