@@ -10,6 +10,8 @@ The run directory holds:
                        trial, so a run killed at any instant resumes from a whole
                        trial.
 ``config.toml``        the cell config the run started with (resume reads it)
+``records.mcap``       every move, burst and tare of every trial (docs/records.md),
+                       made durable per trial before the checkpoint
 ``summary.json``       task, seed, learner_start, trials, phase_switch_trial,
                        criterion_trial, converged_trial, converged,
                        in_band_at_end, trials_out_of_band_after_convergence,
