@@ -15,14 +15,10 @@ from hypothesis import strategies as st
 
 from forcelearn.errors import RecordsFileError, StateFileError
 from forcelearn.records import BurstRecord, MoveRecord, StepRecord, TareRecord, TrialRecords
-from forcelearn.tasks.surface import (
-    FALLBACK_OFFSET_MM,
-    FALLBACK_SCALE_MM,
-    KGF_N,
-    SurfaceTaskSpec,
-)
+from forcelearn.tasks.surface import KGF_N
 from forcelearn.tools.cli import main
 from forcelearn.tools.experiments.records import (
+    PROBE_TRIAL,
     RECORDS_FILE,
     RecordsWriter,
     read_records,
@@ -82,18 +78,29 @@ def test_records_round_trip_finished_or_not(tmp_path_factory: pytest.TempPathFac
 
 @pytest.fixture(scope="module")
 def short_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """An emulated run of 4 trials that tares before each (no probe: a configured map)."""
+    """An emulated run of 4 trials that probes the sponge first and tares before each trial."""
     folder = tmp_path_factory.mktemp("records")
     config = folder / "cell.toml"
-    start_y = SurfaceTaskSpec().start_mm[1]
-    config.write_text(  # the map of tests/conftest.py's CONFIGURED_MAP_TOML, and a tare
-        f"[task]\noutput_centre_y_mm = {start_y}\noutput_scale_mm = {FALLBACK_SCALE_MM}\n"
-        f"max_offset_mm = {FALLBACK_OFFSET_MM}\ntare_each_trial = true\n"
-    )
+    config.write_text("[task]\ntare_each_trial = true\n")
     out = folder / "run"
     assert main(["run", "--config", str(config), "--trials", "4", "--seed", "3",
                  "--out", str(out), "--no-progress"]) == 0
     return out
+
+
+def test_the_probes_records_come_first_and_hold_every_reading_of_probe_csv(
+    short_run: Path,
+) -> None:
+    """Trial -1 (asked for) is the probe: its points, and a burst at each probe.csv row's time."""
+    probe, *trials = read_records(short_run, probe=True)
+    assert probe.trial == PROBE_TRIAL and [t.trial for t in trials] == [0, 1, 2, 3]
+    assert canonical(trials) == canonical(read_records(short_run))  # without it by default
+    with open(short_run / "probe.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert {s.kind for s in probe.steps} == {"probe"}
+    assert {s.index for s in probe.steps} == {int(r["point"]) for r in rows}
+    burst_times = {s.burst.start_s for s in probe.steps if s.burst is not None}
+    assert {float(r["cell_time_s"]) for r in rows} <= burst_times
 
 
 def test_a_runs_records_agree_with_its_trials_csv(short_run: Path) -> None:

@@ -169,7 +169,10 @@ def test_sigkill_mid_run_then_resume_ends_bit_identical(
     # the killed writer left no footer; the resume kept its whole trials and went on:
     # the same records, none twice, none lost
     assert [t.trial for t in read_records(out)] == list(range(TRIALS))
-    assert comparable(read_records(out)) == comparable(read_records(uninterrupted))
+    assert comparable(read_records(out, probe=True)) == comparable(
+        read_records(uninterrupted, probe=True)
+    )
+    assert read_records(out, probe=True)[0].trial == -1  # the probe's, kept across the resume
     a = json.loads((uninterrupted / "summary.json").read_text())
     b = json.loads((out / "summary.json").read_text())
     assert {k: v for k, v in a.items() if k not in TIMING_KEYS} == {

@@ -47,6 +47,8 @@ from forcelearn.records import BurstRecord, MoveRecord, StepRecord, TareRecord, 
 log = logging.getLogger(__name__)
 
 RECORDS_FILE = "records.mcap"
+PROBE_TRIAL = -1
+"""The trial number of the surface probe's records (written before trial 0)."""
 STEP_TOPIC, TARE_TOPIC, TRIAL_TOPIC = "/step", "/tare", "/trial"
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -391,8 +393,11 @@ def _damaged(path: Path, why: str) -> RecordsFileError:
     )
 
 
-def read_records(run_dir: Path | str) -> list[TrialRecords]:
+def read_records(run_dir: Path | str, probe: bool = False) -> list[TrialRecords]:
     """Every whole trial a run directory recorded, in trial order (see :func:`scan_records`).
+
+    With ``probe`` the surface probe's records come first, as trial
+    :data:`PROBE_TRIAL` (-1; none when the run did not probe).
 
     Raises:
         RecordsFileError: no records file in ``run_dir``, or a damaged one.
@@ -403,4 +408,5 @@ def read_records(run_dir: Path | str) -> list[TrialRecords]:
             f"{path} does not exist: runs write it from this version on; run the trials "
             "again (forcelearn run) to record them"
         )
-    return scan_records(path).trials
+    trials = scan_records(path).trials
+    return trials if probe else [t for t in trials if t.trial != PROBE_TRIAL]

@@ -41,6 +41,7 @@ the next trial: it ends bit-identical to an uninterrupted run with the same seed
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import shutil
@@ -68,7 +69,12 @@ from forcelearn.tasks.surface_probe import (
     probe_and_map,
 )
 from forcelearn.tasks.surface_warm_start import OLD_CHECKPOINT_START, warm_start
-from forcelearn.tools.experiments.records import RECORDS_FILE, RecordsWriter, scan_records
+from forcelearn.tools.experiments.records import (
+    PROBE_TRIAL,
+    RECORDS_FILE,
+    RecordsWriter,
+    scan_records,
+)
 from forcelearn.tools.experiments.run_recorder import TrialRecorder
 from forcelearn.trainer import (
     CONVERGENCE_TOLERANCE,
@@ -374,15 +380,25 @@ def execute(
     config = run.config
     started = time.perf_counter()
     wall_before = run.wall_s
-    with CellSession(config, seed=run.seed) as session:
+    with CellSession(config, seed=run.seed) as session, contextlib.ExitStack() as stack:
         assert session.cell is not None
         if checkpoint is not None:
             state = load_learner(checkpoint)[1]
             _restore(run, state, load_extra_arrays(checkpoint))
             session.load_emulator_state(state["emulator"])
             run.mark_saved()
-        else:
-            probe_and_choose(run, session)
+        writer = records_writer(run, checkpoint is not None)
+        stack.callback(writer.close)
+        recorder = TrialRecorder(session.cell)
+        if checkpoint is None:
+            session.cell.recorder = recorder
+            try:
+                probe_and_choose(run, session)
+            finally:
+                session.cell.recorder = None
+            probed = recorder.take(PROBE_TRIAL)
+            if probed.steps:
+                writer.write_trial(probed)
         assert run.output_map is not None
         step_mm = abs(config.task.z_step_mm)
         output = run.output_map.output(step_mm)
@@ -405,7 +421,7 @@ def execute(
         for record, trace in zip(run.result.records, run.traces, strict=True):  # resumed
             monitor.update(record, trace["command_y_mm"], trace["shift_mm"])
         trial_end = TrialEnd(
-            run, session, output, records_writer(run, checkpoint is not None),
+            run, session, output, writer, recorder,
             on_trial=on_trial, on_warning=on_warning, wall_clock=(wall_before, started),
         )
         remaining = run.trials - len(run.result.records)
@@ -460,6 +476,7 @@ class TrialEnd:
         session: the open cell session (its cell gets this trial's recorder).
         output: the learner's output map.
         writer: the run's records file.
+        recorder: gathers each trial's records from the cell (set on it here).
         on_trial: called with each trial's record and the learner, after the checkpoint.
         on_warning: receives each warning's text.
         wall_clock: the run's wall time before this session (s) and the session's
@@ -472,6 +489,7 @@ class TrialEnd:
         session: CellSession,
         output: SurfaceYOutput,
         writer: RecordsWriter,
+        recorder: TrialRecorder,
         on_trial: Callable[[TrialRecord, SRVLearner], Any] | None = None,
         on_warning: Callable[[str], Any] | None = None,
         wall_clock: tuple[float, float] = (0.0, 0.0),
@@ -483,8 +501,8 @@ class TrialEnd:
         self.feasibility_of = feasibility_check(run)
         self.on_trial, self.on_warning = on_trial, on_warning
         self.writer = writer
-        self.recorder = TrialRecorder(self.cell)
-        self.cell.recorder = self.recorder
+        self.recorder = recorder
+        self.cell.recorder = recorder
         self._tares_before = run.tares
         self._wall_before, self._started = wall_clock
 
@@ -565,10 +583,9 @@ class TrialEnd:
                 raise _ConvergedStop
 
     def close(self) -> None:
-        """Stop recording: forget a trial that did not end, finish the records file."""
+        """Stop recording: forget a trial that did not end (the writer is the run's to close)."""
         self.cell.recorder = None
         self.recorder.discard()
-        self.writer.close()
 
 
 def start_learner(learner: SRVLearner, run: SurfaceRun, output: Any) -> str:
