@@ -129,6 +129,11 @@ class Cell:
             self._pose = self._guarded(self.robot.read_pose)
         return self._pose
 
+    @property
+    def known_pose(self) -> Pose | None:
+        """The last pose commanded or read, without asking the robot (None: none yet)."""
+        return self._pose
+
     def read_pose(self) -> Pose:
         """Read the robot's pose now."""
         self._pose = self._guarded(self.robot.read_pose)
@@ -318,7 +323,8 @@ class Cell:
         force = self.measure_force_n()
         accepted = abs(force) <= max_reading_n
         if self.recorder is not None:  # the trial is the recorder's to fill in
-            self.recorder.on_tare(TareRecord(-1, self.time_s, _xyz(self.pose), force, accepted))
+            here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
+            self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, accepted))
         if not accepted:
             self.tares_refused += 1
             log.warning(

@@ -334,9 +334,9 @@ def test_a_burst_over_the_limit_is_recorded_before_the_robot_stops() -> None:
 
 def test_a_recorder_gets_each_tare_done_or_refused() -> None:
     """Where, when and what the sensor read before zeroing; the trial is the recorder's."""
-    cell, robot, _ = make_cell([0.3, 0.2, 0.4, 6.0, 6.1, 5.9])
+    cell, _, _ = make_cell([0.3, 0.2, 0.4, 6.0, 6.1, 5.9])
     recorder = cell.recorder = ListRecorder()
-    robot.pose = Pose(5.0, 15.0, 0.0)
+    cell.move_to(Pose(5.0, 15.0, 0.0))
     assert cell.tare(2.0) and not cell.tare(2.0)
     done, refused = recorder.tares
     assert done.accepted and not refused.accepted and done.trial == -1

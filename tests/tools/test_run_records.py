@@ -212,3 +212,29 @@ def test_a_run_folder_without_records_is_a_typed_error(tmp_path: Path) -> None:
     """read_records on a folder with no records.mcap says so."""
     with pytest.raises(RecordsFileError, match="does not exist"):
         read_records(tmp_path)
+
+
+def test_the_trial_recorder_pairs_bursts_with_moves_and_numbers_the_trial() -> None:
+    """A burst joins the move before it; a second one stands alone at the pose held."""
+    from types import SimpleNamespace
+
+    from forcelearn.devices import Pose
+    from forcelearn.tools.experiments.run_recorder import TrialRecorder
+
+    cell = SimpleNamespace(stage=("approach", 0), time_s=4.0, known_pose=Pose(1.0, 2.0, 3.0))
+    recorder = TrialRecorder(cell)  # type: ignore[arg-type]
+    move = MoveRecord((1.0, 2.0, 3.0), (1.0, 2.0, 3.0), 3.0, 3.5, 4.0)
+    burst = BurstRecord(5.0, 0.1, 5.1, 4.9, 25, 4.0, 0.024, 5.0)
+    recorder.on_move(move)
+    recorder.on_burst(burst)
+    cell.stage, cell.time_s = ("probe", 2), 6.0
+    recorder.on_burst(burst)  # read again after a dwell, no move
+    recorder.on_tare(TareRecord(-1, 6.0, (1.0, 2.0, 3.0), 0.2, True))
+    trial = recorder.take(7)
+    first, again = trial.steps
+    assert first == StepRecord(7, 0, "approach", move, burst)
+    assert (again.kind, again.index, again.burst) == ("probe", 2, burst)
+    assert again.move.commanded_mm == (1.0, 2.0, 3.0)
+    assert (again.move.start_s, again.move.in_position_s, again.move.settled_s) == (6.0,) * 3
+    assert [t.trial for t in trial.tares] == [7]
+    assert recorder.take(8) == TrialRecords(8)  # taken: the next trial starts empty

@@ -39,8 +39,11 @@ class TrialRecorder:
         # a second burst without a move in between: a step that did not move
         kind, index = self.cell.stage
         time_s = self.cell.time_s
-        here = self.cell.pose
-        position = (float(here.x_mm), float(here.y_mm), float(here.z_mm))
+        here = self.cell.known_pose  # never an exchange with the robot for a record
+        position = (
+            (float(here.x_mm), float(here.y_mm), float(here.z_mm)) if here is not None
+            else (math.nan, math.nan, math.nan)
+        )
         still = MoveRecord(position, (math.nan,) * 3, time_s, time_s, time_s)
         self._steps.append((kind, index, still, burst))
 
