@@ -18,6 +18,10 @@ Safety, always on:
   when the filtered normal force, or the force magnitude of any single sample,
   passes ``max_force_n``, or a sample saturated the sensor;
 * any device error stops the robot (best effort) before it propagates.
+
+With a :attr:`Cell.recorder` set, every waited move, every burst of samples and
+every tare is also handed to it as a :mod:`forcelearn.records` value (the run
+directory's ``records.mcap``); without one nothing is computed.
 """
 
 from __future__ import annotations
@@ -31,9 +35,18 @@ from typing import ParamSpec, TypeVar
 import numpy as np
 
 from forcelearn.calibration.model import Calibration
-from forcelearn.devices import AXES, BatchForceSensor, ForceSensor, Pose, Robot, WrenchSample
+from forcelearn.devices import (
+    AXES,
+    BatchForceSensor,
+    ForceSensor,
+    InPositionWait,
+    Pose,
+    Robot,
+    WrenchSample,
+)
 from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded, InvalidTarget
 from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
+from forcelearn.records import BurstRecord, CellRecorder, MoveRecord, TareRecord
 
 log = logging.getLogger(__name__)
 
@@ -117,12 +130,22 @@ class Cell:
         """Tares done."""
         self.tares_refused = 0
         """Tares refused because the free-space reading was too large."""
+        self.recorder: CellRecorder | None = None
+        """Receives every move, burst and tare as a record (None: nothing is recorded)."""
+        self.stage: tuple[str, int] = ("move", 0)
+        """What the present moves are for, (kind, index) as in
+        :class:`~forcelearn.records.StepRecord`: set by the task, read by recorders."""
 
     @property
     def pose(self) -> Pose:
         """The last pose commanded or read (reads the robot if none yet)."""
         if self._pose is None:
             self._pose = self._guarded(self.robot.read_pose)
+        return self._pose
+
+    @property
+    def known_pose(self) -> Pose | None:
+        """The last pose commanded or read, without asking the robot (None: none yet)."""
         return self._pose
 
     def read_pose(self) -> Pose:
@@ -145,6 +168,7 @@ class Cell:
 
         Driver limits apply; stops the robot on any device error.
         """
+        start_s = self.time_s
         self._pose = None
         self._guarded(self.robot.move_to, pose)
         self._pose = pose
@@ -154,6 +178,18 @@ class Cell:
         self.time_s = self._guarded(
             self.robot.wait_in_position, self.move_timeout_s, self.settle_s if settle else 0.0
         )
+        if self.recorder is not None:
+            self.recorder.on_move(self._move_record(pose, start_s))
+
+    def _move_record(self, pose: Pose, start_s: float) -> MoveRecord:
+        """The record of a move just waited for (times on the robot's clock, s)."""
+        wait = getattr(self.robot, "last_wait", None)
+        in_position_s, reached = self.time_s, (math.nan,) * 3
+        if isinstance(wait, InPositionWait):
+            in_position_s = wait.in_position_s
+            if wait.reached is not None:
+                reached = _xyz(wait.reached)
+        return MoveRecord(_xyz(pose), reached, start_s, in_position_s, self.time_s)
 
     def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False) -> int:
         """Move to ``target`` in straight steps of at most ``max_step_mm``; returns the count.
@@ -208,14 +244,19 @@ class Cell:
         else:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
         compensated = [self._compensated(raw) for raw in batch]
-        self._check_samples(compensated)
-        on_burst = getattr(self.force_filter, "on_burst", None)
-        if on_burst is not None:
-            on_burst(compensated)
-        else:
-            for sample in compensated:
-                self.force_filter.on_sample(sample)
-        force = self.force_filter.force_n
+        force = math.nan
+        try:
+            self._check_samples(compensated)
+            on_burst = getattr(self.force_filter, "on_burst", None)
+            if on_burst is not None:
+                on_burst(compensated)
+            else:
+                for sample in compensated:
+                    self.force_filter.on_sample(sample)
+            force = self.force_filter.force_n
+        finally:  # a burst that passed the limit is recorded too (filtered: NaN)
+            if self.recorder is not None:
+                self.recorder.on_burst(self._burst_record(compensated, force))
         if abs(force) > self.max_force_n:
             self.stop()
             raise ForceLimitExceeded(
@@ -223,6 +264,35 @@ class Cell:
                 f"{self.max_force_n} N; the robot was stopped"
             )
         return force
+
+    def _burst_record(self, samples: list[WrenchSample], filtered_n: float) -> BurstRecord:
+        """Statistics of a burst's compensated normal force (N) and its time span (s).
+
+        The burst starts at the cell time of the last wait (the first sample is
+        requested then); its span is the sensor's own time between its samples
+        when the sensor tells it, else the filter's sample period per sample.
+        """
+        config = self.force_filter.config
+        wrenches = np.array([s.wrench for s in samples], dtype=float)
+        normal = config.sign * wrenches[:, config.axis]
+        gaps = [s.sensor_dt_s for s in samples[1:]]
+        span = (
+            float(sum(g for g in gaps if g is not None)) if all(g is not None for g in gaps)
+            else (len(samples) - 1) * config.sample_period_s
+        )
+        mean = wrenches.mean(axis=0)
+        return BurstRecord(
+            mean_n=float(normal.mean()),
+            std_n=float(normal.std()),
+            first_n=float(normal[0]),
+            last_n=float(normal[-1]),
+            count=len(samples),
+            start_s=self.time_s,
+            span_s=span,
+            filtered_n=float(filtered_n),
+            wrench_mean=(float(mean[0]), float(mean[1]), float(mean[2]),
+                         float(mean[3]), float(mean[4]), float(mean[5])),
+        )
 
     def _check_samples(self, samples: list[WrenchSample]) -> None:
         """Stop on a sample whose force magnitude passes the limit, or that saturated.
@@ -265,7 +335,11 @@ class Cell:
         would hide a real force, so it is refused (a warning, False).
         """
         force = self.measure_force_n()
-        if not abs(force) <= max_reading_n:
+        accepted = abs(force) <= max_reading_n
+        if self.recorder is not None:  # the trial is the recorder's to fill in
+            here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
+            self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, accepted))
+        if not accepted:
             self.tares_refused += 1
             log.warning(
                 "not zeroing the sensor: it reads %.2f N in free space, more than "
@@ -301,3 +375,8 @@ class Cell:
         except ForcelearnError:
             self.stop()
             raise
+
+
+def _xyz(pose: Pose) -> tuple[float, float, float]:
+    """A pose's position (x, y, z), mm, as plain floats."""
+    return (float(pose.x_mm), float(pose.y_mm), float(pose.z_mm))

@@ -144,6 +144,21 @@ class WrenchSample:
         return self.wrench[3:]
 
 
+@dataclass(frozen=True)
+class InPositionWait:
+    """How a robot driver's last ``wait_in_position`` ended (read by the cell's records).
+
+    Attributes:
+        in_position_s: the robot's clock when it was first in position in that wait
+            (the settle dwell began), s.
+        reached: the pose the robot reported at the end of the wait; None when the
+            link tells it only through another exchange (the computer link).
+    """
+
+    in_position_s: float
+    reached: Pose | None
+
+
 @runtime_checkable
 class Robot(Protocol):
     """A position-controlled robot reached through a driver."""

@@ -54,6 +54,10 @@ class StateFileError(ForcelearnError):
     """A learned-state file cannot be read: damaged, truncated or of another format version."""
 
 
+class RecordsFileError(StateFileError):
+    """A run's records file (records.mcap) is missing or damaged; the message says what to do."""
+
+
 class StudyError(ForcelearnError):
     """A study cannot run as asked: its folder holds another study, or the cluster is missing."""
 

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from forcelearn.cell import Cell
-from forcelearn.devices import Pose, WrenchSample
+from forcelearn.devices import InPositionWait, Pose, WrenchSample
 from forcelearn.errors import (
     ConfigError,
     ForceLimitExceeded,
@@ -16,6 +18,7 @@ from forcelearn.errors import (
     SensorStale,
 )
 from forcelearn.filtering import ForceFilter, ForceFilterConfig
+from forcelearn.records import BurstRecord, MoveRecord, TareRecord
 
 
 class FakeRobot:
@@ -262,3 +265,96 @@ def test_compensation_keeps_each_samples_sensor_time() -> None:
                 samples_per_step=3, compensation=lambda wrench, pose: wrench - 1.0)
     assert cell.measure_force_n() == pytest.approx(4.0, abs=0.01)
     assert [s.sensor_dt_s for s in seen] == [None, 0.001028, 0.001028]
+
+
+class ListRecorder:
+    """Keeps whatever the cell hands it (a CellRecorder)."""
+
+    def __init__(self) -> None:
+        self.moves: list[MoveRecord] = []
+        self.bursts: list[BurstRecord] = []
+        self.tares: list[TareRecord] = []
+
+    def on_move(self, move: MoveRecord) -> None:
+        """Keep the move."""
+        self.moves.append(move)
+
+    def on_burst(self, burst: BurstRecord) -> None:
+        """Keep the burst."""
+        self.bursts.append(burst)
+
+    def on_tare(self, tare: TareRecord) -> None:
+        """Keep the tare."""
+        self.tares.append(tare)
+
+
+def test_a_recorder_gets_every_move_with_its_times_and_the_reached_pose() -> None:
+    """Start, first in position (the driver's last wait) and settled; reached when told."""
+    cell, robot, _ = make_cell([])
+    recorder = cell.recorder = ListRecorder()
+    cell.move_to(Pose(1.0, 2.0, 3.0))  # this fake tells no wait: in position = settled
+    robot.last_wait = InPositionWait(0.9, Pose(1.0, 2.1, 3.0))  # type: ignore[attr-defined]
+    cell.move_to(Pose(1.0, 2.0, 4.0))
+    first, second = recorder.moves
+    assert first == MoveRecord((1.0, 2.0, 3.0), first.reached_mm, 0.0, 0.55, 0.55)
+    assert all(math.isnan(v) for v in first.reached_mm)  # not reported: not made up
+    assert second == MoveRecord((1.0, 2.0, 4.0), (1.0, 2.1, 3.0), 0.55, 0.9, 1.1)
+
+
+def test_a_recorder_gets_each_bursts_statistics_and_the_filters_output() -> None:
+    """Mean, std, first and last of the compensated normal force; count; span; filtered."""
+    robot, sensor = FakeRobot(), FakeSensor([])
+    sensor.samples = [WrenchSample(np.array([1.0, -f, 0, 0, 0, 0.5]), 0.0, i,
+                                   sensor_dt_s=None if i == 0 else 0.002)
+                      for i, f in enumerate([4.0, 6.0, 8.0])]
+    bias = np.array([0.0, 1.0, 0, 0, 0, 0])
+    cell = Cell(robot, sensor, ForceFilter(ForceFilterConfig(axis=1, sign=-1.0)), 50.0,
+                samples_per_step=3, compensation=lambda wrench, pose: wrench - bias)
+    recorder = cell.recorder = ListRecorder()
+    cell.time_s = 7.0
+    force = cell.measure_force_n()
+    (burst,) = recorder.bursts
+    assert (burst.mean_n, burst.first_n, burst.last_n, burst.count) == (7.0, 5.0, 9.0, 3)
+    assert burst.std_n == pytest.approx(np.std([5.0, 7.0, 9.0]))
+    assert burst.start_s == 7.0 and burst.span_s == pytest.approx(0.004)
+    assert burst.filtered_n == force
+    assert burst.wrench_mean == pytest.approx((1.0, -7.0, 0.0, 0.0, 0.0, 0.5))
+
+
+def test_a_burst_over_the_limit_is_recorded_before_the_robot_stops() -> None:
+    """The reading that stopped the robot is in the records (its filtered force unknown)."""
+    cell, robot, _ = make_cell([1.0, 80.0, 1.0])
+    recorder = cell.recorder = ListRecorder()
+    with pytest.raises(ForceLimitExceeded):
+        cell.measure_force_n()
+    (burst,) = recorder.bursts
+    assert burst.last_n == 1.0 and burst.first_n == 1.0 and burst.mean_n == pytest.approx(82 / 3)
+    assert math.isnan(burst.filtered_n) and robot.stops == 1
+
+
+def test_a_recorder_gets_each_tare_done_or_refused() -> None:
+    """Where, when and what the sensor read before zeroing; the trial is the recorder's."""
+    cell, _, _ = make_cell([0.3, 0.2, 0.4, 6.0, 6.1, 5.9])
+    recorder = cell.recorder = ListRecorder()
+    cell.move_to(Pose(5.0, 15.0, 0.0))
+    assert cell.tare(2.0) and not cell.tare(2.0)
+    done, refused = recorder.tares
+    assert done.accepted and not refused.accepted and done.trial == -1
+    assert done.position_mm == (5.0, 15.0, 0.0)
+    assert abs(done.reading_n) <= 2.0 and refused.reading_n > 2.0
+
+
+def test_without_a_recorder_the_cell_reads_no_extra_state() -> None:
+    """No recorder: the driver's last wait is never looked at (nothing computed)."""
+    cell, robot, _ = make_cell([1.0] * 3)
+
+    class Untouchable:
+        def __get__(self, obj: object, owner: object) -> None:
+            raise AssertionError("read without a recorder")
+
+    type(robot).last_wait = Untouchable()  # type: ignore[attr-defined]
+    try:
+        cell.move_to(Pose(0.0, 1.0, 0.0))
+        cell.measure_force_n()
+    finally:
+        del type(robot).last_wait  # type: ignore[attr-defined]

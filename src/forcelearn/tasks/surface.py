@@ -403,6 +403,7 @@ class SurfaceTask:
 
     def retract(self) -> None:
         """Pull out along +Y to the retract plane (in limited steps)."""
+        self.cell.stage = ("retreat", 0)
         pose = self.cell.pose
         self.cell.move_in_steps(
             Pose(pose.x_mm, self.spec.retract_y_mm, pose.z_mm, pose.quaternion), self.max_step_mm
@@ -432,6 +433,7 @@ class SurfaceTask:
         self.cell.sync()
         self._trial_start_s = self.cell.time_s
         self.retract()
+        self.cell.stage = ("approach", 0)
         self.cell.move_in_steps(
             Pose(start.x_mm, self.spec.retract_y_mm, start.z_mm, start.quaternion),
             self.max_step_mm,
@@ -455,6 +457,7 @@ class SurfaceTask:
         target = Pose(
             start.x_mm, y_cmd, start.z_mm + self._step * self.spec.z_step_mm, start.quaternion
         )
+        self.cell.stage = ("step", self._step)
         try:
             self.cell.move_in_steps(target, self.max_step_mm, guard_force=True)
             force = self.cell.measure_force_n()

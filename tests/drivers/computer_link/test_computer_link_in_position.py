@@ -29,6 +29,9 @@ def test_wait_in_position_returns_once_the_robot_is_there_and_settled(
     # delay 0.05 s + about 0.14 s of travel + the lag, then 0.1 s of settling
     assert 0.25 < done_s - accepted.time_s < 1.0
     assert emulator.engine.clock.now_s >= done_s
+    # the records' in-position time: when the settle began (no pose: it costs an exchange)
+    assert robot.last_wait is not None and robot.last_wait.reached is None
+    assert accepted.time_s < robot.last_wait.in_position_s <= done_s - 0.1
 
 
 def test_a_robot_that_stops_short_ends_the_wait_and_is_stopped(make_emulator, connect) -> None:

@@ -34,9 +34,12 @@ def test_move_and_wait_in_position_moves_the_emulated_robot(
     assert isinstance(robot, Robot)
     assert robot.read_pose() == HOME
     robot.move_by(dz_mm=-5.0)
-    robot.wait_in_position(timeout_s=1.0, settle_s=0.02)
+    done_s = robot.wait_in_position(timeout_s=1.0, settle_s=0.02)
     reached = robot.read_pose()
     assert abs(reached.z_mm - 595.0) <= robot.config.in_position_mm
+    # the records' view of the wait: in position 20 ms before its end, and the pose then
+    assert robot.last_wait is not None and robot.last_wait.reached == reached
+    assert robot.last_wait.in_position_s == pytest.approx(done_s - 0.02, abs=0.005)
     assert emu.physics.pose == reached
     status = robot.read_status()
     assert status.in_position and status.mci is codec.MciState.RUNNING

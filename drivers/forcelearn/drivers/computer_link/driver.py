@@ -36,7 +36,7 @@ import time
 import numpy as np
 import serial
 
-from forcelearn.devices import Pose
+from forcelearn.devices import InPositionWait, Pose
 from forcelearn.drivers.computer_link.config import POLL_S, LinkConfig
 from forcelearn.drivers.computer_link.link import PORT_ERRORS, Link
 from forcelearn.drivers.lifecycle import Driver
@@ -67,6 +67,8 @@ class ComputerLinkRobot(Driver):
         self._link: Link | None = None
         self._reference: Pose | None = None
         self.controller_model = ""
+        self.last_wait: InPositionWait | None = None
+        """How the last :meth:`wait_in_position` ended (no pose: reading it costs an exchange)."""
         self._open()
         self._acquired = True
 
@@ -169,6 +171,7 @@ class ComputerLinkRobot(Driver):
                     if status.time_s - since >= settle_s or status.time_s == previous:
                         # settled; or a clock that stands still (an emulated cell where
                         # nothing takes time): dwelling could change nothing
+                        self.last_wait = InPositionWait(since, None)
                         return status.time_s
                 else:
                     since = None

@@ -49,7 +49,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from forcelearn.devices import Pose
+from forcelearn.devices import InPositionWait, Pose
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.guidance import EgmStats, Guidance
 from forcelearn.drivers.egm.targets import clean_target, unsafe_reason
@@ -126,6 +126,8 @@ class EgmRobotDriver(Driver):
         self._lock = threading.RLock()
         self._fresh = threading.Condition(self._lock)
         self._guidance = Guidance(config)
+        self.last_wait: InPositionWait | None = None
+        """How the last :meth:`wait_in_position` ended: when in position, and the feedback pose."""
         self._failure: ForcelearnError | None = None
         self._pending: tuple[str, int] | None = None  # lockstep: address of an unanswered message
         self._fresh_count = 0  # fresh messages taken so far
@@ -512,7 +514,9 @@ class EgmRobotDriver(Driver):
                 if guidance.in_position():
                     settled_since = now if settled_since is None else settled_since
                     if now - settled_since >= settle_s - 1e-9:
-                        return self.read_pose()
+                        reached = self.read_pose()
+                        self.last_wait = InPositionWait(settled_since, reached)
+                        return reached
                 else:
                     settled_since = None
             if now - start >= span_s - 1e-9:

@@ -10,6 +10,8 @@ The run directory holds:
                        trial, so a run killed at any instant resumes from a whole
                        trial.
 ``config.toml``        the cell config the run started with (resume reads it)
+``records.mcap``       every move, burst and tare of every trial (docs/records.md),
+                       made durable per trial before the checkpoint
 ``summary.json``       task, seed, learner_start, trials, phase_switch_trial,
                        criterion_trial, converged_trial, converged,
                        in_band_at_end, trials_out_of_band_after_convergence,
@@ -39,6 +41,7 @@ the next trial: it ends bit-identical to an uninterrupted run with the same seed
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import shutil
@@ -51,10 +54,11 @@ import numpy as np
 
 from forcelearn.errors import ForcelearnError, StateFileError
 from forcelearn.learning import SRVLearner, load_extra_arrays, load_learner, save_learner
+from forcelearn.records import TrialRecords
 from forcelearn.run_output import final_figures, write_step_log, write_summary, write_trials
 from forcelearn.site.config import CellConfig, load_cell_config
 from forcelearn.site.session import CellSession
-from forcelearn.tasks.surface import SurfaceTask, TrialTrace, step_centre_y_mm
+from forcelearn.tasks.surface import SurfaceTask, SurfaceYOutput, TrialTrace, step_centre_y_mm
 from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
 from forcelearn.tasks.surface_feasibility import FEASIBILITY_WINDOW, Feasibility, assess
 from forcelearn.tasks.surface_probe import (
@@ -65,6 +69,13 @@ from forcelearn.tasks.surface_probe import (
     probe_and_map,
 )
 from forcelearn.tasks.surface_warm_start import OLD_CHECKPOINT_START, warm_start
+from forcelearn.tools.experiments.records import (
+    PROBE_TRIAL,
+    RECORDS_FILE,
+    RecordsWriter,
+    scan_records,
+)
+from forcelearn.tools.experiments.run_recorder import TrialRecorder
 from forcelearn.trainer import (
     CONVERGENCE_TOLERANCE,
     StepHook,
@@ -91,6 +102,26 @@ checkpoint still resumes: cold start, and the wear tracking it ran with."""
 READABLE_VERSIONS = (4, 5)
 
 
+@dataclasses.dataclass(frozen=True)
+class SavedPoint:
+    """What the checkpoint on disk holds of a run's growing state, to roll back to."""
+
+    trials: int = 0
+    """Whole trials saved."""
+    steps: int = 0
+    """Steps of those trials."""
+    last_log: TrialLog | None = None
+    """The last saved trial's step log."""
+    map_shift_mm: float = 0.0
+    """The map's wear shift, mm."""
+    map_recentre_mm: float = 0.0
+    """The map's re-centring on the learner, mm."""
+    tares: tuple[int, int] = (0, 0)
+    """Tares done and refused."""
+    wear_reference_n: float | None = None
+    """The wear tracking's reference start force, N."""
+
+
 @dataclasses.dataclass
 class SurfaceRun:
     """Where a run stands: its config, target trial count, results so far and traces."""
@@ -103,11 +134,8 @@ class SurfaceRun:
     traces: list[TrialTrace] = dataclasses.field(default_factory=list)
     """Per trial: the Y commands and the map's wear shift."""
     wall_s: float = 0.0
-    saved: tuple[
-        int, int, TrialLog | None, tuple[float, float], tuple[int, int], float | None
-    ] = (0, 0, None, (0.0, 0.0), (0, 0), None)
-    """(trials, steps, last log, (map shift, re-centring), tares, wear reference) as of the last
-    checkpoint."""
+    saved: SavedPoint = dataclasses.field(default_factory=SavedPoint)
+    """What the last checkpoint holds of the growing state (a rollback returns there)."""
     probe: ProbeResult | None = None
     """The surface probe's readings and fits (None: no probe)."""
     output_map: OutputMapChoice | None = None
@@ -134,18 +162,21 @@ class SurfaceRun:
 
     def mark_saved(self) -> None:
         """Remember what the checkpoint on disk holds."""
-        self.saved = (len(self.result.records), self.result.steps, self.result.last_log,
-                      (self.map_shift_mm, self.map_recentre_mm), self.tares,
-                      self.wear_reference_n)
+        result = self.result
+        self.saved = SavedPoint(
+            len(result.records), result.steps, result.last_log, self.map_shift_mm,
+            self.map_recentre_mm, self.tares, self.wear_reference_n,
+        )
 
     def rollback_to_saved(self) -> None:
         """Forget a trial that ended but was not checkpointed (interrupted in between)."""
-        trials, steps, last_log, shifts, self.tares, self.wear_reference_n = self.saved
-        self.map_shift_mm, self.map_recentre_mm = shifts
-        result = self.result
+        saved, result = self.saved, self.result
+        trials = saved.trials
+        self.map_shift_mm, self.map_recentre_mm = saved.map_shift_mm, saved.map_recentre_mm
+        self.tares, self.wear_reference_n = saved.tares, saved.wear_reference_n
         del result.records[trials:]
         del self.traces[trials:]
-        result.steps, result.last_log = steps, last_log
+        result.steps, result.last_log = saved.steps, saved.last_log
         result.logs = {k: v for k, v in result.logs.items() if k < trials}
         if result.switch_trial is not None and result.switch_trial >= trials:
             result.switch_trial, result.switch_log = None, None
@@ -349,22 +380,31 @@ def execute(
     config = run.config
     started = time.perf_counter()
     wall_before = run.wall_s
-    with CellSession(config, seed=run.seed) as session:
+    with CellSession(config, seed=run.seed) as session, contextlib.ExitStack() as stack:
         assert session.cell is not None
         if checkpoint is not None:
             state = load_learner(checkpoint)[1]
             _restore(run, state, load_extra_arrays(checkpoint))
             session.load_emulator_state(state["emulator"])
             run.mark_saved()
-        else:
-            probe_and_choose(run, session)
+        writer = records_writer(run, checkpoint is not None)
+        stack.callback(writer.close)
+        recorder = TrialRecorder(session.cell)
+        if checkpoint is None:
+            session.cell.recorder = recorder
+            try:
+                probe_and_choose(run, session)
+            finally:
+                session.cell.recorder = None
+            probed = recorder.take(PROBE_TRIAL)
+            if probed.steps:
+                writer.write_trial(probed)
         assert run.output_map is not None
         step_mm = abs(config.task.z_step_mm)
         output = run.output_map.output(step_mm)
         output.shift_mm = run.map_shift_mm  # a resumed run's tracked wear
         output.recentre_mm = run.map_recentre_mm  # and its re-centring on the learner
         output.wear_reference_n = run.wear_reference_n
-        cell, tares_before = session.cell, run.tares
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
         if checkpoint is not None:
             learner = load_learner(checkpoint, output=output)[0]
@@ -378,63 +418,12 @@ def execute(
             path_y_mm=run.output_map.path_y_mm,
             source=run.output_map.source,
         )
-        feasibility_of = feasibility_check(run)
         for record, trace in zip(run.result.records, run.traces, strict=True):  # resumed
             monitor.update(record, trace["command_y_mm"], trace["shift_mm"])
-
-        def after_trial(record: TrialRecord, trial_log: TrialLog, lrn: SRVLearner) -> None:
-            run.traces.append(
-                TrialTrace(
-                    mean_y_mm=[
-                        output.command_at_step(row["mean_0"], int(row["step"]) - 1)
-                        for row in trial_log.rows
-                    ],
-                    command_y_mm=[row["command_0"] for row in trial_log.rows],
-                    shift_mm=output.displacement_mm,  # the range's move this trial ran with
-                    force_n=[row["force_n"] for row in trial_log.rows],
-                )
-            )
-            run.wall_s = wall_before + time.perf_counter() - started
-            output.recentre_on(lrn.weights[..., 0])  # before the save: μ and centre together
-            run.map_shift_mm = output.shift_mm
-            run.map_recentre_mm = output.recentre_mm
-            run.wear_reference_n = output.wear_reference_n
-            found = feasibility_of(record.index)
-            run.feasibility_now = found is not None
-            new_finding = found is not None and run.feasibility_first_trial is None
-            if found is not None:
-                run.feasibility = found
-                if run.feasibility_first_trial is None:
-                    run.feasibility_first_trial = record.index
-            run.tares = (tares_before[0] + cell.tares, tares_before[1] + cell.tares_refused)
-            save_learner(
-                lrn,
-                run.out / CHECKPOINT,
-                metadata=_run_state(run, session.emulator_state()),
-                arrays=_history_arrays(run),
-            )
-            run.mark_saved()
-            warning = monitor.update(
-                record, run.traces[-1]["command_y_mm"], run.traces[-1]["shift_mm"]
-            )
-            if new_finding and found is not None:
-                log.warning("%s", found.text())
-                if on_warning is not None:
-                    on_warning(found.text())
-            if warning is not None:
-                log.warning("%s", warning)
-                if on_warning is not None:
-                    on_warning(warning)
-            if on_trial is not None:
-                on_trial(record, lrn)
-            after = config.stop_after_converged
-            if after > 0:
-                at = converged_trial(
-                    run.result.records, config.task.steps_per_trial, config.task.desired_force_n
-                )
-                if at is not None and record.index - at >= after:
-                    raise _ConvergedStop
-
+        trial_end = TrialEnd(
+            run, session, output, writer, recorder,
+            on_trial=on_trial, on_warning=on_warning, wall_clock=(wall_before, started),
+        )
         remaining = run.trials - len(run.result.records)
         try:
             if remaining > 0:
@@ -443,7 +432,7 @@ def execute(
                     task,
                     remaining,
                     keep_logs=(run.mid_trial,),
-                    on_trial=after_trial,
+                    on_trial=trial_end,
                     result=run.result,
                     on_step=on_step,
                 )
@@ -454,8 +443,149 @@ def execute(
             run.rollback_to_saved()
             write_outputs(run, learner)
             raise
+        finally:
+            trial_end.close()
         task.retract()
     return write_outputs(run, learner)
+
+
+def records_writer(run: SurfaceRun, resumed: bool) -> RecordsWriter:
+    """Open the run's records.mcap: a new one, or a resumed run's rewound to its checkpoint.
+
+    A resumed run keeps the whole trials its checkpoint holds (a file whose
+    writer died is recovered up to its last whole trial) and drops later ones,
+    which the run makes again. A run from before records existed starts one.
+    """
+    path = run.out / RECORDS_FILE
+    kept: list[TrialRecords] = []
+    if resumed and path.exists():
+        done = len(run.result.records)
+        kept = [t for t in scan_records(path).trials if t.trial < done]
+    return RecordsWriter(path, kept)
+
+
+class TrialEnd:
+    """What the run does after each trial: trace, map, feasibility, records, checkpoint, hooks.
+
+    Called by :func:`forcelearn.trainer.train` as its ``on_trial``. The trial's
+    records are made durable before the checkpoint, so the records file never
+    lacks a trial the checkpoint holds (a resume drops the extra one).
+
+    Args:
+        run: the run (its monitor set).
+        session: the open cell session (its cell gets this trial's recorder).
+        output: the learner's output map.
+        writer: the run's records file.
+        recorder: gathers each trial's records from the cell (set on it here).
+        on_trial: called with each trial's record and the learner, after the checkpoint.
+        on_warning: receives each warning's text.
+        wall_clock: the run's wall time before this session (s) and the session's
+            start (``time.perf_counter()``).
+    """
+
+    def __init__(
+        self,
+        run: SurfaceRun,
+        session: CellSession,
+        output: SurfaceYOutput,
+        writer: RecordsWriter,
+        recorder: TrialRecorder,
+        on_trial: Callable[[TrialRecord, SRVLearner], Any] | None = None,
+        on_warning: Callable[[str], Any] | None = None,
+        wall_clock: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        assert session.cell is not None and run.monitor is not None
+        self.run, self.session, self.output = run, session, output
+        self.cell = session.cell
+        self.monitor = run.monitor
+        self.feasibility_of = feasibility_check(run)
+        self.on_trial, self.on_warning = on_trial, on_warning
+        self.writer = writer
+        self.recorder = recorder
+        self.cell.recorder = recorder
+        self._tares_before = run.tares
+        self._wall_before, self._started = wall_clock
+
+    def __call__(self, record: TrialRecord, trial_log: TrialLog, learner: SRVLearner) -> None:
+        """Book the trial that just ended (raises ``_ConvergedStop`` to end the run)."""
+        run = self.run
+        run.traces.append(self._trace(trial_log))
+        run.wall_s = self._wall_before + time.perf_counter() - self._started
+        self._follow_map(learner)
+        new_finding = self._assess(record.index)
+        cell, before = self.cell, self._tares_before
+        run.tares = (before[0] + cell.tares, before[1] + cell.tares_refused)
+        self.writer.write_trial(self.recorder.take(record.index))
+        save_learner(
+            learner,
+            run.out / CHECKPOINT,
+            metadata=_run_state(run, self.session.emulator_state()),
+            arrays=_history_arrays(run),
+        )
+        run.mark_saved()
+        warning = self.monitor.update(
+            record, run.traces[-1]["command_y_mm"], run.traces[-1]["shift_mm"]
+        )
+        if new_finding and run.feasibility is not None:
+            self._warn(run.feasibility.text())
+        if warning is not None:
+            self._warn(warning)
+        if self.on_trial is not None:
+            self.on_trial(record, learner)
+        self._stop_if_converged(record)
+
+    def _trace(self, trial_log: TrialLog) -> TrialTrace:
+        output = self.output
+        return TrialTrace(
+            mean_y_mm=[
+                output.command_at_step(row["mean_0"], int(row["step"]) - 1)
+                for row in trial_log.rows
+            ],
+            command_y_mm=[row["command_0"] for row in trial_log.rows],
+            shift_mm=output.displacement_mm,  # the range's move this trial ran with
+            force_n=[row["force_n"] for row in trial_log.rows],
+        )
+
+    def _follow_map(self, learner: SRVLearner) -> None:
+        """Re-centre the map on μ (before the save: μ and centre together) and keep it."""
+        run, output = self.run, self.output
+        output.recentre_on(learner.weights[..., 0])
+        run.map_shift_mm = output.shift_mm
+        run.map_recentre_mm = output.recentre_mm
+        run.wear_reference_n = output.wear_reference_n
+
+    def _assess(self, trial: int) -> bool:
+        """Update the 'out of reach' estimate; True when this trial first found it."""
+        run = self.run
+        found = self.feasibility_of(trial)
+        run.feasibility_now = found is not None
+        if found is None:
+            return False
+        run.feasibility = found
+        if run.feasibility_first_trial is None:
+            run.feasibility_first_trial = trial
+            return True
+        return False
+
+    def _warn(self, text: str) -> None:
+        log.warning("%s", text)
+        if self.on_warning is not None:
+            self.on_warning(text)
+
+    def _stop_if_converged(self, record: TrialRecord) -> None:
+        config = self.run.config
+        after = config.stop_after_converged
+        if after > 0:
+            at = converged_trial(
+                self.run.result.records, config.task.steps_per_trial, config.task.desired_force_n
+            )
+            if at is not None and record.index - at >= after:
+                raise _ConvergedStop
+
+    def close(self) -> None:
+        """Stop recording: forget a trial that did not end (the writer is the run's to close)."""
+        self.cell.recorder = None
+        self.recorder.discard()
 
 
 def start_learner(learner: SRVLearner, run: SurfaceRun, output: Any) -> str:
