@@ -22,7 +22,7 @@ import threading
 import time
 from pathlib import Path
 
-from forcelearn.tools.live.browser import Chromium, find_chromium
+from forcelearn.tools.live.browser import headless_page, require_browser
 
 KINDS = ("plain", "live", "browser")
 _URL = re.compile(r"live page: (http://\S+)")
@@ -45,24 +45,29 @@ def _run(kind: str, trials: int, seed: int, folder: Path) -> float:
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                text=True)
     assert process.stderr is not None
-    browser: Chromium | None = None
     stderr_tail: list[str] = []
+    url = None
+    for line in process.stderr:
+        stderr_tail = [*stderr_tail[-20:], line]
+        match = _URL.search(line)
+        if match:
+            url = match.group(1)
+            break
+    rest = threading.Thread(target=lambda: stderr_tail.extend(process.stderr or []),
+                            daemon=True)
+    rest.start()
     try:
-        for line in process.stderr:
-            stderr_tail = [*stderr_tail[-20:], line]
-            match = _URL.search(line)
-            if match and kind == "browser":
-                browser = Chromium()
-                browser.navigate(match.group(1))
-                break
-        rest = threading.Thread(target=lambda: stderr_tail.extend(process.stderr or []),
-                                daemon=True)
-        rest.start()
-        code = process.wait()
-        rest.join(5.0)
+        if kind == "browser" and url is not None:
+            with headless_page() as page:  # the page stays open, drawing, until the run ends
+                page.goto(url)
+                code = process.wait()
+        else:
+            code = process.wait()
     finally:
-        if browser is not None:
-            browser.close()
+        if process.poll() is None:  # the browser failed: end the run it was to watch
+            process.kill()
+            process.wait()
+    rest.join(5.0)
     if code != 0:
         raise RuntimeError(f"forcelearn run ({kind}) exited {code}: {''.join(stderr_tail)}")
     return float(json.loads((out / "summary.json").read_text())["wall_s"])
@@ -70,10 +75,7 @@ def _run(kind: str, trials: int, seed: int, folder: Path) -> float:
 
 def run(args: argparse.Namespace) -> int:
     """Interleave the three kinds ``--repeats`` times; print walls and slowdowns."""
-    if find_chromium() is None:
-        print("forcelearn bench live: no chromium on PATH (apt-get install chromium)",
-              file=sys.stderr)
-        return 1
+    require_browser()
     walls: dict[str, list[float]] = {kind: [] for kind in KINDS}
     with tempfile.TemporaryDirectory(prefix="forcelearn-bench-live-") as tmp:
         for repeat in range(args.repeats):
