@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -107,3 +108,35 @@ def test_live_page_of_a_running_run_and_view_of_the_finished_run(tmp_path: Path)
     assert seen["state"] == "running"
     assert seen["drawn"] == 4
     assert_not_blank(png)
+
+
+def test_a_plot_legend_goes_to_the_corner_its_data_leave_free() -> None:
+    """Data in the top right corner (the legend's usual place) push the legend to the top left."""
+    plot_js = (resources.files("forcelearn.tools.live") / "static" / "plot.js").read_text()
+    with headless_page(600, 400) as page:
+        page.set_content('<canvas id="c" style="width:400px;height:260px"></canvas>')
+        page.add_script_tag(content=plot_js)
+        seen = page.evaluate(
+            """() => {
+              const canvas = document.getElementById("c");
+              const x = [], y = [];
+              for (let i = 0; i < 60; i++) { x.push(7 + (i % 10) / 3.3); y.push(7 + i / 20); }
+              Plot.draw(canvas, {
+                xlim: [0, 10], ylim: [0, 10],
+                series: [{ x, y, width: 0, marker: "dot", color: "#c62828", label: "data" }],
+              });
+              const context = canvas.getContext("2d");
+              const pixel = (px, py) => Array.from(context.getImageData(px, py, 1, 1).data);
+              const area = { left: 56, top: 10, pw: 334, ph: 216 };
+              return {
+                topLeft: pixel(area.left + 8, area.top + 6),
+                empty: Plot.legendCorner(80, 30, area, []),
+                upperHalf: Plot.legendCorner(
+                  80, 30, area, [[100, 20], [350, 20], [60, 30], [380, 30]]),
+              };
+            }"""
+        )
+    red, green, blue, alpha = seen["topLeft"]
+    assert alpha > 150 and min(red, green, blue) > 200, f"no legend at the top left: {seen}"
+    assert seen["empty"] == [56 + 334 - 6 - 80, 14]  # top right when nothing is hidden
+    assert seen["upperHalf"] == [56 + 334 - 6 - 80, 10 + 216 - 6 - 30]  # then bottom right
