@@ -11,13 +11,21 @@ import urllib.error
 import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 import pytest
 
-from forcelearn.tools.live.journal import JOURNAL, JournalFollower, load_run_directory
+from forcelearn.tools.live.journal import (
+    JOURNAL,
+    JournalFollower,
+    JournalWriter,
+    load_run_directory,
+    replay_until_trial,
+)
 from forcelearn.tools.live.model import TRIAL_FIELDS, LiveMeta, LiveModel
+from forcelearn.tools.live.publish import LivePublisher
 from forcelearn.tools.live.server import LiveServer, bind_warning
 from forcelearn.trainer import TrialRecord, converged_trial
 
@@ -77,6 +85,38 @@ def test_a_redone_trial_replaces_the_later_ones() -> None:
     state = model.snapshot()
     assert state["trials"]["index"] == [0, 1] and state["trials"]["force_rms_n"][1] == 4.0
     assert state["epoch"] == 1
+
+
+def shown(model: LiveModel) -> dict[str, Any]:
+    """What the page shows of a model: its snapshot without the update counter."""
+    return {key: value for key, value in model.snapshot().items() if key != "version"}
+
+
+def test_journal_replayed_to_a_trial_is_the_live_page_during_that_trial(tmp_path: Path) -> None:
+    """The screenshot program's replay equals the live model as trial k's last step was drawn."""
+    learner = SimpleNamespace(phase=SimpleNamespace(name="SPECIALIZED"))
+    live = LiveModel(META)
+    journal = JournalWriter(tmp_path / JOURNAL)
+    publisher = LivePublisher(META, live, journal)
+    rng = np.random.default_rng(3)
+    during: dict[int, dict[str, Any]] = {}
+    for index in range(6):
+        for step in range(1, 4):
+            limit = float(index == 2 and step == 2)
+            row = {"step": float(step), "force_n": float(rng.normal(19, 2)), "limit_hit": limit}
+            publisher.on_step(index, "generalized", row)
+        during[index] = shown(live)
+        rec = record(index, float(rng.uniform(0.2, 3.0)), failed=index == 2)
+        publisher.on_trial(rec, learner)  # type: ignore[arg-type]
+    publisher.finish()
+    for index in (0, 2, 5):
+        replayed = LiveModel(META)
+        replay_until_trial(tmp_path / JOURNAL, replayed, index)
+        assert shown(replayed) == during[index]
+        assert during[index]["status"]["trials_done"] == index
+        assert during[index]["present"]["trial"] == index
+    with pytest.raises(ValueError, match="records 6 trials"):
+        replay_until_trial(tmp_path / JOURNAL, LiveModel(META), 6)
 
 
 @pytest.fixture()

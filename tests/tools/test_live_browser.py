@@ -1,4 +1,4 @@
-"""The live page in headless Chromium: a running run, and `forcelearn view` of a finished one."""
+"""The live page in headless Chromium (Playwright): a running run, `forcelearn view` of it."""
 
 from __future__ import annotations
 
@@ -6,13 +6,15 @@ import os
 import signal
 import subprocess
 import sys
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from forcelearn.tools.live.browser import Chromium, find_chromium
+from forcelearn.tools.live import screenshot
+from forcelearn.tools.live.browser import find_chromium, headless_page, wait_rendered
 
 CLI = (
     # Ctrl-C must reach the child even when this suite was started as a background job,
@@ -20,15 +22,12 @@ CLI = (
     "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
     "from forcelearn.tools.cli import main; sys.exit(main(sys.argv[1:]))"
 )
-SCREENSHOTS = os.environ.get("FORCELEARN_LIVE_SCREENSHOTS")
-"""A folder to keep the screenshots in (docs/results when refreshing the docs)."""
-
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.skipif(
         find_chromium() is None,
         reason="no chromium on PATH (.ci/run installs Debian's chromium; or set "
-        "FORCELEARN_CHROMIUM)",
+        "FORCELEARN_CHROMIUM to one); Playwright never downloads its own",
     ),
 ]
 
@@ -52,13 +51,6 @@ def assert_not_blank(path: Path) -> None:
     assert pixels.std() > 0.05
 
 
-def shot(tmp_path: Path, name: str) -> Path:
-    """Where a screenshot goes."""
-    folder = Path(SCREENSHOTS) if SCREENSHOTS else tmp_path
-    folder.mkdir(parents=True, exist_ok=True)
-    return folder / name
-
-
 @pytest.mark.timeout(600)  # a whole run, a browser and a view: minutes on a loaded host
 def test_live_page_of_a_running_run_and_view_of_the_finished_run(tmp_path: Path) -> None:
     """Plots drawn, the status panel's trial advances, screenshots not blank."""
@@ -74,13 +66,14 @@ def test_live_page_of_a_running_run_and_view_of_the_finished_run(tmp_path: Path)
     )
     try:
         url = page_url(run, "live page: ")
-        with Chromium() as browser:
-            browser.navigate(url)
-            first = browser.wait_rendered(canvases=4)
-            later = browser.wait_rendered(canvases=4, after_trial=first["trial"])
+        with headless_page() as page:
+            page.goto(url)
+            first = wait_rendered(page, canvases=4)
+            later = wait_rendered(page, canvases=4, after_trial=first["trial"])
             assert later["trial"] > first["trial"]
             assert later["drawn"] == 4
-            live_png = browser.screenshot(shot(tmp_path, "live_run.png"))
+            live_png = tmp_path / "live_run.png"
+            page.screenshot(path=live_png)
         assert_not_blank(live_png)
         assert run.wait(timeout=600) == 0
     finally:
@@ -95,13 +88,55 @@ def test_live_page_of_a_running_run_and_view_of_the_finished_run(tmp_path: Path)
     )
     try:
         url = page_url(view, "page of the run: ")
-        with Chromium() as browser:
-            browser.navigate(url)
-            seen = browser.wait_rendered(canvases=4, after_trial=int(trials) - 2)
+        with headless_page() as page:
+            page.goto(url)
+            seen = wait_rendered(page, canvases=4, after_trial=int(trials) - 2)
             assert seen["state"] == "finished"
             assert seen["trials_done"] == int(trials)
-            view_png = browser.screenshot(shot(tmp_path, "live_view.png"))
+            view_png = tmp_path / "live_view.png"
+            page.screenshot(path=view_png)
         assert_not_blank(view_png)
     finally:
         view.send_signal(signal.SIGINT)
         assert view.wait(timeout=60) == 0
+
+    # The README's figure program, on the same run directory: its page during a trial
+    at = int(trials) - 5
+    png = tmp_path / "live_at.png"
+    seen = screenshot.screenshot(screenshot.load_model(out, at), png, 1400, 720)
+    assert seen["status"] == f"{at} of {trials} ({at - 1} done)"
+    assert seen["state"] == "running"
+    assert seen["drawn"] == 4
+    assert_not_blank(png)
+
+
+def test_a_plot_legend_goes_to_the_corner_its_data_leave_free() -> None:
+    """Data in the top right corner (the legend's usual place) push the legend to the top left."""
+    plot_js = (resources.files("forcelearn.tools.live") / "static" / "plot.js").read_text()
+    with headless_page(600, 400) as page:
+        page.set_content('<canvas id="c" style="width:400px;height:260px"></canvas>')
+        page.add_script_tag(content=plot_js)
+        seen = page.evaluate(
+            """() => {
+              const canvas = document.getElementById("c");
+              const x = [], y = [];
+              for (let i = 0; i < 60; i++) { x.push(7 + (i % 10) / 3.3); y.push(7 + i / 20); }
+              Plot.draw(canvas, {
+                xlim: [0, 10], ylim: [0, 10],
+                series: [{ x, y, width: 0, marker: "dot", color: "#c62828", label: "data" }],
+              });
+              const context = canvas.getContext("2d");
+              const pixel = (px, py) => Array.from(context.getImageData(px, py, 1, 1).data);
+              const area = { left: 56, top: 10, pw: 334, ph: 216 };
+              return {
+                topLeft: pixel(area.left + 8, area.top + 6),
+                empty: Plot.legendCorner(80, 30, area, []),
+                upperHalf: Plot.legendCorner(
+                  80, 30, area, [[100, 20], [350, 20], [60, 30], [380, 30]]),
+              };
+            }"""
+        )
+    red, green, blue, alpha = seen["topLeft"]
+    assert alpha > 150 and min(red, green, blue) > 200, f"no legend at the top left: {seen}"
+    assert seen["empty"] == [56 + 334 - 6 - 80, 14]  # top right when nothing is hidden
+    assert seen["upperHalf"] == [56 + 334 - 6 - 80, 10 + 216 - 6 - 30]  # then bottom right

@@ -1,7 +1,7 @@
 """Benchmark: what ``--live`` and a browser watching the page cost a run.
 
 Runs the default §5 job as ``forcelearn run`` subprocesses, interleaved so a
-change of the host's load falls on every kind alike: without ``--live``, with
+change of the host's load falls on every mode alike: without ``--live``, with
 ``--live`` and no page open, and with ``--live`` and headless Chromium showing
 the page for the whole run (on the same cores, the worst case: on site the
 browser runs on another machine). It prints each run's wall time of the trials
@@ -22,16 +22,16 @@ import threading
 import time
 from pathlib import Path
 
-from forcelearn.tools.live.browser import Chromium, find_chromium
+from forcelearn.tools.live.browser import headless_page, require_browser
 
-KINDS = ("plain", "live", "browser")
+MODES = ("plain", "live", "browser")
 _URL = re.compile(r"live page: (http://\S+)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``forcelearn bench live``."""
     parser.add_argument("--trials", type=int, default=100, help="trials per run (default 100)")
-    parser.add_argument("--repeats", type=int, default=3, help="runs of each kind (default 3)")
+    parser.add_argument("--repeats", type=int, default=3, help="runs of each mode (default 3)")
     parser.add_argument("--seed", type=int, default=0, help="random seed")
 
 
@@ -45,45 +45,47 @@ def _run(mode: str, trials: int, seed: int, folder: Path) -> float:
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                text=True)
     assert process.stderr is not None
-    browser: Chromium | None = None
     stderr_tail: list[str] = []
+    url = None
+    for line in process.stderr:
+        stderr_tail = [*stderr_tail[-20:], line]
+        match = _URL.search(line)
+        if match:
+            url = match.group(1)
+            break
+    rest = threading.Thread(target=lambda: stderr_tail.extend(process.stderr or []),
+                            daemon=True)
+    rest.start()
     try:
-        for line in process.stderr:
-            stderr_tail = [*stderr_tail[-20:], line]
-            match = _URL.search(line)
-            if match and mode == "browser":
-                browser = Chromium()
-                browser.navigate(match.group(1))
-                break
-        rest = threading.Thread(target=lambda: stderr_tail.extend(process.stderr or []),
-                                daemon=True)
-        rest.start()
-        code = process.wait()
-        rest.join(5.0)
+        if mode == "browser" and url is not None:
+            with headless_page() as page:  # the page stays open, drawing, until the run ends
+                page.goto(url)
+                code = process.wait()
+        else:
+            code = process.wait()
     finally:
-        if browser is not None:
-            browser.close()
+        if process.poll() is None:  # the browser failed: end the run it was to watch
+            process.kill()
+            process.wait()
+    rest.join(5.0)
     if code != 0:
         raise RuntimeError(f"forcelearn run ({mode}) exited {code}: {''.join(stderr_tail)}")
     return float(json.loads((out / "summary.json").read_text())["wall_s"])
 
 
 def run(args: argparse.Namespace) -> int:
-    """Interleave the three kinds ``--repeats`` times; print walls and slowdowns."""
-    if find_chromium() is None:
-        print("forcelearn bench live: no chromium on PATH (apt-get install chromium)",
-              file=sys.stderr)
-        return 1
-    walls: dict[str, list[float]] = {mode: [] for mode in KINDS}
+    """Interleave the three modes ``--repeats`` times; print walls and slowdowns."""
+    require_browser()
+    walls: dict[str, list[float]] = {mode: [] for mode in MODES}
     with tempfile.TemporaryDirectory(prefix="forcelearn-bench-live-") as tmp:
         for repeat in range(args.repeats):
-            for mode in KINDS:
+            for mode in MODES:
                 wall = _run(mode, args.trials, args.seed, Path(tmp))
                 walls[mode].append(wall)
                 print(f"repeat {repeat + 1}, {mode:8s}: {args.trials} trials in {wall:.1f} s",
                       flush=True)
     plain = statistics.median(walls["plain"])
-    for mode in KINDS:
+    for mode in MODES:
         median = statistics.median(walls[mode])
         print(f"{mode:8s}: median wall {median:.1f} s, {100 * (median / plain - 1):+.1f} % "
               "against plain")

@@ -7,7 +7,8 @@
 ``publish``        the run's hooks: feed the model and the journal, never block
 ``server``         a read-only HTTP server (standard library): the page, its static
                    files, ``/api/state`` (JSON) and ``/api/events`` (server-sent events)
-``browser``        headless Chromium over the DevTools protocol (tests, screenshots)
+``browser``        the page in the system's headless Chromium, through Playwright
+``screenshot``     ``python -m``: a run directory's page as a PNG (the README's figure)
 ``static/``        the page: HTML, CSS and the project's own canvas plots (no CDN)
 =================  ==============================================================
 

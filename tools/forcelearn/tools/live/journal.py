@@ -99,6 +99,34 @@ def read_meta(path: Path) -> LiveMeta | None:
     return LiveMeta.from_json(first["meta"]) if first.get("t") == "meta" else None
 
 
+def replay_until_trial(path: Path, model: LiveModel, trial: int) -> None:
+    """Apply ``path``'s lines to ``model`` up to the record of trial index ``trial``, not it.
+
+    The model is then what the run's live page showed as that trial's last
+    step was drawn (its steps present, its row not yet in the learning curve).
+
+    Raises:
+        ValueError: the journal holds no record of that trial (the message says
+            how many it holds).
+    """
+    recorded = 0
+    with open(path, encoding="utf-8") as file:
+        for raw in file:
+            try:
+                line = json.loads(raw)
+            except ValueError:
+                log.warning("%s: skipped a line that is not JSON", path)
+                continue
+            if line.get("t") == "trial":
+                if int(line["record"]["index"]) == trial:
+                    return
+                recorded += 1
+            apply_line(model, line)
+    raise ValueError(
+        f"{path} records {recorded} trials and not trial index {trial}: choose an earlier trial"
+    )
+
+
 class JournalFollower:
     """Feeds a model from ``live.ndjson``: what is there now, then new lines as they come."""
 

@@ -95,7 +95,12 @@ const Plot = (() => {
     }
     ctx.restore();
     ctx.strokeStyle = "#9aa1ab"; ctx.strokeRect(left, top, pw, ph);
-    legend(ctx, [...series, ...hlines, ...vlines].filter((s) => s.label), left + pw - 6, top + 6);
+    const labelled = [...series, ...hlines, ...vlines].filter((s) => s.label);
+    const marks = [];
+    for (const s of series) s.x.forEach((x, i) => marks.push([px(x), py(s.y[i])]));
+    for (const h of hlines) for (let i = 0; i <= 20; i++) marks.push([left + pw * i / 20, py(h.y)]);
+    for (const v of vlines) for (let i = 0; i <= 20; i++) marks.push([px(v.x), top + ph * i / 20]);
+    legend(ctx, labelled, { left, top, pw, ph }, marks);
     canvas.dataset.drawn = String((Number(canvas.dataset.drawn) || 0) + 1);
   }
 
@@ -128,26 +133,46 @@ const Plot = (() => {
     }
   }
 
-  function legend(ctx, items, xr, y) {
+  // The corner of the plot area for a w x h legend that hides the fewest marks ([x, y]
+  // in px: data points, and points along the horizontal and vertical lines); the first
+  // of top right, top left, bottom right, bottom left when several tie. Its top-left [x, y].
+  function legendCorner(w, h, area, marks) {
+    const corners = [
+      [area.left + area.pw - 6 - w, area.top + 4], [area.left + 6, area.top + 4],
+      [area.left + area.pw - 6 - w, area.top + area.ph - 6 - h], [area.left + 6, area.top + area.ph - 6 - h],
+    ];
+    const hidden = ([x, y]) => marks.filter(([mx, my]) =>
+      Number.isFinite(my) && mx >= x && mx <= x + w && my >= y && my <= y + h).length;
+    let best = corners[0], least = hidden(best);
+    for (const corner of corners.slice(1)) {
+      const count = hidden(corner);
+      if (count < least) { best = corner; least = count; }
+    }
+    return best;
+  }
+
+  function legend(ctx, items, area, marks) {
     if (!items.length) return;
     ctx.font = "11px system-ui, sans-serif";
     const w = Math.max(...items.map((s) => ctx.measureText(s.label).width)) + 30;
+    const h = items.length * 14 + 4;
+    const [x, y] = legendCorner(w, h, area, marks);
     ctx.fillStyle = "rgba(255,255,255,0.85)";
-    ctx.fillRect(xr - w, y - 2, w, items.length * 14 + 4);
+    ctx.fillRect(x, y, w, h);
     ctx.textAlign = "left"; ctx.textBaseline = "middle";
     items.forEach((s, i) => {
-      const yy = y + 6 + i * 14;
+      const yy = y + 8 + i * 14;
       ctx.strokeStyle = ctx.fillStyle = s.color || "#1f77b4";
       ctx.setLineDash(s.dash || []); ctx.lineWidth = s.width || 1.5;
       if (s.width === 0 && s.marker === "x") {
-        ctx.beginPath(); ctx.moveTo(xr - w + 10, yy - 3); ctx.lineTo(xr - w + 16, yy + 3);
-        ctx.moveTo(xr - w + 10, yy + 3); ctx.lineTo(xr - w + 16, yy - 3); ctx.stroke();
-      } else if (s.width === 0) { ctx.beginPath(); ctx.arc(xr - w + 13, yy, 2.5, 0, 2 * Math.PI); ctx.fill(); }
-      else { ctx.beginPath(); ctx.moveTo(xr - w + 4, yy); ctx.lineTo(xr - w + 22, yy); ctx.stroke(); }
+        ctx.beginPath(); ctx.moveTo(x + 10, yy - 3); ctx.lineTo(x + 16, yy + 3);
+        ctx.moveTo(x + 10, yy + 3); ctx.lineTo(x + 16, yy - 3); ctx.stroke();
+      } else if (s.width === 0) { ctx.beginPath(); ctx.arc(x + 13, yy, 2.5, 0, 2 * Math.PI); ctx.fill(); }
+      else { ctx.beginPath(); ctx.moveTo(x + 4, yy); ctx.lineTo(x + 22, yy); ctx.stroke(); }
       ctx.setLineDash([]); ctx.fillStyle = "#1d2430";
-      ctx.fillText(s.label, xr - w + 26, yy);
+      ctx.fillText(s.label, x + 26, yy);
     });
   }
 
-  return { draw };
+  return { draw, legendCorner };
 })();
