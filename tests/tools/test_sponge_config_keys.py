@@ -20,11 +20,12 @@ def test_model_family_keys_reach_the_sponge(tmp_path: Path) -> None:
     """Every new key of the TOML table arrives in the cell's SpongeParams."""
     config = load_cell_config(_cell(tmp_path, (
         "stiffening_exponent = 1.3\nstiffening_reference_mm = 8.0\nhysteresis_loss = 0.15\n"
-        "hysteresis_depth_mm = 0.4\nfriction_coefficient = 0.2"
+        "hysteresis_depth_mm = 0.4\nhysteresis_travel_mm = 7.0\nfriction_coefficient = 0.2"
     )))
     sponge = config.emulator.sponge
     assert (sponge.stiffening_exponent, sponge.stiffening_reference_mm) == (1.3, 8.0)
     assert (sponge.hysteresis_loss, sponge.hysteresis_depth_mm) == (0.15, 0.4)
+    assert sponge.hysteresis_travel_mm == 7.0
     assert sponge.friction_coefficient == 0.2
 
 

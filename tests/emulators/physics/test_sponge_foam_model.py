@@ -122,6 +122,22 @@ def test_hysteresis_is_continuous_at_a_reversal_and_rate_independent() -> None:
     assert _press_path(coarse, [10.0])[-1] == pytest.approx(before, rel=1e-9)
 
 
+def test_travel_onto_fresh_foam_drives_the_hysteresis_towards_loading() -> None:
+    """Rolling along Z presses fresh foam: after easing off, travel brings s back towards +1."""
+    p = SpongeParams(hysteresis_loss=0.2, relaxation_ratio=0.0, surface_slope=0.0,
+                     waviness_mm=0.0, hysteresis_travel_mm=10.0)
+    still, rolling = Sponge(p), Sponge(p)
+    for sponge in (still, rolling):
+        _press_path(sponge, [*np.arange(0.1, 10.0, 0.1), 9.0])  # press, then ease 1 mm
+    assert still.hysteresis_state < -0.6
+    y = surface_y_mm(p, 0, Z) - 9.0
+    rolling.observe_pose(_at(y, Z - 10.0))  # roll one travel length at the same depth
+    expected = 1.0 + (still.hysteresis_state - 1.0) * math.exp(-1.0)
+    assert rolling.hysteresis_state == pytest.approx(expected, rel=1e-12)
+    rolling.observe_pose(_at(y, Z - 60.0))
+    assert rolling.hysteresis_state > 0.99
+
+
 def test_friction_opposes_the_slide_and_scales_with_the_normal_force() -> None:
     """Sliding down Z the tool feels mu * N upward along the surface; sliding up, downward."""
     mu = 0.3
@@ -195,6 +211,7 @@ def test_state_round_trip_carries_hysteresis_and_friction() -> None:
     ("field", "value"),
     [("stiffening_exponent", 0.2), ("stiffening_exponent", 4.0), ("stiffening_reference_mm", 0.0),
      ("hysteresis_loss", -0.1), ("hysteresis_loss", 1.0), ("hysteresis_depth_mm", 0.0),
+     ("hysteresis_travel_mm", -1.0),
      ("friction_coefficient", -0.2), ("friction_coefficient", math.inf)],
 )
 def test_new_params_refuse_values_out_of_range(field: str, value: float) -> None:

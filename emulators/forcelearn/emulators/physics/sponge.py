@@ -53,14 +53,18 @@ depth u rather than on d (Fung's quasi-linear viscoelasticity: the relaxation
 function multiplies the elastic response), so n = 1 is today's law exactly.
 
 *Hysteresis* (``hysteresis_loss`` h in [0, 0.9], default 0;
-``hysteresis_depth_mm`` d_h, default 0.5 mm). A rate-independent Dahl-type
-term, apart from the rate-dependent relaxation: the state s follows the foam
-depth as ``ds/dd_f = (sign(dd_f) - s) / d_h``, so pressing in drives s towards
-+1 and easing off towards -1 within about d_h of a reversal. After a press of a
-few d_h the foam pushes ``(1 + h)`` times its elastic force, and ``(1 - h)``
-times it on the way back out at the same depth: the loading and unloading
-curves of a foam's compression loop, whose area (the energy lost per cycle) is
-about ``2 h`` times the energy stored. Flexible PU foams lose 20-50 % per cycle,
+``hysteresis_depth_mm`` d_h, default 0.5 mm; ``hysteresis_travel_mm`` L, default
+10 mm). A rate-independent Dahl-type term, apart from the rate-dependent
+relaxation: the state s follows the foam depth as ``ds = (sign(dd_f) - s) |dd_f|
+/ d_h``, so pressing in drives s towards +1 and easing off towards -1 within
+about d_h of a reversal. After a press of a few d_h the foam pushes ``(1 + h)``
+times its elastic force, and ``(1 - h)`` times it on the way back out at the
+same depth: the loading and unloading curves of a foam's compression loop,
+whose area (the energy lost per cycle) is about ``2 h`` times the energy
+stored. A roller that travels along the surface presses fresh foam, which is
+loading: travel t adds ``ds = (1 - s) dt / L`` (L about the contact patch's
+length, assumption), so a step down Z that eases off a little stays near the
+loading branch, as under a real rolling indenter. Flexible PU foams lose 20-50 % per cycle,
 h = 0.1-0.25 (assumption, in line with the hysteresis unloading factor of
 LS-DYNA's rate-independent low-density foam, MAT_057). s is 0 out of contact.
 
@@ -151,6 +155,8 @@ class SpongeParams:
     """Loading force is ``(1 + h)``, unloading ``(1 - h)`` times the elastic force (0: off)."""
     hysteresis_depth_mm: float = 0.5
     """Depth change (mm) over which the hysteresis switches branch after a reversal."""
+    hysteresis_travel_mm: float = 10.0
+    """Travel along the surface (mm) after which the roller presses fresh foam (loading)."""
     friction_coefficient: float = 0.0
     """mu: tangential force ``mu * N`` against the tool's last slide (0: no friction)."""
 
@@ -158,7 +164,7 @@ class SpongeParams:
         positive = ("thickness_mm", "waviness_wavelength_mm", "stiffness_n_per_mm",
                     "stiffness_wavelength_mm", "backing_n_per_mm", "softening_passes",
                     "set_passes", "relaxation_time_s", "stiffening_reference_mm",
-                    "hysteresis_depth_mm")
+                    "hysteresis_depth_mm", "hysteresis_travel_mm")
         for name in positive:
             if not getattr(self, name) > 0:
                 raise ValueError(f"sponge {name} must be > 0, got {getattr(self, name)}")
@@ -266,15 +272,24 @@ SLIDE_MIN_FRACTION = 0.1
 (more than ~6 degrees off the normal); a press along Y on the tilted surface does not."""
 
 
-def hysteresis_step(params: SpongeParams, state: float, change_mm: float) -> float:
-    """Return the Dahl state s after the foam depth changed by ``change_mm`` (mm).
+def hysteresis_step(
+    params: SpongeParams, state: float, change_mm: float, travel_mm: float = 0.0
+) -> float:
+    """Return the Dahl state s after a straight move of the tool.
 
-    Exact for a monotonic change: ``s -> sign + (s - sign) * exp(-|change| / d_h)``.
+    The foam depth changed by ``change_mm`` (mm) while the roller travelled
+    ``travel_mm`` (mm) along the surface onto fresh foam. Along the move
+    ``ds = (sign - s) |dd| / d_h + (1 - s) dt / L``, solved exactly for a
+    straight move: s tends to ``(a sign + b) / (a + b)`` at rate ``a + b``,
+    ``a = |change| / d_h``, ``b = travel / L``.
     """
-    if change_mm == 0.0:
+    a = abs(change_mm) / params.hysteresis_depth_mm
+    b = travel_mm / params.hysteresis_travel_mm
+    if a + b == 0.0:
         return state
     sign = 1.0 if change_mm > 0.0 else -1.0
-    return sign + (state - sign) * math.exp(-abs(change_mm) / params.hysteresis_depth_mm)
+    target = (a * sign + b) / (a + b)
+    return target + (state - target) * math.exp(-(a + b))
 
 
 def slide_direction(
@@ -370,39 +385,41 @@ class Sponge:
     def observe_pose(self, position_mm: np.ndarray) -> None:
         """Note where the tool is; completes a pass when it leaves the sponge after contact."""
         depth = self._penetration_mm(position_mm)
-        if self.params.hysteresis_loss != 0.0:
-            self._follow_depth(depth)
-        if self.params.friction_coefficient != 0.0:
-            self._follow_slide(position_mm, depth)
+        p = self.params
+        if p.hysteresis_loss != 0.0 or p.friction_coefficient != 0.0:
+            self._follow_move(position_mm, depth)
         if depth > 0.0:
             self._touched = True
         elif self._touched:
             self.finish_pass()
 
-    def _follow_depth(self, depth_mm: float) -> None:
-        """Bring the hysteresis state to the foam depth of a reported pose."""
-        foam = min(depth_mm, self.params.thickness_mm)
-        if foam <= 0.0:
-            self.hysteresis_state = 0.0  # out of contact the foam forgets its branch
-        else:
-            self.hysteresis_state = hysteresis_step(
-                self.params, self.hysteresis_state, foam - self._hysteresis_foam_mm
-            )
-        self._hysteresis_foam_mm = foam
-
-    def _follow_slide(self, position_mm: np.ndarray, depth_mm: float) -> None:
-        """Update the direction of the last slide from the move to a reported pose."""
+    def _follow_move(self, position_mm: np.ndarray, depth_mm: float) -> None:
+        """Bring the hysteresis state and the last slide to a reported pose."""
+        p = self.params
         here = (float(position_mm[0]), float(position_mm[1]), float(position_mm[2]))
         last, self._last_position = self._last_position, here
-        if depth_mm <= 0.0:
-            self.slide_direction = (0.0, 0.0, 0.0)  # off the foam: nothing holds the skin
+        if depth_mm <= 0.0:  # off the foam: it forgets its branch, nothing holds its skin
+            self.hysteresis_state = 0.0
+            self._hysteresis_foam_mm = 0.0
+            self.slide_direction = (0.0, 0.0, 0.0)
             return
-        if last is None or last == here:
-            return
-        move = np.subtract(here, last)
-        direction = slide_direction(self.params, move, here[2])
-        if direction is not None:
-            self.slide_direction = direction
+        move = np.subtract(here, last) if last is not None and last != here else None
+        along_mm = 0.0  # travel along the surface; a press within ~6 degrees of the normal: none
+        if move is not None:
+            normal = surface_normal(p, here[2])
+            along_mm = float(np.linalg.norm(move - float(move @ normal) * normal))
+            if along_mm < SLIDE_MIN_FRACTION * float(np.linalg.norm(move)):
+                along_mm = 0.0
+        if p.hysteresis_loss != 0.0:
+            foam = min(depth_mm, p.thickness_mm)
+            self.hysteresis_state = hysteresis_step(
+                p, self.hysteresis_state, foam - self._hysteresis_foam_mm, along_mm
+            )
+            self._hysteresis_foam_mm = foam
+        if p.friction_coefficient != 0.0 and move is not None:
+            direction = slide_direction(p, move, here[2])
+            if direction is not None:
+                self.slide_direction = direction
 
     def finish_pass(self) -> None:
         """Count one pass now."""
