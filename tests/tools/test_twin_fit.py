@@ -31,8 +31,13 @@ def _base() -> dict[str, float]:
     return {k: float(v) for k, v in dataclasses.asdict(SpongeParams()).items()}
 
 
+RUN = SimulatedRun()
+COLOUR = math.exp(-2 * math.pi * RUN.cutoff_hz * RUN.sample_period_s)
+"""The adapter low-pass's AR(1) coefficient per sample of the simulated bursts."""
+
+
 def _fit(records: list[TrialRecords]) -> TwinFit:
-    return fit_twin(records, _base(), BASE_ARM, READING, 0.1, 0.004)
+    return fit_twin(records, _base(), BASE_ARM, READING, 0.1, 0.004, configured_phi=COLOUR)
 
 
 @pytest.fixture(scope="module")

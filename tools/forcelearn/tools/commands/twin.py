@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
     from forcelearn.calibration.file_format import load_calibration
     from forcelearn.tools.twin.fit import fit_twin
     from forcelearn.tools.twin.report import write_report
-    from forcelearn.tools.twin.setup import base_arm, base_sponge, reading_of
+    from forcelearn.tools.twin.setup import base_arm, base_sponge, configured_colour, reading_of
     from forcelearn.tools.twin.source import read_runs
 
     source = read_runs(list(args.run_dirs))
@@ -39,7 +39,8 @@ def run(args: argparse.Namespace) -> int:
     if args.calibration is not None:
         noise = float(load_calibration(args.calibration).noise.std[config.filter.axis])
     fit = fit_twin(source.records, base_sponge(config), base_arm(config), reading_of(config),
-                   config.emulator.arm.in_position_mm, config.emulator.arm.tick_s, noise)
+                   config.emulator.arm.in_position_mm, config.emulator.arm.tick_s, noise,
+                   configured_phi=configured_colour(config, source.records))
     document = write_report(fit, source, args.out)
     folder = args.out.parent
     if not fit.represented:

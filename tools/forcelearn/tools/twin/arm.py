@@ -73,11 +73,12 @@ def fit_arm(data: RecordArrays, base: dict[str, float], band_mm: float) -> ArmFi
         spread.update(zip(free, sigmas(result.jac, result.fun).tolist(), strict=True))
         rms = float(np.sqrt(np.mean(result.fun**2)))
         loose = [n for n in free if not BY_NAME[n].determined(values[n], spread[n])]
-        if not loose or len(loose) == len(free):
-            break
         for n in loose:
             values[n] = base[n]
+            spread[n] = math.inf
         free = [n for n in free if n not in loose]
+        if not loose or not free:
+            break
     return ArmFit(values, spread, rms, int(distance.size))
 
 

@@ -40,7 +40,7 @@ class RecordArrays:
     commanded: np.ndarray
     """(T, M, 3) commanded (x, y, z), mm."""
     reached: np.ndarray
-    """(T, M, 3) reached (x, y, z), mm."""
+    """(T, M, 3) reached (x, y, z), mm (the commanded pose where the robot reported none)."""
     start_s: np.ndarray
     in_position_s: np.ndarray
     burst_start_s: np.ndarray
@@ -136,13 +136,15 @@ def to_arrays(records: list[TrialRecords]) -> RecordArrays:
             move = step.move
             for value, what in ((move.start_s, "a move's start"),
                                 (move.in_position_s, "a move's in-position time"),
-                                *((v, "a commanded pose") for v in move.commanded_mm),
-                                *((v, "a reached pose") for v in move.reached_mm)):
+                                *((v, "a commanded pose") for v in move.commanded_mm)):
                 _check(value, what, trial.trial)
+            reached = move.reached_mm
+            if not all(math.isfinite(v) for v in reached):
+                reached = move.commanded_mm  # not reported: in position, within the band
             a["valid"][i, j] = True
             a["is_step"][i, j] = step.kind == "step"
             a["commanded"][i, j] = move.commanded_mm
-            a["reached"][i, j] = move.reached_mm
+            a["reached"][i, j] = reached
             a["start_s"][i, j] = move.start_s
             a["in_position_s"][i, j] = move.in_position_s
             a["passes"][i, j] = passes[i][j]

@@ -48,6 +48,8 @@ class MemberFit:
     """RMS of the control steps' burst means on the held-out trials, N."""
     bic: float
     free: int
+    held: tuple[str, ...] = ()
+    """Parameters the records did not determine, held at the base config's value."""
 
 
 @dataclass
@@ -112,43 +114,87 @@ def initial_sponge(data: RecordArrays, base: dict[str, float], reading: Reading
     return start
 
 
+TIME_SCALES = ("softening_passes", "set_passes", "waviness_wavelength_mm",
+               "stiffness_wavelength_mm", "relaxation_time_s")
+"""Parameters that set a scale (passes, mm, s) for an amplitude: held first when loose."""
+HOLD_ROUNDS = 3
+HOLD_COST = 1.02
+"""Holding loose parameters at the base values is kept only if the fit's cost rises less than
+this factor (else the records need them: they stay fitted, reported as not determined)."""
+
+
 def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
-               start: dict[str, float], arm: dict[str, float], reading: Reading,
-               noise_n: float) -> MemberFit:
-    """Fit one member's free parameters on ``train``; score it on ``heldout``."""
-    names = list(member.free)
-    base = {**start, **dict(member.fixed)}
-    low = np.array([BY_NAME[n].low for n in names])
-    high = np.array([BY_NAME[n].high for n in names])
-    x0 = np.clip(np.array([base[n] for n in names]), low + 1e-6 * (high - low),
-                 high - 1e-6 * (high - low))
+               start: dict[str, float], base: dict[str, float], arm: dict[str, float],
+               reading: Reading, noise_n: float) -> MemberFit:
+    """Fit one member's free parameters on ``train``; score it on ``heldout``.
+
+    A parameter the records do not determine is held at the base config's value
+    and the rest refitted (scales such as a wear's time constant first, so the
+    amplitude the records do show, e.g. the start of a wear curve, is still fitted),
+    unless holding it makes the fit worse (``HOLD_COST``): then the records need it
+    and it keeps its fitted value, reported as not determined.
+    """
+    fixed = dict(member.fixed)
+    values = {**start, **fixed}
+    free = [n for n in member.free if n not in fixed]
+    held: list[str] = []
+    held_sigmas: dict[str, float] = {}
     weights = _weights(train, noise_n)
     use = train.has_burst
     shape = motion_shape(train, arm)
+    spread: dict[str, float] = {}
+    cost = math.inf
+    kept: tuple[dict[str, float], list[str], list[str], dict[str, float]] = (
+        values, free, held, held_sigmas)
+    for _ in range(HOLD_ROUNDS):
+        names = list(free)
+        low = np.array([BY_NAME[n].low for n in names])
+        high = np.array([BY_NAME[n].high for n in names])
+        x0 = np.clip(np.array([values[n] for n in names]), low + 1e-6 * (high - low),
+                     high - 1e-6 * (high - low))
+        frozen = dict(values)
 
-    def sponge_of(x: np.ndarray) -> dict[str, float]:
-        return {**base, **dict(zip(names, x.tolist(), strict=True))}
+        def residuals(x: np.ndarray, names: list[str] = names,
+                      frozen: dict[str, float] = frozen) -> np.ndarray:
+            sponge = {**frozen, **dict(zip(names, x.tolist(), strict=True))}
+            predicted = predict_means(train, sponge, arm, reading, shape)
+            error: np.ndarray = ((predicted - train.mean_n) * weights)[use]
+            return error
 
-    def residuals(x: np.ndarray) -> np.ndarray:
-        predicted = predict_means(train, sponge_of(x), arm, reading, shape)
-        error: np.ndarray = ((predicted - train.mean_n) * weights)[use]
-        return error
-
-    result = least_squares(residuals, x0, bounds=(low, high), x_scale="jac", method="trf",
-                           max_nfev=100 * len(names))
-    values = sponge_of(result.x)
-    spread = sigmas(result.jac, result.fun)
+        result = least_squares(residuals, x0, bounds=(low, high), x_scale="jac",
+                               method="trf", max_nfev=100 * len(names))
+        if held and result.cost > HOLD_COST * cost:
+            # holding them made the fit worse: the records need them free (undetermined)
+            values, free, held, held_sigmas = kept
+            break
+        cost = float(result.cost)
+        values.update(zip(names, result.x.tolist(), strict=True))
+        spread = dict(zip(names, sigmas(result.jac, result.fun).tolist(), strict=True))
+        loose = [n for n in names if not BY_NAME[n].determined(values[n], spread[n])]
+        if not loose:
+            break
+        scales = [n for n in loose if n in TIME_SCALES]
+        hold = scales or loose
+        if len(hold) == len(names):
+            break
+        kept = (dict(values), list(free), list(held), dict(held_sigmas))
+        for n in hold:
+            values[n] = base[n]
+            held.append(n)
+            held_sigmas[n] = spread[n]  # its uncertainty when it was last fitted
+        free = [n for n in free if n not in hold]
+    spread.update(held_sigmas)
     train_pred = predict_means(train, values, arm, reading, shape)
     held_pred = predict_means(heldout, values, arm, reading)
     train_rms = _rms(train_pred - train.mean_n, train.is_step & train.has_burst)
     held_res = ((held_pred - heldout.mean_n) * _weights(heldout, noise_n))[heldout.has_burst]
     n_held = max(1, held_res.size)
-    bic = n_held * math.log(max(float(np.mean(held_res**2)), 1e-300)) + len(names) * math.log(
+    bic = n_held * math.log(max(float(np.mean(held_res**2)), 1e-300)) + len(free) * math.log(
         n_held)
     return MemberFit(
-        member, values, {n: float(s) for n, s in zip(names, spread, strict=True)},
+        member, values, {n: float(spread[n]) for n in member.free if n not in fixed},
         train_rms, _rms(held_pred - heldout.mean_n, heldout.is_step & heldout.has_burst), bic,
-        len(names),
+        len(free), tuple(held),
     )
 
 
@@ -189,8 +235,14 @@ def _diagnose(train: RecordArrays, predicted: np.ndarray, values: dict[str, floa
 def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
              base_arm: dict[str, float], reading: Reading, band_mm: float, tick_s: float,
              calibration_noise_n: float | None = None,
-             members: tuple[Member, ...] = MEMBERS) -> TwinFit:
+             members: tuple[Member, ...] = MEMBERS,
+             configured_phi: float | None = None) -> TwinFit:
     """Fit every part of the twin to a run's records (trials in order).
+
+    ``configured_phi`` is the AR(1) coefficient per burst sample the run's sensor
+    settings give the noise (the adapter's low-pass; 0 for white noise): it
+    corrects the noise measured within bursts. ``calibration_noise_n`` replaces
+    that measurement by a calibration's.
 
     Raises:
         RecordsError: too few trials, or records that cannot be fitted.
@@ -200,15 +252,17 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     train, heldout = split(data)
     arm = fit_arm(train, base_arm, band_mm)
     distances, _ = timed_moves(train)
-    delay = (emulator_delay_s(arm.values, distances, band_mm, tick_s)
-             if math.isfinite(arm.rms_s) else base_arm["start_delay_s"])
-    first = fit_sensor(records, train, None, calibration_noise_n)
+    delay = base_arm["start_delay_s"]
+    if math.isfinite(arm.sigmas["start_delay_s"]):
+        delay = emulator_delay_s(arm.values, distances, band_mm, tick_s)
+    first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
     start = initial_sponge(train, base_sponge, reading)
-    fits = [fit_member(m, train, heldout, start, arm.values, reading, first.noise_n)
-            for m in members]
+    fits = [fit_member(m, train, heldout, start, base_sponge, arm.values, reading,
+                       first.noise_n) for m in members]
     chosen = min(fits, key=lambda f: f.bic)
     train_pred = predict_means(train, chosen.values, arm.values, reading)
-    sensor = fit_sensor(records, train, train_pred - train.mean_n, calibration_noise_n)
+    sensor = fit_sensor(records, train, train_pred - train.mean_n, calibration_noise_n,
+                        configured_phi)
     held_pred = predict_means(heldout, chosen.values, arm.values, reading)
     noise = sensor.noise_n if math.isfinite(sensor.noise_n) else 0.0
     threshold = max(REPRESENTED_FACTOR * noise, REPRESENTED_FLOOR_N)

@@ -119,14 +119,18 @@ class MotionShape:
 def motion_shape(data: RecordArrays, arm: dict[str, float]) -> MotionShape:
     """The tool's path in time over each recorded move, from the arm's model.
 
-    The reference runs the trapezoidal profile over the commanded distance from
-    the start delay on; the tool follows it through the first-order lag; the
-    move ends at its recorded in-position time (the share is scaled to reach 1).
+    The move ends at its recorded in-position time and began the arm model's
+    motion time before it (never before the command): the recorded start also
+    holds the link's time to send the command, which the motion does not. The
+    reference runs the trapezoidal profile over the commanded distance; the tool
+    follows it through the first-order lag (the share is scaled to reach 1).
     """
     k = PATH_POINTS
-    begin = data.start_s + arm["start_delay_s"]
-    total = np.maximum(np.nan_to_num(data.in_position_s - begin), 1e-4)
     distance = np.nan_to_num(data.move_mm)
+    motion_s = predict_in_position_s(distance, {**arm, "start_delay_s": 0.0},
+                                     arm.get("in_position_mm", 0.1))
+    begin = np.maximum(data.in_position_s - motion_s, data.start_s)
+    total = np.maximum(np.nan_to_num(data.in_position_s - begin), 1e-4)
     speed, accel, lag = arm["default_speed_mm_s"], arm["accel_mm_s2"], arm["lag_s"]
     cruise = distance >= speed * speed / accel
     t_acc = np.where(cruise, speed / accel, np.sqrt(distance / accel))
@@ -254,13 +258,13 @@ def _lag_error_mm(distance: np.ndarray, speed: float, accel: float, lag: float,
     total = 2 * t_acc + t_cruise
     if lag <= 0:
         return total, np.zeros_like(distance)
-    u = np.linspace(0.0, 1.0, points)[None, :]
-    s = u * total[:, None]
-    peak = accel * t_acc[:, None]
+    u = np.linspace(0.0, 1.0, points)
+    s = u * total[..., None]
+    peak = accel * t_acc[..., None]
     velocity = np.minimum(np.minimum(accel * s, peak),
-                          np.maximum(0.0, accel * (total[:, None] - s)))
-    kernel = np.exp(-(total[:, None] - s) / lag)
-    error = np.trapezoid(velocity * kernel, s, axis=1)
+                          np.maximum(0.0, accel * (total[..., None] - s)))
+    kernel = np.exp(-(total[..., None] - s) / lag)
+    error = np.trapezoid(velocity * kernel, s, axis=-1)
     return total, error
 
 

@@ -32,8 +32,8 @@ _SENSOR_KEEP = {"jr3": ("mode", "cutoff_hz", "period_us", "full_scales"),
 
 
 def _row(param: Parameter, value: float, sigma: float, trials: int,
-         passes: float) -> dict[str, Any]:
-    determined = param.determined(value, sigma)
+         passes: float, held: bool = False) -> dict[str, Any]:
+    determined = param.determined(value, sigma) and not held
     row: dict[str, Any] = {
         "name": param.name, "table": param.table, "unit": param.unit, "value": value,
         "sigma": sigma if math.isfinite(sigma) else None, "determined": determined,
@@ -56,10 +56,15 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
     """Every parameter of the twin, fitted or held, with its verdict."""
     trials = fit.train_trials
     passes = float(np.nanmax(np.where(fit.train.valid, fit.train.passes, np.nan)))
-    rows = [
-        _row(BY_NAME[name], fit.chosen.values[name], fit.chosen.sigmas[name], trials, passes)
-        for name in fit.chosen.member.free
-    ]
+    rows = []
+    for name in fit.chosen.sigmas:
+        held = name in fit.chosen.held
+        row = _row(BY_NAME[name], fit.chosen.values[name], fit.chosen.sigmas[name], trials,
+                   passes, held)
+        if held:
+            row["note"] = ("held at the base config's value; the uncertainty is the fit's "
+                           "when it was free" + ("; " + row["note"] if "note" in row else ""))
+        rows.append(row)
     for param in ARM:
         value = fit.arm.values[param.name]
         if param.name == "start_delay_s":
@@ -97,6 +102,7 @@ def twin_document(fit: TwinFit, source: RunSource) -> dict[str, Any]:
         "member": fit.chosen.member.name,
         "members": [
             {"name": m.member.name, "text": m.member.text, "free": m.free,
+             "held": list(m.held),
              "train_rms_n": m.train_rms_n, "heldout_rms_n": m.heldout_rms_n, "bic": m.bic}
             for m in fit.members
         ],
@@ -112,7 +118,9 @@ def twin_document(fit: TwinFit, source: RunSource) -> dict[str, Any]:
 
 
 def _fmt(value: float | None) -> str:
-    if value is None or not math.isfinite(value):
+    if value is None or math.isnan(value):
+        return "—"
+    if math.isinf(value):
         return "∞"
     return f"{value:.4g}"
 

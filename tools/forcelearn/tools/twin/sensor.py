@@ -47,8 +47,14 @@ def _mean_share(phi: float, n: float) -> float:
 
 
 def fit_sensor(records: list[TrialRecords], data: RecordArrays,
-               residuals: np.ndarray | None, calibration_noise_n: float | None) -> SensorFit:
-    """Estimate the sensor's noise, colour and drift; ``residuals`` are the fit's (T, M)."""
+               residuals: np.ndarray | None, calibration_noise_n: float | None,
+               configured_phi: float | None = None) -> SensorFit:
+    """Estimate the sensor's noise, colour and drift; ``residuals`` are the fit's (T, M).
+
+    The within-burst correction uses ``configured_phi`` (the colour the run's sensor
+    settings give) when known, else none (white noise: the noise then reads low by
+    the share of its variance the burst mean holds).
+    """
     many = data.has_burst & (data.count > 1)
     counts = data.count[many]
     var_in_burst = float(np.mean(data.std_n[many] ** 2)) if many.any() else math.nan
@@ -59,9 +65,10 @@ def fit_sensor(records: list[TrialRecords], data: RecordArrays,
         ratio = float(np.mean(residuals[use] ** 2) / expected) if expected > 0 else math.nan
         if math.isfinite(ratio):
             phi = min(0.999, max(0.0, (ratio - 1) / (ratio + 1)))
-    gain = _colour_gain(phi) if math.isfinite(phi) else 1.0
     n_mean = float(np.mean(counts)) if counts.size else 1.0
-    shrink = max(0.05, 1 - _mean_share(phi if math.isfinite(phi) else 0.0, n_mean))
+    colour = configured_phi if configured_phi is not None else 0.0
+    gain = _colour_gain(colour)
+    shrink = max(0.05, 1 - _mean_share(colour, n_mean))
     noise = math.sqrt(var_in_burst / shrink) if math.isfinite(var_in_burst) else math.nan
     effective = float(np.sum(counts - 1)) / max(gain, 1.0) if counts.size else 0.0
     noise_sigma = noise / math.sqrt(2 * effective) if effective > 0 else math.inf
