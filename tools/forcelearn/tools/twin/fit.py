@@ -1,7 +1,7 @@
 """Fit the twin: the arm from the moves' timing, the sponge from the bursts, the sensor's noise.
 
 The last ``HOLD_OUT`` of the trials are held out: every member of the family
-(:data:`~forcelearn.tools.twin.params.MEMBERS`) is fitted on the others by
+(:func:`~forcelearn.tools.twin.params.family`) is fitted on the others by
 :func:`scipy.optimize.least_squares` and judged by its residuals on the held-out
 trials with the BIC's penalty for its parameter count. The chosen member
 represents the cell when its held-out RMS on the control steps is at most
@@ -21,7 +21,7 @@ from forcelearn.records import TrialRecords
 from forcelearn.tools.twin.arm import ArmFit, emulator_delay_s, fit_arm, timed_moves
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, to_arrays
 from forcelearn.tools.twin.forward import Reading, motion_shape, predict_means
-from forcelearn.tools.twin.params import BY_NAME, MEMBERS, Member
+from forcelearn.tools.twin.params import BY_NAME, Member, family
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.uncertainty import sigmas
 
@@ -235,7 +235,7 @@ def _diagnose(train: RecordArrays, predicted: np.ndarray, values: dict[str, floa
 def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
              base_arm: dict[str, float], reading: Reading, band_mm: float, tick_s: float,
              calibration_noise_n: float | None = None,
-             members: tuple[Member, ...] = MEMBERS,
+             members: tuple[Member, ...] | None = None,
              configured_phi: float | None = None) -> TwinFit:
     """Fit every part of the twin to a run's records (trials in order).
 
@@ -258,7 +258,7 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
     start = initial_sponge(train, base_sponge, reading)
     fits = [fit_member(m, train, heldout, start, base_sponge, arm.values, reading,
-                       first.noise_n) for m in members]
+                       first.noise_n) for m in (members or family())]
     chosen = min(fits, key=lambda f: f.bic)
     train_pred = predict_means(train, chosen.values, arm.values, reading)
     sensor = fit_sensor(records, train, train_pred - train.mean_n, calibration_noise_n,

@@ -85,12 +85,27 @@ def depth_mm(p: dict[str, float], passes: np.ndarray, y_mm: np.ndarray,
     return np.where(inside, np.maximum(0.0, surface_y_mm(p, passes, z_mm) - y_mm), 0.0)
 
 
+def elastic_mm(p: dict[str, float], foam_mm: np.ndarray) -> np.ndarray:
+    """The foam's elastic depth u (mm): ``d_f (d_f / d_ref) ** (n - 1)``; ``d_f`` at n = 1.
+
+    ``n`` is ``stiffening_exponent`` and ``d_ref`` ``stiffening_reference_mm`` of the
+    nonlinear foam (absent from an emulator without them: the linear foam).
+    """
+    exponent = p.get("stiffening_exponent", 1.0)
+    if exponent == 1.0:
+        return foam_mm
+    reference = p.get("stiffening_reference_mm", 10.0)
+    result: np.ndarray = foam_mm * (np.maximum(foam_mm, 0.0) / reference) ** (exponent - 1.0)
+    return result
+
+
 def normal_force_n(p: dict[str, float], passes: np.ndarray, y_mm: np.ndarray,
                    z_mm: np.ndarray, relaxing_mm: np.ndarray | float,
                    reading: Reading) -> np.ndarray:
     """The recorded normal force (N) of tool points with relaxing part ``relaxing_mm``."""
     depth = depth_mm(p, passes, y_mm, z_mm)
-    foam = np.maximum(0.0, np.minimum(depth, p["thickness_mm"]) + p["relaxation_ratio"]
+    foam = np.maximum(0.0, elastic_mm(p, np.minimum(depth, p["thickness_mm"]))
+                      + p["relaxation_ratio"]
                       * relaxing_mm)
     normal = stiffness_n_per_mm(p, passes, z_mm) * foam
     normal = normal + p["backing_n_per_mm"] * np.maximum(0.0, depth - p["thickness_mm"])
@@ -155,8 +170,8 @@ def motion_shape(data: RecordArrays, arm: dict[str, float]) -> MotionShape:
     return MotionShape(np.clip(shares, 0.0, 1.0), total[..., None] - middles)
 
 
-def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, thick: float,
-                       tau: float, shape: MotionShape) -> np.ndarray:
+def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, p: dict[str, float],
+                       shape: MotionShape) -> np.ndarray:
     """The relaxing part q (mm) averaged over each burst, (T, M).
 
     Over each move the signed depth (surface minus tool Y) goes from the previous
@@ -166,10 +181,11 @@ def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, thick: floa
     tick. Between moves q decays; it is 0 once the tool is out of the foam; trials
     start relaxed (the tool comes from free space).
     """
+    thick, tau = p["thickness_mm"], p["relaxation_time_s"]
     previous = np.concatenate([depth_signed[:, :1], depth_signed[:, :-1]], axis=1)
     path = previous[..., None] + shape.share * (depth_signed - previous)[..., None]
-    foam_path = np.clip(path, 0.0, thick)
-    start = np.clip(previous, 0.0, thick)[..., None]
+    foam_path = elastic_mm(p, np.clip(path, 0.0, thick))
+    start = elastic_mm(p, np.clip(previous, 0.0, thick))[..., None]
     changes = np.diff(np.concatenate([start, foam_path], axis=2), axis=2)
     pushed = np.sum(changes * np.exp(-shape.before_end_s / tau), axis=2)
     foam = foam_path[..., -1]
@@ -205,8 +221,8 @@ def _settling_push_mm(p: dict[str, float], passes: np.ndarray, y: np.ndarray, z:
     ``change * tau / (tau - lag) * (exp(-t / tau) - exp(-t / lag))``.
     """
     thick, tau = p["thickness_mm"], p["relaxation_time_s"]
-    change = (np.minimum(depth_mm(p, passes, yb, zb), thick)
-              - np.minimum(depth_mm(p, passes, y, z), thick))
+    change = (elastic_mm(p, np.minimum(depth_mm(p, passes, yb, zb), thick))
+              - elastic_mm(p, np.minimum(depth_mm(p, passes, y, z), thick)))
     if abs(tau - lag_s) < 1e-9:
         response = since_s / lag_s * np.exp(-since_s / lag_s)
     else:
@@ -230,8 +246,7 @@ def predict_means(data: RecordArrays, p: dict[str, float], arm: dict[str, float]
         inside = (z >= p["z_bottom_mm"]) & (z <= p["z_top_mm"])
         signed = np.where(inside, surface_y_mm(p, passes, z) - y, -1.0)
         shape = shape if shape is not None else motion_shape(data, arm)
-        relaxing = relaxing_at_bursts(data, signed, p["thickness_mm"],
-                                      p["relaxation_time_s"], shape)
+        relaxing = relaxing_at_bursts(data, signed, p, shape)
     else:
         relaxing = np.zeros_like(y)
     burst = data.has_burst
