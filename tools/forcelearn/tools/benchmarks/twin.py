@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"records: {len(records)} trials, {moves} moves "
           f"({time.perf_counter() - made:.1f} s to make or read, not timed)")
     wall, cpu = time.perf_counter(), time.process_time()
-    fit = fit_twin(records, base_sponge(config), base_arm(config), reading_of(config),
+    fit = fit_twin(records, base_sponge(config), base_arm(), reading_of(config),
                    config.emulator.arm.in_position_mm, config.emulator.arm.tick_s,
                    configured_phi=configured_colour(config, records))
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu

@@ -28,6 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Fit, report, and write the twin if the records are represented."""
     from forcelearn.calibration.file_format import load_calibration
+    from forcelearn.emulators.robot_controller.kinematics import ArmConfig
     from forcelearn.tools.twin.fit import fit_twin
     from forcelearn.tools.twin.report import write_report
     from forcelearn.tools.twin.setup import base_arm, base_sponge, configured_colour, reading_of
@@ -38,8 +39,9 @@ def run(args: argparse.Namespace) -> int:
     noise = None
     if args.calibration is not None:
         noise = float(load_calibration(args.calibration).noise.std[config.filter.axis])
-    fit = fit_twin(source.records, base_sponge(config), base_arm(config), reading_of(config),
-                   config.emulator.arm.in_position_mm, config.emulator.arm.tick_s, noise,
+    arm = ArmConfig()  # the controller's defaults: the run's [emulator.arm] never reaches it
+    fit = fit_twin(source.records, base_sponge(config), base_arm(), reading_of(config),
+                   arm.in_position_mm, arm.tick_s, noise,
                    configured_phi=configured_colour(config, source.records))
     document = write_report(fit, source, args.out)
     folder = args.out.parent

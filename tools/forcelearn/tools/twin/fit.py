@@ -62,6 +62,8 @@ class TwinFit:
     members: list[MemberFit]
     arm: ArmFit
     arm_emulator_delay_s: float
+    """The fitted command-to-motion delay as the emulator's arm needs it, s."""
+    base_start_delay_s: float
     sensor: SensorFit
     train: RecordArrays
     heldout: RecordArrays
@@ -141,6 +143,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     held_sigmas: dict[str, float] = {}
     weights = _weights(train, noise_n)
     use = train.has_burst
+    groups = np.broadcast_to(train.trial[:, None], use.shape)[use]
     shape = motion_shape(train, arm)
     spread: dict[str, float] = {}
     cost = math.inf
@@ -169,7 +172,8 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
             break
         cost = float(result.cost)
         values.update(zip(names, result.x.tolist(), strict=True))
-        spread = dict(zip(names, sigmas(result.jac, result.fun).tolist(), strict=True))
+        spread = dict(zip(names, sigmas(result.jac, result.fun, groups).tolist(),
+                          strict=True))
         loose = [n for n in names if not BY_NAME[n].determined(values[n], spread[n])]
         if not loose:
             break
@@ -278,5 +282,6 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
                   f"({REPRESENTED_FACTOR:g} x the sensor's noise of {noise:.3f} N)")
         if diagnostics:
             reason += "; " + "; ".join(diagnostics)
-    return TwinFit(chosen.values, chosen, fits, arm, delay, sensor, train, heldout, held_pred,
+    return TwinFit(chosen.values, chosen, fits, arm, delay, base_arm["start_delay_s"], sensor,
+                   train, heldout, held_pred,
                    threshold, represented, reason, diagnostics)

@@ -95,7 +95,9 @@ def elastic_mm(p: dict[str, float], foam_mm: np.ndarray) -> np.ndarray:
     if exponent == 1.0:
         return foam_mm
     reference = p.get("stiffening_reference_mm", 10.0)
-    result: np.ndarray = foam_mm * (np.maximum(foam_mm, 0.0) / reference) ** (exponent - 1.0)
+    positive = np.maximum(foam_mm, 1e-12)
+    result: np.ndarray = np.where(foam_mm > 0.0,
+                                  positive * (positive / reference) ** (exponent - 1.0), 0.0)
     return result
 
 

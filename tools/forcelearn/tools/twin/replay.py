@@ -13,7 +13,7 @@ from forcelearn.records import TrialRecords
 from forcelearn.site.config import CellConfig
 from forcelearn.tools.twin.arrays import RecordArrays, to_arrays
 from forcelearn.tools.twin.forward import predict_means
-from forcelearn.tools.twin.setup import base_arm, base_sponge, reading_of
+from forcelearn.tools.twin.setup import base_arm, reading_of, sponge_of
 
 
 @dataclass(frozen=True)
@@ -31,7 +31,7 @@ def replay(records: list[TrialRecords], twin: CellConfig) -> Replay:
     """Predict every burst of ``records`` with the twin's sponge and arm."""
     data = to_arrays(sorted(records, key=lambda t: t.trial))
     arm = base_arm(twin)
-    predicted = predict_means(data, base_sponge(twin), arm, reading_of(twin))
+    predicted = predict_means(data, sponge_of(twin), arm, reading_of(twin))
     use = data.is_step & data.has_burst
     residual = np.where(use, predicted - data.mean_n, np.nan)
     rms = [float(np.sqrt(np.nanmean(r**2))) if np.isfinite(r).any() else math.nan

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import tomli_w
 
+from forcelearn.site.config import EmulatorConfig
 from forcelearn.tools.twin.fit import HOLD_OUT, TwinFit
 from forcelearn.tools.twin.params import ARM, BY_NAME, SENSOR, Parameter
 from forcelearn.tools.twin.source import RunSource
@@ -72,6 +73,9 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
         row = _row(param, value, fit.arm.sigmas[param.name], trials, passes)
         if not row["determined"]:
             row["note"] = "not determined by the moves' timing: the base config's value is kept"
+        elif param.name == "start_delay_s":
+            row["note"] = ("command to motion, including the link's time to send the command: "
+                           "twin.toml keeps the base delay (its emulated link adds its own)")
         rows.append(row)
     sensor = fit.sensor
     rows.append(_row(SENSOR[0], sensor.noise_n, sensor.noise_sigma_n, trials, passes))
@@ -185,16 +189,15 @@ def twin_config(fit: TwinFit, source: RunSource) -> dict[str, Any]:
     raw.pop("calibration", None)  # the site's calibration file is of the real sensor
     safety = dict(raw.get("safety", {}))
     safety.pop("stale_sensor_s", None)  # the emulated sensor's watchdog default applies
-    emulator = dict(raw.get("emulator", {}))
-    emulator.update(time_scale=0.0, profile="realistic")
+    # A new [emulator]: the run's own (an emulated run's hidden truth) is not carried over.
+    emulator: dict[str, Any] = {"time_scale": 0.0, "profile": "realistic"}
     emulator["sponge"] = {k: float(v) for k, v in fit.sponge.items()}
-    arm = dict(emulator.get("arm", {}))
-    for param in ARM:
-        value = fit.arm.values[param.name]
-        arm[param.name] = fit.arm_emulator_delay_s if param.name == "start_delay_s" else value
+    arm = {p.name: fit.arm.values[p.name] for p in ARM}
+    arm["start_delay_s"] = fit.base_start_delay_s  # the twin's emulated link adds its own time
     emulator["arm"] = arm
-    base_sensor = config.emulator.sensor if sensor_kind == "jr3" else config.emulator.netft
-    sensor_model = dict(emulator.get("sensor", {}))
+    defaults = EmulatorConfig()
+    base_sensor = defaults.sensor if sensor_kind == "jr3" else defaults.netft
+    sensor_model: dict[str, Any] = {}
     noise = list(base_sensor.noise_std)
     if math.isfinite(fit.sensor.noise_n):
         noise[:3] = [fit.sensor.noise_n] * 3
