@@ -25,6 +25,10 @@ from forcelearn.tools.twin.uncertainty import sigmas
 
 MIN_MOVES = 8
 """Fewer timed moves than this: the arm keeps the base config's values."""
+RMS_LIMIT_S = 0.008
+"""The timing model must explain the moves to within this RMS (two 4 ms interpolation
+ticks) for any arm parameter to count as determined: above it the recorded times hold
+what the model lacks (a link's polling, a controller's queue), which would bias them."""
 
 
 @dataclass(frozen=True)
@@ -35,6 +39,8 @@ class ArmFit:
     sigmas: dict[str, float]
     rms_s: float
     moves: int
+    note: str = ""
+    """Why the arm's parameters are not determined, when none is."""
 
 
 def timed_moves(data: RecordArrays) -> tuple[np.ndarray, np.ndarray]:
@@ -79,6 +85,14 @@ def fit_arm(data: RecordArrays, base: dict[str, float], band_mm: float) -> ArmFi
         free = [n for n in free if n not in loose]
         if not loose or not free:
             break
+    if rms > RMS_LIMIT_S:
+        return ArmFit(
+            {n: base[n] for n in names}, {n: math.inf for n in names}, rms,
+            int(distance.size),
+            f"the timing model leaves {rms * 1000:.0f} ms RMS (more than "
+            f"{RMS_LIMIT_S * 1000:.0f} ms): the recorded times hold what it lacks (the link's "
+            "polling), so no arm parameter is taken from them; the base values are kept",
+        )
     return ArmFit(values, spread, rms, int(distance.size))
 
 

@@ -72,7 +72,8 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
             value = fit.arm_emulator_delay_s
         row = _row(param, value, fit.arm.sigmas[param.name], trials, passes)
         if not row["determined"]:
-            row["note"] = "not determined by the moves' timing: the base config's value is kept"
+            row["note"] = fit.arm.note or (
+                "not determined by the moves' timing: the base config's value is kept")
         elif param.name == "start_delay_s":
             row["note"] = ("command to motion, including the link's time to send the command: "
                            "twin.toml keeps the base delay (its emulated link adds its own)")
