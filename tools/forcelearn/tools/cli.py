@@ -38,6 +38,14 @@ COMMANDS: dict[str, tuple[str, str]] = {
     ),
     "check": ("forcelearn.tools.commands.check", "check a cell's devices without moving the robot"),
     "emulate": ("forcelearn.tools.commands.emulate", "serve the emulated cell on two ptys (slcan)"),
+    "twin": (
+        "forcelearn.tools.commands.twin",
+        "fit the emulated cell to a run's records (a twin of your cell)",
+    ),
+    "replay": (
+        "forcelearn.tools.commands.replay",
+        "drive a twin open-loop with a run's recorded commands; recorded vs predicted force",
+    ),
     "view": (
         "forcelearn.tools.commands.view",
         "serve the read-only live page of a run directory (finished or in progress)",

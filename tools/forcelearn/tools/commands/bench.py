@@ -24,6 +24,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "netft": (_PACKAGE + "netft", "Net F/T records/s and p99 latency, loopback UDP"),
     "cell": (_PACKAGE + "cell", "§5 run on the emulated cell: cell time / wall time"),
     "live": (_PACKAGE + "live", "§5 run with --live and a browser vs without"),
+    "twin": (_PACKAGE + "twin", "forcelearn twin's fit wall time on a 300-trial run's records"),
     "baselines": (
         _PACKAGE + "baselines",
         "baselines study: CPU and wall ms per step of each method on the emulated cell",

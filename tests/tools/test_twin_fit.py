@@ -1,0 +1,141 @@
+"""The twin's fit (issue 29 items 2 and 4): its model, recovery, stability and verdict."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.physics.sponge import Sponge, SpongeParams, contact_force_n
+from forcelearn.emulators.physics.sponge import surface_y_mm as emulator_surface_y_mm
+from forcelearn.records import BurstRecord, MoveRecord, StepRecord, TrialRecords
+from forcelearn.tools.twin import forward
+from forcelearn.tools.twin.arrays import RecordsError, to_arrays
+from forcelearn.tools.twin.fit import TwinFit, fit_twin
+from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
+
+READING = forward.Reading.of(DOWN, 1, -1.0)
+BASE_ARM = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
+            "lag_s": 0.03}
+TRUTH = SpongeParams(
+    surface_y_mm=0.6, surface_slope=0.02, waviness_mm=0.7, stiffness_n_per_mm=3.2,
+    stiffness_variation=0.1, softening=0.3, softening_passes=25.0, set_mm=1.5, set_passes=20.0,
+    relaxation_ratio=0.4, relaxation_time_s=0.3,
+)
+
+
+def _base() -> dict[str, float]:
+    return {k: float(v) for k, v in dataclasses.asdict(SpongeParams()).items()}
+
+
+RUN = SimulatedRun()
+COLOUR = math.exp(-2 * math.pi * RUN.cutoff_hz * RUN.sample_period_s)
+"""The adapter low-pass's AR(1) coefficient per sample of the simulated bursts."""
+
+
+def _fit(records: list[TrialRecords]) -> TwinFit:
+    return fit_twin(records, _base(), BASE_ARM, READING, 0.1, 0.004, configured_phi=COLOUR)
+
+
+@pytest.fixture(scope="module")
+def noiseless() -> TwinFit:
+    """The fit of a noiseless cell whose sponge is not the default one."""
+    return _fit(simulate_run(SimulatedRun(trials=25, sponge=TRUTH), seed=3))
+
+
+def test_forward_model_is_the_emulated_sponge() -> None:
+    """The vectorised law equals the emulator's sponge point by point (also with wear)."""
+    rng = np.random.default_rng(0)
+    p = dataclasses.asdict(TRUTH)
+    z = rng.uniform(-130, 25, 400)
+    y = rng.uniform(-20, 5, 400)
+    passes = rng.integers(0, 200, 400).astype(float)
+    q = rng.uniform(0, 2, 400)
+    ours = forward.normal_force_n(p, passes, y, z, q, READING)
+    theirs = [contact_force_n(TRUTH, n, np.array([900.0, yy, zz]), qq)[1]
+              for n, yy, zz, qq in zip(passes, y, z, q, strict=True)]
+    assert np.allclose(ours, theirs, atol=1e-9)
+    surface = [emulator_surface_y_mm(TRUTH, n, zz) for n, zz in zip(passes, z, strict=True)]
+    assert np.allclose(forward.surface_y_mm(p, passes, z), surface, atol=1e-12)
+
+
+def test_fit_recovers_a_noiseless_cell(noiseless: TwinFit) -> None:
+    """Every determined sponge parameter within 3 % (or its absolute bound x 3) of the truth."""
+    fit = noiseless
+    assert fit.represented
+    assert fit.chosen.member.name == "linear"
+    values, truth = fit.chosen.values, dataclasses.asdict(TRUTH)
+    assert values["stiffness_n_per_mm"] == pytest.approx(truth["stiffness_n_per_mm"], rel=0.02)
+    assert values["surface_y_mm"] == pytest.approx(truth["surface_y_mm"], abs=0.15)
+    assert values["surface_slope"] == pytest.approx(truth["surface_slope"], abs=0.002)
+    assert values["waviness_mm"] == pytest.approx(truth["waviness_mm"], rel=0.03)
+    assert values["relaxation_ratio"] == pytest.approx(truth["relaxation_ratio"], rel=0.08)
+    assert values["relaxation_time_s"] == pytest.approx(truth["relaxation_time_s"], rel=0.08)
+    assert values["set_mm"] == pytest.approx(truth["set_mm"], rel=0.1)
+    assert values["softening"] == pytest.approx(truth["softening"], rel=0.1)
+    assert fit.chosen.heldout_rms_n < 0.05
+    assert fit.arm_emulator_delay_s == pytest.approx(0.05, abs=0.006)
+    assert fit.arm.values["accel_mm_s2"] == pytest.approx(1000.0, rel=0.1)
+
+
+def test_a_twin_of_a_twin_is_stable(noiseless: TwinFit) -> None:
+    """Emulate the fitted cell with the same commands' rule, refit: the same parameters."""
+    fields = {f.name for f in dataclasses.fields(SpongeParams)}
+    twin = SpongeParams(**{k: v for k, v in noiseless.sponge.items() if k in fields})
+    again = _fit(simulate_run(SimulatedRun(trials=25, sponge=twin), seed=3))
+    for name in ("stiffness_n_per_mm", "surface_y_mm", "relaxation_ratio", "set_mm",
+                 "softening", "waviness_mm", "stiffness_variation"):
+        first, second = noiseless.chosen.values[name], again.chosen.values[name]
+        assert second == pytest.approx(first, rel=0.03, abs=0.02), name
+
+
+class _SaturatingFoam(Sponge):
+    """A foam whose force saturates with depth: outside the twin's family."""
+
+    def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
+        depth = self._penetration_mm(position_mm)
+        return np.array([0.0, 30.0 * math.tanh(depth / 6.0), 0.0])
+
+
+def test_records_the_family_cannot_explain_are_not_represented() -> None:
+    """A saturating force law: the verdict says so and the bar is missed."""
+    noisy = SensorModelParams(noise_std=(0.05,) * 6, initial_bias=(0.0,) * 6,
+                              bias_drift_per_sqrt_s=(0.0,) * 6)
+    run = SimulatedRun(trials=20, sensor=noisy, exploration_mm=2.0)
+    fit = _fit(simulate_run(run, seed=1, sponge=_SaturatingFoam(run.sponge)))
+    assert not fit.represented
+    assert fit.chosen.heldout_rms_n > fit.threshold_n
+    assert "above" in fit.reason
+
+
+def test_the_noise_is_measured_from_the_bursts() -> None:
+    """0.3 N of coloured adapter noise is measured within 10 %."""
+    noisy = SensorModelParams(noise_std=(0.3,) * 6, initial_bias=(0.0,) * 6,
+                              bias_drift_per_sqrt_s=(0.0,) * 6)
+    fit = _fit(simulate_run(SimulatedRun(trials=10, sponge=TRUTH, sensor=noisy), seed=2))
+    assert fit.sensor.noise_n == pytest.approx(0.3, rel=0.1)
+    assert fit.represented
+
+
+def _record(mean: float) -> StepRecord:
+    move = MoveRecord((900.0, -5.0, -5.0), (900.0, -5.0, -5.0), 1.0, 1.2, 1.25)
+    return StepRecord(1, 1, "step", move, BurstRecord(mean, 0.1, mean, mean, 40, 1.25, 0.005,
+                                                       mean))
+
+
+def test_a_damaged_record_is_a_typed_error() -> None:
+    """A NaN in a record, or no trial at all: RecordsError that says what to do."""
+    with pytest.raises(RecordsError, match="damaged"):
+        to_arrays([TrialRecords(1, [_record(float("nan"))])])
+    with pytest.raises(RecordsError, match="nothing to fit"):
+        to_arrays([])
+
+
+def test_too_few_trials_say_how_many_are_needed() -> None:
+    """Fewer than five trials: the error names the least count."""
+    records = [TrialRecords(i, [_record(5.0)]) for i in range(1, 4)]
+    with pytest.raises(RecordsError, match="at least 5"):
+        _fit(records)

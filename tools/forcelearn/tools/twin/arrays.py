@@ -1,0 +1,171 @@
+"""A run's records as padded arrays, one row per trial, for the twin's vectorised model.
+
+Every trial's moves become one row (padded to the longest trial, ``valid``
+marks the real entries), so the forward model advances all trials together
+move by move. The pass count before each move is taken from the records
+themselves (:func:`passes_before`), not from a model, so the fit is smooth.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from forcelearn.errors import ForcelearnError
+from forcelearn.records import TrialRecords
+
+CONTACT_FLOOR_N = 0.5
+"""A burst reads contact above this (N) and above ``CONTACT_SIGMAS`` of its own noise."""
+CONTACT_SIGMAS = 5.0
+
+
+class RecordsError(ForcelearnError):
+    """The records cannot be fitted (too few, or none with a force read)."""
+
+
+@dataclass(frozen=True)
+class RecordArrays:
+    """The records of a run's trials as (trials, moves) arrays; mm, s, N."""
+
+    trial: np.ndarray
+    """(T,) trial numbers."""
+    valid: np.ndarray
+    """(T, M) True where a move was recorded."""
+    is_step: np.ndarray
+    """(T, M) True for a learner's control step."""
+    has_burst: np.ndarray
+    """(T, M) True where a burst was read after the move."""
+    commanded: np.ndarray
+    """(T, M, 3) commanded (x, y, z), mm."""
+    reached: np.ndarray
+    """(T, M, 3) reached (x, y, z), mm (the commanded pose where the robot reported none)."""
+    start_s: np.ndarray
+    in_position_s: np.ndarray
+    burst_start_s: np.ndarray
+    burst_span_s: np.ndarray
+    mean_n: np.ndarray
+    std_n: np.ndarray
+    count: np.ndarray
+    passes: np.ndarray
+    """(T, M) passes of the sponge completed before the move (counted from the records)."""
+    move_mm: np.ndarray
+    """(T, M) straight distance from the previous commanded target, mm (NaN for the first)."""
+
+    @property
+    def trials(self) -> int:
+        """Number of trials."""
+        return int(self.trial.size)
+
+    def rows(self, index: np.ndarray) -> RecordArrays:
+        """The same arrays restricted to trial rows ``index``."""
+        fields = {name: getattr(self, name)[index] for name in self.__dataclass_fields__}
+        return RecordArrays(**fields)
+
+
+def noise_floor_n(records: list[TrialRecords]) -> float:
+    """Pooled per-sample std of the bursts, N (0 when no burst has two samples)."""
+    stds = [s.burst.std_n for t in records for s in t.steps
+            if s.burst is not None and s.burst.count > 1 and math.isfinite(s.burst.std_n)]
+    return float(np.sqrt(np.mean(np.square(stds)))) if stds else 0.0
+
+
+def passes_before(records: list[TrialRecords], noise_n: float) -> list[list[int]]:
+    """Passes completed before each move, by the rule the sponge counts them.
+
+    The sponge counts a pass when the tool, having touched it, leaves it. Seen
+    from the records: contact is a burst reading more than ``CONTACT_FLOOR_N``
+    and ``CONTACT_SIGMAS`` of its noise; it ends at the next retreat move or at
+    the next burst that reads free space.
+    """
+    passes, touched, out = 0, False, []
+    for trial in records:
+        row = []
+        for step in trial.steps:
+            row.append(passes)
+            burst = step.burst
+            if burst is not None:
+                floor = max(CONTACT_FLOOR_N, CONTACT_SIGMAS * noise_n / math.sqrt(burst.count))
+                if burst.mean_n > floor:
+                    touched = True
+                    continue
+                if abs(burst.mean_n) <= floor and touched:
+                    passes, touched = passes + 1, False
+                    continue
+            if step.kind == "retreat" and touched:
+                passes, touched = passes + 1, False
+        out.append(row)
+    return out
+
+
+def _check(value: float, what: str, trial: int) -> float:
+    if not math.isfinite(value):
+        raise RecordsError(
+            f"trial {trial}: {what} is {value!r}, not a number; the record file is damaged "
+            "(re-run the trials, or leave this run directory out of the fit)"
+        )
+    return value
+
+
+def to_arrays(records: list[TrialRecords]) -> RecordArrays:
+    """Pad the trials' moves into (trials, moves) arrays.
+
+    Raises:
+        RecordsError: no trial, or a record holds a value that is not a finite number.
+    """
+    records = [t for t in records if t.steps]
+    if not records:
+        raise RecordsError("the records hold no trial with a move: nothing to fit")
+    noise = noise_floor_n(records)
+    passes = passes_before(records, noise)
+    t_count, m_count = len(records), max(len(t.steps) for t in records)
+    shape = (t_count, m_count)
+    nan = np.full(shape, np.nan)
+    a = {
+        "valid": np.zeros(shape, bool), "is_step": np.zeros(shape, bool),
+        "has_burst": np.zeros(shape, bool), "commanded": np.full((*shape, 3), np.nan),
+        "reached": np.full((*shape, 3), np.nan), "start_s": nan.copy(),
+        "in_position_s": nan.copy(), "burst_start_s": nan.copy(), "burst_span_s": nan.copy(),
+        "mean_n": nan.copy(), "std_n": nan.copy(), "count": np.zeros(shape),
+        "passes": np.zeros(shape), "move_mm": nan.copy(),
+    }
+    for i, trial in enumerate(records):
+        previous: tuple[float, ...] | None = None
+        for j, step in enumerate(trial.steps):
+            move = step.move
+            for value, what in ((move.start_s, "a move's start"),
+                                (move.in_position_s, "a move's in-position time"),
+                                *((v, "a commanded pose") for v in move.commanded_mm)):
+                _check(value, what, trial.trial)
+            reached = move.reached_mm
+            if not all(math.isfinite(v) for v in reached):
+                reached = move.commanded_mm  # not reported: in position, within the band
+            a["valid"][i, j] = True
+            a["is_step"][i, j] = step.kind == "step"
+            a["commanded"][i, j] = move.commanded_mm
+            a["reached"][i, j] = reached
+            a["start_s"][i, j] = move.start_s
+            a["in_position_s"][i, j] = move.in_position_s
+            a["passes"][i, j] = passes[i][j]
+            if previous is not None:
+                a["move_mm"][i, j] = math.dist(previous, move.commanded_mm)
+            previous = move.commanded_mm
+            burst = step.burst
+            if burst is not None:
+                for value, what in ((burst.mean_n, "a burst's mean"),
+                                    (burst.start_s, "a burst's start"),
+                                    (burst.span_s, "a burst's span")):
+                    _check(value, what, trial.trial)
+                if burst.count < 1:
+                    raise RecordsError(f"trial {trial.trial}: a burst of {burst.count} samples; "
+                                       "the record file is damaged")
+                a["has_burst"][i, j] = True
+                a["mean_n"][i, j] = burst.mean_n
+                a["std_n"][i, j] = burst.std_n
+                a["count"][i, j] = burst.count
+                a["burst_start_s"][i, j] = burst.start_s
+                a["burst_span_s"][i, j] = max(0.0, burst.span_s)
+    if not a["has_burst"].any():
+        raise RecordsError("the records hold no burst (no force was read): nothing to fit")
+    return RecordArrays(trial=np.array([t.trial for t in records]), **a)

@@ -1,0 +1,273 @@
+"""What ``forcelearn twin`` writes: twin.toml (the emulated cell), twin.json, twin.md, figures.
+
+Every parameter is listed with its 1-sigma uncertainty and whether the records
+determine it (:meth:`~forcelearn.tools.twin.params.Parameter.determined`). One
+that they do not determine is written to twin.toml as the fit left it (it
+reproduces what the records show, e.g. the start of a wear curve) and the
+report says so, with the trials that would determine it: the uncertainty
+extrapolated as ``1/sqrt(n)``, and for wear at least the wear's time constant
+in passes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tomli_w
+
+from forcelearn.site.config import EmulatorConfig
+from forcelearn.tools.twin.fit import HOLD_OUT, TwinFit
+from forcelearn.tools.twin.params import ARM, BY_NAME, SENSOR, Parameter
+from forcelearn.tools.twin.source import RunSource
+
+_ROBOT_WHERE = {"computer_link": "url", "egm": "host"}
+_SENSOR_WHERE = {"jr3": "interface", "netft": "host"}
+_SENSOR_KEEP = {"jr3": ("mode", "cutoff_hz", "period_us", "full_scales"),
+                "netft": ("rdt_rate_hz",)}
+"""Sensor keys that shape what the learner reads (the rest say where the device is)."""
+
+
+def _row(param: Parameter, value: float, sigma: float, trials: int,
+         passes: float, held: bool = False) -> dict[str, Any]:
+    determined = param.determined(value, sigma) and not held
+    row: dict[str, Any] = {
+        "name": param.name, "table": param.table, "unit": param.unit, "value": value,
+        "sigma": sigma if math.isfinite(sigma) else None, "determined": determined,
+        "determined_below": param.bound(value), "doc": param.doc,
+    }
+    if not determined:
+        bound = param.bound(value)
+        if math.isfinite(sigma) and bound > 0:
+            row["trials_to_determine"] = math.ceil(trials * (sigma / bound) ** 2)
+        else:
+            row["trials_to_determine"] = None
+            row["note"] = "the records do not constrain it at all"
+        if param.wear:
+            row["note"] = (f"wear: the records span {passes:.0f} passes; a wear curve is "
+                           "determined only over passes comparable to its time constant")
+    return row
+
+
+def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
+    """Every parameter of the twin, fitted or held, with its verdict."""
+    trials = fit.train_trials
+    passes = float(np.nanmax(np.where(fit.train.valid, fit.train.passes, np.nan)))
+    rows = []
+    for name in fit.chosen.sigmas:
+        held = name in fit.chosen.held
+        row = _row(BY_NAME[name], fit.chosen.values[name], fit.chosen.sigmas[name], trials,
+                   passes, held)
+        if held:
+            row["note"] = ("held at the base config's value; the uncertainty is the fit's "
+                           "when it was free" + ("; " + row["note"] if "note" in row else ""))
+        rows.append(row)
+    for param in ARM:
+        value = fit.arm.values[param.name]
+        if param.name == "start_delay_s":
+            value = fit.arm_emulator_delay_s
+        row = _row(param, value, fit.arm.sigmas[param.name], trials, passes)
+        if not row["determined"]:
+            row["note"] = fit.arm.note or (
+                "not determined by the moves' timing: the base config's value is kept")
+        elif param.name == "start_delay_s":
+            row["note"] = ("command to motion, including the link's time to send the command: "
+                           "twin.toml keeps the base delay (its emulated link adds its own)")
+        rows.append(row)
+    sensor = fit.sensor
+    rows.append(_row(SENSOR[0], sensor.noise_n, sensor.noise_sigma_n, trials, passes))
+    drift = _row(SENSOR[1], sensor.drift_n_per_sqrt_s, sensor.drift_sigma, trials, passes)
+    if sensor.tares < 3:
+        drift["note"] = (f"{sensor.tares} tares recorded: the drift needs tares "
+                         "(task.tare_each_trial = true); the base config's value is kept")
+    rows.append(drift)
+    return rows
+
+
+def twin_document(fit: TwinFit, source: RunSource) -> dict[str, Any]:
+    """twin.json's content."""
+    held = fit.heldout
+    per_trial = []
+    for i, trial in enumerate(held.trial.tolist()):
+        use = held.is_step[i] & held.has_burst[i]
+        residual = (fit.heldout_predicted[i] - held.mean_n[i])[use]
+        per_trial.append({"trial": int(trial), "rms_n": float(np.sqrt(np.mean(residual**2)))
+                          if residual.size else None})
+    return {
+        "represented": fit.represented,
+        "verdict": fit.reason,
+        "threshold_n": fit.threshold_n,
+        "runs": [str(p) for p in source.run_dirs],
+        "trials": {"fitted": fit.train.trial.tolist(), "held_out": held.trial.tolist(),
+                   "held_out_share": HOLD_OUT},
+        "member": fit.chosen.member.name,
+        "members": [
+            {"name": m.member.name, "text": m.member.text, "free": m.free,
+             "held": list(m.held),
+             "train_rms_n": m.train_rms_n, "heldout_rms_n": m.heldout_rms_n, "bic": m.bic}
+            for m in fit.members
+        ],
+        "parameters": parameter_rows(fit),
+        "residuals": {"train_rms_n": fit.chosen.train_rms_n,
+                      "heldout_rms_n": fit.chosen.heldout_rms_n,
+                      "heldout_per_trial": per_trial,
+                      "arm_rms_s": fit.arm.rms_s, "arm_moves": fit.arm.moves},
+        "sensor": {"colour_phi_upper_bound": fit.sensor.colour_phi,
+                   "tares": fit.sensor.tares, "samples": fit.sensor.samples},
+        "diagnostics": fit.diagnostics,
+    }
+
+
+def _fmt(value: float | None) -> str:
+    if value is None or math.isnan(value):
+        return "—"
+    if math.isinf(value):
+        return "∞"
+    return f"{value:.4g}"
+
+
+def twin_markdown(document: dict[str, Any]) -> str:
+    """twin.md: the verdict, the members, every parameter, the residuals."""
+    lines = ["# Twin of the cell", ""]
+    if document["represented"]:
+        lines += [f"Represented by the member **{document['member']}**: {document['verdict']}."]
+    else:
+        lines += [f"**This cell is not represented by the twin:** {document['verdict']}. "
+                  "No twin.toml was written."]
+    trials = document["trials"]
+    lines += ["", f"Fitted on {len(trials['fitted'])} trials; the last "
+              f"{len(trials['held_out'])} ({trials['held_out_share']:.0%}) held out.", "",
+              "## Members (chosen by the BIC on the held-out trials)", "",
+              "| member | parameters | train RMS (N) | held-out RMS (N) | BIC |",
+              "|---|---|---|---|---|"]
+    for m in document["members"]:
+        lines.append(f"| {m['name']} ({m['text']}) | {m['free']} | {_fmt(m['train_rms_n'])} "
+                     f"| {_fmt(m['heldout_rms_n'])} | {_fmt(m['bic'])} |")
+    lines += ["", "## Parameters", "",
+              "A parameter is determined when its 1-sigma uncertainty is at most 3 % of its "
+              "value or the absolute bound shown.", "",
+              "| table | parameter | value | ±1σ | determined | trials to determine | note |",
+              "|---|---|---|---|---|---|---|"]
+    for p in document["parameters"]:
+        verdict = "yes" if p["determined"] else f"no (needs ±{_fmt(p['determined_below'])})"
+        value = _fmt(p["value"]) if p["determined"] else f"({_fmt(p['value'])})"
+        need = p.get("trials_to_determine")
+        lines.append(f"| {p['table']} | {p['name']} ({p['unit']}) | {value} | "
+                     f"{_fmt(p['sigma'])} | {verdict} | {need if need is not None else '—'} | "
+                     f"{p.get('note', '')} |")
+    res = document["residuals"]
+    lines += ["", "Values in brackets are not determined by the records: they are what the "
+              "fit left, not a measurement.", "", "## Residuals", "",
+              f"- control steps, fitted trials: RMS {_fmt(res['train_rms_n'])} N",
+              f"- control steps, held-out trials: RMS {_fmt(res['heldout_rms_n'])} N "
+              f"(bar: {_fmt(document['threshold_n'])} N)",
+              f"- arm, command to in position: RMS {_fmt(res['arm_rms_s'])} s over "
+              f"{res['arm_moves']} moves",
+              f"- sensor noise colour: AR(1) per sample at most "
+              f"{_fmt(document['sensor']['colour_phi_upper_bound'])}", ""]
+    lines += ["| held-out trial | RMS (N) |", "|---|---|"]
+    lines += [f"| {t['trial']} | {_fmt(t['rms_n'])} |" for t in res["heldout_per_trial"]]
+    for note in document["diagnostics"]:
+        lines.append(f"- {note}")
+    lines += ["", "![recorded vs predicted force, held-out trials](twin_heldout.png)", ""]
+    return "\n".join(lines)
+
+
+def twin_config(fit: TwinFit, source: RunSource) -> dict[str, Any]:
+    """twin.toml: the run's config with the devices emulated and the fitted physics."""
+    raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in source.raw_config.items()}
+    config = source.config
+    robot_kind, sensor_kind = config.robot_kind, config.sensor_kind
+    robot = {"kind": robot_kind, _ROBOT_WHERE[robot_kind]: "emulated"}
+    sensor = {"kind": sensor_kind, _SENSOR_WHERE[sensor_kind]: "emulated"}
+    for key in _SENSOR_KEEP[sensor_kind]:
+        if key in raw.get("sensor", {}):
+            sensor[key] = raw["sensor"][key]
+    raw.pop("calibration", None)  # the site's calibration file is of the real sensor
+    safety = dict(raw.get("safety", {}))
+    safety.pop("stale_sensor_s", None)  # the emulated sensor's watchdog default applies
+    # A new [emulator]: the run's own (an emulated run's hidden truth) is not carried over.
+    emulator: dict[str, Any] = {"time_scale": 0.0, "profile": "realistic"}
+    emulator["sponge"] = {k: float(v) for k, v in fit.sponge.items()}
+    arm = {p.name: fit.arm.values[p.name] for p in ARM}
+    arm["start_delay_s"] = fit.base_start_delay_s  # the twin's emulated link adds its own time
+    emulator["arm"] = arm
+    defaults = EmulatorConfig()
+    base_sensor = defaults.sensor if sensor_kind == "jr3" else defaults.netft
+    sensor_model: dict[str, Any] = {}
+    noise = list(base_sensor.noise_std)
+    if math.isfinite(fit.sensor.noise_n):
+        noise[:3] = [fit.sensor.noise_n] * 3
+    sensor_model["noise_std"] = noise
+    drift = list(base_sensor.bias_drift_per_sqrt_s)
+    if math.isfinite(fit.sensor.drift_n_per_sqrt_s):
+        drift[:3] = [fit.sensor.drift_n_per_sqrt_s] * 3
+    sensor_model["bias_drift_per_sqrt_s"] = drift
+    emulator["sensor"] = sensor_model
+    out = {**raw, "robot": robot, "sensor": sensor, "emulator": emulator}
+    if safety:
+        out["safety"] = safety
+    return out
+
+
+def write_figure(fit: TwinFit, path: Path) -> None:
+    """Recorded vs predicted force per control step, one panel per held-out trial."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    held = fit.heldout
+    count = min(held.trials, 12)
+    cols = min(4, count)
+    rows = math.ceil(count / cols)
+    figure, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    for k in range(rows * cols):
+        ax = axes[k // cols][k % cols]
+        if k >= count:
+            ax.axis("off")
+            continue
+        i = held.trials - count + k
+        use = held.is_step[i] & held.has_burst[i]
+        steps = np.arange(1, int(use.sum()) + 1)
+        ax.plot(steps, held.mean_n[i][use], "o", ms=3, label="recorded")
+        ax.plot(steps, fit.heldout_predicted[i][use], "-", label="twin")
+        ax.set_title(f"trial {int(held.trial[i])}", fontsize=9)
+        ax.set_xlabel("step")
+        ax.set_ylabel("force (N)")
+    axes[0][0].legend(fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=90)
+    plt.close(figure)
+
+
+def write_report(fit: TwinFit, source: RunSource, out: Path) -> dict[str, Any]:
+    """Write twin.json, twin.md and the figure beside ``out``; twin.toml only if represented."""
+    folder = out.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    document = twin_document(fit, source)
+    (folder / "twin.json").write_text(json.dumps(document, indent=2, default=_plain))
+    (folder / "twin.md").write_text(twin_markdown(document))
+    write_figure(fit, folder / "twin_heldout.png")
+    if fit.represented:
+        header = "".join(
+            f"# {p['table']}.{p['name']} is NOT determined by the records (±{_fmt(p['sigma'])}"
+            f" {p['unit']}): {p.get('note', 'the fit left this value')}\n"
+            for p in document["parameters"] if not p["determined"]
+        )
+        body = tomli_w.dumps(twin_config(fit, source))
+        out.write_text("# A twin of the cell written by forcelearn twin; see twin.md.\n"
+                       + header + "\n" + body)
+    return document
+
+
+def _plain(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return dataclasses.asdict(value)
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)

@@ -1,0 +1,98 @@
+"""The sensor's part of the twin: noise, its colour, and bias drift, from bursts and tares.
+
+* noise: the pooled standard deviation of the bursts' samples (a burst of
+  ``n`` correlated samples underestimates it by ``g / n`` of the variance, with
+  ``g = (1 + phi) / (1 - phi)``; corrected);
+* colour: the AR(1) coefficient ``phi`` per sample that makes the burst means
+  scatter as much as the fit's residuals do (``var(mean) = g sigma^2 / n``): an
+  upper bound, since the residuals also hold what the model misses;
+* bias drift: each accepted tare's reading is the bias's random walk since the
+  previous zeroing, ``var = D^2 dt``; without tares it is not determined.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from forcelearn.records import TrialRecords
+from forcelearn.tools.twin.arrays import RecordArrays
+
+
+@dataclass(frozen=True)
+class SensorFit:
+    """Noise (N per sample), colour (AR(1) per sample), drift (N/sqrt(s)), 1-sigma each."""
+
+    noise_n: float
+    noise_sigma_n: float
+    colour_phi: float
+    """Upper bound of the AR(1) coefficient per sample (NaN: not measurable)."""
+    drift_n_per_sqrt_s: float
+    drift_sigma: float
+    tares: int
+    samples: int
+
+
+def _colour_gain(phi: float) -> float:
+    return (1 + phi) / (1 - phi) if phi < 1 else math.inf
+
+
+def _mean_share(phi: float, n: float) -> float:
+    """Var(mean of n AR(1) samples) / sigma^2, exact for a whole n."""
+    count = max(1, round(n))
+    lags = np.arange(1, count)
+    return float((count + 2 * np.sum((count - lags) * phi**lags)) / count**2)
+
+
+def fit_sensor(records: list[TrialRecords], data: RecordArrays,
+               residuals: np.ndarray | None, calibration_noise_n: float | None,
+               configured_phi: float | None = None) -> SensorFit:
+    """Estimate the sensor's noise, colour and drift; ``residuals`` are the fit's (T, M).
+
+    The within-burst correction uses ``configured_phi`` (the colour the run's sensor
+    settings give) when known, else none (white noise: the noise then reads low by
+    the share of its variance the burst mean holds).
+    """
+    many = data.has_burst & (data.count > 1)
+    counts = data.count[many]
+    var_in_burst = float(np.mean(data.std_n[many] ** 2)) if many.any() else math.nan
+    phi = math.nan
+    if residuals is not None and many.any() and var_in_burst > 0:
+        use = many & np.isfinite(residuals)
+        expected = var_in_burst * np.mean(1.0 / data.count[use])
+        ratio = float(np.mean(residuals[use] ** 2) / expected) if expected > 0 else math.nan
+        if math.isfinite(ratio):
+            phi = min(0.999, max(0.0, (ratio - 1) / (ratio + 1)))
+    n_mean = float(np.mean(counts)) if counts.size else 1.0
+    colour = configured_phi if configured_phi is not None else 0.0
+    gain = _colour_gain(colour)
+    shrink = max(0.05, 1 - _mean_share(colour, n_mean))
+    noise = math.sqrt(var_in_burst / shrink) if math.isfinite(var_in_burst) else math.nan
+    effective = float(np.sum(counts - 1)) / max(gain, 1.0) if counts.size else 0.0
+    noise_sigma = noise / math.sqrt(2 * effective) if effective > 0 else math.inf
+    if calibration_noise_n is not None:
+        noise, noise_sigma = calibration_noise_n, 0.0
+    drift, drift_sigma, tares = _drift(records, noise, n_mean, gain)
+    return SensorFit(noise, noise_sigma, phi, drift, drift_sigma, tares,
+                     int(np.sum(counts)) if counts.size else 0)
+
+
+def _drift(records: list[TrialRecords], noise_n: float, n_mean: float,
+           gain: float) -> tuple[float, float, int]:
+    """The bias's random-walk rate from successive accepted tares (NaN, inf: none)."""
+    tares = sorted((t for trial in records for t in trial.tares if t.accepted),
+                   key=lambda t: t.time_s)
+    if len(tares) < 3:
+        return math.nan, math.inf, len(tares)
+    gaps = np.diff([t.time_s for t in tares])
+    readings = np.array([t.reading_n for t in tares[1:]])
+    keep = gaps > 0
+    if not keep.any():
+        return math.nan, math.inf, len(tares)
+    reading_var = (noise_n**2 * gain / n_mean) if math.isfinite(noise_n) else 0.0
+    rate_sq = max(0.0, float(np.sum(readings[keep] ** 2 - reading_var) / np.sum(gaps[keep])))
+    rate = math.sqrt(rate_sq)
+    sigma = rate / math.sqrt(2 * int(keep.sum())) if rate > 0 else math.inf
+    return rate, sigma, len(tares)
