@@ -137,7 +137,8 @@ def plot(keys: Sequence[str], trials: int, rows: Sequence[dict[str, Any]], out: 
             ax.set_title(f"{col_key.rsplit('.', 1)[-1]} {col}: {label}", fontsize=9)
     fig.suptitle(
         f"Emulated §5 cell over {y_key} × {x_key} × {col_key}: {len(rows)} runs, "
-        f"seeds {seeds[0]}-{seeds[-1]}, {trials} trials each\n(median over seeds; a run that "
+        f"seed{'s' if len(seeds) > 1 else ''} {', '.join(map(str, seeds))}, {trials} trials "
+        "each\n(median over seeds; a run that "
         f"never converged counts as {trials})",
         fontsize=10,
     )
