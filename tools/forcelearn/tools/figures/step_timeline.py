@@ -57,21 +57,23 @@ def record_step(seed: int = 0) -> dict[str, Any]:
         _logging(engine.tx_wire, logs["robot_to_pc"])
         _logging(node.bus_wire, logs["can"])
         motion: list[tuple[float, float, float]] = []
-        set_pose = physics.set_pose
+        # A motion tick records the tool through CellPhysics._move_tool (set_pose is for tests),
+        # so the tool's path is read there: (time, y, z) after each tick that moved it.
+        move_tool = physics._move_tool
 
-        def logged_pose(pose: Any) -> None:
-            set_pose(pose)
+        def logged_move(key: Any) -> None:
+            move_tool(key)
             assert physics.motion is not None
-            motion.append((physics.motion.time_s, pose.y_mm, pose.z_mm))
+            motion.append((physics.motion.time_s, key[1], key[2]))
 
-        physics.set_pose = logged_pose  # type: ignore[method-assign]
-        measure = node.model.measure
+        physics._move_tool = logged_move  # type: ignore[method-assign]
+        emit = node._emit_sample
 
-        def logged_measure(*args: Any, **kwargs: Any) -> list[int]:
-            logs["samples"].append(node.last_sample_s)
-            return measure(*args, **kwargs)
+        def logged_emit() -> None:  # each sample the node sends, at its time on the bus
+            logs["samples"].append(node.clock.now_s)
+            emit()
 
-        node.model.measure = logged_measure  # type: ignore[method-assign]
+        node._emit_sample = logged_emit  # type: ignore[method-assign]
         start = physics.clock.now_s
         outcome = task.step(np.array([-8.0]))  # Y command (mm) near the desired force
         end = physics.clock.now_s
