@@ -1,15 +1,13 @@
 """Read what the twin needs from run directories: the records and the run's cell config.
 
 The records come from the run's ``records.mcap`` through the project's reader
-(``read_records(run_dir)`` of :mod:`forcelearn.tools.experiments.records`); a damaged file is the
-reader's typed error, and a run without records is a :class:`RecordsError`
-that says how to make them.
+(:func:`forcelearn.tools.experiments.records.read_records`); a damaged file
+is the reader's typed error (:class:`~forcelearn.errors.RecordsFileError`),
+and a run without records is a :class:`RecordsError` that says how to make them.
 """
 
 from __future__ import annotations
 
-import importlib
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -18,6 +16,7 @@ from forcelearn.config import read_toml
 from forcelearn.errors import ForcelearnError
 from forcelearn.records import StepRecord, TareRecord, TrialRecords
 from forcelearn.site.config import CellConfig, load_cell_config
+from forcelearn.tools.experiments.records import read_records
 from forcelearn.tools.twin.arrays import RecordsError
 
 CONFIG_COPY = "config.toml"
@@ -34,34 +33,12 @@ class RunSource:
     run_dirs: list[Path]
 
 
-READER_MODULES = ("forcelearn.tools.experiments.records", "forcelearn.records")
-"""Where the records reader ``read_records(run_dir)`` lives (the run engine's module)."""
-
-
-def _reader() -> Callable[[Path], list[TrialRecords]]:
-    reader = None
-    for name in READER_MODULES:
-        try:
-            reader = getattr(importlib.import_module(name), "read_records", None)
-        except ImportError:
-            continue
-        if reader is not None:
-            break
-    if reader is None:
-        raise RecordsError(
-            "this forcelearn has no record reader (read_records): "
-            "update forcelearn to a version whose runs write records.mcap"
-        )
-    found: Callable[[Path], list[TrialRecords]] = reader
-    return found
-
-
 def read_run_records(run_dir: Path) -> list[TrialRecords]:
     """The trials a run directory recorded (typed errors for a missing or damaged file)."""
     if not run_dir.is_dir():
         raise RecordsError(f"{run_dir} is not a run directory (forcelearn run --out DIR)")
     try:
-        return list(_reader()(run_dir))
+        return list(read_records(run_dir))
     except ForcelearnError:
         raise
     except (OSError, ValueError, KeyError, TypeError) as exc:
