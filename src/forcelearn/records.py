@@ -63,7 +63,7 @@ class BurstRecord:
 class StepRecord:
     """One move of a trial and the burst read after it.
 
-    ``kind`` says what the move was for: ``"approach"`` (to the trial's start pose),
+    ``stage`` says what the move was for: ``"approach"`` (to the trial's start pose),
     ``"step"`` (a control step of the learner; ``index`` counts them from 1),
     ``"retreat"`` (back off the surface after the trial) or ``"probe"``.
     ``burst`` is None when no force was read after the move.
@@ -71,7 +71,7 @@ class StepRecord:
 
     trial: int
     index: int
-    kind: str
+    stage: str
     move: MoveRecord
     burst: BurstRecord | None
 

@@ -97,7 +97,7 @@ def test_the_probes_records_come_first_and_hold_every_reading_of_probe_csv(
     assert canonical(trials) == canonical(read_records(short_run))  # without it by default
     with open(short_run / "probe.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert {s.kind for s in probe.steps} == {"probe"}
+    assert {s.stage for s in probe.steps} == {"probe"}
     assert {s.index for s in probe.steps} == {int(r["point"]) for r in rows}
     burst_times = {s.burst.start_s for s in probe.steps if s.burst is not None}
     assert {float(r["cell_time_s"]) for r in rows} <= burst_times
@@ -111,14 +111,14 @@ def test_a_runs_records_agree_with_its_trials_csv(short_run: Path) -> None:
     trials = read_records(short_run)
     assert [t.trial for t in trials] == [int(r["index"]) for r in rows] == [0, 1, 2, 3]
     for trial, row in zip(trials, rows, strict=True):
-        kinds = [s.kind for s in trial.steps]
-        approach = [s for s in trial.steps if s.kind == "approach"]
-        assert approach and kinds.index("step") > kinds.index("approach")
+        stages = [s.stage for s in trial.steps]
+        approach = [s for s in trial.steps if s.stage == "approach"]
+        assert approach and stages.index("step") > stages.index("approach")
         start = approach[-1].burst  # the start press's measurement
         assert start is not None and start.filtered_n == float(row["start_force_n"])
         last_of_step: dict[int, BurstRecord] = {}
         for step in trial.steps:
-            if step.kind == "step" and step.burst is not None:
+            if step.stage == "step" and step.burst is not None:
                 last_of_step[step.index] = step.burst
         forces = [last_of_step[k].filtered_n for k in sorted(last_of_step)]
         assert sorted(last_of_step) == list(range(1, len(forces) + 1))
@@ -233,7 +233,7 @@ def test_the_trial_recorder_pairs_bursts_with_moves_and_numbers_the_trial() -> N
     trial = recorder.take(7)
     first, again = trial.steps
     assert first == StepRecord(7, 0, "approach", move, burst)
-    assert (again.kind, again.index, again.burst) == ("probe", 2, burst)
+    assert (again.stage, again.index, again.burst) == ("probe", 2, burst)
     assert again.move.commanded_mm == (1.0, 2.0, 3.0)
     assert (again.move.start_s, again.move.in_position_s, again.move.settled_s) == (6.0,) * 3
     assert [t.trial for t in trial.tares] == [7]

@@ -85,6 +85,7 @@ class ComputerLinkKind(RobotKind):
     name = "computer_link"
     label = "computer link"
     config_type = LinkConfig
+    emulated_key = "url"
 
     def load(self, table: dict[str, Any], limits: Limits) -> LinkConfig:
         """``url`` defaults to the emulator, whose timeouts default to EMULATED_LINK_TIMEOUT_S."""

@@ -125,6 +125,8 @@ class Jr3Kind(SensorKind):
     name = "jr3"
     label = "JR3"
     config_type = Jr3Config
+    emulated_key = "interface"
+    learner_keys = ("mode", "cutoff_hz", "period_us", "full_scales")
     model_field = "sensor"
     model_type = SensorModelParams
 

@@ -145,6 +145,8 @@ class DeviceKind(ABC):
     """Human name ("computer link", "Net F/T")."""
     config_type: type[Any]
     """The driver's frozen config dataclass the table builds."""
+    emulated_key: str = "host"
+    """The key of its config table that ``"emulated"`` goes in for the built-in emulator."""
 
     def device_config_or_default(self, config: AnyCellConfig) -> Any:
         """The cell's config of this device, or the kind's defaults if the cell has another."""
@@ -214,6 +216,9 @@ class SensorKind(DeviceKind):
     fills for this kind (None: the kind's emulator takes no model table)."""
     model_type: type[Any] | None = None
     """The type of that field."""
+    learner_keys: tuple[str, ...] = ()
+    """Keys of its ``[sensor]`` table that shape what the learner reads (rate, filter...), as
+    opposed to where the device is: an emulated copy of the cell (a twin) keeps them."""
 
     def take_bus(self, table: dict[str, Any]) -> dict[str, Any] | None:
         """Pop the CAN bus keys from the ``[sensor]`` table (None: the kind has no CAN bus)."""

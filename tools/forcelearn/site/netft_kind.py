@@ -105,6 +105,7 @@ class NetFtKind(SensorKind):
     name = "netft"
     label = "Net F/T"
     config_type = NetFtConfig
+    learner_keys = ("rdt_rate_hz",)
     model_field = "netft"
     model_type = NetFtModelParams
 

@@ -75,7 +75,7 @@ SCHEMAS: dict[str, tuple[str, dict[str, Any]]] = {
         "type": "object",
         "properties": {
             "trial": {"type": "integer"}, "index": {"type": "integer"},
-            "kind": {"type": "string"}, "move": _MOVE, "burst": _BURST,
+            "stage": {"type": "string"}, "move": _MOVE, "burst": _BURST,
         },
     }),
     TARE_TOPIC: ("forcelearn.TareRecord", {
@@ -129,7 +129,7 @@ def step_to_json(step: StepRecord) -> dict[str, Any]:
     return {
         "trial": step.trial,
         "index": step.index,
-        "kind": step.kind,
+        "stage": step.stage,
         "move": {
             "commanded_mm": _numbers(move.commanded_mm),
             "reached_mm": _numbers(move.reached_mm),
@@ -157,13 +157,13 @@ def step_from_json(data: dict[str, Any]) -> StepRecord:
     wrench = None if burst is None else burst["wrench_mean"]
     if wrench is not None and len(wrench) != 6:
         raise ValueError(f"wrench_mean has {len(wrench)} values, not 6")
-    kind = data["kind"]
-    if not isinstance(kind, str):
-        raise TypeError(f"kind must be text, got {kind!r}")
+    stage = data["stage"]
+    if not isinstance(stage, str):
+        raise TypeError(f"stage must be text, got {stage!r}")
     return StepRecord(
         trial=_int(data["trial"]),
         index=_int(data["index"]),
-        kind=kind,
+        stage=stage,
         move=MoveRecord(
             _xyz(move["commanded_mm"]), _xyz(move["reached_mm"]), _float(move["start_s"]),
             _float(move["in_position_s"]), _float(move["settled_s"]),

@@ -93,7 +93,7 @@ def passes_before(records: list[TrialRecords], noise_n: float) -> list[list[int]
                 if abs(burst.mean_n) <= floor and touched:
                     passes, touched = passes + 1, False
                     continue
-            if step.kind == "retreat" and touched:
+            if step.stage == "retreat" and touched:
                 passes, touched = passes + 1, False
         out.append(row)
     return out
@@ -142,7 +142,7 @@ def to_arrays(records: list[TrialRecords]) -> RecordArrays:
             if not all(math.isfinite(v) for v in reached):
                 reached = move.commanded_mm  # not reported: in position, within the band
             a["valid"][i, j] = True
-            a["is_step"][i, j] = step.kind == "step"
+            a["is_step"][i, j] = step.stage == "step"
             a["commanded"][i, j] = move.commanded_mm
             a["reached"][i, j] = reached
             a["start_s"][i, j] = move.start_s

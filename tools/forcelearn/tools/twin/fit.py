@@ -36,6 +36,13 @@ BURST_FLOOR_N = 0.02
 """Floor of a burst mean's expected scatter in the weights, N."""
 
 
+BIC_RESOLUTION = 0.25
+"""Weighted residuals (in units of a burst's expected scatter) below this are not told apart:
+on a (near) noiseless cell two members that both fit to this are equal, and the simpler wins."""
+BIC_MARGIN = 10.0
+"""ΔBIC (held-out trials) a richer member must win by to be chosen (Kass & Raftery 1995: over
+10 is very strong evidence); within it, the simpler member is kept."""
+
 @dataclass
 class MemberFit:
     """One member fitted: values and 1-sigma uncertainties, residuals, score."""
@@ -193,8 +200,8 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     train_rms = _rms(train_pred - train.mean_n, train.is_step & train.has_burst)
     held_res = ((held_pred - heldout.mean_n) * _weights(heldout, noise_n))[heldout.has_burst]
     n_held = max(1, held_res.size)
-    bic = n_held * math.log(max(float(np.mean(held_res**2)), 1e-300)) + len(free) * math.log(
-        n_held)
+    mse = max(float(np.mean(held_res**2)), BIC_RESOLUTION**2)
+    bic = n_held * math.log(mse) + len(free) * math.log(n_held)
     return MemberFit(
         member, values, {n: float(spread[n]) for n in member.free if n not in fixed},
         train_rms, _rms(held_pred - heldout.mean_n, heldout.is_step & heldout.has_burst), bic,
@@ -263,7 +270,10 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     start = initial_sponge(train, base_sponge, reading)
     fits = [fit_member(m, train, heldout, start, base_sponge, arm.values, reading,
                        first.noise_n) for m in (members or family())]
-    chosen = min(fits, key=lambda f: f.bic)
+    best = min(f.bic for f in fits)
+    # Parsimony: the simplest member (family order) whose BIC is within BIC_MARGIN of the
+    # best; a richer law must explain the held-out trials clearly better, not by rounding.
+    chosen = next(f for f in fits if f.bic <= best + BIC_MARGIN)
     train_pred = predict_means(train, chosen.values, arm.values, reading)
     sensor = fit_sensor(records, train, train_pred - train.mean_n, calibration_noise_n,
                         configured_phi)

@@ -21,15 +21,10 @@ import numpy as np
 import tomli_w
 
 from forcelearn.site.config import EmulatorConfig
+from forcelearn.site.kinds import robot_kind, sensor_kind
 from forcelearn.tools.twin.fit import HOLD_OUT, TwinFit
 from forcelearn.tools.twin.params import ARM, BY_NAME, SENSOR, Parameter
 from forcelearn.tools.twin.source import RunSource
-
-_ROBOT_WHERE = {"computer_link": "url", "egm": "host"}
-_SENSOR_WHERE = {"jr3": "interface", "netft": "host"}
-_SENSOR_KEEP = {"jr3": ("mode", "cutoff_hz", "period_us", "full_scales"),
-                "netft": ("rdt_rate_hz",)}
-"""Sensor keys that shape what the learner reads (the rest say where the device is)."""
 
 
 def _row(param: Parameter, value: float, sigma: float, trials: int,
@@ -181,10 +176,10 @@ def twin_config(fit: TwinFit, source: RunSource) -> dict[str, Any]:
     """twin.toml: the run's config with the devices emulated and the fitted physics."""
     raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in source.raw_config.items()}
     config = source.config
-    robot_kind, sensor_kind = config.robot_kind, config.sensor_kind
-    robot = {"kind": robot_kind, _ROBOT_WHERE[robot_kind]: "emulated"}
-    sensor = {"kind": sensor_kind, _SENSOR_WHERE[sensor_kind]: "emulated"}
-    for key in _SENSOR_KEEP[sensor_kind]:
+    robot_entry, sensor_entry = robot_kind(config.robot_kind), sensor_kind(config.sensor_kind)
+    robot = {"kind": robot_entry.name, robot_entry.emulated_key: "emulated"}
+    sensor = {"kind": sensor_entry.name, sensor_entry.emulated_key: "emulated"}
+    for key in sensor_entry.learner_keys:
         if key in raw.get("sensor", {}):
             sensor[key] = raw["sensor"][key]
     raw.pop("calibration", None)  # the site's calibration file is of the real sensor
@@ -197,7 +192,7 @@ def twin_config(fit: TwinFit, source: RunSource) -> dict[str, Any]:
     arm["start_delay_s"] = fit.base_start_delay_s  # the twin's emulated link adds its own time
     emulator["arm"] = arm
     defaults = EmulatorConfig()
-    base_sensor = defaults.sensor if sensor_kind == "jr3" else defaults.netft
+    base_sensor = getattr(defaults, sensor_entry.model_field or "sensor")
     sensor_model: dict[str, Any] = {}
     noise = list(base_sensor.noise_std)
     if math.isfinite(fit.sensor.noise_n):

@@ -53,8 +53,6 @@ def configured_colour(config: CellConfig, records: list[TrialRecords]) -> float 
     noise: ``exp(-2 pi cutoff dt)`` at the bursts' sample period; the Net F/T's
     is white (0). None when the bursts have no sample period.
     """
-    if config.sensor_kind == "netft":
-        return 0.0
     cutoff = float(getattr(config.sensor, "cutoff_hz", 0.0) or 0.0)
     if cutoff <= 0 or not config.emulator.sensor.emulate_filter:
         return 0.0
