@@ -40,7 +40,7 @@ runs           ``values`` mutants that load, each run for 2 trials in its own
                (not in the default targets: about 5 s an input)
 =============  ==============================================================
 
-The hypothesis tests in ``tests/fuzz`` call the same ``check_*`` functions on
+The hypothesis tests in ``tests/tools/fuzz`` call the same ``check_*`` functions on
 bounded inputs; the long run is::
 
     python -m forcelearn.tools.fuzz --inputs 100000 --seed 1

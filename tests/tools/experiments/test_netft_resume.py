@@ -19,7 +19,7 @@ from forcelearn.emulators.netft.sensor_model import NetFtSensorModel
 from forcelearn.site.config import load_cell_config
 from forcelearn.site.session import CellSession
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
 
 
 def _state_of(session: CellSession) -> dict[str, Any]:

@@ -85,7 +85,7 @@ def test_check_then_run_reach_the_emulate_process(
         emulator.wait_for("site config written")
         # a loaded CI host is no real sensor: allow it pauses (a real cell keeps 0.1 s), as
         # the in-process emulated cell does; a whole output map: the probe over EGM and
-        # Net F/T is tested in-process (tests/tools/test_cell_kinds.py)
+        # Net F/T is tested in-process (tests/site/test_cell_kinds.py)
         site.write_text(site.read_text() + "\n[safety]\nstale_sensor_s = 10.0\n\n"
                         + configured_map_toml)
         config = load_cell_config(site)

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from forcelearn.tools.fuzz import targets as fuzz
 
-EXAMPLES = sorted((Path(__file__).parents[2] / "examples").glob("*.toml"))
+EXAMPLES = sorted((Path(__file__).parents[3] / "examples").glob("*.toml"))
 mutations = st.lists(
     st.tuples(st.integers(0, fuzz.MUTATION_KINDS - 1), st.integers(0, 1 << 20),
               st.integers(0, 1023)),

@@ -84,7 +84,7 @@ def test_example_configs_load() -> None:
     """Every shipped contour example is a valid config."""
     from forcelearn.tools.experiments.contour import load_config
 
-    root = Path(__file__).resolve().parents[2] / "examples"
+    root = Path(__file__).resolve().parents[3] / "examples"
     config = load_config(root / "contour-plain.toml")
     assert config.learner.sigma_min == 0.05 and config.trials == 4000
     assert config.learner.extent == (5, 5)
