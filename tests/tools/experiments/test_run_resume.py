@@ -127,7 +127,7 @@ def comparable(trials: list[TrialRecords]) -> str:
     measurement, so the learner never sees the difference).
     """
     def unfiltered(step: StepRecord) -> StepRecord:
-        if step.kind != "approach" or step.burst is None or step.burst.count != 1:
+        if step.stage != "approach" or step.burst is None or step.burst.count != 1:
             return step
         return dataclasses.replace(step, burst=dataclasses.replace(step.burst, filtered_n=0.0))
     return repr([(t.trial, [unfiltered(step) for step in t.steps], t.tares) for t in trials])
