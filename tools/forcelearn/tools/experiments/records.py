@@ -157,7 +157,7 @@ def step_from_json(data: dict[str, Any]) -> StepRecord:
     wrench = None if burst is None else burst["wrench_mean"]
     if wrench is not None and len(wrench) != 6:
         raise ValueError(f"wrench_mean has {len(wrench)} values, not 6")
-    stage = data["stage"]
+    stage = data["stage"] if "stage" in data else data["kind"]  # "kind": files of 2026-12-03
     if not isinstance(stage, str):
         raise TypeError(f"stage must be text, got {stage!r}")
     return StepRecord(
