@@ -81,6 +81,8 @@ def _cell_rows(results: Sequence[CellResult]) -> list[str]:
             rel = (f"{100 * param.error / param.truth:+.1f} %" if param.truth
                    and param.error is not None else f"{param.error:+.3g}")
             mark = {"within": "", "off": " ✗", "undetermined": " (undet.)"}[param.verdict]
+            if param.verdict == "undetermined" and param.trials_to_determine is not None:
+                mark = f" (undet.; {param.trials_to_determine} trials)"
             params.append(f"{param.value:.3g} vs {param.truth:.3g} ({rel}){mark}")
         lines.append(
             f"| {result.cell[-2:]} | {_truth_summary(result.truth_path)} | "
@@ -184,8 +186,8 @@ def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
         "## Per cell: prediction and parameters",
         "",
         "Parameters: twin vs truth (twin's error); ✗ determined by the fit but outside the "
-        "tolerance; (undet.) the fit says the records do not determine it (twin.json gives "
-        "its uncertainty and the trials that would).",
+        "tolerance; (undet.; n trials) the fit says the records do not determine it, and "
+        "how many trials would (twin.json gives its uncertainty).",
         "",
         *_cell_rows(results),
         "",
@@ -227,27 +229,33 @@ def write_figure(results: Sequence[CellResult], path: Path) -> None:
             row = result.check.parameters[index]
             if row.error is None:
                 continue
-            scaled = row.error / row.tolerance * 0.1
-            middle.scatter(index, scaled, s=18,
+            middle.scatter(index, row.error / row.tolerance, s=18,
                            color="tab:green" if row.determined else "lightgray",
                            edgecolor="black" if row.determined and not row.within else "none")
-    middle.axhspan(-0.1, 0.1, color="tab:green", alpha=0.1)
+    middle.axhspan(-1, 1, color="tab:green", alpha=0.1)
     middle.set_xticks(range(len(CHECKED)), [p.label for p in CHECKED], rotation=20)
-    middle.set_yscale("symlog", linthresh=0.1)
-    middle.set_ylabel("error / tolerance x 0.1 (band: within)")
+    middle.set_yscale("symlog", linthresh=1)
+    middle.set_ylabel("(twin - truth) / tolerance (band: within)")
     middle.set_title("parameters (green: determined; grey: not)")
-    pairs = [(r.twin, r.hidden) for r in results if r.twin and r.hidden]
-    if pairs:
-        hx = [h.median_final_force_rms_n for _, h in pairs]
-        tx = [t.median_final_force_rms_n for t, _ in pairs]
-        right.scatter(hx, tx, color="tab:purple", label="median final force RMS")
-        top = max(hx + tx) * 1.1
-        right.plot([0, top], [0, top], color="black", linewidth=0.8)
-        right.fill_between([0, top], [0, top * 0.7], [0, top * 1.3], alpha=0.1,
-                           color="tab:purple", label="±30 %")
-        right.set_xlabel("hidden cell, N")
-        right.set_ylabel("twin, N")
-        right.legend()
+    learned = [r for r in results if r.twin and r.hidden]
+    for index, result in enumerate(learned):
+        assert result.twin is not None and result.hidden is not None
+        trial = relative_gap(result.twin.median_converged_trial,
+                             result.hidden.median_converged_trial)
+        rms = relative_gap(result.twin.median_final_force_rms_n,
+                           result.hidden.median_final_force_rms_n)
+        right.scatter(index - 0.1, 100 * min(trial, 3.0), color="tab:orange", marker="o",
+                      label="median trial of convergence" if index == 0 else None)
+        right.scatter(index + 0.1, 100 * min(rms, 3.0), color="tab:purple", marker="s",
+                      label="median final force RMS" if index == 0 else None)
+    right.axhspan(-100 * LEARNING_TOLERANCE, 100 * LEARNING_TOLERANCE, color="tab:green",
+                  alpha=0.1)
+    right.set_xticks(range(len(learned)), [r.cell[-2:] for r in learned])
+    right.set_xlabel("hidden cell")
+    right.set_ylabel("twin vs hidden cell, % (band: ±30 %; capped at +300 %)")
+    if learned:
+        right.legend(fontsize=8)
+    pairs = learned
     right.set_title(f"learning outcome ({len(pairs)} cells)")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
