@@ -215,7 +215,8 @@ def write_figure(results: Sequence[CellResult], path: Path) -> None:
         colour = "tab:blue" if check.represented else "tab:red"
         left.bar(index, check.heldout_rms_n / check.noise_n, color=colour)
     left.axhline(PREDICTION_NOISE_FACTOR, color="black", linestyle="--", label="target: 2x")
-    left.set_xticks(range(len(checked)), [r.cell[-2:] for r in checked], fontsize=7)
+    left.set_xticks(range(len(checked)), [r.cell[-2:] for r in checked], fontsize=7,
+                  rotation=90)
     left.set_yscale("log")
     left.set_xlabel("hidden cell (red: declared not represented)")
     left.set_ylabel("held-out RMS / true sensor noise")
