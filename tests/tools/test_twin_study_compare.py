@@ -1,0 +1,119 @@
+"""The twin study's comparison with the hidden truth, on a fake cell (no run, no fit)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from forcelearn.errors import StudyError
+from forcelearn.tools.results.twin_compare import (
+    RunOutcome,
+    check_twin,
+    learning_agrees,
+    learning_side,
+    run_outcome,
+)
+from forcelearn.tools.results.twin_page import CellResult, summary_lines
+
+TRUTH = {
+    "sponge": {"stiffness_n_per_mm": 2.0, "surface_y_mm": 0.1, "softening": 0.3,
+               "set_mm": 0.05},
+    "arm": {"lag_s": 0.05},
+    "sensor": {"noise_n": 0.2},
+    "model": {"nonlinear": False, "hysteresis": False, "friction": False},
+}
+
+
+def _row(name: str, value: float, determined: bool = True) -> dict[str, object]:
+    return {"name": name, "value": value, "determined": determined,
+            "trials_to_determine": None if determined else 400}
+
+
+def _write_cell(tmp_path: Path, heldout_rms: float, rows: list[dict[str, object]],
+                represented: bool = True) -> tuple[Path, Path]:
+    truth = tmp_path / "cell-01.truth.json"
+    truth.write_text(json.dumps(TRUTH))
+    twin = tmp_path / "twin.json"
+    twin.write_text(json.dumps({"represented": represented, "verdict": "because",
+                                "parameters": rows,
+                                "residuals": {"heldout_rms_n": heldout_rms}}))
+    return truth, twin
+
+
+def test_parameters_judged_only_where_determined(tmp_path: Path) -> None:
+    """A parameter counts within/off only where the fit says it is determined."""
+    truth, twin = _write_cell(tmp_path, 0.39, [
+        _row("stiffness_n_per_mm", 2.19),          # +9.5 %: within
+        _row("surface_y_mm", 0.35),                # 0.25 mm off a 0.1 mm truth: absolute bound
+        _row("softening", 0.2, determined=False),  # far off, but undetermined
+        _row("set_mm", 0.2),                       # 0.15 mm off: beyond 0.1 mm
+        _row("lag_s", 0.044),                      # -12 %: off
+        _row("noise_std", 0.205),
+    ])
+    check = check_twin("cell-01", truth, twin)
+    verdicts = {p.name: p.verdict for p in check.parameters}
+    assert verdicts == {"stiffness_n_per_mm": "within", "surface_y_mm": "within",
+                        "softening": "undetermined", "set_mm": "off", "lag_s": "off",
+                        "noise_std": "within"}
+    assert check.prediction_ok  # 0.39 <= 2 x 0.2
+    _, over = _write_cell(tmp_path, 0.41, [])
+    with_missing = check_twin("cell-01", truth, over)
+    assert not with_missing.prediction_ok
+    assert all(p.verdict == "undetermined" and p.value is None
+               for p in with_missing.parameters)
+
+
+def test_damaged_twin_json_is_a_study_error(tmp_path: Path) -> None:
+    """A corrupt or incomplete twin.json is a StudyError naming the remedy."""
+    truth, twin = _write_cell(tmp_path, 0.1, [])
+    twin.write_text("{not json")
+    with pytest.raises(StudyError, match="rerun"):
+        check_twin("cell-01", truth, twin)
+    twin.write_text(json.dumps({"represented": True}))
+    with pytest.raises(StudyError, match="lacks"):
+        check_twin("cell-01", truth, twin)
+
+
+def _run(folder: Path, converged: int | None, rms: list[float]) -> Path:
+    folder.mkdir()
+    (folder / "summary.json").write_text(json.dumps(
+        {"converged": converged is not None, "converged_trial": converged}))
+    lines = ["index,force_rms_n"] + [f"{i},{value}" for i, value in enumerate(rms)]
+    (folder / "trials.csv").write_text("\n".join(lines) + "\n")
+    return folder
+
+
+def test_run_outcome_counts_from_one_and_takes_the_last_trial(tmp_path: Path) -> None:
+    """Convergence trial counted from 1; final RMS is the last trial's."""
+    assert run_outcome(_run(tmp_path / "a", 0, [3.0, 0.4])) == RunOutcome(1, 0.4)
+    assert run_outcome(_run(tmp_path / "b", None, [3.0, 1.5])) == RunOutcome(None, 1.5)
+    with pytest.raises(StudyError):
+        run_outcome(tmp_path / "missing")
+
+
+def test_learning_medians_and_agreement() -> None:
+    """Medians over seeds (never converged = budget + 1) and the ±30 % test."""
+    hidden = learning_side([RunOutcome(10, 0.5), RunOutcome(None, 0.6), RunOutcome(12, 0.4)],
+                           budget=60)
+    assert hidden.median_converged_trial == 12 and hidden.converged_runs == 2
+    assert hidden.median_final_force_rms_n == 0.5
+    close = learning_side([RunOutcome(14, 0.6), RunOutcome(15, 0.6), RunOutcome(9, 0.3)], 60)
+    assert learning_agrees(close, hidden) == (True, True)  # +25 %, +20 %
+    never = learning_side([RunOutcome(None, 0.5)] * 3, 60)
+    assert never.median_converged_trial == 61
+    assert learning_agrees(never, hidden) == (False, True)
+    with pytest.raises(ValueError):
+        learning_side([], 60)
+
+
+def test_summary_counts_against_the_targets(tmp_path: Path) -> None:
+    """The page's summary counts the cells against the 90 % target."""
+    truth, twin = _write_cell(tmp_path, 0.39, [_row("stiffness_n_per_mm", 2.5)])
+    check = check_twin("cell-01", truth, twin)
+    result = CellResult("cell-01", truth, 0, check, None, None)
+    text = "\n".join(summary_lines([result], seeds=5))
+    assert "1/1 (100 %) **met**" in text  # the prediction
+    assert "stiffness (within 10 % or 0, on the represented cells where determined): " \
+           "0/1 (0 %) **missed**" in text

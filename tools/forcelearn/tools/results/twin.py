@@ -1,0 +1,182 @@
+"""The twin against hidden cells (issue 29's check): writes docs/results/twin.md and its figure.
+
+``python -m forcelearn.tools.results.twin --cells 30 --seed 1 --out DIR [--workers 2]``
+
+1. draws the hidden cells (``forcelearn.tools.twin.hidden_cells``, generator ``--seed``);
+2. per cell, as on site: ``forcelearn run --config cell-XX.toml --trials 60 --seed 0``
+   (probe + 60 trials), then ``forcelearn twin`` on that run directory alone;
+3. per cell with a twin (``--learning-cells`` first cells; all by default): the learner over
+   ``--seeds`` seeds on the twin.toml and on the hidden cell (seed 0 of the hidden cell is
+   the site run itself);
+4. compares (``twin_compare``) and writes ``DIR/twin.md`` and ``DIR/twin.png`` (``--page``
+   and ``--figure`` to write them elsewhere, e.g. docs/results/).
+
+Every command is a ``nice -n 10`` subprocess on a pool of ``--workers`` local processes; a
+step whose ``.rc`` file exists is not run again, so a stopped study resumes where it
+stopped, and ``--report-only`` only rewrites the page from what has finished.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import subprocess
+import sys
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from forcelearn.errors import StudyError
+from forcelearn.tools.results.twin_compare import (
+    LearningSide,
+    RunOutcome,
+    TwinCheck,
+    check_twin,
+    learning_side,
+    run_outcome,
+)
+from forcelearn.tools.results.twin_page import CellResult, write_figure, write_page
+
+TRIALS = 60
+
+
+def _step(rc_file: Path, command: list[str], log: Path) -> int:
+    """Run ``command`` niced unless ``rc_file`` exists; its exit code (kept in ``rc_file``)."""
+    if rc_file.exists():
+        return int(rc_file.read_text().strip() or "1")
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with log.open("w") as out:
+        rc = subprocess.run(["nice", "-n", "10", *command], stdout=out,
+                            stderr=subprocess.STDOUT, check=False).returncode
+    rc_file.write_text(f"{rc}\n")
+    return rc
+
+
+def _forcelearn(*args: str) -> list[str]:
+    return [sys.executable, "-m", "forcelearn.tools.cli", *args]
+
+
+def site_and_twin(out: Path, cell: str) -> None:
+    """The site run (seed 0) then the twin of that run alone; skips finished steps."""
+    folder = out / cell
+    folder.mkdir(parents=True, exist_ok=True)
+    site = folder / "site"
+    if not (folder / "site.done").exists() and site.exists():
+        _remove(site)
+    _step(folder / "site.done",
+          _forcelearn("run", "--config", str(out / "cells" / f"{cell}.toml"), "--trials",
+                      str(TRIALS), "--seed", "0", "--out", str(site), "--no-progress"),
+          folder / "site.log")
+    (folder / "twin").mkdir(exist_ok=True)
+    _step(folder / "twin.done",
+          _forcelearn("twin", str(site), "--out", str(folder / "twin" / "twin.toml")),
+          folder / "twin.log")
+
+
+def learning_run(out: Path, cell: str, side: str, seed: int) -> None:
+    """One learning run of ``cell`` on ``side`` (``hidden`` or ``twin``) with ``seed``."""
+    folder = out / cell / "learn"
+    folder.mkdir(parents=True, exist_ok=True)
+    config = (out / "cells" / f"{cell}.toml" if side == "hidden"
+              else out / cell / "twin" / "twin.toml")
+    run = folder / f"{side}-s{seed}"
+    if not (folder / f"{side}-s{seed}.done").exists() and run.exists():
+        _remove(run)
+    _step(folder / f"{side}-s{seed}.done",
+          _forcelearn("run", "--config", str(config), "--trials", str(TRIALS), "--seed",
+                      str(seed), "--out", str(run), "--no-progress"),
+          folder / f"{side}-s{seed}.log")
+
+
+def _remove(path: Path) -> None:
+    """Remove a run directory a stopped study left half-written."""
+    shutil.rmtree(path)
+
+
+def _run_dir(out: Path, cell: str, side: str, seed: int) -> Path | None:
+    """A finished run directory of the learning part, or None."""
+    if side == "hidden" and seed == 0:
+        rc, run = out / cell / "site.done", out / cell / "site"
+    else:
+        rc = out / cell / "learn" / f"{side}-s{seed}.done"
+        run = out / cell / "learn" / f"{side}-s{seed}"
+    if rc.exists() and rc.read_text().strip() == "0":
+        return run
+    return None
+
+
+def _side(out: Path, cell: str, side: str, seeds: int) -> LearningSide | None:
+    outcomes: list[RunOutcome] = []
+    for seed in range(seeds):
+        run = _run_dir(out, cell, side, seed)
+        if run is None:
+            return None
+        outcomes.append(run_outcome(run))
+    return learning_side(outcomes, TRIALS)
+
+
+def collect(out: Path, cells: Sequence[str], seeds: int) -> list[CellResult]:
+    """Every cell's result from what has finished."""
+    results = []
+    for cell in cells:
+        twin_json = out / cell / "twin" / "twin.json"
+        site_rc = out / cell / "site.done"
+        check: TwinCheck | None = None
+        if twin_json.exists():
+            check = check_twin(cell, out / "cells" / f"{cell}.truth.json", twin_json)
+        results.append(CellResult(
+            cell=cell, truth_path=out / "cells" / f"{cell}.truth.json",
+            site_rc=int(site_rc.read_text()) if site_rc.exists() else None, check=check,
+            hidden=_side(out, cell, "hidden", seeds), twin=_side(out, cell, "twin", seeds)))
+    return results
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run (or resume) the study and write the page."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cells", type=int, default=30, help="hidden cells (default 30)")
+    parser.add_argument("--seed", type=int, default=1, help="generator seed (default 1)")
+    parser.add_argument("--out", type=Path, required=True, help="study folder")
+    parser.add_argument("--workers", type=int, default=2, help="local processes (default 2)")
+    parser.add_argument("--seeds", type=int, default=5, help="learner seeds (default 5)")
+    parser.add_argument("--learning-cells", type=int, default=None,
+                        help="run the learning part on the first N cells with a twin only")
+    parser.add_argument("--report-only", action="store_true",
+                        help="run nothing; write the page from what has finished")
+    parser.add_argument("--page", type=Path, default=None, help="page (default OUT/twin.md)")
+    parser.add_argument("--figure", type=Path, default=None,
+                        help="figure (default OUT/twin.png)")
+    args = parser.parse_args(argv)
+    if args.cells < 1 or args.workers < 1 or args.seeds < 1:
+        parser.error("--cells, --workers and --seeds must be at least 1")
+    out: Path = args.out
+    cells = [f"cell-{i:02d}" for i in range(1, args.cells + 1)]
+    if not args.report_only:
+        if not all((out / "cells" / f"{c}.toml").exists() for c in cells):
+            subprocess.run([sys.executable, "-m", "forcelearn.tools.twin.hidden_cells",
+                            "--count", str(args.cells), "--seed", str(args.seed),
+                            "--out", str(out / "cells")], check=True)
+        with ThreadPoolExecutor(args.workers) as pool:
+            list(pool.map(lambda c: site_and_twin(out, c), cells))
+        with_twin = [c for c in cells if (out / c / "twin" / "twin.toml").exists()]
+        chosen = with_twin[: args.learning_cells] if args.learning_cells else with_twin
+        jobs = [(c, side, seed) for c in chosen for seed in range(args.seeds)
+                for side in ("twin", "hidden") if not (side == "hidden" and seed == 0)]
+        with ThreadPoolExecutor(args.workers) as pool:
+            list(pool.map(lambda job: learning_run(out, *job), jobs))
+    try:
+        results = collect(out, cells, args.seeds)
+    except StudyError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    figure = args.figure or out / "twin.png"
+    write_figure(results, figure)
+    page = args.page or out / "twin.md"
+    write_page(results, page, figure, generator_seed=args.seed, seeds=args.seeds,
+               trials=TRIALS)
+    print(f"wrote {page} and {figure}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
