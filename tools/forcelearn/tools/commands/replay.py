@@ -1,10 +1,12 @@
 """``forcelearn replay RUN_DIR --on twin.toml``: a run's recorded commands on a twin, open loop.
 
-Every recorded move and burst of the run is predicted by the twin's physics
-(the forward model of ``forcelearn twin``, with twin.toml's sponge and arm:
-the same law as the emulated sponge, driven by the recorded poses and times),
-and the recorded force is plotted against the prediction trial by trial. The
-RMS per trial and overall are printed (control steps only).
+By default the run's recorded commands (probe, approach, steps, retreat, tares,
+each burst's sample count) are sent in order to twin.toml's wire-level emulated
+cell through the same drivers and safety limits as a run (only an emulated cell:
+a config naming a real robot or sensor is refused); ``--model forward`` predicts
+with the fit's forward model instead (fast, no cell). The recorded force is
+plotted against the replayed one trial by trial; the RMS per trial and overall
+are printed (control steps only).
 """
 
 from __future__ import annotations
@@ -18,6 +20,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="the run to replay")
     parser.add_argument("--on", type=Path, required=True, dest="twin",
                         help="the twin's config (forcelearn twin --out)")
+    parser.add_argument("--model", choices=("cell", "forward"), default="cell",
+                        help="cell: drive the twin's emulated cell (default); forward: the "
+                             "fit's forward model (fast)")
+    parser.add_argument("--seed", type=int, default=0,
+                        help="seed of the emulated sensor's noise (--model cell)")
     parser.add_argument("--out", type=Path, default=None,
                         help="folder for replay.png and replay.json (default: RUN_DIR)")
 
@@ -30,11 +37,12 @@ def run(args: argparse.Namespace) -> int:
 
     source = read_runs([args.run_dir])
     twin = load_cell_config(args.twin)
-    result = replay(source.records, twin)
+    result = replay(source.records, twin, args.model, args.seed)
     out = args.out or args.run_dir
     write_replay(result, out)
     for trial, rms in zip(result.trials, result.rms_n, strict=True):
         print(f"trial {trial:4d}  RMS {rms:.3f} N")
-    print(f"overall RMS {result.overall_rms_n:.3f} N over {len(result.trials)} trials; "
+    print(f"overall RMS {result.overall_rms_n:.3f} N over {len(result.trials)} trials "
+          f"({args.model}); "
           f"wrote {out / 'replay.png'}")
     return 0

@@ -2,7 +2,18 @@
 
 Each recorded move gives the time from its command to in position; the model
 (:func:`forcelearn.tools.twin.forward.predict_in_position_s`) is fitted by
-least squares. The model runs in continuous time, the emulator on its tick
+least squares.
+
+In-position detection latency: the driver learns "in position" by polling
+(the computer link: READ_STATUS back to back, one exchange every ~44 ms at
+9600 baud; EGM: every feedback message). The recorded in-position time is the
+first poll that saw it, so it is the true time plus a latency in
+``[0, period)``: taken as uniform, it adds ``period / 2`` to the expected time
+and ``period / sqrt(12)`` to its scatter (:func:`fit_arm`), and the motion the
+force model follows ends before the recorded time (:func:`with_true_in_position`).
+The period comes from the records themselves (:func:`detection_period_s`: the
+settle dwells are whole numbers of polls), with the link's own exchange time
+(:func:`poll_guess_s`) to count them. The model runs in continuous time, the emulator on its tick
 grid, which adds a few ms; :func:`emulator_delay_s` measures that on the
 emulator's own :class:`~forcelearn.emulators.physics.arm_motion.ArmMotion`
 so the twin's arm reproduces the recorded times.
@@ -10,14 +21,21 @@ so the twin's arm reproduces the recorded times.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, minimize
+from scipy.special import ndtr
 
 from forcelearn.devices import Pose
+from forcelearn.drivers.computer_link.config import LinkConfig
+from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams
+from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+from forcelearn.protocols.computer_link import framing
+from forcelearn.protocols.computer_link import messages as m
 from forcelearn.tools.twin.arrays import RecordArrays
 from forcelearn.tools.twin.forward import predict_in_position_s
 from forcelearn.tools.twin.params import ARM, BY_NAME
@@ -41,59 +59,242 @@ class ArmFit:
     moves: int
     note: str = ""
     """Why the arm's parameters are not determined, when none is."""
+    period_s: float = 0.0
+    """The in-position detection period the fit took the recorded times to carry, s."""
+    timing: dict[str, float] | None = None
+    """The fitted arm whose times explain the moves (each within its polling window, to
+    ``RMS_LIMIT_S``) even where single parameters trade off; None when none does."""
+
+
+def poll_guess_s(robot: LinkConfig | EgmConfig, arm: ArmConfig | None = None) -> float:
+    """How often the driver sees the robot's state while it waits, from the config, s.
+
+    The computer link: one READ_STATUS exchange (request, DLE ACK, the reply after
+    the controller's ``reply_latency_s``) at the line's character time; EGM: the
+    feedback's sample period. A guess for counting polls: :func:`detection_period_s`
+    takes the period from the records.
+    """
+    if isinstance(robot, EgmConfig):
+        return float(robot.sample_period_s)
+    bits = 1 + robot.bytesize + (0 if robot.parity == "N" else 1) + robot.stopbits
+    char_s = bits / robot.baudrate
+    request = framing.encode(m.encode_request(m.Command.READ_STATUS, 1))
+    reply = framing.encode(m.encode_reply(m.Reply(
+        m.Command.READ_STATUS, 1, m.ErrorCode.OK,
+        body=m.status_body(m.Status(False, True, 0, 0, 0.0)))))
+    ack = len(framing.Control.ACK.wire)
+    latency = (arm or ArmConfig()).reply_latency_s
+    return (len(request) + ack + len(reply)) * char_s + latency
+
+
+def detection_period_s(data: RecordArrays, guess_s: float) -> float:
+    """The poll period the records show, s (``guess_s`` when they show none).
+
+    A settled move's dwell (``settled_s - in_position_s``, both poll times of one
+    wait) is a whole number of polls: counted with ``guess_s``, the median dwell
+    per poll is the period.
+    """
+    if not (math.isfinite(guess_s) and guess_s > 0):
+        return 0.0
+    use = data.valid & np.isfinite(data.settled_s) & np.isfinite(data.in_position_s)
+    dwell = (data.settled_s - data.in_position_s)[use]
+    dwell = dwell[dwell > 0.5 * guess_s]
+    if dwell.size == 0:
+        return guess_s
+    polls = np.maximum(1.0, np.round(dwell / guess_s))
+    return float(np.median(dwell / polls))
+
+
+def command_s(data: RecordArrays) -> np.ndarray:
+    """When each move's command could leave, s: its start plus the burst read before it.
+
+    ``start_s`` is the end of the previous wait; a burst read after that wait
+    delays the command by its span (docs/records.md).
+    """
+    span = np.nan_to_num(data.burst_span_s)
+    before = np.concatenate([np.zeros((data.trials, 1)), span[:, :-1]], axis=1)
+    result: np.ndarray = data.start_s + before
+    return result
 
 
 def timed_moves(data: RecordArrays) -> tuple[np.ndarray, np.ndarray]:
-    """(distance mm, command-to-in-position s) of every move with a previous target."""
+    """(distance mm, command-to-in-position s as recorded) of every move with a previous target."""
     use = data.valid & np.isfinite(data.move_mm) & (data.move_mm > 0)
-    return data.move_mm[use], (data.in_position_s - data.start_s)[use]
+    took = data.in_position_s - command_s(data)
+    use &= took > 0  # a move after a probe's dwell: its start is the dwell's, not the command's
+    return data.move_mm[use], took[use]
 
 
-def fit_arm(data: RecordArrays, base: dict[str, float], band_mm: float) -> ArmFit:
-    """Fit the arm's timing; with too few moves keep ``base`` (uncertainty infinite)."""
+TICK_SCATTER_S = 0.002
+"""Scatter of a recorded time about the continuous model besides the polling (the 4 ms
+interpolation grid, half a tick), s: the width of the interval likelihood's edges."""
+HOLD_COST = 1.02
+"""Holding loose arm parameters at the base values is kept only if the fit's cost rises less
+than this factor (else the moves need them: they keep their fitted values, undetermined)."""
+
+
+def _interval_nll(predicted: np.ndarray, took: np.ndarray, period_s: float) -> np.ndarray:
+    """-log likelihood of each recorded time: the model's, plus a latency uniform over the period.
+
+    The latency convolved with the grid's Gaussian scatter: the probability that
+    ``took - predicted`` lies in ``[0, period)``, smoothed by ``TICK_SCATTER_S``.
+    """
+    high = (took - predicted) / TICK_SCATTER_S
+    low = (took - predicted - period_s) / TICK_SCATTER_S
+    chance = np.maximum(ndtr(high) - ndtr(low), 1e-300)
+    result: np.ndarray = -np.log(chance)
+    return result
+
+
+def _fit_free(distance: np.ndarray, took: np.ndarray, values: dict[str, float],
+              free: list[str], band_mm: float, period_s: float
+              ) -> tuple[dict[str, float], dict[str, float], float, float]:
+    """Fit ``free`` (the rest at ``values``): fitted values, 1-sigma, RMS (s), cost.
+
+    Least squares on the mean (latency ``period_s / 2``); with a period, the values
+    then from the interval likelihood (:func:`_interval_nll`), whose edges pin the
+    recorded times' model tighter than the latency's scatter. The uncertainties stay
+    least squares' (the polling's scatter counted as noise): a flat-topped likelihood's
+    curvature would claim more than the windows tell apart (over the computer link
+    lag, acceleration and delay trade off inside them).
+    """
+    params = [p for p in ARM if p.name in free]
+    low = np.array([p.low for p in params])
+    high = np.array([p.high for p in params])
+    x0 = np.clip(np.array([values[p.name] for p in params]), low * 1.0001 + 1e-9, high * 0.9999)
+    late = 0.5 * period_s
+
+    def arm_of(x: np.ndarray) -> dict[str, float]:
+        return {**values, **dict(zip(free, x.tolist(), strict=True))}
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        error: np.ndarray = predict_in_position_s(distance, arm_of(x), band_mm) + late - took
+        return error
+
+    result = least_squares(residuals, x0, bounds=(low, high), x_scale="jac", method="trf",
+                           max_nfev=200)
+    x = result.x
+    spread = sigmas(result.jac, result.fun)
+    cost = float(result.cost)
+    if period_s > 0:
+        scale = np.maximum(np.abs(x), 1e-3 * (high - low))
+
+        def nll(u: np.ndarray) -> float:
+            predicted = predict_in_position_s(distance, arm_of(u * scale), band_mm)
+            return float(np.sum(_interval_nll(predicted, took, period_s)))
+
+        bounds = list(zip((low / scale).tolist(), (high / scale).tolist(), strict=True))
+        found = minimize(nll, x / scale, method="L-BFGS-B", bounds=bounds)
+        x = np.clip(found.x * scale, low, high)
+        cost = float(found.fun)
+    fitted = dict(zip(free, x.tolist(), strict=True))
+    rms = float(np.sqrt(np.mean(residuals(x) ** 2)))
+    return fitted, dict(zip(free, spread.tolist(), strict=True)), rms, cost
+
+
+def fit_arm(data: RecordArrays, base: dict[str, float], band_mm: float,
+            period_s: float = 0.0) -> ArmFit:
+    """Fit the arm's timing; with too few moves keep ``base`` (uncertainty infinite).
+
+    The recorded times are taken as the model's plus a detection latency uniform
+    over ``period_s`` (:func:`_fit_free`); the model must explain them within
+    ``RMS_LIMIT_S`` and that latency's own scatter (``period_s / sqrt(12)``).
+    A parameter the moves do not determine is held at the base value, unless
+    holding it raises the cost by more than ``HOLD_COST`` (then it keeps its
+    fitted value, still reported as not determined).
+    """
     distance, took = timed_moves(data)
     names = [p.name for p in ARM]
     if distance.size < MIN_MOVES:
         return ArmFit({n: base[n] for n in names}, {n: math.inf for n in names}, math.nan,
-                      int(distance.size))
+                      int(distance.size), period_s=period_s)
     free = list(names)
     values = {n: base[n] for n in names}
     spread = {n: math.inf for n in names}
-    rms = math.nan
-    for _ in range(3):  # parameters the timing does not determine keep the base value
-        params = [p for p in ARM if p.name in free]
-        low = np.array([p.low for p in params])
-        high = np.array([p.high for p in params])
-        start = np.clip(np.array([base[p.name] for p in params]), low * 1.0001 + 1e-9,
-                        high * 0.9999)
-
-        def residuals(x: np.ndarray, free: list[str] = free) -> np.ndarray:
-            arm = {**values, **dict(zip(free, x.tolist(), strict=True))}
-            error: np.ndarray = predict_in_position_s(distance, arm, band_mm) - took
-            return error
-
-        result = least_squares(residuals, start, bounds=(low, high), x_scale="jac",
-                               method="trf", max_nfev=200)
-        values.update(zip(free, result.x.tolist(), strict=True))
-        spread = {n: math.inf for n in names}
-        spread.update(zip(free, sigmas(result.jac, result.fun).tolist(), strict=True))
-        rms = float(np.sqrt(np.mean(result.fun**2)))
-        loose = [n for n in free if not BY_NAME[n].determined(values[n], spread[n])]
-        for n in loose:
-            values[n] = base[n]
-            spread[n] = math.inf
-        free = [n for n in free if n not in loose]
-        if not loose or not free:
+    rms, cost = math.nan, math.inf
+    kept: tuple[dict[str, float], dict[str, float], float] | None = None
+    for _ in range(3):
+        fitted, errors, rms, new_cost = _fit_free(distance, took, values, free, band_mm,
+                                                  period_s)
+        if kept is not None and new_cost > cost + abs(cost) * (HOLD_COST - 1) + 1.0:
+            values, spread, rms = kept  # the moves need them: back to the fit before holding
             break
-    if rms > RMS_LIMIT_S:
+        cost = new_cost
+        values.update(fitted)
+        spread = {n: math.inf for n in names}
+        spread.update(errors)
+        loose = [n for n in free if not BY_NAME[n].determined(values[n], spread[n])]
+        if not loose or len(loose) == len(free):
+            break
+        kept = (dict(values), dict(spread), rms)
+        for n in loose:
+            if not _at_bound(n, values[n]):  # at a bound the moves say "at least": keep it
+                values[n] = base[n]
+        free = [n for n in free if n not in loose]
+    full, _, _, _ = _fit_free(distance, took, base, names, band_mm, period_s)
+    timing = {**base, **full}
+    beyond = outside_window_s(predict_in_position_s(distance, timing, band_mm), took,
+                              period_s)
+    explained = float(np.sqrt(np.mean(beyond**2))) <= RMS_LIMIT_S
+    if not explained:
         return ArmFit(
             {n: base[n] for n in names}, {n: math.inf for n in names}, rms,
             int(distance.size),
-            f"the timing model leaves {rms * 1000:.0f} ms RMS (more than "
-            f"{RMS_LIMIT_S * 1000:.0f} ms): the recorded times hold what it lacks (the link's "
-            "polling), so no arm parameter is taken from them; the base values are kept",
-        )
-    return ArmFit(values, spread, rms, int(distance.size))
+            f"the timing model leaves the recorded times {np.sqrt(np.mean(beyond**2)) * 1000:.0f}"
+            f" ms RMS outside their {period_s * 1000:.0f} ms polling windows (more than "
+            f"{RMS_LIMIT_S * 1000:.0f} ms): they hold what it lacks, so no arm parameter is "
+            "taken from them; the base values are held", period_s)
+    for n in names:
+        if _at_bound(n, values[n]) or not BY_NAME[n].determined(values[n], spread[n]):
+            values[n], spread[n] = base[n], math.inf  # held at the base value
+    note = ""
+    if not all(math.isfinite(spread[n]) for n in names):
+        note = (f"held at the base config's value: the moves' timing (recorded up to one "
+                f"{period_s * 1000:.0f} ms poll late) does not single it out; the other arm "
+                "parameters trade off against it inside the polling windows")
+    return ArmFit(values, spread, rms, int(distance.size), note, period_s, timing)
+
+
+def _at_bound(name: str, value: float) -> bool:
+    """True when ``value`` sits on a bound of the arm parameter ``name``."""
+    param = BY_NAME[name]
+    return min(value - param.low, param.high - value) <= 1e-3 * (param.high - param.low)
+
+
+def outside_window_s(predicted: np.ndarray, took: np.ndarray, period_s: float) -> np.ndarray:
+    """How far (s) each recorded time lies outside ``[predicted, predicted + period_s]``."""
+    result: np.ndarray = (np.maximum(0.0, predicted - took)
+                          + np.maximum(0.0, took - period_s - predicted))
+    return result
+
+
+def true_in_position_s(data: RecordArrays, arm: ArmFit, band_mm: float) -> np.ndarray:
+    """When each move was truly in position, as best the records and the arm tell, s.
+
+    The detection saw it within the poll period before the recorded time. Where
+    the arm's timing explains the moves (:attr:`ArmFit.timing`), the model's time
+    from the command, kept inside that window; else the window's middle (the
+    uniform latency's mean).
+    Never before the command.
+    """
+    period = arm.period_s
+    recorded = data.in_position_s
+    if period <= 0:
+        return recorded
+    if arm.timing is not None:
+        model = command_s(data) + predict_in_position_s(np.nan_to_num(data.move_mm),
+                                                        arm.timing, band_mm)
+        estimate = np.clip(model, recorded - period, recorded)
+    else:
+        estimate = recorded - 0.5 * period
+    result: np.ndarray = np.where(np.isfinite(data.move_mm) & (data.move_mm > 0),
+                                  np.maximum(estimate, data.start_s), recorded)
+    return result
+
+
+def with_true_in_position(data: RecordArrays, arm: ArmFit, band_mm: float) -> RecordArrays:
+    """``data`` with each move's in-position time moved back by its detection latency."""
+    return dataclasses.replace(data, in_position_s=true_in_position_s(data, arm, band_mm))
 
 
 def _emulated_s(params: MotionParams, distance_mm: float) -> float:

@@ -43,6 +43,8 @@ class RecordArrays:
     """(T, M, 3) reached (x, y, z), mm (the commanded pose where the robot reported none)."""
     start_s: np.ndarray
     in_position_s: np.ndarray
+    settled_s: np.ndarray
+    """(T, M) end of each move's wait (in position and settled), s."""
     burst_start_s: np.ndarray
     burst_span_s: np.ndarray
     mean_n: np.ndarray
@@ -126,7 +128,8 @@ def to_arrays(records: list[TrialRecords]) -> RecordArrays:
         "valid": np.zeros(shape, bool), "is_step": np.zeros(shape, bool),
         "has_burst": np.zeros(shape, bool), "commanded": np.full((*shape, 3), np.nan),
         "reached": np.full((*shape, 3), np.nan), "start_s": nan.copy(),
-        "in_position_s": nan.copy(), "burst_start_s": nan.copy(), "burst_span_s": nan.copy(),
+        "in_position_s": nan.copy(), "settled_s": nan.copy(), "burst_start_s": nan.copy(),
+        "burst_span_s": nan.copy(),
         "mean_n": nan.copy(), "std_n": nan.copy(), "count": np.zeros(shape),
         "passes": np.zeros(shape), "move_mm": nan.copy(),
     }
@@ -147,6 +150,7 @@ def to_arrays(records: list[TrialRecords]) -> RecordArrays:
             a["reached"][i, j] = reached
             a["start_s"][i, j] = move.start_s
             a["in_position_s"][i, j] = move.in_position_s
+            a["settled_s"][i, j] = move.settled_s
             a["passes"][i, j] = passes[i][j]
             if previous is not None:
                 a["move_mm"][i, j] = math.dist(previous, move.commanded_mm)

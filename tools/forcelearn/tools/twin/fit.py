@@ -18,7 +18,14 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from forcelearn.records import TrialRecords
-from forcelearn.tools.twin.arm import ArmFit, emulator_delay_s, fit_arm, timed_moves
+from forcelearn.tools.twin.arm import (
+    ArmFit,
+    detection_period_s,
+    emulator_delay_s,
+    fit_arm,
+    timed_moves,
+    with_true_in_position,
+)
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, to_arrays
 from forcelearn.tools.twin.forward import Reading, motion_shape, predict_means
 from forcelearn.tools.twin.params import BY_NAME, Member, family
@@ -247,13 +254,15 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
              base_arm: dict[str, float], reading: Reading, band_mm: float, tick_s: float,
              calibration_noise_n: float | None = None,
              members: tuple[Member, ...] | None = None,
-             configured_phi: float | None = None) -> TwinFit:
+             configured_phi: float | None = None, poll_guess_s: float = 0.0) -> TwinFit:
     """Fit every part of the twin to a run's records (trials in order).
 
     ``configured_phi`` is the AR(1) coefficient per burst sample the run's sensor
     settings give the noise (the adapter's low-pass; 0 for white noise): it
     corrects the noise measured within bursts. ``calibration_noise_n`` replaces
-    that measurement by a calibration's.
+    that measurement by a calibration's. ``poll_guess_s`` is how often the driver
+    sees the robot's state while waiting (:func:`~forcelearn.tools.twin.arm.poll_guess_s`;
+    0: the recorded in-position times are taken as exact).
 
     Raises:
         RecordsError: too few trials, or records that cannot be fitted.
@@ -261,7 +270,10 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     records = sorted(records, key=lambda t: t.trial)
     data = to_arrays(records)
     train, heldout = split(data)
-    arm = fit_arm(train, base_arm, band_mm)
+    arm = fit_arm(train, base_arm, band_mm, detection_period_s(train, poll_guess_s))
+    # the sponge sees the moves end when the robot was in position, not when a poll saw it
+    train = with_true_in_position(train, arm, band_mm)
+    heldout = with_true_in_position(heldout, arm, band_mm)
     distances, _ = timed_moves(train)
     delay = base_arm["start_delay_s"]
     if math.isfinite(arm.sigmas["start_delay_s"]):
