@@ -61,8 +61,8 @@ def test_twin_writes_a_config_that_runs(
     with open(run_out / "trials.csv") as handle:
         assert len(list(csv.DictReader(handle))) == 2
     capsys.readouterr()
-    assert cli.main(["replay", str(run_dir), "--on", str(out), "--out",
-                     str(tmp_path / "replay")]) == 0
+    assert cli.main(["replay", str(run_dir), "--on", str(out), "--model", "forward",
+                     "--out", str(tmp_path / "replay")]) == 0
     printed = capsys.readouterr().out
     assert "overall RMS" in printed
     overall = json.loads((tmp_path / "replay" / "replay.json").read_text())["overall_rms_n"]

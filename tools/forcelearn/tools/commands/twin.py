@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     """Fit, report, and write the twin if the records are represented."""
     from forcelearn.calibration.file_format import load_calibration
     from forcelearn.emulators.robot_controller.kinematics import ArmConfig
-    from forcelearn.tools.twin.arm import poll_guess_s
+    from forcelearn.tools.twin.arm import polling_of
     from forcelearn.tools.twin.fit import fit_twin
     from forcelearn.tools.twin.report import write_report
     from forcelearn.tools.twin.setup import base_arm, base_sponge, configured_colour, reading_of
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     fit = fit_twin(source.records, base_sponge(config), base_arm(), reading_of(config),
                    arm.in_position_mm, arm.tick_s, noise,
                    configured_phi=configured_colour(config, source.records),
-                   poll_guess_s=poll_guess_s(config.robot, arm))
+                   polling=polling_of(config.robot, arm))
     document = write_report(fit, source, args.out)
     folder = args.out.parent
     if not fit.represented:

@@ -64,18 +64,38 @@ class ArmFit:
     timing: dict[str, float] | None = None
     """The fitted arm whose times explain the moves (each within its polling window, to
     ``RMS_LIMIT_S``) even where single parameters trade off; None when none does."""
+    answer_s: float = 0.0
+    """From a poll's recorded stamp to the driver holding the answer, s: a burst read after
+    a wait begins this much after its recorded start (:meth:`Polling.answer_s`)."""
 
 
-def poll_guess_s(robot: LinkConfig | EgmConfig, arm: ArmConfig | None = None) -> float:
-    """How often the driver sees the robot's state while it waits, from the config, s.
+@dataclass(frozen=True)
+class Polling:
+    """How the driver's polls of a wait are spaced and stamped, from the config (s)."""
 
-    The computer link: one READ_STATUS exchange (request, DLE ACK, the reply after
-    the controller's ``reply_latency_s``) at the line's character time; EGM: the
-    feedback's sample period. A guess for counting polls: :func:`detection_period_s`
-    takes the period from the records.
+    period_s: float
+    """One poll (a guess: :func:`detection_period_s` reads the period from the records)."""
+    unanswered_s: float
+    """The part of each poll outside stamp-to-answer: the controller stamps a poll when its
+    request has arrived, the driver has the answer a reply later, then the next request
+    goes (the computer link: the request and the PC's DLE ACK; EGM: the whole period)."""
+
+    def answer_s(self, period_s: float) -> float:
+        """From a poll's stamp to the driver holding its answer, for a poll of ``period_s``."""
+        return max(0.0, period_s - self.unanswered_s)
+
+
+def polling_of(robot: LinkConfig | EgmConfig, arm: ArmConfig | None = None) -> Polling:
+    """How often the driver sees the robot's state while it waits, from the config.
+
+    The computer link: one READ_STATUS exchange (request, the reply after the
+    controller's ``reply_latency_s`` (its DLE ACK within it), the PC's DLE ACK)
+    at the line's character time; EGM: the feedback's sample period, each
+    message stamped when it is sent.
     """
     if isinstance(robot, EgmConfig):
-        return float(robot.sample_period_s)
+        period = float(robot.sample_period_s)
+        return Polling(period, period)
     bits = 1 + robot.bytesize + (0 if robot.parity == "N" else 1) + robot.stopbits
     char_s = bits / robot.baudrate
     request = framing.encode(m.encode_request(m.Command.READ_STATUS, 1))
@@ -84,7 +104,13 @@ def poll_guess_s(robot: LinkConfig | EgmConfig, arm: ArmConfig | None = None) ->
         body=m.status_body(m.Status(False, True, 0, 0, 0.0)))))
     ack = len(framing.Control.ACK.wire)
     latency = (arm or ArmConfig()).reply_latency_s
-    return (len(request) + ack + len(reply)) * char_s + latency
+    unanswered = (len(request) + ack) * char_s
+    return Polling(unanswered + latency + len(reply) * char_s, unanswered)
+
+
+def poll_guess_s(robot: LinkConfig | EgmConfig, arm: ArmConfig | None = None) -> float:
+    """One poll's time from the config, s (:func:`polling_of`)."""
+    return polling_of(robot, arm).period_s
 
 
 def detection_period_s(data: RecordArrays, guess_s: float) -> float:
@@ -293,8 +319,15 @@ def true_in_position_s(data: RecordArrays, arm: ArmFit, band_mm: float) -> np.nd
 
 
 def with_true_in_position(data: RecordArrays, arm: ArmFit, band_mm: float) -> RecordArrays:
-    """``data`` with each move's in-position time moved back by its detection latency."""
-    return dataclasses.replace(data, in_position_s=true_in_position_s(data, arm, band_mm))
+    """``data`` as it happened: in position before the poll that saw it, bursts after its answer.
+
+    Each move's in-position time moves back by its detection latency
+    (:func:`true_in_position_s`); each burst's start moves on by the poll's answer
+    time (the wait's end is stamped when the last poll's request arrived; the
+    driver asks for samples once its reply is in).
+    """
+    return dataclasses.replace(data, in_position_s=true_in_position_s(data, arm, band_mm),
+                               burst_start_s=data.burst_start_s + arm.answer_s)
 
 
 def _emulated_s(params: MotionParams, distance_mm: float) -> float:

@@ -11,6 +11,7 @@ represents the cell when its held-out RMS on the control steps is at most
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -20,6 +21,7 @@ from scipy.optimize import least_squares
 from forcelearn.records import TrialRecords
 from forcelearn.tools.twin.arm import (
     ArmFit,
+    Polling,
     detection_period_s,
     emulator_delay_s,
     fit_arm,
@@ -254,15 +256,15 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
              base_arm: dict[str, float], reading: Reading, band_mm: float, tick_s: float,
              calibration_noise_n: float | None = None,
              members: tuple[Member, ...] | None = None,
-             configured_phi: float | None = None, poll_guess_s: float = 0.0) -> TwinFit:
+             configured_phi: float | None = None, polling: Polling | None = None) -> TwinFit:
     """Fit every part of the twin to a run's records (trials in order).
 
     ``configured_phi`` is the AR(1) coefficient per burst sample the run's sensor
     settings give the noise (the adapter's low-pass; 0 for white noise): it
     corrects the noise measured within bursts. ``calibration_noise_n`` replaces
-    that measurement by a calibration's. ``poll_guess_s`` is how often the driver
-    sees the robot's state while waiting (:func:`~forcelearn.tools.twin.arm.poll_guess_s`;
-    0: the recorded in-position times are taken as exact).
+    that measurement by a calibration's. ``polling`` is how the driver polls the
+    robot while waiting (:func:`~forcelearn.tools.twin.arm.polling_of`; None: the
+    recorded in-position and burst times are taken as exact).
 
     Raises:
         RecordsError: too few trials, or records that cannot be fitted.
@@ -270,7 +272,10 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     records = sorted(records, key=lambda t: t.trial)
     data = to_arrays(records)
     train, heldout = split(data)
-    arm = fit_arm(train, base_arm, band_mm, detection_period_s(train, poll_guess_s))
+    period = detection_period_s(train, polling.period_s) if polling is not None else 0.0
+    arm = fit_arm(train, base_arm, band_mm, period)
+    if polling is not None:
+        arm = dataclasses.replace(arm, answer_s=polling.answer_s(period))
     # the sponge sees the moves end when the robot was in position, not when a poll saw it
     train = with_true_in_position(train, arm, band_mm)
     heldout = with_true_in_position(heldout, arm, band_mm)

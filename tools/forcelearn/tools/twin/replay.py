@@ -21,7 +21,7 @@ from forcelearn.site.config import CellConfig
 from forcelearn.tools.twin.arm import (
     ArmFit,
     detection_period_s,
-    poll_guess_s,
+    polling_of,
     with_true_in_position,
 )
 from forcelearn.tools.twin.arrays import RecordArrays, to_arrays
@@ -64,9 +64,11 @@ def replay(records: list[TrialRecords], twin: CellConfig, model: str = "cell",
     else:
         arm = base_arm(twin)
         band = twin.emulator.arm.in_position_mm
-        period = detection_period_s(data, poll_guess_s(twin.robot, twin.emulator.arm))
+        polling = polling_of(twin.robot, twin.emulator.arm)
+        period = detection_period_s(data, polling.period_s)
         moved = with_true_in_position(
-            data, ArmFit(arm, {n: math.inf for n in arm}, math.nan, 0, period_s=period), band)
+            data, ArmFit(arm, {n: math.inf for n in arm}, math.nan, 0, period_s=period,
+                         answer_s=polling.answer_s(period)), band)
         predicted = predict_means(moved, sponge_of(twin), arm, reading_of(twin))
     use = data.is_step & data.has_burst
     residual = np.where(use, predicted - data.mean_n, np.nan)

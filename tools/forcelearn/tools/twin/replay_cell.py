@@ -6,7 +6,10 @@ as a real cell), and every recorded move is sent again in order: each trial's
 probe, approach, step and retreat poses, a settle where the run settled, a
 probe's dwell as long as the run held it, the tares where the run tared, and a
 burst of as many samples as the run read after each move. The bursts read are
-the replay's force. Only an emulated cell is driven: a config that names a real
+the replay's force. A recorded pose farther than ``safety.max_step_mm`` from where
+the cell is (the first one, from the emulated arm's home) is reached in steps
+within the limit, as a run moves to its start. Only an emulated cell is driven: a config
+that names a real
 robot or sensor is refused before any device opens (:class:`ReplayRefused`).
 """
 
@@ -78,6 +81,7 @@ def replay_trials(records: list[TrialRecords], config: CellConfig,
     from forcelearn.site import CellSession
 
     orientation = config.task.orientation
+    max_step_mm = config.safety.max_step_mm
     out: list[list[float]] = []
     with CellSession(config, seed=seed) as session:
         cell = session.cell
@@ -102,8 +106,14 @@ def replay_trials(records: list[TrialRecords], config: CellConfig,
                     if hold > DWELL_FLOOR_S:
                         cell.time_s = cell.robot.wait_in_position(cell.move_timeout_s, hold)
                 else:
-                    settle = move.settled_s > move.in_position_s
-                    cell.move_to(Pose(*move.commanded_mm, orientation), settle=settle)
+                    target = Pose(*move.commanded_mm, orientation)
+                    here = cell.pose.position_mm
+                    if math.dist(tuple(here), move.commanded_mm) > max_step_mm:
+                        # not a recorded step (the replay's first pose, from the cell's home):
+                        # get there as a run would, in steps within the limit
+                        cell.move_in_steps(target, max_step_mm, guard_force=True)
+                    else:
+                        cell.move_to(target, settle=move.settled_s > move.in_position_s)
                 mean = math.nan
                 if step.burst is not None:
                     before = len(collector.bursts)

@@ -90,6 +90,8 @@ class _Recorder:
         self.tares: list[TareRecord] = []
         self._rotation = quaternion_to_matrix(DOWN)
         self._last_sample_s = 0.0
+        self._wait_end_s = 0.0
+        """The end of the last wait: what the engine records as the next move's start."""
 
     def _normal_n(self) -> float:
         self.physics.advance_to(self.now_s)
@@ -101,12 +103,16 @@ class _Recorder:
         return -counts[1] * full_scale / 16384.0  # [filter] axis 1, sign -1
 
     def move(self, trial: int, index: int, kind: str, target: Pose, samples: int) -> None:
-        """Command ``target``, wait in position (+ settle), read ``samples`` (0: none)."""
-        start_s = self.now_s
-        self.motion.command(target, start_s)
+        """Command ``target``, wait in position (+ settle), read ``samples`` (0: none).
+
+        The command leaves now (after any burst read since the last wait); the record's
+        start is the last wait's end, as the run engine records it (docs/records.md).
+        """
+        start_s = self._wait_end_s
+        self.motion.command(target, self.now_s)
         self.target = target
         tick = self.run.motion.tick_s
-        t = start_s
+        t = self.now_s
         while True:
             t = (math.floor(t / tick + 1e-9) + 1) * tick
             self.physics.advance_to(t)
@@ -116,6 +122,7 @@ class _Recorder:
         reached = self.motion.pose
         settle = self.run.settle_s if samples > 1 else 0.0
         self.now_s = in_position_s + settle
+        self._wait_end_s = self.now_s
         self.physics.advance_to(self.now_s)
         move = MoveRecord(
             (target.x_mm, target.y_mm, target.z_mm),
