@@ -1,8 +1,9 @@
 """Benchmark: the twin's fit wall time (``forcelearn twin``'s fit, without the report).
 
 By default it first makes the records of a ``--trials`` run in process (the
-emulator's sponge, arm and JR3 sensor model, noise 0.2 N; not timed), then
-times the fit: every family member, the arm and the sensor, the held-out
+emulator's sponge, arm and JR3 sensor model, noise 0.2 N; not timed), with the
+surface probe's records first as a run directory has them (the seven points the
+default run probes), then times the fit: every family member, the arm and the sensor, the held-out
 scoring. ``--run-dir`` times the fit on a real run directory's records instead.
 CPU and wall time are printed; the wall time depends on the host's load.
 """
@@ -19,6 +20,10 @@ from forcelearn.site.config import load_cell_config
 from forcelearn.tools.twin.fit import fit_twin
 from forcelearn.tools.twin.setup import base_arm, base_sponge, configured_colour, reading_of
 from forcelearn.tools.twin.simulate import SimulatedRun, simulate_run
+
+PROBE_POINTS = (0.0, 0.5, 1.0, 0.125, 0.375, 0.625, 0.875)
+"""Where the default run's probe presses, in its order (its three points, then the four it
+adds between them: docs/surface.md)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,7 +44,8 @@ def _records(args: argparse.Namespace) -> list[TrialRecords]:
         return read_runs([args.run_dir]).records
     sensor = SensorModelParams(noise_std=(0.2,) * 3 + (0.02,) * 3, initial_bias=(0.0,) * 6,
                                bias_drift_per_sqrt_s=(0.0,) * 6)
-    run = SimulatedRun(trials=args.trials, sensor=sensor, burst_samples=args.burst_samples)
+    run = SimulatedRun(trials=args.trials, sensor=sensor, burst_samples=args.burst_samples,
+                       probe_points=PROBE_POINTS)
     return simulate_run(run, seed=args.seed)
 
 
@@ -54,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     wall, cpu = time.perf_counter(), time.process_time()
     fit = fit_twin(records, base_sponge(config), base_arm(), reading_of(config),
                    config.emulator.arm.in_position_mm, config.emulator.arm.tick_s,
-                   configured_phi=configured_colour(config, records))
+                   configured_phi=configured_colour(config, records))  # in process: no link
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     print(f"fit: wall {wall:.1f} s, CPU {cpu:.1f} s; member {fit.chosen.member.name}, "
           f"held-out RMS {fit.chosen.heldout_rms_n:.3f} N over {fit.heldout.trials} trials")

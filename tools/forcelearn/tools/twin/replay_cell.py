@@ -8,9 +8,9 @@ probe's dwell as long as the run held it, the tares where the run tared, and a
 burst of as many samples as the run read after each move. The bursts read are
 the replay's force. A recorded pose farther than ``safety.max_step_mm`` from where
 the cell is (the first one, from the emulated arm's home) is reached in steps
-within the limit, as a run moves to its start. Only an emulated cell is driven: a config
-that names a real
-robot or sensor is refused before any device opens (:class:`ReplayRefused`).
+within the limit, as a run moves to its start. Only an emulated cell is driven: a
+config that names a real robot or sensor is refused before any device opens
+(:class:`ReplayRefused`).
 """
 
 from __future__ import annotations

@@ -37,6 +37,7 @@ from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams, stiffness_n_per_mm
 from forcelearn.emulators.physics.sponge import surface_y_mm as sponge_surface_y_mm
 from forcelearn.records import BurstRecord, MoveRecord, StepRecord, TareRecord, TrialRecords
+from forcelearn.tools.experiments.records import PROBE_TRIAL
 
 DOWN = (0.0, 1.0, 0.0, 0.0)
 """The §5 tool orientation (w, x, y, z): pointing down; the normal force is world +Y."""
@@ -62,6 +63,13 @@ class SimulatedRun:
     exploration_mm: float = 0.8
     """Std of the random part of each Y command, mm."""
     tare_each_trial: bool = False
+    probe_points: tuple[float, ...] = ()
+    """The surface probe before the trials, as fractions of the path (0: start Z, 1: end Z),
+    in the order probed (empty: no probe); its records come first, as trial -1."""
+    probe_samples: int = 16
+    probe_dwell_s: float = 1.5
+    probe_presses: int = 6
+    probe_force_ratio: float = 1.25
     sponge: SpongeParams = field(default_factory=SpongeParams)
     motion: MotionParams = field(default_factory=MotionParams)
     sensor: SensorModelParams = field(
@@ -162,6 +170,52 @@ class _Recorder:
             samples = last if i == count else (1 if guard else 0)
             self.move(trial, 0, kind, pose, samples)
 
+    def hold(self, trial: int, index: int, dwell_s: float, samples: int) -> None:
+        """Hold the pose ``dwell_s`` and read again, recorded as the probe's re-read.
+
+        The record's move is the pose held (reached unknown), its three times the
+        burst's start, as the run engine writes a probe's re-read (docs/records.md).
+        """
+        self.now_s += dwell_s
+        self._wait_end_s = self.now_s
+        pose = self.target
+        here = (pose.x_mm, pose.y_mm, pose.z_mm)
+        move = MoveRecord(here, (math.nan,) * 3, self.now_s, self.now_s, self.now_s)
+        self.steps.append(StepRecord(trial, index, "probe", move, self._burst(samples)))
+
+    def probe(self, trial: int) -> None:
+        """The surface probe as the run engine does it, at each of ``run.probe_points``.
+
+        At each point: down the retract plane, a free-space reading; then 1 mm steps
+        towards the surface (a burst each) until the force passes 1 N; a re-read now
+        and after the dwell; then presses to ``probe_force_ratio`` x the desired force,
+        each read after the move and again after the dwell; back to the retract plane.
+        """
+        run = self.run
+        x0, _, z0 = run.start_mm
+        z_end = z0 + run.steps * run.z_step_mm
+        for index, fraction in enumerate(run.probe_points):
+            z = z0 + fraction * (z_end - z0)
+            self.move_in_steps(trial, "probe", Pose(x0, run.retract_y_mm, z, DOWN), False,
+                               run.probe_samples)
+            self.hold(trial, index, 0.0, run.probe_samples)
+            y = run.retract_y_mm
+            while True:
+                y -= 1.0
+                self.move(trial, index, "probe", Pose(x0, y, z, DOWN), run.burst_samples)
+                if self.steps[-1].burst is not None and self.steps[-1].burst.mean_n > 1.0:
+                    break
+                if y < run.retract_y_mm - 60.0:
+                    return  # no surface: the probe gives up
+            self.hold(trial, index, 0.0, run.probe_samples)
+            self.hold(trial, index, run.probe_dwell_s, run.probe_samples)
+            deepest = _path_y_mm(run.sponge, z, run.probe_force_ratio * run.desired_force_n)
+            for press in range(1, run.probe_presses):
+                target = y + press / (run.probe_presses - 1) * (deepest - y)
+                self.move(trial, index, "probe", Pose(x0, target, z, DOWN), run.probe_samples)
+                self.hold(trial, index, run.probe_dwell_s, run.probe_samples)
+            self.move_in_steps(trial, "probe", Pose(x0, run.retract_y_mm, z, DOWN), False, 0)
+
     def tare(self, trial: int) -> None:
         """Zero the sensor in free space (the reading before is recorded)."""
         reading = self._burst(self.run.burst_samples).mean_n
@@ -188,6 +242,9 @@ def simulate_run(run: SimulatedRun, seed: int = 0,
     rec = _Recorder(run, seed, sponge)
     x0, _, z0 = run.start_mm
     trials = []
+    if run.probe_points:
+        rec.probe(PROBE_TRIAL)
+        trials.append(TrialRecords(PROBE_TRIAL, list(rec.steps), []))
     for trial in range(1, run.trials + 1):
         first_step = len(rec.steps)
         first_tare = len(rec.tares)
