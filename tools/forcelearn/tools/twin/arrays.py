@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from forcelearn.errors import ForcelearnError
-from forcelearn.records import TrialRecords
+from forcelearn.records import StepRecord, TrialRecords
+from forcelearn.tools.experiments.records import PROBE_TRIAL
 
 CONTACT_FLOOR_N = 0.5
 """A burst reads contact above this (N) and above ``CONTACT_SIGMAS`` of its own noise."""
@@ -110,13 +111,35 @@ def _check(value: float, what: str, trial: int) -> float:
     return value
 
 
+def by_probe_point(records: list[TrialRecords]) -> list[TrialRecords]:
+    """The records with the surface probe's trial cut into one row per probe point.
+
+    Each probe point starts from the retract plane in free space, as a trial does,
+    so a row per point is the same physics; padded into one row, the probe's
+    ~240 moves would make every trial's row as long (six times the work).
+    """
+    out: list[TrialRecords] = []
+    for trial in records:
+        if trial.trial != PROBE_TRIAL or not trial.steps:
+            out.append(trial)
+            continue
+        segments: list[list[StepRecord]] = []
+        for step in trial.steps:  # contiguous runs of one point, in the order recorded
+            if not segments or segments[-1][-1].index != step.index:
+                segments.append([])
+            segments[-1].append(step)
+        for k, steps in enumerate(segments):
+            out.append(TrialRecords(trial.trial, steps, trial.tares if k == 0 else []))
+    return out
+
+
 def to_arrays(records: list[TrialRecords]) -> RecordArrays:
-    """Pad the trials' moves into (trials, moves) arrays.
+    """Pad the trials' moves into (trials, moves) arrays (the probe: a row per point).
 
     Raises:
         RecordsError: no trial, or a record holds a value that is not a finite number.
     """
-    records = [t for t in records if t.steps]
+    records = by_probe_point([t for t in records if t.steps])
     if not records:
         raise RecordsError("the records hold no trial with a move: nothing to fit")
     noise = noise_floor_n(records)

@@ -102,7 +102,7 @@ def split(data: RecordArrays) -> tuple[RecordArrays, RecordArrays]:
             f"the records hold {data.trials} trials; the fit needs at least {MIN_TRIALS} "
             f"(it holds out the last {HOLD_OUT:.0%}): run more trials"
         )
-    held = max(1, round(HOLD_OUT * data.trials))
+    held = max(1, round(HOLD_OUT * np.unique(data.trial).size))  # the probe's rows: one trial
     order = np.arange(data.trials)
     return data.rows(order[:-held]), data.rows(order[-held:])
 

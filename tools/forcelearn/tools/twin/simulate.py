@@ -153,7 +153,8 @@ class _Recorder:
             self.now_s - first_s, float(data.mean()),
         )
 
-    def move_in_steps(self, trial: int, kind: str, goal: Pose, guard: bool, last: int) -> None:
+    def move_in_steps(self, trial: int, kind: str, goal: Pose, guard: bool, last: int,
+                      index: int = 0) -> None:
         """Straight steps of at most ``max_step_mm`` as :meth:`Cell.move_in_steps` cuts them."""
         here = self.target
         distance = math.dist(
@@ -168,7 +169,7 @@ class _Recorder:
                         here.y_mm + f * (goal.y_mm - here.y_mm),
                         here.z_mm + f * (goal.z_mm - here.z_mm), DOWN)
             samples = last if i == count else (1 if guard else 0)
-            self.move(trial, 0, kind, pose, samples)
+            self.move(trial, index, kind, pose, samples)
 
     def hold(self, trial: int, index: int, dwell_s: float, samples: int) -> None:
         """Hold the pose ``dwell_s`` and read again, recorded as the probe's re-read.
@@ -197,7 +198,7 @@ class _Recorder:
         for index, fraction in enumerate(run.probe_points):
             z = z0 + fraction * (z_end - z0)
             self.move_in_steps(trial, "probe", Pose(x0, run.retract_y_mm, z, DOWN), False,
-                               run.probe_samples)
+                               run.probe_samples, index)
             self.hold(trial, index, 0.0, run.probe_samples)
             y = run.retract_y_mm
             while True:
@@ -214,7 +215,8 @@ class _Recorder:
                 target = y + press / (run.probe_presses - 1) * (deepest - y)
                 self.move(trial, index, "probe", Pose(x0, target, z, DOWN), run.probe_samples)
                 self.hold(trial, index, run.probe_dwell_s, run.probe_samples)
-            self.move_in_steps(trial, "probe", Pose(x0, run.retract_y_mm, z, DOWN), False, 0)
+            self.move_in_steps(trial, "probe", Pose(x0, run.retract_y_mm, z, DOWN), False, 0,
+                               index)
 
     def tare(self, trial: int) -> None:
         """Zero the sensor in free space (the reading before is recorded)."""
