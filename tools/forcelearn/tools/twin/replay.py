@@ -58,9 +58,10 @@ def replay(records: list[TrialRecords], twin: CellConfig, model: str = "cell",
     data = to_arrays(ordered)
     if model == "cell":
         predicted = np.full(data.mean_n.shape, np.nan)
-        replayed = replay_trials([t for t in ordered if t.steps], twin, seed)
-        for i, means in enumerate(replayed):
-            predicted[i, :len(means)] = means
+        replayed = iter([m for means in replay_trials([t for t in ordered if t.steps], twin,
+                                                      seed) for m in means])
+        for i, count in enumerate(data.valid.sum(axis=1).tolist()):  # rows in record order
+            predicted[i, :count] = [next(replayed) for _ in range(count)]
     else:
         arm = base_arm(twin)
         band = twin.emulator.arm.in_position_mm
