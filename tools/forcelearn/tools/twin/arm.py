@@ -179,10 +179,10 @@ def _fit_free(distance: np.ndarray, took: np.ndarray, values: dict[str, float],
 
     Least squares on the mean (latency ``period_s / 2``); with a period, the values
     then from the interval likelihood (:func:`_interval_nll`), whose edges pin the
-    recorded times' model tighter than the latency's scatter. The uncertainties stay
-    least squares' (the polling's scatter counted as noise): a flat-topped likelihood's
-    curvature would claim more than the windows tell apart (over the computer link
-    lag, acceleration and delay trade off inside them).
+    recorded times' model tighter than the latency's scatter. The uncertainties are
+    least squares' with the polling's worst case (:func:`latency_bound`): a
+    flat-topped likelihood's curvature would claim more than the windows tell apart
+    (over the computer link lag, acceleration and delay trade off inside them).
     """
     params = [p for p in ARM if p.name in free]
     low = np.array([p.low for p in params])
@@ -201,6 +201,8 @@ def _fit_free(distance: np.ndarray, took: np.ndarray, values: dict[str, float],
                            max_nfev=200)
     x = result.x
     spread = sigmas(result.jac, result.fun)
+    if period_s > 0:
+        spread = np.hypot(spread, latency_bound(result.jac, period_s))
     cost = float(result.cost)
     if period_s > 0:
         scale = np.maximum(np.abs(x), 1e-3 * (high - low))
@@ -216,6 +218,20 @@ def _fit_free(distance: np.ndarray, took: np.ndarray, values: dict[str, float],
     fitted = dict(zip(free, x.tolist(), strict=True))
     rms = float(np.sqrt(np.mean(residuals(x) ** 2)))
     return fitted, dict(zip(free, spread.tolist(), strict=True)), rms, cost
+
+
+def latency_bound(jacobian: np.ndarray, period_s: float) -> np.ndarray:
+    """How far each parameter can move while every latency stays within its window, s etc.
+
+    The latency is uniform over the poll period only on average: moves of like
+    distances meet the polls at like phases, so their latencies may all sit near
+    one end. The least-squares solution moves by ``pinv(J) @ offsets``; with each
+    offset anywhere in ``+-period / 2`` the worst case is ``|pinv(J)| @ period / 2``.
+    That bound joins the statistical uncertainty (a parameter is determined only
+    when the polling cannot hide it).
+    """
+    result: np.ndarray = np.sum(np.abs(np.linalg.pinv(jacobian)), axis=1) * 0.5 * period_s
+    return result
 
 
 def fit_arm(data: RecordArrays, base: dict[str, float], band_mm: float,
@@ -277,7 +293,11 @@ def fit_arm(data: RecordArrays, base: dict[str, float], band_mm: float,
     if not all(math.isfinite(spread[n]) for n in names):
         note = (f"held at the base config's value: the moves' timing (recorded up to one "
                 f"{period_s * 1000:.0f} ms poll late) does not single it out; the other arm "
-                "parameters trade off against it inside the polling windows")
+                "parameters trade off against it inside the polling windows, and the "
+                "uncertainty includes the polling's worst case, which more trials of the "
+                "same moves do not shrink: a finer poll does (EGM's 4 ms feedback, or a "
+                "faster computer link)" if period_s > 0 else
+                "held at the base config's value: the moves' timing does not determine it")
     return ArmFit(values, spread, rms, int(distance.size), note, period_s, timing)
 
 
