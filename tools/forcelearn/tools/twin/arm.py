@@ -64,6 +64,9 @@ class ArmFit:
     timing: dict[str, float] | None = None
     """The fitted arm whose times explain the moves (each within its polling window, to
     ``RMS_LIMIT_S``) even where single parameters trade off; None when none does."""
+    free_sigmas: dict[str, float] = dataclasses.field(default_factory=dict)
+    """1-sigma of the held parameters when they were last free (with the polling's worst
+    case): the uncertainty the report gives for a held value."""
     answer_s: float = 0.0
     """From a poll's recorded stamp to the driver holding the answer, s: a burst read after
     a wait begins this much after its recorded start (:meth:`Polling.answer_s`)."""
@@ -286,8 +289,10 @@ def fit_arm(data: RecordArrays, base: dict[str, float], band_mm: float,
             f" ms RMS outside their {period_s * 1000:.0f} ms polling windows (more than "
             f"{RMS_LIMIT_S * 1000:.0f} ms): they hold what it lacks, so no arm parameter is "
             "taken from them; the base values are held", period_s)
+    free_sigmas: dict[str, float] = {}
     for n in names:
         if _at_bound(n, values[n]) or not BY_NAME[n].determined(values[n], spread[n]):
+            free_sigmas[n] = spread[n]
             values[n], spread[n] = base[n], math.inf  # held at the base value
     note = ""
     if not all(math.isfinite(spread[n]) for n in names):
@@ -298,7 +303,7 @@ def fit_arm(data: RecordArrays, base: dict[str, float], band_mm: float,
                 "same moves do not shrink: a finer poll does (EGM's 4 ms feedback, or a "
                 "faster computer link)" if period_s > 0 else
                 "held at the base config's value: the moves' timing does not determine it")
-    return ArmFit(values, spread, rms, int(distance.size), note, period_s, timing)
+    return ArmFit(values, spread, rms, int(distance.size), note, period_s, timing, free_sigmas)
 
 
 def _at_bound(name: str, value: float) -> bool:

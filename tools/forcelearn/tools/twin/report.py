@@ -69,6 +69,9 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
         if not row["determined"]:
             row["note"] = fit.arm.note or (
                 "not determined by the moves' timing: the base config's value is kept")
+            free = fit.arm.free_sigmas.get(param.name, math.inf)
+            if math.isfinite(free):
+                row["note"] += f"; fitted free, its 1-sigma was {_fmt(free)} {param.unit}"
         elif param.name == "start_delay_s":
             row["note"] = ("command to motion, including the link's time to send the command: "
                            "twin.toml keeps the base delay (its emulated link adds its own)")
