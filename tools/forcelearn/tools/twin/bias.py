@@ -6,9 +6,8 @@ only at its tares. The forward model predicts the force, not the bias, so
 without this module the bias's wander over a run (~0.5 N over 60 trials)
 lands in the residuals and leaks into the contact position and the wear.
 
-Model: the bias is constant over a *segment* (a trial, or a slice of a longer
-one such as the surface probe: at most ``SEGMENT_S``, cut at pauses of
-``SEGMENT_GAP_S``) and walks between
+Model: the bias is constant over a *segment* (a trial, or a slice of at most
+``SEGMENT_S`` of a longer one such as the surface probe) and walks between
 segments: ``b_s - b_(s-1) ~ N(0, q^2 dt_s)``; it is 0 at every tare (the
 run's own at its start, and each recorded accepted tare). For given model
 predictions the biases minimise::
@@ -56,9 +55,6 @@ from forcelearn.tools.twin.sensor import SensorFit, mean_share
 SEGMENT_S = 20.0
 """Longest stretch of cell time (s) over which the bias is taken as constant: a trial is
 one segment; the surface probe (minutes) is sliced."""
-SEGMENT_GAP_S = 1.5
-"""A pause this long (s) between bursts also starts a segment: the probe's columns (its
-reads ~0.35 s apart, a column's travel ~3 s) each get their own."""
 FREE_MARGIN_MM = 1.5
 """A read is taken as free space for the drift's estimate when a plain spring fitted to
 the reads (:func:`free_reads`), its surface raised by this much, has no contact there (mm):
@@ -138,8 +134,7 @@ def build_chain(data: RecordArrays, tares: dict[int, float],
         tare = tares.get(int(data.trial[row]))
         for k, col in enumerate(columns):
             moment = float(burst_s[row, col])
-            if (k == 0 or moment - members[-1][0] > SEGMENT_S
-                    or moment - members[-1][-1] > SEGMENT_GAP_S):
+            if k == 0 or moment - members[-1][0] > SEGMENT_S:
                 if k == 0 and tare is not None:
                     zero, anchor = tare, 0.0
                 elif not members and after is not None:
