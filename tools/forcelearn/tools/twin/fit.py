@@ -29,6 +29,7 @@ from forcelearn.tools.twin.arm import (
     with_true_in_position,
 )
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, to_arrays
+from forcelearn.tools.twin.bias import BiasWalk, bias_walk
 from forcelearn.tools.twin.forward import Reading, motion_shape, predict_means
 from forcelearn.tools.twin.params import BY_NAME, Member, family
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
@@ -143,7 +144,7 @@ this factor (else the records need them: they stay fitted, reported as not deter
 
 def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
                start: dict[str, float], base: dict[str, float], arm: dict[str, float],
-               reading: Reading, noise_n: float) -> MemberFit:
+               reading: Reading, noise_n: float, walk: BiasWalk | None = None) -> MemberFit:
     """Fit one member's free parameters on ``train``; score it on ``heldout``.
 
     A parameter the records do not determine is held at the base config's value
@@ -159,7 +160,8 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     held_sigmas: dict[str, float] = {}
     weights = _weights(train, noise_n)
     use = train.has_burst
-    groups = np.broadcast_to(train.trial[:, None], use.shape)[use]
+    groups = (np.broadcast_to(train.trial[:, None], use.shape)[use] if walk is None
+              else walk.groups())
     shape = motion_shape(train, arm)
     spread: dict[str, float] = {}
     cost = math.inf
@@ -178,7 +180,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
             sponge = {**frozen, **dict(zip(names, x.tolist(), strict=True))}
             predicted = predict_means(train, sponge, arm, reading, shape)
             error: np.ndarray = ((predicted - train.mean_n) * weights)[use]
-            return error
+            return error if walk is None else walk.residuals(predicted - train.mean_n)
 
         result = least_squares(residuals, x0, bounds=(low, high), x_scale="jac",
                                method="trf", max_nfev=100 * len(names))
@@ -206,6 +208,8 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     spread.update(held_sigmas)
     train_pred = predict_means(train, values, arm, reading, shape)
     held_pred = predict_means(heldout, values, arm, reading)
+    if walk is not None:  # the sensor's bias (twin/bias.py)
+        train_pred, held_pred = walk.debiased(train_pred, held_pred)
     train_rms = _rms(train_pred - train.mean_n, train.is_step & train.has_burst)
     held_res = ((held_pred - heldout.mean_n) * _weights(heldout, noise_n))[heldout.has_burst]
     n_held = max(1, held_res.size)
@@ -285,16 +289,19 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
         delay = emulator_delay_s(arm.values, distances, band_mm, tick_s)
     first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
     start = initial_sponge(train, base_sponge, reading)
+    walk = bias_walk(records, train, heldout, base_sponge, reading, first,
+                     lambda d: _weights(d, first.noise_n), configured_phi)
     fits = [fit_member(m, train, heldout, start, base_sponge, arm.values, reading,
-                       first.noise_n) for m in (members or family())]
+                       first.noise_n, walk) for m in (members or family())]
     best = min(f.bic for f in fits)
     # Parsimony: the simplest member (family order) whose BIC is within BIC_MARGIN of the
     # best; a richer law must explain the held-out trials clearly better, not by rounding.
     chosen = next(f for f in fits if f.bic <= best + BIC_MARGIN)
     train_pred = predict_means(train, chosen.values, arm.values, reading)
-    sensor = fit_sensor(records, train, train_pred - train.mean_n, calibration_noise_n,
-                        configured_phi)
     held_pred = predict_means(heldout, chosen.values, arm.values, reading)
+    train_pred, held_pred = walk.debiased(train_pred, held_pred)
+    sensor = walk.sensor(fit_sensor(records, train, train_pred - train.mean_n,
+                                    calibration_noise_n, configured_phi))
     noise = sensor.noise_n if math.isfinite(sensor.noise_n) else 0.0
     threshold = max(REPRESENTED_FACTOR * noise, REPRESENTED_FLOOR_N)
     represented = chosen.heldout_rms_n <= threshold

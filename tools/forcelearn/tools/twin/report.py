@@ -79,9 +79,14 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
     sensor = fit.sensor
     rows.append(_row(SENSOR[0], sensor.noise_n, sensor.noise_sigma_n, trials, passes))
     drift = _row(SENSOR[1], sensor.drift_n_per_sqrt_s, sensor.drift_sigma, trials, passes)
-    if sensor.tares < 3:
-        drift["note"] = (f"{sensor.tares} tares recorded: the drift needs tares "
-                         "(task.tare_each_trial = true); the base config's value is kept")
+    if sensor.drift_source == "free-space reads":
+        drift["note"] = (f"{sensor.tares} tares recorded: measured from the free-space reads "
+                         "of successive trials (task.tare_each_trial = true measures it "
+                         "better)")
+    elif sensor.drift_source != "tares" or not math.isfinite(sensor.drift_n_per_sqrt_s):
+        drift["note"] = (f"{sensor.tares} tares recorded and no free-space reads: the drift "
+                         "needs tares (task.tare_each_trial = true); the base config's value "
+                         "is kept")
     rows.append(drift)
     return rows
 
@@ -115,7 +120,8 @@ def twin_document(fit: TwinFit, source: RunSource) -> dict[str, Any]:
                       "heldout_per_trial": per_trial,
                       "arm_rms_s": fit.arm.rms_s, "arm_moves": fit.arm.moves},
         "sensor": {"colour_phi_upper_bound": fit.sensor.colour_phi,
-                   "tares": fit.sensor.tares, "samples": fit.sensor.samples},
+                   "tares": fit.sensor.tares, "samples": fit.sensor.samples,
+                   "drift_source": fit.sensor.drift_source},
         "diagnostics": fit.diagnostics,
     }
 
@@ -126,6 +132,17 @@ def _fmt(value: float | None) -> str:
     if math.isinf(value):
         return "∞"
     return f"{value:.4g}"
+
+
+BIAS_NOTE = (
+    "The sensor's bias is not fitted as a parameter of the cell: it drifts as a random walk "
+    "(the rate above) and is profiled out, constant within a trial and 0 at each tare. On the "
+    "fitted trials it is estimated from all their reads; on the held-out trials ONLY from "
+    "their free-space reads (the bursts where the twin predicts no contact) and the walk from "
+    "the last fitted trial, never from the in-contact readings being predicted: the sensor's "
+    "zero is not a property of the cell; the twin reads it from the run's free-space "
+    "readings as a tare would."
+)
 
 
 def twin_markdown(document: dict[str, Any]) -> str:
@@ -166,7 +183,8 @@ def twin_markdown(document: dict[str, Any]) -> str:
               f"- arm, command to in position: RMS {_fmt(res['arm_rms_s'])} s over "
               f"{res['arm_moves']} moves",
               f"- sensor noise colour: AR(1) per sample at most "
-              f"{_fmt(document['sensor']['colour_phi_upper_bound'])}", ""]
+              f"{_fmt(document['sensor']['colour_phi_upper_bound'])}", "",
+              BIAS_NOTE, ""]
     lines += ["| held-out trial | RMS (N) |", "|---|---|"]
     lines += [f"| {t['trial']} | {_fmt(t['rms_n'])} |" for t in res["heldout_per_trial"]]
     for note in document["diagnostics"]:

@@ -7,7 +7,8 @@
   scatter as much as the fit's residuals do (``var(mean) = g sigma^2 / n``): an
   upper bound, since the residuals also hold what the model misses;
 * bias drift: each accepted tare's reading is the bias's random walk since the
-  previous zeroing, ``var = D^2 dt``; without tares it is not determined.
+  previous zeroing, ``var = D^2 dt``; without tares the free-space reads of
+  successive trials measure it (:mod:`forcelearn.tools.twin.bias`).
 """
 
 from __future__ import annotations
@@ -33,13 +34,15 @@ class SensorFit:
     drift_sigma: float
     tares: int
     samples: int
+    drift_source: str = "tares"
+    """What measured the drift: "tares", "free-space reads" (:mod:`.bias`) or "none"."""
 
 
 def _colour_gain(phi: float) -> float:
     return (1 + phi) / (1 - phi) if phi < 1 else math.inf
 
 
-def _mean_share(phi: float, n: float) -> float:
+def mean_share(phi: float, n: float) -> float:
     """Var(mean of n AR(1) samples) / sigma^2, exact for a whole n."""
     count = max(1, round(n))
     lags = np.arange(1, count)
@@ -68,7 +71,7 @@ def fit_sensor(records: list[TrialRecords], data: RecordArrays,
     n_mean = float(np.mean(counts)) if counts.size else 1.0
     colour = configured_phi if configured_phi is not None else 0.0
     gain = _colour_gain(colour)
-    shrink = max(0.05, 1 - _mean_share(colour, n_mean))
+    shrink = max(0.05, 1 - mean_share(colour, n_mean))
     noise = math.sqrt(var_in_burst / shrink) if math.isfinite(var_in_burst) else math.nan
     effective = float(np.sum(counts - 1)) / max(gain, 1.0) if counts.size else 0.0
     noise_sigma = noise / math.sqrt(2 * effective) if effective > 0 else math.inf

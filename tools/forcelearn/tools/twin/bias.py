@@ -1,0 +1,394 @@
+"""The sensor's bias as a nuisance random walk, profiled out of the twin's fit.
+
+A force sensor's zero drifts (thermally on a real one; the emulated JR3 and
+Net F/T drift as a random walk, ``bias_drift_per_sqrt_s``) and a run zeroes it
+only at its tares. The forward model predicts the force, not the bias, so
+without this module the bias's wander over a run (~0.5 N over 60 trials)
+lands in the residuals and leaks into the contact position and the wear.
+
+Model: the bias is constant over a *segment* (a trial, or a slice of at most
+``SEGMENT_S`` of a longer one such as the surface probe) and walks between
+segments: ``b_s - b_(s-1) ~ N(0, q^2 dt_s)``; it is 0 at every tare (the
+run's own at its start, and each recorded accepted tare). For given model
+predictions the biases minimise::
+
+    sum_i w_i^2 (r_i - b_s(i))^2 + sum_s ((b_s - b_(s-1)) / (q sqrt(dt_s)))^2
+
+(``r`` = recorded - predicted burst means), a tridiagonal system
+(:func:`scipy.linalg.solve_banded`). The fit's residual vector becomes
+``[w (r - b), the walk's terms]`` (variable projection: the finite-difference
+Jacobian carries the biases' dependence on the parameters). Bursts where the
+model predicts no contact (each trial's approach read, the probe's free
+reads) read the bias alone, so they anchor it with no special case.
+
+The drift rate ``q`` comes from the recorded tares when the run has at least
+three (:func:`forcelearn.tools.twin.sensor.fit_sensor`), else from the
+free-space reads of successive segments: ``var(increment) = q^2 dt +
+var(read) + var(previous read)``, each read's variance from the noise, its
+sample count and the noise's colour.
+
+On held-out trials the biases come ONLY from the free-space reads (bursts the
+twin predicts no contact for) and the walk from the last fitted trial, never
+from the in-contact readings being predicted: the sensor's zero is not a
+property of the cell; the twin reads it from the run's free-space readings as
+a tare would.
+
+Units: N, s, N/sqrt(s).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import solve_banded
+from scipy.optimize import least_squares
+
+from forcelearn.records import TrialRecords
+from forcelearn.tools.twin.arrays import RecordArrays
+from forcelearn.tools.twin.forward import Reading, depth_mm
+from forcelearn.tools.twin.sensor import SensorFit, mean_share
+
+SEGMENT_S = 20.0
+"""Longest stretch of cell time (s) over which the bias is taken as constant: a trial is
+one segment; the surface probe (minutes) is sliced."""
+FREE_MARGIN_MM = 1.5
+"""A read is taken as free space for the drift's estimate when a plain spring fitted to
+the reads (:func:`free_reads`), its surface raised by this much, has no contact there (mm):
+it covers the waviness and relaxation the plain spring leaves out."""
+MIN_GAP_S = 1e-3
+"""Floor of the walk's time between segments, s."""
+ESTIMATE_ROUNDS = 5
+"""Reweighting rounds of the drift's moment estimate."""
+
+WeightsOf = Callable[[RecordArrays], np.ndarray]
+"""The fit's weights (1 / expected scatter of each burst mean) of a data set, (T, M)."""
+
+
+@dataclass(frozen=True)
+class Chain:
+    """The bias segments of one data set and how the walk links them.
+
+    Segment ``s`` either follows segment ``s - 1`` after ``gap_s[s]`` seconds
+    (``linked[s]``) or starts from the known value ``anchor_n[s]`` that long
+    after a tare (or the previous data set's last segment).
+    """
+
+    segment: np.ndarray
+    """(T, M) segment index of each burst, -1 where no burst."""
+    trial_of: np.ndarray
+    """(S,) trial number of each segment."""
+    time_s: np.ndarray
+    """(S,) mean cell time of each segment's bursts, s."""
+    gap_s: np.ndarray
+    """(S,) walk time from the previous segment or the anchor, s."""
+    linked: np.ndarray
+    """(S,) True: follows the previous segment; False: starts from ``anchor_n``."""
+    anchor_n: np.ndarray
+    """(S,) the bias the walk starts from where not linked, N."""
+
+    @property
+    def size(self) -> int:
+        """Number of segments."""
+        return int(self.time_s.size)
+
+
+def _tare_times(records: list[TrialRecords]) -> dict[int, float]:
+    """Trial number -> cell time of the last accepted tare that preceded it, s."""
+    out: dict[int, float] = {}
+    for trial in records:
+        times = [t.time_s for t in trial.tares if t.accepted and math.isfinite(t.time_s)]
+        if times:
+            out[trial.trial] = max(times)
+    return out
+
+
+def build_chain(data: RecordArrays, tares: dict[int, float],
+                after: tuple[float, float] | None = None) -> Chain:
+    """Segments of ``data`` and their links.
+
+    ``after`` is ``(time_s, bias_n)`` of the segment before ``data`` (the last
+    fitted one, for held-out trials); without it the first segment starts from 0
+    at the run's tare (taken as the first move's start when no tare is recorded).
+    A tare before a trial, or cell time running backwards (the next run directory),
+    restarts the walk from 0.
+    """
+    burst_s = np.where(data.has_burst, data.burst_start_s + 0.5 * data.burst_span_s, np.nan)
+    segment = np.full(data.has_burst.shape, -1)
+    trial_of: list[int] = []
+    members: list[list[float]] = []
+    zero_s: list[float] = []  # per segment: when its walk starts (NaN: the previous segment)
+    anchors: list[float] = []
+    previous_end = after[0] if after is not None else -math.inf
+    for row in range(data.trials):
+        columns = np.flatnonzero(data.has_burst[row])
+        if columns.size == 0:
+            continue
+        columns = columns[np.argsort(burst_s[row, columns], kind="stable")]
+        starts = data.start_s[row][data.valid[row]]
+        row_start = float(np.nanmin(starts)) if np.isfinite(starts).any() else float(
+            burst_s[row, columns[0]])
+        tare = tares.get(int(data.trial[row]))
+        for k, col in enumerate(columns):
+            moment = float(burst_s[row, col])
+            if k == 0 or moment - members[-1][0] > SEGMENT_S:
+                if k == 0 and tare is not None:
+                    zero, anchor = tare, 0.0
+                elif not members and after is not None:
+                    zero, anchor = after
+                elif not members or (k == 0 and row_start < previous_end):
+                    zero, anchor = row_start, 0.0  # the run's tare at its start
+                else:
+                    zero, anchor = math.nan, 0.0
+                trial_of.append(int(data.trial[row]))
+                members.append([])
+                zero_s.append(zero)
+                anchors.append(anchor)
+            members[-1].append(moment)
+            segment[row, col] = len(members) - 1
+            previous_end = moment
+    times = np.array([float(np.mean(m)) for m in members])
+    zeros = np.array(zero_s)
+    linked = np.isnan(zeros)
+    before = np.concatenate([[math.nan], times[:-1]])
+    gaps = np.maximum(MIN_GAP_S, times - np.where(linked, before, zeros))
+    return Chain(segment, np.array(trial_of, int), times, gaps, linked, np.array(anchors))
+
+
+def solve_biases(chain: Chain, residual_n: np.ndarray, weights: np.ndarray,
+                 rate: float) -> np.ndarray:
+    """The segment biases (S,) minimising the weighted misfit plus the walk's penalty.
+
+    ``residual_n`` is recorded - predicted (T, M); ``weights`` (T, M) are 0 where a
+    burst must not inform the bias (NaN residuals count as weight 0). ``rate`` is
+    the walk's q, N/sqrt(s); at 0 every bias is its anchor.
+    """
+    s_count = chain.size
+    if s_count == 0:
+        return np.zeros(0)
+    base = np.where(chain.linked, 0.0, chain.anchor_n)
+    if not rate > 0:
+        if chain.linked.any():
+            # a linked segment carries the last anchor forward
+            values = base.copy()
+            for s in range(1, s_count):
+                if chain.linked[s]:
+                    values[s] = values[s - 1]
+            return values
+        return base
+    use = (chain.segment >= 0) & (weights > 0) & np.isfinite(residual_n)
+    index = chain.segment[use]
+    w2 = weights[use] ** 2
+    sum_w2 = np.bincount(index, w2, minlength=s_count)
+    sum_w2r = np.bincount(index, w2 * residual_n[use], minlength=s_count)
+    precision = 1.0 / (rate**2 * chain.gap_s)
+    diagonal = sum_w2 + precision
+    following = np.where(chain.linked, precision, 0.0)
+    diagonal[:-1] += following[1:]
+    rhs = sum_w2r + np.where(chain.linked, 0.0, precision * chain.anchor_n)
+    banded = np.zeros((3, s_count))
+    banded[0, 1:] = -following[1:]
+    banded[1] = diagonal
+    banded[2, :-1] = -following[1:]
+    result: np.ndarray = solve_banded((1, 1), banded, rhs)
+    return result
+
+
+def walk_terms(chain: Chain, biases: np.ndarray, rate: float) -> np.ndarray:
+    """The walk's residuals ``(b_s - b_(s-1)) / (q sqrt(dt_s))`` (S,); empty at q = 0."""
+    if not rate > 0 or chain.size == 0:
+        return np.zeros(0)
+    before = np.concatenate([[0.0], biases[:-1]])
+    start = np.where(chain.linked, before, chain.anchor_n)
+    result: np.ndarray = (biases - start) / (rate * np.sqrt(chain.gap_s))
+    return result
+
+
+def offsets(chain: Chain, biases: np.ndarray) -> np.ndarray:
+    """The bias of each burst (T, M), 0 where no burst."""
+    padded = np.concatenate([biases, [0.0]])
+    result: np.ndarray = padded[chain.segment]  # -1 picks the padded 0
+    return result
+
+
+@dataclass(frozen=True)
+class DriftEstimate:
+    """The bias's random-walk rate q and where it came from."""
+
+    rate: float
+    """N/sqrt(s); NaN when nothing measures it."""
+    sigma: float
+    """1-sigma, N/sqrt(s); inf when not measured."""
+    source: str
+    """"tares", "free-space reads" or "none"."""
+    reads: int
+    """Segments with a free-space read (or tares) that measured it."""
+
+
+def drift_from_reads(chain: Chain, free: np.ndarray, data: RecordArrays, noise_n: float,
+                     phi: float) -> DriftEstimate:
+    """The drift rate q from the free-space reads of successive segments (moments).
+
+    Each segment's free reads give its bias (their variance-weighted mean); an
+    increment between two measured segments ``dt`` apart (or from a tare's 0) has
+    ``E d^2 = q^2 dt + V_a + V_b``; ``var(d^2) = 2 (E d^2)^2`` sets the weights
+    and the 1-sigma. Increments share a read with their neighbours: the stated
+    sigma ignores that slight correlation.
+    """
+    noise = noise_n if math.isfinite(noise_n) else 0.0
+    share = np.vectorize(lambda n: mean_share(phi, float(n)))
+    use = free & data.has_burst & (chain.segment >= 0) & np.isfinite(data.mean_n)
+    if not use.any():
+        return DriftEstimate(math.nan, math.inf, "none", 0)
+    index = chain.segment[use]
+    variance = np.maximum(noise**2 * share(data.count[use]), 1e-12)
+    precision = np.bincount(index, 1.0 / variance, minlength=chain.size)
+    total = np.bincount(index, data.mean_n[use] / variance, minlength=chain.size)
+    measured = precision > 0
+    safe = np.where(measured, precision, 1.0)
+    value = np.where(measured, total / safe, np.nan)
+    var = np.where(measured, 1.0 / safe, np.nan)
+    moment = np.where(data.has_burst, data.burst_start_s + 0.5 * data.burst_span_s, 0.0)[use]
+    read_s = np.bincount(index, moment / variance, minlength=chain.size) / safe
+    d2, dt, v = [], [], []
+    last: tuple[float, float, float] | None = None  # (time, value, variance)
+    for s in range(chain.size):
+        if not chain.linked[s]:
+            last = (chain.time_s[s] - chain.gap_s[s], float(chain.anchor_n[s]), 0.0)
+        if not measured[s] or last is None:
+            continue
+        d2.append((value[s] - last[1]) ** 2)
+        dt.append(read_s[s] - last[0])
+        v.append(var[s] + last[2])
+        last = (float(read_s[s]), float(value[s]), float(var[s]))
+    if len(d2) < 2:
+        return DriftEstimate(math.nan, math.inf, "none", len(d2))
+    d2a, dta, va = np.array(d2), np.maximum(np.array(dt), MIN_GAP_S), np.array(v)
+    rate_sq = max(0.0, float(np.sum(d2a - va) / np.sum(dta)))
+    spread = math.inf
+    for _ in range(ESTIMATE_ROUNDS):
+        weight = 1.0 / (rate_sq * dta + va) ** 2
+        rate_sq = max(0.0, float(np.sum(weight * dta * (d2a - va)) / np.sum(weight * dta**2)))
+        spread = math.sqrt(2.0 / float(np.sum(weight * dta**2)))
+    rate = math.sqrt(rate_sq)
+    sigma = spread / (2 * rate) if rate > 0 else math.sqrt(spread)
+    return DriftEstimate(rate, min(sigma, math.sqrt(spread)), "free-space reads", len(d2))
+
+
+def free_reads(data: RecordArrays, base: dict[str, float], reading: Reading) -> np.ndarray:
+    """(T, M) True for bursts read in free space, for the drift's estimate.
+
+    A plain spring ``F = k max(0, s + a (z_top - z) - y)`` (the fresh surface, its
+    slope, one stiffness) is fitted robustly to every burst; a burst is free where
+    that surface raised by ``FREE_MARGIN_MM`` is below the tool (or the tool is off
+    the strip). It needs no starting guess from the full fit and no wear: wear only
+    lowers the surface, so a burst above the fresh one is free.
+    """
+    use = data.has_burst & np.isfinite(data.mean_n)
+    y, z = data.reached[..., 1][use], data.reached[..., 2][use]
+    travelled = base["z_top_mm"] - z
+    along = abs(reading.along_y) or 1.0
+    force = data.mean_n[use] / along
+
+    def misfit(x: np.ndarray) -> np.ndarray:
+        result: np.ndarray = x[0] * np.maximum(0.0, x[1] + x[2] * travelled - y) - force
+        return result
+
+    start = np.array([base["stiffness_n_per_mm"], base["surface_y_mm"], 0.0])
+    fitted = least_squares(misfit, start, bounds=([1e-3, -1e3, -0.5], [1e3, 1e3, 0.5]),
+                           ).x
+    surface = {**base, "surface_y_mm": float(fitted[1]) + FREE_MARGIN_MM,
+               "surface_slope": float(fitted[2]), "waviness_mm": 0.0, "set_mm": 0.0}
+    depth = depth_mm(surface, data.passes, data.reached[..., 1], data.reached[..., 2])
+    free: np.ndarray = data.has_burst & (np.nan_to_num(depth, nan=1.0) <= 0.0)
+    return free
+
+
+@dataclass(frozen=True)
+class BiasWalk:
+    """The bias profile of one fit: the fitted trials' chain, the held-out trials', q."""
+
+    train: Chain
+    heldout_data: RecordArrays
+    tares: dict[int, float]
+    train_weights: np.ndarray
+    heldout_weights: np.ndarray
+    drift: DriftEstimate
+    trial_labels: np.ndarray
+    """(T, M) trial number of each fitted burst (the uncertainty's groups)."""
+    train_mean_n: np.ndarray
+    """(T, M) recorded burst means of the fitted trials, N."""
+
+    @property
+    def rate(self) -> float:
+        """The q the profile uses (0: no walk, the biases stay at the tares' 0)."""
+        rate = self.drift.rate
+        return rate if math.isfinite(rate) and rate > 0 else 0.0
+
+    def residuals(self, error_n: np.ndarray) -> np.ndarray:
+        """The fit's residual vector for ``error_n`` = predicted - recorded (T, M).
+
+        ``[w (predicted + b - recorded)] `` over the fitted bursts, then the walk's terms.
+        """
+        biases = solve_biases(self.train, -error_n, self.train_weights, self.rate)
+        use = self.train.segment >= 0
+        misfit = ((error_n + offsets(self.train, biases)) * self.train_weights)[use]
+        return np.concatenate([misfit, walk_terms(self.train, biases, self.rate)])
+
+    def groups(self) -> np.ndarray:
+        """One trial label per entry of :meth:`residuals` (the walk's term: its segment's)."""
+        use = self.train.segment >= 0
+        walk = self.train.trial_of if self.rate > 0 else np.zeros(0, int)
+        return np.concatenate([self.trial_labels[use], walk])
+
+    def debiased(self, train_pred: np.ndarray, heldout_pred: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """Predictions with the bias added.
+
+        The fitted trials' biases come from all their bursts; the held-out trials'
+        from their free-space reads only (the model predicts 0 there) and the walk
+        from the last fitted trial.
+        """
+        train_b = solve_biases(self.train, self.train_mean_n - train_pred,
+                               self.train_weights, self.rate)
+        last = (float(self.train.time_s[-1]), float(train_b[-1])) if self.train.size else None
+        chain = build_chain(self.heldout_data, self.tares, last)
+        free = self.heldout_data.has_burst & (np.nan_to_num(heldout_pred, nan=1.0) == 0.0)
+        weights = np.where(free, self.heldout_weights, 0.0)
+        residual = self.heldout_data.mean_n - heldout_pred
+        held_b = solve_biases(chain, residual, weights, self.rate)
+        held = heldout_pred + offsets(chain, held_b)
+        return train_pred + offsets(self.train, train_b), held
+
+    def sensor(self, fit: SensorFit) -> SensorFit:
+        """``fit`` with the drift the walk measured when the tares did not."""
+        if fit.tares >= 3 and math.isfinite(fit.drift_n_per_sqrt_s):
+            return fit
+        return dataclasses.replace(fit, drift_n_per_sqrt_s=self.drift.rate,
+                                   drift_sigma=self.drift.sigma,
+                                   drift_source=self.drift.source)
+
+
+def bias_walk(records: list[TrialRecords], train: RecordArrays, heldout: RecordArrays,
+              base: dict[str, float], reading: Reading, sensor: SensorFit,
+              weights_of: WeightsOf, phi: float | None) -> BiasWalk:
+    """The bias profile for a fit: chains, weights and q (from tares, else free reads).
+
+    ``base`` is the fit's base sponge (its strip's ends, a start for
+    :func:`free_reads`).
+    """
+    tares = _tare_times(records)
+    chain = build_chain(train, tares)
+    if sensor.tares >= 3 and math.isfinite(sensor.drift_n_per_sqrt_s):
+        drift = DriftEstimate(sensor.drift_n_per_sqrt_s, sensor.drift_sigma, "tares",
+                              sensor.tares)
+    else:
+        free = free_reads(train, base, reading)
+        drift = drift_from_reads(chain, free, train, sensor.noise_n,
+                                 phi if phi is not None else 0.0)
+    labels = np.broadcast_to(train.trial[:, None], train.has_burst.shape)
+    return BiasWalk(chain, heldout, tares, weights_of(train), weights_of(heldout), drift,
+                    labels, train.mean_n)
