@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 
 from forcelearn.records import TrialRecords
 from forcelearn.tools.twin.arm import ArmFit, emulator_delay_s, fit_arm, timed_moves
@@ -57,6 +57,15 @@ class MemberFit:
     free: int
     held: tuple[str, ...] = ()
     """Parameters the records did not determine, held at the base config's value."""
+    train_cost: float = math.inf
+    """The fit's objective on the train trials (half the sum of squared weighted residuals)."""
+    eligible: bool = True
+    """False: dropped (it fitted worse than the member it contains)."""
+    note: str = ""
+    jacobian_sigmas: dict[str, float] = field(default_factory=dict)
+    """The Jacobian's (cluster-robust) 1-sigma of the fitted parameters, before the jackknife."""
+    jackknife_sigmas: dict[str, float] = field(default_factory=dict)
+    """The trial-block jackknife's 1-sigma (chosen member only): ``sigmas`` is the larger."""
 
 
 @dataclass
@@ -105,11 +114,21 @@ def _weights(data: RecordArrays, noise_n: float) -> np.ndarray:
     return np.where(data.has_burst, 1.0 / spread, 0.0)
 
 
-def initial_sponge(data: RecordArrays, base: dict[str, float], reading: Reading
-                   ) -> dict[str, float]:
-    """Stiffness, surface and slope from a straight line through the contact bursts."""
+def initial_sponge(data: RecordArrays, base: dict[str, float], reading: Reading,
+                   noise_n: float = 0.0) -> dict[str, float]:
+    """Stiffness, surface and slope from a straight line through the contact bursts.
+
+    The surface probe's bursts (rows without a control step: it presses the fresh foam
+    at several depths and places) are used when they hold enough contact readings, as
+    they span the depth a run holding its force in band does not; otherwise the
+    control steps'. A burst is in contact above ``max(0.5 N, 3 x noise_n)``.
+    """
     start = dict(base)
-    contact = data.has_burst & data.is_step & (data.mean_n > 0.5)
+    noise = noise_n if math.isfinite(noise_n) else 0.0
+    touching = data.has_burst & (data.mean_n > max(0.5, 3.0 * noise))
+    probe_rows = ~(data.is_step & data.valid).any(axis=1)
+    probe = touching & probe_rows[:, None]
+    contact = probe if probe.sum() >= PROBE_MIN_CONTACTS else touching & data.is_step
     if contact.sum() < 3:
         return start
     z, y = data.reached[..., 2][contact], data.reached[..., 1][contact]
@@ -123,79 +142,150 @@ def initial_sponge(data: RecordArrays, base: dict[str, float], reading: Reading
     return start
 
 
-TIME_SCALES = ("softening_passes", "set_passes", "waviness_wavelength_mm",
-               "stiffness_wavelength_mm", "relaxation_time_s")
-"""Parameters that set a scale (passes, mm, s) for an amplitude: held first when loose."""
+PROBE_MIN_CONTACTS = 6
+"""Contact bursts of the probe needed for it alone to give the fit's start."""
+
+
+SCALE_OF = {"softening": "softening_passes", "set_mm": "set_passes",
+            "relaxation_ratio": "relaxation_time_s", "waviness_mm": "waviness_wavelength_mm",
+            "stiffness_variation": "stiffness_wavelength_mm"}
+"""Amplitudes and the scale (passes, s, mm) each acts over."""
+TIME_SCALES = tuple(SCALE_OF.values())
+"""Parameters that set a scale for an amplitude: held first when loose."""
+HOLDABLE = frozenset((*SCALE_OF, *TIME_SCALES))
+"""Parameters held at the base config's value when the records do not determine them. The
+force law's core (contact, slope, stiffness, exponent) is never held: when loose it keeps
+the records' best fit and is reported not determined."""
 HOLD_ROUNDS = 3
+"""Rounds of holding loose scales first; in the last, every loose holdable one is held."""
 HOLD_COST = 1.02
-"""Holding loose parameters at the base values is kept only if the fit's cost rises less than
-this factor (else the records need them: they stay fitted, reported as not determined)."""
+"""Holding loose parameters is undone when the fit's cost rises more than this factor (the
+records need them: they keep their fitted values, reported not determined), except for a
+value at a bound of its range, which stays held."""
+BOUND_SHARE = 1e-3
+"""A value within this share of its range's width from a bound sits at the bound."""
 
 
-def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
-               start: dict[str, float], base: dict[str, float], arm: dict[str, float],
-               reading: Reading, noise_n: float) -> MemberFit:
-    """Fit one member's free parameters on ``train``; score it on ``heldout``.
+def _at_bound(name: str, value: float) -> bool:
+    """``value`` sits at a bound of ``name``'s range (the optimiser stopped there)."""
+    param = BY_NAME[name]
+    margin = BOUND_SHARE * (param.high - param.low)
+    return bool(value <= param.low + margin or value >= param.high - margin)
 
-    A parameter the records do not determine is held at the base config's value
-    and the rest refitted (scales such as a wear's time constant first, so the
-    amplitude the records do show, e.g. the start of a wear curve, is still fitted),
-    unless holding it makes the fit worse (``HOLD_COST``): then the records need it
-    and it keeps its fitted value, reported as not determined.
-    """
-    fixed = dict(member.fixed)
-    values = {**start, **fixed}
-    free = [n for n in member.free if n not in fixed]
-    held: list[str] = []
-    held_sigmas: dict[str, float] = {}
-    weights = _weights(train, noise_n)
-    use = train.has_burst
-    groups = np.broadcast_to(train.trial[:, None], use.shape)[use]
-    shape = motion_shape(train, arm)
-    spread: dict[str, float] = {}
-    cost = math.inf
-    kept: tuple[dict[str, float], list[str], list[str], dict[str, float]] = (
-        values, free, held, held_sigmas)
-    for _ in range(HOLD_ROUNDS):
-        names = list(free)
+
+NESTED_TOLERANCE = 1e-6
+"""A richer member's train cost may exceed its nested parent's by this share (rounding)."""
+JACKKNIFE_BLOCKS = 4
+"""Contiguous blocks of the fitted trials left out in turn to check the chosen member."""
+JACKKNIFE_NFEV = 15
+"""Function evaluations (iterations) of a jackknife refit: it starts at the solution."""
+
+
+class _Problem:
+    """The weighted residuals of the train trials' bursts for a member's free parameters."""
+
+    def __init__(self, train: RecordArrays, arm: dict[str, float], reading: Reading,
+                 noise_n: float) -> None:
+        self.train, self.arm, self.reading = train, arm, reading
+        self.weights = _weights(train, noise_n)
+        self.use = train.has_burst
+        self.groups = np.broadcast_to(train.trial[:, None], self.use.shape)[self.use]
+        self.shape = motion_shape(train, arm)
+
+    def solve(self, names: list[str], values: dict[str, float], keep: np.ndarray | None = None,
+              max_nfev: int | None = None) -> tuple[np.ndarray, OptimizeResult]:
+        """Least squares over ``names`` from ``values`` (the rest frozen).
+
+        ``keep`` (trials, moves) bool: fit only those bursts.
+        """
         low = np.array([BY_NAME[n].low for n in names])
         high = np.array([BY_NAME[n].high for n in names])
         x0 = np.clip(np.array([values[n] for n in names]), low + 1e-6 * (high - low),
                      high - 1e-6 * (high - low))
         frozen = dict(values)
+        use = self.use if keep is None else self.use & keep
 
-        def residuals(x: np.ndarray, names: list[str] = names,
-                      frozen: dict[str, float] = frozen) -> np.ndarray:
+        def residuals(x: np.ndarray) -> np.ndarray:
             sponge = {**frozen, **dict(zip(names, x.tolist(), strict=True))}
-            predicted = predict_means(train, sponge, arm, reading, shape)
-            error: np.ndarray = ((predicted - train.mean_n) * weights)[use]
+            predicted = predict_means(self.train, sponge, self.arm, self.reading, self.shape)
+            error: np.ndarray = ((predicted - self.train.mean_n) * self.weights)[use]
             return error
 
         result = least_squares(residuals, x0, bounds=(low, high), x_scale="jac",
-                               method="trf", max_nfev=100 * len(names))
-        if held and result.cost > HOLD_COST * cost:
-            # holding them made the fit worse: the records need them free (undetermined)
-            values, free, held, held_sigmas = kept
+                               method="trf", max_nfev=max_nfev or 100 * len(names))
+        return np.asarray(result.x), result
+
+
+def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
+               start: dict[str, float], base: dict[str, float], arm: dict[str, float],
+               reading: Reading, noise_n: float, hold_first: dict[str, float] | None = None
+               ) -> MemberFit:
+    """Fit one member's free parameters on ``train``; score it on ``heldout``.
+
+    A parameter the records do not determine (its 1-sigma above its bound) is held at
+    the base config's value and the rest refitted. Scales such as a wear's time constant
+    are held first, so the amplitude then fitted is the wear's initial rate per pass at
+    that time constant, which the records may determine; what is still loose after that
+    is held too. When holding raises the fit's cost by more than ``HOLD_COST`` the records
+    need those parameters: they keep their fitted values, reported not determined, except
+    a value at a bound of its range, which is never written (docs/twin-fit.md, "Held
+    parameters"). ``hold_first`` (a
+    nested parent's held parameters and their sigmas) start held, at their values in
+    ``start``.
+    """
+    fixed = dict(member.fixed)
+    values = {**start, **fixed}
+    first = hold_first or {}
+    held = [n for n in first if n in member.free and n not in fixed]
+    free = [n for n in member.free if n not in fixed and n not in held]
+    held_sigmas = {n: first[n] for n in held}
+    problem = _Problem(train, arm, reading, noise_n)
+    spread: dict[str, float] = {}
+    cost = math.inf
+    kept: tuple[dict[str, float], list[str], list[str], dict[str, float],
+                dict[str, float], float] | None = None
+    kept_loose: list[str] = []
+    final = False
+    for round_ in range(HOLD_ROUNDS + 2):
+        names = list(free)
+        if names:
+            x, result = problem.solve(names, values)
+            if kept is not None and not final and result.cost > HOLD_COST * kept[5]:
+                # the records need what was just held: it is freed at its fitted value,
+                # except where that value sits at a bound of its range (where the optimiser
+                # stopped, not what the records say): that one stays held
+                values, free, held, held_sigmas, spread, cost = kept
+                at_bound = [n for n in kept_loose if _at_bound(n, values[n])]
+                at_bound += [SCALE_OF[n] for n in at_bound if n in SCALE_OF
+                             and SCALE_OF[n] in free and SCALE_OF[n] not in at_bound]
+                if not at_bound:
+                    break
+                for n in at_bound:
+                    values[n] = base[n]
+                    held.append(n)
+                    held_sigmas[n] = spread[n]
+                free = [n for n in free if n not in at_bound]
+                final = True
+                continue
+            cost = float(result.cost)
+            values.update(zip(names, x.tolist(), strict=True))
+            one_sigma = sigmas(result.jac, result.fun, problem.groups)
+            spread = dict(zip(names, one_sigma.tolist(), strict=True))
+        loose = [n for n in names if n in HOLDABLE
+                 and not BY_NAME[n].determined(values[n], spread[n])]
+        if final or not loose or round_ >= HOLD_ROUNDS:
             break
-        cost = float(result.cost)
-        values.update(zip(names, result.x.tolist(), strict=True))
-        spread = dict(zip(names, sigmas(result.jac, result.fun, groups).tolist(),
-                          strict=True))
-        loose = [n for n in names if not BY_NAME[n].determined(values[n], spread[n])]
-        if not loose:
-            break
+        kept = (dict(values), list(free), list(held), dict(held_sigmas), dict(spread), cost)
+        kept_loose = loose
         scales = [n for n in loose if n in TIME_SCALES]
-        hold = scales or loose
-        if len(hold) == len(names):
-            break
-        kept = (dict(values), list(free), list(held), dict(held_sigmas))
+        hold = scales if scales and round_ < HOLD_ROUNDS - 1 else loose
         for n in hold:
             values[n] = base[n]
             held.append(n)
             held_sigmas[n] = spread[n]  # its uncertainty when it was last fitted
         free = [n for n in free if n not in hold]
     spread.update(held_sigmas)
-    train_pred = predict_means(train, values, arm, reading, shape)
+    train_pred = predict_means(train, values, arm, reading, problem.shape)
     held_pred = predict_means(heldout, values, arm, reading)
     train_rms = _rms(train_pred - train.mean_n, train.is_step & train.has_burst)
     held_res = ((held_pred - heldout.mean_n) * _weights(heldout, noise_n))[heldout.has_burst]
@@ -205,8 +295,92 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     return MemberFit(
         member, values, {n: float(spread[n]) for n in member.free if n not in fixed},
         train_rms, _rms(held_pred - heldout.mean_n, heldout.is_step & heldout.has_burst), bic,
-        len(free), tuple(held),
+        len(free), tuple(held), train_cost=cost,
     )
+
+
+def nested_parent(member: Member, fitted: list[MemberFit]) -> MemberFit | None:
+    """The richest member fitted before ``member`` that it contains (its free set a subset)."""
+    parents = [f for f in fitted if set(f.member.free) <= set(member.free)]
+    return parents[-1] if parents else None
+
+
+def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: RecordArrays,
+               start: dict[str, float], base: dict[str, float], arm: dict[str, float],
+               reading: Reading, noise_n: float) -> list[MemberFit]:
+    """Fit the members simplest first, each richer one from its nested parent's solution.
+
+    A richer member contains its parent (its extra parameters at the parent's values,
+    e.g. exponent 1, no relaxation), so its best train cost is at most the parent's: one
+    whose fit ends above it is caught in a local minimum (or its holds cost it more) and
+    is refitted from the common start; if still above, it is dropped (not chosen) and
+    twin.json says so.
+    """
+    fits: list[MemberFit] = []
+    for member in members:
+        parent = nested_parent(member, fits)
+        begin = start if parent is None else {**start, **parent.values}
+        fit = fit_member(member, train, heldout, begin, base, arm, reading, noise_n,
+                         None if parent is None else
+                         {n: parent.sigmas[n] for n in parent.held})
+        if parent is not None and fit.train_cost > parent.train_cost * (1 + NESTED_TOLERANCE):
+            again = fit_member(member, train, heldout, start, base, arm, reading, noise_n)
+            note = (f"from {parent.member.name}'s solution its train cost was "
+                    f"{fit.train_cost:.4g}, above {parent.member.name}'s {parent.train_cost:.4g}")
+            if again.train_cost <= parent.train_cost * (1 + NESTED_TOLERANCE):
+                fit = again
+                fit.note = note + f"; refitted from the common start: {again.train_cost:.4g}"
+            else:
+                fit = again if again.train_cost < fit.train_cost else fit
+                fit.eligible = False
+                fit.note = (note + f"; refitted from the common start: {again.train_cost:.4g}; "
+                            "dropped: a richer member never fits worse than the one it contains")
+        fits.append(fit)
+    return fits
+
+
+def jackknife(fit: MemberFit, train: RecordArrays, arm: dict[str, float], reading: Reading,
+              noise_n: float, blocks: int = JACKKNIFE_BLOCKS) -> dict[str, float]:
+    """Resampled 1-sigma of the member's fitted (not held) parameters: the larger of two.
+
+    * Delete-a-block jackknife over trials: the trials with control steps are cut into
+      ``blocks`` contiguous blocks, each left out in turn (rows without control steps,
+      the surface probe's, stay in every refit: without them stiffness and contact trade
+      off); ``sqrt((B-1)/B * sum (theta_b - mean)^2)``. Early exploring trials and later
+      worn ones pull the parameters apart where the model misses how the cell changes.
+    * Split by force: the contact bursts below and above their median force refitted
+      apart (free-space bursts in both); ``|theta_low - theta_high| / 2``, about the full
+      fit's sigma when the force law holds over the depths, far more when it does not
+      (a linear law on a stiffening foam: its stiffness and contact depend on the depths).
+
+    Each refit starts at the member's solution. Infinite when there are fewer trials
+    with control steps than blocks.
+    """
+    names = [n for n in fit.member.free if n not in dict(fit.member.fixed) and n not in fit.held]
+    control = np.flatnonzero((train.is_step & train.has_burst).any(axis=1))
+    if control.size < blocks or not names:
+        return {n: math.inf for n in names}
+    problem = _Problem(train, arm, reading, noise_n)
+    estimates = []
+    for part in np.array_split(control, blocks):
+        rows = np.ones(train.trials, bool)
+        rows[part] = False
+        x, _ = problem.solve(names, fit.values, np.broadcast_to(rows[:, None], problem.use.shape),
+                             JACKKNIFE_NFEV)
+        estimates.append(x)
+    theta = np.array(estimates)
+    spread = np.sqrt((blocks - 1) / blocks * np.sum((theta - theta.mean(axis=0)) ** 2, axis=0))
+    force = np.where(train.has_burst, train.mean_n * np.sign(reading.along_y or 1.0), np.nan)
+    contact = train.has_burst & (force > max(0.5, 3.0 * (noise_n if math.isfinite(noise_n)
+                                                              else 0.0)))
+    if contact.sum() >= 2 * len(names):
+        median = float(np.median(force[contact]))
+        halves = [problem.solve(names, fit.values, ~(contact & (force > median)),
+                                JACKKNIFE_NFEV)[0],
+                  problem.solve(names, fit.values, ~(contact & (force <= median)),
+                                JACKKNIFE_NFEV)[0]]
+        spread = np.maximum(spread, np.abs(halves[0] - halves[1]) / 2)
+    return dict(zip(names, spread.tolist(), strict=True))
 
 
 def _rms(residuals: np.ndarray, mask: np.ndarray) -> float:
@@ -267,13 +441,18 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     if math.isfinite(arm.sigmas["start_delay_s"]):
         delay = emulator_delay_s(arm.values, distances, band_mm, tick_s)
     first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
-    start = initial_sponge(train, base_sponge, reading)
-    fits = [fit_member(m, train, heldout, start, base_sponge, arm.values, reading,
-                       first.noise_n) for m in (members or family())]
-    best = min(f.bic for f in fits)
+    start = initial_sponge(train, base_sponge, reading, first.noise_n)
+    fits = fit_nested(members or family(), train, heldout, start, base_sponge, arm.values,
+                      reading, first.noise_n)
+    eligible = [f for f in fits if f.eligible]
+    best = min(f.bic for f in eligible)
     # Parsimony: the simplest member (family order) whose BIC is within BIC_MARGIN of the
     # best; a richer law must explain the held-out trials clearly better, not by rounding.
-    chosen = next(f for f in fits if f.bic <= best + BIC_MARGIN)
+    chosen = next(f for f in eligible if f.bic <= best + BIC_MARGIN)
+    chosen.jacobian_sigmas = dict(chosen.sigmas)
+    chosen.jackknife_sigmas = jackknife(chosen, train, arm.values, reading, first.noise_n)
+    for name, spread in chosen.jackknife_sigmas.items():
+        chosen.sigmas[name] = max(chosen.sigmas[name], spread)
     train_pred = predict_means(train, chosen.values, arm.values, reading)
     sensor = fit_sensor(records, train, train_pred - train.mean_n, calibration_noise_n,
                         configured_phi)
