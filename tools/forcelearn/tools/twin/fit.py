@@ -153,15 +153,15 @@ SCALE_OF = {"softening": "softening_passes", "set_mm": "set_passes",
 TIME_SCALES = tuple(SCALE_OF.values())
 """Parameters that set a scale for an amplitude: held first when loose."""
 HOLDABLE = frozenset((*SCALE_OF, *TIME_SCALES))
-"""Parameters held at the base config's value when the records do not determine them. The
-force law's core (contact, slope, stiffness, exponent) is never held: when loose it keeps
-the records' best fit and is reported not determined."""
+"""Parameters that may be held at the base config's value when the records do not determine
+them. The force law's core (contact, slope, stiffness, exponent) is never held: when loose
+it keeps the records' best fit and is reported not determined."""
 HOLD_ROUNDS = 3
-"""Rounds of holding loose scales first; in the last, every loose holdable one is held."""
+"""Rounds of holding loose scales and values at a bound."""
 HOLD_COST = 1.02
-"""Holding loose parameters is undone when the fit's cost rises more than this factor (the
-records need them: they keep their fitted values, reported not determined), except for a
-value at a bound of its range, which stays held."""
+"""Holding loose scales is undone when the fit's cost rises more than this factor (the
+records need them: they keep their fitted values, reported not determined); a value at a
+bound of its range stays held."""
 BOUND_SHARE = 1e-3
 """A value within this share of its range's width from a bound sits at the bound."""
 
@@ -171,6 +171,11 @@ def _at_bound(name: str, value: float) -> bool:
     param = BY_NAME[name]
     margin = BOUND_SHARE * (param.high - param.low)
     return bool(value <= param.low + margin or value >= param.high - margin)
+
+
+def _held_at_base(values: dict[str, float], base: dict[str, float], names: list[str]
+                  ) -> dict[str, float]:
+    return {**values, **{n: base[n] for n in names}}
 
 
 NESTED_TOLERANCE = 1e-6
@@ -218,72 +223,63 @@ class _Problem:
 
 def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
                start: dict[str, float], base: dict[str, float], arm: dict[str, float],
-               reading: Reading, noise_n: float, hold_first: dict[str, float] | None = None
-               ) -> MemberFit:
+               reading: Reading, noise_n: float) -> MemberFit:
     """Fit one member's free parameters on ``train``; score it on ``heldout``.
 
-    A parameter the records do not determine (its 1-sigma above its bound) is held at
-    the base config's value and the rest refitted. Scales such as a wear's time constant
-    are held first, so the amplitude then fitted is the wear's initial rate per pass at
-    that time constant, which the records may determine; what is still loose after that
-    is held too. When holding raises the fit's cost by more than ``HOLD_COST`` the records
-    need those parameters: they keep their fitted values, reported not determined, except
-    a value at a bound of its range, which is never written (docs/twin-fit.md, "Held
-    parameters"). ``hold_first`` (a
-    nested parent's held parameters and their sigmas) start held, at their values in
-    ``start``.
+    A scale the records do not determine (its 1-sigma above its bound), such as a wear's
+    time constant, is held at the base config's value and the rest refitted, so the
+    amplitude then fitted is the wear's initial rate per pass at that time constant, which
+    the records may determine. When holding raises the fit's cost by more than
+    ``HOLD_COST`` the records need the scale: it keeps its fitted value, reported not
+    determined. A loose amplitude keeps its fitted value, reported not determined. Never
+    kept: a loose value at a bound of its range (where the optimiser stopped, not what the
+    records say): it is held at the base value (an amplitude's scale first, so the
+    amplitude is refitted as the initial rate at that scale) (docs/twin-fit.md, "Held parameters").
     """
     fixed = dict(member.fixed)
     values = {**start, **fixed}
-    first = hold_first or {}
-    held = [n for n in first if n in member.free and n not in fixed]
-    free = [n for n in member.free if n not in fixed and n not in held]
-    held_sigmas = {n: first[n] for n in held}
+    held: list[str] = []
+    free = [n for n in member.free if n not in fixed]
+    held_sigmas: dict[str, float] = {}
     problem = _Problem(train, arm, reading, noise_n)
-    spread: dict[str, float] = {}
+
+    def solve(names: list[str], start: dict[str, float]
+              ) -> tuple[dict[str, float], dict[str, float], float]:
+        if not names:
+            return dict(start), {}, cost
+        x, result = problem.solve(names, start)
+        one_sigma = sigmas(result.jac, result.fun, problem.groups)
+        return ({**start, **dict(zip(names, x.tolist(), strict=True))},
+                dict(zip(names, one_sigma.tolist(), strict=True)), float(result.cost))
+
     cost = math.inf
-    kept: tuple[dict[str, float], list[str], list[str], dict[str, float],
-                dict[str, float], float] | None = None
-    kept_loose: list[str] = []
-    final = False
-    for round_ in range(HOLD_ROUNDS + 2):
-        names = list(free)
-        if names:
-            x, result = problem.solve(names, values)
-            if kept is not None and not final and result.cost > HOLD_COST * kept[5]:
-                # the records need what was just held: it is freed at its fitted value,
-                # except where that value sits at a bound of its range (where the optimiser
-                # stopped, not what the records say): that one stays held
-                values, free, held, held_sigmas, spread, cost = kept
-                at_bound = [n for n in kept_loose if _at_bound(n, values[n])]
-                at_bound += [SCALE_OF[n] for n in at_bound if n in SCALE_OF
-                             and SCALE_OF[n] in free and SCALE_OF[n] not in at_bound]
-                if not at_bound:
-                    break
-                for n in at_bound:
-                    values[n] = base[n]
-                    held.append(n)
-                    held_sigmas[n] = spread[n]
-                free = [n for n in free if n not in at_bound]
-                final = True
-                continue
-            cost = float(result.cost)
-            values.update(zip(names, x.tolist(), strict=True))
-            one_sigma = sigmas(result.jac, result.fun, problem.groups)
-            spread = dict(zip(names, one_sigma.tolist(), strict=True))
-        loose = [n for n in names if n in HOLDABLE
+    values, spread, cost = solve(free, values)
+    for _ in range(HOLD_ROUNDS):
+        loose = [n for n in free if n in HOLDABLE
                  and not BY_NAME[n].determined(values[n], spread[n])]
-        if final or not loose or round_ >= HOLD_ROUNDS:
+        # an amplitude at a bound has its scale held first (it is then refitted as the
+        # initial rate at that scale); once its scale is held, the amplitude itself
+        bounded = [n for n in loose if _at_bound(n, values[n])]
+        at_bound = sorted({SCALE_OF[n] if n in SCALE_OF and SCALE_OF[n] in free else n
+                           for n in bounded})
+        scales = [n for n in loose if n in TIME_SCALES and n not in at_bound]
+        if not at_bound and not scales:
             break
-        kept = (dict(values), list(free), list(held), dict(held_sigmas), dict(spread), cost)
-        kept_loose = loose
-        scales = [n for n in loose if n in TIME_SCALES]
-        hold = scales if scales and round_ < HOLD_ROUNDS - 1 else loose
-        for n in hold:
-            values[n] = base[n]
+        trial = _held_at_base(values, base, [*at_bound, *scales])
+        rest = [n for n in free if n not in at_bound and n not in scales]
+        tried, tried_spread, tried_cost = solve(rest, trial)
+        if scales and tried_cost > HOLD_COST * cost:
+            # the records need the scales: they keep their fitted values (reported not
+            # determined); only the values at a bound (never written) are held
+            if not at_bound:
+                break
+            scales = []
+            rest = [n for n in free if n not in at_bound]
+            tried, tried_spread, tried_cost = solve(rest, _held_at_base(values, base, at_bound))
+        for n in (*at_bound, *scales):
             held.append(n)
             held_sigmas[n] = spread[n]  # its uncertainty when it was last fitted
-        free = [n for n in free if n not in hold]
+        free, values, spread, cost = rest, tried, tried_spread, tried_cost
     spread.update(held_sigmas)
     train_pred = predict_means(train, values, arm, reading, problem.shape)
     held_pred = predict_means(heldout, values, arm, reading)
@@ -320,9 +316,7 @@ def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: Record
     for member in members:
         parent = nested_parent(member, fits)
         begin = start if parent is None else {**start, **parent.values}
-        fit = fit_member(member, train, heldout, begin, base, arm, reading, noise_n,
-                         None if parent is None else
-                         {n: parent.sigmas[n] for n in parent.held})
+        fit = fit_member(member, train, heldout, begin, base, arm, reading, noise_n)
         if parent is not None and fit.train_cost > parent.train_cost * (1 + NESTED_TOLERANCE):
             again = fit_member(member, train, heldout, start, base, arm, reading, noise_n)
             note = (f"from {parent.member.name}'s solution its train cost was "
