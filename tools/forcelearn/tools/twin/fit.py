@@ -162,7 +162,7 @@ HOLD_COST = 1.02
 """Holding loose scales is undone when the fit's cost rises more than this factor (the
 records need them: they keep their fitted values, reported not determined); a value at a
 bound of its range stays held."""
-BOUND_SHARE = 1e-3
+BOUND_SHARE = 1e-5
 """A value within this share of its range's width from a bound sits at the bound."""
 
 
