@@ -1,10 +1,11 @@
 """What ``forcelearn twin`` writes: twin.toml (the emulated cell), twin.json, twin.md, figures.
 
 Every parameter is listed with its 1-sigma uncertainty and whether the records
-determine it (:meth:`~forcelearn.tools.twin.params.Parameter.determined`). One
-that they do not determine is written to twin.toml as the fit left it (it
-reproduces what the records show, e.g. the start of a wear curve) and the
-report says so, with the trials that would determine it: the uncertainty
+determine it (:meth:`~forcelearn.tools.twin.params.Parameter.determined`, with
+the larger of the Jacobian's and the resampled sigma). One that they do not
+determine is held at the base config's value or keeps the records' best fit, by
+the rule of :func:`~forcelearn.tools.twin.fit.fit_member` (never a value at a bound
+of its range), and the report says which, with the trials that would determine it: the uncertainty
 extrapolated as ``1/sqrt(n)``, and for wear at least the wear's time constant
 in passes.
 """
