@@ -364,7 +364,7 @@ def jackknife(fit: MemberFit, train: RecordArrays, arm: dict[str, float], readin
         estimates.append(x)
     theta = np.array(estimates)
     spread = np.sqrt((blocks - 1) / blocks * np.sum((theta - theta.mean(axis=0)) ** 2, axis=0))
-    force = np.where(train.has_burst, train.mean_n * np.sign(reading.along_y or 1.0), np.nan)
+    force = np.where(train.has_burst, train.mean_n, np.nan)  # the reading: + pressing
     contact = train.has_burst & (force > max(0.5, 3.0 * (noise_n if math.isfinite(noise_n)
                                                               else 0.0)))
     if contact.sum() >= 2 * len(names):
