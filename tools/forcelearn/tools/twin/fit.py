@@ -167,10 +167,15 @@ BOUND_SHARE = 1e-5
 
 
 def _at_bound(name: str, value: float) -> bool:
-    """``value`` sits at a bound of ``name``'s range (the optimiser stopped there)."""
+    """``value`` sits at an end of ``name``'s range where the optimiser stopped.
+
+    An amplitude's 0 (no wear, no relaxation, no waviness) is a value of the cell, not an
+    end of a range: it is not counted.
+    """
     param = BY_NAME[name]
     margin = BOUND_SHARE * (param.high - param.low)
-    return bool(value <= param.low + margin or value >= param.high - margin)
+    at_low = value <= param.low + margin and not (name in SCALE_OF and param.low == 0.0)
+    return bool(at_low or value >= param.high - margin)
 
 
 def _held_at_base(values: dict[str, float], base: dict[str, float], names: list[str]
