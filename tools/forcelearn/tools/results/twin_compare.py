@@ -37,8 +37,13 @@ class Checked:
     """... or within this absolute bound (unit of the parameter), for values near 0."""
 
 
+OPERATING_STIFFNESS = "stiffness_at_operating_point"
+"""The derived check: the tangent stiffness where the desired force is met."""
+
 CHECKED = (
-    Checked("stiffness_n_per_mm", "stiffness", ("sponge", "stiffness_n_per_mm"), 0.0),
+    Checked(OPERATING_STIFFNESS, "stiffness at the operating point",
+            ("sponge", "stiffness_n_per_mm"), 0.0),
+    Checked("stiffness_n_per_mm", "stiffness (raw)", ("sponge", "stiffness_n_per_mm"), 0.0),
     Checked("surface_y_mm", "contact position", ("sponge", "surface_y_mm"), 0.3),
     Checked("softening", "softening", ("sponge", "softening"), 0.02),
     Checked("set_mm", "set", ("sponge", "set_mm"), 0.1),
@@ -47,7 +52,33 @@ CHECKED = (
 )
 """Stiffness, contact position, softening, set, lag and noise (issue 29). The absolute
 bounds are those of the fit's own "determined" test (docs/twin-fit.md) except the
-contact position: 0.3 mm, a tenth of the drawn range's half-width (±3 mm)."""
+contact position: 0.3 mm, a tenth of the drawn range's half-width (±3 mm). The stiffness
+is judged at the cell's operating point (:func:`tangent_at_force`); the raw
+``stiffness_n_per_mm`` (a stiffening foam's is its secant at the reference depth, a linear
+member's its one slope: not the same quantity) is kept beside it."""
+
+REFERENCE_DEPTH_MM = 10.0
+"""The sponge's default ``stiffening_reference_mm`` (a twin.json without its sponge)."""
+
+
+def tangent_at_force(stiffness: float, exponent: float, reference_mm: float,
+                     force_n: float) -> float:
+    """The foam's tangent stiffness dF/dd (N/mm) at the depth where it pushes ``force_n``.
+
+    The fresh foam's law ``F = k d_ref (d / d_ref)^n`` (no wear, no variation along Z,
+    relaxed): at ``d* = d_ref (F / (k d_ref))^(1/n)`` its slope is ``n F / d*``. For a
+    linear foam (n = 1) it is ``k``. The tangent, not the secant ``F / d*``: a run holding
+    its force in band moves in small steps about ``d*``, so the force change per mm there is
+    what the learner meets and what its records measure.
+
+    Raises:
+        ValueError: a stiffness, exponent, reference depth or force that is not positive.
+    """
+    if min(stiffness, exponent, reference_mm, force_n) <= 0:
+        raise ValueError("stiffness, exponent, reference depth and force must be positive, "
+                         f"got {stiffness}, {exponent}, {reference_mm}, {force_n}")
+    depth = reference_mm * (force_n / (stiffness * reference_mm)) ** (1.0 / exponent)
+    return float(exponent * force_n / depth)
 
 
 @dataclass(frozen=True)
@@ -117,8 +148,8 @@ def check_twin(cell: str, truth_path: Path, twin_json: Path) -> TwinCheck:
     twin = _load(twin_json)
     try:
         rows = {row["name"]: row for row in twin["parameters"]}
-        checks = []
-        for checked in CHECKED:
+        checks = [_operating_check(truth, twin, rows)]
+        for checked in CHECKED[1:]:
             table, key = checked.truth_path
             true_value = float(truth[table][key])
             row = rows.get(checked.name)
@@ -135,6 +166,32 @@ def check_twin(cell: str, truth_path: Path, twin_json: Path) -> TwinCheck:
     except (KeyError, TypeError, ValueError) as exc:
         raise StudyError(f"{twin_json} or {truth_path} lacks {exc}; "
                          "remake them with this version's generator and twin") from exc
+
+
+def _operating_check(truth: dict[str, Any], twin: dict[str, Any],
+                     rows: dict[str, Any]) -> ParameterCheck:
+    """Truth and twin's tangent stiffness at the truth's desired force (fresh foam)."""
+    force = float(truth["task"]["desired_force_n"])
+    sponge = truth["sponge"]
+    true_value = tangent_at_force(float(sponge["stiffness_n_per_mm"]),
+                                  float(sponge.get("stiffening_exponent", 1.0)),
+                                  float(sponge.get("stiffening_reference_mm", REFERENCE_DEPTH_MM)),
+                                  force)
+    stiffness = rows.get("stiffness_n_per_mm")
+    exponent = rows.get("stiffening_exponent")
+    fitted = twin.get("sponge", {})
+    value = None
+    if stiffness is not None:
+        value = tangent_at_force(
+            float(stiffness["value"]),
+            float(exponent["value"]) if exponent is not None else 1.0,
+            float(fitted.get("stiffening_reference_mm", REFERENCE_DEPTH_MM)), force)
+    determined = bool(stiffness and stiffness["determined"]
+                      and (exponent is None or exponent["determined"]))
+    return ParameterCheck(
+        name=OPERATING_STIFFNESS, truth=true_value, value=value, determined=determined,
+        tolerance=RELATIVE_TOLERANCE * abs(true_value),
+        trials_to_determine=None if stiffness is None else stiffness.get("trials_to_determine"))
 
 
 @dataclass(frozen=True)

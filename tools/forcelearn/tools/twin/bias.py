@@ -328,14 +328,16 @@ class BiasWalk:
         rate = self.drift.rate
         return rate if math.isfinite(rate) and rate > 0 else 0.0
 
-    def residuals(self, error_n: np.ndarray) -> np.ndarray:
+    def residuals(self, error_n: np.ndarray, keep: np.ndarray | None = None) -> np.ndarray:
         """The fit's residual vector for ``error_n`` = predicted - recorded (T, M).
 
         ``[w (predicted + b - recorded)] `` over the fitted bursts, then the walk's terms.
+        ``keep`` (T, M) bool: only those bursts count (the others weigh 0, a resampled fit).
         """
-        biases = solve_biases(self.train, -error_n, self.train_weights, self.rate)
+        weights = self.train_weights if keep is None else np.where(keep, self.train_weights, 0.0)
+        biases = solve_biases(self.train, -error_n, weights, self.rate)
         use = self.train.segment >= 0
-        misfit = ((error_n + offsets(self.train, biases)) * self.train_weights)[use]
+        misfit = ((error_n + offsets(self.train, biases)) * weights)[use]
         return np.concatenate([misfit, walk_terms(self.train, biases, self.rate)])
 
     def groups(self) -> np.ndarray:

@@ -16,7 +16,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 
 from forcelearn.records import TrialRecords
 from forcelearn.tools.twin.arm import (
@@ -67,6 +67,15 @@ class MemberFit:
     free: int
     held: tuple[str, ...] = ()
     """Parameters the records did not determine, held at the base config's value."""
+    train_cost: float = math.inf
+    """The fit's objective on the train trials (half the sum of squared weighted residuals)."""
+    eligible: bool = True
+    """False: dropped (it fitted worse than the member it contains)."""
+    note: str = ""
+    jacobian_sigmas: dict[str, float] = field(default_factory=dict)
+    """The Jacobian's (cluster-robust) 1-sigma of the fitted parameters, before the jackknife."""
+    jackknife_sigmas: dict[str, float] = field(default_factory=dict)
+    """The trial-block jackknife's 1-sigma (chosen member only): ``sigmas`` is the larger."""
 
 
 @dataclass
@@ -115,11 +124,21 @@ def _weights(data: RecordArrays, noise_n: float) -> np.ndarray:
     return np.where(data.has_burst, 1.0 / spread, 0.0)
 
 
-def initial_sponge(data: RecordArrays, base: dict[str, float], reading: Reading
-                   ) -> dict[str, float]:
-    """Stiffness, surface and slope from a straight line through the contact bursts."""
+def initial_sponge(data: RecordArrays, base: dict[str, float], reading: Reading,
+                   noise_n: float = 0.0) -> dict[str, float]:
+    """Stiffness, surface and slope from a straight line through the contact bursts.
+
+    The surface probe's bursts (rows without a control step: it presses the fresh foam
+    at several depths and places) are used when they hold enough contact readings, as
+    they span the depth a run holding its force in band does not; otherwise the
+    control steps'. A burst is in contact above ``max(0.5 N, 3 x noise_n)``.
+    """
     start = dict(base)
-    contact = data.has_burst & data.is_step & (data.mean_n > 0.5)
+    noise = noise_n if math.isfinite(noise_n) else 0.0
+    touching = data.has_burst & (data.mean_n > max(0.5, 3.0 * noise))
+    probe_rows = ~(data.is_step & data.valid).any(axis=1)
+    probe = touching & probe_rows[:, None]
+    contact = probe if probe.sum() >= PROBE_MIN_CONTACTS else touching & data.is_step
     if contact.sum() < 3:
         return start
     z, y = data.reached[..., 2][contact], data.reached[..., 1][contact]
@@ -133,13 +152,91 @@ def initial_sponge(data: RecordArrays, base: dict[str, float], reading: Reading
     return start
 
 
-TIME_SCALES = ("softening_passes", "set_passes", "waviness_wavelength_mm",
-               "stiffness_wavelength_mm", "relaxation_time_s")
-"""Parameters that set a scale (passes, mm, s) for an amplitude: held first when loose."""
+PROBE_MIN_CONTACTS = 6
+"""Contact bursts of the probe needed for it alone to give the fit's start."""
+
+
+SCALE_OF = {"softening": "softening_passes", "set_mm": "set_passes",
+            "relaxation_ratio": "relaxation_time_s", "waviness_mm": "waviness_wavelength_mm",
+            "stiffness_variation": "stiffness_wavelength_mm"}
+"""Amplitudes and the scale (passes, s, mm) each acts over."""
+TIME_SCALES = tuple(SCALE_OF.values())
+"""Parameters that set a scale for an amplitude: held first when loose."""
+HOLDABLE = frozenset((*SCALE_OF, *TIME_SCALES))
+"""Parameters that may be held at the base config's value when the records do not determine
+them. The force law's core (contact, slope, stiffness, exponent) is never held: when loose
+it keeps the records' best fit and is reported not determined."""
 HOLD_ROUNDS = 3
+"""Rounds of holding loose scales and values at a bound."""
 HOLD_COST = 1.02
-"""Holding loose parameters at the base values is kept only if the fit's cost rises less than
-this factor (else the records need them: they stay fitted, reported as not determined)."""
+"""Holding loose scales is undone when the fit's cost rises more than this factor (the
+records need them: they keep their fitted values, reported not determined); a value at a
+bound of its range stays held."""
+BOUND_SHARE = 1e-5
+"""A value within this share of its range's width from a bound sits at the bound."""
+
+
+def _at_bound(name: str, value: float) -> bool:
+    """``value`` sits at an end of ``name``'s range where the optimiser stopped.
+
+    An amplitude's 0 (no wear, no relaxation, no waviness) is a value of the cell, not an
+    end of a range: it is not counted.
+    """
+    param = BY_NAME[name]
+    margin = BOUND_SHARE * (param.high - param.low)
+    at_low = value <= param.low + margin and not (name in SCALE_OF and param.low == 0.0)
+    return bool(at_low or value >= param.high - margin)
+
+
+def _held_at_base(values: dict[str, float], base: dict[str, float], names: list[str]
+                  ) -> dict[str, float]:
+    return {**values, **{n: base[n] for n in names}}
+
+
+NESTED_TOLERANCE = 1e-6
+"""A richer member's train cost may exceed its nested parent's by this share (rounding)."""
+JACKKNIFE_BLOCKS = 4
+"""Contiguous blocks of the fitted trials left out in turn to check the chosen member."""
+JACKKNIFE_NFEV = 15
+"""Function evaluations (iterations) of a jackknife refit: it starts at the solution."""
+
+
+class _Problem:
+    """The weighted residuals of the train trials' bursts for a member's free parameters."""
+
+    def __init__(self, train: RecordArrays, arm: dict[str, float], reading: Reading,
+                 noise_n: float, walk: BiasWalk | None = None) -> None:
+        self.train, self.arm, self.reading, self.walk = train, arm, reading, walk
+        self.weights = _weights(train, noise_n)
+        self.use = train.has_burst
+        self.groups = (np.broadcast_to(train.trial[:, None], self.use.shape)[self.use]
+                       if walk is None else walk.groups())
+        self.shape = motion_shape(train, arm)
+
+    def solve(self, names: list[str], values: dict[str, float], keep: np.ndarray | None = None,
+              max_nfev: int | None = None) -> tuple[np.ndarray, OptimizeResult]:
+        """Least squares over ``names`` from ``values`` (the rest frozen).
+
+        ``keep`` (trials, moves) bool: fit only those bursts.
+        """
+        low = np.array([BY_NAME[n].low for n in names])
+        high = np.array([BY_NAME[n].high for n in names])
+        x0 = np.clip(np.array([values[n] for n in names]), low + 1e-6 * (high - low),
+                     high - 1e-6 * (high - low))
+        frozen = dict(values)
+        use = self.use if keep is None else self.use & keep
+
+        def residuals(x: np.ndarray) -> np.ndarray:
+            sponge = {**frozen, **dict(zip(names, x.tolist(), strict=True))}
+            predicted = predict_means(self.train, sponge, self.arm, self.reading, self.shape)
+            if self.walk is not None:  # the sensor's bias, profiled out (twin/bias.py)
+                return self.walk.residuals(predicted - self.train.mean_n, keep)
+            error: np.ndarray = ((predicted - self.train.mean_n) * self.weights)[use]
+            return error
+
+        result = least_squares(residuals, x0, bounds=(low, high), x_scale="jac",
+                               method="trf", max_nfev=max_nfev or 100 * len(names))
+        return np.asarray(result.x), result
 
 
 def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
@@ -147,66 +244,62 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
                reading: Reading, noise_n: float, walk: BiasWalk | None = None) -> MemberFit:
     """Fit one member's free parameters on ``train``; score it on ``heldout``.
 
-    A parameter the records do not determine is held at the base config's value
-    and the rest refitted (scales such as a wear's time constant first, so the
-    amplitude the records do show, e.g. the start of a wear curve, is still fitted),
-    unless holding it makes the fit worse (``HOLD_COST``): then the records need it
-    and it keeps its fitted value, reported as not determined.
+    A scale the records do not determine (its 1-sigma above its bound), such as a wear's
+    time constant, is held at the base config's value and the rest refitted, so the
+    amplitude then fitted is the wear's initial rate per pass at that time constant, which
+    the records may determine. When holding raises the fit's cost by more than
+    ``HOLD_COST`` the records need the scale: it keeps its fitted value, reported not
+    determined. A loose amplitude keeps its fitted value, reported not determined. Never
+    kept: a loose value at a bound of its range (where the optimiser stopped, not what the
+    records say): it is held at the base value (an amplitude's scale first, so the
+    amplitude is refitted as the initial rate at that scale) (docs/twin-fit.md, "Held parameters").
     """
     fixed = dict(member.fixed)
     values = {**start, **fixed}
-    free = [n for n in member.free if n not in fixed]
     held: list[str] = []
+    free = [n for n in member.free if n not in fixed]
     held_sigmas: dict[str, float] = {}
-    weights = _weights(train, noise_n)
-    use = train.has_burst
-    groups = (np.broadcast_to(train.trial[:, None], use.shape)[use] if walk is None
-              else walk.groups())
-    shape = motion_shape(train, arm)
-    spread: dict[str, float] = {}
+    problem = _Problem(train, arm, reading, noise_n, walk)
+
+    def solve(names: list[str], start: dict[str, float]
+              ) -> tuple[dict[str, float], dict[str, float], float]:
+        if not names:
+            return dict(start), {}, cost
+        x, result = problem.solve(names, start)
+        one_sigma = sigmas(result.jac, result.fun, problem.groups)
+        return ({**start, **dict(zip(names, x.tolist(), strict=True))},
+                dict(zip(names, one_sigma.tolist(), strict=True)), float(result.cost))
+
     cost = math.inf
-    kept: tuple[dict[str, float], list[str], list[str], dict[str, float]] = (
-        values, free, held, held_sigmas)
+    values, spread, cost = solve(free, values)
     for _ in range(HOLD_ROUNDS):
-        names = list(free)
-        low = np.array([BY_NAME[n].low for n in names])
-        high = np.array([BY_NAME[n].high for n in names])
-        x0 = np.clip(np.array([values[n] for n in names]), low + 1e-6 * (high - low),
-                     high - 1e-6 * (high - low))
-        frozen = dict(values)
-
-        def residuals(x: np.ndarray, names: list[str] = names,
-                      frozen: dict[str, float] = frozen) -> np.ndarray:
-            sponge = {**frozen, **dict(zip(names, x.tolist(), strict=True))}
-            predicted = predict_means(train, sponge, arm, reading, shape)
-            error: np.ndarray = ((predicted - train.mean_n) * weights)[use]
-            return error if walk is None else walk.residuals(predicted - train.mean_n)
-
-        result = least_squares(residuals, x0, bounds=(low, high), x_scale="jac",
-                               method="trf", max_nfev=100 * len(names))
-        if held and result.cost > HOLD_COST * cost:
-            # holding them made the fit worse: the records need them free (undetermined)
-            values, free, held, held_sigmas = kept
+        loose = [n for n in free if n in HOLDABLE
+                 and not BY_NAME[n].determined(values[n], spread[n])]
+        # an amplitude at a bound has its scale held first (it is then refitted as the
+        # initial rate at that scale); once its scale is held, the amplitude itself
+        bounded = [n for n in loose if _at_bound(n, values[n])]
+        at_bound = sorted({SCALE_OF[n] if n in SCALE_OF and SCALE_OF[n] in free else n
+                           for n in bounded})
+        scales = [n for n in loose if n in TIME_SCALES and n not in at_bound]
+        if not at_bound and not scales:
             break
-        cost = float(result.cost)
-        values.update(zip(names, result.x.tolist(), strict=True))
-        spread = dict(zip(names, sigmas(result.jac, result.fun, groups).tolist(),
-                          strict=True))
-        loose = [n for n in names if not BY_NAME[n].determined(values[n], spread[n])]
-        if not loose:
-            break
-        scales = [n for n in loose if n in TIME_SCALES]
-        hold = scales or loose
-        if len(hold) == len(names):
-            break
-        kept = (dict(values), list(free), list(held), dict(held_sigmas))
-        for n in hold:
-            values[n] = base[n]
+        trial = _held_at_base(values, base, [*at_bound, *scales])
+        rest = [n for n in free if n not in at_bound and n not in scales]
+        tried, tried_spread, tried_cost = solve(rest, trial)
+        if scales and tried_cost > HOLD_COST * cost:
+            # the records need the scales: they keep their fitted values (reported not
+            # determined); only the values at a bound (never written) are held
+            if not at_bound:
+                break
+            scales = []
+            rest = [n for n in free if n not in at_bound]
+            tried, tried_spread, tried_cost = solve(rest, _held_at_base(values, base, at_bound))
+        for n in (*at_bound, *scales):
             held.append(n)
             held_sigmas[n] = spread[n]  # its uncertainty when it was last fitted
-        free = [n for n in free if n not in hold]
+        free, values, spread, cost = rest, tried, tried_spread, tried_cost
     spread.update(held_sigmas)
-    train_pred = predict_means(train, values, arm, reading, shape)
+    train_pred = predict_means(train, values, arm, reading, problem.shape)
     held_pred = predict_means(heldout, values, arm, reading)
     if walk is not None:  # the sensor's bias (twin/bias.py)
         train_pred, held_pred = walk.debiased(train_pred, held_pred)
@@ -218,8 +311,93 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     return MemberFit(
         member, values, {n: float(spread[n]) for n in member.free if n not in fixed},
         train_rms, _rms(held_pred - heldout.mean_n, heldout.is_step & heldout.has_burst), bic,
-        len(free), tuple(held),
+        len(free), tuple(held), train_cost=cost,
     )
+
+
+def nested_parent(member: Member, fitted: list[MemberFit]) -> MemberFit | None:
+    """The richest member fitted before ``member`` that it contains (its free set a subset)."""
+    parents = [f for f in fitted if set(f.member.free) <= set(member.free)]
+    return parents[-1] if parents else None
+
+
+def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: RecordArrays,
+               start: dict[str, float], base: dict[str, float], arm: dict[str, float],
+               reading: Reading, noise_n: float, walk: BiasWalk | None = None
+               ) -> list[MemberFit]:
+    """Fit the members simplest first, each richer one from its nested parent's solution.
+
+    A richer member contains its parent (its extra parameters at the parent's values,
+    e.g. exponent 1, no relaxation), so its best train cost is at most the parent's: one
+    whose fit ends above it is caught in a local minimum (or its holds cost it more) and
+    is refitted from the common start; if still above, it is dropped (not chosen) and
+    twin.json says so.
+    """
+    fits: list[MemberFit] = []
+    for member in members:
+        parent = nested_parent(member, fits)
+        begin = start if parent is None else {**start, **parent.values}
+        fit = fit_member(member, train, heldout, begin, base, arm, reading, noise_n, walk)
+        if parent is not None and fit.train_cost > parent.train_cost * (1 + NESTED_TOLERANCE):
+            again = fit_member(member, train, heldout, start, base, arm, reading, noise_n,
+                               walk)
+            note = (f"from {parent.member.name}'s solution its train cost was "
+                    f"{fit.train_cost:.4g}, above {parent.member.name}'s {parent.train_cost:.4g}")
+            if again.train_cost <= parent.train_cost * (1 + NESTED_TOLERANCE):
+                fit = again
+                fit.note = note + f"; refitted from the common start: {again.train_cost:.4g}"
+            else:
+                fit = again if again.train_cost < fit.train_cost else fit
+                fit.eligible = False
+                fit.note = (note + f"; refitted from the common start: {again.train_cost:.4g}; "
+                            "dropped: a richer member never fits worse than the one it contains")
+        fits.append(fit)
+    return fits
+
+
+def jackknife(fit: MemberFit, train: RecordArrays, arm: dict[str, float], reading: Reading,
+              noise_n: float, blocks: int = JACKKNIFE_BLOCKS,
+              walk: BiasWalk | None = None) -> dict[str, float]:
+    """Resampled 1-sigma of the member's fitted (not held) parameters: the larger of two.
+
+    * Delete-a-block jackknife over trials: the trials with control steps are cut into
+      ``blocks`` contiguous blocks, each left out in turn (rows without control steps,
+      the surface probe's, stay in every refit: without them stiffness and contact trade
+      off); ``sqrt((B-1)/B * sum (theta_b - mean)^2)``. Early exploring trials and later
+      worn ones pull the parameters apart where the model misses how the cell changes.
+    * Split by force: the contact bursts below and above their median force refitted
+      apart (free-space bursts in both); ``|theta_low - theta_high| / 2``, about the full
+      fit's sigma when the force law holds over the depths, far more when it does not
+      (a linear law on a stiffening foam: its stiffness and contact depend on the depths).
+
+    Each refit starts at the member's solution. Infinite when there are fewer trials
+    with control steps than blocks.
+    """
+    names = [n for n in fit.member.free if n not in dict(fit.member.fixed) and n not in fit.held]
+    control = np.flatnonzero((train.is_step & train.has_burst).any(axis=1))
+    if control.size < blocks or not names:
+        return {n: math.inf for n in names}
+    problem = _Problem(train, arm, reading, noise_n, walk)
+    estimates = []
+    for part in np.array_split(control, blocks):
+        rows = np.ones(train.trials, bool)
+        rows[part] = False
+        x, _ = problem.solve(names, fit.values, np.broadcast_to(rows[:, None], problem.use.shape),
+                             JACKKNIFE_NFEV)
+        estimates.append(x)
+    theta = np.array(estimates)
+    spread = np.sqrt((blocks - 1) / blocks * np.sum((theta - theta.mean(axis=0)) ** 2, axis=0))
+    force = np.where(train.has_burst, train.mean_n, np.nan)  # the reading: + pressing
+    contact = train.has_burst & (force > max(0.5, 3.0 * (noise_n if math.isfinite(noise_n)
+                                                              else 0.0)))
+    if contact.sum() >= 2 * len(names):
+        median = float(np.median(force[contact]))
+        halves = [problem.solve(names, fit.values, ~(contact & (force > median)),
+                                JACKKNIFE_NFEV)[0],
+                  problem.solve(names, fit.values, ~(contact & (force <= median)),
+                                JACKKNIFE_NFEV)[0]]
+        spread = np.maximum(spread, np.abs(halves[0] - halves[1]) / 2)
+    return dict(zip(names, spread.tolist(), strict=True))
 
 
 def _rms(residuals: np.ndarray, mask: np.ndarray) -> float:
@@ -288,15 +466,21 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     if math.isfinite(arm.sigmas["start_delay_s"]):
         delay = emulator_delay_s(arm.values, distances, band_mm, tick_s)
     first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
-    start = initial_sponge(train, base_sponge, reading)
+    start = initial_sponge(train, base_sponge, reading, first.noise_n)
     walk = bias_walk(records, train, heldout, base_sponge, reading, first,
                      lambda d: _weights(d, first.noise_n), configured_phi)
-    fits = [fit_member(m, train, heldout, start, base_sponge, arm.values, reading,
-                       first.noise_n, walk) for m in (members or family())]
-    best = min(f.bic for f in fits)
+    fits = fit_nested(members or family(), train, heldout, start, base_sponge, arm.values,
+                      reading, first.noise_n, walk)
+    eligible = [f for f in fits if f.eligible]
+    best = min(f.bic for f in eligible)
     # Parsimony: the simplest member (family order) whose BIC is within BIC_MARGIN of the
     # best; a richer law must explain the held-out trials clearly better, not by rounding.
-    chosen = next(f for f in fits if f.bic <= best + BIC_MARGIN)
+    chosen = next(f for f in eligible if f.bic <= best + BIC_MARGIN)
+    chosen.jacobian_sigmas = dict(chosen.sigmas)
+    chosen.jackknife_sigmas = jackknife(chosen, train, arm.values, reading, first.noise_n,
+                                         walk=walk)
+    for name, spread in chosen.jackknife_sigmas.items():
+        chosen.sigmas[name] = max(chosen.sigmas[name], spread)
     train_pred = predict_means(train, chosen.values, arm.values, reading)
     held_pred = predict_means(heldout, chosen.values, arm.values, reading)
     train_pred, held_pred = walk.debiased(train_pred, held_pred)

@@ -1,10 +1,11 @@
 """What ``forcelearn twin`` writes: twin.toml (the emulated cell), twin.json, twin.md, figures.
 
 Every parameter is listed with its 1-sigma uncertainty and whether the records
-determine it (:meth:`~forcelearn.tools.twin.params.Parameter.determined`). One
-that they do not determine is written to twin.toml as the fit left it (it
-reproduces what the records show, e.g. the start of a wear curve) and the
-report says so, with the trials that would determine it: the uncertainty
+determine it (:meth:`~forcelearn.tools.twin.params.Parameter.determined`, with
+the larger of the Jacobian's and the resampled sigma). One that they do not
+determine is held at the base config's value or keeps the records' best fit, by
+the rule of :func:`~forcelearn.tools.twin.fit.fit_member` (never a value at a bound
+of its range), and the report says which, with the trials that would determine it: the uncertainty
 extrapolated as ``1/sqrt(n)``, and for wear at least the wear's time constant
 in passes.
 """
@@ -60,6 +61,16 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
         if held:
             row["note"] = ("held at the base config's value; the uncertainty is the fit's "
                            "when it was free" + ("; " + row["note"] if "note" in row else ""))
+        elif name in fit.chosen.jackknife_sigmas:
+            jacobian = fit.chosen.jacobian_sigmas[name]
+            resampled = fit.chosen.jackknife_sigmas[name]
+            row["sigma_jacobian"] = jacobian if math.isfinite(jacobian) else None
+            row["sigma_resampled"] = resampled if math.isfinite(resampled) else None
+            if (not row["determined"] and BY_NAME[name].determined(row["value"], jacobian)):
+                row["note"] = ("the Jacobian's sigma is within the bound, but refits without a "
+                               "block of trials or on the low and high forces apart move it by "
+                               "more: the records do not pin it (the model may miss something)"
+                               + ("; " + row["note"] if "note" in row else ""))
         rows.append(row)
     for param in ARM:
         value = fit.arm.values[param.name]
@@ -110,11 +121,13 @@ def twin_document(fit: TwinFit, source: RunSource) -> dict[str, Any]:
         "member": fit.chosen.member.name,
         "members": [
             {"name": m.member.name, "text": m.member.text, "free": m.free,
-             "held": list(m.held),
+             "held": list(m.held), "train_cost": m.train_cost, "eligible": m.eligible,
+             "note": m.note,
              "train_rms_n": m.train_rms_n, "heldout_rms_n": m.heldout_rms_n, "bic": m.bic}
             for m in fit.members
         ],
         "parameters": parameter_rows(fit),
+        "sponge": dict(fit.sponge),
         "residuals": {"train_rms_n": fit.chosen.train_rms_n,
                       "heldout_rms_n": fit.chosen.heldout_rms_n,
                       "heldout_per_trial": per_trial,
@@ -160,11 +173,24 @@ def twin_markdown(document: dict[str, Any]) -> str:
               "| member | parameters | train RMS (N) | held-out RMS (N) | BIC |",
               "|---|---|---|---|---|"]
     for m in document["members"]:
-        lines.append(f"| {m['name']} ({m['text']}) | {m['free']} | {_fmt(m['train_rms_n'])} "
+        dropped = "" if m.get("eligible", True) else " **dropped**"
+        lines.append(f"| {m['name']} ({m['text']}){dropped} | {m['free']} "
+                     f"| {_fmt(m['train_rms_n'])} "
                      f"| {_fmt(m['heldout_rms_n'])} | {_fmt(m['bic'])} |")
+    notes = [f"- {m['name']}: {m['note']}" for m in document["members"] if m.get("note")]
+    lines += ["", *notes] if notes else []
+    held = [p["name"] for p in document["parameters"] if "held at the base" in p.get("note", "")]
     lines += ["", "## Parameters", "",
               "A parameter is determined when its 1-sigma uncertainty is at most 3 % of its "
-              "value or the absolute bound shown.", "",
+              "value or the absolute bound shown; the ±1σ is the larger of the fit's "
+              "(Jacobian) and the spread of refits without a block of trials or on the low "
+              "and high forces apart (docs/twin-fit.md).", ""]
+    if held:
+        lines += [f"Held at the base config's value (twin.toml), as the records do not "
+                  f"determine them: {', '.join(held)}. A wear's or relaxation's time scale is "
+                  "held first and its amplitude refitted, so the amplitude is then the "
+                  "initial rate at that time scale.", ""]
+    lines += [
               "| table | parameter | value | ±1σ | determined | trials to determine | note |",
               "|---|---|---|---|---|---|---|"]
     for p in document["parameters"]:
