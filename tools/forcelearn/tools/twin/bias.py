@@ -59,6 +59,10 @@ FREE_MARGIN_MM = 1.5
 """A read is taken as free space for the drift's estimate when a plain spring fitted to
 the reads (:func:`free_reads`), its surface raised by this much, has no contact there (mm):
 it covers the waviness and relaxation the plain spring leaves out."""
+DETECT_SIGMAS = 3.0
+"""The walk is used (and its rate written to twin.toml) only when the measured drift is at
+least this many of its sigmas above 0: read noise alone, over a short run, can put a
+random walk's rate at 2 sigma, and a false walk soaks up the wear the records show."""
 MIN_GAP_S = 1e-3
 """Floor of the walk's time between segments, s."""
 ESTIMATE_ROUNDS = 5
@@ -227,6 +231,16 @@ class DriftEstimate:
     reads: int
     """Segments with a free-space read (or tares) that measured it."""
 
+    @property
+    def detected(self) -> bool:
+        """The rate stands ``DETECT_SIGMAS`` sigmas clear of 0 (:func:`drift_detected`)."""
+        return drift_detected(self.rate, self.sigma)
+
+
+def drift_detected(rate: float, sigma: float) -> bool:
+    """A measured drift ``rate`` (N/sqrt(s)) with 1-sigma ``sigma`` is told from no drift."""
+    return math.isfinite(rate) and rate > 0 and rate > DETECT_SIGMAS * sigma
+
 
 def drift_from_reads(chain: Chain, free: np.ndarray, data: RecordArrays, noise_n: float,
                      phi: float) -> DriftEstimate:
@@ -325,8 +339,7 @@ class BiasWalk:
     @property
     def rate(self) -> float:
         """The q the profile uses (0: no walk, the biases stay at the tares' 0)."""
-        rate = self.drift.rate
-        return rate if math.isfinite(rate) and rate > 0 else 0.0
+        return self.drift.rate if self.drift.detected else 0.0
 
     def residuals(self, error_n: np.ndarray, keep: np.ndarray | None = None) -> np.ndarray:
         """The fit's residual vector for ``error_n`` = predicted - recorded (T, M).

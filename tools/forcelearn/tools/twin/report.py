@@ -23,6 +23,7 @@ import tomli_w
 
 from forcelearn.site.config import EmulatorConfig
 from forcelearn.site.kinds import robot_kind, sensor_kind
+from forcelearn.tools.twin.bias import DETECT_SIGMAS, drift_detected
 from forcelearn.tools.twin.fit import HOLD_OUT, TwinFit
 from forcelearn.tools.twin.params import ARM, BY_NAME, SENSOR, Parameter
 from forcelearn.tools.twin.source import RunSource
@@ -90,7 +91,13 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
     sensor = fit.sensor
     rows.append(_row(SENSOR[0], sensor.noise_n, sensor.noise_sigma_n, trials, passes))
     drift = _row(SENSOR[1], sensor.drift_n_per_sqrt_s, sensor.drift_sigma, trials, passes)
-    if sensor.drift_source == "free-space reads":
+    if not drift_detected(sensor.drift_n_per_sqrt_s, sensor.drift_sigma):
+        drift["determined"] = False
+        drift["note"] = (f"{sensor.tares} tares recorded; not told from no drift (under "
+                         f"{DETECT_SIGMAS:g} sigma): the fit's bias walk is off and twin.toml "
+                         "keeps the base config's value (task.tare_each_trial = true or more "
+                         "trials measure it)")
+    elif sensor.drift_source == "free-space reads":
         drift["note"] = (f"{sensor.tares} tares recorded: measured from the free-space reads "
                          "of successive trials (task.tare_each_trial = true measures it "
                          "better)")
@@ -246,7 +253,7 @@ def twin_config(fit: TwinFit, source: RunSource) -> dict[str, Any]:
         noise[:3] = [fit.sensor.noise_n] * 3
     sensor_model["noise_std"] = noise
     drift = list(base_sensor.bias_drift_per_sqrt_s)
-    if math.isfinite(fit.sensor.drift_n_per_sqrt_s):
+    if drift_detected(fit.sensor.drift_n_per_sqrt_s, fit.sensor.drift_sigma):
         drift[:3] = [fit.sensor.drift_n_per_sqrt_s] * 3
     sensor_model["bias_drift_per_sqrt_s"] = drift
     emulator["sensor"] = sensor_model
