@@ -20,8 +20,13 @@ from scipy.optimize import least_squares
 from forcelearn.records import TrialRecords
 from forcelearn.tools.twin.arm import ArmFit, emulator_delay_s, fit_arm, timed_moves
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, to_arrays
-from forcelearn.tools.twin.forward import Reading, motion_shape, predict_means
-from forcelearn.tools.twin.params import BY_NAME, Member, family
+from forcelearn.tools.twin.forward import (
+    Reading,
+    ToolPath,
+    motion_shape,
+    predict_means,
+)
+from forcelearn.tools.twin.params import BY_NAME, PATH_MEMBERS, Member, family
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.uncertainty import sigmas
 
@@ -152,6 +157,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     use = train.has_burst
     groups = np.broadcast_to(train.trial[:, None], use.shape)[use]
     shape = motion_shape(train, arm)
+    path = ToolPath(train, arm)
     spread: dict[str, float] = {}
     cost = math.inf
     kept: tuple[dict[str, float], list[str], list[str], dict[str, float]] = (
@@ -167,7 +173,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
         def residuals(x: np.ndarray, names: list[str] = names,
                       frozen: dict[str, float] = frozen) -> np.ndarray:
             sponge = {**frozen, **dict(zip(names, x.tolist(), strict=True))}
-            predicted = predict_means(train, sponge, arm, reading, shape)
+            predicted = predict_means(train, sponge, arm, reading, shape, path)
             error: np.ndarray = ((predicted - train.mean_n) * weights)[use]
             return error
 
@@ -195,7 +201,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
             held_sigmas[n] = spread[n]  # its uncertainty when it was last fitted
         free = [n for n in free if n not in hold]
     spread.update(held_sigmas)
-    train_pred = predict_means(train, values, arm, reading, shape)
+    train_pred = predict_means(train, values, arm, reading, shape, path)
     held_pred = predict_means(heldout, values, arm, reading)
     train_rms = _rms(train_pred - train.mean_n, train.is_step & train.has_burst)
     held_res = ((held_pred - heldout.mean_n) * _weights(heldout, noise_n))[heldout.has_burst]
@@ -268,8 +274,13 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
         delay = emulator_delay_s(arm.values, distances, band_mm, tick_s)
     first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
     start = initial_sponge(train, base_sponge, reading)
-    fits = [fit_member(m, train, heldout, start, base_sponge, arm.values, reading,
-                       first.noise_n) for m in (members or family())]
+    fits: list[MemberFit] = []
+    for m in members or family():
+        # A hysteretic member starts where the member it extends ended (h, mu from 0):
+        # its other parameters barely move, which saves most of its iterations.
+        begin = fits[-1].values if m in PATH_MEMBERS and fits else start
+        fits.append(fit_member(m, train, heldout, begin, base_sponge, arm.values, reading,
+                               first.noise_n))
     best = min(f.bic for f in fits)
     # Parsimony: the simplest member (family order) whose BIC is within BIC_MARGIN of the
     # best; a richer law must explain the held-out trials clearly better, not by rounding.
