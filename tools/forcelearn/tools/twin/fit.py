@@ -26,7 +26,7 @@ from forcelearn.tools.twin.forward import (
     motion_shape,
     predict_means,
 )
-from forcelearn.tools.twin.params import BY_NAME, PATH_MEMBERS, Member, family
+from forcelearn.tools.twin.params import BY_NAME, Member, family
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.uncertainty import sigmas
 
@@ -274,13 +274,8 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
         delay = emulator_delay_s(arm.values, distances, band_mm, tick_s)
     first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
     start = initial_sponge(train, base_sponge, reading)
-    fits: list[MemberFit] = []
-    for m in members or family():
-        # A hysteretic member starts where the member it extends ended (h, mu from 0):
-        # its other parameters barely move, which saves most of its iterations.
-        begin = fits[-1].values if m in PATH_MEMBERS and fits else start
-        fits.append(fit_member(m, train, heldout, begin, base_sponge, arm.values, reading,
-                               first.noise_n))
+    fits = [fit_member(m, train, heldout, start, base_sponge, arm.values, reading,
+                       first.noise_n) for m in (members or family())]
     best = min(f.bic for f in fits)
     # Parsimony: the simplest member (family order) whose BIC is within BIC_MARGIN of the
     # best; a richer law must explain the held-out trials clearly better, not by rounding.
