@@ -129,7 +129,7 @@ def initial_sponge(data: RecordArrays, base: dict[str, float], reading: Reading
 
 
 TIME_SCALES = ("softening_passes", "set_passes", "waviness_wavelength_mm",
-               "stiffness_wavelength_mm", "relaxation_time_s")
+               "stiffness_wavelength_mm", "relaxation_time_s", "hysteresis_depth_mm")
 """Parameters that set a scale (passes, mm, s) for an amplitude: held first when loose."""
 HOLD_ROUNDS = 3
 HOLD_COST = 1.02
