@@ -14,6 +14,13 @@ reached pose toward the command with the servo lag. The reading is the
 force's component along the run's ``[filter]`` axis and sign, in the sensor
 frame of the task's tool orientation.
 
+Hysteresis and friction (:func:`contact_state`) follow the tool's path, as the
+emulated sponge updates them at every reported pose: the Dahl state through
+``hysteresis_step``'s closed form on each piece of a sampled path per move,
+the friction along the last piece that slid along the surface. With
+``hysteresis_loss = friction_coefficient = 0`` neither is computed and the
+model is the one without them, operation for operation.
+
 Arm
 ---
 The time from a command to in position: the start delay, a trapezoidal path
