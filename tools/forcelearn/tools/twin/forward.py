@@ -250,7 +250,7 @@ def _settling_push_mm(p: dict[str, float], passes: np.ndarray, y: np.ndarray, z:
     return result
 
 
-HYSTERESIS_POINTS = 8
+HYSTERESIS_POINTS = 4
 """Points per move on which the hysteresis state and the slide follow the tool's path."""
 SLIDE_MIN_FRACTION = 0.1
 """A path piece slides when its part along the surface is at least this fraction of it
