@@ -69,6 +69,42 @@ def test_twin_writes_a_config_that_runs(
     assert overall < 0.2
 
 
+def test_a_hysteretic_twin_carries_its_hysteresis_and_runs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A hysteretic foam under a frictional roller: its twin carries h and runs.
+
+    The twin fits h (and mu), reports them with their uncertainty, writes them to
+    twin.toml, and two trials run on it.
+    """
+    truth = SpongeParams(stiffness_n_per_mm=2.6, surface_y_mm=0.5, relaxation_ratio=0.3,
+                         surface_slope=0.1, hysteresis_loss=0.2, friction_coefficient=0.3)
+    _serve(monkeypatch, simulate_run(SimulatedRun(trials=10, steps=12, burst_samples=10,
+                                                  sponge=truth, sensor=NOISY), seed=6))
+    run_dir = tmp_path / "site-run"
+    run_dir.mkdir()
+    out = tmp_path / "twin" / "twin.toml"
+    assert cli.main(["twin", str(run_dir), "--out", str(out)]) == 0
+    document = json.loads((out.parent / "twin.json").read_text())
+    assert document["member"].startswith("hysteretic")
+    rows = {row["name"]: row for row in document["parameters"]}
+    assert rows["hysteresis_loss"]["determined"] is True
+    assert rows["hysteresis_loss"]["sigma"] < 0.01
+    assert "hysteresis_loss" in (out.parent / "twin.md").read_text()
+    twin = load_cell_config(out)
+    assert twin.emulator.sponge.hysteresis_loss == rows["hysteresis_loss"]["value"]
+    assert twin.emulator.sponge.hysteresis_loss == pytest.approx(0.2, rel=0.1)
+    assert twin.emulator.sponge.hysteresis_depth_mm == rows["hysteresis_depth_mm"]["value"]
+    if document["member"] == "hysteretic+friction":
+        assert twin.emulator.sponge.friction_coefficient == pytest.approx(
+            0.3, abs=3 * rows["friction_coefficient"]["sigma"] + 0.02)
+    run_out = tmp_path / "on-twin"
+    assert cli.main(["run", "--config", str(out), "--trials", "2", "--out", str(run_out),
+                     "--no-progress"]) == 0
+    with open(run_out / "trials.csv") as handle:
+        assert len(list(csv.DictReader(handle))) == 2
+
+
 class _RipplingFoam(Sponge):
     """Force that ripples with depth (3 N every 2 mm): no member of any foam family."""
 

@@ -30,7 +30,7 @@ from forcelearn.tools.twin.arm import (
 )
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
-from forcelearn.tools.twin.forward import Reading, motion_shape, predict_means
+from forcelearn.tools.twin.forward import Reading, ToolPath, motion_shape, predict_means
 from forcelearn.tools.twin.params import BY_NAME, Member, family
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.uncertainty import sigmas
@@ -158,7 +158,8 @@ PROBE_MIN_CONTACTS = 6
 
 SCALE_OF = {"softening": "softening_passes", "set_mm": "set_passes",
             "relaxation_ratio": "relaxation_time_s", "waviness_mm": "waviness_wavelength_mm",
-            "stiffness_variation": "stiffness_wavelength_mm"}
+            "stiffness_variation": "stiffness_wavelength_mm",
+            "hysteresis_loss": "hysteresis_depth_mm"}
 """Amplitudes and the scale (passes, s, mm) each acts over."""
 TIME_SCALES = tuple(SCALE_OF.values())
 """Parameters that set a scale for an amplitude: held first when loose."""
@@ -212,6 +213,7 @@ class _Problem:
         self.groups = (np.broadcast_to(train.trial[:, None], self.use.shape)[self.use]
                        if walk is None else walk.groups())
         self.shape = motion_shape(train, arm)
+        self.path = ToolPath(train, arm)
 
     def solve(self, names: list[str], values: dict[str, float], keep: np.ndarray | None = None,
               max_nfev: int | None = None) -> tuple[np.ndarray, OptimizeResult]:
@@ -228,7 +230,8 @@ class _Problem:
 
         def residuals(x: np.ndarray) -> np.ndarray:
             sponge = {**frozen, **dict(zip(names, x.tolist(), strict=True))}
-            predicted = predict_means(self.train, sponge, self.arm, self.reading, self.shape)
+            predicted = predict_means(self.train, sponge, self.arm, self.reading, self.shape,
+                                      self.path)
             if self.walk is not None:  # the sensor's bias, profiled out (twin/bias.py)
                 return self.walk.residuals(predicted - self.train.mean_n, keep)
             error: np.ndarray = ((predicted - self.train.mean_n) * self.weights)[use]
@@ -299,7 +302,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
             held_sigmas[n] = spread[n]  # its uncertainty when it was last fitted
         free, values, spread, cost = rest, tried, tried_spread, tried_cost
     spread.update(held_sigmas)
-    train_pred = predict_means(train, values, arm, reading, problem.shape)
+    train_pred = predict_means(train, values, arm, reading, problem.shape, problem.path)
     held_pred = predict_means(heldout, values, arm, reading)
     if walk is not None:  # the sensor's bias (twin/bias.py)
         train_pred, held_pred = walk.debiased(train_pred, held_pred)
@@ -434,6 +437,21 @@ def _diagnose(train: RecordArrays, predicted: np.ndarray, values: dict[str, floa
     return notes
 
 
+FRICTION_READING_MIN = 0.2
+"""The friction members join only when the reading takes at least this share of a force
+along Z, the roller's travel: the §5 tool reads along the surface's normal, where friction
+shows only through the surface's slope (a few % of it), too little to tell mu apart from
+the other terms (on a hidden cell without friction it fitted mu 0.22 and a surface 13 mm off)."""
+
+
+def family_for(reading: Reading) -> tuple[Member, ...]:
+    """The family (:func:`~forcelearn.tools.twin.params.family`) the reading can tell apart."""
+    members = family()
+    if abs(reading.along_z) >= FRICTION_READING_MIN:
+        return members
+    return tuple(m for m in members if "friction_coefficient" not in m.free)
+
+
 def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
              base_arm: dict[str, float], reading: Reading, band_mm: float, tick_s: float,
              calibration_noise_n: float | None = None,
@@ -469,8 +487,8 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     start = initial_sponge(train, base_sponge, reading, first.noise_n)
     walk = bias_walk(records, train, heldout, base_sponge, reading, first,
                      lambda d: _weights(d, first.noise_n), configured_phi)
-    fits = fit_nested(members or family(), train, heldout, start, base_sponge, arm.values,
-                      reading, first.noise_n, walk)
+    fits = fit_nested(members or family_for(reading), train, heldout, start, base_sponge,
+                      arm.values, reading, first.noise_n, walk)
     eligible = [f for f in fits if f.eligible]
     best = min(f.bic for f in eligible)
     # Parsimony: the simplest member (family order) whose BIC is within BIC_MARGIN of the

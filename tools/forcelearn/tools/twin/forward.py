@@ -14,6 +14,13 @@ reached pose toward the command with the servo lag. The reading is the
 force's component along the run's ``[filter]`` axis and sign, in the sensor
 frame of the task's tool orientation.
 
+Hysteresis and friction (:func:`contact_state`) follow the tool's path, as the
+emulated sponge updates them at every reported pose: the Dahl state through
+``hysteresis_step``'s closed form on each piece of a sampled path per move,
+the friction along the last piece that slid along the surface. With
+``hysteresis_loss = friction_coefficient = 0`` neither is computed and the
+model is the one without them, operation for operation.
+
 Arm
 ---
 The time from a command to in position: the start delay, a trapezoidal path
@@ -103,19 +110,29 @@ def elastic_mm(p: dict[str, float], foam_mm: np.ndarray) -> np.ndarray:
 
 def normal_force_n(p: dict[str, float], passes: np.ndarray, y_mm: np.ndarray,
                    z_mm: np.ndarray, relaxing_mm: np.ndarray | float,
-                   reading: Reading) -> np.ndarray:
-    """The recorded normal force (N) of tool points with relaxing part ``relaxing_mm``."""
+                   reading: Reading, contact: ContactState | None = None) -> np.ndarray:
+    """The recorded normal force (N) of tool points with relaxing part ``relaxing_mm``.
+
+    ``contact`` (:func:`contact_state`) adds the hysteresis factor ``1 + h s`` on the
+    foam's force and the friction ``-mu N t`` along the last slide; None: neither.
+    """
     depth = depth_mm(p, passes, y_mm, z_mm)
     foam = np.maximum(0.0, elastic_mm(p, np.minimum(depth, p["thickness_mm"]))
                       + p["relaxation_ratio"]
                       * relaxing_mm)
     normal = stiffness_n_per_mm(p, passes, z_mm) * foam
+    if contact is not None and p.get("hysteresis_loss", 0.0) != 0.0:
+        normal = normal * (1.0 + p["hysteresis_loss"] * contact.hysteresis)
     normal = normal + p["backing_n_per_mm"] * np.maximum(0.0, depth - p["thickness_mm"])
     normal = np.where(depth > 0.0, normal, 0.0)
     slope = surface_dy_dz(p, z_mm)
     result: np.ndarray = normal * (reading.along_y - reading.along_z * slope) / np.sqrt(
         1.0 + slope * slope
     )
+    mu = p.get("friction_coefficient", 0.0)
+    if contact is not None and mu != 0.0:
+        result = result - mu * normal * (reading.along_y * contact.slide_y
+                                         + reading.along_z * contact.slide_z)
     return result
 
 
@@ -233,12 +250,184 @@ def _settling_push_mm(p: dict[str, float], passes: np.ndarray, y: np.ndarray, z:
     return result
 
 
+HYSTERESIS_POINTS = 4
+"""Points per move on which the hysteresis state and the slide follow the tool's path."""
+SLIDE_MIN_FRACTION = 0.1
+"""A path piece slides when its part along the surface is at least this fraction of it
+(:data:`forcelearn.emulators.physics.sponge.SLIDE_MIN_FRACTION`)."""
+
+
+@dataclass(frozen=True)
+class ContactState:
+    """The sponge's path-dependent state at each burst, (T, M) arrays."""
+
+    hysteresis: np.ndarray
+    """The Dahl state s in [-1, 1] (0 out of contact)."""
+    slide_y: np.ndarray
+    """World Y component of the unit direction of the last slide along the surface."""
+    slide_z: np.ndarray
+    """World Z component of it (zeros: no slide since the tool touched the foam)."""
+
+
+def _lagging(commanded: np.ndarray, reached: np.ndarray, since_s: np.ndarray,
+             lag_s: float) -> np.ndarray:
+    """Where the tool is ``since_s`` after in position: the lag's error decays, (..., 3)."""
+    shrink = np.exp(-np.maximum(since_s, 0.0) / lag_s) if lag_s > 0 else np.zeros_like(since_s)
+    result: np.ndarray = commanded + (reached - commanded) * shrink[..., None]
+    return result
+
+
+def tool_path_mm(data: RecordArrays, arm: dict[str, float]) -> np.ndarray:
+    """The tool's path over each move, (T, M, HYSTERESIS_POINTS + 3, 3) points, mm.
+
+    Move ``j``'s points: where the previous move's chain ended (at its burst, or in
+    position without one), where the tool was when this move's motion began (the
+    lag's error still decaying toward the previous command), a straight line from
+    there to the reached pose, and the pose at the middle of this move's burst. A
+    trial's first move starts at its reached pose (:func:`contact_state` starts it
+    out of contact).
+    """
+    lag = arm["lag_s"]
+    commanded = np.nan_to_num(data.commanded)
+    reached = np.nan_to_num(data.reached)
+    end_in_position = np.nan_to_num(data.in_position_s)
+    mid = np.nan_to_num(data.burst_start_s + 0.5 * data.burst_span_s)
+    at_burst = _lagging(commanded, reached, mid - end_in_position, lag)
+    chain_end = np.where(data.has_burst[..., None], at_burst, reached)
+    began = np.nan_to_num(data.start_s) + arm.get("start_delay_s", 0.0)
+    start = reached.copy()
+    start[:, 1:] = _lagging(commanded[:, :-1], reached[:, :-1],
+                            began[:, 1:] - end_in_position[:, :-1], lag)
+    before = reached.copy()
+    before[:, 1:] = chain_end[:, :-1]
+    k = HYSTERESIS_POINTS
+    share = (np.arange(k + 1) / k)[None, None, :, None]
+    line = start[:, :, None, :] + share * (reached - start)[:, :, None, :]
+    result: np.ndarray = np.concatenate(
+        [before[:, :, None, :], line, chain_end[:, :, None, :]], axis=2)
+    return result
+
+
+def contact_state(data: RecordArrays, p: dict[str, float], arm: dict[str, float],
+                  path: np.ndarray | None = None) -> ContactState:
+    """The hysteresis state and the last slide at each burst, as the emulated sponge has them.
+
+    The emulated sponge updates both at every pose the arm reports
+    (``Sponge._follow_move``): the foam depth's change and the travel along the
+    surface from the last pose feed ``hysteresis_step``'s closed form; a piece of
+    motion at least ``SLIDE_MIN_FRACTION`` along the surface sets the slide's
+    direction (``slide_direction``); out of contact both are 0. Here the pieces
+    are those of :func:`tool_path_mm` (``path``, computed when not given), each
+    move's pieces composed as one affine map of s, then a scan over the moves.
+    A trial starts out of contact (the tool comes from the retract plane).
+    """
+    path = path if path is not None else tool_path_mm(data, arm)
+    passes = data.passes[..., None]
+    y, z = path[..., 1], path[..., 2]
+    depth = depth_mm(p, passes, y, z)
+    depth[:, 0, 0] = 0.0  # a trial starts out of contact
+    inside = depth > 0.0
+    foam = np.minimum(depth, p["thickness_mm"])
+    step = np.diff(path, axis=2)
+    slope = surface_dy_dz(p, z[..., 1:])
+    norm = np.sqrt(1.0 + slope * slope)
+    normal_y, normal_z = 1.0 / norm, -slope / norm
+    across = step[..., 1] * normal_y + step[..., 2] * normal_z
+    length2 = np.sum(step * step, axis=-1)
+    along = np.sqrt(np.maximum(length2 - across * across, 0.0))
+    slides = (along >= SLIDE_MIN_FRACTION * np.sqrt(length2)) & (along >= 1e-9)
+    contact_after = inside[..., 1:]
+    moved = data.valid[..., None]
+    trials, moves = data.valid.shape
+    h = p.get("hysteresis_loss", 0.0)
+    hysteresis = np.zeros((trials, moves))
+    if h != 0.0:
+        change = np.diff(foam, axis=2)
+        a = np.abs(change) / p["hysteresis_depth_mm"]
+        b = np.where(slides, along, 0.0) / p["hysteresis_travel_mm"]
+        rate = a + b
+        sign = np.where(change > 0.0, 1.0, -1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            target = np.where(rate > 0.0, (a * sign + b) / rate, 0.0)
+        keep = np.exp(-rate)
+        keep = np.where(contact_after, keep, 0.0)  # out of contact: s = 0
+        push = np.where(contact_after, target * (1.0 - keep), 0.0)
+        keep = np.where(moved, keep, 1.0)
+        push = np.where(moved, push, 0.0)
+        later = np.concatenate([np.cumprod(keep[..., :0:-1], axis=2)[..., ::-1],
+                                np.ones((trials, moves, 1))], axis=2)
+        gain = later[..., 0] * keep[..., 0]
+        offset = np.sum(push * later, axis=2)
+        s = np.zeros(trials)
+        for j in range(moves):
+            s = gain[:, j] * s + offset[:, j]
+            hysteresis[:, j] = s
+    slide_y = np.zeros((trials, moves))
+    slide_z = np.zeros((trials, moves))
+    if p.get("friction_coefficient", 0.0) != 0.0:
+        event = (slides & contact_after) | ~contact_after
+        event &= moved
+        pieces = event.shape[2]
+        last = pieces - 1 - np.argmax(event[..., ::-1], axis=2)
+        any_event = event.any(axis=2)
+        pick = np.take_along_axis
+        index = last[..., None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit_y = (step[..., 1] - across * normal_y) / along
+            unit_z = (step[..., 2] - across * normal_z) / along
+        held = pick(contact_after, index, axis=2)[..., 0]
+        new_y = np.where(held, pick(unit_y, index, axis=2)[..., 0], 0.0)
+        new_z = np.where(held, pick(unit_z, index, axis=2)[..., 0], 0.0)
+        ty, tz = np.zeros(trials), np.zeros(trials)
+        for j in range(moves):
+            ty = np.where(any_event[:, j], new_y[:, j], ty)
+            tz = np.where(any_event[:, j], new_z[:, j], tz)
+            slide_y[:, j], slide_z[:, j] = ty, tz
+    return ContactState(hysteresis, slide_y, slide_z)
+
+
+CONTACT_KEYS = ("surface_y_mm", "surface_slope", "waviness_mm", "waviness_wavelength_mm",
+                "z_top_mm", "z_bottom_mm", "thickness_mm", "set_mm", "set_passes",
+                "hysteresis_depth_mm", "hysteresis_travel_mm")
+"""The sponge parameters :func:`contact_state` depends on (not h, mu or the stiffness)."""
+
+
+class ToolPath:
+    """A run's tool path (:func:`tool_path_mm`) and its last :func:`contact_state`.
+
+    A fit varies one parameter at a time; most (stiffness, relaxation, h, mu)
+    leave the path's contact state as it was, so the last one is kept.
+    """
+
+    def __init__(self, data: RecordArrays, arm: dict[str, float]) -> None:
+        self.data = data
+        self.points = tool_path_mm(data, arm)
+        self._key: tuple[float, ...] | None = None
+        self._state: ContactState | None = None
+
+    def contact(self, p: dict[str, float]) -> ContactState:
+        """:func:`contact_state` of the sponge ``p`` on this path."""
+        key = (*(p[k] for k in CONTACT_KEYS), p.get("hysteresis_loss", 0.0) != 0.0,
+               p.get("friction_coefficient", 0.0) != 0.0)
+        if key != self._key or self._state is None:
+            self._state = contact_state(self.data, p, {}, self.points)
+            self._key = key
+        return self._state
+
+
+def path_dependent(p: dict[str, float]) -> bool:
+    """True when the sponge has hysteresis or friction (the forward model needs its path)."""
+    return p.get("hysteresis_loss", 0.0) != 0.0 or p.get("friction_coefficient", 0.0) != 0.0
+
+
 def predict_means(data: RecordArrays, p: dict[str, float], arm: dict[str, float],
-                  reading: Reading, shape: MotionShape | None = None) -> np.ndarray:
+                  reading: Reading, shape: MotionShape | None = None,
+                  path: ToolPath | None = None) -> np.ndarray:
     """Predicted burst means (T, M), N; NaN where no burst was read.
 
-    ``shape`` is :func:`motion_shape` of ``data`` and ``arm`` (computed when not given:
-    pass it when predicting many times with one arm).
+    ``shape`` is :func:`motion_shape` of ``data`` and ``arm``, ``path`` its
+    :class:`ToolPath` (each computed when needed and not given: pass them when
+    predicting many times with one arm).
     """
     passes = data.passes
     lag_s = arm["lag_s"]
@@ -261,7 +450,10 @@ def predict_means(data: RecordArrays, p: dict[str, float], arm: dict[str, float]
     yb, zb = np.where(burst, yb, 1e9), np.where(burst, zb, 0.0)
     if p["relaxation_ratio"] > 0.0 and lag_s > 0:
         relaxing = relaxing + _settling_push_mm(p, passes, y, z, yb, zb, since, lag_s)
-    force = normal_force_n(p, passes, yb, zb, relaxing, reading)
+    contact = None
+    if path_dependent(p):
+        contact = (path if path is not None else ToolPath(data, arm)).contact(p)
+    force = normal_force_n(p, passes, yb, zb, relaxing, reading, contact)
     return np.where(burst, force, np.nan)
 
 
