@@ -18,7 +18,7 @@ from forcelearn.records import TrialRecords
 from forcelearn.tools.twin import fit as fitting
 from forcelearn.tools.twin.fit import TwinFit, fit_twin
 from forcelearn.tools.twin.forward import Reading
-from forcelearn.tools.twin.params import BY_NAME, LINEAR_MEMBERS, family
+from forcelearn.tools.twin.params import BY_NAME, LINEAR_MEMBERS
 from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
 
 READING = Reading.of(DOWN, 1, -1.0)
@@ -101,7 +101,7 @@ def test_a_richer_member_never_fits_worse_than_the_one_it_contains(
                                                       and fits.index(f) < fits.index(child)])
         if parent is not None and child.eligible:
             assert child.train_cost <= parent.train_cost * (1 + fitting.NESTED_TOLERANCE)
-    assert [f.member.name for f in fits] == [m.name for m in family()]
+    assert [f.member.name for f in fits] == [m.name for m in fitting.family_for(READING)]
 
     real = fitting.fit_member
 
