@@ -9,13 +9,15 @@ import pytest
 
 from forcelearn.errors import StudyError
 from forcelearn.tools.results.twin_compare import (
+    LATE_TRIALS,
     RunOutcome,
     check_twin,
+    late_agrees,
     learning_agrees,
     learning_side,
     run_outcome,
 )
-from forcelearn.tools.results.twin_page import CellResult, summary_lines
+from forcelearn.tools.results.twin_page import CellResult, self_check_lines, summary_lines
 
 TRUTH = {
     "sponge": {"stiffness_n_per_mm": 2.0, "surface_y_mm": 0.1, "softening": 0.3,
@@ -89,10 +91,37 @@ def _run(folder: Path, converged: int | None, rms: list[float]) -> Path:
 
 def test_run_outcome_counts_from_one_and_takes_the_last_trial(tmp_path: Path) -> None:
     """Convergence trial counted from 1; final RMS is the last trial's."""
-    assert run_outcome(_run(tmp_path / "a", 0, [3.0, 0.4])) == RunOutcome(1, 0.4)
-    assert run_outcome(_run(tmp_path / "b", None, [3.0, 1.5])) == RunOutcome(None, 1.5)
+    assert run_outcome(_run(tmp_path / "a", 0, [3.0, 0.4])) == RunOutcome(1, 0.4, 1.7)
+    assert run_outcome(_run(tmp_path / "b", None, [3.0, 1.5])) == RunOutcome(None, 1.5, 2.25)
     with pytest.raises(StudyError):
         run_outcome(tmp_path / "missing")
+
+
+def test_the_late_level_is_the_mean_of_the_last_trials(tmp_path: Path) -> None:
+    """The late force RMS averages the last LATE_TRIALS trials, not the run's first ones."""
+    rms = [5.0] * 5 + [0.2, 0.4] * (LATE_TRIALS // 2)
+    outcome = run_outcome(_run(tmp_path / "a", 3, rms))
+    assert outcome.final_force_rms_n == 0.4
+    assert outcome.late_force_rms_n == pytest.approx(0.3)
+    side = learning_side([outcome, RunOutcome(4, 0.2, 0.32), RunOutcome(5, 0.9, 0.5)], 60)
+    assert side.median_late_force_rms_n == pytest.approx(0.32)
+    other = learning_side([RunOutcome(4, 0.2, 0.45)] * 3, 60)
+    assert not late_agrees(other, side)  # +41 %
+    assert late_agrees(learning_side([RunOutcome(4, 0.2, 0.4)] * 3, 60), side)  # +25 %
+
+
+def test_the_self_check_compares_a_cell_with_itself(tmp_path: Path) -> None:
+    """Seeds 5-9 against 0-4 of one hidden cell: counted with the twin's checks."""
+    hidden = learning_side([RunOutcome(10, 0.5, 0.5)] * 5, 60)
+    again = learning_side([RunOutcome(12, 0.9, 0.55)] * 5, 60)
+    result = CellResult("cell-03", tmp_path / "t.json", 0, None, None, None, again)
+    assert self_check_lines([result], 5) == ["- not run (`--self-check EVERY`)"]
+    result = CellResult("cell-03", tmp_path / "t.json", 0, None, hidden, None, again)
+    lines = self_check_lines([result], 5)
+    assert "median trial of convergence 1/1 (100 %)" in lines[0]
+    assert "median final force RMS 0/1 (0 %)" in lines[0]  # +80 %
+    assert "last 10 trials 1/1 (100 %)" in lines[0]
+    assert lines[-1].startswith("| 03 | 10 | 12 |")
 
 
 def test_learning_medians_and_agreement() -> None:

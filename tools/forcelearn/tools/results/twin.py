@@ -7,7 +7,9 @@
    (probe + 60 trials), then ``forcelearn twin`` on that run directory alone;
 3. per cell with a twin (``--learning-cells`` first cells; all by default): the learner over
    ``--seeds`` seeds on the twin.toml and on the hidden cell (seed 0 of the hidden cell is
-   the site run itself);
+   the site run itself); with ``--self-check EVERY``, every EVERY-th cell also runs the
+   next ``--seeds`` seeds on the hidden cell: a perfect twin's agreement, the seeds'
+   scatter alone;
 4. compares (``twin_compare``) and writes ``DIR/twin.md`` and ``DIR/twin.png`` (``--page``
    and ``--figure`` to write them elsewhere, e.g. docs/results/).
 
@@ -105,9 +107,9 @@ def _run_dir(out: Path, cell: str, side: str, seed: int) -> Path | None:
     return None
 
 
-def _side(out: Path, cell: str, side: str, seeds: int) -> LearningSide | None:
+def _side(out: Path, cell: str, side: str, seeds: int, first: int = 0) -> LearningSide | None:
     outcomes: list[RunOutcome] = []
-    for seed in range(seeds):
+    for seed in range(first, first + seeds):
         run = _run_dir(out, cell, side, seed)
         if run is None:
             return None
@@ -127,7 +129,8 @@ def collect(out: Path, cells: Sequence[str], seeds: int) -> list[CellResult]:
         results.append(CellResult(
             cell=cell, truth_path=out / "cells" / f"{cell}.truth.json",
             site_rc=int(site_rc.read_text()) if site_rc.exists() else None, check=check,
-            hidden=_side(out, cell, "hidden", seeds), twin=_side(out, cell, "twin", seeds)))
+            hidden=_side(out, cell, "hidden", seeds), twin=_side(out, cell, "twin", seeds),
+            hidden_again=_side(out, cell, "hidden", seeds, first=seeds)))
     return results
 
 
@@ -141,6 +144,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=5, help="learner seeds (default 5)")
     parser.add_argument("--learning-cells", type=int, default=None,
                         help="run the learning part on the first N cells with a twin only")
+    parser.add_argument("--self-check", type=int, default=0, metavar="EVERY",
+                        help="also run the hidden cell with the next --seeds seeds on every "
+                             "EVERY-th cell: how well a perfect twin could agree (0: off)")
     parser.add_argument("--report-only", action="store_true",
                         help="run nothing; write the page from what has finished")
     parser.add_argument("--page", type=Path, default=None, help="page (default OUT/twin.md)")
@@ -162,6 +168,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         chosen = with_twin[: args.learning_cells] if args.learning_cells else with_twin
         jobs = [(c, side, seed) for c in chosen for seed in range(args.seeds)
                 for side in ("twin", "hidden") if not (side == "hidden" and seed == 0)]
+        if args.self_check > 0:
+            jobs += [(c, "hidden", seed) for c in cells[args.self_check - 1::args.self_check]
+                     for seed in range(args.seeds, 2 * args.seeds)]
         with ThreadPoolExecutor(args.workers) as pool:
             list(pool.map(lambda job: learning_run(out, *job), jobs))
     try:

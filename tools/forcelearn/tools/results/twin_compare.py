@@ -24,6 +24,9 @@ RELATIVE_TOLERANCE = 0.10
 """A determined parameter must lie within this share of the truth ..."""
 LEARNING_TOLERANCE = 0.30
 """The twin's learning outcome must lie within this share of the hidden cell's."""
+LATE_TRIALS = 10
+"""Trials at a run's end whose mean force RMS is its late level (a second reading of "final
+force RMS": one trial's RMS scatters ±30-50 % between seeds of one cell)."""
 
 
 @dataclass(frozen=True)
@@ -200,6 +203,8 @@ class RunOutcome:
 
     converged_trial: int | None
     final_force_rms_n: float
+    late_force_rms_n: float = math.nan
+    """Mean force RMS of the last ``LATE_TRIALS`` trials, N."""
 
 
 def run_outcome(run_dir: Path) -> RunOutcome:
@@ -216,10 +221,11 @@ def run_outcome(run_dir: Path) -> RunOutcome:
         with (run_dir / "trials.csv").open(newline="") as handle:
             rows = list(csv.DictReader(handle))
         final = float(rows[-1]["force_rms_n"])
+        late = statistics.fmean(float(row["force_rms_n"]) for row in rows[-LATE_TRIALS:])
     except (OSError, IndexError, KeyError, ValueError) as exc:
         raise StudyError(f"{run_dir} has no usable trials.csv ({exc}); rerun it") from exc
     index = summary.get("converged_trial") if summary.get("converged") else None
-    return RunOutcome(None if index is None else int(index) + 1, final)
+    return RunOutcome(None if index is None else int(index) + 1, final, late)
 
 
 @dataclass(frozen=True)
@@ -231,6 +237,8 @@ class LearningSide:
     """A run that never converged counts as the trial budget + 1."""
     converged_runs: int
     median_final_force_rms_n: float
+    median_late_force_rms_n: float = math.nan
+    """Median over seeds of the mean force RMS of each run's last ``LATE_TRIALS`` trials, N."""
 
 
 def learning_side(outcomes: Sequence[RunOutcome], budget: int) -> LearningSide:
@@ -246,7 +254,9 @@ def learning_side(outcomes: Sequence[RunOutcome], budget: int) -> LearningSide:
         seeds=len(outcomes), median_converged_trial=float(statistics.median(trials)),
         converged_runs=sum(o.converged_trial is not None for o in outcomes),
         median_final_force_rms_n=float(statistics.median(o.final_force_rms_n
-                                                         for o in outcomes)))
+                                                         for o in outcomes)),
+        median_late_force_rms_n=float(statistics.median(o.late_force_rms_n
+                                                        for o in outcomes)))
 
 
 def relative_gap(twin: float, hidden: float) -> float:
@@ -261,6 +271,12 @@ def learning_agrees(twin: LearningSide, hidden: LearningSide) -> tuple[bool, boo
     return (abs(relative_gap(twin.median_converged_trial, hidden.median_converged_trial))
             <= LEARNING_TOLERANCE,
             abs(relative_gap(twin.median_final_force_rms_n, hidden.median_final_force_rms_n))
+            <= LEARNING_TOLERANCE)
+
+
+def late_agrees(twin: LearningSide, hidden: LearningSide) -> bool:
+    """Median late force RMS (last ``LATE_TRIALS`` trials' mean) within ±30 %."""
+    return (abs(relative_gap(twin.median_late_force_rms_n, hidden.median_late_force_rms_n))
             <= LEARNING_TOLERANCE)
 
 
