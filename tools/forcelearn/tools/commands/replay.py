@@ -43,6 +43,7 @@ def run(args: argparse.Namespace) -> int:
     for trial, rms in zip(result.trials, result.rms_n, strict=True):
         print(f"trial {trial:4d}  RMS {rms:.3f} N")
     print(f"overall RMS {result.overall_rms_n:.3f} N over {len(result.trials)} trials "
-          f"({args.model}); "
+          f"({args.model}; each trial's sensor zero read from its free-space bursts, as a "
+          f"tare would: {result.raw_overall_rms_n:.3f} N without); "
           f"wrote {out / 'replay.png'}")
     return 0

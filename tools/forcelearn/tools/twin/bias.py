@@ -100,7 +100,7 @@ class Chain:
         return int(self.time_s.size)
 
 
-def _tare_times(records: list[TrialRecords]) -> dict[int, float]:
+def tare_times(records: list[TrialRecords]) -> dict[int, float]:
     """Trial number -> cell time of the last accepted tare that preceded it, s."""
     out: dict[int, float] = {}
     for trial in records:
@@ -395,7 +395,7 @@ def bias_walk(records: list[TrialRecords], train: RecordArrays, heldout: RecordA
     ``base`` is the fit's base sponge (its strip's ends, a start for
     :func:`free_reads`).
     """
-    tares = _tare_times(records)
+    tares = tare_times(records)
     chain = build_chain(train, tares)
     if sensor.tares >= 3 and math.isfinite(sensor.drift_n_per_sqrt_s):
         drift = DriftEstimate(sensor.drift_n_per_sqrt_s, sensor.drift_sigma, "tares",
