@@ -24,7 +24,7 @@ import tomli_w
 from forcelearn.site.config import EmulatorConfig
 from forcelearn.site.kinds import robot_kind, sensor_kind
 from forcelearn.tools.twin.bias import DETECT_SIGMAS, drift_detected
-from forcelearn.tools.twin.fit import HOLD_OUT, TwinFit
+from forcelearn.tools.twin.fit import HOLD_OUT, SCALE_OF, TwinFit
 from forcelearn.tools.twin.params import ARM, BY_NAME, SENSOR, Parameter
 from forcelearn.tools.twin.source import RunSource
 
@@ -106,6 +106,39 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
                          "needs tares (task.tare_each_trial = true); the base config's value "
                          "is kept")
     rows.append(drift)
+    return amplitudes_need_their_scales(rows)
+
+
+PER_UNIT = {"passes": "pass"}
+"""A scale's unit in "per <unit>"."""
+
+
+def amplitudes_need_their_scales(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """An amplitude is determined only with its scale (``SCALE_OF``), unless it is ~0.
+
+    With a wear's time constant held or loose, the records pin the curve's start, the
+    initial rate (amplitude / time constant) per pass, not the amplitude: a softening of
+    0.33 at a held 150 passes is the records' slope, not the foam's final softening.
+    Such an amplitude is reported not determined, with the rate the records do give.
+    Rows are changed in place and returned.
+    """
+    by_name = {row["name"]: row for row in rows}
+    for amplitude, scale in SCALE_OF.items():
+        row, scale_row = by_name.get(amplitude), by_name.get(scale)
+        if row is None or scale_row is None or not row["determined"] or scale_row["determined"]:
+            continue
+        floor = BY_NAME[amplitude].absolute
+        if floor is not None and abs(row["value"]) <= floor:
+            continue  # ~0: none of it, whatever the scale
+        rate = row["value"] / scale_row["value"]
+        sigma = (row["sigma"] or 0.0) / scale_row["value"]
+        row["determined"] = False
+        row["trials_to_determine"] = scale_row.get("trials_to_determine")
+        row["note"] = (f"determined only with its scale {scale} ({_fmt(scale_row['value'])} "
+                       f"{scale_row['unit']}, not determined): the records give the initial "
+                       f"rate {_fmt(rate)} ± {_fmt(sigma)} {row['unit']} per "
+                       f"{PER_UNIT.get(scale_row['unit'], scale_row['unit'])}, not the amplitude"
+                       + ("; " + row["note"] if "note" in row else ""))
     return rows
 
 
