@@ -109,6 +109,9 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
     return amplitudes_need_their_scales(rows)
 
 
+SELF_STANDING = frozenset({"hysteresis_loss"})
+"""Amplitudes the records pin without their scale: the hysteresis's branch gap h is reached
+within a few d_h of a reversal, and the learner's steps are longer than that."""
 PER_UNIT = {"passes": "pass"}
 """A scale's unit in "per <unit>"."""
 
@@ -124,6 +127,8 @@ def amplitudes_need_their_scales(rows: list[dict[str, Any]]) -> list[dict[str, A
     """
     by_name = {row["name"]: row for row in rows}
     for amplitude, scale in SCALE_OF.items():
+        if amplitude in SELF_STANDING:
+            continue
         row, scale_row = by_name.get(amplitude), by_name.get(scale)
         if row is None or scale_row is None or not row["determined"] or scale_row["determined"]:
             continue
