@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -291,7 +292,8 @@ def write_figure(results: Sequence[CellResult], path: Path) -> None:
                            color="tab:green" if row.determined else "lightgray",
                            edgecolor="black" if row.determined and not row.within else "none")
     middle.axhspan(-1, 1, color="tab:green", alpha=0.1)
-    middle.set_xticks(range(len(CHECKED)), [p.label for p in CHECKED], rotation=20)
+    middle.set_xticks(range(len(CHECKED)), [textwrap.fill(p.label, 12) for p in CHECKED],
+                      fontsize=8)
     middle.set_yscale("symlog", linthresh=1)
     middle.set_ylabel("(twin - truth) / tolerance (band: within)")
     middle.set_title("parameters (green: determined; grey: not)")
@@ -308,7 +310,8 @@ def write_figure(results: Sequence[CellResult], path: Path) -> None:
                       label="median final force RMS" if index == 0 else None)
     right.axhspan(-100 * LEARNING_TOLERANCE, 100 * LEARNING_TOLERANCE, color="tab:green",
                   alpha=0.1)
-    right.set_xticks(range(len(learned)), [r.cell[-2:] for r in learned])
+    right.set_xticks(range(len(learned)), [r.cell[-2:] for r in learned], fontsize=7,
+                     rotation=90)
     right.set_xlabel("hidden cell")
     right.set_ylabel("twin vs hidden cell, % (band: ±30 %; capped at +300 %)")
     if learned:
