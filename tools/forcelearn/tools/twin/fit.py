@@ -117,7 +117,7 @@ def split(data: RecordArrays) -> tuple[RecordArrays, RecordArrays]:
     return data.rows(order[:-held]), data.rows(order[-held:])
 
 
-def _weights(data: RecordArrays, noise_n: float) -> np.ndarray:
+def burst_weights(data: RecordArrays, noise_n: float) -> np.ndarray:
     """1 / expected scatter of each burst mean (T, M); 0 where no burst."""
     noise = noise_n if math.isfinite(noise_n) else 0.0
     spread = np.sqrt(noise**2 / np.maximum(data.count, 1.0) + BURST_FLOOR_N**2)
@@ -208,7 +208,7 @@ class _Problem:
     def __init__(self, train: RecordArrays, arm: dict[str, float], reading: Reading,
                  noise_n: float, walk: BiasWalk | None = None) -> None:
         self.train, self.arm, self.reading, self.walk = train, arm, reading, walk
-        self.weights = _weights(train, noise_n)
+        self.weights = burst_weights(train, noise_n)
         self.use = train.has_burst
         self.groups = (np.broadcast_to(train.trial[:, None], self.use.shape)[self.use]
                        if walk is None else walk.groups())
@@ -307,7 +307,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     if walk is not None:  # the sensor's bias (twin/bias.py)
         train_pred, held_pred = walk.debiased(train_pred, held_pred)
     train_rms = _rms(train_pred - train.mean_n, train.is_step & train.has_burst)
-    held_res = ((held_pred - heldout.mean_n) * _weights(heldout, noise_n))[heldout.has_burst]
+    held_res = ((held_pred - heldout.mean_n) * burst_weights(heldout, noise_n))[heldout.has_burst]
     n_held = max(1, held_res.size)
     mse = max(float(np.mean(held_res**2)), BIC_RESOLUTION**2)
     bic = n_held * math.log(mse) + len(free) * math.log(n_held)
@@ -486,7 +486,7 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
     start = initial_sponge(train, base_sponge, reading, first.noise_n)
     walk = bias_walk(records, train, heldout, base_sponge, reading, first,
-                     lambda d: _weights(d, first.noise_n), configured_phi)
+                     lambda d: burst_weights(d, first.noise_n), configured_phi)
     fits = fit_nested(members or family_for(reading), train, heldout, start, base_sponge,
                       arm.values, reading, first.noise_n, walk)
     eligible = [f for f in fits if f.eligible]

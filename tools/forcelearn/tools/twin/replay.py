@@ -36,7 +36,7 @@ from forcelearn.tools.twin.arm import (
 )
 from forcelearn.tools.twin.arrays import RecordArrays, to_arrays
 from forcelearn.tools.twin.bias import build_chain, offsets, solve_biases, tare_times
-from forcelearn.tools.twin.fit import BURST_FLOOR_N
+from forcelearn.tools.twin.fit import burst_weights
 from forcelearn.tools.twin.forward import predict_means
 from forcelearn.tools.twin.replay_cell import replay_trials
 from forcelearn.tools.twin.setup import base_arm, reading_of, sponge_of
@@ -122,8 +122,7 @@ def sensor_zeros(records: list[TrialRecords], data: RecordArrays, predicted: np.
         return np.zeros(data.mean_n.shape)
     spread = data.std_n[data.has_burst & (data.count > 1)]
     noise = float(np.nanmedian(spread)) if spread.size else 0.0
-    scatter = np.sqrt(noise**2 / np.maximum(data.count, 1.0) + BURST_FLOOR_N**2)
-    weights = np.where(free, 1.0 / scatter, 0.0)
+    weights = np.where(free, burst_weights(data, noise), 0.0)
     chain = build_chain(data, tare_times(records))
     gap = np.where(free, data.mean_n - np.where(free, predicted, 0.0), 0.0)
     return offsets(chain, solve_biases(chain, gap, weights, drift))
