@@ -58,6 +58,8 @@ from forcelearn.calibration.fit import (
 from forcelearn.calibration.model import (
     AXES,
     FORMAT_VERSION,
+    MOUNTING_ESTIMATED,
+    MOUNTING_GIVEN,
     STANDARD_GRAVITY_M_S2,
     TOOL_DOWN,
     Calibration,
@@ -74,6 +76,8 @@ __all__ = [
     "AXES",
     "FORMAT_VERSION",
     "MAX_CONDITION",
+    "MOUNTING_ESTIMATED",
+    "MOUNTING_GIVEN",
     "STANDARD_GRAVITY_M_S2",
     "TOOL_DOWN",
     "Calibration",

@@ -16,9 +16,9 @@ from typing import Any, cast
 import numpy as np
 
 from forcelearn.devices import AXES as AXES  # re-exported: the calibration file names axes
+from forcelearn.devices import IDENTITY_QUATERNION, Pose, multiply_quaternions, quaternion_to_matrix
 from forcelearn.devices import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY_M_S2  # re-exported
 from forcelearn.devices import TOOL_DOWN as TOOL_DOWN  # re-exported: the default zero pose
-from forcelearn.devices import IDENTITY_QUATERNION, Pose, multiply_quaternions, quaternion_to_matrix
 
 FORMAT_VERSION = 3
 """Version of the calibration file format this code writes (it also reads 2: mounting identity)."""
@@ -121,7 +121,8 @@ class ToolLoad:
     mounting_std_deg: float = 0.0
     """Uncertainty of the mounting rotation (deg, 1 sigma; 0 when taken as given)."""
     mounting_source: str = MOUNTING_GIVEN
-    """``"estimated"`` (fitted with the tool) or ``"given"`` (from the operator or an older file)."""
+    """``"estimated"`` (fitted with the tool) or ``"given"`` (by the operator, or an older
+    file)."""
 
     @property
     def rms_residual(self) -> np.ndarray:

@@ -55,6 +55,12 @@ def rpy_to_quaternion(rpy_deg: tuple[float, float, float]) -> tuple[float, float
     return (float(w), float(x), float(y), float(z))
 
 
+def mounting_rpy_deg(quaternion: tuple[float, float, float, float]) -> tuple[float, ...]:
+    """Roll x, pitch y, yaw z (deg, fixed axes) of a quaternion (w, x, y, z)."""
+    w, x, y, z = quaternion
+    return tuple(float(a) for a in Rotation.from_quat((x, y, z, w)).as_euler("xyz", degrees=True))
+
+
 def _vector(table: dict[str, Any], key: str, size: int) -> tuple[float, ...] | None:
     if key not in table:
         return None

@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forcelearn.devices import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY_M_S2  # re-exported
 from forcelearn.devices import IDENTITY_QUATERNION, quaternion_to_matrix
+from forcelearn.devices import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY_M_S2  # re-exported
 
 MM_PER_M = 1000.0
 
