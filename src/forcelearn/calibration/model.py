@@ -155,6 +155,9 @@ class Calibration:
     tool: ToolLoad
     matrix_check: MatrixCheck | None = None
     format_version: int = FORMAT_VERSION
+    zeroed_at: Quaternion | None = field(default=None, compare=False)
+    """The robot's orientation at the zero the bias is for (None: ``noise.zero_quaternion``);
+    set by :meth:`rezeroed`, never written to the file."""
     _gravity_cache: dict[Quaternion, np.ndarray] = field(
         default_factory=dict, repr=False, compare=False
     )
@@ -210,4 +213,10 @@ class Calibration:
         """
         bias = -self.gravity_wrench(quaternion)
         tool = replace(self.tool, force_bias_n=floats(bias[:3]), torque_bias_nm=floats(bias[3:]))
-        return replace(self, tool=tool, _gravity_cache={})
+        return replace(self, tool=tool, zeroed_at=cast(Quaternion, floats(quaternion)),
+                       _gravity_cache={})
+
+    @property
+    def zero_quaternion(self) -> Quaternion:
+        """The robot's orientation at the zero the bias (F0, M0) is for."""
+        return self.zeroed_at if self.zeroed_at is not None else self.noise.zero_quaternion

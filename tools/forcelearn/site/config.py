@@ -37,7 +37,8 @@ table          holds
                ``[emulator.egm]`` (EGM control lag: :class:`ServoParams`),
                ``[emulator.tool]`` (the tool: :mod:`forcelearn.site.emulated_tool`)
                (ignored on a real cell)
-``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``
+``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``; ``sensor_serial``:
+               this sensor's serial (a file of another is refused)
 =============  ===============================================================
 
 The kinds are the entries of :mod:`forcelearn.site.kinds`; each builds its
@@ -69,6 +70,7 @@ from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
+from forcelearn.site.calibration_identity import load_sensor_serial
 from forcelearn.site.emulated_tool import load_tool
 from forcelearn.site.kinds import (
     DEFAULT_ROBOT_KIND,
@@ -264,6 +266,9 @@ class CellConfig:
     emulator: EmulatorConfig = field(default_factory=EmulatorConfig)
     probe: ProbeSpec = field(default_factory=ProbeSpec)
     calibration_file: Path | None = None
+    sensor_serial: str = ""
+    """``[calibration] sensor_serial``: the serial of this cell's sensor; a calibration file
+    of another serial is refused (:mod:`forcelearn.site.calibration_identity`)."""
     trials: int = DEFAULT_TRIALS
     seed: int = 0
     stop_after_converged: int = 0
@@ -382,6 +387,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         emulator=load_emulator(kind, dict(data.get("emulator", {}))),
         probe=build(ProbeSpec, data.get("probe"), "probe"),
         calibration_file=load_calibration_file(data.get("calibration", {}), path),
+        sensor_serial=load_sensor_serial(data.get("calibration", {})),
         trials=trials,
         seed=seed,
         stop_after_converged=stop_after,
@@ -455,8 +461,8 @@ def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:
 
 def load_calibration_file(table: dict[str, Any], config_path: str | Path | None) -> Path | None:
     """``[calibration] file``, relative to the config file's folder."""
-    if set(table) - {"file"}:
-        raise ConfigError("[calibration] takes one key, file")
+    if set(table) - {"file", "sensor_serial"}:
+        raise ConfigError("[calibration] takes the keys file and sensor_serial")
     if "file" not in table:
         return None
     if not isinstance(table["file"], str) or not table["file"]:
