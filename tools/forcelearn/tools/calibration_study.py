@@ -1,0 +1,189 @@
+"""Calibration proven on tools drawn at random: ``python -m forcelearn.tools.calibration_study``.
+
+For each of ``--tools`` tools drawn from ``--seed`` (docs/calibration.md, "Random tools"):
+
+* mass log-uniform in 0.1..15 kg; centre of mass up to 200 mm off the sensor's
+  axis (radius uniform 0..200 mm, any azimuth) and 0..250 mm along it; contact
+  point 150..300 mm along the axis; mounting a uniformly random rotation;
+* the emulated sensor of the cell (JR3 or Net F/T): the default model, or, when
+  the tool's weight or gravity moment needs more, the same model with full
+  scales, noise and drift all scaled up by one factor (a larger sensor of the
+  same family: 1.25 x the load at 0.9 x full scale);
+* ``forcelearn calibrate`` (mounting estimated, default orientations), then a
+  session with the file, which zeroes tool down and visits ``--orientations``
+  random orientations (tilt 0..60 deg about a random horizontal axis, then a
+  turn of -90..90 deg about the vertical; an orientation the robot refuses is
+  drawn again), 200 samples each.
+
+It prints one line per tool and a summary against the issue's bounds: mass
+within 0.5 % + 5 g, centre of mass within 1 mm + 0.5 % (of its distance from
+the sensor), every compensated free-space force axis within 3 sigma of the
+sensor's noise (its model's std) at every orientation. Exit status 1 if any
+tool misses one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import math
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from forcelearn.calibration import load_calibration
+from forcelearn.devices import STANDARD_GRAVITY_M_S2, TOOL_DOWN, Pose
+from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.netft.sensor_model import NetFtModelParams
+from forcelearn.errors import LinkError
+from forcelearn.site import CellSession, load_cell_config
+from forcelearn.tools.commands.calibrate import calibrate
+from forcelearn.tools.commands.calibrate_guard import turned
+from forcelearn.tools.experiments.calibration_plan import CalibrationPlan, slerp_steps
+
+PLAN = CalibrationPlan(record_s=1.0, samples_per_pose=400, settle_s=0.2, settle_timeout_s=5.0)
+"""The study's plan: the default orientations, shorter recordings than on site."""
+MARGIN = 1.25
+"""A scaled sensor holds this many times the tool's load at 0.9 of its full scale."""
+SAMPLES = 200
+"""Samples averaged at each checked orientation."""
+CHECK_POSITION = (900.0, 0.0, 450.0)
+
+
+@dataclass(frozen=True)
+class Tool:
+    """One drawn tool (kg, mm, quaternion w x y z) and the sensor's scale factor."""
+
+    mass_kg: float
+    com_mm: tuple[float, float, float]
+    contact_mm: tuple[float, float, float]
+    mounting: tuple[float, float, float, float]
+    scale: float
+
+
+def draw_tool(rng: np.random.Generator, cell: str) -> Tool:
+    """A tool in the issue's ranges, and the factor its sensor model is scaled by."""
+    mass = float(math.exp(rng.uniform(math.log(0.1), math.log(15.0))))
+    radius, azimuth = rng.uniform(0.0, 200.0), rng.uniform(0.0, 2 * math.pi)
+    com = (radius * math.cos(azimuth), radius * math.sin(azimuth), float(rng.uniform(0.0, 250.0)))
+    contact = (0.0, 0.0, float(rng.uniform(150.0, 300.0)))
+    x, y, z, w = Rotation.random(random_state=rng).as_quat()
+    model = NetFtModelParams() if cell == "netft" else SensorModelParams()
+    fs = np.asarray(model.ranges if isinstance(model, NetFtModelParams) else model.full_scales)
+    weight = mass * STANDARD_GRAVITY_M_S2
+    moment = weight * float(np.linalg.norm(com)) / 1000.0
+    scale = max(1.0, MARGIN * weight / (0.9 * fs[:3].min()),
+                MARGIN * moment / (0.9 * fs[3:].min()))
+    return Tool(mass, com, contact, (float(w), float(x), float(y), float(z)), scale)
+
+
+def config_text(tool: Tool, cell: str) -> str:
+    """The cell config of one tool: its [emulator.tool] and, if scaled, its sensor model."""
+    lines = ['[sensor]', 'kind = "netft"'] if cell == "netft" else []
+    lines += ["[emulator.tool]", f"mass_kg = {tool.mass_kg!r}", f"com_mm = {list(tool.com_mm)}",
+              f"contact_point_mm = {list(tool.contact_mm)}",
+              f"mounting_quaternion = {list(tool.mounting)}"]
+    if tool.scale > 1.0:
+        model = NetFtModelParams() if cell == "netft" else SensorModelParams()
+        k = tool.scale
+        scales = (model.ranges if isinstance(model, NetFtModelParams) else model.full_scales)
+        name = "ranges" if cell == "netft" else "full_scales"
+        lines += ["[emulator.sensor]", f"{name} = {[round(v * k, 1) for v in scales]}",
+                  f"noise_std = {[v * k for v in model.noise_std]}",
+                  f"bias_drift_per_sqrt_s = {[v * k for v in model.bias_drift_per_sqrt_s]}"]
+    return "\n".join(lines) + "\n"
+
+
+def random_orientation(rng: np.random.Generator) -> tuple[float, float, float, float]:
+    """Tool down tilted 0..60 deg about a random horizontal axis, turned -90..90 deg about z."""
+    azimuth = rng.uniform(0.0, 2 * math.pi)
+    tilted = turned(TOOL_DOWN, (math.cos(azimuth), math.sin(azimuth), 0.0),
+                    float(rng.uniform(0.0, 60.0)))
+    return turned(tilted, (0.0, 0.0, 1.0), float(rng.uniform(-90.0, 90.0)))
+
+
+def check_orientations(session: CellSession, rng: np.random.Generator, count: int
+                       ) -> tuple[float, int]:
+    """Worst |compensated force| / sigma over ``count`` reachable orientations; redraws."""
+    cell, sensor = session.cell, session.sensor
+    assert cell is not None and cell.compensation is not None
+    sigma = np.asarray(session.sensor_emulator.model.params.noise_std, dtype=float)[:3]
+    here = cell.read_pose()
+    worst, refused, done = 0.0, 0, 0
+    while done < count:
+        target = random_orientation(rng)
+        try:
+            for step in slerp_steps(here.quaternion, target, 10.0):
+                cell.move_to(Pose(*CHECK_POSITION, step))
+                here = Pose(*CHECK_POSITION, step)
+        except LinkError:
+            refused += 1  # out of the arm's reach: drawn again
+            here = cell.read_pose()
+            continue
+        reached = cell.reached_pose()
+        wrenches = np.array([cell.compensation(sensor.read().wrench, reached)
+                             for _ in range(SAMPLES)])
+        worst = max(worst, float(np.max(np.abs(wrenches.mean(axis=0)[:3]) / sigma)))
+        done += 1
+    return worst, refused
+
+
+def study(cell: str, tools: int, seed: int, orientations: int, folder: Path) -> int:
+    """Run the study; returns the number of tools that miss a bound."""
+    rng = np.random.default_rng(seed)
+    print(f"cell {cell}, {tools} tools, seed {seed}, {orientations} orientations each")
+    print(" #   mass kg  err g (lim)    |c| mm  err mm (lim)  mount err deg  scale  "
+          "worst |F|/sigma  refused")
+    failures = 0
+    for i in range(tools):
+        tool = draw_tool(rng, cell)
+        config_path = folder / f"{cell}-{i}.toml"
+        config_path.write_text(config_text(tool, cell))
+        out = folder / f"{cell}-{i}-cal.toml"
+        calibrate(load_cell_config(config_path), PLAN, out_path=out, seed=seed + i,
+                  progress=False, stream=io.StringIO())
+        cal = load_calibration(out)
+        config_path.write_text(config_text(tool, cell) + f'[calibration]\nfile = "{out.name}"\n')
+        with CellSession(load_cell_config(config_path), seed=seed + 1000 + i) as session:
+            assert session.cell is not None
+            session.cell.move_in_steps(Pose(*CHECK_POSITION, TOOL_DOWN), 10.0)
+            worst, refused = check_orientations(session, rng, orientations)
+        mass_err = abs(cal.tool.mass_kg - tool.mass_kg)
+        mass_lim = 0.005 * tool.mass_kg + 0.005
+        distance = float(np.linalg.norm(tool.com_mm))
+        com_err = float(np.linalg.norm(np.subtract(cal.tool.com_mm, tool.com_mm)))
+        com_lim = 1.0 + 0.005 * distance
+        mount_err = math.degrees(2 * math.acos(min(1.0, abs(float(
+            np.dot(cal.tool.mounting_quaternion, tool.mounting))))))
+        ok = mass_err <= mass_lim and com_err <= com_lim and worst <= 3.0
+        failures += not ok
+        print(f"{i:2d}  {tool.mass_kg:7.3f}  {1000 * mass_err:5.1f} ({1000 * mass_lim:4.1f})  "
+              f"{distance:7.1f}  {com_err:5.2f} ({com_lim:4.2f})  {mount_err:13.3f}  "
+              f"{tool.scale:5.2f}  {worst:15.2f}  {refused:7d}{'' if ok else '  MISSED'}",
+              flush=True)
+    print(f"{cell}: {tools - failures}/{tools} tools within every bound")
+    return failures
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line: the cell(s), the number of tools, the seed."""
+    parser = argparse.ArgumentParser(prog="python -m forcelearn.tools.calibration_study",
+                                     description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument("--cell", choices=("jr3", "netft", "both"), default="both")
+    parser.add_argument("--tools", type=int, default=20)
+    parser.add_argument("--orientations", type=int, default=20)
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    failures = 0
+    with tempfile.TemporaryDirectory() as folder:
+        for cell in (("jr3", "netft") if args.cell == "both" else (args.cell,)):
+            failures += study(cell, args.tools, args.seed, args.orientations, Path(folder))
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
