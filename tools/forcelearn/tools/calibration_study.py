@@ -31,11 +31,12 @@ import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from forcelearn.calibration import load_calibration
+from forcelearn.calibration import dumps, load_calibration
 from forcelearn.devices import STANDARD_GRAVITY_M_S2, TOOL_DOWN, Pose
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
@@ -78,24 +79,26 @@ def draw_tool(rng: np.random.Generator, cell: str) -> Tool:
     moment = weight * float(np.linalg.norm(com)) / 1000.0
     scale = max(1.0, MARGIN * weight / (0.9 * fs[:3].min()),
                 MARGIN * moment / (0.9 * fs[3:].min()))
-    return Tool(mass, com, contact, (float(w), float(x), float(y), float(z)), scale)
+    return Tool(mass, (float(com[0]), float(com[1]), com[2]), contact,
+                (float(w), float(x), float(y), float(z)), float(scale))
 
 
 def config_text(tool: Tool, cell: str) -> str:
     """The cell config of one tool: its [emulator.tool] and, if scaled, its sensor model."""
-    lines = ['[sensor]', 'kind = "netft"'] if cell == "netft" else []
-    lines += ["[emulator.tool]", f"mass_kg = {tool.mass_kg!r}", f"com_mm = {list(tool.com_mm)}",
-              f"contact_point_mm = {list(tool.contact_mm)}",
-              f"mounting_quaternion = {list(tool.mounting)}"]
+    document: dict[str, Any] = {"sensor": {"kind": "netft"}} if cell == "netft" else {}
+    emulator: dict[str, Any] = {"tool": {
+        "mass_kg": tool.mass_kg, "com_mm": list(tool.com_mm),
+        "contact_point_mm": list(tool.contact_mm), "mounting_quaternion": list(tool.mounting)}}
     if tool.scale > 1.0:
         model = NetFtModelParams() if cell == "netft" else SensorModelParams()
         k = tool.scale
         scales = (model.ranges if isinstance(model, NetFtModelParams) else model.full_scales)
-        name = "ranges" if cell == "netft" else "full_scales"
-        lines += ["[emulator.sensor]", f"{name} = {[round(v * k, 1) for v in scales]}",
-                  f"noise_std = {[v * k for v in model.noise_std]}",
-                  f"bias_drift_per_sqrt_s = {[v * k for v in model.bias_drift_per_sqrt_s]}"]
-    return "\n".join(lines) + "\n"
+        emulator["sensor"] = {
+            "ranges" if cell == "netft" else "full_scales": [round(v * k, 1) for v in scales],
+            "noise_std": [v * k for v in model.noise_std],
+            "bias_drift_per_sqrt_s": [v * k for v in model.bias_drift_per_sqrt_s]}
+    document["emulator"] = emulator
+    return dumps(document)
 
 
 def random_orientation(rng: np.random.Generator) -> tuple[float, float, float, float]:

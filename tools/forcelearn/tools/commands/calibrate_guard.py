@@ -20,6 +20,10 @@ On top of :class:`~forcelearn.tools.experiments.calibration_run.Calibrator`
   leave the fit's condition number above the limit, the candidate orientation
   (tool down, horizontal, 45 deg) that lowers it most and is in range is added,
   until the set passes (at most ``MAX_ADDED``).
+* **The force limit on contact, not weight.** Once the reading is predicted,
+  the cell's compensation subtracts it: the force limit read between turn
+  steps sees what differs from free space (a touch), not the tool's weight
+  turning (a 10 kg tool changes its reading by 98 N over 60 deg).
 * **A still tool.** The first and second halves of a pose's samples must agree
   within ``MOVED_SIGMAS`` standard errors (estimated from blocks of the read
   itself, so the adapter filter's correlation is counted): else the tool moved
@@ -43,7 +47,7 @@ from forcelearn.calibration.fit import CANDIDATES, orientation_with_down
 from forcelearn.calibration.model import Quaternion
 from forcelearn.calibration.mounting import fit_with_mounting
 from forcelearn.calibration.predict import ReadingModel, out_of_range
-from forcelearn.devices import multiply_quaternions
+from forcelearn.devices import Pose, multiply_quaternions
 from forcelearn.errors import CalibrationError, PoseOutOfRange
 from forcelearn.site.session import CellSession
 from forcelearn.tools.experiments.calibration_plan import CalibrationPlan, NamedPose, slerp_steps
@@ -140,6 +144,13 @@ class GuardedCalibrator(Calibrator):
 
     def run(self) -> Measurement:
         """Measure bias, noise and tool load; raises CalibrationError on any failure."""
+        before = self.cell.compensation
+        try:
+            return self._run()
+        finally:
+            self.cell.compensation = before
+
+    def _run(self) -> Measurement:
         plan, poses = self.plan, list(self.plan.poses)
         if not self.manual:  # refuse a bad set before the robot moves at all
             check_pose_set([p.quaternion for p in poses], plan.max_condition)
@@ -198,7 +209,16 @@ class GuardedCalibrator(Calibrator):
         measured.append((pose.name, reached, mean, count))
         if self.model is not None:
             self.model.add(reached, mean, count)
+            if self.model.determined:  # the force limit now watches for contact, not weight
+                self.cell.compensation = self._expected_free_space
         return True
+
+    def _expected_free_space(self, wrench: np.ndarray, pose: Pose) -> np.ndarray:
+        """The reading less what free space is predicted to read at ``pose`` (Cell hook)."""
+        assert self.model is not None
+        predicted, _ = self.model.predict(pose.quaternion)
+        expected: np.ndarray = np.asarray(wrench, dtype=float) - predicted
+        return expected
 
     def _probe(self, label: str, pose: NamedPose) -> None:
         """Measure a probe with a quarter of the samples; it feeds the prediction, not the fit."""
