@@ -13,7 +13,10 @@ For each of ``--tools`` tools drawn from ``--seed`` (docs/calibration.md, "Rando
   session with the file, which zeroes tool down and visits ``--orientations``
   random orientations (tilt 0..60 deg about a random horizontal axis, then a
   turn of -90..90 deg about the vertical; an orientation the robot refuses is
-  drawn again), 200 samples each.
+  drawn again), 200 samples each; before each turn the cell tares in free
+  space at the orientation it is in, as a task does (so the sensor's drift
+  since the zero stays that of one turn), which also checks the tool fits
+  there (``Cell.check_tool_fit``).
 
 It prints one line per tool and a summary against the issue's bounds: mass
 within 0.5 % + 5 g, centre of mass within 1 mm + 0.5 % (of its distance from
@@ -40,7 +43,7 @@ from forcelearn.calibration import dumps, load_calibration
 from forcelearn.devices import STANDARD_GRAVITY_M_S2, TOOL_DOWN, Pose
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
-from forcelearn.errors import LinkError
+from forcelearn.errors import LinkError, ToolMismatch
 from forcelearn.site import CellSession, load_cell_config
 from forcelearn.tools.commands.calibrate import calibrate
 from forcelearn.tools.commands.calibrate_guard import turned
@@ -53,6 +56,8 @@ MARGIN = 1.25
 SAMPLES = 200
 """Samples averaged at each checked orientation."""
 CHECK_POSITION = (900.0, 0.0, 450.0)
+TARE_MAX_N = 5.0
+"""A tare between orientations is refused above this free-space normal force (N)."""
 
 
 @dataclass(frozen=True)
@@ -119,6 +124,12 @@ def check_orientations(session: CellSession, rng: np.random.Generator, count: in
     worst, refused, done = 0.0, 0, 0
     while done < count:
         target = random_orientation(rng)
+        if done:  # zero here first (and check the tool fits here), as a task tares
+            try:
+                cell.tare(max_reading_n=TARE_MAX_N)
+            except ToolMismatch as exc:
+                print(f"    {exc}")
+                return math.inf, refused
         try:
             for step in slerp_steps(here.quaternion, target, 10.0):
                 cell.move_to(Pose(*CHECK_POSITION, step))
