@@ -24,6 +24,7 @@ from forcelearn.emulators.physics.tool import ToolParams, gravity_wrench
 from forcelearn.errors import ConfigError, ToolMismatch
 from forcelearn.site.config import load_cell_config
 from forcelearn.site.session import CellSession
+from forcelearn.tools.cli import main
 from forcelearn.tools.experiments.calibration_plan import DEFAULT_POSES, slerp_steps, tilted
 
 FULL_SCALES = (200.0, 200.0, 400.0, 20.0, 20.0, 20.0)
@@ -120,3 +121,17 @@ def test_compensation_is_a_function_of_the_orientation_reached() -> None:
         q = tilted((0.0, 1.0, 0.0), degrees)
         reading = gravity_wrench(tool, quaternion_to_matrix(q))
         assert cal.compensate(reading, q) == pytest.approx(np.zeros(6), abs=1e-9)
+
+
+def test_check_turn_prints_the_compensated_wrench_and_flags_another_tool(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``forcelearn check --turn``: four tilted orientations judged; another tool: FAILED, 1."""
+    path = _cell(tmp_path, _calibration(ToolParams()))
+    assert main(["check", "--config", str(path), "--turn", "--seconds", "0.2"]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("fits (within 3 sigma)") == 4 and "at the zero's orientation" in printed
+    assert "the tool was turned and back" in printed
+    path.write_text("[emulator.tool]\nmass_kg = 1.3\n" + path.read_text())
+    assert main(["check", "--config", str(path), "--turn", "--seconds", "0.2"]) == 1
+    printed = capsys.readouterr().out
+    assert "DOES NOT FIT" in printed and "FAILED" in printed and "forcelearn calibrate" in printed
