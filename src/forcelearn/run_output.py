@@ -1,8 +1,9 @@
-"""The run directory: summary.json, trials.csv and step logs, written atomically.
+"""The run directory's tables: summary.json, trials.csv and step logs, written atomically.
 
-``summary.json`` holds at least: task, seed, trials, phase_switch_trial,
-converged_trial (null when not reached), final_force_rms_n, final_mean_r,
-steps, wall_s, steps_per_s.
+Shared by every runner (the §5 run, the §4 contour, ``forcelearn sim``);
+docs/run-directory.md lists the files and their members. ``summary.json`` holds
+at least: task, seed, trials, phase_switch_trial, converged_trial (null when
+not reached), final_force_rms_n, final_mean_r, steps, wall_s, steps_per_s.
 """
 
 from __future__ import annotations

@@ -20,7 +20,8 @@ from pathlib import Path
 from tqdm import tqdm
 
 from forcelearn.learning import SRVLearner
-from forcelearn.tools.experiments.surface_run import execute, prepare_run
+from forcelearn.tools.experiments.surface_run import execute
+from forcelearn.tools.experiments.surface_state import prepare_run
 from forcelearn.tools.live.publish import LivePublisher, surface_extras, surface_meta
 from forcelearn.tools.live.session import add_live_arguments, live_run
 from forcelearn.trainer import TrialRecord
