@@ -36,11 +36,15 @@ def _json_safe(value: Any) -> Any:
     return value
 
 
+def summary_text(summary: Mapping[str, Any]) -> str:
+    """summary.json's text: indented JSON, non-finite numbers as null, a final newline."""
+    return json.dumps(_json_safe(dict(summary)), indent=2, sort_keys=False) + "\n"
+
+
 def write_summary(folder: Path, summary: Mapping[str, Any]) -> Path:
     """Write summary.json atomically; returns its path."""
     path = folder / "summary.json"
-    text = json.dumps(_json_safe(dict(summary)), indent=2, sort_keys=False) + "\n"
-    atomic_write_bytes(path, text.encode())
+    atomic_write_bytes(path, summary_text(summary).encode())
     return path
 
 

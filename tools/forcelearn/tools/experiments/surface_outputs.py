@@ -10,15 +10,32 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 from forcelearn.learning import SRVLearner
-from forcelearn.run_output import final_figures, write_step_log, write_summary, write_trials
+from forcelearn.run_output import (
+    FINAL_WINDOW,
+    final_figures,
+    write_step_log,
+    write_summary,
+    write_trials,
+)
 from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
 from forcelearn.tasks.surface_probe import OutputMapChoice, ProbeResult
 from forcelearn.tools.experiments.surface_state import SurfaceRun
-from forcelearn.trainer import converged_trial, criterion_trial
+from forcelearn.trainer import (
+    CONVERGENCE_TOLERANCE,
+    CONVERGENCE_WINDOW,
+    converged_trial,
+    criterion_trial,
+)
+
+FIGURES = (
+    "fig12_positions.png", "fig13_contact_force.png", "fig14_initial_force.png", "probe.png"
+)
+"""The figures a run directory may hold, in the order a person looks at them."""
 
 
 def write_probe_files(
@@ -113,3 +130,36 @@ def write_outputs(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
     if result.records:
         figures_surface.write_all(run, run.out)
     return summary
+
+
+def end_lines(summary: dict[str, Any], out: Path) -> list[str]:
+    """What a person reads at the end of a run: the verdict, the final force, where the files are.
+
+    Args:
+        summary: the run's summary (:func:`summary_of`).
+        out: the run directory.
+    """
+    trials, failures = summary["trials"], summary["failures"]
+    start = {"probe": "warm start from the probe", "cold": "cold start"}.get(
+        summary["learner_start"], f"{summary['learner_start']} start"
+    )
+    at = summary["converged_trial"]
+    converged = f"not converged in {trials} trials" if at is None else f"converged at trial {at}"
+    band = "in band" if summary["in_band_at_end"] else "NOT in band"
+    desired, rms = summary["desired_force_n"], summary["final_force_rms_n"]
+    rms_text = f"{rms:.3f} N" if rms is not None and math.isfinite(rms) else "none (no step)"
+    lines = [
+        f"{trials} trials, seed {summary['seed']}, {start}; failed trials: {failures}",
+        f"{converged}; {band} at the end (the last {CONVERGENCE_WINDOW} trials)",
+        f"final force RMS {rms_text} against the band of {CONVERGENCE_TOLERANCE * desired:.3f} N "
+        f"({CONVERGENCE_TOLERANCE * 100:g} % of {desired:.2f} N; median of the last "
+        f"{min(trials, FINAL_WINDOW)} trials)",
+    ]
+    if summary["diagnosis"]:
+        lines.append(f"diagnosis: {summary['diagnosis']}")
+    lines.append(f"run directory: {out}")
+    figures = [name for name in FIGURES if (out / name).exists()]
+    if figures:
+        lines.append(f"  figures: {', '.join(figures)}")
+    lines.append("  every number: summary.json (forcelearn run --json prints it)")
+    return lines

@@ -197,7 +197,7 @@ def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
                generator_seed: int, seeds: int, trials: int) -> None:
     """Write the Markdown page of the study."""
     lines = [
-        "# The twin against hidden cells (issue 29)",
+        "# The twin against hidden cells",
         "",
         "Made by (generator seed, commands):",
         "",
