@@ -31,7 +31,7 @@ force RMS": one trial's RMS scatters ±30-50 % between seeds of one cell)."""
 
 @dataclass(frozen=True)
 class Checked:
-    """One parameter the issue checks: its twin.json name, where its truth is, its floor."""
+    """One parameter the check covers: its twin.json name, where its truth is, its floor."""
 
     name: str
     label: str
