@@ -23,7 +23,8 @@ from forcelearn.run_output import (
     write_trials,
 )
 from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
-from forcelearn.tasks.surface_probe import OutputMapChoice, ProbeResult
+from forcelearn.tasks.surface_map import OutputMapChoice
+from forcelearn.tasks.surface_probe import ProbeResult
 from forcelearn.tools.experiments.surface_state import SurfaceRun
 from forcelearn.trainer import (
     CONVERGENCE_TOLERANCE,

@@ -34,10 +34,11 @@ from forcelearn.errors import ForcelearnError
 from forcelearn.learning import SRVLearner, load_learner
 from forcelearn.records import TrialRecords
 from forcelearn.site.session import CellSession
-from forcelearn.tasks.surface import SurfaceTask, SurfaceYOutput, TrialTrace, step_centre_y_mm
+from forcelearn.tasks.surface import SurfaceTask, TrialTrace
 from forcelearn.tasks.surface_diagnosis import StuckMonitor
 from forcelearn.tasks.surface_feasibility import FEASIBILITY_WINDOW, Feasibility, assess
-from forcelearn.tasks.surface_probe import SurfaceProbe, allowed_bottom_y_mm, probe_and_map
+from forcelearn.tasks.surface_map import SurfaceYOutput, allowed_bottom_y_mm, step_centre_y_mm
+from forcelearn.tasks.surface_probe import SurfaceProbe, probe_and_map
 from forcelearn.tasks.surface_warm_start import warm_start
 from forcelearn.tools.experiments.records import (
     PROBE_TRIAL,

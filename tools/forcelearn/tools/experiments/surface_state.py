@@ -27,7 +27,8 @@ from forcelearn.site.config import CellConfig, load_cell_config
 from forcelearn.tasks.surface import TrialTrace
 from forcelearn.tasks.surface_diagnosis import StuckMonitor
 from forcelearn.tasks.surface_feasibility import Feasibility
-from forcelearn.tasks.surface_probe import OutputMapChoice, ProbeResult
+from forcelearn.tasks.surface_map import OutputMapChoice
+from forcelearn.tasks.surface_probe import ProbeResult
 from forcelearn.tasks.surface_warm_start import OLD_CHECKPOINT_START
 from forcelearn.trainer import TrainingResult, TrialLog, TrialRecord
 
