@@ -66,10 +66,10 @@ class Frame:
         self, positions_mm: np.ndarray, quaternions_wxyz: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """Poses given in this frame ((n, 3) mm, (n, 4)) expressed in its parent."""
-        positions = np.asarray(positions_mm, dtype=float)
-        quaternions = np.asarray(quaternions_wxyz, dtype=float)
+        positions = np.array(positions_mm, dtype=float)
+        quaternions = np.array(quaternions_wxyz, dtype=float)
         if self.is_identity:
-            return positions.copy(), quaternions.copy()
+            return positions, quaternions
         turn = rotation_from_wxyz(np.array(self.quaternion_wxyz))
         moved = turn.apply(positions) + np.array(self.position_mm)
         return moved, wxyz_from_rotation(turn * rotation_from_wxyz(quaternions))
