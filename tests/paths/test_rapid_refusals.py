@@ -25,13 +25,15 @@ CASES = {
     "unknown robtarget": ("    MoveL p9, v10, fine, tool0;\n", "", 7, "unknown robtarget 'p9'"),
     "unknown wobjdata": ("    MoveL p1, v10, fine, tool0 \\WObj:=wX;\n", "", 7,
                          "unknown wobjdata 'wX'"),
-    "wrong type": ("    MoveL w1, v10, fine, tool0;\n", "", 7, "'w1' is a wobjdata, not a robtarget"),
+    "wrong type": ("    MoveL w1, v10, fine, tool0;\n", "", 7,
+                   "'w1' is a wobjdata, not a robtarget"),
     "line that does not parse": ("    MoveL p1, v10, fine, tool0;\n", "  CONST robtarget p3 := "
                                  "[[0,0,0],[1,0,0,0],[0,0,0,0] [9E9]];\n", 6, "expected ']'"),
     "statement outside a PROC": ("    MoveL p1, v10, fine, tool0;\n", "  MoveL p1;\n", 6,
                                  "expected a declaration or a routine"),
     "non-unit quaternion": ("    MoveL p3, v10, fine, tool0;\n", "  CONST robtarget p3 := "
-                            f"[[0,0,0],[1,0.2,0,0],[0,0,0,0],{AXES}];\n", 6, "not a unit quaternion"),
+                            f"[[0,0,0],[1,0.2,0,0],[0,0,0,0],{AXES}];\n", 6,
+                            "not a unit quaternion"),
     "short robtarget": ("    MoveL p3, v10, fine, tool0;\n", "  CONST robtarget p3 := "
                         "[[0,0,0],[1,0,0,0]];\n", 6, r"must read \[\[x,y,z\]"),
     "move inside IF": ("    IF n = 1 THEN\n      MoveL p1, v10, fine, tool0;\n    ENDIF\n", "", 8,

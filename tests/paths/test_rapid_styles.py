@@ -29,7 +29,7 @@ def _same_rotation(a: np.ndarray, b: Rotation) -> bool:
 
 
 def test_pendant_style_offs_and_wobj_give_base_frame_points_in_move_order() -> None:
-    """One-line robtargets, ``\\WObj:=``, Offs in the object frame; MoveAbsJ skipped and noted."""
+    r"""One-line robtargets, ``\WObj:=``, Offs in the object frame; MoveAbsJ skipped and noted."""
     path = read_rapid(MODULES / "pendant_style.mod")
     user = ([600, -200, 150], [0.707106781, 0, 0, 0.707106781])
     identity = ([0, 0, 0], [1, 0, 0, 0])
@@ -92,7 +92,7 @@ def test_several_procs_choose_by_name_and_refuse_an_unnamed_choice() -> None:
     """A PROC is chosen by name (case-insensitive); with no main and several PROCs, say which."""
     text = (MODULES / "hand_written.mod").read_text()
     assert len(read_rapid_text(text, "other")) == 1
-    with pytest.raises(ValueError, match="rollerPass, other|other, rollerPass"):
+    with pytest.raises(ValueError, match=r"rollerPass, other|other, rollerPass"):
         read_rapid_text(text)
 
 

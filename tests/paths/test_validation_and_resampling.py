@@ -117,7 +117,7 @@ def test_resampling_drops_repeated_poses_and_refuses_a_turn_in_place() -> None:
     np.testing.assert_allclose(resample_path(twice, 9).positions_mm,
                                resample_path(path, 9).positions_mm, atol=1e-9)
     turned = _with(path, 2, position=list(path.positions_mm[1]))
-    with pytest.raises(PathRefused, match="turns .* in place"):
+    with pytest.raises(PathRefused, match=r"turns .* in place"):
         resample_path(turned, 9)
     with pytest.raises(ValueError, match="points must be >= 2"):
         resample_path(path, 1)

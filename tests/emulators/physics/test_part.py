@@ -124,7 +124,7 @@ def test_beyond_the_heightmap_there_is_no_contact() -> None:
 
 
 def test_tip_centres_follow_the_tool_pose() -> None:
-    """The tip's centre is r behind the pressing point along the press axis, turned with the tool."""
+    """The tip's centre is r behind the pressing point along the press axis, turned with it."""
     positions = np.array([[100.0, 0.0, 500.0], [0.0, 0.0, 0.0]])
     flipped = Rotation.from_euler("x", 180, degrees=True).as_quat()[[3, 0, 1, 2]]
     quaternions = np.array([[1.0, 0.0, 0.0, 0.0], flipped])
