@@ -101,7 +101,7 @@ def test_a_heightmap_equal_to_a_plane_is_that_plane(interpolation: str) -> None:
 
 
 def test_a_cubic_heightmap_of_a_sphere_cap_is_near_the_sphere() -> None:
-    """Near the surface the first-order distance of a curved map is close to the exact one."""
+    """Near the surface and a foam's thickness off it, a curved map's distance is the sphere's."""
     radius, spacing = 400.0, 5.0
     grid = np.arange(-100.0, 100.0 + spacing, spacing)
     heights = np.sqrt(radius**2 - grid[:, None] ** 2 - grid[None, :] ** 2)
@@ -109,10 +109,12 @@ def test_a_cubic_heightmap_of_a_sphere_cap_is_near_the_sphere() -> None:
     sphere = Sphere((0.0, 0.0, 0.0), radius)
     xy = RNG.uniform(-80, 80, size=(100, 2))
     top = np.sqrt(radius**2 - (xy**2).sum(axis=1))
-    c = np.column_stack([xy, top + RNG.uniform(-5, 5, size=100)])
-    got, exact = contact(part, c), contact(sphere, c)
-    np.testing.assert_allclose(got.depth_mm, exact.depth_mm, atol=0.05)
-    assert np.all(np.einsum("ij,ij->i", got.normal, exact.normal) > np.cos(np.radians(0.5)))
+    outward = np.column_stack([xy, top]) / radius
+    for above in (RNG.uniform(-5, 5, size=(100, 1)), RNG.uniform(35, 45, size=(100, 1))):
+        c = np.column_stack([xy, top]) + above * outward
+        got, exact = contact(part, c, offset_mm=40.0), contact(sphere, c, offset_mm=40.0)
+        np.testing.assert_allclose(got.depth_mm, exact.depth_mm, atol=0.05)
+        assert np.all(np.einsum("ij,ij->i", got.normal, exact.normal) > np.cos(np.radians(0.5)))
 
 
 def test_beyond_the_heightmap_there_is_no_contact() -> None:

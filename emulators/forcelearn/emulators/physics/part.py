@@ -33,11 +33,13 @@ Shapes (frozen parameter dataclasses, validated on construction):
                 (bilinear) or "cubic" (bicubic spline, scipy)
 ==============  ===============================================================
 
-The height map's distance is first order: ``s = (w - h(u, v)) / sqrt(1 +
-|grad h|^2)`` with ``w`` the height of ``c`` above the base plane, exact where
-the map is a plane and accurate while ``|s|`` is small against the radius of
-curvature of the map (the depths a foam cover sees). Beyond the grid there is
-no surface: ``d = -inf`` (never in contact), ``n`` the base normal.
+The height map's nearest point is found by a fixed-point iteration from the
+point straight below ``c``: at the current foot ``f = (u, v, h(u, v))`` with
+normal ``n``, ``s = (c - f) . n`` and the next foot is below ``c - s n``
+(``FOOT_ITERATIONS`` steps; exact after one on a plane, and converging while
+``|s|`` is below the map's radius of curvature, as for the thickness of a foam
+cover). Beyond the grid there is no surface: ``d = -inf`` (never in contact),
+``n`` the base normal.
 
 The depth is what a foam law takes as its compression (``d`` in mm); the force
 acts along ``n``. Nothing here knows the tool, the sensor or a wire.
@@ -54,6 +56,9 @@ from scipy.interpolate import RectBivariateSpline
 from scipy.spatial.transform import Rotation
 
 Vector = tuple[float, float, float]
+
+FOOT_ITERATIONS = 4
+"""Fixed-point steps towards the height map's foot point (exact after one on a plane)."""
 
 
 def _unit(vector: Vector, name: str) -> Vector:
@@ -270,16 +275,23 @@ def _round(radius: float, concave: bool, dist: np.ndarray, radial: np.ndarray,
 def _heightmap_distance(part: Heightmap, c: np.ndarray) -> tuple[np.ndarray, np.ndarray,
                                                                     np.ndarray]:
     n, u_axis, v_axis = np.asarray(part.normal), np.asarray(part.u_axis), part.v_axis
-    relative = c - np.asarray(part.origin_mm)
+    origin = np.asarray(part.origin_mm)
+    relative = c - origin
     u, v, w = relative @ u_axis, relative @ v_axis, relative @ n
     size_u, size_v = part.extent_mm
     inside = (u >= 0) & (u <= size_u) & (v >= 0) & (v <= size_v)
-    uc, vc = np.clip(u, 0, size_u), np.clip(v, 0, size_v)
-    height = part._spline.ev(uc, vc)
-    slope_u, slope_v = _slopes(part, uc, vc)
-    stretch = np.sqrt(1.0 + slope_u**2 + slope_v**2)
-    normal = (n - slope_u[..., None] * u_axis - slope_v[..., None] * v_axis) / stretch[..., None]
-    signed = (w - height) / stretch
+    foot_u, foot_v = np.clip(u, 0, size_u), np.clip(v, 0, size_v)
+    for _ in range(FOOT_ITERATIONS):
+        height = part._spline.ev(foot_u, foot_v)
+        slope_u, slope_v = _slopes(part, foot_u, foot_v)
+        stretch = np.sqrt(1.0 + slope_u**2 + slope_v**2)[..., None]
+        normal = (n - slope_u[..., None] * u_axis - slope_v[..., None] * v_axis) / stretch
+        foot = (origin + foot_u[..., None] * u_axis + foot_v[..., None] * v_axis
+                + height[..., None] * n)
+        signed = np.einsum("...k,...k->...", c - foot, normal)
+        projected = c - signed[..., None] * normal - origin
+        foot_u = np.clip(projected @ u_axis, 0, size_u)
+        foot_v = np.clip(projected @ v_axis, 0, size_v)
     surface = c - signed[..., None] * normal
     signed = np.where(inside, signed, np.inf)
     normal = np.where(inside[..., None], normal, n)
