@@ -31,15 +31,19 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from forcelearn.emulators.physics.part import Heightmap, contact
+from forcelearn.emulators.physics.part import Cylinder, Heightmap, Sphere, contact
 from forcelearn.paths import Frame, TaughtPath, ToolData, format_rapid_module, resample_path
 from forcelearn.paths.csv_file import format_path_csv
 
 FOAM_MM = 40.0
-CYLINDER = {"point_mm": (900.0, 0.0, 0.0), "axis": (0.0, 1.0, 0.0), "radius_mm": 110.0}
-SPHERE = {"centre_mm": (900.0, 0.0, -100.0), "radius_mm": 160.0}
-HEIGHTMAP = {"origin_mm": (800.0, -60.0, 50.0), "spacing_mm": 5.0, "size": (41, 25),
-             "amplitude_mm": 8.0, "wavelength_mm": 200.0, "slope": 0.05}
+CYLINDER = Cylinder(point_mm=(900.0, 0.0, 0.0), axis=(0.0, 1.0, 0.0), radius_mm=110.0)
+SPHERE = Sphere(centre_mm=(900.0, 0.0, -100.0), radius_mm=160.0)
+GRID_ORIGIN_MM = (800.0, -60.0, 50.0)
+GRID_SPACING_MM = 5.0
+GRID_SIZE = (41, 25)
+WAVE_AMPLITUDE_MM = 8.0
+WAVE_LENGTH_MM = 200.0
+CROSS_SLOPE = 0.05  # mm of height per mm along y
 WOBJ = Frame((900.0, 0.0, 0.0), (0.707106781, 0.0, 0.0, 0.707106781))
 """The cylinder's fixture: on its axis, turned 90 deg about z (a work object a site teaches)."""
 ROLLER = ToolData(True, Frame((0.0, 0.0, 150.0)), 0.9, (0.0, 0.0, 60.0))
@@ -68,8 +72,8 @@ def cylinder_arc(points: int = 27, turn_deg: float = 50.0) -> TaughtPath:
     """Over the top of the cylinder, across its axis, turning ``turn_deg``."""
     angle = np.radians(np.linspace(-turn_deg / 2, turn_deg / 2, points))
     normals = np.column_stack([np.sin(angle), np.zeros(points), np.cos(angle)])
-    skin = CYLINDER["radius_mm"] + FOAM_MM  # type: ignore[operator]
-    return _poses(np.asarray(CYLINDER["point_mm"]) + skin * normals, normals)
+    skin = CYLINDER.radius_mm + FOAM_MM
+    return _poses(np.asarray(CYLINDER.point_mm) + skin * normals, normals)
 
 
 def sphere_arc(points: int = 25, span_deg: float = 40.0, heading_deg: float = 30.0) -> TaughtPath:
@@ -78,17 +82,16 @@ def sphere_arc(points: int = 25, span_deg: float = 40.0, heading_deg: float = 30
     heading = np.radians(heading_deg)
     across = np.array([np.cos(heading), np.sin(heading), 0.0])
     normals = np.sin(angle)[:, None] * across + np.cos(angle)[:, None] * [0.0, 0.0, 1.0]
-    skin = SPHERE["radius_mm"] + FOAM_MM  # type: ignore[operator]
-    return _poses(np.asarray(SPHERE["centre_mm"]) + skin * normals, normals)
+    skin = SPHERE.radius_mm + FOAM_MM
+    return _poses(np.asarray(SPHERE.centre_mm) + skin * normals, normals)
 
 
 def heights_mm() -> np.ndarray:
     """The height grid: a wave along u (x) and a slope along v (y), rounded to 0.1 µm."""
-    rows, columns = HEIGHTMAP["size"]  # type: ignore[misc]
-    u = np.arange(rows) * HEIGHTMAP["spacing_mm"]
-    v = np.arange(columns) * HEIGHTMAP["spacing_mm"]
-    wave = HEIGHTMAP["amplitude_mm"] * np.sin(2 * np.pi * u / HEIGHTMAP["wavelength_mm"])
-    return np.round(wave[:, None] + HEIGHTMAP["slope"] * v[None, :], 4)  # type: ignore[no-any-return]
+    u = np.arange(GRID_SIZE[0]) * GRID_SPACING_MM
+    v = np.arange(GRID_SIZE[1]) * GRID_SPACING_MM
+    wave = WAVE_AMPLITUDE_MM * np.sin(2 * np.pi * u / WAVE_LENGTH_MM)
+    return np.asarray(np.round(wave[:, None] + CROSS_SLOPE * v[None, :], 4), dtype=float)
 
 
 def heightmap_path(points: int = 33, dense: int = 321) -> TaughtPath:
@@ -98,9 +101,8 @@ def heightmap_path(points: int = 33, dense: int = 321) -> TaughtPath:
     stretch over crests and shrink in troughs: the skin is traced densely, then
     resampled to ``points`` poses evenly spaced along it.
     """
-    origin = np.asarray(HEIGHTMAP["origin_mm"])
-    part = Heightmap(heights_mm(), tuple(origin), HEIGHTMAP["spacing_mm"],  # type: ignore[arg-type]
-                     interpolation="cubic")
+    origin = np.asarray(GRID_ORIGIN_MM)
+    part = Heightmap(heights_mm(), GRID_ORIGIN_MM, GRID_SPACING_MM, interpolation="cubic")
     above = np.column_stack([np.linspace(20.0, 180.0, dense), np.full(dense, 60.0),
                              np.full(dense, 30.0)])
     on_part = contact(part, origin + above).surface_mm
@@ -111,8 +113,8 @@ def heightmap_path(points: int = 33, dense: int = 321) -> TaughtPath:
 
 def parts_toml() -> str:
     """The geometry of each example part, in the keys issue 40 names for ``[emulator.part]``."""
-    def vec(values: object) -> str:
-        return "[" + ", ".join(f"{float(v):g}" for v in values) + "]"  # type: ignore[attr-defined]
+    def vec(values: tuple[float, ...]) -> str:
+        return "[" + ", ".join(f"{v:g}" for v in values) + "]"
 
     return "\n".join([
         "# The parts of the path examples (python -m forcelearn.tools.path_examples writes this).",
@@ -120,18 +122,20 @@ def parts_toml() -> str:
         f"# Each part is covered by {FOAM_MM:g} mm of foam; the paths are taught on its skin.",
         "",
         "[cylinder]",
-        'shape = "cylinder"', f"point_mm = {vec(CYLINDER['point_mm'])}",
-        f"axis = {vec(CYLINDER['axis'])}", f"radius_mm = {CYLINDER['radius_mm']:g}",
-        "concave = false", f"foam_thickness_mm = {FOAM_MM:g}",
+        'shape = "cylinder"', f"point_mm = {vec(CYLINDER.point_mm)}",
+        f"axis = {vec(CYLINDER.axis)}", f"radius_mm = {CYLINDER.radius_mm:g}",
+        f"concave = {str(CYLINDER.concave).lower()}", f"foam_thickness_mm = {FOAM_MM:g}",
         'path = "cylinder-arc.csv"  # or cylinder-arc.mod, PROC main', "",
         "[sphere]",
-        'shape = "sphere"', f"centre_mm = {vec(SPHERE['centre_mm'])}",
-        f"radius_mm = {SPHERE['radius_mm']:g}", f"foam_thickness_mm = {FOAM_MM:g}",
+        'shape = "sphere"', f"centre_mm = {vec(SPHERE.centre_mm)}",
+        f"radius_mm = {SPHERE.radius_mm:g}", f"foam_thickness_mm = {FOAM_MM:g}",
         'path = "sphere-arc.csv"', "",
         "[heightmap]",
-        'shape = "heightmap"', 'file = "heightmap.csv"  # heights[i, j] at x = 5 i, y = 5 j',
-        f"origin_mm = {vec(HEIGHTMAP['origin_mm'])}",
-        f"spacing_mm = {HEIGHTMAP['spacing_mm']:g}", "normal = [0, 0, 1]", "u_axis = [1, 0, 0]",
+        'shape = "heightmap"',
+        f'file = "heightmap.csv"  # heights[i, j] at x = {GRID_SPACING_MM:g} i, '
+        f'y = {GRID_SPACING_MM:g} j',
+        f"origin_mm = {vec(GRID_ORIGIN_MM)}", f"spacing_mm = {GRID_SPACING_MM:g}",
+        "normal = [0, 0, 1]", "u_axis = [1, 0, 0]",
         'interpolation = "cubic"', f"foam_thickness_mm = {FOAM_MM:g}",
         'path = "heightmap-path.csv"', "",
     ])
