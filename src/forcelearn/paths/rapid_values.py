@@ -137,10 +137,10 @@ class Evaluator:
         if isinstance(node, Name):
             found = self.scope.find(node.key)
             if found is None:
-                raise self.error(node, f"unknown {type_key} {node.text!r}: declare it in "
+                raise self.error(node, f"unknown {type_key} '{node.text}': declare it in "
                                        "the module")
             if found[0] != type_key:
-                raise self.error(node, f"{node.text!r} is a {found[0]}, not a {type_key}")
+                raise self.error(node, f"'{node.text}' is a {found[0]}, not a {type_key}")
         return self.value(node)
 
     def value(self, node: Node) -> Value:
@@ -159,7 +159,7 @@ class Evaluator:
             return self.target(node).as_value()
         if isinstance(node, Star):
             raise self.error(node, "an inline '*' target cannot be read: teach it as a robtarget")
-        raise self.error(node, f"{node.text!r} is computed by the controller at run time: "
+        raise self.error(node, f"'{node.text}' is computed by the controller at run time: "
                                "teach the point as a robtarget")
 
     def written_at(self, node: Node) -> tuple[str, int]:
@@ -183,7 +183,7 @@ class Evaluator:
         """A numeric expression."""
         value = self.value(node)
         if isinstance(value, bool) or not isinstance(value, float):
-            raise self.error(node, f"{what} must be a number, got {node.text!r}")
+            raise self.error(node, f"{what} must be a number, got '{node.text}'")
         return value
 
     def _name(self, node: Name) -> Value:
@@ -191,10 +191,10 @@ class Evaluator:
             return node.key == "true"
         reason = self.scope.why_unknown(node.key)
         if reason is not None:
-            raise self.error(node, f"the value of {node.text!r} is not known here: {reason}")
+            raise self.error(node, f"the value of '{node.text}' is not known here: {reason}")
         found = self.scope.find(node.key)
         if found is None:
-            raise self.error(node, f"unknown name {node.text!r}: declare it in the module")
+            raise self.error(node, f"unknown name '{node.text}': declare it in the module")
         _, value, declaration = found
         if value is None and declaration is not None:
             if declaration.value is None:
@@ -209,11 +209,11 @@ class Evaluator:
             finally:
                 self._visiting.discard(node.key)
         if value is None:
-            raise self.error(node, f"{node.text!r} has no value")
+            raise self.error(node, f"'{node.text}' has no value")
         for index in node.index:
             position = self.number(index, "an array index")
             if not isinstance(value, list) or not (1 <= position <= len(value)):
-                raise self.error(node, f"{node.text!r}: index {position:g} is outside the array")
+                raise self.error(node, f"'{node.text}': index {position:g} is outside the array")
             value = value[int(position) - 1]
         return value
 
@@ -224,7 +224,7 @@ class Evaluator:
         left = self.number(node.left, f"the operand of {node.op!r}")
         if node.op == "/":
             if right == 0:
-                raise self.error(node, f"division by zero in {node.text!r}")
+                raise self.error(node, f"division by zero in '{node.text}'")
             return left / right
         return {"+": left + right, "-": left - right, "*": left * right}[node.op]
 
@@ -238,11 +238,11 @@ class Evaluator:
         if isinstance(node, Call) and node.key == "reltool":
             return self._reltool(node)
         value = self.typed(node, "robtarget")
-        return robtarget(value, f"robtarget {node.text!r}", self.written_at(node))
+        return robtarget(value, f"robtarget '{node.text}'", self.written_at(node))
 
     def _call_args(self, node: Call, count: int, form: str) -> tuple[Node, ...]:
         if len(node.args) != count:
-            raise self.error(node, f"{node.text!r}: expected {form}")
+            raise self.error(node, f"'{node.text}': expected {form}")
         return node.args
 
     def _reltool(self, node: Call) -> Target:
@@ -269,24 +269,24 @@ class Evaluator:
         value = self.typed(node, "wobjdata")
         shape = "[robhold, ufprog, ufmec, [[x,y,z],[q1..q4]], [[x,y,z],[q1..q4]]]"
         if not (isinstance(value, list) and len(value) == 5):
-            raise self.error(node, f"wobjdata {node.text!r} must read {shape}")
+            raise self.error(node, f"wobjdata '{node.text}' must read {shape}")
         robhold, ufprog = value[0], value[1]
         if robhold is True:
-            raise self.error(node, f"wobjdata {node.text!r} is held by the robot (robhold TRUE, "
+            raise self.error(node, f"wobjdata '{node.text}' is held by the robot (robhold TRUE, "
                                    "a stationary tool): forcelearn follows paths with the tool "
                                    "on the robot")
         if ufprog is False:
-            raise self.error(node, f"wobjdata {node.text!r} is moved by a mechanical unit "
+            raise self.error(node, f"wobjdata '{node.text}' is moved by a mechanical unit "
                                    "(ufprog FALSE): coordinated motion is not supported")
         at = self.written_at(node)
-        user = pose(value[3], f"wobjdata {node.text!r} uframe", at)
-        obj = pose(value[4], f"wobjdata {node.text!r} oframe", at)
+        user = pose(value[3], f"wobjdata '{node.text}' uframe", at)
+        obj = pose(value[4], f"wobjdata '{node.text}' oframe", at)
         return user.then(obj)
 
     def tool(self, node: Node) -> ToolData:
         """A ``tooldata`` value."""
         value = self.typed(node, "tooldata")
-        where = f"tooldata {node.text!r}"
+        where = f"tooldata '{node.text}'"
         if not (isinstance(value, list) and len(value) == 3 and isinstance(value[0], bool)
                 and isinstance(value[2], list) and len(value[2]) == 6):
             raise self.error(node, f"{where} must read [robhold, [[x,y,z],[q1..q4]], "
