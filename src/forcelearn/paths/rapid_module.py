@@ -108,7 +108,7 @@ def _read(texts: list[tuple[str, str]], proc: str | None) -> TaughtPath:
         _parse_file(TokenStream(_tokenize(text, source), source), program)
     chosen = _choose(program, proc, texts[0][1])
     walker = _Walker(program)
-    moves = walker.walk(chosen, chosen.line, ())
+    moves = walker.walk(chosen, ())
     if not moves:
         raise PathParseError(chosen.stream.source, chosen.line,
                              f"PROC {chosen.name} holds no move instruction")
@@ -213,7 +213,8 @@ class _Walker:
         self.notes: list[str] = []
         self.tools: dict[str, ToolData] = {}
 
-    def walk(self, proc: Procedure, line: int, calling: tuple[str, ...]) -> list[Move]:
+    def walk(self, proc: Procedure, calling: tuple[str, ...]) -> list[Move]:
+        """The moves of ``proc``; ``calling`` is the chain of PROCs that called it."""
         if proc.name.lower() in calling:
             raise proc.stream.error(proc.stream.tokens[proc.body], f"PROC {proc.name} calls "
                                     f"itself (through {' -> '.join(calling)}): not a path")
@@ -347,7 +348,7 @@ class _Walker:
         _skip_to(stream, ";")
         after = stream.at
         callee = self.program.procedures[token.key]
-        moves = self.walk(callee, token.line, (*calling, caller.name.lower()))
+        moves = self.walk(callee, (*calling, caller.name.lower()))
         stream.at = after
         if moves and (blocks or with_arguments or callee.has_parameters):
             why = (f"inside {blocks[-1][0].upper()} (line {blocks[-1][1]})" if blocks
