@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+from pathlib import Path
+
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from forcelearn.errors import PathError, PathParseError
 from forcelearn.paths import read_rapid, read_rapid_text
@@ -117,3 +122,23 @@ def test_statements_that_do_not_move_are_passed_over() -> None:
 """
     path = read_rapid_text(_module(body))
     assert path.names == ("p1", "p2")
+
+
+MODULES = sorted((Path(__file__).parent / "modules").glob("*.mod"))
+PIECES = ["[", "]", ",", ";", ":=", "\\", "!", '"', "*", "\n", "9E+999", "MoveL ", "ENDPROC",
+          "IF x THEN ", "ENDIF", "Offs(", "RelTool(", "\\WObj:=", "PROC p()", "-"]
+
+
+@settings(max_examples=60)
+@given(st.sampled_from(MODULES), st.lists(st.tuples(st.floats(0, 1), st.integers(0, 12),
+                                                     st.sampled_from(PIECES)), max_size=4))
+def test_a_damaged_module_is_read_or_refused_never_crashes(
+    module: Path, edits: list[tuple[float, int, str]]
+) -> None:
+    """Deleting and inserting pieces anywhere gives a path or a PathParseError, nothing else."""
+    text = module.read_text(encoding="utf-8-sig")
+    for where, cut, piece in edits:
+        at = int(where * len(text))
+        text = text[:at] + piece + text[at + cut:]
+    with contextlib.suppress(PathParseError):
+        read_rapid_text(text)

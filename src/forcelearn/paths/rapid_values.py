@@ -184,6 +184,8 @@ class Evaluator:
         value = self.value(node)
         if isinstance(value, bool) or not isinstance(value, float):
             raise self.error(node, f"{what} must be a number, got '{node.text}'")
+        if not np.isfinite(value):
+            raise self.error(node, f"{what} must be finite, got '{node.text}'")
         return value
 
     def _name(self, node: Name) -> Value:
@@ -303,7 +305,10 @@ def numbers(value: Value, count: int, what: str, at: tuple[str, int]) -> np.ndar
     if not (isinstance(value, list) and len(value) == count
             and all(isinstance(v, float) for v in value)):
         raise PathParseError(*at, f"{what} must be {count} numbers")
-    return np.array(value, dtype=float)
+    array = np.array(value, dtype=float)
+    if not np.all(np.isfinite(array)):
+        raise PathParseError(*at, f"{what} must be finite numbers, got {value}")
+    return array
 
 
 def _unit(quaternion: np.ndarray, what: str, at: tuple[str, int]) -> np.ndarray:
