@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import numpy as np
@@ -98,3 +99,11 @@ def test_rapid_numbers_in_every_notation(value: float, form: str) -> None:
               "[9E+09,9E9,9.0E+09,9e9,9E09,9E+9]];\n PROC main()\n  MoveL p,v10,fine,tool0;\n"
               " ENDPROC\nENDMODULE\n")
     assert read_rapid_text(module).positions_mm[0, 0] == float(text)
+
+
+@settings(max_examples=80)
+@given(st.text(alphabet="0123456789.,-e#\n xyzqwmn_\"", max_size=200))
+def test_any_text_is_read_or_refused_never_crashes(text: str) -> None:
+    """CSV-like noise gives a path or a PathParseError, nothing else."""
+    with contextlib.suppress(PathParseError):
+        parse_path_csv(text)
