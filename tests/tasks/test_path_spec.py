@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -88,3 +89,12 @@ def test_the_path_is_refused_before_any_move() -> None:
     module = PathTaskSpec(path=str(EXAMPLES / "cylinder-arc.mod"), proc="polish")
     with pytest.raises(PathParseError, match="no PROC 'polish'"):
         load_task_path(module, *WORKSPACE, max_step_mm=10.0)
+
+
+def test_the_documented_table_is_the_defaults() -> None:
+    """docs/path.md's [task] example builds to the spec's defaults (so the page cannot drift)."""
+    page = (Path(__file__).parents[2] / "docs" / "path.md").read_text()
+    block = page.split("```toml\n", 1)[1].split("```", 1)[0]
+    table = tomllib.loads(block)["task"]
+    root = Path(__file__).parents[2]
+    assert build_path_task(table, root) == PathTaskSpec(path=str(root / table["path"]))

@@ -17,6 +17,11 @@ from forcelearn.emulators.physics.part import (
     load_heights,
     tip_centres_mm,
 )
+from forcelearn.emulators.physics.sponge_law import (
+    SpongeParams,
+    normal_force_n,
+    stiffness_n_per_mm,
+)
 
 RNG = np.random.default_rng(20261203)
 
@@ -178,3 +183,25 @@ def test_heights_from_csv_and_npy(tmp_path: Path) -> None:
     np.testing.assert_array_equal(load_heights(tmp_path / "h.csv"), heights)
     with pytest.raises(ValueError, match="cannot read the height map"):
         load_heights(tmp_path / "missing.csv")
+
+
+def test_the_depth_is_the_foam_laws_compression() -> None:
+    """A foam of the sponge's thickness on a sphere: the sponge law's force from the depth.
+
+    The cover's skin is the sphere moved out by the foam's thickness, so pressing
+    d into it gives k * d (linear foam) until the tip meets the rigid part, then
+    the backing; beyond a height map (d = -inf) the force is 0.
+    """
+    law = SpongeParams()
+    sphere = Sphere((0.0, 0.0, 0.0), 100.0)
+    skin = 100.0 + law.thickness_mm
+    below_skin = np.array([2.0, 10.0, law.thickness_mm + 1.0])
+    centres = np.column_stack([np.zeros(3), np.zeros(3), skin - below_skin])
+    where = contact(sphere, centres, offset_mm=law.thickness_mm)
+    np.testing.assert_allclose(where.depth_mm, below_skin)
+    force = normal_force_n(law, 0.0, where.depth_mm, np.zeros(3))
+    k = stiffness_n_per_mm(law, 0.0, 0.0)
+    np.testing.assert_allclose(force[:2], k * below_skin[:2])
+    assert force[2] == pytest.approx(k * law.thickness_mm + law.backing_n_per_mm)
+    beyond = contact(Heightmap(np.zeros((2, 2)), (0.0, 0.0, 0.0), 1.0), np.array([[5.0, 5.0, 0.0]]))
+    assert normal_force_n(law, 0.0, beyond.depth_mm, np.zeros(1))[0] == 0.0
