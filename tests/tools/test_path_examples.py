@@ -9,14 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from forcelearn.emulators.physics.part import (
-    Cylinder,
-    Heightmap,
-    Part,
-    Sphere,
-    contact,
-    load_heights,
-)
+from forcelearn.emulators.physics.part import Part, contact
+from forcelearn.emulators.physics.part_table import part_from_table
 from forcelearn.paths import PathLimits, read_path_csv, read_rapid, validate_path
 from forcelearn.tools.path_examples import main
 
@@ -25,13 +19,8 @@ PARTS = tomllib.loads((EXAMPLES / "parts.toml").read_text())
 
 
 def _part(name: str) -> Part:
-    spec = {k: v for k, v in PARTS[name].items()
-            if k not in ("shape", "path", "foam_thickness_mm", "file")}
-    if name == "cylinder":
-        return Cylinder(**spec)
-    if name == "sphere":
-        return Sphere(**spec)
-    return Heightmap(load_heights(EXAMPLES / PARTS[name]["file"]), **spec)
+    table = {k: v for k, v in PARTS[name].items() if k not in ("path", "foam_thickness_mm")}
+    return part_from_table(table, EXAMPLES)
 
 
 def test_the_committed_examples_are_what_the_generator_writes() -> None:
