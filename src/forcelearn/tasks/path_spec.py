@@ -1,4 +1,4 @@
-r"""Issue 40's path task: what ``[task] kind = "path"`` configures, checked before any move.
+r"""The path task: what ``[task] kind = "path"`` configures, checked before any move.
 
 A sketch of the task's configuration, complete and tested, not yet run by
 ``forcelearn run`` (the cell config in ``forcelearn.site.config`` still builds

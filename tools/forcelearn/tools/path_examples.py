@@ -112,13 +112,13 @@ def heightmap_path(points: int = 33, dense: int = 321) -> TaughtPath:
 
 
 def parts_toml() -> str:
-    """The geometry of each example part, in the keys issue 40 names for ``[emulator.part]``."""
+    """The geometry of each example part, in the keys of ``[emulator.part]`` (part_table.py)."""
     def vec(values: tuple[float, ...]) -> str:
         return "[" + ", ".join(f"{v:g}" for v in values) + "]"
 
     return "\n".join([
         "# The parts of the path examples (python -m forcelearn.tools.path_examples writes this).",
-        "# Keys as issue 40 names them for [emulator.part]; not yet read by `forcelearn run`.",
+        "# Keys of [emulator.part] (part_from_table); not yet read by `forcelearn run`.",
         f"# Each part is covered by {FOAM_MM:g} mm of foam; the paths are taught on its skin.",
         "",
         "[cylinder]",

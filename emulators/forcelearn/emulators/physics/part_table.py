@@ -1,4 +1,4 @@
-"""An emulated part from its TOML table (``[emulator.part]``, issue 40), keys checked by name.
+"""An emulated part from its TOML table (``[emulator.part]``), keys checked by name.
 
 =============  ==============================================================
 ``shape``      ``"plane"``, ``"cylinder"``, ``"sphere"`` or ``"heightmap"``
