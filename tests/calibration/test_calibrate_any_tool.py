@@ -24,7 +24,7 @@ from forcelearn.tools.calibration_study import PLAN
 from forcelearn.tools.commands.calibrate import calibrate
 from forcelearn.tools.experiments.calibration_plan import NamedPose, tilted
 
-QUICK = replace(PLAN, record_s=0.5, samples_per_pose=200)
+QUICK = replace(PLAN, record_s=0.3, samples_per_pose=120)
 """A test's plan: the default orientations, short recordings."""
 
 
