@@ -115,6 +115,9 @@ def to_document(cal: Calibration) -> dict[str, Any]:
             "condition_number": t.condition_number,
             "mounting_quaternion": t.mounting_quaternion,
             "mounting_std_deg": t.mounting_std_deg, "mounting_source": t.mounting_source,
+            **({} if t.bias_drift_per_s is None else {
+                "bias_drift_per_s": t.bias_drift_per_s,
+                "bias_drift_std_per_s": t.bias_drift_std_per_s or (0.0,) * 6}),
             "pose_count": len(t.poses),
             "pose": [{"name": p.name, "quaternion": p.quaternion, "samples": p.samples,
                       "mean": p.mean, "residual": p.residual} for p in t.poses],
@@ -290,6 +293,14 @@ def _read_mounting(t: _Table, version: int) -> dict[str, Any]:
             "mounting_std_deg": t.number("mounting_std_deg", 0.0), "mounting_source": source}
 
 
+def _read_drift(t: _Table) -> dict[str, Any]:
+    """The fitted bias drift (N/s, N*m/s), present when the poses determined it."""
+    if t.data.get("bias_drift_per_s") is None:
+        return {}
+    return {"bias_drift_per_s": t.vector("bias_drift_per_s", 6),
+            "bias_drift_std_per_s": t.vector("bias_drift_std_per_s", 6, 0.0)}
+
+
 def _read_tool(t: _Table, source: str, version: int) -> ToolLoad:
     raw_poses = t._get("pose")
     if not isinstance(raw_poses, list) or not raw_poses:
@@ -313,7 +324,7 @@ def _read_tool(t: _Table, source: str, version: int) -> ToolLoad:
         torque_bias_nm=t.vector("torque_bias_nm", 3),
         torque_bias_std_nm=t.vector("torque_bias_std_nm", 3, 0.0),
         condition_number=t.number("condition_number", 1.0), poses=tuple(poses),
-        **_read_mounting(t, version),
+        **_read_mounting(t, version), **_read_drift(t),
     )
     t.done()
     return tool

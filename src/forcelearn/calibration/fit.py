@@ -6,6 +6,7 @@ Pure functions over numpy arrays; the model is in :mod:`forcelearn.calibration`.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -54,11 +55,33 @@ def design_matrix(quaternions: list[Quaternion]) -> np.ndarray:
     return np.vstack(blocks) if blocks else np.zeros((0, 10))
 
 
-def condition_number(quaternions: list[Quaternion]) -> float:
+def design_with_drift(quaternions: list[Quaternion], times_s: np.ndarray | None = None,
+                      knots_s: np.ndarray | None = None) -> np.ndarray:
+    """Return the design matrix; with bias knots, the bias drifts piecewise linearly.
+
+    Without ``knots_s`` the columns are (m, m c, F0, M0), 10. With them (K
+    times, s, of the reference orientation's visits) and ``times_s`` (each
+    pose's mean sample time, s, same clock), the bias is the linear
+    interpolation of K values (6 each) between the knots, constant outside:
+    columns (m, m c, b_1, ..., b_K), 4 + 6K.
+    """
+    a = design_matrix(quaternions)
+    if knots_s is None or times_s is None:
+        return a
+    knots = np.asarray(knots_s, dtype=float)
+    hats = np.array([[np.interp(t, knots, np.eye(len(knots))[k]) for k in range(len(knots))]
+                     for t in np.asarray(times_s, dtype=float)])  # (n, K)
+    blocks = [np.hstack([a[6 * i:6 * i + 6, :4], np.kron(hats[i], np.eye(6))])
+              for i in range(len(quaternions))]
+    return np.vstack(blocks) if blocks else np.zeros((0, 4 + 6 * len(knots)))
+
+
+def condition_number(quaternions: list[Quaternion], times_s: np.ndarray | None = None,
+                     knots_s: np.ndarray | None = None) -> float:
     """Return the condition number of the column-normalised design matrix (inf if singular)."""
     if len(quaternions) < 2:
         return math.inf
-    a = design_matrix(quaternions)
+    a = design_with_drift(quaternions, times_s, knots_s)
     norms = np.linalg.norm(a, axis=0)
     if np.any(norms <= 1e-12 * norms.max()):  # a parameter no pose excites
         return math.inf
@@ -179,23 +202,30 @@ def fit_tool_load(
     names: list[str] | None = None,
     samples: list[int] | None = None,
     limit: float = MAX_CONDITION,
+    times_s: np.ndarray | None = None,
+    knots_s: np.ndarray | None = None,
 ) -> ToolLoad:
     """Fit mass, centre of mass and bias to the mean readings (n, 6) at ``quaternions``.
 
     Rows are weighted by ``1 / axis_std`` (N, N*m: the measured noise), so forces
     and moments count alike; uncertainties are ``s^2 (A^T A)^-1`` on the weighted
-    rows, ``s^2`` the residual variance. Raises CalibrationError when the set is
-    ill-conditioned or the mass comes out non-positive.
+    rows, ``s^2`` the residual variance. With ``times_s`` (each pose's mean sample
+    time, s) and ``knots_s`` (:func:`bias_knots`) the bias drifts piecewise
+    linearly between the knots; F0, M0 are then the first knot's. Raises
+    CalibrationError when the set is ill-conditioned or the mass comes out
+    non-positive.
     """
     means = np.asarray(means, dtype=float)
     if means.shape != (len(quaternions), 6):
         raise ValueError(f"means must be ({len(quaternions)}, 6), got {means.shape}")
     cond = check_pose_set(quaternions, limit)
-    a, y = design_matrix(quaternions), means.ravel()
+    if knots_s is not None:
+        cond = max(cond, condition_number(quaternions, times_s, knots_s))
+    a, y = design_with_drift(quaternions, times_s, knots_s), means.ravel()
     weights = np.tile(1.0 / np.asarray(axis_std, dtype=float), len(quaternions))
     aw, yw = a * weights[:, None], y * weights
     p, *_ = np.linalg.lstsq(aw, yw, rcond=None)
-    dof = len(yw) - 10
+    dof = len(yw) - a.shape[1]
     s2 = float(np.sum((yw - aw @ p) ** 2) / dof) if dof > 0 else math.nan
     cov = s2 * np.linalg.inv(aw.T @ aw)
     mass, mc = float(p[0]), p[1:4]
@@ -219,6 +249,7 @@ def fit_tool_load(
         force_bias_std_n=floats(std_p[4:7]),
         torque_bias_nm=floats(p[7:10]),
         torque_bias_std_nm=floats(std_p[7:10]),
+        **drift_fields(p, cov, knots_s),
         condition_number=cond,
         poses=tuple(
             PoseFit(names[i], floats(q), int(counts[i]), floats(means[i]),  # type: ignore[arg-type]
@@ -226,6 +257,47 @@ def fit_tool_load(
             for i, q in enumerate(quaternions)
         ),
     )
+
+
+REVISIT_DEG = 1.0
+"""A pose within this angle (deg) of the first is a visit to the reference orientation."""
+
+
+def bias_knots(quaternions: list[Quaternion], times_s: np.ndarray | None,
+               limit: float = MAX_CONDITION) -> np.ndarray | None:
+    """Return the times (s) of the visits to the first orientation, if they determine a drift.
+
+    They do when it was visited at least twice at distinct times (what changes
+    there is the bias alone) and the design with the drift stays under
+    ``limit``; else None: the bias is fitted constant. Without a revisit a
+    drift would be told apart from the tool's load only by the order of the
+    poses, which is not honest.
+    """
+    if times_s is None or len(quaternions) < 3:
+        return None
+    t = np.asarray(times_s, dtype=float)
+    q = np.asarray(quaternions, dtype=float)
+    cos_limit = math.cos(math.radians(REVISIT_DEG) / 2)
+    knots = np.array(sorted({float(t[i]) for i in range(len(q))
+                             if abs(float(q[i] @ q[0])) >= cos_limit}))
+    if len(knots) < 2 or not np.all(np.isfinite(knots)):
+        return None
+    if condition_number(quaternions, t, knots) > limit:
+        return None
+    return knots
+
+
+def drift_fields(p: np.ndarray, cov: np.ndarray, knots_s: np.ndarray | None) -> dict[str, Any]:
+    """``ToolLoad`` drift fields: the mean drift rate, last knot less first over their time."""
+    if knots_s is None:
+        return {}
+    k, span = len(knots_s), float(knots_s[-1] - knots_s[0])
+    first, last = slice(4, 10), slice(4 + 6 * (k - 1), 10 + 6 * (k - 1))
+    rate = (p[last] - p[first]) / span
+    var = (np.diag(cov[last, last]) + np.diag(cov[first, first])
+           - 2 * np.diag(cov[last, first])) / span**2
+    return {"bias_drift_per_s": floats(rate),
+            "bias_drift_std_per_s": floats(np.sqrt(np.maximum(var, 0.0)))}
 
 
 def check_matrix(raw: np.ndarray, applied: np.ndarray) -> MatrixCheck:

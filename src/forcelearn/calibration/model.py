@@ -113,7 +113,11 @@ class ToolLoad:
     torque_bias_nm: tuple[float, ...]
     """M0: moment read with the tool weightless, in the offset state of the fit."""
     torque_bias_std_nm: tuple[float, ...]
-    condition_number: float
+    bias_drift_per_s: tuple[float, ...] | None = None
+    """Linear drift of (F0, M0) during the poses (N/s, N*m/s; None: not fitted, constant);
+    F0 and M0 are then at the first pose's time."""
+    bias_drift_std_per_s: tuple[float, ...] | None = None
+    condition_number: float = 0.0
     """Of the column-normalised design matrix (small is good; see ``fit.MAX_CONDITION``)."""
     poses: tuple[PoseFit, ...] = ()
     mounting_quaternion: Quaternion = IDENTITY_QUATERNION

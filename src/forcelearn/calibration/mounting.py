@@ -32,8 +32,10 @@ from scipy.spatial.transform import Rotation
 from forcelearn.calibration.fit import (
     DEFAULT_AXIS_STD,
     MAX_CONDITION,
+    bias_knots,
     check_pose_set,
-    design_matrix,
+    design_with_drift,
+    drift_fields,
     fit_tool_load,
 )
 from forcelearn.calibration.model import (
@@ -77,44 +79,52 @@ def fit_with_mounting(
     samples: list[int] | None = None,
     limit: float = MAX_CONDITION,
     mounting: Quaternion | None = None,
+    times_s: np.ndarray | None = None,
 ) -> ToolLoad:
     """Fit the tool load at the robot's (flange) orientations; the mounting given or estimated.
 
-    Raises CalibrationError when the pose set is ill-conditioned (checked in
-    the sensor frame, before any fit) or the mass comes out non-positive.
+    ``times_s``: each pose's mean sample time (s); the bias is fitted as drifting
+    piecewise linearly between the visits to the first orientation when
+    :func:`~forcelearn.calibration.fit.bias_knots` finds they determine it,
+    else constant. Raises
+    CalibrationError when the pose set is ill-conditioned (checked in the
+    sensor frame, before any fit) or the mass comes out non-positive.
     """
     means = np.asarray(means, dtype=float)
+    knots = bias_knots(list(flange), times_s, limit)
     if mounting is not None:
         load = fit_tool_load([sensor_quaternion(q, mounting) for q in flange], means, axis_std,
-                             names, samples, limit)
+                             names, samples, limit, times_s, knots)
         return _in_flange_frame(load, flange, mounting, 0.0, MOUNTING_GIVEN)
     check_pose_set(list(flange), limit)  # conditioning does not depend on a fixed rotation
     start = Rotation.from_quat(_xyzw(initial_mounting(flange, means)))
     first = fit_tool_load([sensor_quaternion(q, _quaternion(start)) for q in flange], means,
-                          axis_std, names, samples, limit)
+                          axis_std, names, samples, limit, times_s, knots)
     weights = np.tile(1.0 / np.asarray(axis_std, dtype=float), len(flange))
     y = means.ravel() * weights
 
     def residual(x: np.ndarray) -> np.ndarray:
         r_m = _quaternion(start * Rotation.from_rotvec(x[:3]))
-        a = design_matrix([sensor_quaternion(q, r_m) for q in flange]) * weights[:, None]
+        a = design_with_drift([sensor_quaternion(q, r_m) for q in flange], times_s,
+                              knots) * weights[:, None]
         residuals: np.ndarray = y - a @ x[3:]
         return residuals
 
     mc = np.asarray(first.com_mm) / MM_PER_M * first.mass_kg
-    x0 = np.concatenate([np.zeros(3), [first.mass_kg], mc, first.force_bias_n,
-                         first.torque_bias_nm])
+    bias = np.concatenate([first.force_bias_n, first.torque_bias_nm])
+    knot_count = 1 if knots is None else len(knots)
+    x0 = np.concatenate([np.zeros(3), [first.mass_kg], mc, np.tile(bias, knot_count)])
     solved = least_squares(residual, x0, method="lm", x_scale="jac")
     mounting_q = _quaternion(start * Rotation.from_rotvec(solved.x[:3]))
     load = fit_tool_load([sensor_quaternion(q, mounting_q) for q in flange], means, axis_std,
-                         names, samples, limit)
-    dof = len(y) - 13
+                         names, samples, limit, times_s, knots)
+    dof = len(y) - len(solved.x)
     s2 = float(np.sum(solved.fun**2) / dof) if dof > 0 else math.nan
     cov = s2 * np.linalg.pinv(solved.jac.T @ solved.jac)
     std_deg = math.degrees(math.sqrt(max(float(np.trace(cov[:3, :3])), 0.0)))
     return _with_joint_uncertainty(
         _in_flange_frame(load, flange, mounting_q, std_deg, MOUNTING_ESTIMATED), cov[3:, 3:],
-        solved.x[3:])
+        solved.x[3:], knots)
 
 
 def _xyzw(q: Quaternion) -> tuple[float, float, float, float]:
@@ -129,14 +139,17 @@ def _in_flange_frame(load: ToolLoad, flange: list[Quaternion], mounting: Quatern
                    mounting_source=source)
 
 
-def _with_joint_uncertainty(load: ToolLoad, cov: np.ndarray, p: np.ndarray) -> ToolLoad:
+def _with_joint_uncertainty(load: ToolLoad, cov: np.ndarray, p: np.ndarray,
+                            knots: np.ndarray | None) -> ToolLoad:
     """Uncertainties of m, c, F0, M0 from the 13-parameter covariance (the mounting's share in)."""
     std = np.sqrt(np.maximum(np.diag(cov), 0.0))
     mass, mc = float(p[0]), p[1:4]
     jac = np.hstack([-mc[:, None] / mass**2, np.eye(3) / mass])  # d(mc/m) / d(m, mc)
     com_std = np.sqrt(np.maximum(np.diag(jac @ cov[:4, :4] @ jac.T), 0.0)) * MM_PER_M
+    drift_std = drift_fields(p, cov, knots).get("bias_drift_std_per_s")
     return replace(load, mass_std_kg=float(std[0]), com_std_mm=floats(com_std),
-                   force_bias_std_n=floats(std[4:7]), torque_bias_std_nm=floats(std[7:10]))
+                   force_bias_std_n=floats(std[4:7]), torque_bias_std_nm=floats(std[7:10]),
+                   bias_drift_std_per_s=drift_std)
 
 
 __all__ = ["PoseFit", "fit_with_mounting", "initial_mounting"]

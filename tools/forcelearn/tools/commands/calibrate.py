@@ -75,6 +75,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="bias-and-noise recording time, s (default %(default)s)")
     parser.add_argument("--samples-per-pose", type=int, default=defaults.samples_per_pose,
                         help="samples averaged per orientation (default %(default)s)")
+    parser.add_argument("--revisit-every", type=int, default=defaults.revisit_every,
+                        help="measure the first orientation again after every N poses and at "
+                        "the end, for the bias drift (0: never; default %(default)s)")
     parser.add_argument("--settle-s", type=float, default=defaults.settle_s,
                         help="dwell at each pose before the settling check, s "
                         "(default %(default)s)")
@@ -104,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     config = load_cell_config(args.config)
     plan = CalibrationPlan(
         record_s=args.record_s, samples_per_pose=args.samples_per_pose, settle_s=args.settle_s,
+        revisit_every=args.revisit_every,
         settle_timeout_s=args.settle_timeout_s,
         max_rotation_step_deg=args.max_rotation_step_deg,
     )

@@ -28,6 +28,10 @@ On top of :class:`~forcelearn.tools.experiments.calibration_run.Calibrator`
   within ``MOVED_SIGMAS`` standard errors (estimated from blocks of the read
   itself, so the adapter filter's correlation is counted): else the tool moved
   during the read (loose, swinging, a cable pulling) and the pose is refused.
+* **The bias drift.** The first orientation is measured again at the end
+  (instead of only turning back to it): what changed there is the sensor's
+  bias drift, and the fit takes the bias as linear in time (6 more
+  parameters, :func:`~forcelearn.calibration.fit.drift_times`).
 * **The mounting.** The fit takes the sensor's mounting on the flange as given
   (``--mounting-rpy-deg``/``--mounting-quaternion``) or estimates it with the
   tool (:mod:`forcelearn.calibration.mounting`).
@@ -55,6 +59,8 @@ from forcelearn.tools.experiments.calibration_run import Ask, Calibrator, Measur
 
 log = logging.getLogger(__name__)
 
+Measured = tuple[str, Quaternion, np.ndarray, int, float]
+"""One measured pose: name, orientation reached, mean wrench, samples, time read (s)."""
 PROBE_DEG = 10.0
 """Turn of each probe from the first orientation, deg."""
 PROBE_AXES = (("+x", (1.0, 0.0, 0.0)), ("+y", (0.0, 1.0, 0.0)), ("-x", (-1.0, 0.0, 0.0)))
@@ -159,7 +165,13 @@ class GuardedCalibrator(Calibrator):
         with self._step("bias and noise"):
             noise = self._bias_and_noise()
         self.model = ReadingModel(np.maximum(noise.std, 1e-6))
+        again = NamedPose(f"{poses[0].name}, again (bias drift)", poses[0].quaternion)
         queue = [(f"pose {i}/{len(poses)}", p) for i, p in enumerate(poses, start=1)]
+        every = plan.revisit_every
+        if every > 0:  # the first orientation again after every ``every`` poses, not the last
+            queue = queue[:1] + [entry for k, pose in enumerate(queue[1:], start=1) for entry in
+                                 ([pose, ("revisit", again)]
+                                  if k % every == 0 and k < len(queue) - 1 else [pose])]
         if not self.manual:
             first = poses[0].quaternion
             probes = [(f"probe {i}/{len(PROBE_AXES)}",
@@ -167,26 +179,34 @@ class GuardedCalibrator(Calibrator):
                                  turned(first, axis, PROBE_DEG)))
                       for i, (name, axis) in enumerate(PROBE_AXES, start=1)]
             queue = queue[:1] + probes + queue[1:]
-        measured: list[tuple[str, Quaternion, np.ndarray, int]] = []
+        measured: list[Measured] = []
         for label, pose in queue:
             if label.startswith("probe"):  # for the prediction only: a quarter of the samples
                 self._probe(label, pose)
-            else:
+            elif label != "revisit" or self._first_measured(measured, poses[0]):
                 self._measure(label, pose, measured)
         if self.complete and not self.manual:
             self._add_where_needed(measured)
-        if not self.manual:
+        if every > 0 and self._first_measured(measured, poses[0]):
+            self._measure("revisit", again, measured)  # also turns back to the first
+        elif not self.manual:
             with self._step("turning back to the first orientation"):
                 self._turn_to(poses[0].quaternion)
         tool = fit_with_mounting(
             [m[1] for m in measured], np.array([m[2] for m in measured]).reshape(-1, 6),
             axis_std=np.maximum(noise.std, 1e-6), names=[m[0] for m in measured],
-            samples=[m[3] for m in measured], limit=plan.max_condition, mounting=self.mounting)
+            samples=[m[3] for m in measured], limit=plan.max_condition, mounting=self.mounting,
+            times_s=np.array([m[4] for m in measured]))
         return Measurement(noise, tool)
+
+    @staticmethod
+    def _first_measured(measured: list[Measured], first: NamedPose) -> bool:
+        """Whether the plan's first orientation was measured (the bias drift's reference)."""
+        return bool(measured) and measured[0][0] == first.name
 
     # ---- one pose, guarded ------------------------------------------------------------
     def _measure(self, label: str, pose: NamedPose,
-                 measured: list[tuple[str, Quaternion, np.ndarray, int]]) -> bool:
+                 measured: list[Measured]) -> bool:
         """Measure one pose into ``measured``; False when skipped (out of range, or operator)."""
         problems = self._path_problems(pose.quaternion)
         if problems:
@@ -205,8 +225,12 @@ class GuardedCalibrator(Calibrator):
                 return False
             check_still(self.sensor.last, np.asarray(self.model.noise_std if self.model
                                                      is not None else 0.0))
+            # the pose's time on the controller's clock (the cell's one clock when emulated;
+            # the samples' own stamps are the host's): midway from in position to read done
+            read_s = (self.in_position_s + self.robot.wait_in_position(
+                self.plan.settle_timeout_s, 0.0)) / 2
         reached, mean, count = result
-        measured.append((pose.name, reached, mean, count))
+        measured.append((pose.name, reached, mean, count, read_s))
         if self.model is not None:
             self.model.add(reached, mean, count)
             if self.model.determined:  # the force limit now watches for contact, not weight
@@ -249,7 +273,7 @@ class GuardedCalibrator(Calibrator):
             raise PoseOutOfRange(f"the turn would pass the sensor's range: {'; '.join(problems)}")
         super()._turn_to(quaternion)
 
-    def _add_where_needed(self, measured: list[tuple[str, Quaternion, np.ndarray, int]]) -> None:
+    def _add_where_needed(self, measured: list[Measured]) -> None:
         """Add candidate orientations in range until the condition number passes."""
         tried: set[str] = set()
         limit = self.plan.max_condition if self.plan.max_condition else MAX_CONDITION

@@ -117,6 +117,9 @@ class CalibrationPlan:
     """Longest wait for the robot to be in position and the reading to settle."""
     max_rotation_step_deg: float = 10.0
     """Largest orientation change per move command between orientations."""
+    revisit_every: int = 2
+    """Measure the first orientation again after every this many poses, and at the end: the
+    bias drift's knots (0: never, the bias fitted constant)."""
     max_condition: float = MAX_CONDITION
 
     def __post_init__(self) -> None:
@@ -125,6 +128,8 @@ class CalibrationPlan:
                 raise ConfigError(f"calibration {name} must be > 0, got {getattr(self, name)}")
         if not (math.isfinite(self.settle_s) and self.settle_s >= 0):
             raise ConfigError(f"calibration settle_s must be >= 0, got {self.settle_s}")
+        if self.revisit_every < 0:
+            raise ConfigError(f"calibration revisit_every must be >= 0, got {self.revisit_every}")
         if self.samples_per_pose < 10:
             raise ConfigError(f"calibration samples_per_pose must be >= 10, "
                               f"got {self.samples_per_pose}")

@@ -86,6 +86,8 @@ class Calibrator:
         self.plan, self.manual, self.ask = plan, manual, ask
         self.progress, self.out = progress, out or sys.stdout
         self._orientation = plan.poses[0].quaternion if plan.poses else (1.0, 0.0, 0.0, 0.0)
+        self.in_position_s = math.nan
+        """The controller's time (s) at the end of the last wait in position."""
 
     # ---- the steps --------------------------------------------------------------------
     def run(self) -> Measurement:
@@ -206,9 +208,13 @@ class Calibrator:
                 self.cell.measure_force_n(1)  # the force limit watches the turn
 
     def _wait_settled_robot(self) -> None:
-        """Wait until the robot reports in position, then dwell ``settle_s`` (robot's clock)."""
+        """Wait until the robot reports in position, then dwell ``settle_s`` (robot's clock).
+
+        Keeps the controller's time at the end of the wait in ``in_position_s`` (s).
+        """
         try:
-            self.robot.wait_in_position(self.plan.settle_timeout_s, self.plan.settle_s)
+            self.in_position_s = self.robot.wait_in_position(self.plan.settle_timeout_s,
+                                                             self.plan.settle_s)
         except NotInPosition as exc:
             raise CalibrationError(
                 f"the robot was not in position within {self.plan.settle_timeout_s} s "
