@@ -103,9 +103,9 @@ def test_without_a_revisit_the_bias_is_fitted_constant() -> None:
 
 @pytest.mark.parametrize("quaternions", [
     [DEFAULT_POSES[0].quaternion, tilted((1, 0, 0), 60.0), DEFAULT_POSES[0].quaternion],
-    [DEFAULT_POSES[0].quaternion, tilted((1, 0, 0), 60.0), tilted((1, 0, 0), -60.0),
-     DEFAULT_POSES[0].quaternion],
-], ids=["two orientations", "tilts about one axis"])
+    [DEFAULT_POSES[0].quaternion, (0.0, 0.0, 1.0, 0.0),
+     (0.0, 0.7071067811865476, 0.7071067811865476, 0.0), DEFAULT_POSES[0].quaternion],
+], ids=["two orientations", "turns about the tool axis only"])
 def test_too_few_or_coplanar_orientations_are_still_refused(quaternions) -> None:
     """A revisit adds no gravity direction: the pose set is refused as before."""
     times = np.arange(len(quaternions)) * SECONDS_PER_POSE
@@ -121,7 +121,8 @@ def test_the_drift_round_trips_through_the_file(tmp_path: Path) -> None:
     means, times = _record(quaternions, rng)
     tool = fit_with_mounting(quaternions, means, NOISE, times_s=times)
     noise = estimate_noise(rng.normal(scale=0.2, size=(200, 6)), np.arange(200) * 1e-3)
-    cal = Calibration("2024-05-01T12:00:00+00:00", SensorInfo(cutoff_hz=125.0), noise, tool)
+    cal = Calibration("2024-05-01T12:00:00+00:00", SensorInfo(
+        full_scales=(200.0, 200.0, 400.0, 20.0, 20.0, 20.0), cutoff_hz=125.0), noise, tool)
     save_calibration(cal, tmp_path / "cal.toml")
     assert load_calibration(tmp_path / "cal.toml") == cal
     constant = replace(cal, tool=replace(tool, bias_drift_per_s=None, bias_drift_std_per_s=None))
