@@ -241,7 +241,11 @@ def report(cal: Calibration) -> str:
         f"{np.round(mounting_rpy_deg(t.mounting_quaternion), 2).tolist()} deg: {why}",
         f"  centre of mass  ({pm(t.com_mm, t.com_std_mm, 2)}) mm",
         f"  force bias      ({pm(t.force_bias_n, t.force_bias_std_n, 3)}) N",
-        f"  torque bias     ({pm(t.torque_bias_nm, t.torque_bias_std_nm, 4)}) N·m",
+        f"  torque bias     ({pm(t.torque_bias_nm, t.torque_bias_std_nm, 4)}) N·m"
+        + (" (at the first pose)" if t.bias_drift_per_s is not None else ""),
+        (f"  bias drift      ({pm(t.bias_drift_per_s, t.bias_drift_std_per_s or (0.0,) * 6, 5)})"
+         " N/s, N·m/s (the first orientation revisited)" if t.bias_drift_per_s is not None
+         else "  bias drift      not fitted (the first orientation was not revisited)"),
         "residual per pose (N, N·m):",
         f"  {'pose':<30}" + "".join(f"{a:>9}" for a in AXES),
     ]
