@@ -163,3 +163,28 @@ def test_run_is_deterministic_and_resumes_bit_identical(name: str, tmp_path: Pat
     assert {k: v for k, v in resumed.items() if k not in TIMING_KEYS} == {
         k: v for k, v in whole.items() if k not in TIMING_KEYS
     }
+
+
+def test_a_netft_zero_is_taken_before_the_host_goes_on(monkeypatch) -> None:
+    """Set bias needs no answer; the emulated box takes it before ``zero_offsets`` returns.
+
+    The emulator's thread is made slow on that request: a zero the host did
+    not wait for would be taken after the robot turned (a host-load race).
+    """
+    import time
+
+    config = load_cell_config(EXAMPLES / "netft-cell.toml")
+    with CellSession(config, seed=0) as session:
+        netft, sensor = session.sensor_emulator, session.sensor
+        assert netft is not None and sensor is not None
+        taken = netft.stats.bias_commands  # the zero of initialise, already taken
+        assert taken >= 1
+        handle = netft._handle_locked
+
+        def slow(data: bytes, address: tuple[str, int]) -> None:
+            time.sleep(0.2)
+            handle(data, address)
+
+        monkeypatch.setattr(netft, "_handle_locked", slow)
+        sensor.zero_offsets()
+        assert netft.stats.bias_commands == taken + 1

@@ -77,6 +77,31 @@ class NetFtFarEnd(FarEnd):
                             NETFT_SETTLE_TIMEOUT_S)
         self.emulator.load_state_dict(state)
 
+    def zero_in_order(self, driver: NetFtSensor) -> None:
+        """Make the driver's "set software bias" take effect before it returns.
+
+        The request needs no answer, and the emulator's thread handles it when
+        it gets to it: on a loaded host the robot may have turned by then (the
+        host goes on at once), and the box zeroes another load (a tare that
+        passed or failed with the host's load). Waiting here puts the bias
+        where the host sent it, on the cell's one clock; a real box applies it
+        on receipt, so only the emulated cell needs this. The zero of
+        ``initialise`` (``zero_on_init``) is waited for here.
+        """
+        send = driver.zero_offsets
+
+        def taken() -> None:
+            if not self.emulator.wait_handled(driver.stats.requests, NETFT_SETTLE_TIMEOUT_S):
+                log.warning("the Net F/T emulator did not take the set-bias request within "
+                            "%.1f s; the zero may be of a later load", NETFT_SETTLE_TIMEOUT_S)
+
+        def zero_offsets() -> None:
+            send()
+            taken()
+
+        taken()
+        driver.zero_offsets = zero_offsets  # type: ignore[method-assign]
+
     def describe(self, paths: dict[str, str]) -> str:
         """The box's ports."""
         ports = self.emulator.ports
@@ -162,6 +187,7 @@ class NetFtKind(SensorKind):
             raise
         if far_end is not None:
             far_end.driver = driver
+            far_end.zero_in_order(driver)
         return driver
 
     def check(self, sensor: NetFtSensor, config: CellConfig, seconds: float,
