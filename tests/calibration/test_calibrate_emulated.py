@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcelearn.calibration import load_calibration
+from forcelearn.calibration import MAX_CONDITION, load_calibration
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import CalibrationError, RobotFault, SafetyStop, SensorStale
@@ -79,7 +79,10 @@ def test_estimates_match_the_emulator_truth_over_five_seeds(seed: int, tmp_path:
     start = truth.zeros[-1]
     window = rows[start:start + cal.noise.samples]
     true_residual_bias = (window[:, :6] + window[:, 6:]).mean(axis=0)
-    true_tool_bias = rows[start + cal.noise.samples:, :6].mean(axis=0)
+    # with the bias drift fitted, F0 and M0 are the bias at the first pose (tool down, read
+    # right after the noise, no turn between): its samples follow the noise's
+    first_pose = start + cal.noise.samples
+    true_tool_bias = rows[first_pose:first_pose + FAST.samples_per_pose, :6].mean(axis=0)
     mass_err = abs(cal.tool.mass_kg - truth_tool.mass_kg) / truth_tool.mass_kg
     com_err = float(np.linalg.norm(np.subtract(cal.tool.com_mm, truth_tool.com_mm)))
     resid_err = np.abs(np.subtract(cal.noise.bias, true_residual_bias))
@@ -93,9 +96,12 @@ def test_estimates_match_the_emulator_truth_over_five_seeds(seed: int, tmp_path:
     assert mass_err < 0.02
     assert com_err < 2.0
     assert resid_err[:3].max() < 0.05 and resid_err[3:].max() < 0.005
-    assert force_err.max() < 0.05 and torque_err.max() < 0.005
+    # the bias at one knot is read from fewer samples than a constant bias: 4 of its sigmas
+    assert np.all(force_err < np.maximum(0.05, 4 * np.asarray(cal.tool.force_bias_std_n)))
+    assert np.all(torque_err < np.maximum(0.005, 4 * np.asarray(cal.tool.torque_bias_std_nm)))
     assert std_err.max() < 0.10
-    assert cal.noise.rate_hz > 100 and cal.tool.condition_number < 4
+    assert cal.noise.rate_hz > 100 and cal.tool.condition_number < MAX_CONDITION
+    assert cal.tool.bias_drift_per_s is not None  # the first orientation was revisited
 
 
 def _assert_no_file(out: Path) -> None:

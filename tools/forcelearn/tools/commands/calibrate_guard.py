@@ -167,7 +167,7 @@ class GuardedCalibrator(Calibrator):
         self.model = ReadingModel(np.maximum(noise.std, 1e-6))
         again = NamedPose(f"{poses[0].name}, again (bias drift)", poses[0].quaternion)
         queue = [(f"pose {i}/{len(poses)}", p) for i, p in enumerate(poses, start=1)]
-        every = plan.revisit_every
+        every = 0 if self.manual else plan.revisit_every  # the operator jogs few poses
         if every > 0:  # the first orientation again after every ``every`` poses, not the last
             queue = queue[:1] + [entry for k, pose in enumerate(queue[1:], start=1) for entry in
                                  ([pose, ("revisit", again)]
