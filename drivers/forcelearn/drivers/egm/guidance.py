@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -142,6 +142,8 @@ def distance_mm(p0: Pose, p1: Pose) -> float:
 
 def step_toward(pose: Pose, target: Pose, max_mm: float, max_deg: float) -> Pose:
     """Return ``pose`` moved toward ``target`` by at most ``max_mm`` and ``max_deg``."""
+    if pose == target and max_mm >= 0.0 and max_deg >= 1e-3 and _finite(pose):
+        return target  # at rest (most cycles): no distance nor angle to compute
     error = target.position_mm - pose.position_mm
     distance = float(np.linalg.norm(error))
     turn = angle_deg(pose.quaternion, target.quaternion)
@@ -179,7 +181,7 @@ class Guidance:
         """Planned pose of the last reply (ramps toward ``target``)."""
         self.speed_mm_s = config.speed_mm_s
         self.session = 0
-        self.stats = EgmStats()
+        self._counts = asdict(EgmStats())  # a dict: counting is per datagram, hot
         self.controller: Source | None = None
         """The paired controller's address, pinned by the first session start."""
         self.refusal: ForcelearnError | None = None
@@ -385,11 +387,15 @@ class Guidance:
         self._count(sessions=1)
         return True
 
+    @property
+    def stats(self) -> EgmStats:
+        """The counters as they are now (a snapshot)."""
+        return EgmStats(**self._counts)
+
     def _count(self, **increments: int) -> None:
-        stats = self.stats
-        self.stats = replace(
-            stats, **{k: getattr(stats, k) + v for k, v in increments.items()}
-        )
+        counts = self._counts
+        for name, value in increments.items():
+            counts[name] += value
 
     # -- output -----------------------------------------------------------------------------
 
@@ -444,7 +450,7 @@ class Guidance:
             "session": self.session,
             "next_seqno": self._next_seqno,
             "origin_us": self.origin_us,
-            "stats": asdict(self.stats),
+            "stats": dict(self._counts),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -469,7 +475,7 @@ class Guidance:
         self._next_seqno = int(state["next_seqno"])
         origin = state.get("origin_us")
         self.origin_us = None if origin is None else int(origin)
-        self.stats = EgmStats(**state["stats"])
+        self._counts = asdict(EgmStats(**state["stats"]))
 
     # -- queries ----------------------------------------------------------------------------
 

@@ -166,6 +166,8 @@ class EgmControllerModel:
         self._seqno = 0
         self._last_read_s = t_s
         self._last_pose_s = (t_s, physics.pose)
+        self._last_checked: tuple[Pose, str | None, tuple[float, ...] | None] | None = None
+        """The latest target checked, its refusal and its axes (a target is sent every cycle)."""
 
     @property
     def running(self) -> bool:
@@ -216,12 +218,12 @@ class EgmControllerModel:
             if message.planned_joints_deg:
                 self._count_wrong_mode(t_s, "planned.joints", "\\Pose")
             return  # no position data: the controller keeps the last planned pose
-        refusal = self._refusal(target)
+        refusal, joints = self._checked(target)
         if refusal:
             self._motion_error(t_s, refusal)
             return
         self.planned = target
-        self.planned_joints = self._joints(target, self.planned_joints)
+        self.planned_joints = self.planned_joints if joints is None else joints
         self.motion.command(self._feed_forward_pose(target, message.speed_ref), t_s)
         self.targets_read += 1
 
@@ -281,6 +283,20 @@ class EgmControllerModel:
                 "controller keeps its latest reference (counted in wrong_mode)",
                 t_s, field_name, setup,
             )
+
+    def _checked(self, target: Pose) -> tuple[str | None, tuple[float, ...] | None]:
+        """``_refusal(target)`` and the arm's axes there (None: unreachable), kept for a repeat.
+
+        The checks depend on the target and the fixed configuration only, and the
+        PC sends the same target cycle after cycle while the arm rests or follows.
+        """
+        last = self._last_checked
+        if last is not None and last[0] == target:
+            return last[1], last[2]
+        refusal = self._refusal(target)
+        joints = joint_angles_deg(self.config.arm, target)
+        self._last_checked = (target, refusal, joints)
+        return refusal, joints
 
     def _refusal(self, pose: Pose) -> str | None:
         position = pose.position_mm
