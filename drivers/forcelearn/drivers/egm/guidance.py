@@ -59,7 +59,7 @@ from forcelearn.errors import (
     ProtocolError,
     SafetyStop,
 )
-from forcelearn.protocols.egm import codec
+from forcelearn.protocols.egm import carried, codec
 
 log = logging.getLogger(__name__)
 
@@ -209,21 +209,11 @@ class Guidance:
         if not self._from_controller(source):
             self._count(foreign_datagrams=1)
             return False
-        try:
-            codec.check_version(data, self.config.version)
-        except EgmVersionMismatch as exc:
-            self._count(wrong_version=1)
-            if self.latest is None:
-                self.refusal = exc
-            return False
-        except ProtocolError:
-            self._count(bad_datagrams=1)
-            return False
-        try:
-            message = codec.decode_robot(data, self.config.version)
-        except ProtocolError:
-            self._count(bad_datagrams=1)
-            return False
+        message = carried.received_robot(data, self.config.version)
+        if message is None:
+            message = self._decode(data)
+            if message is None:
+                return False
         latest = self.latest
         if latest is None or (message.seqno == 0 and latest.seqno != 0):
             if latest is not None and not self._newer_session(message, latest, now_s):
@@ -262,6 +252,24 @@ class Guidance:
         self._count(missed=ahead - 1)
         self.latest = message
         return self._fresh(data, now_s)
+
+    def _decode(self, data: bytes) -> codec.RobotMessage | None:
+        """The EgmRobot in ``data``; None (counted) if it proves the other version or is broken."""
+        try:
+            codec.check_version(data, self.config.version)
+        except EgmVersionMismatch as exc:
+            self._count(wrong_version=1)
+            if self.latest is None:
+                self.refusal = exc
+            return None
+        except ProtocolError:
+            self._count(bad_datagrams=1)
+            return None
+        try:
+            return codec.decode_robot(data, self.config.version)
+        except ProtocolError:
+            self._count(bad_datagrams=1)
+            return None
 
     def _resumes(self, message: codec.RobotMessage) -> bool:
         """Whether ``message`` continues the stream a seqno 0 just interrupted; if so, take it.
@@ -420,7 +428,7 @@ class Guidance:
         message = codec.SensorMessage(self._next_seqno, self.latest.tm_ms, planned)
         self._next_seqno = (self._next_seqno + 1) % _SEQNO_MOD
         self._count(replies=1)
-        return codec.encode_sensor(message, self.config.version)
+        return carried.carry_sensor(message, self.config.version)
 
     def hold(self) -> None:
         """Make the present feedback pose the target; the planned pose ramps to it.

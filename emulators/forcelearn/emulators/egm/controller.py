@@ -67,7 +67,7 @@ from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.robot_controller.kinematics import ArmConfig, joint_angles_deg
 from forcelearn.errors import ProtocolError
-from forcelearn.protocols.egm import codec
+from forcelearn.protocols.egm import carried, codec
 
 log = logging.getLogger(__name__)
 
@@ -203,12 +203,14 @@ class EgmControllerModel:
         if not self.running:
             self.ignored += 1
             return
-        try:
-            message = codec.decode_sensor(datagram, self.config.version)
-        except ProtocolError as exc:
-            log.info("EgmSensor ignored: %s", exc)
-            self.ignored += 1
-            return
+        message = carried.received_sensor(datagram, self.config.version)
+        if message is None:
+            try:
+                message = codec.decode_sensor(datagram, self.config.version)
+            except ProtocolError as exc:
+                log.info("EgmSensor ignored: %s", exc)
+                self.ignored += 1
+                return
         self._last_read_s = t_s
         if self.config.mode == "joint":
             self._apply_joints(message, t_s)
@@ -350,7 +352,7 @@ class EgmControllerModel:
             fc_active=self.config.force_control_active if force is not None else None,
         )
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
-        return codec.encode_robot(message, self.config.version)
+        return carried.carry_robot(message, self.config.version)
 
     # -- checkpoint -------------------------------------------------------------------------
 

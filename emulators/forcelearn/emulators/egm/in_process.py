@@ -33,6 +33,7 @@ from collections import deque
 from typing import Any
 
 from forcelearn.emulators.egm.base import EgmEmulatorBase
+from forcelearn.protocols.egm.carried import CarriedDatagram
 
 log = logging.getLogger(__name__)
 
@@ -125,7 +126,8 @@ class InProcessDatagramSocket:
 
     def sendto(self, data: bytes, address: Any, /) -> int:
         """Hand an EgmSensor to the controller (``address`` is not used)."""
-        self._require_open()._answer(bytes(data))
+        # a CarriedDatagram is kept as it is: the controller reads its message unparsed
+        self._require_open()._answer(data if type(data) is CarriedDatagram else bytes(data))
         return len(data)
 
     def settimeout(self, value: float | None, /) -> None:

@@ -324,7 +324,7 @@ def wire_fields(data: bytes) -> Iterator[tuple[int, int, bytes]]:
 def _field_spans(data: bytes, pos: int, end: int) -> list[tuple[int, int, int, int]]:
     """(field number, wire type, value start, value end) of the fields in ``data[pos:end]``.
 
-    The same reading as :func:`wire_fields` (and the same ``ProtocolError``\ s),
+    The same reading as :func:`wire_fields` (and the same ProtocolError cases),
     without copying values: :func:`detect_version` runs on every datagram.
     """
     spans = []
