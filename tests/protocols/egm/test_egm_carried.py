@@ -5,6 +5,7 @@ Compared by ``repr``: a NaN on the wire stays a NaN, and -0.0 must stay -0.0.
 
 from __future__ import annotations
 
+import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -82,3 +83,17 @@ def test_plain_bytes_and_the_other_version_carry_nothing() -> None:
     with_speed = carried.carry_sensor(
         codec.SensorMessage(1, 2, None, speed_ref=(0.0,) * 6), "rw6")
     assert carried.received_sensor(with_speed, "rw6") is None
+
+
+def test_numpy_and_int_values_are_carried_as_the_wire_reads_them() -> None:
+    """What an emulator may hold (numpy scalars, ints) is carried as the floats decoded."""
+    pose = Pose(np.float64(900.5), 2, np.float64(-3.25), (1, 0, 0, 0))  # type: ignore[arg-type]
+    message = codec.RobotMessage(
+        seqno=(1 << 32) + 5, tm_ms=7, feedback=pose, planned=pose,
+        joints_deg=(np.float64(1.0), 2), time_us=-5, motor=codec.MotorState.ON,
+        measured_force=(np.float64(0.5),) * 6, fc_active=True,
+    )
+    for version in codec.VERSIONS:
+        datagram = carried.carry_robot(message, version)
+        got = carried.received_robot(datagram, version)
+        assert repr(got) == repr(codec.decode_robot(bytes(datagram), version))

@@ -122,7 +122,8 @@ class InProcessDatagramSocket:
 
     def recvfrom(self, bufsize: int, /) -> tuple[bytes, tuple[str, int]]:
         """Run the controller to its next datagram and return it (never blocks)."""
-        return self._require_open()._next_datagram()[:bufsize], SOURCE
+        datagram = self._require_open()._next_datagram()
+        return (datagram if len(datagram) <= bufsize else datagram[:bufsize]), SOURCE
 
     def sendto(self, data: bytes, address: Any, /) -> int:
         """Hand an EgmSensor to the controller (``address`` is not used)."""

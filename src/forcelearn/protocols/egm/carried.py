@@ -34,8 +34,22 @@ class CarriedDatagram(bytes):
 def _pose(pose: Pose | None) -> Pose | None:
     if pose is None:
         return None
-    w, x, y, z = (float(c) for c in pose.quaternion)
+    q = pose.quaternion
+    if (type(pose) is Pose and type(pose.x_mm) is float and type(pose.y_mm) is float
+            and type(pose.z_mm) is float and type(q) is tuple and _floats(q)):
+        return pose  # already what the wire gives back (frozen: shared safely)
+    w, x, y, z = (float(c) for c in q)
     return Pose(float(pose.x_mm), float(pose.y_mm), float(pose.z_mm), (w, x, y, z))
+
+
+def _floats(values: tuple[float, ...]) -> bool:
+    return all(type(v) is float for v in values)
+
+
+def _tuple(values: tuple[float, ...]) -> tuple[float, ...]:
+    if type(values) is tuple and _floats(values):
+        return values
+    return tuple(float(v) for v in values)
 
 
 def _clock(time_us: int | None) -> int | None:
@@ -53,19 +67,19 @@ def _simple_robot(m: codec.RobotMessage) -> bool:
 
 def as_received_robot(m: codec.RobotMessage, version: codec.Version) -> codec.RobotMessage:
     """The message :func:`codec.decode_robot` reads from ``codec.encode_robot(m, version)``."""
-    force = None if m.measured_force is None else tuple(float(v) for v in m.measured_force)
+    force = None if m.measured_force is None else _tuple(m.measured_force)
     return codec.RobotMessage(
         seqno=m.seqno & _MASK,
         tm_ms=m.tm_ms & _MASK,
         feedback=_pose(m.feedback),
         planned=_pose(m.planned),
-        joints_deg=tuple(float(j) for j in m.joints_deg),
+        joints_deg=_tuple(m.joints_deg),
         time_us=_clock(m.time_us),
-        planned_joints_deg=tuple(float(j) for j in m.planned_joints_deg),
+        planned_joints_deg=_tuple(m.planned_joints_deg),
         planned_time_us=_clock(m.planned_time_us),
-        motor=codec.MotorState(int(m.motor)),
-        mci=codec.MciState(int(m.mci)),
-        rapid=codec.RapidState(int(m.rapid)),
+        motor=m.motor if type(m.motor) is codec.MotorState else codec.MotorState(int(m.motor)),
+        mci=m.mci if type(m.mci) is codec.MciState else codec.MciState(int(m.mci)),
+        rapid=m.rapid if type(m.rapid) is codec.RapidState else codec.RapidState(int(m.rapid)),
         convergence_met=None if m.convergence_met is None else bool(m.convergence_met),
         utilization_pct=None if m.utilization_pct is None else float(m.utilization_pct),
         measured_force=force,
@@ -79,7 +93,7 @@ def as_received_sensor(m: codec.SensorMessage) -> codec.SensorMessage:
         seqno=m.seqno & _MASK,
         tm_ms=m.tm_ms & _MASK,
         planned=_pose(m.planned),
-        planned_joints_deg=tuple(float(j) for j in m.planned_joints_deg),
+        planned_joints_deg=_tuple(m.planned_joints_deg),
     )
 
 
