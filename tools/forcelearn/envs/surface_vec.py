@@ -55,10 +55,10 @@ def probe_map(config: Any, seed: int) -> tuple[OutputMapChoice, int, float]:
     env = SurfaceEnv(config, seed=seed)
     try:
         env.reset(seed=seed)
-        session = env.session
-        physics = getattr(session, "physics", None)
-        passes = int(physics.environment.passes)
-        return env.output_map, passes, float(physics.clock.now_s)
+        physics: Any = getattr(env.session, "physics", None)
+        if physics is None:
+            raise ValueError("the probe needs the emulated cell (the config opened a real one)")
+        return env.output_map, int(physics.environment.passes), float(physics.clock.now_s)
     finally:
         env.close()
 
