@@ -18,7 +18,7 @@ The output map is the wire-level cell's: at construction one
 ``Surface-v0`` cell is opened with the config and the seed, the surface probe
 runs on it (a few seconds) and its map (centre, scale, half-range, wear
 tracking) and the sponge's passes after the probe start every cell here;
-``output_map=`` skips that (a map chosen elsewhere, e.g. in tests).
+``probed=`` skips that (a probe run elsewhere, e.g. once for many envs).
 
 Vector API: ``autoreset_mode`` NEXT_STEP (Gymnasium's default): the step
 after a sub-env's episode ended resets it (reward 0, its action ignored).
@@ -29,6 +29,8 @@ after a sub-env's episode ended resets it (reward 0, its action ignored).
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,16 +42,27 @@ from gymnasium.vector.utils import batch_space
 from forcelearn.envs.base import box
 from forcelearn.envs.surface_batch import BatchSpec, SurfaceBatch
 from forcelearn.tasks.surface_map import OutputMapChoice
+from forcelearn.tasks.surface_probe import ProbeResult
 
 NORMAL_AXIS = 1
 """The sensor axis of the sponge's normal force (``filter.axis``)."""
 
 
-def probe_map(config: Any, seed: int) -> tuple[OutputMapChoice, int, float]:
-    """Open one wire-level cell and run its surface probe.
+@dataclass(frozen=True)
+class Probed:
+    """What one wire-level cell's surface probe left: the map and the sponge's state."""
 
-    Returns its map, the sponge's passes after it and the cell time it took (s).
-    """
+    output_map: OutputMapChoice
+    passes: int = 0
+    """The sponge's passes after the probe (each probe point is a press)."""
+    cell_time_s: float = 0.0
+    """Cell time from the sensor's zeroing to the first trial, s."""
+    probe: ProbeResult | None = None
+    """The probe's readings and fits (the warm start's input); None: no probe ran."""
+
+
+def probe_map(config: Any, seed: int) -> Probed:
+    """Open one wire-level cell (``Surface-v0``) with ``seed`` and run its surface probe."""
     from forcelearn.envs.surface import SurfaceEnv
 
     env = SurfaceEnv(config, seed=seed)
@@ -58,16 +71,15 @@ def probe_map(config: Any, seed: int) -> tuple[OutputMapChoice, int, float]:
         physics: Any = getattr(env.session, "physics", None)
         if physics is None:
             raise ValueError("the probe needs the emulated cell (the config opened a real one)")
-        return env.output_map, int(physics.environment.passes), float(physics.clock.now_s)
+        return Probed(env.output_map, int(physics.environment.passes),
+                      float(physics.clock.now_s), env.probe)
     finally:
         env.close()
 
 
-def batch_spec(
-    config: Any, choice: OutputMapChoice, passes: int, bias_time_s: float = 0.0
-) -> BatchSpec:
+def batch_spec(config: Any, probed: Probed) -> BatchSpec:
     """The batch's spec from a cell config (``CellConfig``) and the map it runs with."""
-    task, emulator = config.task, config.emulator.effective()
+    task, emulator, choice = config.task, config.emulator.effective(), probed.output_map
     sensor = emulator.sensor
     full_scale = float(sensor.full_scales[NORMAL_AXIS])
     _, start_y, start_z = task.start_mm
@@ -96,8 +108,8 @@ def batch_spec(
         start_press_y_mm=start_y if choice.start_press_y_mm is None else choice.start_press_y_mm,
         wear_stiffness_n_per_mm=choice.wear_stiffness_n_per_mm,
         shift_range_mm=choice.shift_range_mm,
-        passes_at_start=passes,
-        bias_time_s=bias_time_s,
+        passes_at_start=probed.passes,
+        bias_time_s=probed.cell_time_s,
     )
 
 
@@ -126,18 +138,15 @@ class SurfaceVecEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         num_envs: int = 64,
         config: Any | str | Path | None = None,
         seed: int | None = None,
-        output_map: OutputMapChoice | None = None,
-        passes_at_start: int = 0,
-        bias_time_s: float = 0.0,
+        probed: Probed | None = None,
     ) -> None:
         if num_envs < 1:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
         self.config = _load(config)
         self.default_seed = self.config.seed if seed is None else int(seed)
-        if output_map is None:
-            output_map, passes_at_start, bias_time_s = probe_map(self.config, self.default_seed)
-        self.output_map = output_map
-        self.spec_ = batch_spec(self.config, output_map, passes_at_start, bias_time_s)
+        self.probed = probe_map(self.config, self.default_seed) if probed is None else probed
+        self.output_map = self.probed.output_map
+        self.spec_ = batch_spec(self.config, self.probed)
         self.num_envs = num_envs
         task, limit = self.config.task, self.config.safety.max_force_n
         widest = task.retract_y_mm - self.config.safety.workspace_min_mm[1]
@@ -200,17 +209,36 @@ class SurfaceVecEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
 
 
 class SurfaceSimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
-    """One cell of :class:`SurfaceVecEnv` as a ``gymnasium.Env`` (what ``gymnasium.make`` gives)."""
+    """One cell of :class:`SurfaceVecEnv` as a ``gymnasium.Env`` (what ``gymnasium.make`` gives).
+
+    Offers what ``Surface-v0`` offers a learner over BOXES (``grid``,
+    ``learner_input``, ``learner_action``, ``output_map``, ``probe``) and the same
+    ``reset`` info, so the baselines' controllers run on it unchanged.
+    """
 
     metadata = {"render_modes": []}  # noqa: RUF012
 
     def __init__(self, config: Any | str | Path | None = None, seed: int | None = None,
-                 output_map: OutputMapChoice | None = None, passes_at_start: int = 0,
-                 bias_time_s: float = 0.0) -> None:
-        self._vec = SurfaceVecEnv(1, config, seed, output_map, passes_at_start, bias_time_s)
+                 probed: Probed | None = None) -> None:
+        self._vec = SurfaceVecEnv(1, config, seed, probed)
+        self.config = self._vec.config
+        self.task_spec = self.config.task
+        self.task_steps_per_trial = self.task_spec.steps_per_trial
+        self.task_desired_force_n = self.task_spec.desired_force_n
+        self.output_map = self._vec.output_map
+        self.probe = self._vec.probed.probe
         self.action_space = self._vec.single_action_space
         self.observation_space = self._vec.single_observation_space
         self._done = True
+
+    def _reset_info(self) -> dict[str, Any]:
+        probe, spec = self.probe, self.task_spec
+        centres = np.asarray(self._vec.spec_.centres_mm)
+        return {
+            "output_map": dataclasses.asdict(self.output_map),
+            "probe_stiffness_n_per_mm": probe.stiffness_n_per_mm() if probe else None,
+            "probe_path_mm": (probe.target_path_mm(spec) - centres).tolist() if probe else None,
+        }
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -226,7 +254,7 @@ class SurfaceSimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             self._vec._needs_reset = np.zeros(1, dtype=bool)
             obs, info = self._vec._observation(batch), {"start_force_n": start.copy()}
         self._done = False
-        return obs[0], {"start_force_n": float(info["start_force_n"][0])}
+        return obs[0], {"start_force_n": float(info["start_force_n"][0]), **self._reset_info()}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """One step; see ``Surface-v0``."""
@@ -234,10 +262,29 @@ class SurfaceSimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             raise gymnasium.error.ResetNeeded("the episode has ended: call reset() first")
         obs, reward, terminated, truncated, info = self._vec.step(np.asarray(action).reshape(1))
         self._done = bool(terminated[0] or truncated[0])
+        failed = bool(info["failed"][0])
         return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), {
             "r": float(info["r"][0]), "force_n": float(info["force_n"][0]),
-            "y_cmd_mm": float(info["y_cmd_mm"][0]), "failed": bool(info["failed"][0]),
+            "force_error_n": float(info["force_n"][0]) - self.task_desired_force_n,
+            "y_cmd_mm": float(info["y_cmd_mm"][0]), "failed": failed,
+            "step": int(self._vec._batch.step_index[0]) if self._vec._batch else 0,
         }
 
+    # -- what a learner over BOXES needs (as Surface-v0) -------------------------------------
+    def learner_input(self, obs: np.ndarray) -> np.ndarray:
+        """The SRV learner's input: distance travelled, mm."""
+        return np.asarray(obs[:1], dtype=float)
 
-__all__ = ["SurfaceSimEnv", "SurfaceVecEnv", "batch_spec", "probe_map"]
+    def learner_action(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The learner's action a (action units) as this env's action in [-1, 1]."""
+        choice = self.output_map
+        offset = np.clip(a * choice.scale_mm, -choice.max_offset_mm, choice.max_offset_mm)
+        return offset / choice.max_offset_mm
+
+    @property
+    def grid(self) -> Any:
+        """The BOXES partition of the native task (distance travelled)."""
+        return self.task_spec.grid()
+
+
+__all__ = ["Probed", "SurfaceSimEnv", "SurfaceVecEnv", "batch_spec", "probe_map"]
