@@ -49,6 +49,7 @@ the wire-level cell; here such moves are one ramp.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any, cast
@@ -76,6 +77,13 @@ drifts over it; the foam is out of contact and recovers)."""
 
 FRACTIONS = np.linspace(0.0, 1.0, 41)
 """Fractions of a move's length at which :func:`motion_table` gives the time."""
+
+
+@functools.lru_cache(maxsize=8)
+def _motion_table(params: MotionParams, lengths_mm: tuple[float, ...]) -> np.ndarray:
+    table = motion_table(params, np.asarray(lengths_mm))
+    table.setflags(write=False)
+    return table
 
 
 def motion_table(params: MotionParams, lengths_mm: np.ndarray) -> np.ndarray:
@@ -156,7 +164,7 @@ class SurfaceBatch:
                              "or use forcelearn/Surface-v0")
         self.spec, self.n, self.rng = spec, num_envs, rng
         self._dl = spec.max_step_mm * 1.05 / 63
-        self._table = motion_table(spec.motion, np.arange(64) * self._dl)
+        self._table = _motion_table(spec.motion, tuple((np.arange(64) * self._dl).tolist()))
         k = np.arange(spec.samples)
         self._sample_t = k * spec.sample_period_s
         correlation = math.exp(-2.0 * math.pi * spec.noise_cutoff_hz * spec.sample_period_s)
