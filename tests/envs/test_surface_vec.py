@@ -10,7 +10,7 @@ from gymnasium.utils.env_checker import check_env
 import forcelearn.envs
 from forcelearn.envs.surface_vec import Probed, SurfaceSimEnv, SurfaceVecEnv
 from forcelearn.site import load_cell_config
-from forcelearn.tasks.surface_probe import configured_map
+from forcelearn.tasks.surface_map import configured_map
 
 
 def _probed() -> Probed:

@@ -210,22 +210,21 @@ class SurfaceBatch:
         ramp = np.where(dt_s > 0.0, p.relaxation_time_s / np.maximum(dt_s, 1e-12), 0.0)
         self.q = self.q * keep + change * ramp * (1.0 - keep)
 
-    def _move(self, mask: np.ndarray | None, y1: np.ndarray, z1: np.ndarray,
-              settle_s: float) -> None:
-        """Move the ``mask`` cells (None: all) to (y1, z1) and wait ``settle_s`` in position.
+    def _move(self, y1: np.ndarray, z1: np.ndarray, settle_s: float, pressing: bool) -> None:
+        """Move every cell to (y1, z1) and wait ``settle_s`` in position.
 
         A move longer than ``max_step_mm`` is made of equal moves (the cell's
         ``move_in_steps``), each waited for. The elastic depth ramps over the
-        part of the last move in contact (from where the tool meets the foam).
+        part of the last move in contact: all of it for a cell in the foam,
+        from where it meets the surface for one ``pressing`` in from above.
         """
         s = self.spec
         dy = y1 - self.y
         length = np.hypot(dy, z1 - self.z)
         moves = np.maximum(1.0, np.ceil(length / (0.99 * s.max_step_mm)))
         foam = self._foam_at(y1, z1)
-        if mask is None:  # a step: always in contact, pressing from the start of the move
-            contact: np.ndarray | float = 0.0
-        else:  # a press: the last move meets the foam where it crosses the surface
+        contact: np.ndarray | float = 0.0
+        if pressing:  # the last move meets the foam where it crosses the surface
             start_y = y1 - dy / moves
             outside = np.maximum(start_y - law.surface_y_mm(s.sponge, self.passes, z1), 0.0)
             contact = np.clip(outside / np.maximum(start_y - y1, 1e-12), 0.0, 1.0)
@@ -233,21 +232,14 @@ class SurfaceBatch:
         touch_s, in_position_s = self._times(length / moves, contact)
         each_s = LINK_COMMAND_S + in_position_s + LINK_POLL_S  # a move, seen in position
         settled_s = settle_s + SETTLE_POLL_S if settle_s > 0 else 0.0
-        q0 = self.q
         self._relax(0.0, (moves - 1.0) * each_s + LINK_COMMAND_S + touch_s)  # not pressing yet
         self._relax(foam - self.foam, np.maximum(in_position_s - touch_s, s.motion.tick_s))
         self._relax(0.0, LINK_POLL_S + settled_s)
-        q = np.where((foam == 0.0) & (self.q > 0.0), 0.0, self.q)  # off the foam it recovers
+        self.q = np.where((foam == 0.0) & (self.q > 0.0), 0.0, self.q)  # off the foam it recovers
+        self.foam, self.y, self.z = foam, y1, z1
         elapsed = moves * each_s + settled_s
-        if mask is None:
-            self.q, self.foam, self.y, self.z = q, foam, y1, z1
-            self.cell_time_s = self.cell_time_s + elapsed
-        else:
-            self.q = np.where(mask, q, q0)
-            self.foam = np.where(mask, foam, self.foam)
-            self.y, self.z = np.where(mask, y1, self.y), np.where(mask, z1, self.z)
-            self.cell_time_s = self.cell_time_s + np.where(mask, elapsed, 0.0)
-        self._drift(mask, elapsed)
+        self.cell_time_s = self.cell_time_s + elapsed
+        self._drift(None, elapsed)
 
     def _times(
         self, length: np.ndarray, fraction: np.ndarray | float
@@ -269,9 +261,10 @@ class SurfaceBatch:
         step = self.spec.bias_drift_n_per_sqrt_s * np.sqrt(dt_s) * self.rng.standard_normal(self.n)
         self.bias = self.bias + (step if mask is None else np.where(mask, step, 0.0))
 
-    def _burst(self, mask: np.ndarray | None, fresh_filter: bool) -> np.ndarray:
-        """Read a burst on the ``mask`` cells (None: all) through the filter; the force (N).
+    def _burst(self, fresh: np.ndarray | None) -> np.ndarray:
+        """Read a burst on every cell through the filter; the filtered forces (N).
 
+        ``fresh``: the cells whose filter starts over (a trial's start; None: none).
         The foam relaxes through the burst (q decays); the law is evaluated once,
         at the burst's filter-weighted mean decay, which is exact for a force
         linear in q (the foam in contact), and the samples are that force plus
@@ -286,24 +279,17 @@ class SurfaceBatch:
         noise = draws @ self._mix + self.noise[:, None] * self._carry
         reading = np.round(((true + self.bias)[:, None] + noise) / s.count_n) * s.count_n
         mean = reading @ self._weights
-        # the step filter: a move forgets (P += change std^2), a reset starts unknown
+        # the step filter: a move forgets (P += change std^2), a trial's start knows nothing
         r_m = s.filter_variance_n2 * self._burst_factor
-        if fresh_filter:
-            prior = np.full(self.n, 1.0e8)
-            x = prior / (prior + r_m) * mean
-        else:
-            prior = self.p_var + s.move_change_std_n ** 2
-            x = self.x + prior / (prior + r_m) * (mean - self.x)
-        p_var = r_m * prior / (prior + r_m)
-        elapsed = s.samples * s.sample_period_s
-        if mask is None:
-            self.x, self.p_var, self.noise = x, p_var, noise[:, -1]
-            self.cell_time_s = self.cell_time_s + elapsed
-        else:
-            self.x = np.where(mask, x, self.x)
-            self.p_var = np.where(mask, p_var, self.p_var)
-            self.noise = np.where(mask, noise[:, -1], self.noise)
-            self.cell_time_s = self.cell_time_s + np.where(mask, elapsed, 0.0)
+        prior = self.p_var + s.move_change_std_n ** 2
+        x = self.x
+        if fresh is not None:
+            prior = np.where(fresh, 1.0e8, prior)
+            x = np.where(fresh, 0.0, x)
+        self.x = x + prior / (prior + r_m) * (mean - x)
+        self.p_var = r_m * prior / (prior + r_m)
+        self.noise = noise[:, -1]
+        self.cell_time_s = self.cell_time_s + s.samples * s.sample_period_s
         return self.x
 
     # -- the task ----------------------------------------------------------------------------
@@ -312,24 +298,22 @@ class SurfaceBatch:
         index = np.minimum(self.step_index, len(self._centres) - 1)
         return self._centres[index] + self.shift
 
-    def reset(self, mask: np.ndarray) -> np.ndarray:
-        """Retract (a pass), press in at the start and read the start force of ``mask`` cells."""
+    def reset(self) -> np.ndarray:
+        """Retract every cell (a pass), press in at the start; the start forces (N)."""
+        force: np.ndarray = self.advance(np.zeros(self.n), np.ones(self.n, dtype=bool))["force_n"]
+        return force
+
+    def _retract(self, mask: np.ndarray) -> None:
+        """The ``mask`` cells pull out (a pass if they touched) and travel above the start."""
         s = self.spec
-        out = mask & (self.foam > 0.0)
-        self.passes = self.passes + out
+        self.passes = self.passes + (mask & (self.foam > 0.0))
         self.q = np.where(mask, 0.0, self.q)
         self.foam = np.where(mask, 0.0, self.foam)
         self.y = np.where(mask, s.retract_y_mm, self.y)
         self.z = np.where(mask, s.start_z_mm, self.z)
         self._drift(mask, RESET_TRAVEL_S)
-        self.cell_time_s = np.where(mask, RESET_TRAVEL_S, self.cell_time_s)
-        start_y = np.full(self.n, s.start_press_y_mm) + self.shift
-        self._move(mask, start_y, np.full(self.n, s.start_z_mm), s.settle_s)
-        force = self._burst(mask, fresh_filter=True)
-        self._track_wear(mask, force)
-        self.step_index = np.where(mask, 0, self.step_index)
-        self.force = np.where(mask, force, self.force)
-        return force
+        self.cell_time_s = np.where(mask, 0.0, self.cell_time_s) + np.where(
+            mask, RESET_TRAVEL_S, 0.0)
 
     def _track_wear(self, mask: np.ndarray, start_force: np.ndarray) -> None:
         """``SurfaceYOutput.track_wear`` on every ``mask`` cell."""
@@ -344,20 +328,34 @@ class SurfaceBatch:
             shift = np.clip(shift, *self.spec.shift_range_mm)
         self.shift = np.where(later, shift, self.shift)
 
-    def step(self, offset_mm: np.ndarray) -> dict[str, Any]:
-        """One step of every cell to its centre + ``offset_mm``; r, failure, force."""
+    def advance(self, offset_mm: np.ndarray, resetting: np.ndarray) -> dict[str, Any]:
+        """One pass over every cell: the ``resetting`` ones start a trial, the others step.
+
+        A stepping cell moves 5 mm down to its centre + ``offset_mm`` and is
+        evaluated (r, failure, the path's end); a resetting one retracts and
+        presses in at the start (its ``force_n`` is the start force, r 0).
+        """
         s = self.spec
-        y_cmd = self.centre_y_mm() + offset_mm
-        self.step_index = self.step_index + 1
-        z1 = s.start_z_mm + self.step_index * s.z_step_mm
-        self._move(None, y_cmd, z1, s.settle_s)
-        force = self._burst(None, fresh_filter=False)
+        pressing = bool(resetting.any())
+        y1 = self.centre_y_mm() + offset_mm
+        index = self.step_index + 1
+        if pressing:
+            self._retract(resetting)
+            y1 = np.where(resetting, s.start_press_y_mm + self.shift, y1)
+            index = np.where(resetting, 0, index)
+        self.step_index = index
+        z1 = s.start_z_mm + index * s.z_step_mm
+        self._move(y1, z1, s.settle_s, pressing)
+        force = self._burst(resetting if pressing else None)
+        self.force = force
         limit = np.abs(force) > s.max_force_n
         # the task's own ratio, elementwise (abs and / are numpy's on an array)
         error = cast(float, force - s.evaluation.desired_force_n)
         r = np.where(limit, SAFETY_R, s.evaluation.ratio(error))
         failed = (r > FAILURE_R) | limit
-        self.force = force
-        done = failed | (self.step_index >= s.steps)
-        return {"r": r, "failed": failed, "done": done, "force_n": force, "y_cmd_mm": y_cmd,
+        if pressing:
+            self._track_wear(resetting, force)
+            r, failed = np.where(resetting, 0.0, r), failed & ~resetting
+        done = failed | (index >= s.steps)
+        return {"r": r, "failed": failed, "done": done, "force_n": force, "y_cmd_mm": y1,
                 "z_mm": z1, "limit_hit": limit}

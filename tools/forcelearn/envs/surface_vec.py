@@ -176,8 +176,7 @@ class SurfaceVecEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         rng = np.random.default_rng(self.default_seed if seed is None else seed)
         if self._batch is None or seed is not None:
             self._batch = SurfaceBatch(self.spec_, self.num_envs, rng)
-        everyone = np.ones(self.num_envs, dtype=bool)
-        start = self._batch.reset(everyone)
+        start = self._batch.reset()
         self._offset = np.zeros(self.num_envs)
         self._needs_reset = np.zeros(self.num_envs, dtype=bool)
         return self._observation(self._batch), {"start_force_n": start.copy()}
@@ -195,15 +194,14 @@ class SurfaceVecEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         resetting = self._needs_reset
         offset = np.clip(a, -1.0, 1.0) * self.spec_.max_offset_mm
         self._offset = np.where(resetting, 0.0, offset)
-        out = batch.step(self._offset)
+        out = batch.advance(self._offset, resetting)  # ended cells start again instead
         info: dict[str, Any] = {"r": out["r"], "force_n": out["force_n"],
                                 "y_cmd_mm": out["y_cmd_mm"], "failed": out["failed"]}
-        if resetting.any():  # the stepped values of these cells are thrown away
-            start = batch.reset(resetting)
-            info["start_force_n"] = np.where(resetting, start, np.nan)
-        reward = np.where(resetting, 0.0, -out["r"])
-        terminated = out["failed"] & ~resetting
-        truncated = out["done"] & ~out["failed"] & ~resetting
+        if resetting.any():
+            info["start_force_n"] = np.where(resetting, out["force_n"], np.nan)
+        reward = -out["r"]
+        terminated = out["failed"]
+        truncated = out["done"] & ~terminated
         self._needs_reset = terminated | truncated
         return self._observation(batch), reward, terminated, truncated, info
 
@@ -249,7 +247,7 @@ class SurfaceSimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         if batch is None or seed is not None:
             obs, info = self._vec.reset(seed=seed)
         else:
-            start = batch.reset(np.ones(1, dtype=bool))
+            start = batch.reset()
             self._vec._offset = np.zeros(1)
             self._vec._needs_reset = np.zeros(1, dtype=bool)
             obs, info = self._vec._observation(batch), {"start_force_n": start.copy()}

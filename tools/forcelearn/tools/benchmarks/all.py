@@ -117,7 +117,8 @@ def _vec(fl: floor_module.Floors, quick: bool) -> list[Figure]:
 
 
 def _cells(fl: floor_module.Floors, trials: int, examples: Path) -> list[Figure]:
-    from forcelearn.tools.experiments.surface_run import execute, prepare_run
+    from forcelearn.tools.experiments.surface_run import execute
+    from forcelearn.tools.experiments.surface_state import prepare_run
 
     factors: dict[str, float] = {}
     for label, name in CELL_CONFIGS.items():

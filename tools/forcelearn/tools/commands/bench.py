@@ -24,6 +24,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "egm": (_PACKAGE + "egm", "EGM 4 ms loop period, jitter and reply latency, UDP"),
     "netft": (_PACKAGE + "netft", "Net F/T records/s and p99 latency, loopback UDP"),
     "surface-env": (_PACKAGE + "surface_env", "Gymnasium forcelearn/Surface-v0 steps/s"),
+    "surface-vec": (_PACKAGE + "surface_vec", "forcelearn/SurfaceVec-v0 env steps/s, N cells"),
     "cell": (_PACKAGE + "cell", "§5 run on the emulated cell: cell time / wall time"),
     "live": (_PACKAGE + "live", "§5 run with --live and a browser vs without"),
     "twin": (_PACKAGE + "twin", "forcelearn twin's fit wall time on a 300-trial run's records"),
