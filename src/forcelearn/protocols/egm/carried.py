@@ -43,7 +43,7 @@ def _pose(pose: Pose | None) -> Pose | None:
 
 
 def _floats(values: tuple[float, ...]) -> bool:
-    for v in values:  # a loop, not all(<genexpr>): this runs three times per 4 ms cycle
+    for v in values:  # noqa: SIM110 (a loop, not all(<genexpr>): three times per 4 ms cycle)
         if type(v) is not float:
             return False
     return True
