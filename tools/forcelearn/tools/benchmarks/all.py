@@ -2,9 +2,12 @@
 
 A shared or slow machine makes every figure slower; the floors
 (:mod:`~forcelearn.tools.benchmarks.floors`: pty echo, python-can virtual bus
-round trip, numpy foam-law step) are measured first, in the same process, and
-each figure is printed as a ratio to one of them, so a reader can compare a
-figure across machines (docs/performance.md keeps the table):
+round trip, numpy foam-law step) are measured in the same process, at the
+start and again just before each figure (a shared machine's load changes
+within minutes), and each figure is printed as a ratio to the floor measured
+just before it, so a reader can compare a figure across machines
+(docs/performance.md keeps the table). The emulated cells are compared with
+the link + JR3 cell of the same run:
 
 =========================  ======================  ===============================
 figure                     ratio                   target (issue 41)
@@ -57,6 +60,8 @@ class Figure:
     ratio: float
     ratio_means: str
     target: str
+    floor: str
+    """The floor this figure's ratio used, as measured just before it."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -80,43 +85,57 @@ def _timed(label: str, fn: Callable[[], Figure | list[Figure]]) -> list[Figure]:
     return figures
 
 
-def _link(fl: floor_module.Floors, quick: bool) -> Figure:
+def _echo() -> tuple[float, str]:
+    echo = floor_module.pty_echo_s()
+    return echo, f"pty echo {echo * 1e6:.1f} us"
+
+
+def _foam() -> tuple[float, str]:
+    foam = floor_module.foam_step_s()
+    return foam, f"foam step {foam * 1e6:.1f} us"
+
+
+def _link(quick: bool) -> Figure:
     from forcelearn.tools.benchmarks.link import measure
 
+    echo, floor = _echo()
     p50 = float(np.percentile(measure(500 if quick else 2000, 100), 50))
-    return Figure("link move round trip p50", p50 * 1e6, "us", p50 / (2 * fl.pty_echo_s),
-                  "/ (2 x pty echo)", "<= 1.3")
+    return Figure("link move round trip p50", p50 * 1e6, "us", p50 / (2 * echo),
+                  "/ (2 x pty echo)", "<= 1.3", floor)
 
 
-def _jr3(fl: floor_module.Floors, quick: bool) -> Figure:
+def _jr3(quick: bool) -> Figure:
     import statistics
 
     from forcelearn.tools.benchmarks.jr3 import measure
 
+    trips = floor_module.can_round_trips_per_s()
     rate = statistics.median(measure(500 if quick else 2000, seed) for seed in range(3))
-    return Figure("JR3 single read (sync)", rate, "reads/s", rate / fl.can_round_trips_per_s,
-                  "/ CAN round trips/s", ">= 0.9")
+    return Figure("JR3 single read (sync)", rate, "reads/s", rate / trips,
+                  "/ CAN round trips/s", ">= 0.9", f"CAN {trips:,.0f} round trips/s")
 
 
-def _env(fl: floor_module.Floors, seconds: float) -> Figure:
+def _env(seconds: float) -> Figure:
     from forcelearn.tools.benchmarks.surface_env import measure
 
+    echo, floor = _echo()
     rate = measure(seconds).steps_per_s
-    return Figure("Surface-v0 steps", rate, "steps/s", 1.0 / (rate * fl.pty_echo_s),
-                  "step / pty echo", "500 steps/s (issue's host)")
+    return Figure("Surface-v0 steps", rate, "steps/s", 1.0 / (rate * echo),
+                  "step / pty echo", "500 steps/s (issue's host)", floor)
 
 
-def _vec(fl: floor_module.Floors, quick: bool) -> list[Figure]:
+def _vec(quick: bool) -> list[Figure]:
     if importlib.util.find_spec("forcelearn.envs.surface_vec") is None:
         return []
     from forcelearn.tools.benchmarks.surface_vec import measure
 
+    foam, floor = _foam()
     rate = measure(64, 1.0 if quick else 3.0)
-    return [Figure("SurfaceVec-v0 steps, N = 64", rate, "env steps/s", rate * fl.foam_step_s,
-                   "x foam step s", ">= 100,000 steps/s")]
+    return [Figure("SurfaceVec-v0 steps, N = 64", rate, "env steps/s", rate * foam,
+                   "x foam step s", ">= 100,000 steps/s", floor)]
 
 
-def _cells(fl: floor_module.Floors, trials: int, examples: Path) -> list[Figure]:
+def _cells(trials: int, examples: Path) -> list[Figure]:
     from forcelearn.tools.experiments.surface_run import execute
     from forcelearn.tools.experiments.surface_state import prepare_run
 
@@ -130,43 +149,43 @@ def _cells(fl: floor_module.Floors, trials: int, examples: Path) -> list[Figure]
         print(f"    {label}: real-time factor {factors[label]:.1f}, "
               f"{summary['steps_per_s']:.0f} steps/s", flush=True)
     base = factors["link + JR3"]
-    # one 4 ms EGM cycle of simulated time per pty echo of wall time: the RTF's own floor
-    out = [Figure(f"cell {label}: real-time factor", rtf, "x real time",
-                  rtf / base if label != "link + JR3" else rtf * fl.pty_echo_s / 0.004,
-                  "/ link + JR3" if label != "link + JR3" else "x pty echo / 4 ms",
-                  ">= 0.67 (within 1.5x)" if label != "link + JR3" else "-")
-           for label, rtf in factors.items()]
-    return out
+    return [Figure(f"cell {label}: real-time factor", rtf, "x real time", rtf / base,
+                   "/ link + JR3", ">= 0.67 (within 1.5x)" if rtf != base else "-",
+                   "the link + JR3 cell, same run")
+            for label, rtf in factors.items()]
 
 
-def _learner(fl: floor_module.Floors, quick: bool) -> Figure:
+def _learner(quick: bool) -> Figure:
     from forcelearn.tools.benchmarks.learner import measure_batch
 
+    foam, floor = _foam()
     rate = max(measure_batch(20_000 if quick else 100_000, 64, seed) for seed in range(2))
-    return Figure("batched SRV learner, N = 64", rate, "steps/s", rate * fl.foam_step_s,
-                  "x foam step s", ">= 100,000 steps/s")
+    return Figure("batched SRV learner, N = 64", rate, "steps/s", rate * foam,
+                  "x foam step s", ">= 100,000 steps/s", floor)
 
 
-def _contour(fl: floor_module.Floors, quick: bool) -> Figure:
+def _contour(quick: bool) -> Figure:
     from forcelearn.tools.benchmarks.contour import measure
 
+    foam, floor = _foam()
     rate, _ = measure(30 if quick else 100, 64)
-    return Figure("contour simulation, N = 64", rate, "steps/s", rate * fl.foam_step_s,
-                  "x foam step s", ">= 100,000 steps/s")
+    return Figure("contour simulation, N = 64", rate, "steps/s", rate * foam,
+                  "x foam step s", ">= 100,000 steps/s", floor)
 
 
 def table(fl: floor_module.Floors, figures: list[Figure]) -> str:
-    """The floors and figures as Markdown."""
+    """The floors (at the start) and the figures with the floor each used, as Markdown."""
     lines = [
         "| floor | value |", "|---|---|",
         f"| pty echo round trip p50 | {fl.pty_echo_s * 1e6:.1f} us |",
         f"| python-can virtual bus round trips | {fl.can_round_trips_per_s:,.0f} /s |",
         f"| numpy foam-law step, 64 cells | {fl.foam_step_s * 1e6:.1f} us |",
         "",
-        "| figure | value | ratio | ratio is | target |", "|---|---|---|---|---|",
+        "| figure | value | its floor (just before it) | ratio | ratio is | target |",
+        "|---|---|---|---|---|---|",
     ]
-    lines += [f"| {f.name} | {f.value:,.1f} {f.unit} | {f.ratio:.3g} | {f.ratio_means} | "
-              f"{f.target} |" for f in figures]
+    lines += [f"| {f.name} | {f.value:,.1f} {f.unit} | {f.floor} | {f.ratio:.3g} | "
+              f"{f.ratio_means} | {f.target} |" for f in figures]
     return "\n".join(lines)
 
 
@@ -180,13 +199,13 @@ def run(args: argparse.Namespace) -> int:
     seconds = 3.0 if quick else args.seconds
     trials = 2 if quick else args.trials
     jobs: list[tuple[str, Callable[[], Figure | list[Figure]]]] = [
-        ("link", lambda: _link(fl, quick)),
-        ("jr3", lambda: _jr3(fl, quick)),
-        ("env", lambda: _env(fl, seconds)),
-        ("vec", lambda: _vec(fl, quick)),
-        ("cells", lambda: _cells(fl, trials, args.examples)),
-        ("learner", lambda: _learner(fl, quick)),
-        ("contour", lambda: _contour(fl, quick)),
+        ("link", lambda: _link(quick)),
+        ("jr3", lambda: _jr3(quick)),
+        ("env", lambda: _env(seconds)),
+        ("vec", lambda: _vec(quick)),
+        ("cells", lambda: _cells(trials, args.examples)),
+        ("learner", lambda: _learner(quick)),
+        ("contour", lambda: _contour(quick)),
     ]
     figures: list[Figure] = []
     for name, job in jobs:
