@@ -145,8 +145,8 @@ def _cells(trials: int, examples: Path) -> list[Figure]:
         with tempfile.TemporaryDirectory(prefix="forcelearn-bench-all-") as tmp:
             surface_run, _ = prepare_run(config, Path(tmp), trials, 0, False)
             summary = execute(surface_run, None)
-        factors[label] = float(summary["realtime_factor"])
-        print(f"    {label}: real-time factor {factors[label]:.1f}, "
+        factors[label] = float(summary["cell_time_s"]) / float(summary["wall_s"])
+        print(f"    {label}: real-time factor {factors[label]:.2f}, "
               f"{summary['steps_per_s']:.0f} steps/s", flush=True)
     base = factors["link + JR3"]
     return [Figure(f"cell {label}: real-time factor", rtf, "x real time", rtf / base,
@@ -184,7 +184,7 @@ def table(fl: floor_module.Floors, figures: list[Figure]) -> str:
         "| figure | value | its floor (just before it) | ratio | ratio is | target |",
         "|---|---|---|---|---|---|",
     ]
-    lines += [f"| {f.name} | {f.value:,.1f} {f.unit} | {f.floor} | {f.ratio:.3g} | "
+    lines += [f"| {f.name} | {f.value:,.3g} {f.unit} | {f.floor} | {f.ratio:.3g} | "
               f"{f.ratio_means} | {f.target} |" for f in figures]
     return "\n".join(lines)
 
