@@ -20,13 +20,17 @@ agrees when every trial's difference is within twice the wire-level cell's
 pooled spread (the root mean square over the trials of its standard
 deviations): :func:`agreement`.
 
-    python -m forcelearn.tools.results.surface_vec --seeds 10 --trials 6 \
+    python -m forcelearn.tools.results.surface_vec --seeds 10 --trials 4 \
         --out docs/results/surface-vec.md
+
+(or halves in parallel: ``--first-seed 0 --seeds 5 --json a.json`` and
+``--first-seed 5 --seeds 5 --json b.json``, then ``--combine a.json b.json --out ...``).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import time
 from collections.abc import Callable
@@ -156,30 +160,34 @@ def table(results: list[dict[str, dict[str, tuple[list[float], list[bool], float
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the comparison and write the results page."""
+    """Run the comparison (or combine earlier runs' JSON) and write the results page."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--trials", type=int, default=6)
     parser.add_argument("--policies", nargs="*", default=list(POLICIES), choices=POLICIES)
+    parser.add_argument("--json", type=Path, help="also write the per-seed results here")
+    parser.add_argument("--combine", type=Path, nargs="*", default=[],
+                        help="make the page from these --json files instead of running")
     parser.add_argument("--out", type=Path, help="write the Markdown table here")
     args = parser.parse_args(argv)
     policies = tuple(args.policies)
-    results = []
-    walls = {"wire": 0.0, "numpy": 0.0}
-    for seed in range(args.seeds):
-        result = run_both(seed, policies, args.trials)
-        results.append(result)
-        for policy in policies:
-            for kind in walls:
-                walls[kind] += result[policy][kind][2]
-        print(f"seed {seed} done ({walls['wire']:.0f} s wire, {walls['numpy']:.1f} s numpy)",
-              flush=True)
+    results: list[dict[str, Any]] = []
+    for path in args.combine:
+        results += json.loads(path.read_text())
+    for seed in range(args.first_seed, args.first_seed + (0 if args.combine else args.seeds)):
+        results.append(run_both(seed, policies, args.trials))
+        if args.json:
+            args.json.write_text(json.dumps(results))
+        print(f"seed {seed} done", flush=True)
+    walls = {kind: sum(r[p][kind][2] for r in results for p in policies)
+             for kind in ("wire", "numpy")}
     text, worst = table(results, policies)
     summary = "\n".join(
         f"- {p}: largest |difference| / the wire cell's pooled sd: {w:.2f} "
         f"({'agrees' if w <= 2.0 else 'does NOT agree'}: within 2)" for p, w in worst.items())
-    page = f"{text}\n\n{summary}\n\nwall time: wire {walls['wire']:.0f} s, numpy " \
-           f"{walls['numpy']:.1f} s\n"
+    page = (f"{len(results)} seeds.\n\n{text}\n\n{summary}\n\nwall time of the runs: wire "
+            f"{walls['wire']:.0f} s, numpy {walls['numpy']:.1f} s\n")
     print(page)
     if args.out:
         args.out.write_text(page)
