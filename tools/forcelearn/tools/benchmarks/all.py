@@ -10,11 +10,11 @@ just before it, so a reader can compare a figure across machines
 the link + JR3 cell of the same run:
 
 =========================  ======================  ===============================
-figure                     ratio                   target (issue 41)
+figure                     ratio                   target (docs/performance.md)
 =========================  ======================  ===============================
 link move round trip p50   / (2 x pty echo)        <= 1.3
 JR3 single read            reads/s / CAN trips/s   >= 0.9
-Surface-v0 step            step time / pty echo    500 steps/s on the issue's host
+Surface-v0 step            step time / pty echo    500 steps/s where the echo is 255 us
 SurfaceVec-v0, N = 64      env steps per foam      100,000 steps/s on one core
                            step (x foam step s)
 cells: real-time factor    EGM, Net F/T, EGM +     >= 1 / 1.5 (within 1.5x)
@@ -121,7 +121,7 @@ def _env(seconds: float) -> Figure:
     echo, floor = _echo()
     rate = measure(seconds).steps_per_s
     return Figure("Surface-v0 steps", rate, "steps/s", 1.0 / (rate * echo),
-                  "step / pty echo", "500 steps/s (issue's host)", floor)
+                  "step / pty echo", "500 steps/s (a host of 255 us echo)", floor)
 
 
 def _vec(quick: bool) -> list[Figure]:

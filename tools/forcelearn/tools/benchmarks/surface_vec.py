@@ -5,7 +5,7 @@ not used by its small arrays), stepped with random actions in [-1, 1] for
 ``--seconds`` of wall time; every sub-env resets itself at its episode's end
 (Gymnasium's NEXT_STEP autoreset). The map is the configured one (no
 wire-level probe: the physics per step is the same). Target: 100,000 env
-steps/s at N = 64 (issue 41); ``forcelearn bench all`` shows it beside the
+steps/s at N = 64 (docs/performance.md); ``forcelearn bench all`` shows it beside the
 numpy foam-law floor.
 """
 
