@@ -173,6 +173,10 @@ def _contour(quick: bool) -> Figure:
                   "x foam step s", ">= 100,000 steps/s", floor)
 
 
+def _number(value: float) -> str:
+    return f"{value:,.0f}" if abs(value) >= 100 else f"{value:.3g}"
+
+
 def table(fl: floor_module.Floors, figures: list[Figure]) -> str:
     """The floors (at the start) and the figures with the floor each used, as Markdown."""
     lines = [
@@ -184,7 +188,7 @@ def table(fl: floor_module.Floors, figures: list[Figure]) -> str:
         "| figure | value | its floor (just before it) | ratio | ratio is | target |",
         "|---|---|---|---|---|---|",
     ]
-    lines += [f"| {f.name} | {f.value:,.3g} {f.unit} | {f.floor} | {f.ratio:.3g} | "
+    lines += [f"| {f.name} | {_number(f.value)} {f.unit} | {f.floor} | {f.ratio:.3g} | "
               f"{f.ratio_means} | {f.target} |" for f in figures]
     return "\n".join(lines)
 
