@@ -224,13 +224,15 @@ class Calibrator:
     def _settle_reading(self, std: np.ndarray) -> None:
         """Read blocks until two consecutive means agree within SETTLE_SIGMAS standard errors."""
         tolerance = SETTLE_SIGMAS * np.maximum(std, 1e-6) * math.sqrt(2.0 / READ_CHUNK)
-        deadline = time.monotonic() + self.plan.settle_timeout_s
+        # settle_timeout_s of the sensor's own time, as blocks of samples (the host's clock
+        # would make an emulated calibration depend on the host's load)
+        blocks = max(2, math.ceil(self.plan.settle_timeout_s / self.sample_period_s / READ_CHUNK))
         previous = np.mean([s.wrench for s in self.sensor.read_many(READ_CHUNK)], axis=0)
-        while True:
+        for block in range(1, blocks + 1):
             current = np.mean([s.wrench for s in self.sensor.read_many(READ_CHUNK)], axis=0)
             if np.all(np.abs(current - previous) <= tolerance):
                 return
-            if time.monotonic() > deadline:
+            if block == blocks:
                 worst = AXES[int(np.argmax(np.abs(current - previous) / tolerance))]
                 raise CalibrationError(
                     f"the reading did not settle within {self.plan.settle_timeout_s} s "
