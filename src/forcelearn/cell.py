@@ -41,6 +41,7 @@ from forcelearn.devices import (
     ForceSensor,
     InPositionWait,
     Pose,
+    RebootableSensor,
     Robot,
     WrenchSample,
 )
@@ -347,6 +348,11 @@ class Cell:
                 "retract pose, task.retract_y_mm?)", force, max_reading_n,
             )
             return False
+        self._take_zero()
+        return True
+
+    def _take_zero(self) -> None:
+        """Zero the sensor here and make the calibration follow (the tool's weight at this pose)."""
         self._guarded(self.sensor.zero_offsets)
         self.tares += 1
         if self.calibration is not None:  # the zero now holds the tool's weight at this pose
@@ -354,7 +360,30 @@ class Cell:
             self.compensation = self.calibration.compensation
         if self.on_tare is not None:
             self.on_tare(self.pose)
-        return True
+
+    def zero_in_free_space(self) -> float:
+        """Zero the sensor after a fault, the tool retracted to free space; return the reading (N).
+
+        Unlike :meth:`tare` no bound on the reading: after a reboot the sensor
+        reads its raw bias, which is what the zero is for. The caller must have
+        moved the tool clear of every surface
+        (:func:`forcelearn.tasks.recovery.retract_and_retare`). A sensor that
+        rebooted (:class:`~forcelearn.devices.RebootableSensor`) is started
+        again first; one burst is read (the sensor must answer; the force limit
+        and saturation checks apply), the zero taken and recorded, the
+        calibration's bias re-derived and the filter reset.
+        """
+        reinitialise = getattr(self.sensor, "reinitialise", None)
+        if isinstance(self.sensor, RebootableSensor) and reinitialise is not None:
+            self._guarded(reinitialise)
+        self.reset_filter()
+        force = self.measure_force_n()
+        if self.recorder is not None:
+            here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
+            self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, True))
+        self._take_zero()
+        self.reset_filter()
+        return force
 
     def stop(self) -> None:
         """Stop the robot now (best effort: a failing link is logged, not raised)."""
