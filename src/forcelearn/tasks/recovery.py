@@ -41,7 +41,10 @@ RECOVERABLE: tuple[type[ForcelearnError], ...] = (LinkError, SensorError)
 """Device errors after which the cell retracts, re-zeroes and the run goes on."""
 
 ATTEMPTS = 3
-"""Tries per stage (retract, re-zero) before the recovery gives up."""
+"""Tries of the retract before the recovery gives up."""
+
+ZERO_ATTEMPTS = 5
+"""Tries of the sensor's restart and zero (each bounded by its ACK or stale timeout)."""
 
 
 class RecoveryFailed(SafetyStop):
@@ -82,7 +85,8 @@ def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
     last: ForcelearnError | None = None
     for attempt in range(1, attempts + 1):
         try:
-            _reconnect_if_down(cell)
+            if _reconnect_if_down(cell):
+                cell.stop()  # the stop before went nowhere: the controller may still move
             here = cell.read_pose()
             target = Pose(here.x_mm, max(here.y_mm, retract_y_mm), here.z_mm, here.quaternion)
             cell.move_in_steps(target, max_step_mm)
@@ -99,7 +103,7 @@ def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
     ) from last
 
 
-def rezero(cell: Cell, attempts: int = ATTEMPTS) -> tuple[float, int]:
+def rezero(cell: Cell, attempts: int = ZERO_ATTEMPTS) -> tuple[float, int]:
     """Start the sensor again and zero it here (free space); (reading before the zero, tries).
 
     Raises:
@@ -128,19 +132,21 @@ def retract_and_retare(cell: Cell, retract_y_mm: float, max_step_mm: float,
         RecoveryFailed: a stage failed ``attempts`` times; ``in_contact`` says which.
     """
     pose, retract_tries = retract(cell, retract_y_mm, max_step_mm, attempts)
-    reading, zero_tries = rezero(cell, attempts)
+    reading, zero_tries = rezero(cell, max(attempts, ZERO_ATTEMPTS))
     log.warning("recovered: retracted to y = %.1f mm, re-zeroed (free space read %.2f N)",
                 pose.y_mm, reading)
     return Recovered(pose, reading, retract_tries, zero_tries)
 
 
-def _reconnect_if_down(cell: Cell) -> None:
-    """Reopen a robot link that reports itself down (a driver with ``reconnect()``)."""
+def _reconnect_if_down(cell: Cell) -> bool:
+    """Reopen a robot link that reports itself down (a driver with ``reconnect()``); True if so."""
     reconnect = getattr(cell.robot, "reconnect", None)
     if reconnect is None:
-        return
+        return False
     try:
         cell.robot.read_pose()
+        return False
     except LinkError:
         reconnect()
+        return True
 
