@@ -15,6 +15,7 @@ from typing import Any
 import pytest
 
 from forcelearn.tools.experiments import surface_run as engine
+from forcelearn.tools.experiments import surface_state as run_state
 from forcelearn.tools.experiments.fault_recovery import IN_CONTACT_FILE, read_events
 from forcelearn.tools.experiments.records import RECORDS_FILE, scan_records
 from forcelearn.tools.fuzz.fault_campaign import cell_config, injecting
@@ -50,7 +51,7 @@ def _watch(on_burst: Callable[[Truth, Any], None]) -> tuple[Injector, list[Truth
 def _run(config: Path | None, out: Path, injector: Injector, truths: list[Truth],
          resume: bool = False) -> dict[str, Any]:
     with injecting(injector, 1.0, truths):
-        run, checkpoint = engine.prepare_run(config, out, None, None if resume else 3, resume)
+        run, checkpoint = run_state.prepare_run(config, out, None, None if resume else 3, resume)
         return engine.execute(run, checkpoint)
 
 
@@ -66,7 +67,7 @@ def test_a_sensor_reboot_mid_press_is_recovered_and_the_trial_runs_again(tmp_pat
     def reboot_in_trial_1(truth: Truth, cell: Any) -> None:
         if not state["done"] and cell.stage[0] == "step" and truth.contact_n() > 0 \
                 and len(read_events(tmp_path / "run")) == 0 and (tmp_path / "run" /
-                                                                 engine.CHECKPOINT).exists():
+                                                                 run_state.CHECKPOINT).exists():
             state["done"] = True
             truth.session.sensor_emulator.inject_bootup()
 
@@ -94,7 +95,7 @@ def _interrupt_in_press(out: Path, times: int) -> Callable[[Truth, Any], None]:
 
     def on_burst(truth: Truth, cell: Any) -> None:
         if state["fired"] == 0 and cell.stage[0] == "step" and truth.contact_n() > 0 \
-                and (out / engine.CHECKPOINT).exists():
+                and (out / run_state.CHECKPOINT).exists():
             state["fired"] = 1
             if times == 2:
                 move = cell.move_to

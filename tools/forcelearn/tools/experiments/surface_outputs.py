@@ -25,6 +25,7 @@ from forcelearn.run_output import (
 from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
 from forcelearn.tasks.surface_map import OutputMapChoice
 from forcelearn.tasks.surface_probe import ProbeResult
+from forcelearn.tools.experiments.fault_recovery import fault_summary
 from forcelearn.tools.experiments.surface_state import SurfaceRun
 from forcelearn.trainer import (
     CONVERGENCE_TOLERANCE,
@@ -108,6 +109,7 @@ def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
         "cell_time_s": round(cell_time, 3),
         "realtime_factor": round(cell_time / run.wall_s, 1) if run.wall_s > 0 else None,
         "profile": config.emulator.profile if config.robot_emulated else None,
+        "faults": fault_summary(run.out),
     }
 
 

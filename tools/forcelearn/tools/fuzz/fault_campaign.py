@@ -49,6 +49,7 @@ from forcelearn.learning import load_learner
 from forcelearn.site.config import load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tools.experiments import surface_run as engine
+from forcelearn.tools.experiments import surface_state as run_state
 from forcelearn.tools.experiments.fault_recovery import read_events
 from forcelearn.tools.experiments.records import RECORDS_FILE, scan_records
 from forcelearn.tools.figures import probe as figures_probe
@@ -163,7 +164,7 @@ def fault_free_run(config: Path, folder: Path, seed: int) -> tuple[int, float, f
     truths: list[Truth] = []
     counter = Injector({}, random.Random(0))
     with injecting(counter, 1e9, truths):
-        run, checkpoint = engine.prepare_run(config, folder, None, seed, resume=False)
+        run, checkpoint = run_state.prepare_run(config, folder, None, seed, resume=False)
         engine.execute(run, checkpoint)
     truth = truths[0]
     return counter.tick, truth.worst_error_n, truth.max_contact_n
@@ -190,7 +191,7 @@ def one_run(cell: str, config: Path, folder: Path, seed: int, ticks: int, faults
         while report.sessions < MAX_SESSIONS:
             report.sessions += 1
             try:
-                run, checkpoint = engine.prepare_run(
+                run, checkpoint = run_state.prepare_run(
                     None if resume else config, folder, None, None if resume else seed, resume
                 )
                 engine.execute(run, checkpoint)
@@ -208,7 +209,7 @@ def one_run(cell: str, config: Path, folder: Path, seed: int, ticks: int, faults
                 report.untyped_ends += 1
                 report.problems.append(f"untyped end: {type(exc).__name__}: {exc}")
             # killed or ended before the first checkpoint: a new run in the same folder
-            resume = (folder / engine.CHECKPOINT).exists()
+            resume = (folder / run_state.CHECKPOINT).exists()
     report.wall_s = time.perf_counter() - started
     _judge(report, injector, truths, folder, robot, sensor)
     return report
@@ -217,7 +218,7 @@ def one_run(cell: str, config: Path, folder: Path, seed: int, ticks: int, faults
 def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: Path,
            robot: str, sensor: str) -> None:
     """Fill the report from the truth watchers, the injector's log and the run directory."""
-    config = load_cell_config(folder / engine.CONFIG_COPY)
+    config = load_cell_config(folder / run_state.CONFIG_COPY)
     limit_n = config.safety.max_force_n
     bound_s = config.safety.stale_sensor_s + config.safety.move_timeout_s + STEP_S
     for truth in truths:
@@ -254,9 +255,9 @@ def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: P
 
 def _records_problems(folder: Path, report: RunReport) -> int:
     """Trials missing or twice in records.mcap, trials.csv or the checkpoint."""
-    if not (folder / engine.CHECKPOINT).exists():
+    if not (folder / run_state.CHECKPOINT).exists():
         return 0
-    done = int(load_learner(folder / engine.CHECKPOINT)[1]["trials_done"])
+    done = int(load_learner(folder / run_state.CHECKPOINT)[1]["trials_done"])
     with open(folder / "trials.csv", newline="") as handle:
         rows = [int(row["index"]) for row in csv.DictReader(handle)]
     recorded = [t.trial for t in scan_records(folder / RECORDS_FILE).trials if t.trial >= 0]
