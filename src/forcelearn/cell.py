@@ -176,9 +176,13 @@ class Cell:
         on_move = getattr(self.force_filter, "on_move", None)
         if on_move is not None:
             on_move()  # the force may change by anything: the filter starts over its prior
-        self.time_s = self._guarded(
-            self.robot.wait_in_position, self.move_timeout_s, self.settle_s if settle else 0.0
-        )
+        try:
+            self.time_s = self._guarded(
+                self.robot.wait_in_position, self.move_timeout_s, self.settle_s if settle else 0.0
+            )
+        except ForcelearnError:
+            self._pose = None  # not reached: where the robot is must be read again
+            raise
         if self.recorder is not None:
             self.recorder.on_move(self._move_record(pose, start_s))
 

@@ -91,7 +91,7 @@ def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
             target = Pose(here.x_mm, max(here.y_mm, retract_y_mm), here.z_mm, here.quaternion)
             cell.move_in_steps(target, max_step_mm)
             return target, attempt
-        except (LinkError, SensorError) as exc:
+        except (LinkError, SensorError, SafetyStop) as exc:  # a refused step: stop, plan again
             last = exc
             log.warning("retract try %d of %d failed: %s", attempt, attempts, exc)
             cell.stop()

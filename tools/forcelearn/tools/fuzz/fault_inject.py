@@ -286,7 +286,7 @@ class Injector:
             return
         motion = emulator.model.motion  # EGM: the servo ignores commands for this move
         motion.command = lambda pose, t_s: None
-        self._after_move.append(lambda: delattr(motion, "command"))
+        self._after_move.append(lambda: motion.__dict__.pop("command", None))
 
     def _robot_link_drop(self) -> None:
         emulator = self.session.robot_emulator
