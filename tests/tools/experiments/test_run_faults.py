@@ -84,6 +84,10 @@ def test_a_sensor_reboot_mid_press_is_recovered_and_the_trial_runs_again(tmp_pat
     assert truth.zeros_in_contact == 0 and truth.zeros >= 1
     assert not truth.bad_readings  # no reading after the reboot was off the true force
     _trials_recorded_once(tmp_path / "run", TRIALS)
+    trials = {t.trial: t for t in scan_records(tmp_path / "run" / RECORDS_FILE).trials}
+    (tare,) = trials[1].tares  # the re-zero in free space opens the trial run again
+    assert tare.accepted and tare.position_mm[1] == pytest.approx(events[0]["retract_y_mm"])
+    assert not trials[0].tares
 
 
 def _interrupt_in_press(out: Path, times: int) -> Callable[[Truth, Any], None]:
