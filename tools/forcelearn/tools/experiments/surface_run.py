@@ -105,7 +105,11 @@ def execute(
         recovery = RunRecovery(run.out, session.cell, config.task.retract_y_mm,
                                config.safety.max_step_mm, checkpoint=run.out / CHECKPOINT)
         if checkpoint is not None:
-            recovery.on_resume()  # a session that stopped in contact: retract first
+            try:  # a session that stopped in contact: retract and re-zero first
+                recovery.on_resume()
+            except (KeyboardInterrupt, ForcelearnError) as exc:
+                recovery.on_exit(exc, len(run.result.records))
+                raise
         if checkpoint is None:
             session.cell.recorder = recorder
             try:
