@@ -270,8 +270,12 @@ def _records_problems(folder: Path, report: RunReport) -> int:
 
 
 def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int,
-             faults: dict[str, int], kills: int, seed: int, folder: Path) -> list[RunReport]:
-    """Every cell, ``runs[robot]`` runs of ``faults[robot]`` faults per device; a line per run."""
+             faults: dict[str, int], kills: int, seed: int, folder: Path,
+             save: Path | None = None) -> list[RunReport]:
+    """Every cell, ``runs[robot]`` runs of ``faults[robot]`` faults per device; a line per run.
+
+    With ``save``, the reports so far are pickled there after every run.
+    """
     reports: list[RunReport] = []
     for cell in cells:
         config = cell_config(cell, folder, trials, steps, probe=False)
@@ -290,6 +294,8 @@ def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int
                              run_seed, probe_ticks if first else ticks, faults[robot], kills,
                              tolerance_n)
             reports.append(report)
+            if save is not None:
+                save.write_bytes(pickle.dumps(reports))
             print(f"{cell} run {k} seed {run_seed}: {sum(report.fired.values())} faults, "
                   f"{report.sessions} sessions, finished {report.finished}, max contact "
                   f"{report.max_contact_n:.1f} N, zeros in contact {report.zeros_in_contact}, "
@@ -384,9 +390,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         folder.mkdir(parents=True, exist_ok=True)
         reports = campaign(args.cells, {"link": args.runs, "egm": args.runs_egm}, args.trials,
                            args.steps, {"link": args.faults, "egm": args.faults_egm},
-                           args.kills, args.seed, folder)
-    if args.save is not None:
-        args.save.write_bytes(pickle.dumps(reports))
+                           args.kills, args.seed, folder, args.save)
     print(table(reports))
     return 1 if _failed(reports) else 0
 
