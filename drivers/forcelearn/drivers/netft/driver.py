@@ -383,7 +383,8 @@ class NetFtSensor(Driver):
             if isinstance(record, protocol.Rejected):
                 self._stats.rejected[record.reason] += 1
             else:  # a late or repeated record of the last request: account for it
-                self._tracker.push(record.rdt_sequence, record.ft_sequence)
+                if self._tracker.push(record.rdt_sequence, record.ft_sequence).reboot:
+                    self._on_reboot()  # the box rebooted between requests: its bias is gone
 
     def _send(self, request: protocol.Request) -> None:
         data = protocol.encode_request(request)

@@ -171,16 +171,21 @@ def fault_free_run(config: Path, folder: Path, seed: int) -> tuple[int, float, f
 
 
 def one_run(cell: str, config: Path, folder: Path, seed: int, ticks: int, faults: int,
-            kills: int, tolerance_n: float) -> RunReport:
-    """One run with its faults, resumed until it completes; judged from the physics."""
+            kills: int, tolerance_n: float, devices: Sequence[str] = ("robot", "sensor"),
+            ) -> RunReport:
+    """One run with its faults, resumed until it completes; judged from the physics.
+
+    ``faults`` faults on each of ``devices`` ("robot", "sensor"), kinds drawn at random.
+    """
     report = RunReport(cell, seed)
     rng = random.Random(seed)
     robot, sensor = cell.split("+")
     counts = {("robot", kind): 0 for kind in ROBOT_FAULTS}
     counts |= {("sensor", kind): 0 for kind in SENSOR_FAULTS}
+    kinds = {"robot": ROBOT_FAULTS, "sensor": SENSOR_FAULTS}
     for _ in range(faults):
-        counts[("robot", rng.choice(ROBOT_FAULTS))] += 1
-        counts[("sensor", rng.choice(SENSOR_FAULTS))] += 1
+        for device in devices:
+            counts[(device, rng.choice(kinds[device]))] += 1
     counts[("run", "kill")] = kills
     injector = Injector(plan_faults(rng, ticks, counts), rng)
     injector.events = lambda: len(read_events(folder))
@@ -271,7 +276,8 @@ def _records_problems(folder: Path, report: RunReport) -> int:
 
 def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int,
              faults: dict[str, int], kills: int, seed: int, folder: Path,
-             save: Path | None = None) -> list[RunReport]:
+             save: Path | None = None, devices: Sequence[str] = ("robot", "sensor"),
+             ) -> list[RunReport]:
     """Every cell, ``runs[robot]`` runs of ``faults[robot]`` faults per device; a line per run.
 
     With ``save``, the reports so far are pickled there after every run.
@@ -292,7 +298,7 @@ def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int
             first = k == 0
             report = one_run(cell, probed if first else config, folder / f"{cell}-{k}",
                              run_seed, probe_ticks if first else ticks, faults[robot], kills,
-                             tolerance_n)
+                             tolerance_n, devices)
             reports.append(report)
             if save is not None:
                 save.write_bytes(pickle.dumps(reports))
@@ -373,6 +379,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--faults-egm", type=int, default=63,
                         help="faults per device per run, EGM cells (their runs cost more)")
     parser.add_argument("--kills", type=int, default=1, help="process kills per run")
+    parser.add_argument("--devices", nargs="+", default=["robot", "sensor"],
+                        choices=["robot", "sensor"], help="the devices that fail")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--keep", type=Path, default=None, help="keep the run folders here")
     parser.add_argument("--save", type=Path, default=None,
@@ -390,7 +398,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         folder.mkdir(parents=True, exist_ok=True)
         reports = campaign(args.cells, {"link": args.runs, "egm": args.runs_egm}, args.trials,
                            args.steps, {"link": args.faults, "egm": args.faults_egm},
-                           args.kills, args.seed, folder, args.save)
+                           args.kills, args.seed, folder, args.save, args.devices)
     print(table(reports))
     return 1 if _failed(reports) else 0
 
