@@ -7,7 +7,7 @@ sequences are Jr3Mbed's ``initialize()`` / ``finalize()`` / ``notifyMessage()``
 (ICanBusSharerImpl.cpp, Jr3Mbed.cpp): get state ("ping"), start sync (uint16 filter x 100)
 or start async (+ uint32 period x 1e6), the two full-scale queries when none are configured,
 a 0.1 s wait, zero offsets; stop on close; the whole initialisation again after a bootup
-(ours: without the zero, and only once the cell says so, issue 38).
+(ours: without the zero, and only once the cell says so).
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ def test_unfiltered_is_a_cutoff_of_zero_as_the_host_drivers_default() -> None:
 def test_a_bootup_frame_is_reported_and_the_host_initialises_again_without_zeroing() -> None:
     """On 0x700 + node Jr3Mbed runs initialize() again, zero included; ours departs on purpose.
 
-    A zero taken where the tool presses hides the contact force (issue 38): every
+    A zero taken where the tool presses hides the contact force: every
     read raises SensorRebooted until the cell, in free space, calls reinitialise(),
     which sends the same sequence without the zero (0x301); the cell zeroes then.
     """

@@ -127,7 +127,7 @@ def test_requests_of_the_wrong_header_size_or_command_get_no_answer() -> None:
 
 
 def test_a_request_with_header_abcd_is_ignored_and_counted_by_reason() -> None:
-    """Issue 38: 0xABCD instead of 0x1234 is not a request the box recognises.
+    """0xABCD instead of 0x1234 is not a request the box recognises.
 
     Nothing comes back, even for a valid command and count behind the header, and
     the emulator counts each ignored request by its reason.

@@ -1,4 +1,4 @@
-"""Issue 38: a sensor that reboots while the tool presses never yields a wrong reading.
+"""A sensor that reboots while the tool presses never yields a wrong reading.
 
 Found on the default emulated cell: after a JR3 bootup in contact, reading again
 (as the error said) re-zeroed the sensor there, and the cell read 10.5, 7.0, 5.2 N

@@ -185,7 +185,7 @@ def test_a_bootup_mid_run_is_reported_until_reinitialised_and_never_zeroes(
     """After a bootup every read raises SensorRebooted; reinitialise() restarts it unzeroed.
 
     The tool may be in contact when the adapter reboots: a zero there would hide
-    the contact force, so the driver leaves the zero to the cell (issue 38).
+    the contact force, so the driver leaves the zero to the cell.
     """
     node = make_node(initial_counter=500)
     sensor = make_sensor(mode=mode, zero_on_init=True)

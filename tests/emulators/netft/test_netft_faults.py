@@ -92,7 +92,7 @@ def test_a_reboot_restarts_the_sequence_and_loses_the_bias() -> None:
     """Reboot after 10 records: SensorRebooted on every read until reinitialise(), no bias.
 
     The driver never biases on its own after a reboot (the tool may press): the
-    cell biases in free space once it has retracted (issue 38).
+    cell biases in free space once it has retracted.
     """
     with start(faults=NetFtFaults(reboot_after_records=10)) as emu, \
             NetFtSensor(config_for(emu, stale_timeout_s=0.2, zero_on_init=True)) as sensor:

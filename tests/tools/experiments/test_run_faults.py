@@ -1,4 +1,4 @@
-"""Issue 38: a run that meets a fault in contact leaves the part, re-zeroes and goes on.
+"""A run that meets a fault in contact leaves the part, re-zeroes and goes on.
 
 Operator faults too: Ctrl-C while pressing retracts before the run exits; a second
 Ctrl-C during that retract leaves the tool in contact but says so, and ``--resume``

@@ -224,7 +224,7 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
 ) -> None:
     """The JR3 goes silent for good after trial 3: the robot stops, 3 trials are kept.
 
-    The run retracts and tries to restart the sensor (issue 38); a sensor that
+    The run retracts and tries to restart the sensor; a sensor that
     never answers ends it with RecoveryFailed, the tool retracted in free space.
     """
     from forcelearn.emulators.jr3.faults import FaultConfig
