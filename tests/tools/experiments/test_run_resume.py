@@ -229,8 +229,8 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
     """
     from forcelearn.emulators.jr3.faults import FaultConfig
     from forcelearn.tasks.recovery import RecoveryFailed
-    from forcelearn.tools.experiments.fault_recovery import read_events
     from forcelearn.tools.experiments import surface_run
+    from forcelearn.tools.experiments.fault_recovery import read_events
     from forcelearn.tools.experiments.surface_state import prepare_run
 
     sessions = []
