@@ -175,6 +175,11 @@ class SurfaceTask:
             spec.fallback_centre_y_mm, spec.fallback_scale_mm, spec.fallback_offset_mm
         )
 
+    @property
+    def approach_mm(self) -> float:
+        """How far above its command each step starts its press, mm (0: straight there)."""
+        return 0.0 if self._output is None else self._output.approach_mm
+
     def retract(self) -> None:
         """Pull out along +Y to the retract plane (in limited steps)."""
         self.cell.stage = ("retreat", 0)
@@ -233,6 +238,9 @@ class SurfaceTask:
         )
         self.cell.stage = ("step", self._step)
         try:
+            if self.approach_mm > 0:  # from the loading side: the foam's branch is known
+                above = Pose(target.x_mm, y_cmd + self.approach_mm, target.z_mm, start.quaternion)
+                self.cell.move_in_steps(above, self.max_step_mm, guard_force=True)
             self.cell.move_in_steps(target, self.max_step_mm, guard_force=True)
             force = self.cell.measure_force_n()
             limit_hit = False

@@ -68,6 +68,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+EASE_DEPTH_SHARE = 0.8
+"""The probe eases off at most this share of its press's depth (it stays in contact)."""
+
 
 class SurfaceProbe:
     """Runs the probe on a cell (see the module docstring); one instance per probe."""
@@ -201,6 +204,7 @@ class SurfaceProbe:
                 break  # the next step could pass the probe's force limit or depth
             y -= step
             cell.move_in_steps(self._pose(x, y, z), self.max_step_mm, guard_force=True)
+        self._ease_off(index, x, z, y, contact_guess - y, baseline)
         contact = [(yy, ff) for yy, ff in zip(ys, forces, strict=True) if ff > spec.contact_force_n]
         if len(contact) < 2:
             contact = list(zip(ys, forces, strict=True))
@@ -211,6 +215,23 @@ class SurfaceProbe:
             z, fit.stiffness_n_per_mm, fit.stiffness_std, fit.contact_y_mm, fit.contact_y_std,
             fit.points,
         )
+
+    def _ease_off(
+        self, index: int, x: float, z: float, deepest_y: float, depth_mm: float, baseline: float
+    ) -> None:
+        """Ease off from the deepest press by ``ease_off_mm`` (within the press's depth).
+
+        Each reading after the dwell, as the press's: a hysteretic foam answers
+        on its unloading branch (:mod:`forcelearn.tasks.surface_hysteresis`).
+        """
+        eases = sorted({min(e, EASE_DEPTH_SHARE * depth_mm) for e in self.spec.ease_off_mm})
+        for ease in eases:
+            if ease <= 0:
+                continue
+            y = deepest_y + ease
+            self.cell.move_in_steps(self._pose(x, y, z), self.max_step_mm, guard_force=True)
+            early, relaxed = self._read(self.spec.dwell_s)
+            self._record(index, z, y, "ease", early - baseline, relaxed - baseline)
 
     def _early(self, index: int) -> list[float]:
         return [

@@ -32,6 +32,8 @@ def _is_number(value: object) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
+APPROACHES = ("auto", "loading", "direct")
+"""``task.approach`` values."""
 MAX_SAMPLES_PER_STEP = 10_000
 """Most sensor samples one step may read (3.25 s of the JR3's SYNC rate, 1.4 s of Net F/T's)."""
 
@@ -78,6 +80,12 @@ class SurfaceTaskSpec:
     the paper's setup, zeroed once when the sensor opens)."""
     tare_max_reading_n: float = 2.0
     """A tare is refused (warned) when the free-space normal force reads more than this, N."""
+    approach: str = "auto"
+    """How each step reaches its Y (:data:`APPROACHES`): "loading" first stands a few branch
+    depths shallower at the new Z, then presses in, so a hysteretic foam is read on its
+    loading branch whichever way the learner moved; "direct" moves straight there (the
+    paper's); "auto" approaches from the loading side when the probe resolved the foam's
+    hysteresis (:mod:`forcelearn.tasks.surface_hysteresis`), else moves directly."""
 
     def __post_init__(self) -> None:
         for name in ("steps_per_trial", "input_parts", "samples_per_step"):
@@ -89,6 +97,11 @@ class SurfaceTaskSpec:
             raise ConfigError(
                 f"task.samples_per_step = {self.samples_per_step}: at most "
                 f"{MAX_SAMPLES_PER_STEP} (each step reads and filters them all)"
+            )
+        if self.approach not in APPROACHES:
+            raise ConfigError(
+                f"task.approach = {self.approach!r}: one of {', '.join(APPROACHES)} (\"loading\": "
+                "press into each step from above, for a hysteretic foam; \"direct\": the paper's)"
             )
         if not isinstance(self.tare_each_trial, bool):
             raise ConfigError(f"task.tare_each_trial = {self.tare_each_trial!r}: true or false")
