@@ -2,75 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 import pytest
+from foam_cells import FoamCell, foam
 
 from forcelearn.devices import Pose
-from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.tasks.surface import SurfaceTask, SurfaceTaskSpec, SurfaceYOutput
 from forcelearn.tasks.surface_fit import ProbeResult, ProbeRow
 from forcelearn.tasks.surface_hysteresis import NOT_FITTED, fit_hysteresis
 from forcelearn.tasks.surface_map import APPROACH_DEPTHS, approach_depth_mm
-
-SUB_STEP_MM = 0.05
-"""The fake robot reports its pose to the foam every this much of a move, mm."""
-
-
-def _foam(loss: float, depth_mm: float = 0.5) -> Sponge:
-    """The emulator's foam law, elastic apart from its hysteresis (no relaxation, no wear)."""
-    return Sponge(SpongeParams(hysteresis_loss=loss, hysteresis_depth_mm=depth_mm,
-                               relaxation_ratio=0.0, softening=0.0, set_mm=0.0))
-
-
-@dataclass
-class _Filter:
-    force_n: float = 0.0
-
-
-@dataclass
-class FoamCell:
-    """A robot that moves exactly, reporting its pose to the emulator's foam as it goes."""
-
-    foam: Sponge
-    noise_n: float = 0.0
-    stage: tuple[str, int] = ("move", 0)
-    time_s: float = 0.0
-    force_filter: _Filter = field(default_factory=_Filter)
-    rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
-    _pose: Pose = field(default_factory=lambda: Pose(900.0, 15.0, 0.0))
-
-    @property
-    def pose(self) -> Pose:
-        """Where the robot is."""
-        return self._pose
-
-    def sync(self) -> Pose:
-        """Nothing to read."""
-        return self._pose
-
-    def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False) -> int:
-        """Move in a straight line, telling the foam every ``SUB_STEP_MM``."""
-        start, end = self._pose.position_mm, target.position_mm
-        ticks = max(1, int(np.ceil(np.linalg.norm(end - start) / SUB_STEP_MM)))
-        for i in range(1, ticks + 1):
-            self.foam.observe_pose(start + (end - start) * i / ticks)
-        self._pose = target
-        self.force_filter.force_n = self.measure_force_n()
-        return 1
-
-    def tare(self, max_reading_n: float) -> bool:
-        """Nothing to zero."""
-        return True
-
-    def reset_filter(self) -> None:
-        """Nothing filtered."""
-
-    def measure_force_n(self, samples: int | None = None) -> float:
-        """The foam's normal force (+Y) where the robot is, with the sensor's noise."""
-        force = float(self.foam.contact_force_world_n(self._pose.position_mm)[1])
-        return force + (self.noise_n * float(self.rng.standard_normal()) if self.noise_n else 0.0)
 
 
 def _probe_rows(cell: FoamCell, z_mm: float, eases: tuple[float, ...]) -> list[ProbeRow]:
@@ -95,7 +35,7 @@ def _probe_rows(cell: FoamCell, z_mm: float, eases: tuple[float, ...]) -> list[P
 @pytest.mark.parametrize("loss", [0.1, 0.25])
 def test_the_probe_fit_recovers_a_known_hysteresis_and_depth(loss: float) -> None:
     """Press-in and ease-off readings of the emulator's foam give back h and d_h."""
-    cell = FoamCell(_foam(loss, depth_mm=0.6), noise_n=0.05)
+    cell = FoamCell(foam(loss, depth_mm=0.6), noise_n=0.05)
     rows = _probe_rows(cell, 0.0, (0.25, 0.5, 1.0, 2.0, 4.0))
     fit = ProbeResult(rows=rows, baselines_n=[0.0, 0.05, -0.05]).hysteresis()
     assert fit.resolved
@@ -106,7 +46,7 @@ def test_the_probe_fit_recovers_a_known_hysteresis_and_depth(loss: float) -> Non
 
 def test_a_fit_that_cannot_tell_hysteresis_from_noise_says_so() -> None:
     """On an elastic foam, noisy readings give an h within its errors of 0: not resolved."""
-    cell = FoamCell(_foam(0.0), noise_n=0.3)
+    cell = FoamCell(foam(0.0), noise_n=0.3)
     rows = _probe_rows(cell, 0.0, (0.25, 0.5, 1.0, 2.0, 4.0))
     fit = ProbeResult(rows=rows, baselines_n=[0.0, 0.3, -0.3]).hysteresis()
     assert not fit.resolved and "not resolved" in fit.describe()
@@ -115,7 +55,7 @@ def test_a_fit_that_cannot_tell_hysteresis_from_noise_says_so() -> None:
 
 def test_auto_approaches_from_the_loading_side_only_on_a_resolved_hysteresis() -> None:
     """task.approach: "auto" follows the fit, "loading" always, "direct" never."""
-    cell = FoamCell(_foam(0.2))
+    cell = FoamCell(foam(0.2))
     fit = ProbeResult(rows=_probe_rows(cell, 0.0, (0.25, 0.5, 1.0, 2.0, 4.0)),
                       baselines_n=[0.0, 0.02]).hysteresis()
     auto = approach_depth_mm(SurfaceTaskSpec(), fit)
@@ -127,7 +67,7 @@ def test_auto_approaches_from_the_loading_side_only_on_a_resolved_hysteresis() -
 
 def _force_after(previous_y_mm: float, approach_mm: float) -> float:
     """The force the task reads at step 2 (Y = −10 mm) after step 1 went to ``previous_y_mm``."""
-    cell = FoamCell(_foam(0.25))
+    cell = FoamCell(foam(0.25))
     output = SurfaceYOutput(-10.0, 2.0, 15.0, approach_mm=approach_mm)
     wide = SurfaceTaskSpec(tolerance_n=40.0)  # no step fails (a failure retracts)
     task = SurfaceTask(cell, wide, 10.0, output)

@@ -53,8 +53,13 @@ import numpy as np
 from forcelearn.tasks.surface_fit import ProbeError, ProbeResult, ProbeSpec
 from forcelearn.tasks.surface_hysteresis import NOT_FITTED, HysteresisFit
 from forcelearn.tasks.surface_spec import SurfaceTaskSpec
+from forcelearn.trainer import CONVERGENCE_TOLERANCE
 
 log = logging.getLogger(__name__)
+
+DENSE_ABOVE = 0.5
+"""The probe measures every step of an interval whose own interpolation error, in force,
+passes this share of the band (:func:`dense_points`)."""
 
 APPROACH_DEPTHS = 4.0
 """A step approached from the loading side starts this many branch depths above its command."""
@@ -291,6 +296,41 @@ def constant_centre_error_ratio(result: ProbeResult, task: SurfaceTaskSpec) -> f
     targets = np.array([f.target_y_mm(task.desired_force_n) for f in result.fits])
     ks = np.array([f.stiffness_n_per_mm for f in result.fits])
     return task.evaluation.ratio(float(np.max(ks * np.abs(targets - np.mean(targets)))))
+
+
+def dense_points(result: ProbeResult, task: SurfaceTaskSpec) -> tuple[float, ...]:
+    """Where the probe must add points, as fractions of the path: the steps it does not resolve.
+
+    Each inner probed Z's target Y is predicted from its two neighbours; a
+    quarter of the miss is what the probed grid itself misses between its
+    points (an interpolation error falls with the square of the spacing). Where
+    that, times the stiffness, passes ``DENSE_ABOVE`` of the band (5 % of the
+    desired force), every step's Z between those neighbours not yet probed is
+    returned: a stiff part at a small force, whose position band (band / k) is
+    a fraction of the surface's waves, gets its surface measured where the
+    task steps, not interpolated.
+    """
+    by_z: dict[float, list[tuple[float, float]]] = {}
+    for f in result.fits:
+        by_z.setdefault(f.z_mm, []).append((f.target_y_mm(task.desired_force_n),
+                                            f.stiffness_n_per_mm))
+    z = np.array(sorted(by_z))
+    if len(z) < 3:
+        return ()
+    target = np.array([np.mean([t for t, _ in by_z[v]]) for v in z])
+    k = np.array([np.mean([s for _, s in by_z[v]]) for v in z])
+    band = CONVERGENCE_TOLERANCE * task.desired_force_n
+    steps = np.arange(1, task.steps_per_trial + 1)
+    step_z = task.start_mm[2] + task.z_step_mm * steps
+    wanted: set[int] = set()
+    for i in range(1, len(z) - 1):
+        between = np.interp(z[i], [z[i - 1], z[i + 1]], [target[i - 1], target[i + 1]])
+        if k[i] * abs(float(target[i] - between)) / 4.0 > DENSE_ABOVE * band:
+            inside = (step_z >= z[i - 1]) & (step_z <= z[i + 1])
+            wanted.update(int(s) for s in steps[inside])
+    probed = {round(float(v), 6) for v in z}
+    return tuple(s / task.steps_per_trial for s in sorted(wanted)
+                 if round(float(step_z[s - 1]), 6) not in probed)
 
 
 def choose_output_map(

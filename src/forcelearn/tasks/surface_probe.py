@@ -51,6 +51,7 @@ from forcelearn.tasks.surface_map import (
     choose_output_map,
     configured_map,
     constant_centre_error_ratio,
+    dense_points,
 )
 from forcelearn.tasks.surface_spec import SurfaceTaskSpec
 
@@ -282,4 +283,9 @@ def map_from_probe(
                  "following the surface: a constant map centre would leave the tolerance "
                  "along the path" if follow else "the learner starts on the probe's path")
         probe.run(spec.refine_points)
+        dense = dense_points(result, task)
+        if dense:
+            log.info("probing %d more points, at the steps' Z: between probed points the "
+                     "surface's waves miss more than half the band", len(dense))
+            probe.run(dense)
     return result, choose_output_map(result, task, spec, probe.floor_y_mm, follow)
