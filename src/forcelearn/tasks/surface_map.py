@@ -443,7 +443,9 @@ def approach_depth_mm(task: SurfaceTaskSpec, hysteresis: HysteresisFit) -> float
     loading whatever it was, so the force read varies by < 0.04 h of the elastic
     one. "auto" approaches only when the probe resolved the hysteresis.
     """
-    if task.approach == "direct" or (task.approach == "auto" and not hysteresis.resolved):
+    if task.approach in ("direct", "direction") or (
+        task.approach == "auto" and not hysteresis.resolved
+    ):
         return 0.0
     depth = hysteresis.depth_mm + 2.0 * hysteresis.depth_std
     if not math.isfinite(depth):

@@ -7,8 +7,9 @@
    (``[run] learner_start`` "probe", the default, and "cold") and the default
    ``[task] approach`` ("auto": from the loading side where the probe resolves hysteresis);
 3. per hysteretic cell (the truth's h > 0), the same run with each of ``--designs``
-   (``[task] approach`` values, "direct" by default: the main job before this study,
-   moving straight to each step), so the designs compare on the same cells and seeds;
+   (``[task] approach`` values: "direct", the main job before this study, moving straight
+   to each step; "direction", the last move's direction as a second BOXES input), so the
+   designs compare on the same cells and seeds;
 4. writes ``DIR/materials.md`` (the table) and ``DIR/materials.png`` (force RMS against
    trial, in bands, of the hysteretic cells with each approach); ``--page`` and
    ``--figure`` to write them elsewhere (docs/results/).
@@ -62,6 +63,9 @@ def variant_config(cell_config: Path, start: str, approach: str, out: Path) -> P
     data: dict[str, Any] = tomllib.loads(cell_config.read_text(encoding="utf-8"))
     data.setdefault("run", {})["learner_start"] = start
     data.setdefault("task", {})["approach"] = approach
+    if approach == "direction":  # a second input: its extent 0 (a direction learns alone)
+        learner = data.setdefault("learner", {})
+        learner["extent"] = [*learner.get("extent", [3])[:1], 0]
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(tomli_w.dumps(data), encoding="utf-8")
     return out
@@ -117,7 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=37, help="generator seed (default 37)")
     parser.add_argument("--run-seed", type=int, default=0, help="the runs' seed (default 0)")
     parser.add_argument("--trials", type=int, default=TRIALS, help=f"default {TRIALS}")
-    parser.add_argument("--designs", nargs="*", default=["direct"],
+    parser.add_argument("--designs", nargs="*", default=["direct", "direction"],
                         help="task.approach values compared on the hysteretic cells")
     parser.add_argument("--workers", type=int, default=1, help="runs at once (default 1)")
     parser.add_argument("--out", type=Path, required=True, help="the study's folder")
