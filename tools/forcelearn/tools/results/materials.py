@@ -72,22 +72,24 @@ def variant_config(cell_config: Path, start: str, approach: str, out: Path) -> P
 
 
 def plan(cells_dir: Path, runs_dir: Path, designs: Sequence[str]) -> list[Job]:
-    """Every job of the study, the default approach's first."""
-    jobs: list[Job] = []
-    later: list[Job] = []
+    """Every job of the study, in waves a study stopped early still reports.
+
+    The default start first, then the first design, the other start, the other designs.
+    """
+    waves: list[list[Job]] = [[] for _ in range(len(STARTS) + len(designs))]
     for config in sorted(cells_dir.glob("cell-*.toml")):
         name = config.stem
         truth = json.loads((cells_dir / f"{name}.truth.json").read_text(encoding="utf-8"))
-        for start in STARTS:
-            path = variant_config(config, start, "auto",
-                                  runs_dir / "configs" / f"{name}-{start}.toml")
-            jobs.append(Job(name, start, "auto", path, runs_dir / f"{name}-{start}-auto"))
+        variants = [(start, "auto") for start in STARTS]
         if truth["sponge"]["hysteresis_loss"] > 0:
-            for design in designs:
-                path = variant_config(config, "probe", design,
-                                      runs_dir / "configs" / f"{name}-probe-{design}.toml")
-                later.append(Job(name, "probe", design, path, runs_dir / f"{name}-probe-{design}"))
-    return jobs + later
+            variants += [("probe", design) for design in designs]
+        for (start, approach), wave in zip(variants, (0, 2, 1, *range(3, len(waves))),
+                                           strict=False):
+            path = variant_config(config, start, approach,
+                                  runs_dir / "configs" / f"{name}-{start}-{approach}.toml")
+            waves[wave].append(Job(name, start, approach, path,
+                                   runs_dir / f"{name}-{start}-{approach}"))
+    return [job for wave in waves for job in wave]
 
 
 def run_job(job: Job, trials: int, seed: int) -> int:
