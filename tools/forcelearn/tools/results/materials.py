@@ -3,7 +3,8 @@
 ``python -m forcelearn.tools.results.materials --cells 30 --seed 37 --out DIR [--workers 2]``
 
 1. draws the hidden cells (``forcelearn.tools.twin.hidden_cells``, generator ``--seed``);
-2. per cell, ``forcelearn run --config cell-XX.toml --trials 100 --seed 0`` with each start
+2. per cell, ``forcelearn run --config cell-XX.toml --trials 100 --seed 0`` (ended 10 trials
+   after it converged, ``[run] stop_after_converged``) with each start
    (``[run] learner_start`` "probe", the default, and "cold") and the default
    ``[task] approach`` ("auto": from the loading side where the probe resolves hysteresis);
 3. per hysteretic cell (the truth's h > 0), the same run with each of ``--designs``
@@ -38,6 +39,9 @@ from forcelearn.tools.results.materials_page import CellRun, read_run, write_fig
 from forcelearn.tools.twin.hidden_cells import write_hidden_cells
 
 TRIALS = 100
+STOP_AFTER_CONVERGED = 10
+"""A run ends this many trials after it converged (its last 10 trials then say whether it
+ended in band): the study's cost goes to the cells that do not converge."""
 STARTS = ("probe", "cold")
 
 
@@ -62,6 +66,7 @@ def variant_config(cell_config: Path, start: str, approach: str, out: Path) -> P
     """Write the cell's config with ``[run] learner_start`` and ``[task] approach`` set."""
     data: dict[str, Any] = tomllib.loads(cell_config.read_text(encoding="utf-8"))
     data.setdefault("run", {})["learner_start"] = start
+    data["run"]["stop_after_converged"] = STOP_AFTER_CONVERGED
     data.setdefault("task", {})["approach"] = approach
     if approach == "direction":  # a second input: its extent 0 (a direction learns alone)
         learner = data.setdefault("learner", {})
