@@ -57,9 +57,12 @@ from forcelearn.trainer import CONVERGENCE_TOLERANCE
 
 log = logging.getLogger(__name__)
 
-DENSE_ABOVE = 0.5
+DENSE_ABOVE = 2.0
 """The probe measures every step of an interval whose own interpolation error, in force,
-passes this share of the band (:func:`dense_points`)."""
+passes this many bands (:func:`dense_points`). The estimate is pessimistic (the default
+cell's largest is 0.6 N, 0.6 band, and its warm start is in band from trial 0): 2 bands
+leave the default cell and a 3 N/mm foam at 2 kgf at 7 points and densify a 6 N/mm foam
+with 3 mm waves at 0.75 kgf (about 2 N, 5 bands)."""
 
 APPROACH_DEPTHS = 4.0
 """A step approached from the loading side starts this many branch depths above its command."""
@@ -304,7 +307,7 @@ def dense_points(result: ProbeResult, task: SurfaceTaskSpec) -> tuple[float, ...
     Each inner probed Z's target Y is predicted from its two neighbours; a
     quarter of the miss is what the probed grid itself misses between its
     points (an interpolation error falls with the square of the spacing). Where
-    that, times the stiffness, passes ``DENSE_ABOVE`` of the band (5 % of the
+    that, times the stiffness, passes ``DENSE_ABOVE`` bands (5 % of the
     desired force), every step's Z between those neighbours not yet probed is
     returned: a stiff part at a small force, whose position band (band / k) is
     a fraction of the surface's waves, gets its surface measured where the

@@ -286,6 +286,6 @@ def map_from_probe(
         dense = dense_points(result, task)
         if dense:
             log.info("probing %d more points, at the steps' Z: between probed points the "
-                     "surface's waves miss more than half the band", len(dense))
+                     "surface's waves miss more than 2 bands", len(dense))
             probe.run(dense)
     return result, choose_output_map(result, task, spec, probe.floor_y_mm, follow)
