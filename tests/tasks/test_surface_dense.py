@@ -43,3 +43,15 @@ def test_the_new_keys_are_checked_at_load() -> None:
     with pytest.raises(ConfigError, match=r"probe\.ease_off_mm"):
         ProbeSpec(ease_off_mm=(0.5, -1.0))
     assert SurfaceTaskSpec(approach="direction").grid().ndim == 2
+
+
+def test_a_long_probe_brings_its_fits_to_the_foam_its_last_point_found() -> None:
+    """The first point re-probed last: its drift spreads over the fits in probing order."""
+    fits = [ContactFit(-10.0 * i, 4.0, 0.01, 1.0, 0.01, 0.05, 6) for i in range(4)]
+    fits.append(ContactFit(0.0, 3.6, 0.01, 0.6, 0.01, 0.05, 6))  # the first Z, sunk and softer
+    probe = ProbeResult(fits=fits, baselines_n=[0.0] * 5)
+    shift, ratio = probe.correct_drift()
+    assert shift == pytest.approx(-0.4) and ratio == pytest.approx(0.9)
+    assert [f.contact_y_mm for f in probe.fits] == pytest.approx([0.6, 0.7, 0.8, 0.9, 0.6])
+    assert probe.fits[0].stiffness_n_per_mm == pytest.approx(3.6)
+    assert probe.fits[2].stiffness_n_per_mm == pytest.approx(4.0 * 0.9**0.5)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, TypedDict, cast
 
 import numpy as np
@@ -239,6 +239,27 @@ class ProbeResult:
                     loaded.append(float(np.interp(row["y_mm"], ys, fs)))
         noise = float(np.std(self.baselines_n)) if len(self.baselines_n) > 1 else 0.0
         return fit_hysteresis(np.array(ease), np.array(unloaded), np.array(loaded), noise)
+
+    def correct_drift(self) -> tuple[float, float]:
+        """Bring every fit to the foam as the last one found it; return (contact shift mm, k ratio).
+
+        The last fit re-probed the first one's Z: every point the probe pressed is a
+        pass over the foam, which sinks (set) and softens with passes, so a long
+        (dense) probe's early points describe a surface the task no longer meets.
+        The drift between the two readings of that Z is spread over the fits in
+        the order they were probed (linearly: the set's first passes of many): fit
+        i of n moves by (1 − i / (n − 1)) of it. The readings (rows) stay as read.
+        """
+        first, last = self.fits[0], self.fits[-1]
+        shift = last.contact_y_mm - first.contact_y_mm
+        ratio = last.stiffness_n_per_mm / first.stiffness_n_per_mm
+        count = len(self.fits) - 1
+        self.fits = [
+            replace(f, contact_y_mm=f.contact_y_mm + shift * (1 - i / count),
+                    stiffness_n_per_mm=f.stiffness_n_per_mm * ratio ** (1 - i / count))
+            for i, f in enumerate(self.fits)
+        ] if count > 0 else self.fits
+        return shift, ratio
 
     def stiffness_n_per_mm(self) -> float:
         """Mean fitted stiffness over the points, N/mm."""

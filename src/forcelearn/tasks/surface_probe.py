@@ -288,4 +288,9 @@ def map_from_probe(
             log.info("probing %d more points, at the steps' Z: between probed points the "
                      "surface's waves miss more than 2 bands", len(dense))
             probe.run(dense)
+            probe.run(spec.points[:1])  # again: how far the probe's own passes wore the foam
+            drift = result.correct_drift()
+            log.info("the surface sank %.3f mm and softened %.1f %% over the probe's %d points "
+                     "(its first point again); every fit is brought to the foam as it is now",
+                     -drift[0], 100 * (1 - drift[1]), len(result.fits))
     return result, choose_output_map(result, task, spec, probe.floor_y_mm, follow)
