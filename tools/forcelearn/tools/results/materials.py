@@ -79,7 +79,9 @@ def variant_config(cell_config: Path, start: str, approach: str, out: Path) -> P
 def plan(cells_dir: Path, runs_dir: Path, designs: Sequence[str]) -> list[Job]:
     """Every job of the study, in waves a study stopped early still reports.
 
-    The default start first, then the first design, the other start, the other designs.
+    First each cell with the default start, followed on a hysteretic cell by the
+    first design (the before and after of the figure); then the other start, then
+    the other designs.
     """
     waves: list[list[Job]] = [[] for _ in range(len(STARTS) + len(designs))]
     for config in sorted(cells_dir.glob("cell-*.toml")):
@@ -88,7 +90,7 @@ def plan(cells_dir: Path, runs_dir: Path, designs: Sequence[str]) -> list[Job]:
         variants = [(start, "auto") for start in STARTS]
         if truth["sponge"]["hysteresis_loss"] > 0:
             variants += [("probe", design) for design in designs]
-        for (start, approach), wave in zip(variants, (0, 2, 1, *range(3, len(waves))),
+        for (start, approach), wave in zip(variants, (0, 1, 0, *range(2, len(waves))),
                                            strict=False):
             path = variant_config(config, start, approach,
                                   runs_dir / "configs" / f"{name}-{start}-{approach}.toml")
@@ -102,6 +104,9 @@ def run_job(job: Job, trials: int, seed: int) -> int:
     rc_file = job.out.with_suffix(".rc")
     if rc_file.exists():
         return int(rc_file.read_text().strip() or "1")
+    if (job.out / "summary.json").exists():  # finished by a study that was stopped
+        rc_file.write_text("0\n")
+        return 0
     with job.out.with_suffix(".log").open("w") as log:
         rc = subprocess.run(["nice", "-n", "10", *job.command(trials, seed)], stdout=log,
                             stderr=subprocess.STDOUT, check=False).returncode
