@@ -68,6 +68,10 @@ APPROACH_DEPTHS = 4.0
 """A step approached from the loading side starts this many branch depths above its command."""
 DEFAULT_BRANCH_DEPTH_MM = 0.5
 """Branch depth assumed when the probe did not fit one (the emulated foam's default), mm."""
+APPROACH_DEPTH_SHARE = 0.5
+"""The approach from the loading side stays within this share of the shallowest depth the
+desired force needs: the roller stays on the foam (off it, every step would be a pass that
+wears the foam, and its press a fresh indentation that reads its unrelaxed force)."""
 MIN_APPROACH_MM = 0.5
 """Shortest approach from the loading side, mm."""
 MAX_APPROACH_MM = 5.0
@@ -408,7 +412,9 @@ def choose_output_map(
     )
     return OutputMapChoice(
         centre, scale, half, needed, allowed, source, path, start_press, k, shift_range,
-        allowed_bottom, approach_depth_mm(task, result.hysteresis()),
+        allowed_bottom,
+        min(approach_depth_mm(task, result.hysteresis()),
+            APPROACH_DEPTH_SHARE * float(np.min(depths))),
     )
 
 
