@@ -298,7 +298,7 @@ def physical_causes(evidence: RunEvidence) -> list[str]:
                 f"is ±{position_band:.3f} mm of position at {k:.2f} N/mm, the probe places the "
                 f"target Y to ±{sigma_y:.3f} mm (its largest standard error): more probe "
                 "samples ([probe] samples) or press points, or a wider band")
-    if split is not None and split.scatter_n >= band:
+    if split is not None and split.scatter_n >= band and not causes:  # hysteresis scatters too
         causes.append(
             f"noise against the band: the steps' force scatters by {split.scatter_n:.2f} N "
             f"(what their Y and move direction do not explain) against the {band:.2f} N band: "

@@ -168,7 +168,8 @@ def write_figure(runs: Sequence[CellRun], figure: Path) -> None:
         ax.set_title(title)
         ax.set_xlabel("trial")
     axes[0][0].set_ylabel("force RMS / band (5 % of F_d)")
-    axes[0][-1].legend(fontsize=6, ncol=2)
+    for ax in axes[0]:
+        ax.legend(fontsize=6, ncol=2)
     fig.tight_layout()
     figure.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(figure, dpi=110)
