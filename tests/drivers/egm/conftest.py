@@ -10,8 +10,8 @@ import pytest
 
 from forcelearn.config import build
 from forcelearn.devices import Pose
-from forcelearn.drivers.computer_link.config import Limits
 from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
+from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm import (
     EgmControllerConfig,

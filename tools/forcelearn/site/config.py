@@ -62,8 +62,8 @@ from forcelearn.drivers.netft.config import NetFtConfig
 from forcelearn.emulators.egm.servo import ServoParams
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.sponge import SpongeParams
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams

@@ -22,8 +22,8 @@ from dataclasses import fields, replace
 from typing import Any
 
 from forcelearn.config import build
-from forcelearn.drivers.computer_link.config import Limits
 from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver, open_egm_robot
+from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
     EgmControllerEmulator,

@@ -38,7 +38,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal
 
-from forcelearn.drivers.computer_link.config import Limits
+from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import ConfigError
 

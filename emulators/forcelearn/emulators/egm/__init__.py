@@ -22,8 +22,8 @@ from forcelearn.emulators.egm.in_process import InProcessEgmController
 from forcelearn.emulators.egm.server import EgmControllerEmulator
 from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
 from forcelearn.emulators.egm.shared_motion import PhysicsMotion, egm_motion_params
+from forcelearn.emulators.faults import Fault
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.faults import Fault
 
 __all__ = [
     "EgmControllerConfig",

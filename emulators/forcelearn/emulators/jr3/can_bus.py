@@ -175,8 +175,8 @@ def _private_node(
     channel: str, node_id: int, seed: int | None, bitrate: float, params: SensorModelParams
 ) -> Jr3EmulatorNode:
     """A node on a cell of its own (free space, home pose), started for a bus."""
+    from forcelearn.emulators.physics.arm import HOME
     from forcelearn.emulators.physics.cell import CellPhysics
-    from forcelearn.emulators.robot_controller.kinematics import HOME
 
     node = Jr3EmulatorNode(
         CellPhysics(pose=HOME), channel=channel, node_id=node_id, model=params, seed=seed,

@@ -8,7 +8,7 @@ import sys
 import threading
 from collections.abc import Sequence
 
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
 
 

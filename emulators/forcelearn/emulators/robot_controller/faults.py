@@ -25,19 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class Fault:
-    """Fire with ``probability`` (0..1), at most ``limit`` times (None: no limit)."""
-
-    probability: float = 0.0
-    limit: int | None = None
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.probability <= 1.0:
-            raise ValueError(f"fault probability must be in 0..1, got {self.probability}")
-        if self.limit is not None and self.limit < 0:
-            raise ValueError(f"fault limit must be >= 0, got {self.limit}")
+from forcelearn.emulators.faults import Fault as Fault  # re-exported: its old home
 
 
 @dataclass(frozen=True)

@@ -97,7 +97,7 @@ class EmulatedRobotSerial(SerialBase):
         return emulator
 
     def _private(self, instant: bool) -> Any:
-        from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+        from forcelearn.emulators.physics.arm import ArmConfig
         from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
 
         char_time = serial_char_time_s(self.baudrate, self.bytesize, self.parity,

@@ -23,11 +23,11 @@ from forcelearn.devices import Pose
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import serial_char_time_s
 from forcelearn.emulators.lifecycle import Emulator
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.pty_endpoint import PtyEndpoint
 from forcelearn.emulators.robot_controller.controller import ControllerEngine
 from forcelearn.emulators.robot_controller.faults import FaultConfig, FaultInjector
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.emulators.robot_controller.transport import InProcessEndpoint, TcpEndpoint
 from forcelearn.emulators.robot_controller.url_scheme import (
     REGISTRY_KIND,

@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Fit, report, and write the twin if the records are represented."""
     from forcelearn.calibration.file_format import load_calibration
-    from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+    from forcelearn.emulators.physics.arm import ArmConfig
     from forcelearn.tools.twin.arm import polling_of
     from forcelearn.tools.twin.fit import fit_twin
     from forcelearn.tools.twin.report import write_report

@@ -32,8 +32,8 @@ from scipy.special import ndtr
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link.config import LinkConfig
 from forcelearn.drivers.egm.config import EgmConfig
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.protocols.computer_link import framing
 from forcelearn.protocols.computer_link import messages as m
 from forcelearn.tools.twin.arrays import RecordArrays

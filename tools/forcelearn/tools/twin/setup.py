@@ -5,8 +5,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.sponge import SpongeParams
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.records import TrialRecords
 from forcelearn.site.config import CellConfig
 from forcelearn.tools.twin.arrays import to_arrays
