@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import pytest
 
@@ -22,6 +22,7 @@ from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import GuidanceStopped, LinkError
 from forcelearn.protocols.egm import codec
 from forcelearn.site.config import load_cell_config
+from forcelearn.site.egm_kind import EgmRoute
 from forcelearn.site.session import CellSession
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
@@ -158,8 +159,8 @@ def test_the_emulated_cell_gives_the_same_state_on_both_routes() -> None:
     """The egm-cell example: moves and force reads, then every emulator state, per route."""
     config = load_cell_config(EXAMPLES / "egm-cell.toml")
 
-    def session(route: str) -> tuple[list[float], dict[str, Any]]:
-        with CellSession(config, seed=4, egm_route=route) as s:
+    def session(route: Literal["in_process", "udp"]) -> tuple[list[float], dict[str, Any]]:
+        with CellSession(config, seed=4, routes={"egm": EgmRoute(route)}) as s:
             assert s.cell is not None
             start = s.cell.sync()
             forces = []

@@ -80,7 +80,7 @@ def test_check_honours_the_emulated_cells_node_id_and_noise(
     config = replace(
         base,
         sensor=replace(base.sensor, node_id=7),
-        emulator=EmulatorConfig(sensor=noisy),
+        emulator=EmulatorConfig(devices={"jr3": noisy}),
     )
     with EmulatedCell(config, seed=1) as cell:
         assert "node_id = 7" in cell.site_config()

@@ -283,8 +283,7 @@ def twin_config(fit: TwinFit, source: RunSource) -> dict[str, Any]:
     arm = {p.name: fit.arm.values[p.name] for p in ARM}
     arm["start_delay_s"] = fit.base_start_delay_s  # the twin's emulated link adds its own time
     emulator["arm"] = arm
-    defaults = EmulatorConfig()
-    base_sensor = getattr(defaults, sensor_entry.model_field or "sensor")
+    base_sensor: Any = sensor_entry.model(EmulatorConfig())
     sensor_model: dict[str, Any] = {}
     noise = list(base_sensor.noise_std)
     if math.isfinite(fit.sensor.noise_n):

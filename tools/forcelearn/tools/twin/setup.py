@@ -54,7 +54,8 @@ def configured_colour(config: CellConfig, records: list[TrialRecords]) -> float 
     is white (0). None when the bursts have no sample period.
     """
     cutoff = float(getattr(config.sensor, "cutoff_hz", 0.0) or 0.0)
-    if cutoff <= 0 or not config.emulator.sensor.emulate_filter:
+    emulate_filter = getattr(config.sensor_device.model(config.emulator), "emulate_filter", True)
+    if cutoff <= 0 or not emulate_filter:
         return 0.0
     period = mean_sample_period_s(to_arrays(records))
     if not math.isfinite(period):
