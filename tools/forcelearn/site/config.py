@@ -31,11 +31,11 @@ table          holds
 ``[emulator]`` ``time_scale`` (0: as fast as possible; 1: real time), ``profile``
                ("realistic", or "ideal": no time on wires, instant arm, no
                relaxation, no adapter filter); physics of the emulated cell:
-               ``[emulator.sponge]``, ``[emulator.sensor]`` (the JR3's
-               :class:`SensorModelParams`, or with ``[sensor] kind = "netft"``
-               the Net F/T's :class:`NetFtModelParams`), ``[emulator.arm]``,
-               ``[emulator.egm]`` (EGM control lag: :class:`ServoParams`)
-               (ignored on a real cell)
+               ``[emulator.sponge]``, ``[emulator.arm]``; and each device
+               kind's model table (:attr:`~forcelearn.site.kinds.DeviceKind.emulator_table`):
+               ``[emulator.sensor]`` the sensor's (the JR3's ``SensorModelParams``,
+               the Net F/T's ``NetFtModelParams``), ``[emulator.egm]`` EGM's
+               control lag (``ServoParams``) (ignored on a real cell)
 ``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``
 =============  ===============================================================
 

@@ -33,10 +33,11 @@ or, from another distribution, an entry point of the group
     [project.entry-points."forcelearn.kinds"]
     kuka_rsi = "forcelearn_kuka.kind:KIND"
 
-Kinds read the cell config through :class:`CellView` (what
-:class:`~forcelearn.site.config.CellConfig` is; the config module reads this
-table, so this one does not import it) and its devices' configs through
-:class:`RobotConfig` and :class:`SensorConfig`.
+Kinds read the cell config through :class:`~forcelearn.site.cell_view.CellView`
+(what :class:`~forcelearn.site.config.CellConfig` is; the config module reads
+this table, so this one does not import it) and its devices' configs through
+:class:`~forcelearn.site.cell_view.RobotConfig` and
+:class:`~forcelearn.site.cell_view.SensorConfig` (re-exported here).
 """
 
 from __future__ import annotations
@@ -48,8 +49,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
-from pathlib import Path
-from typing import ClassVar, Literal, Protocol, TypedDict
+from typing import ClassVar, Literal, Protocol
 
 from forcelearn.calibration import SensorInfo
 from forcelearn.devices import ForceSensor, Robot
@@ -57,104 +57,28 @@ from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import ConfigError
-from forcelearn.filtering import ForceFilterConfig
+from forcelearn.site.cell_view import (
+    BusView,
+    CanBusKwargs,
+    CellView,
+    EmulatorView,
+    RobotConfig,
+    SensorConfig,
+)
 
 Printer = Callable[[str], None]
 """Where ``forcelearn check`` writes its report lines."""
 Role = Literal["robot", "sensor"]
 ENTRY_POINT_GROUP = "forcelearn.kinds"
 """Entry-point group through which another distribution adds kinds (name: the kind's)."""
-
-
-class RobotConfig(Protocol):
-    """What every robot kind's config carries: the driver's limits (from ``[safety]``)."""
-
-    @property
-    def limits(self) -> Limits:
-        """Workspace, step and speed the driver enforces before a command leaves the PC."""
-        ...
-
-
-class SensorConfig(Protocol):
-    """What every sensor kind's config carries (``[safety]`` and the zeroing rule set them)."""
-
-    @property
-    def stale_timeout_s(self) -> float:
-        """No sample within this time raises ``SensorStale``, s."""
-        ...
-
-    @property
-    def zero_on_init(self) -> bool:
-        """Zero the sensor's offsets when it opens (tool in free space)."""
-        ...
-
-
-class CanBusKwargs(TypedDict, total=False):
-    """Extra keyword arguments of ``can.Bus`` that a ``[sensor]`` table may set."""
-
-    sleep_after_open: float
-    """python-can's slcan wait after opening the adapter, s."""
-
-
-class BusView(Protocol):
-    """The cell's CAN bus as a kind reads it (:class:`~forcelearn.site.config.BusConfig`)."""
-
-    @property
-    def interface(self) -> str: ...  # noqa: D102 - the fields of BusConfig
-    @property
-    def channel(self) -> str: ...  # noqa: D102
-    @property
-    def bitrate(self) -> int: ...  # noqa: D102
-    @property
-    def sleep_after_open_s(self) -> float | None: ...  # noqa: D102
-
-    def can_kwargs(self) -> CanBusKwargs:
-        """Extra keyword arguments for ``can.Bus``."""
-        ...
-
-
-class EmulatorView(Protocol):
-    """The ``[emulator]`` tables as a kind reads them (``site.config.EmulatorConfig``)."""
-
-    @property
-    def arm(self) -> ArmConfig:
-        """The emulated arm every robot kind moves."""
-        ...
-
-    @property
-    def ideal(self) -> bool:
-        """True for the zero-time profile."""
-        ...
-
-    @property
-    def devices(self) -> Mapping[str, object]:
-        """Kind name -> the model its ``[emulator.*]`` table built (absent: the kind's default)."""
-        ...
-
-    def effective(self) -> EmulatorView:
-        """The models with the profile applied."""
-        ...
-
-
-class CellView(Protocol):
-    """What a kind reads of the cell config (:class:`~forcelearn.site.config.CellConfig`)."""
-
-    @property
-    def robot(self) -> RobotConfig: ...  # noqa: D102 - the fields of CellConfig
-    @property
-    def sensor(self) -> SensorConfig: ...  # noqa: D102
-    @property
-    def bus(self) -> BusView: ...  # noqa: D102
-    @property
-    def emulator(self) -> EmulatorView: ...  # noqa: D102
-    @property
-    def filter(self) -> ForceFilterConfig: ...  # noqa: D102
-    @property
-    def calibration_file(self) -> Path | None: ...  # noqa: D102
-    @property
-    def robot_emulated(self) -> bool: ...  # noqa: D102
-    @property
-    def sensor_emulated(self) -> bool: ...  # noqa: D102
+__all__ = [
+    "ALIASES", "DEFAULT_ROBOT_KIND", "DEFAULT_SENSOR_KIND", "ENTRY_POINT_GROUP", "ROBOT_KINDS",
+    "SENSOR_KINDS", "BusView", "CanBusKwargs", "CellView", "DeviceKind", "EmulatorView",
+    "FarEnd", "FarEndOptions", "Polling", "Printer", "RobotConfig", "RobotKind", "Role",
+    "SensorConfig", "SensorKind", "Serving", "UnmodelledKind", "installed_entry_points",
+    "jsonable", "kind_of", "known", "load_entry_points", "register", "robot_kind",
+    "robot_kind_of", "sensor_kind", "sensor_kind_of",
+]
 
 
 class Serving(Protocol):
