@@ -274,7 +274,7 @@ class Cell:
         """
         config = self.force_filter.config
         wrenches = np.array([s.wrench for s in samples], dtype=float)
-        normal = config.sign * wrenches[:, config.axis]
+        normal = config.normal_force(wrenches)
         gaps = [s.sensor_dt_s for s in samples[1:]]
         span = (
             float(sum(g for g in gaps if g is not None)) if all(g is not None for g in gaps)
@@ -316,7 +316,7 @@ class Cell:
                 f"the sensor is near its full scale on {', '.join(saturated)} (force "
                 f"{magnitude:.2f} N): the force is not known; the robot was stopped"
             )
-        normal = config.sign * float(samples[worst].wrench[config.axis])
+        normal = float(config.normal_force(samples[worst].wrench))
         hint = (
             f"; only {normal:.2f} N of it is along the normal ([filter] axis = {config.axis}, "
             f"sign = {config.sign:g}): check that axis and sign"

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,6 +95,14 @@ class ForceFilterConfig:
             raise ConfigError(f"filter.noise_cutoff_hz={cutoff!r}: must be >= 0 (0: white)")
         if self.axis not in range(6) or self.sign not in (1.0, -1.0):
             raise ConfigError("filter.axis must be 0..5 and filter.sign +1 or -1")
+
+    def normal_force(self, wrenches: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Return the normal force (N), ``sign * wrench[axis]``: pressing harder reads larger.
+
+        Of one wrench (6,), a 0-d array (``float()`` it); of rows (n, 6), an array (n,).
+        """
+        result: np.ndarray = self.sign * np.asarray(wrenches, dtype=float)[..., self.axis]
+        return result
 
 
 class ForceFilter:
@@ -177,7 +186,7 @@ class ForceFilter:
         step of that length; without it, one step of ``sample_period_s`` per
         counter step (predicting through gaps).
         """
-        z = self.config.sign * float(sample.wrench[self.config.axis])
+        z = float(self.config.normal_force(sample.wrench))
         with self._lock:
             if sample.sensor_dt_s is not None:
                 self._last_counter = sample.counter

@@ -173,9 +173,9 @@ class MoveAwareForceFilter:
     def on_burst(self, samples: Sequence[WrenchSample]) -> float:
         """Filter a burst of consecutive samples taken while the cell stood still; return N."""
         config = self.config
-        values = np.array([config.sign * float(s.wrench[config.axis]) for s in samples])
-        if len(values) == 0:
+        if len(samples) == 0:
             raise ValueError("a burst needs at least one sample")
+        values = config.normal_force(np.array([s.wrench for s in samples], dtype=float))
         with self._lock:
             gate = config.jump_gate_sigma * math.sqrt(self._variance_n2)
             distance = np.abs(values - np.median(values))

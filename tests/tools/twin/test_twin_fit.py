@@ -10,8 +10,7 @@ import pytest
 
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.emulators.physics.arm_motion import MotionParams
-from forcelearn.emulators.physics.sponge import Sponge, SpongeParams, contact_force_n
-from forcelearn.emulators.physics.sponge import surface_y_mm as emulator_surface_y_mm
+from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.records import BurstRecord, MoveRecord, StepRecord, TrialRecords
 from forcelearn.tools.twin import forward
 from forcelearn.tools.twin.arrays import RecordsError, to_arrays
@@ -48,22 +47,6 @@ def noiseless() -> TwinFit:
     return _fit(simulate_run(SimulatedRun(trials=25, sponge=TRUTH), seed=3))
 
 
-def test_forward_model_is_the_emulated_sponge() -> None:
-    """The vectorised law equals the emulator's sponge point by point (also with wear)."""
-    rng = np.random.default_rng(0)
-    p = dataclasses.asdict(TRUTH)
-    z = rng.uniform(-130, 25, 400)
-    y = rng.uniform(-20, 5, 400)
-    passes = rng.integers(0, 200, 400).astype(float)
-    q = rng.uniform(0, 2, 400)
-    ours = forward.normal_force_n(p, passes, y, z, q, READING)
-    theirs = [contact_force_n(TRUTH, n, np.array([900.0, yy, zz]), qq)[1]
-              for n, yy, zz, qq in zip(passes, y, z, q, strict=True)]
-    assert np.allclose(ours, theirs, atol=1e-9)
-    surface = [emulator_surface_y_mm(TRUTH, n, zz) for n, zz in zip(passes, z, strict=True)]
-    assert np.allclose(forward.surface_y_mm(p, passes, z), surface, atol=1e-12)
-
-
 def _true_arm(motion: MotionParams) -> dict[str, float]:
     return {"start_delay_s": motion.start_delay_s, "accel_mm_s2": motion.accel_mm_s2,
             "default_speed_mm_s": motion.speed_mm_s, "lag_s": motion.lag_s,
@@ -79,11 +62,10 @@ def _errors(sponge: SpongeParams, seed: int) -> tuple[np.ndarray, np.ndarray]:
     records = simulate_run(SimulatedRun(trials=4, steps=10, burst_samples=5, sponge=sponge,
                                         motion=motion, exploration_mm=2.0), seed=seed)
     data = to_arrays(records)
-    p = dataclasses.asdict(sponge)
-    predicted = forward.predict_means(data, p, _true_arm(motion), READING)
+    predicted = forward.predict_means(data, sponge, _true_arm(motion), READING)
     without = forward.predict_means(
-        data, {**p, "hysteresis_loss": 0.0, "friction_coefficient": 0.0}, _true_arm(motion),
-        READING)
+        data, dataclasses.replace(sponge, hysteresis_loss=0.0, friction_coefficient=0.0),
+        _true_arm(motion), READING)
     return (np.abs(predicted - data.mean_n)[data.has_burst],
             np.abs(without - data.mean_n)[data.has_burst])
 

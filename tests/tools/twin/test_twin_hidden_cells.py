@@ -13,6 +13,7 @@ import pytest
 from forcelearn.emulators.physics.sponge import (
     SpongeParams,
     contact_force_n,
+    depth_for_force_mm,
     stiffness_n_per_mm,
     surface_y_mm,
 )
@@ -21,7 +22,6 @@ from forcelearn.site.jr3_kind import sensor_model
 from forcelearn.tasks.surface import KGF_N
 from forcelearn.tools.twin.hidden_cells import (
     HiddenCellRanges,
-    depth_for_force_mm,
     draw_hidden_cell,
     main,
     write_hidden_cells,

@@ -57,7 +57,7 @@ from typing import Any
 import numpy as np
 
 from forcelearn.protocols.jr3_can.opcodes import SENSOR_FRAME_PERIOD_S
-from forcelearn.protocols.jr3_can.scaling import COUNTS_PER_FULL_SCALE, INT16_MAX, INT16_MIN
+from forcelearn.protocols.jr3_can.scaling import counts_per_unit, to_count
 
 Six = tuple[float, float, float, float, float, float]
 
@@ -106,7 +106,7 @@ class SensorModel:
         self.rng = rng
         # Plain floats, not 6-element arrays: one sample is a dozen operations per axis, and
         # numpy's per-call overhead on six numbers is several times the arithmetic.
-        self._counts_per_unit = [COUNTS_PER_FULL_SCALE / fs for fs in params.full_scales]
+        self._counts_per_unit = counts_per_unit(params.full_scales)
         self._noise = [float(v) for v in params.noise_std]
         self._drift = [float(v) for v in params.bias_drift_per_sqrt_s]
         self._filter = params.emulate_filter
@@ -163,13 +163,8 @@ class SensorModel:
                 n = self._noise[axis] * draws[axis]
             bias.append(b)
             noise.append(n)
-            value = (low + b - self._offset[axis] + n) * self._counts_per_unit[axis]
-            if value >= INT16_MAX:
-                counts.append(INT16_MAX)
-            elif value <= INT16_MIN:
-                counts.append(INT16_MIN)
-            else:
-                counts.append(round(value))  # half to even, as numpy rounds
+            counts.append(to_count((low + b - self._offset[axis] + n)
+                                   * self._counts_per_unit[axis]))
         self._bias, self._filtered_noise, self._lowpass = bias, noise, lowpass
         return counts
 

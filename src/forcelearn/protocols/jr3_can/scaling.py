@@ -4,11 +4,16 @@ JR3 scaling: 16384 counts = full scale of the axis. Forces: full scale in N,
 ``F = raw * FS / 16384``. Moments: the adapter reports full scales in dN*m, so
 ``M = raw * FS_dNm / (16384 * 10)``; this module keeps moment full scales in
 N*m (``FS_dNm / 10``) so that one formula serves all six axes.
+
+Each side of the wire converts here and only here: the driver with
+:func:`counts_to_wrench`, the emulator with :func:`counts_per_unit` and
+:func:`to_count` (per axis, in floats: its hot path) or :func:`wrench_to_counts`.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -49,17 +54,32 @@ def full_scales_to_wire(
     return forces, moments  # type: ignore[return-value]
 
 
-def counts_to_wrench(raw: np.ndarray, full_scales: np.ndarray) -> np.ndarray:
+def counts_to_wrench(raw: Sequence[int] | np.ndarray, full_scales: np.ndarray) -> np.ndarray:
     """Return (Fx..Mz) in N and N*m from six raw counts and six full scales."""
     scale = np.asarray(full_scales, dtype=float) / COUNTS_PER_FULL_SCALE
     return np.asarray(raw, dtype=float) * scale
 
 
-def wrench_to_counts(wrench: np.ndarray, full_scales: np.ndarray) -> np.ndarray:
+def counts_per_unit(full_scales: Sequence[float] | np.ndarray) -> list[float]:
+    """Return the counts per N (forces) and per N*m (moments) of six full scales."""
+    return [COUNTS_PER_FULL_SCALE / float(fs) for fs in full_scales]
+
+
+def to_count(counts: float) -> int:
+    """Return a reading in counts as the adapter sends it: rounded half to even, int16-clipped."""
+    if counts >= INT16_MAX:
+        return INT16_MAX
+    if counts <= INT16_MIN:
+        return INT16_MIN
+    return round(counts)
+
+
+def wrench_to_counts(wrench: Sequence[float] | np.ndarray, full_scales: np.ndarray
+                     ) -> np.ndarray:
     """Return six int16 counts (rounded, clipped to the int16 range) for a wrench."""
-    counts = np.rint(np.asarray(wrench, dtype=float) * COUNTS_PER_FULL_SCALE / full_scales)
-    clipped: np.ndarray = np.clip(counts, INT16_MIN, INT16_MAX).astype(np.int64)
-    return clipped
+    per_unit = counts_per_unit(full_scales)
+    return np.array([to_count(float(value) * scale)
+                     for value, scale in zip(wrench, per_unit, strict=True)], dtype=np.int64)
 
 
 def cutoff_to_wire(cutoff_hz: float) -> int:

@@ -47,9 +47,10 @@ import numpy as np
 from scipy.linalg import solve_banded
 from scipy.optimize import least_squares
 
+from forcelearn.emulators.physics.sponge_law import SpongeParams, penetration_mm
 from forcelearn.records import TrialRecords
 from forcelearn.tools.twin.arrays import RecordArrays
-from forcelearn.tools.twin.forward import Reading, depth_mm
+from forcelearn.tools.twin.forward import Reading
 from forcelearn.tools.twin.sensor import SensorFit, mean_share
 
 SEGMENT_S = 20.0
@@ -316,7 +317,8 @@ def free_reads(data: RecordArrays, base: dict[str, float], reading: Reading) -> 
                            ).x
     surface = {**base, "surface_y_mm": float(fitted[1]) + FREE_MARGIN_MM,
                "surface_slope": float(fitted[2]), "waviness_mm": 0.0, "set_mm": 0.0}
-    depth = depth_mm(surface, data.passes, data.reached[..., 1], data.reached[..., 2])
+    depth = penetration_mm(SpongeParams.unchecked(surface), data.passes,
+                           data.reached[..., 1], data.reached[..., 2])
     free: np.ndarray = data.has_burst & (np.nan_to_num(depth, nan=1.0) <= 0.0)
     return free
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import OptimizeResult, least_squares
 
+from forcelearn.emulators.physics.sponge_law import SpongeParams
 from forcelearn.records import TrialRecords
 from forcelearn.tools.twin.arm import (
     ArmFit,
@@ -229,7 +230,8 @@ class _Problem:
         use = self.use if keep is None else self.use & keep
 
         def residuals(x: np.ndarray) -> np.ndarray:
-            sponge = {**frozen, **dict(zip(names, x.tolist(), strict=True))}
+            sponge = SpongeParams.unchecked({**frozen, **dict(zip(names, x.tolist(),
+                                                                   strict=True))})
             predicted = predict_means(self.train, sponge, self.arm, self.reading, self.shape,
                                       self.path)
             if self.walk is not None:  # the sensor's bias, profiled out (twin/bias.py)
@@ -302,8 +304,9 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
             held_sigmas[n] = spread[n]  # its uncertainty when it was last fitted
         free, values, spread, cost = rest, tried, tried_spread, tried_cost
     spread.update(held_sigmas)
-    train_pred = predict_means(train, values, arm, reading, problem.shape, problem.path)
-    held_pred = predict_means(heldout, values, arm, reading)
+    sponge = SpongeParams.unchecked(values)
+    train_pred = predict_means(train, sponge, arm, reading, problem.shape, problem.path)
+    held_pred = predict_means(heldout, sponge, arm, reading)
     if walk is not None:  # the sensor's bias (twin/bias.py)
         train_pred, held_pred = walk.debiased(train_pred, held_pred)
     train_rms = _rms(train_pred - train.mean_n, train.is_step & train.has_burst)
@@ -499,8 +502,9 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
                                          walk=walk)
     for name, spread in chosen.jackknife_sigmas.items():
         chosen.sigmas[name] = max(chosen.sigmas[name], spread)
-    train_pred = predict_means(train, chosen.values, arm.values, reading)
-    held_pred = predict_means(heldout, chosen.values, arm.values, reading)
+    sponge = SpongeParams.unchecked(chosen.values)
+    train_pred = predict_means(train, sponge, arm.values, reading)
+    held_pred = predict_means(heldout, sponge, arm.values, reading)
     train_pred, held_pred = walk.debiased(train_pred, held_pred)
     sensor = walk.sensor(fit_sensor(records, train, train_pred - train.mean_n,
                                     calibration_noise_n, configured_phi))

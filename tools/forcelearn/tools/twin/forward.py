@@ -2,10 +2,13 @@
 
 Force
 -----
-The same law as :mod:`forcelearn.emulators.physics.sponge` (a test checks the
-two agree point by point): surface ``surface_y(z, n)`` and stiffness
-``k(z, n)`` after ``n`` passes, a standard linear solid's relaxing part ``q``
-and the rigid backing beyond the foam. The depth is taken to change linearly
+The emulated sponge's own law, :mod:`forcelearn.emulators.physics.sponge_law`,
+called over arrays with the typed :class:`SpongeParams` (one code: a test
+checks the two agree to 1e-12 on every member of the foam family): surface
+``surface_y(z, n)`` and stiffness ``k(z, n)`` after ``n`` passes, a standard
+linear solid's relaxing part ``q``, hysteresis and friction, the rigid backing
+beyond the foam. What is the forward model's own is the state at each burst,
+from the recorded moves. The depth is taken to change linearly
 from one reached pose to the next while the arm moves (from the command plus
 the start delay to the recorded in-position time), for which ``q`` is exact;
 ``q`` then decays until the burst, and the burst reads its mean over the
@@ -40,6 +43,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from forcelearn.devices import quaternion_to_matrix
+from forcelearn.emulators.physics import sponge_law as law
+from forcelearn.emulators.physics.sponge_law import SpongeParams
 from forcelearn.tools.twin.arrays import RecordArrays
 
 
@@ -60,79 +65,24 @@ class Reading:
         return cls(sign * float(rotation[1, axis]), sign * float(rotation[2, axis]))
 
 
-def surface_y_mm(p: dict[str, float], passes: np.ndarray, z_mm: np.ndarray) -> np.ndarray:
-    """:func:`forcelearn.emulators.physics.sponge.surface_y_mm`, over arrays."""
-    travelled = p["z_top_mm"] - z_mm
-    wave = p["waviness_mm"] * np.sin(2 * np.pi * travelled / p["waviness_wavelength_mm"])
-    sunk = p["set_mm"] * (1 - np.exp(-passes / p["set_passes"]))
-    return p["surface_y_mm"] + p["surface_slope"] * travelled + wave - sunk
-
-
-def surface_dy_dz(p: dict[str, float], z_mm: np.ndarray) -> np.ndarray:
-    """dY/dZ of the surface at ``z_mm``."""
-    travelled = p["z_top_mm"] - z_mm
-    k = 2 * np.pi / p["waviness_wavelength_mm"]
-    return -p["surface_slope"] - p["waviness_mm"] * k * np.cos(k * travelled)
-
-
-def stiffness_n_per_mm(p: dict[str, float], passes: np.ndarray, z_mm: np.ndarray) -> np.ndarray:
-    """:func:`forcelearn.emulators.physics.sponge.stiffness_n_per_mm`, over arrays."""
-    travelled = p["z_top_mm"] - z_mm
-    variation = p["stiffness_variation"] * np.cos(
-        2 * np.pi * travelled / p["stiffness_wavelength_mm"]
-    )
-    softened = 1 - p["softening"] * (1 - np.exp(-passes / p["softening_passes"]))
-    return p["stiffness_n_per_mm"] * (1 + variation) * softened
-
-
-def depth_mm(p: dict[str, float], passes: np.ndarray, y_mm: np.ndarray,
-             z_mm: np.ndarray) -> np.ndarray:
-    """Penetration (mm, >= 0) of tool points; 0 off the strip."""
-    inside = (z_mm >= p["z_bottom_mm"]) & (z_mm <= p["z_top_mm"])
-    return np.where(inside, np.maximum(0.0, surface_y_mm(p, passes, z_mm) - y_mm), 0.0)
-
-
-def elastic_mm(p: dict[str, float], foam_mm: np.ndarray) -> np.ndarray:
-    """The foam's elastic depth u (mm): ``d_f (d_f / d_ref) ** (n - 1)``; ``d_f`` at n = 1.
-
-    ``n`` is ``stiffening_exponent`` and ``d_ref`` ``stiffening_reference_mm`` of the
-    nonlinear foam (absent from an emulator without them: the linear foam).
-    """
-    exponent = p.get("stiffening_exponent", 1.0)
-    if exponent == 1.0:
-        return foam_mm
-    reference = p.get("stiffening_reference_mm", 10.0)
-    positive = np.maximum(foam_mm, 1e-12)
-    result: np.ndarray = np.where(foam_mm > 0.0,
-                                  positive * (positive / reference) ** (exponent - 1.0), 0.0)
-    return result
-
-
-def normal_force_n(p: dict[str, float], passes: np.ndarray, y_mm: np.ndarray,
-                   z_mm: np.ndarray, relaxing_mm: np.ndarray | float,
-                   reading: Reading, contact: ContactState | None = None) -> np.ndarray:
+def recorded_force_n(p: SpongeParams, passes: np.ndarray, y_mm: np.ndarray,
+                     z_mm: np.ndarray, relaxing_mm: np.ndarray | float,
+                     reading: Reading, contact: ContactState | None = None) -> np.ndarray:
     """The recorded normal force (N) of tool points with relaxing part ``relaxing_mm``.
 
-    ``contact`` (:func:`contact_state`) adds the hysteresis factor ``1 + h s`` on the
-    foam's force and the friction ``-mu N t`` along the last slide; None: neither.
+    The sponge's :func:`~forcelearn.emulators.physics.sponge_law.contact_force_n` at
+    the points, read along the run's axis. ``contact`` (:func:`contact_state`) gives the
+    hysteresis state and the last slide; None: neither (s = 0, no slide).
     """
-    depth = depth_mm(p, passes, y_mm, z_mm)
-    foam = np.maximum(0.0, elastic_mm(p, np.minimum(depth, p["thickness_mm"]))
-                      + p["relaxation_ratio"]
-                      * relaxing_mm)
-    normal = stiffness_n_per_mm(p, passes, z_mm) * foam
-    if contact is not None and p.get("hysteresis_loss", 0.0) != 0.0:
-        normal = normal * (1.0 + p["hysteresis_loss"] * contact.hysteresis)
-    normal = normal + p["backing_n_per_mm"] * np.maximum(0.0, depth - p["thickness_mm"])
-    normal = np.where(depth > 0.0, normal, 0.0)
-    slope = surface_dy_dz(p, z_mm)
-    result: np.ndarray = normal * (reading.along_y - reading.along_z * slope) / np.sqrt(
-        1.0 + slope * slope
-    )
-    mu = p.get("friction_coefficient", 0.0)
-    if contact is not None and mu != 0.0:
-        result = result - mu * normal * (reading.along_y * contact.slide_y
-                                         + reading.along_z * contact.slide_z)
+    points = np.stack([np.zeros_like(y_mm), y_mm, z_mm], axis=-1)
+    hysteresis: np.ndarray | float = 0.0
+    slide: np.ndarray = np.zeros(3)
+    if contact is not None:
+        hysteresis = contact.hysteresis
+        slide = np.stack([np.zeros_like(contact.slide_y), contact.slide_y, contact.slide_z],
+                         axis=-1)
+    force = law.contact_force_n(p, passes, points, relaxing_mm, hysteresis, slide)
+    result: np.ndarray = force[..., 1] * reading.along_y + force[..., 2] * reading.along_z
     return result
 
 
@@ -189,7 +139,7 @@ def motion_shape(data: RecordArrays, arm: dict[str, float]) -> MotionShape:
     return MotionShape(np.clip(shares, 0.0, 1.0), total[..., None] - middles)
 
 
-def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, p: dict[str, float],
+def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, p: SpongeParams,
                        shape: MotionShape) -> np.ndarray:
     """The relaxing part q (mm) averaged over each burst, (T, M).
 
@@ -200,11 +150,11 @@ def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, p: dict[str
     tick. Between moves q decays; it is 0 once the tool is out of the foam; trials
     start relaxed (the tool comes from free space).
     """
-    thick, tau = p["thickness_mm"], p["relaxation_time_s"]
+    thick, tau = p.thickness_mm, p.relaxation_time_s
     previous = np.concatenate([depth_signed[:, :1], depth_signed[:, :-1]], axis=1)
     path = previous[..., None] + shape.share * (depth_signed - previous)[..., None]
-    foam_path = elastic_mm(p, np.clip(path, 0.0, thick))
-    start = elastic_mm(p, np.clip(previous, 0.0, thick))[..., None]
+    foam_path = law.elastic_depth_mm(p, np.clip(path, 0.0, thick))
+    start = law.elastic_depth_mm(p, np.clip(previous, 0.0, thick))[..., None]
     changes = np.diff(np.concatenate([start, foam_path], axis=2), axis=2)
     pushed = np.sum(changes * np.exp(-shape.before_end_s / tau), axis=2)
     foam = foam_path[..., -1]
@@ -230,7 +180,7 @@ def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, p: dict[str
     return result
 
 
-def _settling_push_mm(p: dict[str, float], passes: np.ndarray, y: np.ndarray, z: np.ndarray,
+def _settling_push_mm(p: SpongeParams, passes: np.ndarray, y: np.ndarray, z: np.ndarray,
                       yb: np.ndarray, zb: np.ndarray, since_s: np.ndarray,
                       lag_s: float) -> np.ndarray:
     """The relaxing part (mm) at the burst from the lag's last approach after in position.
@@ -239,9 +189,9 @@ def _settling_push_mm(p: dict[str, float], passes: np.ndarray, y: np.ndarray, z:
     ``1 - exp(-t / lag)``; the standard linear solid's answer is
     ``change * tau / (tau - lag) * (exp(-t / tau) - exp(-t / lag))``.
     """
-    thick, tau = p["thickness_mm"], p["relaxation_time_s"]
-    change = (elastic_mm(p, np.minimum(depth_mm(p, passes, yb, zb), thick))
-              - elastic_mm(p, np.minimum(depth_mm(p, passes, y, z), thick)))
+    thick, tau = p.thickness_mm, p.relaxation_time_s
+    change = (law.elastic_depth_mm(p, np.minimum(law.penetration_mm(p, passes, yb, zb), thick))
+              - law.elastic_depth_mm(p, np.minimum(law.penetration_mm(p, passes, y, z), thick)))
     if abs(tau - lag_s) < 1e-9:
         response = since_s / lag_s * np.exp(-since_s / lag_s)
     else:
@@ -252,9 +202,6 @@ def _settling_push_mm(p: dict[str, float], passes: np.ndarray, y: np.ndarray, z:
 
 HYSTERESIS_POINTS = 4
 """Points per move on which the hysteresis state and the slide follow the tool's path."""
-SLIDE_MIN_FRACTION = 0.1
-"""A path piece slides when its part along the surface is at least this fraction of it
-(:data:`forcelearn.emulators.physics.sponge.SLIDE_MIN_FRACTION`)."""
 
 
 @dataclass(frozen=True)
@@ -308,15 +255,15 @@ def tool_path_mm(data: RecordArrays, arm: dict[str, float]) -> np.ndarray:
     return result
 
 
-def contact_state(data: RecordArrays, p: dict[str, float], arm: dict[str, float],
+def contact_state(data: RecordArrays, p: SpongeParams, arm: dict[str, float],
                   path: np.ndarray | None = None) -> ContactState:
     """The hysteresis state and the last slide at each burst, as the emulated sponge has them.
 
     The emulated sponge updates both at every pose the arm reports
     (``Sponge._follow_move``): the foam depth's change and the travel along the
-    surface from the last pose feed ``hysteresis_step``'s closed form; a piece of
-    motion at least ``SLIDE_MIN_FRACTION`` along the surface sets the slide's
-    direction (``slide_direction``); out of contact both are 0. Here the pieces
+    surface from the last pose feed ``hysteresis_step``'s closed form
+    (``hysteresis_target``); a piece of motion that ``slides`` along the surface
+    sets the slide's direction (``slide_direction``); out of contact both are 0. Here the pieces
     are those of :func:`tool_path_mm` (``path``, computed when not given), each
     move's pieces composed as one affine map of s, then a scan over the moves.
     A trial starts out of contact (the tool comes from the retract plane).
@@ -324,31 +271,21 @@ def contact_state(data: RecordArrays, p: dict[str, float], arm: dict[str, float]
     path = path if path is not None else tool_path_mm(data, arm)
     passes = data.passes[..., None]
     y, z = path[..., 1], path[..., 2]
-    depth = depth_mm(p, passes, y, z)
+    depth = law.penetration_mm(p, passes, y, z)
     depth[:, 0, 0] = 0.0  # a trial starts out of contact
     inside = depth > 0.0
-    foam = np.minimum(depth, p["thickness_mm"])
+    foam = np.minimum(depth, p.thickness_mm)
     step = np.diff(path, axis=2)
-    slope = surface_dy_dz(p, z[..., 1:])
-    norm = np.sqrt(1.0 + slope * slope)
-    normal_y, normal_z = 1.0 / norm, -slope / norm
-    across = step[..., 1] * normal_y + step[..., 2] * normal_z
-    length2 = np.sum(step * step, axis=-1)
-    along = np.sqrt(np.maximum(length2 - across * across, 0.0))
-    slides = (along >= SLIDE_MIN_FRACTION * np.sqrt(length2)) & (along >= 1e-9)
+    along_mm = law.along_surface_mm(p, step, z[..., 1:])
+    along = np.linalg.norm(along_mm, axis=-1)
+    slides = law.slides(along, np.linalg.norm(step, axis=-1))
     contact_after = inside[..., 1:]
     moved = data.valid[..., None]
     trials, moves = data.valid.shape
-    h = p.get("hysteresis_loss", 0.0)
     hysteresis = np.zeros((trials, moves))
-    if h != 0.0:
-        change = np.diff(foam, axis=2)
-        a = np.abs(change) / p["hysteresis_depth_mm"]
-        b = np.where(slides, along, 0.0) / p["hysteresis_travel_mm"]
-        rate = a + b
-        sign = np.where(change > 0.0, 1.0, -1.0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            target = np.where(rate > 0.0, (a * sign + b) / rate, 0.0)
+    if p.hysteresis_loss != 0.0:
+        target, rate = law.hysteresis_target(p, np.diff(foam, axis=2),
+                                             np.where(slides, along, 0.0))
         keep = np.exp(-rate)
         keep = np.where(contact_after, keep, 0.0)  # out of contact: s = 0
         push = np.where(contact_after, target * (1.0 - keep), 0.0)
@@ -364,7 +301,7 @@ def contact_state(data: RecordArrays, p: dict[str, float], arm: dict[str, float]
             hysteresis[:, j] = s
     slide_y = np.zeros((trials, moves))
     slide_z = np.zeros((trials, moves))
-    if p.get("friction_coefficient", 0.0) != 0.0:
+    if p.friction_coefficient != 0.0:
         event = (slides & contact_after) | ~contact_after
         event &= moved
         pieces = event.shape[2]
@@ -373,8 +310,8 @@ def contact_state(data: RecordArrays, p: dict[str, float], arm: dict[str, float]
         pick = np.take_along_axis
         index = last[..., None]
         with np.errstate(invalid="ignore", divide="ignore"):
-            unit_y = (step[..., 1] - across * normal_y) / along
-            unit_z = (step[..., 2] - across * normal_z) / along
+            unit_y = along_mm[..., 1] / along
+            unit_z = along_mm[..., 2] / along
         held = pick(contact_after, index, axis=2)[..., 0]
         new_y = np.where(held, pick(unit_y, index, axis=2)[..., 0], 0.0)
         new_z = np.where(held, pick(unit_z, index, axis=2)[..., 0], 0.0)
@@ -405,22 +342,22 @@ class ToolPath:
         self._key: tuple[float, ...] | None = None
         self._state: ContactState | None = None
 
-    def contact(self, p: dict[str, float]) -> ContactState:
+    def contact(self, p: SpongeParams) -> ContactState:
         """:func:`contact_state` of the sponge ``p`` on this path."""
-        key = (*(p[k] for k in CONTACT_KEYS), p.get("hysteresis_loss", 0.0) != 0.0,
-               p.get("friction_coefficient", 0.0) != 0.0)
+        key = (*(getattr(p, k) for k in CONTACT_KEYS), p.hysteresis_loss != 0.0,
+               p.friction_coefficient != 0.0)
         if key != self._key or self._state is None:
             self._state = contact_state(self.data, p, {}, self.points)
             self._key = key
         return self._state
 
 
-def path_dependent(p: dict[str, float]) -> bool:
+def path_dependent(p: SpongeParams) -> bool:
     """True when the sponge has hysteresis or friction (the forward model needs its path)."""
-    return p.get("hysteresis_loss", 0.0) != 0.0 or p.get("friction_coefficient", 0.0) != 0.0
+    return p.hysteresis_loss != 0.0 or p.friction_coefficient != 0.0
 
 
-def predict_means(data: RecordArrays, p: dict[str, float], arm: dict[str, float],
+def predict_means(data: RecordArrays, p: SpongeParams, arm: dict[str, float],
                   reading: Reading, shape: MotionShape | None = None,
                   path: ToolPath | None = None) -> np.ndarray:
     """Predicted burst means (T, M), N; NaN where no burst was read.
@@ -433,9 +370,9 @@ def predict_means(data: RecordArrays, p: dict[str, float], arm: dict[str, float]
     lag_s = arm["lag_s"]
     y = np.where(data.valid, data.reached[..., 1], 1e9)
     z = np.where(data.valid, data.reached[..., 2], 0.0)
-    if p["relaxation_ratio"] > 0.0:
-        inside = (z >= p["z_bottom_mm"]) & (z <= p["z_top_mm"])
-        signed = np.where(inside, surface_y_mm(p, passes, z) - y, -1.0)
+    if p.relaxation_ratio > 0.0:
+        inside = (z >= p.z_bottom_mm) & (z <= p.z_top_mm)
+        signed = np.where(inside, law.surface_y_mm(p, passes, z) - y, -1.0)
         shape = shape if shape is not None else motion_shape(data, arm)
         relaxing = relaxing_at_bursts(data, signed, p, shape)
     else:
@@ -448,12 +385,12 @@ def predict_means(data: RecordArrays, p: dict[str, float], arm: dict[str, float]
     yb = commanded[..., 1] + (data.reached[..., 1] - commanded[..., 1]) * shrink
     zb = commanded[..., 2] + (data.reached[..., 2] - commanded[..., 2]) * shrink
     yb, zb = np.where(burst, yb, 1e9), np.where(burst, zb, 0.0)
-    if p["relaxation_ratio"] > 0.0 and lag_s > 0:
+    if p.relaxation_ratio > 0.0 and lag_s > 0:
         relaxing = relaxing + _settling_push_mm(p, passes, y, z, yb, zb, since, lag_s)
     contact = None
     if path_dependent(p):
         contact = (path if path is not None else ToolPath(data, arm)).contact(p)
-    force = normal_force_n(p, passes, yb, zb, relaxing, reading, contact)
+    force = recorded_force_n(p, passes, yb, zb, relaxing, reading, contact)
     return np.where(burst, force, np.nan)
 
 

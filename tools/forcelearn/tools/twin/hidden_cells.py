@@ -70,7 +70,12 @@ from typing import Any
 import numpy as np
 import tomli_w
 
-from forcelearn.emulators.physics.sponge import SpongeParams, stiffness_n_per_mm, surface_y_mm
+from forcelearn.emulators.physics.sponge_law import (
+    SpongeParams,
+    depth_for_force_mm,
+    stiffness_n_per_mm,
+    surface_y_mm,
+)
 from forcelearn.site.config import SafetyLimits, load_cell_config
 from forcelearn.tasks.surface import KGF_N, SurfaceTaskSpec
 
@@ -166,15 +171,6 @@ def _uniform(rng: np.random.Generator, bounds: Range) -> float:
 
 def _log_uniform(rng: np.random.Generator, bounds: Range) -> float:
     return _tidy(math.exp(float(rng.uniform(math.log(bounds[0]), math.log(bounds[1])))))
-
-
-def depth_for_force_mm(sponge: SpongeParams, force_n: float, stiffness: float) -> float:
-    """Foam depth (mm) at which a foam of stiffness ``stiffness`` (N/mm) pushes ``force_n``.
-
-    The inverse of the power law ``k * d * (d / d_ref) ** (n - 1)``.
-    """
-    n, reference = sponge.stiffening_exponent, sponge.stiffening_reference_mm
-    return float((force_n / stiffness * reference ** (n - 1.0)) ** (1.0 / n))
 
 
 def _path_z_mm(task: SurfaceTaskSpec) -> np.ndarray:

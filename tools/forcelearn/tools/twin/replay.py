@@ -39,7 +39,7 @@ from forcelearn.tools.twin.bias import build_chain, offsets, solve_biases, tare_
 from forcelearn.tools.twin.fit import burst_weights
 from forcelearn.tools.twin.forward import predict_means
 from forcelearn.tools.twin.replay_cell import replay_trials
-from forcelearn.tools.twin.setup import base_arm, reading_of, sponge_of
+from forcelearn.tools.twin.setup import base_arm, reading_of
 
 MODELS = ("cell", "forward")
 
@@ -79,7 +79,7 @@ def replay(records: list[TrialRecords], twin: CellConfig, model: str = "cell",
     moved = with_true_in_position(
         data, ArmFit(arm, {n: math.inf for n in arm}, math.nan, 0, period_s=period,
                      answer_s=polling.answer_s(period)), band)
-    forward = predict_means(moved, sponge_of(twin), arm, reading_of(twin))
+    forward = predict_means(moved, twin.emulator.sponge, arm, reading_of(twin))
     if model == "cell":
         predicted = np.full(data.mean_n.shape, np.nan)
         replayed = iter([m for means in replay_trials([t for t in ordered if t.steps], twin,

@@ -30,11 +30,6 @@ def base_sponge(config: CellConfig) -> dict[str, float]:
     return base
 
 
-def sponge_of(config: CellConfig) -> dict[str, float]:
-    """Every ``[emulator.sponge]`` value of ``config`` (a twin's), as floats."""
-    return {k: float(v) for k, v in dataclasses.asdict(config.emulator.sponge).items()}
-
-
 def base_arm(config: CellConfig | None = None) -> dict[str, float]:
     """The arm's timing parameters of ``config`` (default: the emulator's defaults)."""
     arm = config.emulator.arm if config is not None else ArmConfig()
