@@ -33,11 +33,11 @@ from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.drivers.lifecycle import Driver
 from forcelearn.drivers.netft import NetFtConfig, NetFtSensor
 from forcelearn.emulators.clock import SimClock
+from forcelearn.emulators.computer_link import ComputerLinkEmulator
 from forcelearn.emulators.egm import EgmControllerEmulator, InProcessEgmController
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
 from forcelearn.emulators.netft.server import NetFtEmulator
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller import RobotControllerEmulator
 from forcelearn.errors import ForcelearnError
 from forcelearn.protocols.egm import codec
 
@@ -66,10 +66,10 @@ class Case:
 
 
 def _computer_link(stack: ExitStack) -> Case:
-    emulator = stack.enter_context(RobotControllerEmulator("inproc"))
+    emulator = stack.enter_context(ComputerLinkEmulator("inproc"))
     fast = {"ack_timeout_s": 0.05, "reply_timeout_s": 0.05}
     commanded: list[float] = []
-    gone = RobotControllerEmulator("inproc")
+    gone = ComputerLinkEmulator("inproc")
     gone.start()
     gone.close()
 
@@ -347,9 +347,9 @@ from forcelearn.drivers.computer_link import ComputerLinkRobot, LinkConfig
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller import RobotControllerEmulator
+from forcelearn.emulators.computer_link import ComputerLinkEmulator
 
-emulator = RobotControllerEmulator("inproc")
+emulator = ComputerLinkEmulator("inproc")
 emulator.start()
 robot = ComputerLinkRobot(LinkConfig(url=emulator.address))
 node = Jr3EmulatorNode(CellPhysics(), channel="exit", in_process=True)

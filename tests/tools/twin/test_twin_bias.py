@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.sponge import SpongeParams
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.tools.twin import forward
 from forcelearn.tools.twin.arrays import to_arrays
 from forcelearn.tools.twin.bias import Chain, build_chain, solve_biases, walk_terms

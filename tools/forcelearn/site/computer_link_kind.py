@@ -21,9 +21,9 @@ from forcelearn.drivers.computer_link import ComputerLinkRobot
 from forcelearn.drivers.computer_link.config import LinkConfig
 from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.clock import serial_char_time_s
+from forcelearn.emulators.computer_link.server import ComputerLinkEmulator
 from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
 from forcelearn.errors import ConfigError, LinkError, SafetyStop
 from forcelearn.protocols.computer_link import framing, messages
 from forcelearn.site.config import EMULATED, EMULATED_LINK_TIMEOUT_S
@@ -63,7 +63,7 @@ class ComputerLinkFarEnd(FarEnd):
 
     def __init__(self, config: CellView, physics: CellPhysics, in_process: bool) -> None:
         super().__init__()
-        self.emulator: RobotControllerEmulator = RobotControllerEmulator(
+        self.emulator: ComputerLinkEmulator = ComputerLinkEmulator(
             "inproc" if in_process else "pty",
             config=config.emulator.effective().arm,
             physics=physics,
