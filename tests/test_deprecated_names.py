@@ -16,6 +16,14 @@ RENAMED = [
      "forcelearn.emulators.computer_link", "ComputerLinkEmulator"),
     ("forcelearn.emulators.computer_link.faults", "FaultConfig",
      "forcelearn.emulators.computer_link", "ComputerLinkFaultConfig"),
+    ("forcelearn.emulators.jr3", "FaultConfig", "forcelearn.emulators.jr3", "Jr3FaultConfig"),
+    ("forcelearn.emulators.jr3.faults", "FaultConfig", "forcelearn.emulators.jr3",
+     "Jr3FaultConfig"),
+    ("forcelearn.emulators.jr3", "SensorModel", "forcelearn.emulators.jr3", "Jr3SensorModel"),
+    ("forcelearn.emulators.jr3", "SensorModelParams", "forcelearn.emulators.jr3",
+     "Jr3ModelParams"),
+    ("forcelearn.emulators.jr3.sensor_model", "SensorModelParams", "forcelearn.emulators.jr3",
+     "Jr3ModelParams"),
 ]
 
 
@@ -47,3 +55,10 @@ def test_the_old_emulator_package_warns_and_its_modules_are_the_new_ones(
     kinematics = importlib.import_module("forcelearn.emulators.robot_controller.kinematics")
     assert kinematics is importlib.import_module("forcelearn.emulators.physics.arm")
 
+
+def test_the_jr3_driver_package_exports_its_sensor_and_config() -> None:
+    """``forcelearn.drivers.jr3_can`` names its driver as the other driver packages do."""
+    jr3_can = importlib.import_module("forcelearn.drivers.jr3_can")
+    assert {"Jr3CanSensor", "Jr3Config"} <= set(jr3_can.__all__)
+    assert jr3_can.Jr3CanSensor is importlib.import_module(
+        "forcelearn.drivers.jr3_can.driver").Jr3CanSensor

@@ -14,7 +14,7 @@ from forcelearn.devices import Pose, WrenchSample
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge, surface_y_mm
 from forcelearn.errors import ConfigError
@@ -120,7 +120,7 @@ def test_async_stream_from_the_driver_feeds_the_filter() -> None:
     target_n = filter_experiment.DESIRED_N
     depth = target_n / 2.0 / (1 + 0.15 * np.cos(2 * np.pi * 60 / 120))
     kf = ForceFilter(ForceFilterConfig(sample_period_s=0.001, measurement_variance_n2=NOISE_N**2))
-    white = SensorModelParams(emulate_filter=False)  # the stream filter's model: white noise
+    white = Jr3ModelParams(emulate_filter=False)  # the stream filter's model: white noise
     with Jr3EmulatorNode(physics, channel=channel, seed=4, model=white) as node, \
             can.Bus(interface="virtual", channel=channel) as bus:
         config = Jr3Config(mode="async", period_us=1000, zero_on_init=True, zero_settle_s=0.0)

@@ -223,7 +223,7 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, configured_map_toml: str
 ) -> None:
     """The JR3 goes silent after trial 3: SensorStale ends the run, robot stopped, 3 trials kept."""
-    from forcelearn.emulators.jr3.faults import FaultConfig
+    from forcelearn.emulators.jr3.faults import Jr3FaultConfig
     from forcelearn.errors import SensorStale
     from forcelearn.tools.experiments import surface_run
     from forcelearn.tools.experiments.surface_state import prepare_run
@@ -253,7 +253,7 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
 
     def silence_after_three(record: object, learner: object) -> None:
         if record.index == 2:  # type: ignore[attr-defined]
-            sessions[0].sensor_emulator.set_faults(FaultConfig(silent=True))
+            sessions[0].sensor_emulator.set_faults(Jr3FaultConfig(silent=True))
 
     out = tmp_path / "run"
     config = tmp_path / "cell.toml"

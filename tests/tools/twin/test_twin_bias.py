@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.tools.twin import forward
@@ -34,7 +34,7 @@ SPONGE = SpongeParams(
 DRIFT = 0.03
 """N/sqrt(s): 1.5 x the emulated JR3's; over the 25 trials (~260 s) the bias wanders ~0.5 N."""
 NOISE = 0.02
-RUN = SimulatedRun(trials=25, sponge=SPONGE, sensor=SensorModelParams(
+RUN = SimulatedRun(trials=25, sponge=SPONGE, sensor=Jr3ModelParams(
     noise_std=(NOISE,) * 6, initial_bias=(0.0,) * 6, bias_drift_per_sqrt_s=(DRIFT,) * 6))
 COLOUR = math.exp(-2 * math.pi * RUN.cutoff_hz * RUN.sample_period_s)
 

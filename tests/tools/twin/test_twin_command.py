@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.records import TrialRecords
 from forcelearn.site.config import load_cell_config
@@ -20,7 +20,7 @@ from forcelearn.tools.twin import source
 from forcelearn.tools.twin.arrays import RecordsError
 from forcelearn.tools.twin.simulate import SimulatedRun, simulate_run
 
-NOISY = SensorModelParams(noise_std=(0.1,) * 6, initial_bias=(0.0,) * 6,
+NOISY = Jr3ModelParams(noise_std=(0.1,) * 6, initial_bias=(0.0,) * 6,
                           bias_drift_per_sqrt_s=(0.0,) * 6)
 TRUTH = SpongeParams(stiffness_n_per_mm=2.6, surface_y_mm=0.5, relaxation_ratio=0.3)
 

@@ -33,7 +33,7 @@ table          holds
                relaxation, no adapter filter); physics of the emulated cell:
                ``[emulator.sponge]``, ``[emulator.arm]``; and each device
                kind's model table (:attr:`~forcelearn.site.kinds.DeviceKind.emulator_table`):
-               ``[emulator.sensor]`` the sensor's (the JR3's ``SensorModelParams``,
+               ``[emulator.sensor]`` the sensor's (the JR3's ``Jr3ModelParams``,
                the Net F/T's ``NetFtModelParams``), ``[emulator.egm]`` EGM's
                control lag (``ServoParams``) (ignored on a real cell)
 ``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``
@@ -194,7 +194,7 @@ class EmulatorConfig:
     arm: ArmConfig = field(default_factory=ArmConfig)
     devices: Mapping[str, object] = field(default_factory=dict)
     """Kind name -> the model its ``[emulator.*]`` table built (the JR3's
-    :class:`~forcelearn.emulators.jr3.sensor_model.SensorModelParams`, EGM's
+    :class:`~forcelearn.emulators.jr3.sensor_model.Jr3ModelParams`, EGM's
     :class:`~forcelearn.emulators.egm.servo.ServoParams`...); a kind absent takes its
     defaults (:meth:`~forcelearn.site.kinds.DeviceKind.model`)."""
     time_scale: float = 0.0

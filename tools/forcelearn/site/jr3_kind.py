@@ -29,7 +29,7 @@ from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators import registry
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.slcan import SlcanAdapterEmulator
 from forcelearn.errors import CalibrationError, ConfigError, ForcelearnError, SensorBusError
@@ -73,12 +73,12 @@ def jr3_of(config: CellView) -> Jr3Config:
     return config.sensor
 
 
-def sensor_model(config: CellView) -> SensorModelParams:
+def sensor_model(config: CellView) -> Jr3ModelParams:
     """``[emulator.sensor]`` of a JR3 cell, with the profile (ideal: no adapter filter)."""
     model = KIND.model(config.emulator)
-    if not isinstance(model, SensorModelParams):
+    if not isinstance(model, Jr3ModelParams):
         raise ConfigError(f"emulator.sensor holds a {type(model).__name__}, not the JR3's "
-                          "SensorModelParams")
+                          "Jr3ModelParams")
     return replace(model, emulate_filter=False) if config.emulator.ideal else model
 
 
@@ -153,7 +153,7 @@ class Jr3Kind(SensorKind):
     config_type = Jr3Config
     emulated_key = "interface"
     learner_keys = ("mode", "cutoff_hz", "period_us", "full_scales")
-    model_type = SensorModelParams
+    model_type = Jr3ModelParams
 
     def take_bus(self, table: dict[str, object]) -> dict[str, object]:
         """The CAN bus keys (``interface = "emulated"`` by default)."""

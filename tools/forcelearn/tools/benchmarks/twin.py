@@ -14,7 +14,7 @@ import argparse
 import time
 from pathlib import Path
 
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.records import TrialRecords
 from forcelearn.site.config import load_cell_config
 from forcelearn.tools.twin.fit import fit_twin
@@ -42,7 +42,7 @@ def _records(args: argparse.Namespace) -> list[TrialRecords]:
         from forcelearn.tools.twin.source import read_runs
 
         return read_runs([args.run_dir]).records
-    sensor = SensorModelParams(noise_std=(0.2,) * 3 + (0.02,) * 3, initial_bias=(0.0,) * 6,
+    sensor = Jr3ModelParams(noise_std=(0.2,) * 3 + (0.02,) * 3, initial_bias=(0.0,) * 6,
                                bias_drift_per_sqrt_s=(0.0,) * 6)
     run = SimulatedRun(trials=args.trials, sensor=sensor, burst_samples=args.burst_samples,
                        probe_points=PROBE_POINTS)
