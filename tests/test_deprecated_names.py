@@ -24,6 +24,8 @@ RENAMED = [
      "Jr3ModelParams"),
     ("forcelearn.emulators.jr3.sensor_model", "SensorModelParams", "forcelearn.emulators.jr3",
      "Jr3ModelParams"),
+    ("forcelearn.drivers.egm", "EgmRobotDriver", "forcelearn.drivers.egm", "EgmRobot"),
+    ("forcelearn.drivers.egm.driver", "EgmRobotDriver", "forcelearn.drivers.egm", "EgmRobot"),
 ]
 
 

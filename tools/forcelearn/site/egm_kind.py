@@ -26,7 +26,7 @@ from typing import Any, Literal, cast
 
 from forcelearn.config import build
 from forcelearn.devices import Robot
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver, open_egm_robot
+from forcelearn.drivers.egm import EgmConfig, EgmRobot, open_egm_robot
 from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
@@ -173,7 +173,7 @@ class EgmFarEnd(FarEnd):
         """The controller's cycle state and, in a session, the driver's."""
         assert self.emulator is not None
         state: dict[str, object] = {"controller": self.emulator.state_dict()}
-        if isinstance(self.driver, EgmRobotDriver):
+        if isinstance(self.driver, EgmRobot):
             state["driver"] = self.driver.state_dict()
         return state
 
@@ -181,7 +181,7 @@ class EgmFarEnd(FarEnd):
         """Restore :meth:`state_dict` (while the controller waits for the PC's answer)."""
         assert self.emulator is not None
         self.emulator.load_state_dict(state["controller"])
-        if isinstance(self.driver, EgmRobotDriver) and "driver" in state:
+        if isinstance(self.driver, EgmRobot) and "driver" in state:
             self.driver.load_state_dict(state["driver"])
 
     def describe(self, paths: dict[str, str]) -> str:
@@ -265,7 +265,7 @@ class EgmKind(RobotKind):
 
     def open(
         self, config: CellView, far_end: FarEnd | None, stack: contextlib.ExitStack
-    ) -> EgmRobotDriver:
+    ) -> EgmRobot:
         """The driver: on the real controller, or in lockstep with the emulator."""
         robot = egm_of(config)
         if far_end is None:
@@ -284,9 +284,9 @@ class EgmKind(RobotKind):
             first_message_timeout_s=EMULATED_EGM_FIRST_MESSAGE_S,
         )
         if isinstance(far_end.emulator, InProcessEgmController):
-            driver = EgmRobotDriver(driver_config, sock=far_end.emulator.socket())
+            driver = EgmRobot(driver_config, sock=far_end.emulator.socket())
         else:
-            driver = EgmRobotDriver(driver_config)
+            driver = EgmRobot(driver_config)
         stack.callback(driver.close)  # closed before its controller: its last answer goes out
         far_end.driver = driver
         if far_end.emulator is None:
@@ -296,7 +296,7 @@ class EgmKind(RobotKind):
 
     def check(self, robot: Robot, say: Printer) -> Callable[[], None]:
         """The session as it holds; afterwards, fail if the target ever moved."""
-        robot = cast(EgmRobotDriver, robot)  # the driver this kind opened
+        robot = cast(EgmRobot, robot)  # the driver this kind opened
         config = robot.config
         pose = robot.read_pose()
         status = robot.read_status()
@@ -331,7 +331,7 @@ class EgmKind(RobotKind):
 
     def calibration_name(self, robot: Robot) -> str:
         """"ABB EGM" and the RobotWare of the session."""
-        robot = cast(EgmRobotDriver, robot)
+        robot = cast(EgmRobot, robot)
         return f"ABB EGM {robot.config.version}"
 
     def polling(self, robot: RobotConfig, arm: ArmConfig) -> Polling:

@@ -52,7 +52,7 @@ def start_emulated_egm(
 ) -> EgmControllerEmulator:
     """Start an emulated EGM controller for an emulated cell (lockstep) and return it.
 
-    ``remote_port`` is the driver's bound port (``EgmRobotDriver.port``); the
+    ``remote_port`` is the driver's bound port (``EgmRobot.port``); the
     driver must be configured with ``lockstep = True``. ``motion`` replaces the
     private servo (the emulated cell passes :class:`PhysicsMotion` over the shared
     arm). Stop it with ``stop()``.
