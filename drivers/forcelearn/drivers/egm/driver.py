@@ -11,9 +11,10 @@ device; ``EgmRobotDriver`` is its old name), not to be confused with the
 protocol's EgmRobot message. The PC is the UDP server: the driver binds
 ``host:port`` and the controller sends an EgmRobot message every sample
 period; each fresh one is answered with an EgmSensor whose planned pose ramps
-toward the last accepted target (:mod:`.guidance`). Only the paired controller is answered (``controller_host``
-/ ``controller_port``, else the first sender of a valid session start), and no
-datagram ends a session: what cannot be used is counted in :class:`EgmStats`.
+toward the last accepted target (:mod:`.guidance`). Only the paired controller
+is answered (``controller_host`` / ``controller_port``, else the first sender
+of a valid session start), and no datagram ends a session: what cannot be used
+is counted in :class:`EgmStats`.
 ``move_to`` only sets the target: it is checked in full at the call first
 (``InvalidTarget`` / ``SafetyStop``, and no datagram ever carries a refused
 target). Two modes:
