@@ -31,12 +31,14 @@ table          holds
 ``[emulator]`` ``time_scale`` (0: as fast as possible; 1: real time), ``profile``
                ("realistic", or "ideal": no time on wires, instant arm, no
                relaxation, no adapter filter); physics of the emulated cell:
-               ``[emulator.sponge]``, ``[emulator.arm]``; and each device
+               ``[emulator.sponge]``, ``[emulator.arm]``, ``[emulator.tool]`` (the
+               tool: :mod:`forcelearn.site.emulated_tool`); and each device
                kind's model table (:attr:`~forcelearn.site.kinds.DeviceKind.emulator_table`):
                ``[emulator.sensor]`` the sensor's (the JR3's ``Jr3ModelParams``,
                the Net F/T's ``NetFtModelParams``), ``[emulator.egm]`` EGM's
                control lag (``ServoParams``) (ignored on a real cell)
-``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``
+``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``; ``sensor_serial``:
+               this sensor's serial (a file of another is refused)
 =============  ===============================================================
 
 The kinds are the entries of :mod:`forcelearn.site.kinds`; each builds its
@@ -59,9 +61,12 @@ from forcelearn.devices import Pose
 from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.sponge import SpongeParams
+from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
+from forcelearn.site.calibration_identity import load_sensor_serial
+from forcelearn.site.emulated_tool import load_tool
 from forcelearn.site.kinds import (
     DEFAULT_ROBOT_KIND,
     DEFAULT_SENSOR_KIND,
@@ -197,6 +202,8 @@ class EmulatorConfig:
     :class:`~forcelearn.emulators.jr3.sensor_model.Jr3ModelParams`, EGM's
     :class:`~forcelearn.emulators.egm.servo.ServoParams`...); a kind absent takes its
     defaults (:meth:`~forcelearn.site.kinds.DeviceKind.model`)."""
+    tool: ToolParams = field(default_factory=ToolParams)
+    """The tool on the sensor (``[emulator.tool]``, :mod:`forcelearn.site.emulated_tool`)."""
     time_scale: float = 0.0
     """0: as fast as possible (simulated time only); 1.0: real time; any factor between."""
     profile: Literal["realistic", "ideal"] = "realistic"
@@ -259,6 +266,9 @@ class CellConfig:
     emulator: EmulatorConfig = field(default_factory=EmulatorConfig)
     probe: ProbeSpec = field(default_factory=ProbeSpec)
     calibration_file: Path | None = None
+    sensor_serial: str = ""
+    """``[calibration] sensor_serial``: the serial of this cell's sensor; a calibration file
+    of another serial is refused (:mod:`forcelearn.site.calibration_identity`)."""
     trials: int = DEFAULT_TRIALS
     seed: int = 0
     stop_after_converged: int = 0
@@ -345,6 +355,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         emulator=load_emulator((robot_device, kind), dict(data.get("emulator", {}))),
         probe=build(ProbeSpec, data.get("probe"), "probe"),
         calibration_file=load_calibration_file(data.get("calibration", {}), path),
+        sensor_serial=load_sensor_serial(data.get("calibration", {})),
         trials=trials,
         seed=seed,
         stop_after_converged=stop_after,
@@ -376,7 +387,7 @@ def load_sensor(kind: SensorKind, table: dict[str, Any], safety: SafetyLimits) -
     return kind.load({"zero_on_init": True, **table, "stale_timeout_s": safety.stale_sensor_s})
 
 
-PHYSICS_TABLES = ("sponge", "arm")
+PHYSICS_TABLES = ("sponge", "arm", "tool")
 """``[emulator.*]`` tables of the cell's physics, which every kind shares."""
 
 
@@ -385,7 +396,8 @@ def load_emulator(kinds: tuple[DeviceKind, ...], table: dict[str, Any]) -> Emula
 
     The cell's robot and sensor kinds own their tables (``[emulator.sensor]``
     the sensor's model, ``[emulator.egm]`` EGM's servo...:
-    :attr:`~forcelearn.site.kinds.DeviceKind.emulator_table`).
+    :attr:`~forcelearn.site.kinds.DeviceKind.emulator_table`); ``kinds[-1]`` is
+    the sensor's, whose model bounds ``[emulator.tool]``.
     """
     owners = {kind.emulator_table: kind for kind in kinds if kind.emulator_table is not None}
     for name in table:
@@ -402,7 +414,7 @@ def load_emulator(kinds: tuple[DeviceKind, ...], table: dict[str, Any]) -> Emula
             devices[kind.name] = build(kind.model_type, table.get(name), f"emulator.{name}")
         elif name in table:
             raise ConfigError(f"emulator.{name}: the {kind.label} emulator takes no model table")
-    return build(
+    emulator = build(
         EmulatorConfig,
         {
             **pace,
@@ -412,6 +424,9 @@ def load_emulator(kinds: tuple[DeviceKind, ...], table: dict[str, Any]) -> Emula
         },
         "emulator",
     )
+    # [emulator.tool], checked against the range of the sensor kind's model
+    model: Any = kinds[-1].model(emulator)
+    return replace(emulator, tool=load_tool(table.get("tool"), model))
 
 
 def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:
@@ -426,8 +441,8 @@ def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:
 
 def load_calibration_file(table: dict[str, Any], config_path: str | Path | None) -> Path | None:
     """``[calibration] file``, relative to the config file's folder."""
-    if set(table) - {"file"}:
-        raise ConfigError("[calibration] takes one key, file")
+    if set(table) - {"file", "sensor_serial"}:
+        raise ConfigError("[calibration] takes the keys file and sensor_serial")
     if "file" not in table:
         return None
     if not isinstance(table["file"], str) or not table["file"]:
