@@ -12,14 +12,13 @@ from forcelearn.errors import ForceLimitExceeded
 from forcelearn.site.config import SafetyLimits, load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface import WEAR_GAIN, SurfaceTaskSpec, SurfaceYOutput
+from forcelearn.tasks.surface_map import choose_output_map, constant_centre_error_ratio
 from forcelearn.tasks.surface_probe import (
     ContactFit,
     ProbeError,
     ProbeResult,
     ProbeSpec,
     SurfaceProbe,
-    choose_output_map,
-    constant_centre_error_ratio,
     fit_contact,
     probe_and_map,
 )

@@ -11,7 +11,8 @@ from forcelearn.errors import ConfigError
 from forcelearn.learning import SRVLearner, SRVParams
 from forcelearn.learning.exploration import sigma_of_prediction
 from forcelearn.tasks.surface import SurfaceTaskSpec
-from forcelearn.tasks.surface_probe import ContactFit, ProbeResult, ProbeSpec, choose_output_map
+from forcelearn.tasks.surface_fit import ContactFit, ProbeResult, ProbeSpec
+from forcelearn.tasks.surface_map import choose_output_map
 from forcelearn.tasks.surface_warm_start import (
     check_learner_start,
     relaxation_share,

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from forcelearn.learning import Action, SRVLearner, SRVParams
+from forcelearn.tasks.evaluation import FAILURE_R
 from forcelearn.tasks.surface_warm_start import check_learner_start, warm_start
 from forcelearn.trainer import TrialRecord
 
@@ -369,7 +370,8 @@ class PathSearchController:
             return params.sigma0_mm
         if not prior.probed:
             return NO_PROBE_SIGMA0_MM
-        sigma = params.sigma0_tolerance_share * self.spec.tolerance / prior.stiffness_n_per_mm
+        band_n = self.spec.evaluation.error_n(params.sigma0_tolerance_share)
+        sigma = band_n / prior.stiffness_n_per_mm
         return float(min(sigma, prior.max_offset_mm))
 
     def begin(self, obs: np.ndarray, info: dict[str, Any]) -> None:
@@ -396,7 +398,8 @@ class PathSearchController:
 
     def end(self, record: TrialRecord) -> None:
         """Score the candidate; tell CMA-ES when the generation is complete."""
-        errors = np.full(self.spec.steps_per_trial, self.spec.tolerance)
+        missing_n = self.spec.evaluation.error_n(FAILURE_R)  # a step not reached: a failure
+        errors = np.full(self.spec.steps_per_trial, missing_n)
         errors[: len(self._errors)] = self._errors
         self._told.append(float(np.sqrt(np.mean(np.square(errors)))))
         if len(self._told) == len(self._asked):

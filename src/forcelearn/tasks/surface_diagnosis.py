@@ -27,8 +27,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from forcelearn.tasks.surface import step_centre_y_mm
 from forcelearn.tasks.surface_feasibility import Feasibility
+from forcelearn.tasks.surface_map import step_centre_y_mm
 from forcelearn.trainer import CONVERGENCE_TOLERANCE, CONVERGENCE_WINDOW, TrialRecord
 
 MAP_SOURCES = ("probe", "config", "probe+config", "fallback")

@@ -33,8 +33,9 @@ import numpy as np
 
 from forcelearn.errors import ConfigError
 from forcelearn.learning import SRVLearner
-from forcelearn.tasks.surface import SurfaceTaskSpec, SurfaceYOutput
-from forcelearn.tasks.surface_probe import ProbeResult
+from forcelearn.tasks.surface_fit import ProbeResult
+from forcelearn.tasks.surface_map import SurfaceYOutput
+from forcelearn.tasks.surface_spec import SurfaceTaskSpec
 
 LEARNER_STARTS = ("probe", "cold")
 """``run.learner_start`` values."""
@@ -63,12 +64,13 @@ def step_targets(probe: ProbeResult, task: SurfaceTaskSpec) -> tuple[np.ndarray,
     targets = probe.target_path_mm(task)
     z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
     force = task.desired_force_n
+    evaluation = task.evaluation
     relaxed = relaxation_share(probe) * force
     by_z: dict[float, list[float]] = {}
     for fit in probe.fits:
         k = fit.stiffness_n_per_mm
         sigma_y = math.hypot(fit.contact_y_std, force / k**2 * fit.stiffness_std)
-        r_hat = math.hypot(k * sigma_y, fit.residual_rms_n, relaxed) / task.tolerance
+        r_hat = evaluation.ratio(math.hypot(k * sigma_y, fit.residual_rms_n, relaxed))
         by_z.setdefault(fit.z_mm, []).append(r_hat)
     z_fit = np.array(sorted(by_z))
     r_fit = np.array([float(np.mean(by_z[z])) for z in z_fit])

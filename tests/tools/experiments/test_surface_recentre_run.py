@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-import forcelearn.tasks.surface as surface
+import forcelearn.tasks.surface_map as surface_map
 from forcelearn.tools.cli import main
 
 
@@ -22,7 +22,7 @@ def test_recentring_is_kept_across_a_resume(
     """A run split by a resume ends byte-identical to the whole run, re-centring included."""
     # re-centre on any drift, so every trial moves the range and its μ (the default share
     # of the half-range is never reached on the default cell)
-    monkeypatch.setattr(surface, "RECENTRE_SHARE", 0.0)
+    monkeypatch.setattr(surface_map, "RECENTRE_SHARE", 0.0)
     whole, split = tmp_path / "whole", tmp_path / "split"
     run("--seed", "2", "--trials", "6", "--out", str(whole))
     run("--seed", "2", "--trials", "3", "--out", str(split))

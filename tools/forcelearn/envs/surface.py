@@ -15,14 +15,9 @@ from typing import Any
 import numpy as np
 
 from forcelearn.envs.base import TaskEnv, box
-from forcelearn.tasks.surface import SurfaceTask, SurfaceYOutput
-from forcelearn.tasks.surface_probe import (
-    OutputMapChoice,
-    ProbeResult,
-    SurfaceProbe,
-    configured_map,
-    probe_and_map,
-)
+from forcelearn.tasks.surface import SurfaceTask
+from forcelearn.tasks.surface_map import OutputMapChoice, SurfaceYOutput, configured_map
+from forcelearn.tasks.surface_probe import ProbeResult, SurfaceProbe, probe_and_map
 
 log = logging.getLogger(__name__)
 

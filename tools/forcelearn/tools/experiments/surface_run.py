@@ -58,16 +58,16 @@ from forcelearn.records import TrialRecords
 from forcelearn.run_output import final_figures, write_step_log, write_summary, write_trials
 from forcelearn.site.config import CellConfig, load_cell_config
 from forcelearn.site.session import CellSession
-from forcelearn.tasks.surface import SurfaceTask, SurfaceYOutput, TrialTrace, step_centre_y_mm
+from forcelearn.tasks.surface import SurfaceTask, TrialTrace
 from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
 from forcelearn.tasks.surface_feasibility import FEASIBILITY_WINDOW, Feasibility, assess
-from forcelearn.tasks.surface_probe import (
+from forcelearn.tasks.surface_map import (
     OutputMapChoice,
-    ProbeResult,
-    SurfaceProbe,
+    SurfaceYOutput,
     allowed_bottom_y_mm,
-    probe_and_map,
+    step_centre_y_mm,
 )
+from forcelearn.tasks.surface_probe import ProbeResult, SurfaceProbe, probe_and_map
 from forcelearn.tasks.surface_warm_start import OLD_CHECKPOINT_START, warm_start
 from forcelearn.tools.experiments.records import (
     PROBE_TRIAL,

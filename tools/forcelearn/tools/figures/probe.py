@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from forcelearn.tasks.surface_probe import OutputMapChoice, ProbeResult
+from forcelearn.tasks.surface_fit import ProbeResult
+from forcelearn.tasks.surface_map import OutputMapChoice
 
 
 def write_probe_figure(probe: ProbeResult, choice: OutputMapChoice | None, path: Path) -> Path:
