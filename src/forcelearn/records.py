@@ -1,4 +1,4 @@
-"""What a run records for identifying its cell (issue 29): every move, burst and tare.
+"""What a run records so that its cell can be identified: every move, burst and tare.
 
 These are plain values, written by the run engine (MCAP, docs/records.md) and read
 back by ``forcelearn twin`` and ``forcelearn replay``. Times are the cell's clock

@@ -1,8 +1,9 @@
-"""The run directory: summary.json, trials.csv and step logs, written atomically.
+"""The run directory's tables: summary.json, trials.csv and step logs, written atomically.
 
-``summary.json`` holds at least: task, seed, trials, phase_switch_trial,
-converged_trial (null when not reached), final_force_rms_n, final_mean_r,
-steps, wall_s, steps_per_s.
+Shared by every runner (the §5 run, the §4 contour, ``forcelearn sim``);
+docs/run-directory.md lists the files and their members. ``summary.json`` holds
+at least: task, seed, trials, phase_switch_trial, converged_trial (null when
+not reached), final_force_rms_n, final_mean_r, steps, wall_s, steps_per_s.
 """
 
 from __future__ import annotations
@@ -35,11 +36,15 @@ def _json_safe(value: Any) -> Any:
     return value
 
 
+def summary_text(summary: Mapping[str, Any]) -> str:
+    """summary.json's text: indented JSON, non-finite numbers as null, a final newline."""
+    return json.dumps(_json_safe(dict(summary)), indent=2, sort_keys=False) + "\n"
+
+
 def write_summary(folder: Path, summary: Mapping[str, Any]) -> Path:
     """Write summary.json atomically; returns its path."""
     path = folder / "summary.json"
-    text = json.dumps(_json_safe(dict(summary)), indent=2, sort_keys=False) + "\n"
-    atomic_write_bytes(path, text.encode())
+    atomic_write_bytes(path, summary_text(summary).encode())
     return path
 
 

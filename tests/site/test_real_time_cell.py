@@ -17,7 +17,8 @@ from forcelearn.learning import SRVLearner
 from forcelearn.site.config import CellConfig, load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface import SurfaceTask
-from forcelearn.tools.experiments.surface_run import execute, prepare_run
+from forcelearn.tools.experiments.surface_run import execute
+from forcelearn.tools.experiments.surface_state import prepare_run
 from forcelearn.trainer import TrainingResult, converged_trial, train
 
 OUTPUTS = ("trials.csv", "steps_first.csv", "steps_final.csv")

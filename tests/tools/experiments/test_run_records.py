@@ -163,7 +163,8 @@ def test_a_truncated_tail_is_recovered_up_to_the_last_whole_trial(
 def test_resume_rewinds_the_records_to_the_checkpoint(short_run: Path, tmp_path: Path) -> None:
     """Records written past the checkpoint (killed before it was saved) are dropped on resume."""
     from forcelearn.site.config import load_cell_config
-    from forcelearn.tools.experiments.surface_run import SurfaceRun, records_writer
+    from forcelearn.tools.experiments.surface_run import records_writer
+    from forcelearn.tools.experiments.surface_state import SurfaceRun
     from forcelearn.trainer import TrialRecord
 
     whole = read_records(short_run)

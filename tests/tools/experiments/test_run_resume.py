@@ -226,6 +226,7 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
     from forcelearn.emulators.jr3.faults import FaultConfig
     from forcelearn.errors import SensorStale
     from forcelearn.tools.experiments import surface_run
+    from forcelearn.tools.experiments.surface_state import prepare_run
 
     sessions = []
     stops: list[bool] = []
@@ -257,7 +258,7 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
     out = tmp_path / "run"
     config = tmp_path / "cell.toml"
     config.write_text(configured_map_toml)  # no probe: the failing sensor is the point
-    run, checkpoint = surface_run.prepare_run(config, out, 10, 3, resume=False)
+    run, checkpoint = prepare_run(config, out, 10, 3, resume=False)
     with pytest.raises(SensorStale):
         surface_run.execute(run, checkpoint, on_trial=silence_after_three)
     assert stops_before_close[0] >= 1, "the run did not stop the robot before closing"
@@ -269,7 +270,7 @@ def test_an_ended_but_unsaved_trial_is_rolled_back_before_outputs() -> None:
     """Interrupted between a trial's end and its checkpoint: outputs match the checkpoint."""
     from forcelearn.site.config import load_cell_config
     from forcelearn.tasks.surface import TrialTrace
-    from forcelearn.tools.experiments.surface_run import SurfaceRun
+    from forcelearn.tools.experiments.surface_state import SurfaceRun
     from forcelearn.trainer import TrialLog, TrialRecord
 
     run = SurfaceRun(load_cell_config(), trials=10, seed=0, out=Path("."))
@@ -302,10 +303,10 @@ def test_the_checkpoint_keeps_each_trials_wear_shift(tmp_path: Path) -> None:
     from forcelearn.errors import StateFileError
     from forcelearn.site.config import load_cell_config
     from forcelearn.tasks.surface import TrialTrace
-    from forcelearn.tools.experiments.surface_run import (
+    from forcelearn.tools.experiments.surface_state import (
         SurfaceRun,
-        _history_arrays,
-        _history_from_arrays,
+        history_arrays,
+        history_from_arrays,
     )
     from forcelearn.trainer import TrialRecord
 
@@ -314,14 +315,14 @@ def test_the_checkpoint_keeps_each_trials_wear_shift(tmp_path: Path) -> None:
         run.result.records.append(TrialRecord(i, "generalized", 2, False, 0.1, 0.5, 9.0))
         run.traces.append(TrialTrace(mean_y_mm=[1.0, 2.0], command_y_mm=[1.1, 2.1],
                                      shift_mm=shift, force_n=[9.0, 9.5]))
-    arrays = _history_arrays(run)
+    arrays = history_arrays(run)
     again = SurfaceRun(load_cell_config(), trials=10, seed=0, out=tmp_path)
-    _history_from_arrays(again, arrays)
+    history_from_arrays(again, arrays)
     assert again.traces == run.traces
     old = {k: v for k, v in arrays.items() if k not in ("trace_shift_mm", "trace_force_n")}
-    _history_from_arrays(again, old)
+    history_from_arrays(again, old)
     assert [t["shift_mm"] for t in again.traces] == [0.0, 0.0, 0.0]
     assert all(np.isnan(t["force_n"]).all() for t in again.traces)  # not kept before: NaN
     damaged = {**arrays, "trace_shift_mm": np.zeros(2)}
     with pytest.raises(StateFileError, match="trial shifts"):
-        _history_from_arrays(again, damaged)
+        history_from_arrays(again, damaged)

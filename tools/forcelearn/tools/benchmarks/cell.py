@@ -15,7 +15,8 @@ import statistics
 import tempfile
 from pathlib import Path
 
-from forcelearn.tools.experiments.surface_run import execute, prepare_run
+from forcelearn.tools.experiments.surface_run import execute
+from forcelearn.tools.experiments.surface_state import prepare_run
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

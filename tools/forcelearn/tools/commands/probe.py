@@ -18,7 +18,7 @@ from pathlib import Path
 from forcelearn.site.config import load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface_probe import SurfaceProbe, map_from_probe
-from forcelearn.tools.experiments.surface_run import write_probe_files
+from forcelearn.tools.experiments.surface_outputs import write_probe_files
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -6,13 +6,15 @@ reached through the real drivers. ``--config site.toml`` runs the same
 controller on a real cell. Ctrl-C stops the robot; the last whole trial is
 checkpointed, and ``--resume DIR`` continues from it. Every run appends its
 steps and trials to ``live.ndjson`` (``forcelearn view DIR`` follows it);
-``--live`` also serves a read-only page of the run (docs/live.md).
+``--live`` also serves a read-only page of the run (docs/live.md). A run
+ends with a few lines (the verdict, the final force against the band, the
+figures and where they are); ``--json`` prints the whole summary instead, for
+scripts. docs/run-directory.md describes the run directory.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -20,7 +22,10 @@ from pathlib import Path
 from tqdm import tqdm
 
 from forcelearn.learning import SRVLearner
-from forcelearn.tools.experiments.surface_run import execute, prepare_run
+from forcelearn.run_output import summary_text
+from forcelearn.tools.experiments.surface_outputs import end_lines
+from forcelearn.tools.experiments.surface_run import execute
+from forcelearn.tools.experiments.surface_state import prepare_run
 from forcelearn.tools.live.publish import LivePublisher, surface_extras, surface_meta
 from forcelearn.tools.live.session import add_live_arguments, live_run
 from forcelearn.trainer import TrialRecord
@@ -38,6 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, help="run directory (default runs/surface-<time>)")
     parser.add_argument("--resume", type=Path, metavar="DIR", help="continue the run in DIR")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--json", action="store_true", help="end by printing the summary as JSON (for scripts)"
+    )
     parser.add_argument(
         "--require-converged",
         action="store_true",
@@ -112,13 +120,16 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 130
-    print(json.dumps(summary, indent=2))
-    print(f"run directory: {out}")
-    if args.live:
-        print(f"see the run again with: forcelearn view {out}")
+    if args.json:
+        print(summary_text(summary), end="")
+    else:
+        print("\n".join(end_lines(summary, out)))
+        if args.live:
+            print(f"see the run again with: forcelearn view {out}")
     if not (summary["converged"] and summary["in_band_at_end"]):
         verdict = "NOT CONVERGED" if not summary["converged"] else "NOT IN BAND AT THE END"
-        print(f"forcelearn run: {verdict}: {summary['diagnosis']}", file=sys.stderr)
+        why = f": {summary['diagnosis']}" if args.json else " (the diagnosis is above)"
+        print(f"forcelearn run: {verdict}{why}", file=sys.stderr)
         return NOT_CONVERGED if args.require_converged else 0
     return 0
 

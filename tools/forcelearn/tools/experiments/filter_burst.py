@@ -51,7 +51,7 @@ METHODS = ("raw", "mean", "moves", "stream")
 STEPS_N = (0.0, 0.3, 1.0, 2.0, 3.0)
 BURSTS = (3, 10, 25, 77, 150)
 DEFAULT_BURST = 25
-"""Samples in the default 25 ms window: one per adapter loop turn (before issue 28 the
+"""Samples in the default 25 ms window: one per adapter loop turn (until 2026-12-03 the
 emulator answered every SYNC, 77 samples 325 µs apart; a real adapter cannot)."""
 
 

@@ -1,4 +1,4 @@
-"""``records.mcap``: a run's moves, bursts and tares (issue 29), written one trial at a time.
+"""``records.mcap``: a run's moves, bursts and tares (what identifies its cell), trial by trial.
 
 The file is MCAP with JSON-schema channels (docs/records.md), so Foxglove and
 PlotJuggler open it with named fields; :func:`read_records` gives the

@@ -1,28 +1,8 @@
-"""Paper §5 on a cell: the trial loop with a checkpoint after every trial, and resume.
+"""Paper §5 on a cell: the trial loop, with a checkpoint after every trial, and resume.
 
-The run directory holds:
-
-=====================  ==========================================================
-``checkpoint.npz``     the learner plus, in its metadata, everything else a resume
-                       needs: trial records, kept step logs, per-trial Y traces,
-                       the emulators' state (sponge wear, sensor noise generator,
-                       bias, offsets). One file, written atomically after every
-                       trial, so a run killed at any instant resumes from a whole
-                       trial.
-``config.toml``        the cell config the run started with (resume reads it)
-``records.mcap``       every move, burst and tare of every trial (docs/records.md),
-                       made durable per trial before the checkpoint
-``summary.json``       task, seed, learner_start, trials, phase_switch_trial,
-                       criterion_trial, converged_trial, converged,
-                       in_band_at_end, trials_out_of_band_after_convergence,
-                       diagnosis, feasibility, final_force_rms_n, final_mean_r,
-                       map_shift_mm, steps, wall_s, steps_per_s, output_map,
-                       probe (fits), ...
-``probe.csv``          the surface probe's readings (``probe.png`` its figure)
-``trials.csv``         one row per trial
-``steps_*.csv``        step logs: first trial, mid-way, phase switch, last trial
-``fig12..14*.png``     the paper's Figs. 12-14
-=====================  ==========================================================
+The run's state and its checkpoint are :mod:`.surface_state`'s, the files it
+writes at the end :mod:`.surface_outputs`'; docs/run-directory.md is the run
+directory's contract. :func:`forcelearn.runs.run_surface` is the front door.
 
 A new run first probes the surface (:mod:`forcelearn.tasks.surface_probe`)
 and takes its output map from the fit; the probe and the map are kept in the
@@ -34,41 +14,32 @@ probe's path (``[run] learner_start = "probe"``) or from μ = 0 (``"cold"``,
 :func:`~forcelearn.tasks.surface_feasibility.assess` when the run's own
 estimates say the desired force is out of reach after wear.
 
-A resumed run re-opens the cell, restores the learner (with its random
-generator) and, on an emulated cell, the emulators' state, then continues with
-the next trial: it ends bit-identical to an uninterrupted run with the same seed.
+Every trial's records (``records.mcap``) are made durable before its
+checkpoint. A resumed run re-opens the cell, restores the learner (with its
+random generator) and, on an emulated cell, the emulators' state, then
+continues with the next trial: it ends bit-identical to an uninterrupted run
+with the same seed.
 """
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import logging
-import shutil
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from forcelearn.errors import ForcelearnError, StateFileError
-from forcelearn.learning import SRVLearner, load_extra_arrays, load_learner, save_learner
+from forcelearn.errors import ForcelearnError
+from forcelearn.learning import SRVLearner, load_learner
 from forcelearn.records import TrialRecords
-from forcelearn.run_output import final_figures, write_step_log, write_summary, write_trials
-from forcelearn.site.config import CellConfig, load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface import SurfaceTask, TrialTrace
-from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
+from forcelearn.tasks.surface_diagnosis import StuckMonitor
 from forcelearn.tasks.surface_feasibility import FEASIBILITY_WINDOW, Feasibility, assess
-from forcelearn.tasks.surface_map import (
-    OutputMapChoice,
-    SurfaceYOutput,
-    allowed_bottom_y_mm,
-    step_centre_y_mm,
-)
-from forcelearn.tasks.surface_probe import ProbeResult, SurfaceProbe, probe_and_map
-from forcelearn.tasks.surface_warm_start import OLD_CHECKPOINT_START, warm_start
+from forcelearn.tasks.surface_map import SurfaceYOutput, allowed_bottom_y_mm, step_centre_y_mm
+from forcelearn.tasks.surface_probe import SurfaceProbe, probe_and_map
+from forcelearn.tasks.surface_warm_start import warm_start
 from forcelearn.tools.experiments.records import (
     PROBE_TRIAL,
     RECORDS_FILE,
@@ -76,14 +47,18 @@ from forcelearn.tools.experiments.records import (
     scan_records,
 )
 from forcelearn.tools.experiments.run_recorder import TrialRecorder
+from forcelearn.tools.experiments.surface_outputs import write_outputs, write_probe_files
+from forcelearn.tools.experiments.surface_state import (
+    SurfaceRun,
+    load_checkpoint,
+    save_checkpoint,
+)
 from forcelearn.trainer import (
     CONVERGENCE_TOLERANCE,
     StepHook,
-    TrainingResult,
     TrialLog,
     TrialRecord,
     converged_trial,
-    criterion_trial,
     train,
 )
 
@@ -92,271 +67,6 @@ log = logging.getLogger(__name__)
 
 class _ConvergedStop(Exception):
     """Raised after a trial to end a run early (``[run] stop_after_converged``)."""
-
-CHECKPOINT = "checkpoint.npz"
-CONFIG_COPY = "config.toml"
-RUN_STATE_VERSION = 5
-"""4: the probe's result and the output map in the metadata (issue 11); 5: the learner's
-start, the wear tracking's reference force and the feasibility (issue 31). A version-4
-checkpoint still resumes: cold start, and the wear tracking it ran with."""
-READABLE_VERSIONS = (4, 5)
-
-
-@dataclasses.dataclass(frozen=True)
-class SavedPoint:
-    """What the checkpoint on disk holds of a run's growing state, to roll back to."""
-
-    trials: int = 0
-    """Whole trials saved."""
-    steps: int = 0
-    """Steps of those trials."""
-    last_log: TrialLog | None = None
-    """The last saved trial's step log."""
-    map_shift_mm: float = 0.0
-    """The map's wear shift, mm."""
-    map_recentre_mm: float = 0.0
-    """The map's re-centring on the learner, mm."""
-    tares: tuple[int, int] = (0, 0)
-    """Tares done and refused."""
-    wear_reference_n: float | None = None
-    """The wear tracking's reference start force, N."""
-
-
-@dataclasses.dataclass
-class SurfaceRun:
-    """Where a run stands: its config, target trial count, results so far and traces."""
-
-    config: CellConfig
-    trials: int
-    seed: int
-    out: Path
-    result: TrainingResult = dataclasses.field(default_factory=TrainingResult)
-    traces: list[TrialTrace] = dataclasses.field(default_factory=list)
-    """Per trial: the Y commands and the map's wear shift."""
-    wall_s: float = 0.0
-    saved: SavedPoint = dataclasses.field(default_factory=SavedPoint)
-    """What the last checkpoint holds of the growing state (a rollback returns there)."""
-    probe: ProbeResult | None = None
-    """The surface probe's readings and fits (None: no probe)."""
-    output_map: OutputMapChoice | None = None
-    """The output map the learner uses (from the probe and/or the config)."""
-    monitor: StuckMonitor | None = None
-    """Watches for stuck learning (edge of the range, no trial completing)."""
-    map_shift_mm: float = 0.0
-    """A map that follows wear: its shift as of the last whole trial (mm)."""
-    map_recentre_mm: float = 0.0
-    """A map that follows wear: its re-centring on the learner's drift, as of the last whole
-    trial (mm; :meth:`~forcelearn.tasks.surface.SurfaceYOutput.recentre_on`)."""
-    tares: tuple[int, int] = (0, 0)
-    """``task.tare_each_trial``: tares done and refused, as of the last whole trial."""
-    learner_start: str = OLD_CHECKPOINT_START
-    """How the learner started: "probe" (warm) or "cold" (set by :func:`execute`)."""
-    wear_reference_n: float | None = None
-    """The start force the wear tracking holds (the first trial's), N."""
-    feasibility: Feasibility | None = None
-    """The latest 'out of reach' estimate the run made (None: never)."""
-    feasibility_now: bool = False
-    """True when the latest trial's window still says the force is out of reach."""
-    feasibility_first_trial: int | None = None
-    """The trial at which the run first found the force out of reach."""
-
-    def mark_saved(self) -> None:
-        """Remember what the checkpoint on disk holds."""
-        result = self.result
-        self.saved = SavedPoint(
-            len(result.records), result.steps, result.last_log, self.map_shift_mm,
-            self.map_recentre_mm, self.tares, self.wear_reference_n,
-        )
-
-    def rollback_to_saved(self) -> None:
-        """Forget a trial that ended but was not checkpointed (interrupted in between)."""
-        saved, result = self.saved, self.result
-        trials = saved.trials
-        self.map_shift_mm, self.map_recentre_mm = saved.map_shift_mm, saved.map_recentre_mm
-        self.tares, self.wear_reference_n = saved.tares, saved.wear_reference_n
-        del result.records[trials:]
-        del self.traces[trials:]
-        result.steps, result.last_log = saved.steps, saved.last_log
-        result.logs = {k: v for k, v in result.logs.items() if k < trials}
-        if result.switch_trial is not None and result.switch_trial >= trials:
-            result.switch_trial, result.switch_log = None, None
-        if trials == 0:
-            result.first_log = None
-
-    @property
-    def mid_trial(self) -> int:
-        """The trial whose step log stands for 'mid-way' in Fig. 13."""
-        return self.trials // 2
-
-
-def _log_to_json(trial_log: TrialLog | None) -> dict[str, Any] | None:
-    if trial_log is None:
-        return None
-    return {"index": trial_log.index, "phase": trial_log.phase, "rows": trial_log.rows}
-
-
-def _log_from_json(data: dict[str, Any] | None) -> TrialLog | None:
-    if data is None:
-        return None
-    return TrialLog(int(data["index"]), str(data["phase"]), list(data["rows"]))
-
-
-_RECORD_FIELDS = [f.name for f in dataclasses.fields(TrialRecord)]
-
-
-def _history_arrays(run: SurfaceRun) -> dict[str, np.ndarray]:
-    """The growing history as arrays (cheap to save every trial, exact on reload)."""
-    records = run.result.records
-    arrays = {
-        f"record_{name}": np.array([getattr(r, name) for r in records]) for name in _RECORD_FIELDS
-    }
-    steps = run.config.task.steps_per_trial
-    means = np.full((len(run.traces), steps), np.nan)
-    commands = np.full((len(run.traces), steps), np.nan)
-    forces = np.full((len(run.traces), steps), np.nan)
-    for i, trace in enumerate(run.traces):
-        means[i, : len(trace["mean_y_mm"])] = trace["mean_y_mm"]
-        commands[i, : len(trace["command_y_mm"])] = trace["command_y_mm"]
-        forces[i, : len(trace["force_n"])] = trace["force_n"]
-    arrays["trace_mean_y_mm"], arrays["trace_command_y_mm"] = means, commands
-    arrays["trace_force_n"] = forces
-    arrays["trace_length"] = np.array([len(t["mean_y_mm"]) for t in run.traces], dtype=np.int64)
-    arrays["trace_shift_mm"] = np.array([t["shift_mm"] for t in run.traces], dtype=float)
-    return arrays
-
-
-def _history_from_arrays(run: SurfaceRun, arrays: dict[str, np.ndarray]) -> None:
-    count = len(arrays["record_index"])
-    run.result.records = [
-        TrialRecord(**{name: arrays[f"record_{name}"][i].item() for name in _RECORD_FIELDS})
-        for i in range(count)
-    ]
-    lengths = arrays["trace_length"].tolist()
-    # checkpoints written before the shift was kept per trial: no shift known (0)
-    shifts = arrays.get("trace_shift_mm", np.zeros(len(lengths))).tolist()
-    if len(shifts) != len(lengths):
-        raise StateFileError(
-            f"{run.out / CHECKPOINT} keeps {len(shifts)} trial shifts for {len(lengths)} "
-            "trials (a damaged file); restore it from a backup or start a new run"
-        )
-    # checkpoints written before the forces were kept per step: none known (NaN)
-    forces = arrays.get("trace_force_n", np.full(arrays["trace_command_y_mm"].shape, np.nan))
-    run.traces = [
-        TrialTrace(
-            mean_y_mm=arrays["trace_mean_y_mm"][i, :length].tolist(),
-            command_y_mm=arrays["trace_command_y_mm"][i, :length].tolist(),
-            shift_mm=float(shifts[i]),
-            force_n=forces[i, :length].tolist(),
-        )
-        for i, length in enumerate(lengths)
-    ]
-
-
-def _run_state(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any]:
-    result = run.result
-    return {
-        "run_state_version": RUN_STATE_VERSION,
-        "task": "surface",
-        "seed": run.seed,
-        "trials_target": run.trials,
-        "trials_done": len(result.records),
-        "switch_trial": result.switch_trial,
-        "switch_log": _log_to_json(result.switch_log),
-        "first_log": _log_to_json(result.first_log),
-        "last_log": _log_to_json(result.last_log),
-        "logs": {str(k): _log_to_json(v) for k, v in result.logs.items()},
-        "steps": result.steps,
-        "wall_s": run.wall_s,
-        "emulator": emulator_state,
-        "probe": run.probe.to_json() if run.probe is not None else None,
-        "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
-        "map_shift_mm": run.map_shift_mm,
-        "map_recentre_mm": run.map_recentre_mm,
-        "tares": list(run.tares),
-        "learner_start": run.learner_start,
-        "wear_reference_n": run.wear_reference_n,
-        "feasibility": (
-            dataclasses.asdict(run.feasibility) if run.feasibility is not None else None
-        ),
-        "feasibility_now": run.feasibility_now,
-        "feasibility_first_trial": run.feasibility_first_trial,
-    }
-
-
-def _restore(run: SurfaceRun, state: dict[str, Any], arrays: dict[str, np.ndarray]) -> None:
-    version = state.get("run_state_version")
-    if version not in READABLE_VERSIONS or state.get("task") != "surface":
-        raise StateFileError(
-            f"{run.out / CHECKPOINT} is not a surface-run checkpoint of version "
-            f"{' or '.join(map(str, READABLE_VERSIONS))}; start a new run in another folder"
-        )
-    result = run.result
-    _history_from_arrays(run, arrays)
-    result.switch_trial = state["switch_trial"]
-    result.switch_log = _log_from_json(state["switch_log"])
-    result.first_log = _log_from_json(state["first_log"])
-    result.last_log = _log_from_json(state["last_log"])
-    result.logs = {int(k): _log_from_json(v) for k, v in state["logs"].items()}  # type: ignore[misc]
-    result.steps = int(state["steps"])
-    run.wall_s = float(state["wall_s"])
-    run.probe = ProbeResult.from_json(state["probe"]) if state["probe"] is not None else None
-    run.output_map = OutputMapChoice(**state["output_map"])
-    run.map_shift_mm = float(state.get("map_shift_mm", 0.0))
-    run.map_recentre_mm = float(state.get("map_recentre_mm", 0.0))  # none before it existed
-    # before version 5: the cold start, and a map that tracked wear held the desired force
-    run.learner_start = str(state.get("learner_start", OLD_CHECKPOINT_START))
-    if "wear_reference_n" in state:
-        reference = state["wear_reference_n"]
-        run.wear_reference_n = None if reference is None else float(reference)
-    elif run.output_map.wear_stiffness_n_per_mm is not None:
-        run.wear_reference_n = float(run.config.task.desired_force_n)
-    feasibility = state.get("feasibility")
-    run.feasibility = Feasibility(**feasibility) if feasibility else None
-    run.feasibility_now = bool(state.get("feasibility_now", False))
-    first = state.get("feasibility_first_trial")
-    run.feasibility_first_trial = None if first is None else int(first)
-    try:
-        done, refused = state.get("tares", (0, 0))  # none in older checkpoints
-        run.tares = (int(done), int(refused))
-    except (TypeError, ValueError) as exc:
-        raise StateFileError(
-            f"{run.out / CHECKPOINT} has a damaged tare count {state.get('tares')!r}; "
-            "restore it from a backup or start a new run"
-        ) from exc
-
-
-def prepare_run(
-    config_path: Path | None, out: Path, trials: int | None, seed: int | None, resume: bool
-) -> tuple[SurfaceRun, Path | None]:
-    """Set up a new run directory, or read the one to resume; returns the run and checkpoint."""
-    if resume:
-        if not (out / CHECKPOINT).exists():
-            raise StateFileError(
-                f"nothing to resume in {out}: no {CHECKPOINT} (runs write it after their first "
-                "trial); start a new run with --out"
-            )
-        copy = out / CONFIG_COPY
-        config = load_cell_config(copy if copy.exists() else None)
-        _, metadata = load_learner(out / CHECKPOINT)
-        run = SurfaceRun(
-            config, trials or int(metadata["trials_target"]), int(metadata["seed"]), out
-        )
-        return run, out / CHECKPOINT
-    if (out / CHECKPOINT).exists():
-        raise StateFileError(
-            f"{out} already holds a run; resume it with --resume {out} or choose another --out"
-        )
-    config = load_cell_config(config_path)
-    out.mkdir(parents=True, exist_ok=True)
-    if config_path is not None:
-        shutil.copyfile(config_path, out / CONFIG_COPY)
-    run = SurfaceRun(
-        config,
-        trials if trials is not None else config.trials,
-        seed if seed is not None else config.seed,
-        out,
-    )
-    return run, None
 
 
 def execute(
@@ -383,10 +93,7 @@ def execute(
     with CellSession(config, seed=run.seed) as session, contextlib.ExitStack() as stack:
         assert session.cell is not None
         if checkpoint is not None:
-            state = load_learner(checkpoint)[1]
-            _restore(run, state, load_extra_arrays(checkpoint))
-            session.load_emulator_state(state["emulator"])
-            run.mark_saved()
+            session.load_emulator_state(load_checkpoint(run, checkpoint))
         writer = records_writer(run, checkpoint is not None)
         stack.callback(writer.close)
         recorder = TrialRecorder(session.cell)
@@ -516,13 +223,7 @@ class TrialEnd:
         cell, before = self.cell, self._tares_before
         run.tares = (before[0] + cell.tares, before[1] + cell.tares_refused)
         self.writer.write_trial(self.recorder.take(record.index))
-        save_learner(
-            learner,
-            run.out / CHECKPOINT,
-            metadata=_run_state(run, self.session.emulator_state()),
-            arrays=_history_arrays(run),
-        )
-        run.mark_saved()
+        save_checkpoint(run, learner, self.session.emulator_state())
         warning = self.monitor.update(
             record, run.traces[-1]["command_y_mm"], run.traces[-1]["shift_mm"]
         )
@@ -668,98 +369,3 @@ def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:
         write_probe_files(run.out, run.probe, run.output_map)
 
 
-def write_probe_files(
-    out: Path, probe: ProbeResult, choice: OutputMapChoice | None
-) -> None:
-    """probe.csv (every reading), probe.json (fits and map) and probe.png (the figure)."""
-    import csv
-    import json
-
-    from forcelearn.tools.figures import probe as figures_probe
-
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / "probe.csv", "w", newline="") as handle:
-        fields = ["point", "z_mm", "y_mm", "phase", "early_force_n", "force_n", "cell_time_s"]
-        writer = csv.DictWriter(handle, fieldnames=fields)
-        writer.writeheader()
-        writer.writerows(probe.rows)
-    data = {**probe.to_json(), "output_map": dataclasses.asdict(choice) if choice else None}
-    del data["rows"]
-    (out / "probe.json").write_text(json.dumps(data, indent=2))
-    if probe.rows:
-        figures_probe.write_probe_figure(probe, choice, out / "probe.png")
-
-
-def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
-    """The run's summary.json content."""
-    result, config = run.result, run.config
-    cell_time = float(sum(r.cell_time_s for r in result.records))
-    converged_at = converged_trial(
-        result.records, config.task.steps_per_trial, config.task.desired_force_n
-    )
-    monitor = run.monitor or StuckMonitor(0.0, 1.0, config.task.steps_per_trial)
-    verdict = diagnose(
-        result.records, converged_at, monitor, config.task.desired_force_n, run.feasibility
-    )
-    warnings = list(monitor.warnings)
-    if run.feasibility is not None:
-        warnings.append(run.feasibility.text())
-    return {
-        "task": "surface",
-        "seed": run.seed,
-        "learner_start": run.learner_start,
-        "trials": len(result.records),
-        "phase_switch_trial": result.switch_trial,
-        "criterion_trial": criterion_trial(result.records, config.learner.success_trials),
-        "converged_trial": converged_at,
-        **verdict,
-        "feasibility": {
-            "out_of_reach_at_end": run.feasibility_now,
-            "first_trial": run.feasibility_first_trial,
-            "latest": dataclasses.asdict(run.feasibility) if run.feasibility else None,
-        },
-        "warnings": warnings,
-        "output_map": dataclasses.asdict(run.output_map) if run.output_map else None,
-        "map_shift_mm": run.map_shift_mm,
-        "map_recentre_mm": run.map_recentre_mm,
-        "wear_reference_n": run.wear_reference_n,
-        "tares": {"done": run.tares[0], "refused": run.tares[1]},
-        "probe_stiffness_n_per_mm": (
-            run.probe.stiffness_n_per_mm() if run.probe is not None else None
-        ),
-        "probe_fits": (
-            [dataclasses.asdict(f) for f in run.probe.fits] if run.probe is not None else None
-        ),
-        **final_figures(result.records),
-        "failures": sum(r.failed for r in result.records),
-        "desired_force_n": config.task.desired_force_n,
-        "emulated": config.robot_emulated and config.sensor_emulated,
-        "steps": result.steps,
-        "wall_s": round(run.wall_s, 3),
-        "steps_per_s": round(result.steps / run.wall_s, 1) if run.wall_s > 0 else None,
-        "cell_time_s": round(cell_time, 3),
-        "realtime_factor": round(cell_time / run.wall_s, 1) if run.wall_s > 0 else None,
-        "profile": config.emulator.profile if config.robot_emulated else None,
-    }
-
-
-def write_outputs(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
-    """Write summary.json, trials.csv, the step logs and the figures; return the summary."""
-    from forcelearn.tools.figures import surface as figures_surface
-
-    summary = summary_of(run, learner)
-    write_summary(run.out, summary)
-    write_trials(run.out, run.result.records)
-    result = run.result
-    named = {
-        "first": result.first_log,
-        "switch": result.switch_log,
-        "final": result.last_log,
-        "mid": result.logs.get(run.mid_trial),
-    }
-    for name, trial_log in named.items():
-        if trial_log is not None:
-            write_step_log(run.out / f"steps_{name}.csv", trial_log)
-    if result.records:
-        figures_surface.write_all(run, run.out)
-    return summary

@@ -16,7 +16,7 @@ from forcelearn.trainer import TrainingResult
 class SurfaceRun(Protocol):
     """What the figures read of a run.
 
-    (:class:`forcelearn.tools.experiments.surface_run.SurfaceRun`.)
+    (:class:`forcelearn.tools.experiments.surface_state.SurfaceRun`.)
     """
 
     config: CellConfig

@@ -2,7 +2,7 @@
 
 * :func:`npz_header_mutant`: a learner state whose archive is intact (correct CRCs) but
   one member's ``.npy`` header is damaged, so numpy's header parser, not zipfile, meets
-  the damage (the path of issue 27's ``tokenize.TokenError``);
+  the damage (the path by which a ``tokenize.TokenError`` once escaped the loader);
 * :func:`calibration_value_mutant`: a calibration file with one to three values replaced
   by odd ones and its digest recomputed, as a hand-made file would have, so the physical
   bounds, not the digest, must refuse it.

@@ -1,4 +1,4 @@
-"""The report of issue 15's comparison: ``docs/results/baselines.md`` and its figure.
+"""The report of the baselines comparison: ``docs/results/baselines.md`` and its figure.
 
 Runs the study of :mod:`.baselines_study` through the study runner (finished
 runs are skipped) and writes the tables and the learning-curves figure::

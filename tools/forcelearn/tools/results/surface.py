@@ -22,7 +22,8 @@ import time
 from pathlib import Path
 
 from forcelearn.run_output import median_range
-from forcelearn.tools.experiments.surface_run import execute, prepare_run
+from forcelearn.tools.experiments.surface_run import execute
+from forcelearn.tools.experiments.surface_state import prepare_run
 from forcelearn.tools.study.runner import run_study
 from forcelearn.tools.study.tasks import get_task
 

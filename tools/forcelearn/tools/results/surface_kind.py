@@ -34,7 +34,8 @@ PAPER_REPETITIONS = 237
 
 def run_config_chunk(config_path: str, specs: list[RunSpec]) -> list[dict[str, Any]]:
     """Run each spec as ``forcelearn run --config config_path`` in a scratch folder."""
-    from forcelearn.tools.experiments.surface_run import execute, prepare_run
+    from forcelearn.tools.experiments.surface_run import execute
+    from forcelearn.tools.experiments.surface_state import prepare_run
 
     rows = []
     for spec in specs:

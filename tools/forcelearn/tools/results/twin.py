@@ -1,4 +1,4 @@
-"""The twin against hidden cells (issue 29's check): writes docs/results/twin.md and its figure.
+"""The twin against hidden cells: writes docs/results/twin.md and its figure.
 
 ``python -m forcelearn.tools.results.twin --cells 30 --seed 1 --out DIR [--workers 2]``
 

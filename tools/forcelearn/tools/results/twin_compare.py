@@ -1,4 +1,4 @@
-"""Compare a twin with its hidden cell's truth (the checks of issue 29, docs/results/twin.md).
+"""Compare a twin with its hidden cell's truth (the checks of docs/results/twin.md).
 
 Pure functions over the files a study leaves: ``cell-XX.truth.json`` (the generator's
 hidden truth), the twin's ``twin.json`` (``forcelearn twin``) and the run directories'
@@ -31,7 +31,7 @@ force RMS": one trial's RMS scatters ±30-50 % between seeds of one cell)."""
 
 @dataclass(frozen=True)
 class Checked:
-    """One parameter the issue checks: its twin.json name, where its truth is, its floor."""
+    """One parameter the check covers: its twin.json name, where its truth is, its floor."""
 
     name: str
     label: str
@@ -53,7 +53,7 @@ CHECKED = (
     Checked("lag_s", "lag", ("arm", "lag_s"), 0.003),
     Checked("noise_std", "noise", ("sensor", "noise_n"), 0.01),
 )
-"""Stiffness, contact position, softening, set, lag and noise (issue 29). The absolute
+"""Stiffness, contact position, softening, set, lag and noise. The absolute
 bounds are those of the fit's own "determined" test (docs/twin-fit.md) except the
 contact position: 0.3 mm, a tenth of the drawn range's half-width (±3 mm). The stiffness
 is judged at the cell's operating point (:func:`tangent_at_force`); the raw

@@ -154,7 +154,7 @@ def self_check_lines(results: Sequence[CellResult], seeds: int) -> list[str]:
 
 
 def summary_lines(results: Sequence[CellResult], seeds: int) -> list[str]:
-    """The summary figures against the issue's targets."""
+    """The summary figures against the twin's targets (docs/twin.md)."""
     checked = [r.check for r in results if r.check is not None]
     twins = [c for c in checked if c.represented]
     lines = [f"- Cells: {len(results)} drawn, {len(checked)} fitted, "
@@ -197,7 +197,7 @@ def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
                generator_seed: int, seeds: int, trials: int) -> None:
     """Write the Markdown page of the study."""
     lines = [
-        "# The twin against hidden cells (issue 29)",
+        "# The twin against hidden cells",
         "",
         "Made by (generator seed, commands):",
         "",
@@ -213,7 +213,7 @@ def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
         "",
         f"![the twin against the hidden cells]({figure.name})",
         "",
-        "## Summary against the issue's targets",
+        "## Summary against the targets",
         "",
         *summary_lines(results, seeds),
         "",

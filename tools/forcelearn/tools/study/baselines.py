@@ -1,4 +1,4 @@
-"""The comparison of issue 15: the paper's learner against classic and modern baselines on §5.
+"""The paper's learner against classic and modern baselines on §5 (docs/results/baselines.md).
 
 One run = one method on one cell variant for one seed, through ``forcelearn/Surface-v0``
 on the emulated cell (real drivers), scored by ``converged_trial`` and stopped by

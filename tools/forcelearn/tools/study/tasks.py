@@ -82,7 +82,8 @@ def _surface_base() -> Any:
 
 def run_surface_chunk(specs: list[RunSpec]) -> list[dict[str, Any]]:
     """Run §5 specs one after the other, each a whole emulated-cell run in a scratch folder."""
-    from forcelearn.tools.experiments.surface_run import execute, prepare_run
+    from forcelearn.tools.experiments.surface_run import execute
+    from forcelearn.tools.experiments.surface_state import prepare_run
 
     rows = []
     for spec in specs:
