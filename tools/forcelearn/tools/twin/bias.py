@@ -278,6 +278,12 @@ def drift_from_reads(chain: Chain, free: np.ndarray, data: RecordArrays, noise_n
     count = int(measured.sum())
     if count < 3:
         return DriftEstimate(math.nan, math.inf, "none", count)
+    rate, sigma = walk_rate(reads)
+    return DriftEstimate(rate, sigma, "free-space reads", count)
+
+
+def walk_rate(reads: ReadSeries) -> tuple[float, float]:
+    """The maximum-likelihood walk rate of ``reads`` and its 1-sigma (curvature), N/sqrt(s)."""
     top = max(1e-6, 10.0 * math.sqrt(np.nanmax(reads.value**2)))
     best = minimize_scalar(lambda log_q: -walk_log_likelihood(reads, math.exp(log_q)),
                            bounds=(math.log(1e-6), math.log(top)), method="bounded",
@@ -286,8 +292,7 @@ def drift_from_reads(chain: Chain, free: np.ndarray, data: RecordArrays, noise_n
     step = 1e-3 * max(rate, 1e-4)
     lows = [walk_log_likelihood(reads, max(rate + k * step, 0.0)) for k in (-1, 0, 1)]
     curvature = (2 * lows[1] - lows[0] - lows[2]) / step**2
-    sigma = 1.0 / math.sqrt(curvature) if curvature > 0 else math.inf
-    return DriftEstimate(rate, sigma, "free-space reads", count)
+    return rate, (1.0 / math.sqrt(curvature) if curvature > 0 else math.inf)
 
 
 @dataclass(frozen=True)
