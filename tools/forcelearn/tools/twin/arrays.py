@@ -196,3 +196,20 @@ def to_arrays(records: list[TrialRecords]) -> RecordArrays:
     if not a["has_burst"].any():
         raise RecordsError("the records hold no burst (no force was read): nothing to fit")
     return RecordArrays(trial=np.array([t.trial for t in records]), **a)
+
+
+def stack(first: RecordArrays, second: RecordArrays) -> RecordArrays:
+    """The rows of ``first`` then ``second``, padded to the longer trial (no move, no burst)."""
+    moves = max(first.valid.shape[1], second.valid.shape[1])
+
+    def padded(data: RecordArrays, name: str) -> np.ndarray:
+        value = getattr(data, name)
+        if value.ndim == 1:
+            return np.asarray(value)
+        fill: float | bool = False if value.dtype == bool else (
+            0.0 if name in ("count", "passes") else np.nan)
+        width = [(0, 0), (0, moves - value.shape[1])] + [(0, 0)] * (value.ndim - 2)
+        return np.pad(value, width, constant_values=fill)
+
+    return RecordArrays(**{name: np.concatenate([padded(first, name), padded(second, name)])
+                           for name in RecordArrays.__dataclass_fields__})

@@ -31,10 +31,12 @@ from forcelearn.tools.twin.arm import (
     timed_moves,
     with_true_in_position,
 )
-from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, to_arrays
+from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
 from forcelearn.tools.twin.choice import choose, diagnose, family_for
 from forcelearn.tools.twin.forward import Reading, ToolPath, motion_shape, predict_means
+from forcelearn.tools.twin.identify import Identification
+from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, Member
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.uncertainty import sigmas
@@ -417,7 +419,8 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
              base_arm: dict[str, float], reading: Reading, band_mm: float, tick_s: float,
              calibration_noise_n: float | None = None,
              members: tuple[Member, ...] | None = None,
-             configured_phi: float | None = None, polling: Polling | None = None) -> TwinFit:
+             configured_phi: float | None = None, polling: Polling | None = None,
+             identification: Identification | None = None) -> TwinFit:
     """Fit every part of the twin to a run's records (trials in order).
 
     ``configured_phi`` is the AR(1) coefficient per burst sample the run's sensor
@@ -425,7 +428,9 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     corrects the noise measured within bursts. ``calibration_noise_n`` replaces
     that measurement by a calibration's. ``polling`` is how the driver polls the
     robot while waiting (:func:`~forcelearn.tools.twin.arm.polling_of`; None: the
-    recorded in-position and burst times are taken as exact).
+    recorded in-position and burst times are taken as exact). ``identification``
+    (``forcelearn identify``, on the fresh cell): its polled moves give the arm, its force
+    records join the fitted trials (passes counted apart, as a fresh foam's).
 
     Raises:
         RecordsError: too few trials, or records that cannot be fitted.
@@ -437,6 +442,11 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     arm = fit_arm(train, base_arm, band_mm, period)
     if polling is not None:
         arm = dataclasses.replace(arm, answer_s=polling.answer_s(period))
+    if identification is not None:
+        arm = identified_arm(arm, identification, band_mm)
+        extra = [t for t in identification.records if t.steps]
+        if extra:
+            train = stack(to_arrays(extra), train)
     # the sponge sees the moves end when the robot was in position, not when a poll saw it
     train = with_true_in_position(train, arm, band_mm)
     heldout = with_true_in_position(heldout, arm, band_mm)
