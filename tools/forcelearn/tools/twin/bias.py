@@ -336,10 +336,6 @@ def walk_log_likelihood(reads: ReadSeries, rate: float) -> float:
 
 FRESH_MIN_CONTACTS = 6
 """Contact reads (> ``CONTACT_FLOOR_N``) the probe's rows need to stand for the fresh foam."""
-FRESH_SHARE = 0.1
-"""Share of the trials (the first ones, at least ``FRESH_MIN_TRIALS``) that stand for the fresh
-foam when the run has no surface probe."""
-FRESH_MIN_TRIALS = 5
 CONTACT_FLOOR_N = 0.5
 
 
@@ -350,9 +346,8 @@ def _fresh_rows(data: RecordArrays) -> np.ndarray:
     contacts = probe[:, None] & data.has_burst & (np.nan_to_num(data.mean_n) > CONTACT_FLOOR_N)
     if contacts.sum() >= FRESH_MIN_CONTACTS:
         return probe
-    first = np.cumsum(stepping) <= max(FRESH_MIN_TRIALS, math.ceil(FRESH_SHARE * stepping.sum()))
-    fresh: np.ndarray = probe | (stepping & first)
-    return fresh
+    every: np.ndarray = np.ones(data.trials, bool)
+    return every
 
 
 def free_reads(data: RecordArrays, base: dict[str, float], reading: Reading) -> np.ndarray:
@@ -363,11 +358,13 @@ def free_reads(data: RecordArrays, base: dict[str, float], reading: Reading) -> 
     where that surface raised by ``FREE_MARGIN_MM`` is below the tool (or the tool is
     off the strip). It needs no starting guess from the full fit and no wear: wear only
     lowers the surface, so a burst above the fresh one is free. The fresh foam's
-    bursts are the surface probe's (rows without control steps) when they hold
-    ``FRESH_MIN_CONTACTS`` contact reads, else those of the first ``FRESH_SHARE`` of
-    the trials: a plain spring fitted to a long run's worn foam puts the surface mm
-    too high (a 300-trial default run: 5.8 mm for 0, k 0.89 for 2 N/mm) and takes every
-    approach read for contact, which switched the bias walk off.
+    bursts are the surface probe's (rows without control steps, several depths at
+    several places) when they hold ``FRESH_MIN_CONTACTS`` contact reads, else every
+    burst: a plain spring fitted to a long run's worn foam puts the surface mm too high
+    (a 300-trial default run: 5.8 mm for 0, k 0.89 for 2 N/mm) and takes every approach
+    read for contact, which switched the bias walk off; the trials' steps alone, all near
+    one force, leave stiffness and surface to trade off, so they are used only without
+    a probe.
     """
     use = data.has_burst & np.isfinite(data.mean_n) & _fresh_rows(data)[:, None]
     y, z = data.reached[..., 1][use], data.reached[..., 2][use]
