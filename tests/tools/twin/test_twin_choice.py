@@ -1,4 +1,4 @@
-"""Honest member choice (issue 42, item 2).
+"""Honest member choice.
 
 A richer member only when it wins on the held-out trials AND what it adds is determined;
 otherwise the records cannot tell the two apart.

@@ -1,4 +1,4 @@
-"""The twin's fit (issue 29 items 2 and 4): its model, recovery, stability and verdict."""
+"""The twin's fit: its model, recovery, stability and verdict."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""forcelearn identify (issue 42, item 3): the plan on an emulated cell, the timing fit."""
+"""forcelearn identify: the plan on an emulated cell, the timing fit."""
 
 from __future__ import annotations
 
