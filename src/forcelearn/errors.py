@@ -12,6 +12,9 @@ driver boundary with ``raise ... from``.
      ├── StateFileError                    a learned-state file is damaged or of another version
      ├── CalibrationError                  a calibration could not be made; no file was written
  ├── StudyError                        a study cannot run: folder conflict, cluster unreachable
+     ├── PathError (ValueError)            a taught path cannot be used; nothing moved
+     │    ├── PathParseError               a path file does not read (file, line, reason)
+     │    └── PathRefused                  a path point breaks a limit (point, reason)
      ├── LinkError                         robot computer link
      │    ├── LinkTimeout (TimeoutError)   no ACK / reply within the timeout, retries spent
      │    ├── ProtocolError                a reply that breaks the link protocol
@@ -64,6 +67,34 @@ class StudyError(ForcelearnError):
 
 class CalibrationError(ForcelearnError):
     """A calibration could not be made (poses ill-conditioned, a device failed midway)."""
+
+
+class PathError(ForcelearnError, ValueError):
+    """A taught path (CSV or RAPID module) cannot be used; it was refused before any move."""
+
+
+class PathParseError(PathError):
+    """A path file does not read: ``source`` and ``line`` (1-based, 0 if none) say where."""
+
+    def __init__(self, source: str, line: int, reason: str) -> None:
+        where = f"{source}:{line}" if line else source
+        super().__init__(f"{where}: {reason}")
+        self.source = source
+        self.line = line
+        self.reason = reason
+
+
+class PathRefused(PathError):
+    """A point of a taught path breaks a limit; ``index`` is 0-based, ``line`` its source line."""
+
+    def __init__(self, index: int, name: str, line: int, reason: str) -> None:
+        label = f"point {index + 1}" + (f" ({name})" if name else "")
+        label += f" from line {line}" if line else ""
+        super().__init__(f"path refused at {label}: {reason}")
+        self.index = index
+        self.name = name
+        self.line = line
+        self.reason = reason
 
 
 class LinkError(ForcelearnError):
