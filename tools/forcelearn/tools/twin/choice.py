@@ -8,12 +8,15 @@ eligible member, a richer one is taken over the present choice only when both
   predicts the held-out trials better by more than ``BIC_MARGIN`` in the BIC of
   their weighted residuals (Kass & Raftery 1995: over 10 is very strong
   evidence), and
-* the mechanism it adds is determined: each added parameter fitted (not held,
-  not at an end of its range) with its 1-sigma within the determination bound
-  (:meth:`~forcelearn.tools.twin.params.Parameter.determined`), the larger of
-  the Jacobian's and the resampled sigma, and its amplitude more than
-  ``PRESENT_SIGMAS`` sigma from the value that switches it off (no relaxation,
-  exponent 1, no hysteresis, no friction).
+* the mechanism it adds is determined: its amplitude (relaxation ratio,
+  exponent, h, mu) fitted (not held) with its 1-sigma within the determination
+  bound (:meth:`~forcelearn.tools.twin.params.Parameter.determined`), the larger
+  of the Jacobian's and the resampled sigma, and more than ``PRESENT_SIGMAS``
+  sigma from the value that switches the mechanism off (no relaxation, exponent
+  1, no hysteresis, no friction); no added parameter at an end of its range. A
+  scale the records leave loose (a relaxation time held at the base value) does
+  not veto it: the amplitude is then the initial rate at that scale, which the
+  report says.
 
 Otherwise the present choice stays, and the report says why: the records cannot
 tell the two apart (within the margin), or they favour the richer member but do
@@ -41,9 +44,6 @@ PRESENT_SIGMAS = 3.0
 OFF_VALUE = {"relaxation_ratio": 0.0, "stiffening_exponent": 1.0, "hysteresis_loss": 0.0,
              "friction_coefficient": 0.0}
 """The value of each mechanism's amplitude that switches the mechanism off."""
-SCALE_FREE = frozenset({"hysteresis_loss"})
-"""Amplitudes determined without their scale (the hysteresis's branch gap is reached within
-a few d_h of a reversal, and the learner's steps are longer): docs/twin-fit.md."""
 BOUND_SHARE = 1e-5
 """A value within this share of its range's width from an end sits at that end."""
 
@@ -92,12 +92,11 @@ def mechanism_gap(fit: Fitted, names: list[str], sigmas: dict[str, float] | None
     amplitudes = [n for n in names if n in OFF_VALUE]
     for name in names:
         value, sigma = fit.values[name], sigmas.get(name, math.inf)
-        if name in fit.held:
+        if name in amplitudes and name in fit.held:
             return f"{name} is held at the base value (the records do not determine it)"
         if _at_bound(name, value):
             return f"{name} sits at an end of its range ({value:.4g})"
-        scale_needed = not any(a in SCALE_FREE for a in amplitudes)
-        if (name in OFF_VALUE or scale_needed) and not BY_NAME[name].determined(value, sigma):
+        if name in amplitudes and not BY_NAME[name].determined(value, sigma):
             return f"{name} = {value:.4g} ± {sigma:.2g} is not determined"
     for name in amplitudes:
         value, sigma = fit.values[name], sigmas.get(name, math.inf)
