@@ -35,6 +35,7 @@ from typing import ParamSpec, TypeVar
 import numpy as np
 
 from forcelearn.calibration.model import Calibration
+from forcelearn.calibration.tool_check import MIN_TURN_DEG, check_free_space, turn_deg
 from forcelearn.devices import (
     AXES,
     BatchForceSensor,
@@ -44,7 +45,13 @@ from forcelearn.devices import (
     Robot,
     WrenchSample,
 )
-from forcelearn.errors import ConfigError, ForcelearnError, ForceLimitExceeded, InvalidTarget
+from forcelearn.errors import (
+    ConfigError,
+    ForcelearnError,
+    ForceLimitExceeded,
+    InvalidTarget,
+    ToolMismatch,
+)
 from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
 from forcelearn.records import BurstRecord, CellRecorder, MoveRecord, TareRecord
 
@@ -347,6 +354,7 @@ class Cell:
                 "retract pose, task.retract_y_mm?)", force, max_reading_n,
             )
             return False
+        self.check_tool_fit()  # turned since the last zero: does the calibrated tool still fit?
         self._guarded(self.sensor.zero_offsets)
         self.tares += 1
         if self.calibration is not None:  # the zero now holds the tool's weight at this pose
@@ -363,11 +371,46 @@ class Cell:
         except ForcelearnError as exc:
             log.error("could not stop the robot: %s", exc)
 
+    # ---- compensation at the orientation reached (docs/calibration.md) ---------------------
+    def reached_pose(self) -> Pose:
+        """The pose the robot reported at the end of its last wait, else the one commanded.
+
+        A link that reports no pose with its wait (the computer link) leaves the
+        commanded pose, which the controller holds within its in-position zone.
+        """
+        wait = getattr(self.robot, "last_wait", None)
+        if isinstance(wait, InPositionWait) and wait.reached is not None:
+            return wait.reached
+        return self.pose
+
     def _compensated(self, sample: WrenchSample) -> WrenchSample:
         if self.compensation is None:
             return sample
-        wrench = self.compensation(sample.wrench, self.pose)
+        wrench = self.compensation(sample.wrench, self.reached_pose())
         return dataclasses.replace(sample, wrench=wrench)  # keeps its time, counter, flags
+
+    def check_tool_fit(self, samples: int | None = None) -> bool:
+        """In free space: raise ToolMismatch if the calibrated tool no longer fits here.
+
+        Only at an orientation turned from the last zero's (else nothing shows;
+        False, nothing read): reads a burst, compensated at the orientation
+        reached, against 3 sigma of the calibration's noise. Call it whenever the
+        tool is in free space after a turn; :meth:`tare` does before zeroing.
+        """
+        cal = self.calibration
+        if cal is None:
+            return False
+        here = self.reached_pose().quaternion
+        if turn_deg(here, cal.zero_quaternion) < MIN_TURN_DEG:
+            return False
+        count = samples or self.samples_per_step
+        batch = [self._compensated(self._guarded(self.sensor.read)) for _ in range(count)]
+        mean = np.mean([s.wrench for s in batch], axis=0)
+        try:
+            return check_free_space(cal, mean, here, cal.zero_quaternion)
+        except ToolMismatch:
+            self.stop()
+            raise
 
     def _guarded(self, call: Callable[_P, _R], *args: _P.args, **kwargs: _P.kwargs) -> _R:
         try:

@@ -11,6 +11,8 @@ driver boundary with ``raise ... from``.
      ├── ConfigError (ValueError)          a config key or value is wrong
      ├── StateFileError                    a learned-state file is damaged or of another version
      ├── CalibrationError                  a calibration could not be made; no file was written
+     │    ├── PoseOutOfRange               a pose would pass the sensor's range; not moved there
+     │    └── ToolMismatch                 free-space readings disagree with the calibrated tool
  ├── StudyError                        a study cannot run: folder conflict, cluster unreachable
      ├── PathError (ValueError)            a taught path cannot be used; nothing moved
      │    ├── PathParseError               a path file does not read (file, line, reason)
@@ -67,6 +69,17 @@ class StudyError(ForcelearnError):
 
 class CalibrationError(ForcelearnError):
     """A calibration could not be made (poses ill-conditioned, a device failed midway)."""
+
+
+class PoseOutOfRange(CalibrationError):
+    """A pose's predicted reading would pass the sensor's range: the robot was not moved there."""
+
+
+class ToolMismatch(CalibrationError):
+    """Free-space readings disagree with the calibrated tool: run ``forcelearn calibrate``.
+
+    The tool was changed, or the calibration is of another tool or sensor.
+    """
 
 
 class PathError(ForcelearnError, ValueError):

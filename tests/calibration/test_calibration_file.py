@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from forcelearn.calibration import (
+    FORMAT_VERSION,
     Calibration,
     MatrixCheck,
     SensorInfo,
@@ -50,7 +51,8 @@ def test_round_trip_gives_back_the_same_calibration(tmp_path: Path, calibration)
     assert [p.name for p in tmp_path.iterdir()] == ["cal.toml"]  # no temporary file left
     text = path.read_text()
     assert text.startswith("# forcelearn sensor calibration")
-    assert "format_version = 2" in text and "[[tool.pose]]" in text and "digest = " in text
+    assert f"format_version = {FORMAT_VERSION}" in text
+    assert "[[tool.pose]]" in text and "digest = " in text
 
 
 def test_round_trip_without_the_optional_matrix_check(tmp_path: Path, calibration) -> None:
@@ -85,8 +87,9 @@ def _edit(text: str, old: str, new: str) -> str:
 @pytest.mark.parametrize(
     ("old", "new", "message"),
     [
-        ("format_version = 2", "format_version = 1", "format_version is 1.*reads version 2"),
-        ("format_version = 2", "", "format_version is None"),
+        ("format_version = 3", "format_version = 1",
+         "format_version is 1.*reads versions \\[2, 3\\]"),
+        ("format_version = 3", "", "format_version is None"),
         ('created = "', 'creatd = "', "missing key file.created"),
         ("[sensor]\n", "[sensor]\nextra = 1\n", "unknown key.*sensor.extra"),
         ("mass_kg = ", "mass_kg = -", "tool.mass_kg must be a finite number > 0"),

@@ -74,7 +74,7 @@ def test_a_bad_calibration_file_stops_the_session_before_any_device_opens(
         tmp_path: Path) -> None:
     """A file of another format version is a ConfigError naming it; nothing is started."""
     _write_calibration(tmp_path / "cal.toml")
-    text = (tmp_path / "cal.toml").read_text().replace("format_version = 2", "format_version = 9")
+    text = (tmp_path / "cal.toml").read_text().replace("format_version = 3", "format_version = 9")
     (tmp_path / "cal.toml").write_text(text)
     (tmp_path / "cell.toml").write_text('[calibration]\nfile = "cal.toml"\n')
     with pytest.raises(ConfigError, match=r"cal\.toml.*format_version is 9"):

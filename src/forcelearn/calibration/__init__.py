@@ -1,16 +1,19 @@
 """Sensor calibration: bias, noise and tool load, the fits that find them, and their file.
 
 ``forcelearn calibrate`` (:mod:`forcelearn.tools.commands.calibrate`) measures; this
-package fits (:mod:`.fit`), holds the result (:mod:`.model`) and stores it
-(:mod:`.file_format`); :class:`~forcelearn.site.session.CellSession`
-loads the file, gives the Kalman filter R from the noise variance and installs
-:meth:`Calibration.compensation` on the cell. All of it is pure but the file
-I/O.
+package fits (:mod:`.fit`; with the sensor's mounting on the flange, given or
+estimated, :mod:`.mounting`), predicts the reading before a turn
+(:mod:`.predict`), holds the result (:mod:`.model`), stores it
+(:mod:`.file_format`) and tells when the tool no longer fits (:mod:`.tool_check`);
+:class:`~forcelearn.site.session.CellSession` loads the file, gives the Kalman
+filter R from the noise variance and installs :meth:`Calibration.compensation`
+on the cell. All of it is pure but the file I/O.
 
 The tool-load model (wrench order Fx Fy Fz Mx My Mz, sensor frame, N and N*m)
 ----------------------------------------------------------------------------
 A static tool of mass ``m`` with centre of mass ``c`` (sensor frame) held in
-orientation ``R`` (sensor frame -> world, world z up) reads::
+orientation ``R = R_f R_m`` (sensor frame -> world, world z up; ``R_f`` the
+flange's, as the robot reports it, ``R_m`` the sensor's mounting) reads::
 
     g_s = R^T (0, 0, -g)                        gravity in the sensor frame, m/s^2
     F   = F0 + m g_s                            N
@@ -58,6 +61,8 @@ from forcelearn.calibration.fit import (
 from forcelearn.calibration.model import (
     AXES,
     FORMAT_VERSION,
+    MOUNTING_ESTIMATED,
+    MOUNTING_GIVEN,
     STANDARD_GRAVITY_M_S2,
     TOOL_DOWN,
     Calibration,
@@ -74,6 +79,8 @@ __all__ = [
     "AXES",
     "FORMAT_VERSION",
     "MAX_CONDITION",
+    "MOUNTING_ESTIMATED",
+    "MOUNTING_GIVEN",
     "STANDARD_GRAVITY_M_S2",
     "TOOL_DOWN",
     "Calibration",

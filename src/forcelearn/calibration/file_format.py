@@ -4,7 +4,8 @@ Written with ``tomli-w`` (the standard library reads TOML but does not write
 it), read with ``tomllib``. Format version 2 adds ``digest`` (SHA-256 of the
 canonical content, see :func:`content_digest`) and ``tool.pose_count``, so a
 file that was damaged, truncated or edited after it was written is refused
-instead of loading wrong values.
+instead of loading wrong values. Version 3 adds the sensor's mounting on the
+flange (``tool.mounting_quaternion``, ``mounting_std_deg``, ``mounting_source``).
 
 The reader refuses any other ``format_version``, unknown or missing keys,
 wrong lengths, non-finite numbers, implausible full scales, a node id outside
@@ -35,6 +36,8 @@ from forcelearn.atomic import atomic_write_bytes
 from forcelearn.calibration.bounds import check_bounds
 from forcelearn.calibration.model import (
     FORMAT_VERSION,
+    MOUNTING_ESTIMATED,
+    MOUNTING_GIVEN,
     Calibration,
     MatrixCheck,
     NoiseEstimate,
@@ -47,6 +50,8 @@ from forcelearn.devices import check_full_scales
 from forcelearn.errors import ConfigError
 
 DIGEST_PREFIX = "sha256:"
+READABLE_VERSIONS = (2, 3)
+"""Versions read: 3 (this one) and 2 (no mounting keys: the sensor's axes are the flange's)."""
 MAX_NODE_ID = 127
 """CAN node ids are 1..127."""
 
@@ -95,7 +100,7 @@ def to_document(cal: Calibration) -> dict[str, Any]:
     """Return the calibration as the nested dict that :func:`dumps` writes."""
     s, n, t = cal.sensor, cal.noise, cal.tool
     doc: dict[str, Any] = {
-        "format_version": cal.format_version,
+        "format_version": FORMAT_VERSION,  # a version 2 read is written as 3
         "created": cal.created,
         "sensor": {"model": s.model, "serial": s.serial, "node_id": s.node_id,
                    "full_scales": s.full_scales, "cutoff_hz": s.cutoff_hz, "robot": s.robot},
@@ -108,6 +113,8 @@ def to_document(cal: Calibration) -> dict[str, Any]:
             "force_bias_n": t.force_bias_n, "force_bias_std_n": t.force_bias_std_n,
             "torque_bias_nm": t.torque_bias_nm, "torque_bias_std_nm": t.torque_bias_std_nm,
             "condition_number": t.condition_number,
+            "mounting_quaternion": t.mounting_quaternion,
+            "mounting_std_deg": t.mounting_std_deg, "mounting_source": t.mounting_source,
             "pose_count": len(t.poses),
             "pose": [{"name": p.name, "quaternion": p.quaternion, "samples": p.samples,
                       "mean": p.mean, "residual": p.residual} for p in t.poses],
@@ -129,7 +136,8 @@ def to_toml(cal: Calibration) -> str:
         "forcelearn sensor calibration, written by `forcelearn calibrate` "
         "(see docs/calibration.md)\n"
         "units: N, N*m, kg, mm, s, Hz; wrenches Fx Fy Fz Mx My Mz in the sensor frame;\n"
-        "quaternions (w, x, y, z) sensor frame -> world, world z up\n"
+        "quaternions (w, x, y, z) as RAPID: robot flange (tool) frame -> world, world z up;\n"
+        "sensor frame = flange frame turned by tool.mounting_quaternion\n"
         f"tool {t.mass_kg:.4f} +- {t.mass_std_kg:.4f} kg, centre of mass "
         f"{[round(c, 2) for c in t.com_mm]} mm; noise std "
         f"{[float(f'{v:.3g}') for v in cal.noise.std]}"
@@ -223,10 +231,10 @@ class _Table:
 def from_document(data: Mapping[str, Any], source: str = "calibration") -> Calibration:
     """Build a :class:`Calibration` from a parsed TOML document, checking every key."""
     version = data.get("format_version")
-    if version != FORMAT_VERSION:
+    if version not in READABLE_VERSIONS:
         raise ConfigError(
-            f"{source}: format_version is {version!r}, this forcelearn reads version "
-            f"{FORMAT_VERSION}; run `forcelearn calibrate` again to write a current file"
+            f"{source}: format_version is {version!r}, this forcelearn reads versions "
+            f"{list(READABLE_VERSIONS)}; run `forcelearn calibrate` again to write a current file"
         )
     top = _Table(data, "file", source)
     top.used.update(("format_version", "digest"))
@@ -254,7 +262,7 @@ def from_document(data: Mapping[str, Any], source: str = "calibration") -> Calib
         raise n.fail("covariance", "must be symmetric")
     if np.any(np.diag(cov) <= 0) or np.linalg.eigvalsh(cov)[0] < -1e-9 * np.max(np.diag(cov)):
         raise n.fail("covariance", "must be positive semi-definite with variances > 0")
-    tool = _read_tool(_Table(top._get("tool"), "tool", source), source)
+    tool = _read_tool(_Table(top._get("tool"), "tool", source), source, version)
     check = None
     if "matrix_check" in data:
         c = _Table(top._get("matrix_check"), "matrix_check", source)
@@ -265,12 +273,24 @@ def from_document(data: Mapping[str, Any], source: str = "calibration") -> Calib
     top.done()
     _check_digest(data, source)
     cal = Calibration(created=created, sensor=sensor, noise=noise, tool=tool,
-                      matrix_check=check)
+                      matrix_check=check, format_version=version)
     check_bounds(cal, source)
     return cal
 
 
-def _read_tool(t: _Table, source: str) -> ToolLoad:
+def _read_mounting(t: _Table, version: int) -> dict[str, Any]:
+    """Version 3's mounting keys; a version 2 file had the sensor's axes the flange's."""
+    if version < 3:
+        return {}
+    source = t.string("mounting_source")
+    if source not in (MOUNTING_GIVEN, MOUNTING_ESTIMATED):
+        raise t.fail("mounting_source", f"must be {MOUNTING_GIVEN!r} or {MOUNTING_ESTIMATED!r}, "
+                     f"got {source!r}")
+    return {"mounting_quaternion": t.quaternion("mounting_quaternion"),
+            "mounting_std_deg": t.number("mounting_std_deg", 0.0), "mounting_source": source}
+
+
+def _read_tool(t: _Table, source: str, version: int) -> ToolLoad:
     raw_poses = t._get("pose")
     if not isinstance(raw_poses, list) or not raw_poses:
         raise t.fail("pose", "must be an array of tables [[tool.pose]], one per orientation")
@@ -293,6 +313,7 @@ def _read_tool(t: _Table, source: str) -> ToolLoad:
         torque_bias_nm=t.vector("torque_bias_nm", 3),
         torque_bias_std_nm=t.vector("torque_bias_std_nm", 3, 0.0),
         condition_number=t.number("condition_number", 1.0), poses=tuple(poses),
+        **_read_mounting(t, version),
     )
     t.done()
     return tool

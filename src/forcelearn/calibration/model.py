@@ -16,12 +16,14 @@ from typing import Any, cast
 import numpy as np
 
 from forcelearn.devices import AXES as AXES  # re-exported: the calibration file names axes
+from forcelearn.devices import IDENTITY_QUATERNION, Pose, multiply_quaternions, quaternion_to_matrix
 from forcelearn.devices import STANDARD_GRAVITY_M_S2 as STANDARD_GRAVITY_M_S2  # re-exported
 from forcelearn.devices import TOOL_DOWN as TOOL_DOWN  # re-exported: the default zero pose
-from forcelearn.devices import Pose, quaternion_to_matrix
 
-FORMAT_VERSION = 2
-"""Version of the calibration file format this code writes and reads."""
+FORMAT_VERSION = 3
+"""Version of the calibration file format this code writes (it also reads 2: mounting identity)."""
+MOUNTING_GIVEN, MOUNTING_ESTIMATED = "given", "estimated"
+"""Where a calibration's mounting rotation came from (``tool.mounting_source``)."""
 MM_PER_M = 1000.0
 
 Vec3 = tuple[float, float, float]
@@ -29,8 +31,15 @@ Vec6 = tuple[float, float, float, float, float, float]
 Quaternion = tuple[float, float, float, float]
 
 
+def sensor_quaternion(flange: Quaternion, mounting: Quaternion) -> Quaternion:
+    """Return the sensor frame's orientation q_f * q_m (sensor -> world) from the flange's."""
+    if mounting == IDENTITY_QUATERNION:
+        return flange
+    return multiply_quaternions(flange, mounting)
+
+
 def gravity_in_sensor(q: Quaternion) -> np.ndarray:
-    """Return gravity g_s (3,) in the sensor frame, m/s^2, for orientation ``q``."""
+    """Return gravity g_s (3,) in the sensor frame, m/s^2, for the sensor's orientation ``q``."""
     g_s: np.ndarray = quaternion_to_matrix(q).T @ np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2])
     return g_s
 
@@ -107,6 +116,13 @@ class ToolLoad:
     condition_number: float
     """Of the column-normalised design matrix (small is good; see ``fit.MAX_CONDITION``)."""
     poses: tuple[PoseFit, ...] = ()
+    mounting_quaternion: Quaternion = IDENTITY_QUATERNION
+    """R_m (w, x, y, z): the sensor frame against the robot's flange (tool) frame."""
+    mounting_std_deg: float = 0.0
+    """Uncertainty of the mounting rotation (deg, 1 sigma; 0 when taken as given)."""
+    mounting_source: str = MOUNTING_GIVEN
+    """``"estimated"`` (fitted with the tool) or ``"given"`` (by the operator, or an older
+    file)."""
 
     @property
     def rms_residual(self) -> np.ndarray:
@@ -139,6 +155,9 @@ class Calibration:
     tool: ToolLoad
     matrix_check: MatrixCheck | None = None
     format_version: int = FORMAT_VERSION
+    zeroed_at: Quaternion | None = field(default=None, compare=False)
+    """The robot's orientation at the zero the bias is for (None: ``noise.zero_quaternion``);
+    set by :meth:`rezeroed`, never written to the file."""
     _gravity_cache: dict[Quaternion, np.ndarray] = field(
         default_factory=dict, repr=False, compare=False
     )
@@ -153,12 +172,17 @@ class Calibration:
         return float(self.noise.covariance[axis][axis])
 
     def gravity_wrench(self, quaternion: Quaternion) -> np.ndarray:
-        """Return the tool's weight in the sensor frame, [m g_s ; c x m g_s] (N, N*m)."""
+        """Return the tool's weight in the sensor frame, [m g_s ; c x m g_s] (N, N*m).
+
+        ``quaternion`` is the robot's (flange frame -> world) as it reached it; the
+        mounting rotation turns it into the sensor's.
+        """
         # Four floats, as ``quaternion`` has four components.
         key = cast(Quaternion, tuple(float(c) for c in quaternion))
         cached = self._gravity_cache.get(key)
         if cached is None:
-            force = self.tool.mass_kg * gravity_in_sensor(key)
+            force = self.tool.mass_kg * gravity_in_sensor(
+                sensor_quaternion(key, self.tool.mounting_quaternion))
             com_m = np.asarray(self.tool.com_mm) / MM_PER_M
             cached = np.concatenate([force, np.cross(com_m, force)])
             if len(self._gravity_cache) >= 64:  # the hot path sees few orientations
@@ -167,7 +191,11 @@ class Calibration:
         return cached
 
     def compensate(self, wrench: np.ndarray, quaternion: Quaternion) -> np.ndarray:
-        """Return measured - bias - tool gravity (6,), N and N*m."""
+        """Return measured - bias - tool gravity (6,), N and N*m, at the robot's ``quaternion``.
+
+        The compensation as a function of the orientation reached: a task that
+        turns the tool calls it with the orientation the robot reports.
+        """
         compensated: np.ndarray = (
             np.asarray(wrench, dtype=float) - self.bias - self.gravity_wrench(quaternion)
         )
@@ -185,4 +213,10 @@ class Calibration:
         """
         bias = -self.gravity_wrench(quaternion)
         tool = replace(self.tool, force_bias_n=floats(bias[:3]), torque_bias_nm=floats(bias[3:]))
-        return replace(self, tool=tool, _gravity_cache={})
+        return replace(self, tool=tool, zeroed_at=cast(Quaternion, floats(quaternion)),
+                       _gravity_cache={})
+
+    @property
+    def zero_quaternion(self) -> Quaternion:
+        """The robot's orientation at the zero the bias (F0, M0) is for."""
+        return self.zeroed_at if self.zeroed_at is not None else self.noise.zero_quaternion

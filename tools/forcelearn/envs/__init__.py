@@ -8,6 +8,12 @@ id                          what
 ``forcelearn/Surface-v0``   §5 roller on the sponge, emulated cell through the
                             real drivers, or a real cell from a site config
                             (:class:`~forcelearn.envs.surface.SurfaceEnv`)
+``forcelearn/SurfaceVec-v0``  §5 on N emulated cells at once in numpy, the same
+                            physics without the wires (``gymnasium.make_vec``
+                            with ``vectorization_mode="vector_entry_point"``:
+                            :class:`~forcelearn.envs.surface_vec.SurfaceVecEnv`;
+                            ``gymnasium.make``: one cell,
+                            :class:`~forcelearn.envs.surface_vec.SurfaceSimEnv`)
 ==========================  =====================================================
 
 Gymnasium ≥ 1.0 loads no plugins by itself; any of these works after
@@ -17,7 +23,7 @@ Gymnasium ≥ 1.0 loads no plugins by itself; any of these works after
     import forcelearn.envs; gymnasium.make("forcelearn/Surface-v0")
     gymnasium.register_envs(forcelearn.envs)                   # keeps linters quiet
 
-Importing this module registers both ids (idempotently), without a
+Importing this module registers the ids (idempotently), without a
 ``max_episode_steps``: the environments truncate at the end of their own path.
 The classes live in :mod:`forcelearn.envs` (they open cells through the
 tools' cell session); this module is their public face.
@@ -32,8 +38,11 @@ from forcelearn.envs.surface import SurfaceEnv
 
 CONTOUR_ID = "forcelearn/Contour-v0"
 SURFACE_ID = "forcelearn/Surface-v0"
+SURFACE_VEC_ID = "forcelearn/SurfaceVec-v0"
 
-__all__ = ["CONTOUR_ID", "SURFACE_ID", "ContourEnv", "SurfaceEnv", "register_envs"]
+__all__ = [
+    "CONTOUR_ID", "SURFACE_ID", "SURFACE_VEC_ID", "ContourEnv", "SurfaceEnv", "register_envs",
+]
 
 
 def register_envs() -> None:
@@ -42,6 +51,12 @@ def register_envs() -> None:
         register(CONTOUR_ID, entry_point="forcelearn.envs.contour:ContourEnv")
     if SURFACE_ID not in registry:
         register(SURFACE_ID, entry_point="forcelearn.envs.surface:SurfaceEnv")
+    if SURFACE_VEC_ID not in registry:
+        register(
+            SURFACE_VEC_ID,
+            entry_point="forcelearn.envs.surface_vec:SurfaceSimEnv",
+            vector_entry_point="forcelearn.envs.surface_vec:SurfaceVecEnv",
+        )
 
 
 register_envs()

@@ -34,9 +34,11 @@ table          holds
                ``[emulator.sponge]``, ``[emulator.sensor]`` (the JR3's
                :class:`SensorModelParams`, or with ``[sensor] kind = "netft"``
                the Net F/T's :class:`NetFtModelParams`), ``[emulator.arm]``,
-               ``[emulator.egm]`` (EGM control lag: :class:`ServoParams`)
+               ``[emulator.egm]`` (EGM control lag: :class:`ServoParams`),
+               ``[emulator.tool]`` (the tool: :mod:`forcelearn.site.emulated_tool`)
                (ignored on a real cell)
-``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``
+``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``; ``sensor_serial``:
+               this sensor's serial (a file of another is refused)
 =============  ===============================================================
 
 The kinds are the entries of :mod:`forcelearn.site.kinds`; each builds its
@@ -63,10 +65,13 @@ from forcelearn.emulators.egm.servo import ServoParams
 from forcelearn.emulators.jr3.sensor_model import SensorModelParams
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
 from forcelearn.emulators.physics.sponge import SpongeParams
+from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
+from forcelearn.site.calibration_identity import load_sensor_serial
+from forcelearn.site.emulated_tool import load_tool
 from forcelearn.site.kinds import (
     DEFAULT_ROBOT_KIND,
     DEFAULT_SENSOR_KIND,
@@ -205,6 +210,8 @@ class EmulatorConfig:
     """The emulated Net F/T's model (``[emulator.sensor]`` when ``[sensor] kind = "netft"``)."""
     egm: ServoParams = field(default_factory=ServoParams)
     """EGM control lag (dead time) and servo time constant of the emulated controller."""
+    tool: ToolParams = field(default_factory=ToolParams)
+    """The tool on the sensor (``[emulator.tool]``, :mod:`forcelearn.site.emulated_tool`)."""
     time_scale: float = 0.0
     """0: as fast as possible (simulated time only); 1.0: real time; any factor between."""
     profile: Literal["realistic", "ideal"] = "realistic"
@@ -259,6 +266,9 @@ class CellConfig:
     emulator: EmulatorConfig = field(default_factory=EmulatorConfig)
     probe: ProbeSpec = field(default_factory=ProbeSpec)
     calibration_file: Path | None = None
+    sensor_serial: str = ""
+    """``[calibration] sensor_serial``: the serial of this cell's sensor; a calibration file
+    of another serial is refused (:mod:`forcelearn.site.calibration_identity`)."""
     trials: int = DEFAULT_TRIALS
     seed: int = 0
     stop_after_converged: int = 0
@@ -377,6 +387,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         emulator=load_emulator(kind, dict(data.get("emulator", {}))),
         probe=build(ProbeSpec, data.get("probe"), "probe"),
         calibration_file=load_calibration_file(data.get("calibration", {}), path),
+        sensor_serial=load_sensor_serial(data.get("calibration", {})),
         trials=trials,
         seed=seed,
         stop_after_converged=stop_after,
@@ -415,14 +426,14 @@ def load_sensor(kind: SensorKind, table: dict[str, Any], safety: SafetyLimits) -
 
 def load_emulator(kind: SensorKind, table: dict[str, Any]) -> EmulatorConfig:
     """``[emulator]``: pace, profile, physics; ``[emulator.sensor]`` is the sensor kind's model."""
-    check_sections(table, {"sponge", "sensor", "arm", "egm", "time_scale", "profile"})
+    check_sections(table, {"sponge", "sensor", "arm", "egm", "tool", "time_scale", "profile"})
     pace: dict[str, Any] = {k: table.pop(k) for k in ("time_scale", "profile") if k in table}
     models: dict[str, Any] = {}
     if "sensor" in table:
         if kind.model_field is None or kind.model_type is None:
             raise ConfigError(f"emulator.sensor: the {kind.label} emulator takes no model table")
         models[kind.model_field] = build(kind.model_type, table["sensor"], "emulator.sensor")
-    return build(
+    emulator = build(
         EmulatorConfig,
         {
             **pace,
@@ -433,6 +444,9 @@ def load_emulator(kind: SensorKind, table: dict[str, Any]) -> EmulatorConfig:
         },
         "emulator",
     )
+    # [emulator.tool], checked against the range of this kind's sensor model
+    model = getattr(emulator, kind.model_field or "sensor")
+    return replace(emulator, tool=load_tool(table.get("tool"), model))
 
 
 def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:
@@ -447,8 +461,8 @@ def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:
 
 def load_calibration_file(table: dict[str, Any], config_path: str | Path | None) -> Path | None:
     """``[calibration] file``, relative to the config file's folder."""
-    if set(table) - {"file"}:
-        raise ConfigError("[calibration] takes one key, file")
+    if set(table) - {"file", "sensor_serial"}:
+        raise ConfigError("[calibration] takes the keys file and sensor_serial")
     if "file" not in table:
         return None
     if not isinstance(table["file"], str) or not table["file"]:

@@ -39,7 +39,6 @@ from typing import Any
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge
-from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.site.config import CellConfig
 from forcelearn.site.kinds import (
     DeviceKind,
@@ -62,7 +61,7 @@ def emulated_physics(config: CellConfig) -> tuple[Sponge, CellPhysics]:
     emulator = config.emulator.effective()
     sponge = Sponge(emulator.sponge)
     clock = SimClock(emulator.time_scale)
-    return sponge, CellPhysics(sponge, emulator.arm.home, ToolParams(), clock=clock)
+    return sponge, CellPhysics(sponge, emulator.arm.home, emulator.tool, clock=clock)
 
 
 class EmulatedCell:

@@ -39,6 +39,7 @@ from forcelearn.cell import Cell
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge
 from forcelearn.filtering import make_force_filter
+from forcelearn.site.calibration_identity import check_identity
 from forcelearn.site.config import CellConfig
 from forcelearn.site.emulated_cell import EmulatedCell
 
@@ -106,6 +107,7 @@ class CellSession:
     def _calibration_for_this_zero(self, calibration: Calibration) -> Calibration:
         """The calibration for the sensor as it opened (zeroed just now, at this pose)."""
         cfg = self.config
+        self._check_identity(calibration)
         if cfg.sensor.zero_on_init:
             calibration = calibration.rezeroed(self.robot.read_pose().quaternion)
         measured_at = calibration.sensor.cutoff_hz
@@ -118,6 +120,15 @@ class CellSession:
                 cutoff_hz,
             )
         return calibration
+
+    def _check_identity(self, calibration: Calibration) -> None:
+        """Refuse a calibration file of another sensor (serial, node, full scales), by name."""
+        cfg = self.config
+        live = cfg.sensor_device.calibration_info(
+            cfg, self.sensor, cfg.robot_device.calibration_name(self.robot), None,
+            cfg.sensor_serial)
+        check_identity(calibration, f"calibration file {str(cfg.calibration_file)!r}", live,
+                       getattr(cfg.sensor, "node_id", None), cfg.sensor_serial)
 
     @property
     def calibration(self) -> Calibration | None:

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -59,7 +59,7 @@ from forcelearn.errors import (
     ProtocolError,
     SafetyStop,
 )
-from forcelearn.protocols.egm import codec
+from forcelearn.protocols.egm import carried, codec
 
 log = logging.getLogger(__name__)
 
@@ -142,6 +142,8 @@ def distance_mm(p0: Pose, p1: Pose) -> float:
 
 def step_toward(pose: Pose, target: Pose, max_mm: float, max_deg: float) -> Pose:
     """Return ``pose`` moved toward ``target`` by at most ``max_mm`` and ``max_deg``."""
+    if pose == target and max_mm >= 0.0 and max_deg >= 1e-3 and _finite(pose):
+        return target  # at rest (most cycles): no distance nor angle to compute
     error = target.position_mm - pose.position_mm
     distance = float(np.linalg.norm(error))
     turn = angle_deg(pose.quaternion, target.quaternion)
@@ -179,7 +181,7 @@ class Guidance:
         """Planned pose of the last reply (ramps toward ``target``)."""
         self.speed_mm_s = config.speed_mm_s
         self.session = 0
-        self.stats = EgmStats()
+        self._counts = asdict(EgmStats())  # a dict: counting is per datagram, hot
         self.controller: Source | None = None
         """The paired controller's address, pinned by the first session start."""
         self.refusal: ForcelearnError | None = None
@@ -207,21 +209,11 @@ class Guidance:
         if not self._from_controller(source):
             self._count(foreign_datagrams=1)
             return False
-        try:
-            codec.check_version(data, self.config.version)
-        except EgmVersionMismatch as exc:
-            self._count(wrong_version=1)
-            if self.latest is None:
-                self.refusal = exc
-            return False
-        except ProtocolError:
-            self._count(bad_datagrams=1)
-            return False
-        try:
-            message = codec.decode_robot(data, self.config.version)
-        except ProtocolError:
-            self._count(bad_datagrams=1)
-            return False
+        message = carried.received_robot(data, self.config.version)
+        if message is None:
+            message = self._decode(data)
+            if message is None:
+                return False
         latest = self.latest
         if latest is None or (message.seqno == 0 and latest.seqno != 0):
             if latest is not None and not self._newer_session(message, latest, now_s):
@@ -260,6 +252,24 @@ class Guidance:
         self._count(missed=ahead - 1)
         self.latest = message
         return self._fresh(data, now_s)
+
+    def _decode(self, data: bytes) -> codec.RobotMessage | None:
+        """The EgmRobot in ``data``; None (counted) if it proves the other version or is broken."""
+        try:
+            codec.check_version(data, self.config.version)
+        except EgmVersionMismatch as exc:
+            self._count(wrong_version=1)
+            if self.latest is None:
+                self.refusal = exc
+            return None
+        except ProtocolError:
+            self._count(bad_datagrams=1)
+            return None
+        try:
+            return codec.decode_robot(data, self.config.version)
+        except ProtocolError:
+            self._count(bad_datagrams=1)
+            return None
 
     def _resumes(self, message: codec.RobotMessage) -> bool:
         """Whether ``message`` continues the stream a seqno 0 just interrupted; if so, take it.
@@ -385,11 +395,15 @@ class Guidance:
         self._count(sessions=1)
         return True
 
+    @property
+    def stats(self) -> EgmStats:
+        """The counters as they are now (a snapshot)."""
+        return EgmStats(**self._counts)
+
     def _count(self, **increments: int) -> None:
-        stats = self.stats
-        self.stats = replace(
-            stats, **{k: getattr(stats, k) + v for k, v in increments.items()}
-        )
+        counts = self._counts
+        for name, value in increments.items():
+            counts[name] += value
 
     # -- output -----------------------------------------------------------------------------
 
@@ -414,7 +428,7 @@ class Guidance:
         message = codec.SensorMessage(self._next_seqno, self.latest.tm_ms, planned)
         self._next_seqno = (self._next_seqno + 1) % _SEQNO_MOD
         self._count(replies=1)
-        return codec.encode_sensor(message, self.config.version)
+        return carried.carry_sensor(message, self.config.version)
 
     def hold(self) -> None:
         """Make the present feedback pose the target; the planned pose ramps to it.
@@ -444,7 +458,7 @@ class Guidance:
             "session": self.session,
             "next_seqno": self._next_seqno,
             "origin_us": self.origin_us,
-            "stats": asdict(self.stats),
+            "stats": dict(self._counts),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -469,7 +483,7 @@ class Guidance:
         self._next_seqno = int(state["next_seqno"])
         origin = state.get("origin_us")
         self.origin_us = None if origin is None else int(origin)
-        self.stats = EgmStats(**state["stats"])
+        self._counts = asdict(EgmStats(**state["stats"]))
 
     # -- queries ----------------------------------------------------------------------------
 

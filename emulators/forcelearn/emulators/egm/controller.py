@@ -67,7 +67,7 @@ from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.robot_controller.kinematics import ArmConfig, joint_angles_deg
 from forcelearn.errors import ProtocolError
-from forcelearn.protocols.egm import codec
+from forcelearn.protocols.egm import carried, codec
 
 log = logging.getLogger(__name__)
 
@@ -166,6 +166,8 @@ class EgmControllerModel:
         self._seqno = 0
         self._last_read_s = t_s
         self._last_pose_s = (t_s, physics.pose)
+        self._last_checked: tuple[Pose, str | None, tuple[float, ...] | None] | None = None
+        """The latest target checked, its refusal and its axes (a target is sent every cycle)."""
 
     @property
     def running(self) -> bool:
@@ -201,12 +203,14 @@ class EgmControllerModel:
         if not self.running:
             self.ignored += 1
             return
-        try:
-            message = codec.decode_sensor(datagram, self.config.version)
-        except ProtocolError as exc:
-            log.info("EgmSensor ignored: %s", exc)
-            self.ignored += 1
-            return
+        message = carried.received_sensor(datagram, self.config.version)
+        if message is None:
+            try:
+                message = codec.decode_sensor(datagram, self.config.version)
+            except ProtocolError as exc:
+                log.info("EgmSensor ignored: %s", exc)
+                self.ignored += 1
+                return
         self._last_read_s = t_s
         if self.config.mode == "joint":
             self._apply_joints(message, t_s)
@@ -216,12 +220,12 @@ class EgmControllerModel:
             if message.planned_joints_deg:
                 self._count_wrong_mode(t_s, "planned.joints", "\\Pose")
             return  # no position data: the controller keeps the last planned pose
-        refusal = self._refusal(target)
+        refusal, joints = self._checked(target)
         if refusal:
             self._motion_error(t_s, refusal)
             return
         self.planned = target
-        self.planned_joints = self._joints(target, self.planned_joints)
+        self.planned_joints = self.planned_joints if joints is None else joints
         self.motion.command(self._feed_forward_pose(target, message.speed_ref), t_s)
         self.targets_read += 1
 
@@ -282,6 +286,20 @@ class EgmControllerModel:
                 t_s, field_name, setup,
             )
 
+    def _checked(self, target: Pose) -> tuple[str | None, tuple[float, ...] | None]:
+        """``_refusal(target)`` and the arm's axes there (None: unreachable), kept for a repeat.
+
+        The checks depend on the target and the fixed configuration only, and the
+        PC sends the same target cycle after cycle while the arm rests or follows.
+        """
+        last = self._last_checked
+        if last is not None and last[0] == target:
+            return last[1], last[2]
+        refusal = self._refusal(target)
+        joints = joint_angles_deg(self.config.arm, target)
+        self._last_checked = (target, refusal, joints)
+        return refusal, joints
+
     def _refusal(self, pose: Pose) -> str | None:
         position = pose.position_mm
         norm = math.sqrt(sum(c * c for c in pose.quaternion))
@@ -334,7 +352,7 @@ class EgmControllerModel:
             fc_active=self.config.force_control_active if force is not None else None,
         )
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
-        return codec.encode_robot(message, self.config.version)
+        return carried.carry_robot(message, self.config.version)
 
     # -- checkpoint -------------------------------------------------------------------------
 

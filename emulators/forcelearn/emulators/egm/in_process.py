@@ -33,6 +33,7 @@ from collections import deque
 from typing import Any
 
 from forcelearn.emulators.egm.base import EgmEmulatorBase
+from forcelearn.protocols.egm.carried import CarriedDatagram
 
 log = logging.getLogger(__name__)
 
@@ -121,11 +122,13 @@ class InProcessDatagramSocket:
 
     def recvfrom(self, bufsize: int, /) -> tuple[bytes, tuple[str, int]]:
         """Run the controller to its next datagram and return it (never blocks)."""
-        return self._require_open()._next_datagram()[:bufsize], SOURCE
+        datagram = self._require_open()._next_datagram()
+        return (datagram if len(datagram) <= bufsize else datagram[:bufsize]), SOURCE
 
     def sendto(self, data: bytes, address: Any, /) -> int:
         """Hand an EgmSensor to the controller (``address`` is not used)."""
-        self._require_open()._answer(bytes(data))
+        # a CarriedDatagram is kept as it is: the controller reads its message unparsed
+        self._require_open()._answer(data if type(data) is CarriedDatagram else bytes(data))
         return len(data)
 
     def settimeout(self, value: float | None, /) -> None:

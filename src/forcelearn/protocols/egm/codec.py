@@ -321,6 +321,40 @@ def wire_fields(data: bytes) -> Iterator[tuple[int, int, bytes]]:
         yield number, wire_type, data[start:pos]
 
 
+def _field_spans(data: bytes, pos: int, end: int) -> list[tuple[int, int, int, int]]:
+    """(field number, wire type, value start, value end) of the fields in ``data[pos:end]``.
+
+    The same reading as :func:`wire_fields` (and the same ProtocolError cases),
+    without copying values: :func:`detect_version` runs on every datagram.
+    """
+    spans = []
+    while pos < end:
+        key = data[pos]
+        if key < 0x80:
+            pos += 1
+        else:
+            key, pos = _varint(data, pos)
+        number, wire_type = key >> 3, key & 7
+        if wire_type == 0:
+            start = pos
+            _, pos = _varint(data, pos)
+        elif wire_type == 1 or wire_type == 5:
+            start = pos
+            pos += 8 if wire_type == 1 else 4
+        elif wire_type == 2:
+            if pos < end and data[pos] < 0x80:
+                length, start = data[pos], pos + 1
+            else:
+                length, start = _varint(data, pos)
+            pos = start + length
+        else:
+            raise ProtocolError(f"wire type {wire_type} in an EGM datagram")
+        if pos > end or number == 0:
+            raise ProtocolError("truncated EGM datagram")
+        spans.append((number, wire_type, start, pos))
+    return spans
+
+
 def detect_version(robot_datagram: bytes) -> Version | None:
     """Return the RobotWare version an EgmRobot datagram proves, or None if it proves neither.
 
@@ -329,14 +363,15 @@ def detect_version(robot_datagram: bytes) -> Version | None:
     measuredForce. RW6 evidence: measuredForce field 1 as doubles (fixed64 or
     packed). A controller that sends none of these is readable by either file.
     """
-    for number, wire_type, value in wire_fields(robot_datagram):
+    data = bytes(robot_datagram)
+    for number, wire_type, start, end in _field_spans(data, 0, len(data)):
         if number in _RW7_ONLY_ROBOT_FIELDS:
             return "rw7"
         in_pose_block = number in (2, 3) and wire_type == 2  # feedBack, planned
-        if in_pose_block and any(n == 5 for n, _, _ in wire_fields(value)):
+        if in_pose_block and any(n == 5 for n, _, _, _ in _field_spans(data, start, end)):
             return "rw7"
         if number == 9 and wire_type == 2:  # measuredForce
-            for n, wt, _ in wire_fields(value):
+            for n, wt, _, _ in _field_spans(data, start, end):
                 if n == 2 or (n == 1 and wt == 0):
                     return "rw7"
                 if n == 1 and wt in (1, 2):

@@ -13,6 +13,7 @@ _PACKAGE = "forcelearn.tools.benchmarks."
 
 # name -> (module, one-line help)
 BENCHMARKS: dict[str, tuple[str, str]] = {
+    "all": (_PACKAGE + "all", "every figure below beside the machine's floors, as ratios"),
     "learner": (_PACKAGE + "learner", "SRV learner steps/s (act + learn, 2-D grid)"),
     "contour": (
         _PACKAGE + "contour",
@@ -22,6 +23,8 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "jr3": (_PACKAGE + "jr3", "JR3 sync-mode paired samples/s, virtual CAN bus"),
     "egm": (_PACKAGE + "egm", "EGM 4 ms loop period, jitter and reply latency, UDP"),
     "netft": (_PACKAGE + "netft", "Net F/T records/s and p99 latency, loopback UDP"),
+    "surface-env": (_PACKAGE + "surface_env", "Gymnasium forcelearn/Surface-v0 steps/s"),
+    "surface-vec": (_PACKAGE + "surface_vec", "forcelearn/SurfaceVec-v0 env steps/s, N cells"),
     "cell": (_PACKAGE + "cell", "§5 run on the emulated cell: cell time / wall time"),
     "live": (_PACKAGE + "live", "§5 run with --live and a browser vs without"),
     "twin": (_PACKAGE + "twin", "forcelearn twin's fit wall time on a 300-trial run's records"),

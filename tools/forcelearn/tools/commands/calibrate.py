@@ -37,16 +37,24 @@ import numpy as np
 
 from forcelearn.calibration import (
     AXES,
+    MOUNTING_ESTIMATED,
     Calibration,
     MatrixCheck,
     SensorInfo,
     check_matrix,
     save_calibration,
 )
+from forcelearn.calibration.model import Quaternion
 from forcelearn.errors import CalibrationError, ConfigError, ForcelearnError
 from forcelearn.site import CellConfig, CellSession, load_cell_config
-from forcelearn.tools.experiments.calibration_plan import CalibrationPlan, load_poses
-from forcelearn.tools.experiments.calibration_run import Ask, Calibrator
+from forcelearn.site.emulated_tool import mounting_rpy_deg, rpy_to_quaternion
+from forcelearn.tools.commands.calibrate_guard import GuardedCalibrator
+from forcelearn.tools.experiments.calibration_plan import (
+    DEFAULT_POSES,
+    CalibrationPlan,
+    load_poses,
+)
+from forcelearn.tools.experiments.calibration_run import Ask
 from forcelearn.tools.figures.calibration import write_residual_png
 
 LOAD_COLUMNS = [f"{kind}_{axis.lower()}" for kind in ("raw", "applied") for axis in AXES]
@@ -80,6 +88,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--loads", type=Path, help="CSV of known loads for the 6x6 matrix check")
     parser.add_argument("--sensor-model", default=None, help="sensor model, for the file")
     parser.add_argument("--sensor-serial", default="", help="sensor serial number, for the file")
+    mounting = parser.add_mutually_exclusive_group()
+    mounting.add_argument("--mounting-rpy-deg", type=float, nargs=3, metavar=("R", "P", "Y"),
+                          help="the sensor's mounting on the flange as given: roll x, pitch y, "
+                          "yaw z about fixed axes, deg (default: estimated with the tool)")
+    mounting.add_argument("--mounting-quaternion", type=float, nargs=4,
+                          metavar=("W", "X", "Y", "Z"), help="the same as a quaternion "
+                          "(sensor frame -> flange frame, RAPID order)")
     parser.add_argument("--seed", type=int, help="emulated sensor noise seed (default [run] seed)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -101,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
         config, plan, out_path=args.out, figure_path=args.figure, manual=args.manual,
         loads_path=args.loads, sensor_model=args.sensor_model, sensor_serial=args.sensor_serial,
         seed=config.seed if args.seed is None else args.seed, progress=not args.no_progress,
+        mounting=mounting_option(args.mounting_rpy_deg, args.mounting_quaternion),
     )
     return 0
 
@@ -120,11 +136,15 @@ def calibrate(
     progress: bool = True,
     stream: TextIO | None = None,
     session: CellSession | None = None,
+    mounting: Quaternion | None = None,
 ) -> Calibration:
     """Measure, report and write; raises CalibrationError (no file written) on any failure.
 
     ``session``: an open cell to use (the caller closes it); default: open one
     from ``config`` without its calibration file, closed at the end.
+    ``mounting``: the sensor's mounting on the flange (w, x, y, z) as given; None: estimated.
+    With the default orientations, poses out of the sensor's range are skipped and
+    orientations added where the fit needs them; with others, either is refused.
     """
     stream = stream or sys.stdout
     out = Path(out_path or config.calibration_file or "calibration.toml")
@@ -133,9 +153,12 @@ def calibrate(
         check = check_matrix(*read_loads(loads_path)) if loads_path else None
         opened = session or CellSession(replace(config, calibration_file=None), seed=seed)
         with opened if session is None else contextlib.nullcontext(opened):
-            measurement = Calibrator(opened, plan, manual=manual, ask=ask,
-                                     progress=progress, out=stream).run()
             sensor = _sensor_info(config, opened, sensor_model, sensor_serial)
+            calibrator = GuardedCalibrator(
+                opened, plan, full_scales=sensor.full_scales, mounting=mounting,
+                complete=plan.poses == DEFAULT_POSES, manual=manual, ask=ask,
+                progress=progress, out=stream)
+            measurement = calibrator.run()
         cal = Calibration(
             created=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             sensor=sensor, noise=measurement.noise, tool=measurement.tool, matrix_check=check,
@@ -151,6 +174,21 @@ def calibrate(
     print(f"wrote {out} and {figure}; to use it, put in the cell config:\n"
           f"[calibration]\nfile = \"{out}\"", file=stream)
     return cal
+
+
+def mounting_option(rpy_deg: list[float] | None,
+                    quaternion: list[float] | None) -> Quaternion | None:
+    """The mounting given on the command line, or None (estimated); ConfigError if no rotation."""
+    if rpy_deg is not None:
+        return rpy_to_quaternion((rpy_deg[0], rpy_deg[1], rpy_deg[2]))
+    if quaternion is None:
+        return None
+    q = np.asarray(quaternion, dtype=float)
+    norm = float(np.linalg.norm(q))
+    if not np.all(np.isfinite(q)) or abs(norm - 1.0) > 1e-3:
+        raise ConfigError(f"--mounting-quaternion {quaternion}: a unit quaternion (w, x, y, z)")
+    w, x, y, z = (float(c) / norm for c in q)
+    return (w, x, y, z)
 
 
 def read_loads(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -189,9 +227,14 @@ def report(cal: Calibration) -> str:
         return ", ".join(f"{v:.{digits}f} ± {s:.{digits}f}" for v, s in zip(values, stds,
                                                                               strict=True))
 
+    why = ("estimated with the tool" if t.mounting_source == MOUNTING_ESTIMATED
+           else "as given (--mounting-*), not estimated")
     lines = [
         f"tool load ({len(t.poses)} poses, condition number {t.condition_number:.2f}):",
         f"  mass            {t.mass_kg:.4f} ± {t.mass_std_kg:.4f} kg",
+        f"  mounting        quaternion [{', '.join(f'{c:.4f}' for c in t.mounting_quaternion)}]"
+        f" ± {t.mounting_std_deg:.3f} deg, roll-pitch-yaw "
+        f"{np.round(mounting_rpy_deg(t.mounting_quaternion), 2).tolist()} deg: {why}",
         f"  centre of mass  ({pm(t.com_mm, t.com_std_mm, 2)}) mm",
         f"  force bias      ({pm(t.force_bias_n, t.force_bias_std_n, 3)}) N",
         f"  torque bias     ({pm(t.torque_bias_nm, t.torque_bias_std_nm, 4)}) N·m",

@@ -1,4 +1,4 @@
-"""``forcelearn check``: open both devices of a cell and report on them, without moving the robot.
+"""``forcelearn check``: open both devices of a cell and report on them (unmoved without --turn).
 
 On site, run this first. It opens the robot and the sensor as the config says
 (:class:`~forcelearn.site.CellSession`) and lets each device's kind
@@ -19,6 +19,11 @@ On site, run this first. It opens the robot and the sensor as the config says
   (rate, lost, duplicated, out-of-order, rejected datagrams, reboots), mean
   and noise per axis.
 
+With a calibration (``[calibration] file``) it prints the compensated wrench in
+free space (:mod:`.check_compensation`): at the present orientation, and with
+``--turn`` (the robot moves) at four orientations tilted 30 deg, each judged
+against the calibrated tool (3 sigma of its noise).
+
 Each failure names the device and what to check (port, baud, bus, bitrate,
 node id) and exits with status 1. With no ``--config`` it checks the built-in
 emulated cell.
@@ -29,9 +34,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from forcelearn.errors import LinkError, SafetyStop, SensorError, one_line
+from forcelearn.errors import LinkError, SafetyStop, SensorError, ToolMismatch, one_line
 from forcelearn.site import CellConfig, CellSession, load_cell_config
 from forcelearn.site.kinds import Printer
+from forcelearn.tools.commands.check_compensation import report_compensation
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,6 +47,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--seconds", type=float, default=1.0, help="how long to read the sensor, s (1.0)"
     )
     parser.add_argument("--seed", type=int, default=0, help="emulated sensor noise seed (0)")
+    parser.add_argument("--turn", action="store_true",
+                        help="with a calibration: turn the tool 30 deg about four horizontal "
+                        "axes through the tool point and print the compensated wrench at each "
+                        "(the robot MOVES; keep a sphere of the tool's length clear)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -61,16 +71,18 @@ def run(args: argparse.Namespace) -> int:
     try:
         with CellSession(config, seed=args.seed) as session:
             check_session(session, args.seconds, print)
+            report_compensation(session, print, turn=args.turn)
     except LinkError as exc:
         print(f"FAILED  robot link: {one_line(exc)}")
         return 1
     except SensorError as exc:
         print(f"FAILED  sensor: {one_line(exc)}")
         return 1
-    except SafetyStop as exc:
+    except (SafetyStop, ToolMismatch) as exc:
         print(f"FAILED  {one_line(exc)}")
         return 1
-    print("OK      both devices answer; the robot was not moved")
+    print("OK      both devices answer; " + (
+        "the tool was turned and back" if args.turn else "the robot was not moved"))
     return 0
 
 

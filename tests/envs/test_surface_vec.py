@@ -1,0 +1,79 @@
+"""forcelearn/SurfaceVec-v0: Gymnasium's checker, the vector API, and agreement with the wires."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import forcelearn.envs
+from forcelearn.envs.surface_vec import Probed, SurfaceSimEnv, SurfaceVecEnv
+from forcelearn.site import load_cell_config
+from forcelearn.tasks.surface_map import configured_map
+
+
+def _probed() -> Probed:
+    """The configured (fallback) map of the default cell: no wire-level probe needed."""
+    return Probed(configured_map(load_cell_config(None).task))
+
+
+def test_the_one_cell_env_passes_gymnasiums_checker() -> None:
+    """check_env on what gymnasium.make("forcelearn/SurfaceVec-v0") gives."""
+    env = SurfaceSimEnv(probed=_probed())
+    check_env(env, skip_render_check=True)
+
+
+def test_make_vec_gives_the_numpy_vector_env_with_batched_spaces() -> None:
+    """make_vec with the vector entry point: N cells, Surface-v0's spaces batched."""
+    forcelearn.envs.register_envs()
+    envs = gymnasium.make_vec(forcelearn.envs.SURFACE_VEC_ID, num_envs=5,
+                              vectorization_mode="vector_entry_point", probed=_probed())
+    assert isinstance(envs.unwrapped, SurfaceVecEnv)
+    obs, info = envs.reset(seed=3)
+    assert obs.shape == (5, 3) and envs.observation_space.contains(obs)
+    assert info["start_force_n"].shape == (5,)
+    assert envs.action_space.shape == (5, 1)
+
+
+def test_an_ended_episode_resets_at_the_next_step_with_no_reward() -> None:
+    """Autoreset NEXT_STEP: the step after a done returns the start and reward 0."""
+    envs = SurfaceVecEnv(3, probed=_probed())
+    envs.reset(seed=0)
+    pressing = np.full((3, 1), -1.0)  # as deep as the map allows: the force passes tolerance
+    done = np.zeros(3, dtype=bool)
+    for _ in range(envs.spec_.steps):
+        _, _, terminated, truncated, _ = envs.step(pressing)
+        done = terminated | truncated
+        if done.any():
+            break
+    assert done.any()
+    obs, reward, terminated, truncated, info = envs.step(pressing)
+    assert np.all(reward[done] == 0.0) and not (terminated[done] | truncated[done]).any()
+    assert np.all(obs[done, 0] == 0.0) and np.all(obs[done, 2] == 0.0)
+    assert np.isfinite(info["start_force_n"][done]).all()
+    assert np.isnan(info["start_force_n"][~done]).all()
+
+
+def test_seeded_resets_repeat_and_seeds_differ() -> None:
+    """The same seed gives the same forces; another seed other noise."""
+    def forces(seed: int) -> np.ndarray:
+        envs = SurfaceVecEnv(4, probed=_probed())
+        envs.reset(seed=seed)
+        return np.array([envs.step(np.zeros((4, 1)))[4]["force_n"] for _ in range(5)])
+
+    assert np.array_equal(forces(1), forces(1))
+    assert not np.array_equal(forces(1), forces(2))
+
+
+@pytest.mark.convergence
+@pytest.mark.parametrize("policy", ["fixed", "pi", "srv"])
+def test_the_numpy_cells_agree_with_the_wire_level_cell_over_ten_seeds(policy: str) -> None:
+    """Fixed path, PI, warm-started learner: per-trial force RMS within the wires' noise."""
+    from forcelearn.tools.results.surface_vec import agreement, run_both
+
+    results = [run_both(seed, (policy,), 3) for seed in range(10)]
+    wire = np.array([r[policy]["wire"][0] for r in results])
+    vec = np.array([r[policy]["numpy"][0] for r in results])
+    largest, pooled = agreement(wire, vec)
+    assert largest <= 2.0 * pooled, (largest, pooled)

@@ -1,0 +1,223 @@
+"""``forcelearn bench all``: every speed figure beside its floor, measured in the same run.
+
+A shared or slow machine makes every figure slower; the floors
+(:mod:`~forcelearn.tools.benchmarks.floors`: pty echo, python-can virtual bus
+round trip, numpy foam-law step) are measured in the same process, at the
+start and again just before each figure (a shared machine's load changes
+within minutes), and each figure is printed as a ratio to the floor measured
+just before it, so a reader can compare a figure across machines
+(docs/performance.md keeps the table). The emulated cells are compared with
+the link + JR3 cell of the same run:
+
+=========================  ======================  ===============================
+figure                     ratio                   target (docs/performance.md)
+=========================  ======================  ===============================
+link move round trip p50   / (2 x pty echo)        <= 1.3
+JR3 single read            reads/s / CAN trips/s   >= 0.9
+Surface-v0 step            step time / pty echo    500 steps/s where the echo is 255 us
+SurfaceVec-v0, N = 64      env steps per foam      100,000 steps/s on one core
+                           step (x foam step s)
+cells: real-time factor    EGM, Net F/T, EGM +     >= 1 / 1.5 (within 1.5x)
+                           Net F/T / link + JR3
+learner / contour, N = 64  steps x foam step s     100,000 steps/s on one core
+=========================  ======================  ===============================
+
+``--quick`` shortens every figure (a smoke run: the ratios are noisier).
+Results go to stdout as a Markdown table; ``--json PATH`` also writes them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from forcelearn.tools.benchmarks import floors as floor_module
+
+CELL_CONFIGS: dict[str, str | None] = {
+    "link + JR3": None,
+    "EGM + JR3": "examples/egm-cell.toml",
+    "link + Net F/T": "examples/netft-cell.toml",
+    "EGM + Net F/T": "examples/egm-netft-cell.toml",
+}
+"""The emulated cells timed, by label: their config TOML (None: the default cell)."""
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One speed figure and its ratio to a floor of the same run."""
+
+    name: str
+    value: float
+    unit: str
+    ratio: float
+    ratio_means: str
+    target: str
+    floor: str
+    """The floor this figure's ratio used, as measured just before it."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``forcelearn bench all``."""
+    parser.add_argument("--quick", action="store_true", help="short runs (noisier ratios)")
+    parser.add_argument("--trials", type=int, default=4, help="trials per emulated cell")
+    parser.add_argument("--seconds", type=float, default=10.0, help="Surface-v0 wall time (s)")
+    parser.add_argument("--examples", type=Path, default=Path("examples"),
+                        help="folder of the example cell TOMLs (default ./examples)")
+    parser.add_argument("--skip", nargs="*", default=[],
+                        choices=["link", "jr3", "env", "vec", "cells", "learner", "contour"],
+                        help="figures not to measure")
+    parser.add_argument("--json", type=Path, help="also write the floors and figures here")
+
+
+def _timed(label: str, fn: Callable[[], Figure | list[Figure]]) -> list[Figure]:
+    started = time.perf_counter()
+    result = fn()
+    figures = result if isinstance(result, list) else [result]
+    print(f"  {label}: {time.perf_counter() - started:.1f} s", flush=True)
+    return figures
+
+
+def _echo() -> tuple[float, str]:
+    echo = floor_module.pty_echo_s()
+    return echo, f"pty echo {echo * 1e6:.1f} us"
+
+
+def _foam() -> tuple[float, str]:
+    foam = floor_module.foam_step_s()
+    return foam, f"foam step {foam * 1e6:.1f} us"
+
+
+def _link(quick: bool) -> Figure:
+    from forcelearn.tools.benchmarks.link import measure
+
+    echo, floor = _echo()
+    p50 = float(np.percentile(measure(500 if quick else 2000, 100), 50))
+    return Figure("link move round trip p50", p50 * 1e6, "us", p50 / (2 * echo),
+                  "/ (2 x pty echo)", "<= 1.3", floor)
+
+
+def _jr3(quick: bool) -> Figure:
+    import statistics
+
+    from forcelearn.tools.benchmarks.jr3 import measure
+
+    trips = floor_module.can_round_trips_per_s()
+    rate = statistics.median(measure(500 if quick else 2000, seed) for seed in range(3))
+    return Figure("JR3 single read (sync)", rate, "reads/s", rate / trips,
+                  "/ CAN round trips/s", ">= 0.9", f"CAN {trips:,.0f} round trips/s")
+
+
+def _env(seconds: float) -> Figure:
+    from forcelearn.tools.benchmarks.surface_env import measure
+
+    echo, floor = _echo()
+    rate = measure(seconds).steps_per_s
+    return Figure("Surface-v0 steps", rate, "steps/s", 1.0 / (rate * echo),
+                  "step / pty echo", "500 steps/s (a host of 255 us echo)", floor)
+
+
+def _vec(quick: bool) -> list[Figure]:
+    if importlib.util.find_spec("forcelearn.envs.surface_vec") is None:
+        return []
+    from forcelearn.tools.benchmarks.surface_vec import measure
+
+    foam, floor = _foam()
+    rate = measure(64, 1.0 if quick else 3.0)
+    return [Figure("SurfaceVec-v0 steps, N = 64", rate, "env steps/s", rate * foam,
+                   "x foam step s", ">= 100,000 steps/s", floor)]
+
+
+def _cells(trials: int, examples: Path) -> list[Figure]:
+    from forcelearn.tools.experiments.surface_run import execute
+    from forcelearn.tools.experiments.surface_state import prepare_run
+
+    factors: dict[str, float] = {}
+    for label, name in CELL_CONFIGS.items():
+        config = None if name is None else examples / Path(name).name
+        with tempfile.TemporaryDirectory(prefix="forcelearn-bench-all-") as tmp:
+            surface_run, _ = prepare_run(config, Path(tmp), trials, 0, False)
+            summary = execute(surface_run, None)
+        factors[label] = float(summary["cell_time_s"]) / float(summary["wall_s"])
+        print(f"    {label}: real-time factor {factors[label]:.2f}, "
+              f"{summary['steps_per_s']:.0f} steps/s", flush=True)
+    base = factors["link + JR3"]
+    return [Figure(f"cell {label}: real-time factor", rtf, "x real time", rtf / base,
+                   "/ link + JR3", ">= 0.67 (within 1.5x)" if rtf != base else "-",
+                   "the link + JR3 cell, same run")
+            for label, rtf in factors.items()]
+
+
+def _learner(quick: bool) -> Figure:
+    from forcelearn.tools.benchmarks.learner import measure_batch
+
+    foam, floor = _foam()
+    rate = max(measure_batch(20_000 if quick else 100_000, 64, seed) for seed in range(2))
+    return Figure("batched SRV learner, N = 64", rate, "steps/s", rate * foam,
+                  "x foam step s", ">= 100,000 steps/s", floor)
+
+
+def _contour(quick: bool) -> Figure:
+    from forcelearn.tools.benchmarks.contour import measure
+
+    foam, floor = _foam()
+    rate, _ = measure(30 if quick else 100, 64)
+    return Figure("contour simulation, N = 64", rate, "steps/s", rate * foam,
+                  "x foam step s", ">= 100,000 steps/s", floor)
+
+
+def _number(value: float) -> str:
+    return f"{value:,.0f}" if abs(value) >= 100 else f"{value:.3g}"
+
+
+def table(fl: floor_module.Floors, figures: list[Figure]) -> str:
+    """The floors (at the start) and the figures with the floor each used, as Markdown."""
+    lines = [
+        "| floor | value |", "|---|---|",
+        f"| pty echo round trip p50 | {fl.pty_echo_s * 1e6:.1f} us |",
+        f"| python-can virtual bus round trips | {fl.can_round_trips_per_s:,.0f} /s |",
+        f"| numpy foam-law step, 64 cells | {fl.foam_step_s * 1e6:.1f} us |",
+        "",
+        "| figure | value | its floor (just before it) | ratio | ratio is | target |",
+        "|---|---|---|---|---|---|",
+    ]
+    lines += [f"| {f.name} | {_number(f.value)} {f.unit} | {f.floor} | {f.ratio:.3g} | "
+              f"{f.ratio_means} | {f.target} |" for f in figures]
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Measure the floors, then every figure, and print the table."""
+    print("floors...", flush=True)
+    fl = floor_module.measure()
+    print(f"  pty echo {fl.pty_echo_s * 1e6:.1f} us, CAN {fl.can_round_trips_per_s:,.0f} "
+          f"round trips/s, foam step {fl.foam_step_s * 1e6:.1f} us", flush=True)
+    quick, skip = args.quick, set(args.skip)
+    seconds = 3.0 if quick else args.seconds
+    trials = 2 if quick else args.trials
+    jobs: list[tuple[str, Callable[[], Figure | list[Figure]]]] = [
+        ("link", lambda: _link(quick)),
+        ("jr3", lambda: _jr3(quick)),
+        ("env", lambda: _env(seconds)),
+        ("vec", lambda: _vec(quick)),
+        ("cells", lambda: _cells(trials, args.examples)),
+        ("learner", lambda: _learner(quick)),
+        ("contour", lambda: _contour(quick)),
+    ]
+    figures: list[Figure] = []
+    for name, job in jobs:
+        if name not in skip:
+            figures += _timed(name, job)
+    print()
+    print(table(fl, figures))
+    if args.json:
+        args.json.write_text(json.dumps(
+            {"floors": asdict(fl), "figures": [asdict(f) for f in figures]}, indent=1) + "\n")
+    return 0
