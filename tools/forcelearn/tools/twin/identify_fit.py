@@ -146,10 +146,10 @@ def identified_arm(arm: ArmFit, identification: Identification, band_mm: float) 
     if timing is None:
         return dataclasses.replace(arm, note=(arm.note + "; " if arm.note else "")
                                    + "the identification has too few polled moves")
-    values = {**arm.values, **{n: v for n, v in timing.values.items()
-                               if n in arm.values and math.isfinite(v)}}
-    spread = {**arm.sigmas, **{n: s for n, s in timing.sigmas.items()
-                               if n in arm.values and math.isfinite(timing.values[n])}}
+    taken = [n for n in arm.values if n in timing.values and math.isfinite(timing.values[n])
+             and math.isfinite(timing.sigmas[n])]  # a value the moves leave loose: the run's
+    values = {**arm.values, **{n: timing.values[n] for n in taken}}
+    spread = {**arm.sigmas, **{n: timing.sigmas[n] for n in taken}}
     return dataclasses.replace(
         arm, values=values, sigmas=spread, rms_s=timing.rms_s, moves=timing.moves,
         note=f"from the identification's {timing.moves} polled moves "
