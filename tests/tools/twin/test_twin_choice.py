@@ -95,3 +95,16 @@ def test_the_walk_goes_on_from_the_member_kept() -> None:
     choice = choose(fits)
     assert fits[choice.index].member is HYSTERETIC_MEMBER
     assert "over linear" in choice.notes[-1]
+
+
+def test_an_inherited_amplitude_need_not_be_present() -> None:
+    """A hysteretic foam is taken for its own mechanism, h.
+
+    Linear was kept over nonlinear; the hysteretic member's exponent is 1.00 (determined,
+    not present), which does not veto it.
+    """
+    fits = _fits(1.0, _determined_sigma("stiffening_exponent", 1.0), BIC_MARGIN / 2)
+    added = {"stiffening_exponent": 1.0, "hysteresis_loss": 0.2, "hysteresis_depth_mm": 0.6}
+    fits.append(_Fit(HYSTERETIC_MEMBER, 100.0 - 6 * BIC_MARGIN, added,
+                     {n: _determined_sigma(n, v) for n, v in added.items()}))
+    assert fits[choose(fits).index].member is HYSTERETIC_MEMBER

@@ -83,11 +83,16 @@ def _at_bound(name: str, value: float) -> bool:
     return bool(at_low or value >= param.high - margin)
 
 
-def mechanism_gap(fit: Fitted, names: list[str], sigmas: dict[str, float] | None = None) -> str:
+def mechanism_gap(fit: Fitted, names: list[str], sigmas: dict[str, float] | None = None,
+                  own: list[str] | None = None) -> str:
     """Why the added parameters ``names`` are not determined in ``fit`` ('' when they are).
 
-    ``sigmas``: their 1-sigma (default: the fit's).
+    ``sigmas``: their 1-sigma (default: the fit's). ``own``: the member's own mechanism
+    (what it adds over the member just before it in the family; default ``names``): only
+    its amplitude must be present; an amplitude inherited from a member the walk did not
+    take (an exponent at 1 under a hysteretic foam) need only be determined.
     """
+    own = names if own is None else own
     sigmas = fit.sigmas if sigmas is None else sigmas
     amplitudes = [n for n in names if n in OFF_VALUE]
     for name in names:
@@ -98,7 +103,7 @@ def mechanism_gap(fit: Fitted, names: list[str], sigmas: dict[str, float] | None
             return f"{name} sits at an end of its range ({value:.4g})"
         if name in amplitudes and not BY_NAME[name].determined(value, sigma):
             return f"{name} = {value:.4g} ± {sigma:.2g} is not determined"
-    for name in amplitudes:
+    for name in [n for n in amplitudes if n in own]:
         value, sigma = fit.values[name], sigmas.get(name, math.inf)
         if not abs(value - OFF_VALUE[name]) > PRESENT_SIGMAS * sigma:
             return (f"{name} = {value:.4g} ± {sigma:.2g} is within {PRESENT_SIGMAS:g} sigma of "
@@ -134,7 +139,10 @@ def choose(fits: Sequence[Fitted], resampled: Callable[[int], dict[str, float]] 
         if resampled is not None:
             for name, spread in resampled(i).items():
                 sigmas[name] = max(sigmas.get(name, math.inf), spread)
-        gap = mechanism_gap(richer, names, sigmas)
+        before = [j for j in eligible if j < i
+                  and set(fits[j].member.free) <= set(richer.member.free)]
+        own = added(richer.member, fits[before[-1]].member) if before else names
+        gap = mechanism_gap(richer, names, sigmas, own)
         if gap:
             choice.undetermined.append(richer.member.name)
             choice.notes.append(
