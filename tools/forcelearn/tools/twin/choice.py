@@ -89,19 +89,20 @@ def mechanism_gap(fit: Fitted, names: list[str], sigmas: dict[str, float] | None
 
     ``sigmas``: their 1-sigma (default: the fit's). ``own``: the member's own mechanism
     (what it adds over the member just before it in the family; default ``names``): only
-    its amplitude must be present; an amplitude inherited from a member the walk did not
-    take (an exponent at 1 under a hysteretic foam) need only be determined.
+    amplitude must be determined and present; one inherited from a member the walk did
+    not take (an exponent at 1, a relaxation ratio under a hysteretic foam) is judged
+    with that member, not again here.
     """
     own = names if own is None else own
     sigmas = fit.sigmas if sigmas is None else sigmas
     amplitudes = [n for n in names if n in OFF_VALUE]
     for name in names:
         value, sigma = fit.values[name], sigmas.get(name, math.inf)
-        if name in amplitudes and name in fit.held:
+        if name in amplitudes and name in own and name in fit.held:
             return f"{name} is held at the base value (the records do not determine it)"
         if _at_bound(name, value):
             return f"{name} sits at an end of its range ({value:.4g})"
-        if name in amplitudes and not BY_NAME[name].determined(value, sigma):
+        if name in amplitudes and name in own and not BY_NAME[name].determined(value, sigma):
             return f"{name} = {value:.4g} ± {sigma:.2g} is not determined"
     for name in [n for n in amplitudes if n in own]:
         value, sigma = fit.values[name], sigmas.get(name, math.inf)
