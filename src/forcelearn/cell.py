@@ -42,6 +42,7 @@ from forcelearn.devices import (
     ForceSensor,
     InPositionWait,
     Pose,
+    RebootableSensor,
     Robot,
     WrenchSample,
 )
@@ -182,9 +183,13 @@ class Cell:
         on_move = getattr(self.force_filter, "on_move", None)
         if on_move is not None:
             on_move()  # the force may change by anything: the filter starts over its prior
-        self.time_s = self._guarded(
-            self.robot.wait_in_position, self.move_timeout_s, self.settle_s if settle else 0.0
-        )
+        try:
+            self.time_s = self._guarded(
+                self.robot.wait_in_position, self.move_timeout_s, self.settle_s if settle else 0.0
+            )
+        except ForcelearnError:
+            self._pose = None  # not reached: where the robot is must be read again
+            raise
         if self.recorder is not None:
             self.recorder.on_move(self._move_record(pose, start_s))
 
@@ -355,6 +360,11 @@ class Cell:
             )
             return False
         self.check_tool_fit()  # turned since the last zero: does the calibrated tool still fit?
+        self._take_zero()
+        return True
+
+    def _take_zero(self) -> None:
+        """Zero the sensor here and make the calibration follow (the tool's weight at this pose)."""
         self._guarded(self.sensor.zero_offsets)
         self.tares += 1
         if self.calibration is not None:  # the zero now holds the tool's weight at this pose
@@ -362,7 +372,30 @@ class Cell:
             self.compensation = self.calibration.compensation
         if self.on_tare is not None:
             self.on_tare(self.pose)
-        return True
+
+    def zero_in_free_space(self) -> float:
+        """Zero the sensor after a fault, the tool retracted to free space; return the reading (N).
+
+        Unlike :meth:`tare` no bound on the reading: after a reboot the sensor
+        reads its raw bias, which is what the zero is for. The caller must have
+        moved the tool clear of every surface
+        (:func:`forcelearn.tasks.recovery.retract_and_retare`). A sensor that
+        rebooted (:class:`~forcelearn.devices.RebootableSensor`) is started
+        again first; one burst is read (the sensor must answer; the force limit
+        and saturation checks apply), the zero taken and recorded, the
+        calibration's bias re-derived and the filter reset.
+        """
+        reinitialise = getattr(self.sensor, "reinitialise", None)
+        if isinstance(self.sensor, RebootableSensor) and reinitialise is not None:
+            self._guarded(reinitialise)
+        self.reset_filter()
+        force = self.measure_force_n()
+        if self.recorder is not None:
+            here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
+            self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, True))
+        self._take_zero()
+        self.reset_filter()
+        return force
 
     def stop(self) -> None:
         """Stop the robot now (best effort: a failing link is logged, not raised)."""

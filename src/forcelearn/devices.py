@@ -201,6 +201,15 @@ class BatchForceSensor(Protocol):
 
 
 @runtime_checkable
+class RebootableSensor(Protocol):
+    """A sensor that reports a reboot (``SensorRebooted``) instead of zeroing on its own."""
+
+    def reinitialise(self) -> None:
+        """Initialise again after a reboot, without zeroing: the caller zeroes in free space."""
+        ...
+
+
+@runtime_checkable
 class ForceSensor(Protocol):
     """A 6-axis force/torque sensor reached through a driver."""
 

@@ -27,6 +27,7 @@ driver boundary with ``raise ... from``.
      ├── SensorError                       force/torque sensor
      │    ├── SensorTimeout (TimeoutError) no ACK from the sensor adapter
      │    ├── SensorStale                  no sample within the watchdog time
+     │    │    └── SensorRebooted          the sensor rebooted: its zero is lost until re-tared
      │    ├── SensorBusError               the CAN bus or the sensor's network failed
      │    ├── SensorProtocolError          the sensor sent bytes or values its protocol forbids
      │    └── SensorFault                  the sensor reported an error in its status word
@@ -167,6 +168,21 @@ class SensorTimeout(SensorError, TimeoutError):
 
 class SensorStale(SensorError):
     """No fresh sample arrived within the configured watchdog time."""
+
+
+class SensorRebooted(SensorStale):
+    """The sensor rebooted (JR3 bootup frame, Net F/T sequence restart): its zero is lost.
+
+    After the first initialisation a driver never zeroes on its own: every read
+    raises this until the cell has retracted to free space and called the
+    driver's ``reinitialise()`` and re-tared (:func:`forcelearn.cell.retract_and_retare`).
+    ``lost`` names what the reboot took (offsets, software bias...). A
+    :class:`SensorStale` too, so a caller that stops on stale readings stops here.
+    """
+
+    def __init__(self, message: str, lost: str) -> None:
+        super().__init__(message)
+        self.lost = lost
 
 
 class SensorBusError(SensorError):

@@ -126,6 +126,24 @@ def test_requests_of_the_wrong_header_size_or_command_get_no_answer() -> None:
         assert answer is not None and records(answer)[0][0] == 1
 
 
+def test_a_request_with_header_abcd_is_ignored_and_counted_by_reason() -> None:
+    """0xABCD instead of 0x1234 is not a request the box recognises.
+
+    Nothing comes back, even for a valid command and count behind the header, and
+    the emulator counts each ignored request by its reason.
+    """
+    with start_box() as box, RdtClient(box) as rdt:
+        rdt.send_raw(bytes.fromhex("ABCD000200000001"))  # start real-time, 1 record
+        rdt.send_raw(bytes.fromhex("ABCD004200000000"))  # set software bias
+        rdt.send_raw(request(START_REALTIME, 1)[:7])
+        rdt.send(0x0077, 1)
+        assert rdt.datagram(QUIET_S) is None
+        assert box.stats.rejected_by_reason == {
+            "REQUEST_HEADER": 2, "REQUEST_SIZE": 1, "COMMAND": 1
+        }
+        assert box.stats.rejected == 4 and box.stats.bias_commands == 0
+
+
 def test_an_unknown_command_does_not_stop_a_stream() -> None:
     """Only stop (or a new start) ends a sample-count-0 stream."""
     with start_box(rdt_rate_hz=1000) as box, RdtClient(box) as rdt:

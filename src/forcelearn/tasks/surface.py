@@ -69,6 +69,11 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+PRESSED_IN = -1.0
+"""The last-move input of a move that pressed in (or held Y), ``approach = "direction"``."""
+EASED_OFF = 1.0
+"""The last-move input of a move that eased off."""
+
 
 class FilteredForce(Protocol):
     """The force filter's last estimate."""
@@ -160,6 +165,7 @@ class SurfaceTask:
         self.grid = spec.grid()
         self.start_force_n = math.nan
         self._step = 0
+        self._last_y_mm = math.nan
         self._trial_start_s = 0.0
 
     def output_map(self) -> SurfaceYOutput:
@@ -174,6 +180,11 @@ class SurfaceTask:
         return SurfaceYOutput(
             spec.fallback_centre_y_mm, spec.fallback_scale_mm, spec.fallback_offset_mm
         )
+
+    @property
+    def approach_mm(self) -> float:
+        """How far above its command each step starts its press, mm (0: straight there)."""
+        return 0.0 if self._output is None else self._output.approach_mm
 
     def retract(self) -> None:
         """Pull out along +Y to the retract plane (in limited steps)."""
@@ -220,7 +231,8 @@ class SurfaceTask:
         if self._output is not None:
             self._output.track_wear(self.start_force_n)
         self._step = 0
-        return np.array([0.0])
+        self._last_y_mm = start.y_mm
+        return self._input(0.0, PRESSED_IN)
 
     def step(self, command: np.ndarray) -> StepOutcome:
         """Advance one Z step to the commanded Y; evaluate the filtered force."""
@@ -233,6 +245,9 @@ class SurfaceTask:
         )
         self.cell.stage = ("step", self._step)
         try:
+            if self.approach_mm > 0:  # from the loading side: the foam's branch is known
+                above = Pose(target.x_mm, y_cmd + self.approach_mm, target.z_mm, start.quaternion)
+                self.cell.move_in_steps(above, self.max_step_mm, guard_force=True)
             self.cell.move_in_steps(target, self.max_step_mm, guard_force=True)
             force = self.cell.measure_force_n()
             limit_hit = False
@@ -243,6 +258,15 @@ class SurfaceTask:
         if judged.failed or self._step == self.steps_per_trial:
             self.retract()
         extras = {"y_cmd_mm": y_cmd, "z_mm": target.z_mm, "limit_hit": float(limit_hit)}
+        moved = EASED_OFF if y_cmd > self._last_y_mm else PRESSED_IN
+        self._last_y_mm = y_cmd
         return StepOutcome(
-            np.array([travel]), judged.r, judged.failed, force, judged.force_error_n, extras
+            self._input(travel, moved), judged.r, judged.failed, force, judged.force_error_n,
+            extras,
         )
+
+    def _input(self, travel_mm: float, moved: float) -> np.ndarray:
+        """The learner's input: the travel, and the last move's direction if the grid has it."""
+        if self.grid.ndim == 1:
+            return np.array([travel_mm])
+        return np.array([travel_mm, moved])

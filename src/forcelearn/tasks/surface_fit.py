@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, TypedDict, cast
 
 import numpy as np
 
 from forcelearn.errors import ConfigError, ForcelearnError
+from forcelearn.tasks.surface_hysteresis import HysteresisFit, fit_hysteresis
 from forcelearn.tasks.surface_spec import SurfaceTaskSpec
 
 log = logging.getLogger(__name__)
@@ -65,6 +66,10 @@ class ProbeSpec:
     follow_surface: str = "auto"
     """The map's centre along the path: "auto" (follow the fitted surface where a
     constant centre would leave the tolerance), "always" or "never"."""
+    ease_off_mm: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0, 4.0)
+    """After its deepest press, the probe eases off by each of these (mm, at most 0.8 of
+    the press's depth) and reads: the foam's unloading branch, its hysteresis
+    (:mod:`forcelearn.tasks.surface_hysteresis`); empty: not measured."""
     refine_points: tuple[float, ...] = (0.125, 0.375, 0.625, 0.875)
     """Points probed in addition before following the surface (its waves are
     shorter than the path), fractions of the path."""
@@ -84,6 +89,13 @@ class ProbeSpec:
         ):
             raise ConfigError(
                 f"probe.refine_points = {self.refine_points!r}: fractions of the path in [0, 1]"
+            )
+        if not (
+            isinstance(self.ease_off_mm, tuple)
+            and all(_finite(e) and 0.0 < e <= 50.0 for e in self.ease_off_mm)
+        ):
+            raise ConfigError(
+                f"probe.ease_off_mm = {self.ease_off_mm!r}: distances in (0, 50] mm, or empty"
             )
         if self.follow_surface not in FOLLOW_MODES:
             raise ConfigError(
@@ -183,8 +195,9 @@ class ProbeResult:
     """What the probe read and fitted (JSON-able through :meth:`to_json`)."""
 
     rows: list[ProbeRow] = field(default_factory=list)
-    """Every reading: point, z_mm, y_mm, phase ("baseline", "approach", "press"),
-    force_n (relaxed, baseline removed), early_force_n, cell_time_s."""
+    """Every reading: point, z_mm, y_mm, phase ("baseline", "approach", "press", "ease":
+    eased off after the deepest press), force_n (relaxed, baseline removed),
+    early_force_n, cell_time_s."""
     fits: list[ContactFit] = field(default_factory=list)
     baselines_n: list[float] = field(default_factory=list)
 
@@ -204,6 +217,49 @@ class ProbeResult:
             fits=[ContactFit(**f) for f in data["fits"]],
             baselines_n=[float(b) for b in data["baselines_n"]],
         )
+
+    def hysteresis(self) -> HysteresisFit:
+        """The foam's hysteresis from the eased-off readings of every point.
+
+        Each "ease" reading against the loading force at its Y (that point's
+        press readings, interpolated in Y); the noise floor is the spread of the
+        free-space baselines (:func:`~forcelearn.tasks.surface_hysteresis.fit_hysteresis`).
+        """
+        ease, unloaded, loaded = [], [], []
+        for point in sorted({r["point"] for r in self.rows}):
+            press = sorted((r["y_mm"], r["force_n"]) for r in self.rows
+                           if r["point"] == point and r["phase"] == "press")
+            if len(press) < 2:
+                continue
+            ys, fs = np.array([p[0] for p in press]), np.array([p[1] for p in press])
+            for row in self.rows:
+                if row["point"] == point and row["phase"] == "ease" and row["y_mm"] <= ys[-1]:
+                    ease.append(row["y_mm"] - ys[0])
+                    unloaded.append(row["force_n"])
+                    loaded.append(float(np.interp(row["y_mm"], ys, fs)))
+        noise = float(np.std(self.baselines_n)) if len(self.baselines_n) > 1 else 0.0
+        return fit_hysteresis(np.array(ease), np.array(unloaded), np.array(loaded), noise)
+
+    def correct_drift(self) -> tuple[float, float]:
+        """Bring every fit to the foam as the last one found it; return (contact shift mm, k ratio).
+
+        The last fit re-probed the first one's Z: every point the probe pressed is a
+        pass over the foam, which sinks (set) and softens with passes, so a long
+        (dense) probe's early points describe a surface the task no longer meets.
+        The drift between the two readings of that Z is spread over the fits in
+        the order they were probed (linearly: the set's first passes of many): fit
+        i of n moves by (1 − i / (n − 1)) of it. The readings (rows) stay as read.
+        """
+        first, last = self.fits[0], self.fits[-1]
+        shift = last.contact_y_mm - first.contact_y_mm
+        ratio = last.stiffness_n_per_mm / first.stiffness_n_per_mm
+        count = len(self.fits) - 1
+        self.fits = [
+            replace(f, contact_y_mm=f.contact_y_mm + shift * (1 - i / count),
+                    stiffness_n_per_mm=f.stiffness_n_per_mm * ratio ** (1 - i / count))
+            for i, f in enumerate(self.fits)
+        ] if count > 0 else self.fits
+        return shift, ratio
 
     def stiffness_n_per_mm(self) -> float:
         """Mean fitted stiffness over the points, N/mm."""

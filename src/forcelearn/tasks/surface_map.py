@@ -51,9 +51,31 @@ from dataclasses import dataclass
 import numpy as np
 
 from forcelearn.tasks.surface_fit import ProbeError, ProbeResult, ProbeSpec
+from forcelearn.tasks.surface_hysteresis import NOT_FITTED, HysteresisFit
 from forcelearn.tasks.surface_spec import SurfaceTaskSpec
+from forcelearn.trainer import CONVERGENCE_TOLERANCE
 
 log = logging.getLogger(__name__)
+
+DENSE_ABOVE = 2.0
+"""The probe measures every step of an interval whose own interpolation error, in force,
+passes this many bands (:func:`dense_points`). The estimate is pessimistic (the default
+cell's largest is 0.6 N, 0.6 band, and its warm start is in band from trial 0): 2 bands
+leave the default cell and a 3 N/mm foam at 2 kgf at 7 points and densify a 6 N/mm foam
+with 3 mm waves at 0.75 kgf (about 2 N, 5 bands)."""
+
+APPROACH_DEPTHS = 4.0
+"""A step approached from the loading side starts this many branch depths above its command."""
+DEFAULT_BRANCH_DEPTH_MM = 0.5
+"""Branch depth assumed when the probe did not fit one (the emulated foam's default), mm."""
+APPROACH_DEPTH_SHARE = 0.5
+"""The approach from the loading side stays within this share of the shallowest depth the
+desired force needs: the roller stays on the foam (off it, every step would be a pass that
+wears the foam, and its press a fresh indentation that reads its unrelaxed force)."""
+MIN_APPROACH_MM = 0.5
+"""Shortest approach from the loading side, mm."""
+MAX_APPROACH_MM = 5.0
+"""Longest approach from the loading side, mm."""
 
 MIN_MARGIN_MM = 3.0
 """Least margin of the output range beyond the spread of the target Ys, mm."""
@@ -103,9 +125,13 @@ class SurfaceYOutput:
         wear_stiffness_n_per_mm: float | None = None,
         shift_range_mm: tuple[float, float] | None = None,
         wear_reference_n: float | None = None,
+        approach_mm: float = 0.0,
     ):
         self.start_y_mm = start_y_mm
         """The centre Y (mm): the command at action 0 (the mean centre with a path)."""
+        self.approach_mm = approach_mm
+        """Each step first stands this much shallower (mm), then presses to its command
+        (0: straight there; :func:`approach_depth_mm`)."""
         self.scale_mm = scale_mm
         self.max_offset_mm = max_offset_mm
         self.path_y_mm = tuple(path_y_mm)
@@ -240,6 +266,9 @@ class OutputMapChoice:
     allowed_bottom_y_mm: float | None = None
     """The deepest Y allowed (mm): ``probe.max_depth_mm`` below the deepest probed contact,
     or the workspace floor (None: no probe, or a checkpoint from before it was kept)."""
+    approach_mm: float = 0.0
+    """Each step presses in from this much shallower, so the foam answers on its loading
+    branch (mm; 0: straight to the command; :func:`approach_depth_mm`)."""
 
     def __post_init__(self) -> None:  # JSON gives lists
         object.__setattr__(self, "path_y_mm", tuple(float(v) for v in self.path_y_mm))
@@ -252,6 +281,7 @@ class OutputMapChoice:
         return SurfaceYOutput(
             self.centre_y_mm, self.scale_mm, self.max_offset_mm, self.path_y_mm, step_mm,
             self.start_press_y_mm, self.wear_stiffness_n_per_mm, self.shift_range_mm,
+            approach_mm=self.approach_mm,
         )
 
     def centre_at(self, step_index: int) -> float:
@@ -273,6 +303,41 @@ def constant_centre_error_ratio(result: ProbeResult, task: SurfaceTaskSpec) -> f
     targets = np.array([f.target_y_mm(task.desired_force_n) for f in result.fits])
     ks = np.array([f.stiffness_n_per_mm for f in result.fits])
     return task.evaluation.ratio(float(np.max(ks * np.abs(targets - np.mean(targets)))))
+
+
+def dense_points(result: ProbeResult, task: SurfaceTaskSpec) -> tuple[float, ...]:
+    """Where the probe must add points, as fractions of the path: the steps it does not resolve.
+
+    Each inner probed Z's target Y is predicted from its two neighbours; a
+    quarter of the miss is what the probed grid itself misses between its
+    points (an interpolation error falls with the square of the spacing). Where
+    that, times the stiffness, passes ``DENSE_ABOVE`` bands (5 % of the
+    desired force), every step's Z between those neighbours not yet probed is
+    returned: a stiff part at a small force, whose position band (band / k) is
+    a fraction of the surface's waves, gets its surface measured where the
+    task steps, not interpolated.
+    """
+    by_z: dict[float, list[tuple[float, float]]] = {}
+    for f in result.fits:
+        by_z.setdefault(f.z_mm, []).append((f.target_y_mm(task.desired_force_n),
+                                            f.stiffness_n_per_mm))
+    z = np.array(sorted(by_z))
+    if len(z) < 3:
+        return ()
+    target = np.array([np.mean([t for t, _ in by_z[v]]) for v in z])
+    k = np.array([np.mean([s for _, s in by_z[v]]) for v in z])
+    band = CONVERGENCE_TOLERANCE * task.desired_force_n
+    steps = np.arange(1, task.steps_per_trial + 1)
+    step_z = task.start_mm[2] + task.z_step_mm * steps
+    wanted: set[int] = set()
+    for i in range(1, len(z) - 1):
+        between = np.interp(z[i], [z[i - 1], z[i + 1]], [target[i - 1], target[i + 1]])
+        if k[i] * abs(float(target[i] - between)) / 4.0 > DENSE_ABOVE * band:
+            inside = (step_z >= z[i - 1]) & (step_z <= z[i + 1])
+            wanted.update(int(s) for s in steps[inside])
+    probed = {round(float(v), 6) for v in z}
+    return tuple(s / task.steps_per_trial for s in sorted(wanted)
+                 if round(float(step_z[s - 1]), 6) not in probed)
 
 
 def choose_output_map(
@@ -348,6 +413,8 @@ def choose_output_map(
     return OutputMapChoice(
         centre, scale, half, needed, allowed, source, path, start_press, k, shift_range,
         allowed_bottom,
+        min(approach_depth_mm(task, result.hysteresis()),
+            APPROACH_DEPTH_SHARE * float(np.min(depths))),
     )
 
 
@@ -372,4 +439,24 @@ def configured_map(task: SurfaceTaskSpec) -> OutputMapChoice:
         math.nan,
         math.nan,
         source,
+        approach_mm=approach_depth_mm(task, NOT_FITTED),
     )
+
+
+def approach_depth_mm(task: SurfaceTaskSpec, hysteresis: HysteresisFit) -> float:
+    """How far above its command each step starts its press, mm (``task.approach``).
+
+    ``APPROACH_DEPTHS`` branch depths (the fit's d_h plus two standard errors,
+    else ``DEFAULT_BRANCH_DEPTH_MM``), within ``MIN_APPROACH_MM``..``MAX_APPROACH_MM``:
+    after a press of four d_h the foam's branch state is within 2 e^-4 (4 %) of
+    loading whatever it was, so the force read varies by < 0.04 h of the elastic
+    one. "auto" approaches only when the probe resolved the hysteresis.
+    """
+    if task.approach in ("direct", "direction") or (
+        task.approach == "auto" and not hysteresis.resolved
+    ):
+        return 0.0
+    depth = hysteresis.depth_mm + 2.0 * hysteresis.depth_std
+    if not math.isfinite(depth):
+        depth = DEFAULT_BRANCH_DEPTH_MM
+    return min(max(APPROACH_DEPTHS * depth, MIN_APPROACH_MM), MAX_APPROACH_MM)

@@ -51,6 +51,7 @@ from forcelearn.tasks.surface_map import (
     choose_output_map,
     configured_map,
     constant_centre_error_ratio,
+    dense_points,
 )
 from forcelearn.tasks.surface_spec import SurfaceTaskSpec
 
@@ -67,6 +68,9 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+EASE_DEPTH_SHARE = 0.8
+"""The probe eases off at most this share of its press's depth (it stays in contact)."""
 
 
 class SurfaceProbe:
@@ -201,6 +205,7 @@ class SurfaceProbe:
                 break  # the next step could pass the probe's force limit or depth
             y -= step
             cell.move_in_steps(self._pose(x, y, z), self.max_step_mm, guard_force=True)
+        self._ease_off(index, x, z, y, contact_guess - y, baseline)
         contact = [(yy, ff) for yy, ff in zip(ys, forces, strict=True) if ff > spec.contact_force_n]
         if len(contact) < 2:
             contact = list(zip(ys, forces, strict=True))
@@ -211,6 +216,23 @@ class SurfaceProbe:
             z, fit.stiffness_n_per_mm, fit.stiffness_std, fit.contact_y_mm, fit.contact_y_std,
             fit.points,
         )
+
+    def _ease_off(
+        self, index: int, x: float, z: float, deepest_y: float, depth_mm: float, baseline: float
+    ) -> None:
+        """Ease off from the deepest press by ``ease_off_mm`` (within the press's depth).
+
+        Each reading after the dwell, as the press's: a hysteretic foam answers
+        on its unloading branch (:mod:`forcelearn.tasks.surface_hysteresis`).
+        """
+        eases = sorted({min(e, EASE_DEPTH_SHARE * depth_mm) for e in self.spec.ease_off_mm})
+        for ease in eases:
+            if ease <= 0:
+                continue
+            y = deepest_y + ease
+            self.cell.move_in_steps(self._pose(x, y, z), self.max_step_mm, guard_force=True)
+            early, relaxed = self._read(self.spec.dwell_s)
+            self._record(index, z, y, "ease", early - baseline, relaxed - baseline)
 
     def _early(self, index: int) -> list[float]:
         return [
@@ -261,4 +283,14 @@ def map_from_probe(
                  "following the surface: a constant map centre would leave the tolerance "
                  "along the path" if follow else "the learner starts on the probe's path")
         probe.run(spec.refine_points)
+        dense = dense_points(result, task)
+        if dense:
+            log.info("probing %d more points, at the steps' Z: between probed points the "
+                     "surface's waves miss more than 2 bands", len(dense))
+            probe.run(dense)
+            probe.run(spec.points[:1])  # again: how far the probe's own passes wore the foam
+            drift = result.correct_drift()
+            log.info("the surface sank %.3f mm and softened %.1f %% over the probe's %d points "
+                     "(its first point again); every fit is brought to the foam as it is now",
+                     -drift[0], 100 * (1 - drift[1]), len(result.fits))
     return result, choose_output_map(result, task, spec, probe.floor_y_mm, follow)

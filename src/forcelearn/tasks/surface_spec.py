@@ -32,6 +32,8 @@ def _is_number(value: object) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
+APPROACHES = ("auto", "loading", "direct", "direction")
+"""``task.approach`` values."""
 MAX_SAMPLES_PER_STEP = 10_000
 """Most sensor samples one step may read (3.25 s of the JR3's SYNC rate, 1.4 s of Net F/T's)."""
 
@@ -78,6 +80,15 @@ class SurfaceTaskSpec:
     the paper's setup, zeroed once when the sensor opens)."""
     tare_max_reading_n: float = 2.0
     """A tare is refused (warned) when the free-space normal force reads more than this, N."""
+    approach: str = "auto"
+    """How each step reaches its Y (:data:`APPROACHES`): "loading" first stands a few branch
+    depths shallower at the new Z, then presses in, so a hysteretic foam is read on its
+    loading branch whichever way the learner moved; "direct" moves straight there (the
+    paper's); "auto" approaches from the loading side when the probe resolved the foam's
+    hysteresis (:mod:`forcelearn.tasks.surface_hysteresis`), else moves directly;
+    "direction" moves directly and gives the learner the direction of the last move as a
+    second input (2 boxes: pressed in, eased off; ``learner.extent`` then needs 2 entries),
+    the design docs/results/materials.md compares with "loading"."""
 
     def __post_init__(self) -> None:
         for name in ("steps_per_trial", "input_parts", "samples_per_step"):
@@ -89,6 +100,11 @@ class SurfaceTaskSpec:
             raise ConfigError(
                 f"task.samples_per_step = {self.samples_per_step}: at most "
                 f"{MAX_SAMPLES_PER_STEP} (each step reads and filters them all)"
+            )
+        if self.approach not in APPROACHES:
+            raise ConfigError(
+                f"task.approach = {self.approach!r}: one of {', '.join(APPROACHES)} (\"loading\": "
+                "press into each step from above, for a hysteretic foam; \"direct\": the paper's)"
             )
         if not isinstance(self.tare_each_trial, bool):
             raise ConfigError(f"task.tare_each_trial = {self.tare_each_trial!r}: true or false")
@@ -175,9 +191,15 @@ class SurfaceTaskSpec:
         return abs(self.z_step_mm) * self.steps_per_trial
 
     def grid(self) -> BoxGrid:
-        """The BOXES partition of the distance travelled (one box per step by default)."""
+        """The BOXES partition of the distance travelled (one box per step by default).
+
+        With ``approach = "direction"`` a second dimension: the last move's direction.
+        """
         half = 0.5 * self.path_mm / self.input_parts
-        return BoxGrid([Dimension("travel_mm", -half, self.path_mm - half, self.input_parts)])
+        travel = Dimension("travel_mm", -half, self.path_mm - half, self.input_parts)
+        if self.approach == "direction":  # −1: the last move pressed in, +1: it eased off
+            return BoxGrid([travel, Dimension("last_move", -2.0, 2.0, 2)])
+        return BoxGrid([travel])
 
     def start_pose(self) -> Pose:
         """The pose each trial starts from."""

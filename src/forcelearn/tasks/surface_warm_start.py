@@ -27,6 +27,7 @@ output map's centre of step k (:meth:`SurfaceYOutput.centre_at`).
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -105,11 +106,14 @@ def warm_start(
     limit = output.max_offset_mm / output.scale_mm
     means: dict[tuple[int, ...], list[float]] = {}
     preds: dict[tuple[int, ...], list[float]] = {}
+    others = [[d.low + (i + 0.5) * d.width for i in range(d.parts)]
+              for d in learner.grid.dimensions[1:]]  # e.g. the last move's direction
     for k in range(task.steps_per_trial):
-        box = learner.grid.index(np.array([k * step_mm]))
         offset = (float(targets[k]) - output.centre_of_step(k)) / output.scale_mm
-        means.setdefault(box, []).append(min(max(offset, -limit), limit))
-        preds.setdefault(box, []).append(float(r_hats[k]))
+        for rest in itertools.product(*others):
+            box = learner.grid.index(np.array([k * step_mm, *rest]))
+            means.setdefault(box, []).append(min(max(offset, -limit), limit))
+            preds.setdefault(box, []).append(float(r_hats[k]))
     for box, values in means.items():
         learner.weights[box] = float(np.mean(values))
         learner.predictions[box] = float(np.mean(preds[box]))

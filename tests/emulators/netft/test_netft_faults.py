@@ -9,7 +9,7 @@ from netft_support import config_for, start
 
 from forcelearn.drivers.netft import NetFtSensor
 from forcelearn.emulators.netft import NetFtEmulator, NetFtFaults
-from forcelearn.errors import SensorBusError, SensorFault, SensorStale
+from forcelearn.errors import SensorBusError, SensorFault, SensorRebooted, SensorStale
 from forcelearn.protocols.netft import Record
 
 
@@ -89,19 +89,28 @@ def test_a_masked_status_bit_is_ignored(emulator: NetFtEmulator) -> None:
 
 
 def test_a_reboot_restarts_the_sequence_and_loses_the_bias() -> None:
-    """Reboot after 10 records: the burst ends short, ft_sequence restarts, SensorStale says so."""
+    """Reboot after 10 records: SensorRebooted on every read until reinitialise(), no bias.
+
+    The driver never biases on its own after a reboot (the tool may press): the
+    cell biases in free space once it has retracted.
+    """
     with start(faults=NetFtFaults(reboot_after_records=10)) as emu, \
-            NetFtSensor(config_for(emu, stale_timeout_s=0.2)) as sensor:
+            NetFtSensor(config_for(emu, stale_timeout_s=0.2, zero_on_init=True)) as sensor:
         sensor.zero_offsets()
         sensor.read_many(4)
-        with pytest.raises(SensorStale, match="rebooted"):
+        with pytest.raises(SensorRebooted, match="rebooted") as caught:
             sensor.read_many(10)  # the box reboots at its 10th record, mid-request
+        assert caught.value.lost == "software bias"
         emu.set_faults(NetFtFaults())
+        with pytest.raises(SensorRebooted):
+            sensor.read_many(2)  # reading again does not make it go away
         assert emu.stats.reboots == 1 and sensor.stats.reboots == 1
+        calinfo_before, bias_before = emu.stats.http_requests, emu.stats.bias_commands
+        sensor.reinitialise()
+        assert len(sensor.read_many(5)) == 5
+        assert emu.stats.http_requests == calinfo_before + 1  # calibration read again
+        assert emu.stats.bias_commands == bias_before  # and not biased
         assert emu.model.software_bias.tolist() == [0.0] * 6
-        calinfo_before = emu.stats.http_requests
-        assert len(sensor.read_many(5)) == 5  # re-initialised: calibration read again
-        assert emu.stats.http_requests == calinfo_before + 1
 
 
 def test_inject_reboot_mid_session(emulator: NetFtEmulator) -> None:
@@ -109,7 +118,7 @@ def test_inject_reboot_mid_session(emulator: NetFtEmulator) -> None:
     with NetFtSensor(config_for(emulator)) as sensor:
         sensor.read_many(3)
         emulator.inject_reboot()
-        with pytest.raises(SensorStale, match="rebooted"):
+        with pytest.raises(SensorRebooted, match="rebooted"):
             sensor.read()
         assert emulator.ft_sequence >= 1
 

@@ -222,10 +222,15 @@ def test_resume_and_new_run_refuse_the_wrong_folder(
 def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, configured_map_toml: str
 ) -> None:
-    """The JR3 goes silent after trial 3: SensorStale ends the run, robot stopped, 3 trials kept."""
+    """The JR3 goes silent for good after trial 3: the robot stops, 3 trials are kept.
+
+    The run retracts and tries to restart the sensor; a sensor that
+    never answers ends it with RecoveryFailed, the tool retracted in free space.
+    """
     from forcelearn.emulators.jr3.faults import FaultConfig
-    from forcelearn.errors import SensorStale
+    from forcelearn.tasks.recovery import RecoveryFailed
     from forcelearn.tools.experiments import surface_run
+    from forcelearn.tools.experiments.fault_recovery import read_events
     from forcelearn.tools.experiments.surface_state import prepare_run
 
     sessions = []
@@ -259,8 +264,10 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
     config = tmp_path / "cell.toml"
     config.write_text(configured_map_toml)  # no probe: the failing sensor is the point
     run, checkpoint = prepare_run(config, out, 10, 3, resume=False)
-    with pytest.raises(SensorStale):
+    with pytest.raises(RecoveryFailed, match="did not come back") as failed:
         surface_run.execute(run, checkpoint, on_trial=silence_after_three)
+    assert not failed.value.in_contact
+    assert read_events(out)[-1]["action"] == "ended"
     assert stops_before_close[0] >= 1, "the run did not stop the robot before closing"
     assert trials_done(out) == 3
     assert json.loads((out / "summary.json").read_text())["trials"] == 3

@@ -14,14 +14,21 @@ read:
   newest fresh one.
 
 Initialisation (on :meth:`initialise`; on :meth:`~.Jr3CanSensor.open` and
-entering ``with`` unless done; on the first read; again after a bootup
-frame), as the public host driver (yarp-devices Jr3Mbed) does it: get
+entering ``with`` unless done; on the first read), as the public host driver
+(yarp-devices Jr3Mbed) does it: get
 state, start sync or async with the cut-off (0: unfiltered), read the full
 scales unless configured, wait ``zero_settle_s`` and zero the offsets
 (``zero_on_init``, on by default: the adapter's offsets are 0 after every
 power-up, reset and stop, so without zeroing every reading holds the
 sensor's raw bias). :meth:`close` sends stop and is idempotent
 (:mod:`forcelearn.drivers.lifecycle`).
+
+A bootup frame after the first initialisation (the adapter browned out or
+was power-cycled) is **never** answered by zeroing here: the tool may be in
+contact, and a zero taken there would hide the contact force. Every read
+raises :class:`~forcelearn.errors.SensorRebooted` until the cell, with the
+tool in free space, calls :meth:`Jr3CanSensor.reinitialise` (started again,
+offsets 0) and zeroes (:func:`forcelearn.cell.retract_and_retare`).
 
 Counter and losses: the adapter's frame counter counts sensor frames
 (~7.8 kHz), so each sample carries the sensor time since the previous one
@@ -49,7 +56,13 @@ from forcelearn.devices import WrenchSample
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.listener import Jr3Listener, Jr3Stats, SampleCallback
 from forcelearn.drivers.lifecycle import Driver
-from forcelearn.errors import SensorBusError, SensorError, SensorStale, SensorTimeout
+from forcelearn.errors import (
+    SensorBusError,
+    SensorError,
+    SensorRebooted,
+    SensorStale,
+    SensorTimeout,
+)
 from forcelearn.protocols.jr3_can import codec
 from forcelearn.protocols.jr3_can.scaling import cutoff_to_wire, full_scales_from_wire
 
@@ -91,6 +104,8 @@ class Jr3CanSensor(Driver):
         self._full_scales: np.ndarray | None = None
         self._cutoff_hz = self.config.cutoff_hz
         self._initialised = False
+        self._ever_initialised = False
+        self._rebooted = False
         self._last_seq = 0
         self._notifier: can.Notifier | None = None
         if self.config.mode == "async":
@@ -124,6 +139,17 @@ class Jr3CanSensor(Driver):
     # ---- commands -------------------------------------------------------
     def initialise(self) -> None:
         """Run the host initialisation sequence (see the module docstring)."""
+        self._initialise(zero=self.config.zero_on_init)
+
+    def reinitialise(self) -> None:
+        """After :class:`SensorRebooted`, with the tool in free space: start again, no zero.
+
+        The offsets stay 0 (the raw bias reads) until the caller zeroes them.
+        """
+        self._initialise(zero=False)
+        self._rebooted = False
+
+    def _initialise(self, *, zero: bool) -> None:
         self._check_open()
         cfg = self.config
         with self._listener.cond:
@@ -164,10 +190,10 @@ class Jr3CanSensor(Driver):
                 ) from exc
         self._full_scales = full_scales
         self._listener.set_full_scales(full_scales)
-        if cfg.zero_on_init:
+        if zero:
             time.sleep(cfg.zero_settle_s)
             self._command(codec.ZeroOffsets())
-        self._initialised = True
+        self._initialised = self._ever_initialised = True
         log.info("JR3 node %d initialised: %s mode, cut-off %.2f Hz, full scales %s",
                  cfg.node_id, cfg.mode, self._cutoff_hz, full_scales.tolist())
 
@@ -201,15 +227,11 @@ class Jr3CanSensor(Driver):
             SensorStale: no sample within ``stale_timeout_s``.
             SensorTimeout, SensorError, SensorBusError: see the module docstring.
         """
-        for _attempt in range(2):
-            self._ensure_initialised()
-            sample = self._next_sample()
-            if sample is not None:
-                return sample
-        raise SensorStale(
-            f"JR3 node {self.config.node_id} rebooted twice while reading: check the adapter's "
-            "power supply"
-        )
+        self._ensure_initialised()
+        sample = self._next_sample()
+        if sample is None:
+            raise self._on_bootup("read")
+        return sample
 
     def read_many(self, count: int, window: int = 1) -> list[WrenchSample]:
         """Return ``count`` consecutive fresh samples (e.g. to average per robot step).
@@ -232,10 +254,7 @@ class Jr3CanSensor(Driver):
         for _ in range(count):
             sample = self._sync_sample()
             if sample is None:
-                raise SensorStale(
-                    f"JR3 node {self.config.node_id} rebooted during read_many; "
-                    "read again (it re-initialises)"
-                )
+                raise self._on_bootup("read_many")
             out.append(sample)
         return out
 
@@ -313,8 +332,30 @@ class Jr3CanSensor(Driver):
         self._check_open()
         with self._listener.cond:
             bootup = self._listener.bootup_pending
+        if bootup and self._ever_initialised:
+            raise self._on_bootup("a command")
+        if self._rebooted:
+            raise self._rebooted_error("a command")
         if bootup or not self._initialised:
             self.initialise()
+
+    def _on_bootup(self, during: str) -> SensorRebooted:
+        """A bootup frame arrived: the adapter lost its offsets; never zero here."""
+        with self._listener.cond:
+            self._listener.bootup_pending = False
+        self._initialised = False
+        self._rebooted = True
+        log.warning("JR3 node %d rebooted during %s: offsets lost", self.config.node_id, during)
+        return self._rebooted_error(during)
+
+    def _rebooted_error(self, during: str) -> SensorRebooted:
+        return SensorRebooted(
+            f"JR3 node {self.config.node_id} rebooted (bootup frame, during {during}): its "
+            "offsets are lost, so its readings are off by the raw bias; retract to free "
+            "space, then reinitialise() and zero (the run does it); check the adapter's "
+            "power supply",
+            lost="offsets",
+        )
 
     def _check_open(self) -> None:
         if self.closed:

@@ -171,7 +171,8 @@ class Jr3Listener(can.Listener):
                 self.acks.append(message)
                 self.cond.notify_all()
             elif isinstance(message, codec.Bootup):
-                log.warning("JR3 adapter node %d sent bootup: it will be initialised again",
+                log.warning(
+                    "JR3 adapter node %d sent bootup: its offsets are lost (the cell re-zeroes)",
                             self.node_id)
                 self._stats.bootups += 1
                 self._pairer.restart()

@@ -25,8 +25,15 @@ status check. ``WrenchSample.counter`` is the host's stream position modulo
 65536 (one step per record asked for), so the force filter sees a lost
 record as a counter gap, as with the JR3.
 
-Errors: :class:`SensorStale` (no record within ``stale_timeout_s`` twice,
-or the box rebooted), :class:`SensorFault` (status bits set),
+A reboot (``ft_sequence`` goes back) after the first initialisation is
+never answered by biasing here: the tool may be in contact, and a bias taken
+there hides the contact force. Every read raises
+:class:`~forcelearn.errors.SensorRebooted` until the cell, with the tool in
+free space, calls :meth:`NetFtSensor.reinitialise` (calibration read again,
+no bias) and biases (:func:`forcelearn.cell.retract_and_retare`).
+
+Errors: :class:`SensorStale` (no record within ``stale_timeout_s`` twice),
+:class:`SensorRebooted` (the box rebooted), :class:`SensorFault` (status bits set),
 :class:`SensorProtocolError` (nonsense calibration), :class:`SensorBusError`
 (socket errors, converted with ``raise ... from``), ``ConfigError`` (the box
 disagrees with the configuration).
@@ -58,6 +65,7 @@ from forcelearn.errors import (
     SensorBusError,
     SensorError,
     SensorFault,
+    SensorRebooted,
     SensorStale,
 )
 from forcelearn.protocols import netft as protocol
@@ -113,6 +121,7 @@ class NetFtSensor(Driver):
         self._limits: np.ndarray | None = None
         self._position = 0  # host stream position: records asked for so far
         self._streaming = False
+        self._rebooted = False
         self._log = TrafficLog(self.config.log_path) if self.config.log_path else None
         sock: socket.socket | None = None
         try:
@@ -152,6 +161,17 @@ class NetFtSensor(Driver):
     # ---- commands -------------------------------------------------------
     def initialise(self) -> None:
         """Read and check the calibration, bias if configured, start streaming in stream mode."""
+        self._initialise(bias=self.config.zero_on_init)
+
+    def reinitialise(self) -> None:
+        """After :class:`SensorRebooted`, with the tool in free space: initialise, no bias.
+
+        The box reads its raw bias until the caller biases it (:meth:`zero_offsets`).
+        """
+        self._initialise(bias=False)
+        self._rebooted = False
+
+    def _initialise(self, *, bias: bool) -> None:
         self._check_open()
         cfg = self.config
         if cfg.calibration_source == "tcp":
@@ -165,7 +185,7 @@ class NetFtSensor(Driver):
         self._limits = None if ranges is None else (
             np.asarray(ranges, dtype=float) * cfg.near_saturation_fraction
         )
-        if cfg.zero_on_init:
+        if bias:
             self._send(protocol.Request(protocol.Command.SET_BIAS, 0))
         if cfg.mode == "stream":
             self._start(0)
@@ -306,11 +326,17 @@ class NetFtSensor(Driver):
 
     def _on_reboot(self) -> None:
         self._tracker.forget_ft()
-        self._calibration = None  # read again (and bias again if configured) on the next read
-        raise SensorStale(
+        self._rebooted = True
+        self._streaming = False  # a rebooted box streams nothing until asked again
+        log.warning("Net F/T at %s rebooted: software bias lost", self.config.host)
+        raise self._rebooted_error()
+
+    def _rebooted_error(self) -> SensorRebooted:
+        return SensorRebooted(
             f"the Net F/T at {self.config.host} rebooted (its F/T sequence restarted): its "
-            "software bias is lost; read again (the driver re-initialises"
-            f"{', and biases' if self.config.zero_on_init else ''})"
+            "software bias is lost, so its readings are off by the raw bias; retract to free "
+            "space, then reinitialise() and bias (the run does it); check the box's power",
+            lost="software bias",
         )
 
     # ---- plumbing -------------------------------------------------------
@@ -357,7 +383,8 @@ class NetFtSensor(Driver):
             if isinstance(record, protocol.Rejected):
                 self._stats.rejected[record.reason] += 1
             else:  # a late or repeated record of the last request: account for it
-                self._tracker.push(record.rdt_sequence, record.ft_sequence)
+                if self._tracker.push(record.rdt_sequence, record.ft_sequence).reboot:
+                    self._on_reboot()  # the box rebooted between requests: its bias is gone
 
     def _send(self, request: protocol.Request) -> None:
         data = protocol.encode_request(request)
@@ -374,6 +401,8 @@ class NetFtSensor(Driver):
 
     def _ensure_initialised(self) -> None:
         self._check_open()
+        if self._rebooted:
+            raise self._rebooted_error()
         if self._calibration is None:
             self.initialise()
 

@@ -19,8 +19,11 @@ start buffered, N = 0            full datagrams at RDT rate / buffer size
 stop (0x0000)                    nothing; streaming stops
 set software bias (0x0042)       nothing; the present reading becomes zero
 reset threshold latch (0x0041)   nothing (threshold monitoring not modelled)
-wrong size or header             nothing; counted in ``stats.rejected``
-any other command                nothing; counted in ``stats.rejected``; a
+wrong size or header             nothing; counted in ``stats.rejected`` and
+                                 by reason in ``stats.rejected_by_reason``
+                                 (``REQUEST_HEADER``, ``REQUEST_SIZE``); a
+                                 stream goes on
+any other command                nothing; counted likewise (``COMMAND``); a
                                  stream goes on
 ===============================  ============================================
 
@@ -54,6 +57,7 @@ import socketserver
 import sys
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -98,6 +102,9 @@ class EmulatorStats:
 
     requests: int = 0
     rejected: int = 0
+    """Requests ignored: wrong size, wrong header or unknown command."""
+    rejected_by_reason: Counter[str] = field(default_factory=Counter)
+    """The same, by reason: ``REQUEST_SIZE``, ``REQUEST_HEADER``, ``COMMAND``."""
     records_generated: int = 0
     records_sent: int = 0
     datagrams_sent: int = 0
@@ -417,7 +424,7 @@ class NetFtEmulator(Emulator):
     def _handle_locked(self, data: bytes, address: tuple[str, int]) -> None:
         request = protocol.decode_request(data)
         if isinstance(request, protocol.Rejected):
-            self.stats.rejected += 1
+            self._reject(request.reason)
             return
         self.stats.requests += 1
         if request.command == Command.SET_BIAS:
@@ -427,7 +434,7 @@ class NetFtEmulator(Emulator):
         if request.command == Command.RESET_THRESHOLD_LATCH:
             return  # no thresholds are modelled, so no latch to reset
         if request.command not in (Command.STOP, Command.START_REALTIME, Command.START_BUFFERED):
-            self.stats.rejected += 1  # not a command the box knows: ignored, a stream goes on
+            self._reject("COMMAND")  # not a command the box knows: ignored, a stream goes on
             return
         self._stream_to = None  # stop, or a new start that takes precedence over the last
         if request.command == Command.STOP:
@@ -442,6 +449,12 @@ class NetFtEmulator(Emulator):
             return
         records, times = self._generate(1, request.sample_count, self._next_sample_time())
         self._send(records, times, address, pace=True, batch=batch)
+
+    def _reject(self, reason: str) -> None:
+        """Ignore a request the box does not recognise, and count it."""
+        self.stats.rejected += 1
+        self.stats.rejected_by_reason[reason] += 1
+        log.debug("netft emulator: request ignored (%s)", reason)
 
     def _stream_due(self) -> None:
         period = 1.0 / self.rdt_rate_hz

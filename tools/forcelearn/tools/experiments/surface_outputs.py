@@ -22,9 +22,10 @@ from forcelearn.run_output import (
     write_summary,
     write_trials,
 )
-from forcelearn.tasks.surface_diagnosis import StuckMonitor, diagnose
+from forcelearn.tasks.surface_diagnosis import RunEvidence, StuckMonitor, diagnose
 from forcelearn.tasks.surface_map import OutputMapChoice
 from forcelearn.tasks.surface_probe import ProbeResult
+from forcelearn.tools.experiments.fault_recovery import fault_summary
 from forcelearn.tools.experiments.surface_state import SurfaceRun
 from forcelearn.trainer import (
     CONVERGENCE_TOLERANCE,
@@ -66,8 +67,15 @@ def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
         result.records, config.task.steps_per_trial, config.task.desired_force_n
     )
     monitor = run.monitor or StuckMonitor(0.0, 1.0, config.task.steps_per_trial)
+    tail = run.traces[-CONVERGENCE_WINDOW:]
+    evidence = RunEvidence(
+        config.task.desired_force_n, [t["command_y_mm"] for t in tail],
+        [t["force_n"] for t in tail], [r.force_rms_n for r in result.records], run.probe,
+        run.output_map.approach_mm if run.output_map is not None else 0.0,
+    )
     verdict = diagnose(
-        result.records, converged_at, monitor, config.task.desired_force_n, run.feasibility
+        result.records, converged_at, monitor, config.task.desired_force_n, run.feasibility,
+        evidence=evidence,
     )
     warnings = list(monitor.warnings)
     if run.feasibility is not None:
@@ -108,6 +116,7 @@ def summary_of(run: SurfaceRun, learner: SRVLearner) -> dict[str, Any]:
         "cell_time_s": round(cell_time, 3),
         "realtime_factor": round(cell_time / run.wall_s, 1) if run.wall_s > 0 else None,
         "profile": config.emulator.profile if config.robot_emulated else None,
+        "faults": fault_summary(run.out),
     }
 
 

@@ -40,6 +40,7 @@ from forcelearn.tasks.surface_feasibility import FEASIBILITY_WINDOW, Feasibility
 from forcelearn.tasks.surface_map import SurfaceYOutput, allowed_bottom_y_mm, step_centre_y_mm
 from forcelearn.tasks.surface_probe import SurfaceProbe, probe_and_map
 from forcelearn.tasks.surface_warm_start import warm_start
+from forcelearn.tools.experiments.fault_recovery import RunRecovery
 from forcelearn.tools.experiments.records import (
     PROBE_TRIAL,
     RECORDS_FILE,
@@ -49,6 +50,7 @@ from forcelearn.tools.experiments.records import (
 from forcelearn.tools.experiments.run_recorder import TrialRecorder
 from forcelearn.tools.experiments.surface_outputs import write_outputs, write_probe_files
 from forcelearn.tools.experiments.surface_state import (
+    CHECKPOINT,
     SurfaceRun,
     load_checkpoint,
     save_checkpoint,
@@ -83,9 +85,12 @@ def execute(
     monitor's warnings (one line each); ``on_step`` sees every step's log row
     as it is made (``forcelearn run --live``).
 
-    Ctrl-C (KeyboardInterrupt) or any device error stops the robot; the last
-    whole trial is already on disk, and the outputs are written for the trials
-    done before the exception propagates.
+    A device fault during the probe or a trial is recovered from
+    (:mod:`~forcelearn.tools.experiments.fault_recovery`: retract, re-zero in
+    free space, the trial again). Ctrl-C or an error the run does not recover
+    from stops the robot and retracts it (a second Ctrl-C stops the retract and
+    says so); the last whole trial is already on disk, and the outputs are
+    written for the trials done before the exception propagates.
     """
     config = run.config
     started = time.perf_counter()
@@ -97,10 +102,21 @@ def execute(
         writer = records_writer(run, checkpoint is not None)
         stack.callback(writer.close)
         recorder = TrialRecorder(session.cell)
+        recovery = RunRecovery(run.out, session.cell, config.task.retract_y_mm,
+                               config.safety.max_step_mm, checkpoint=run.out / CHECKPOINT)
+        if checkpoint is not None:
+            try:  # a session that stopped in contact: retract and re-zero first
+                recovery.on_resume()
+            except (KeyboardInterrupt, ForcelearnError) as exc:
+                recovery.on_exit(exc, len(run.result.records))
+                raise
         if checkpoint is None:
             session.cell.recorder = recorder
             try:
-                probe_and_choose(run, session)
+                recovery.probe(lambda: probe_and_choose(run, session))
+            except (KeyboardInterrupt, ForcelearnError) as exc:
+                recovery.on_exit(exc, -1)
+                raise
             finally:
                 session.cell.recorder = None
             probed = recorder.take(PROBE_TRIAL)
@@ -131,23 +147,23 @@ def execute(
             run, session, output, writer, recorder,
             on_trial=on_trial, on_warning=on_warning, wall_clock=(wall_before, started),
         )
-        remaining = run.trials - len(run.result.records)
-        try:
-            if remaining > 0:
-                train(
-                    learner,
-                    task,
-                    remaining,
-                    keep_logs=(run.mid_trial,),
-                    on_trial=trial_end,
-                    result=run.result,
-                    on_step=on_step,
-                )
+        recovery.output = output
+        try:  # a device fault: retract, re-zero, run the trial again (fault_recovery)
+            learner = recovery.train(learner, run, lambda learner, remaining: train(
+                learner,
+                task,
+                remaining,
+                keep_logs=(run.mid_trial,),
+                on_trial=trial_end,
+                result=run.result,
+                on_step=on_step,
+            ))
         except _ConvergedStop:
             log.info("converged; stopped %d trials later", config.stop_after_converged)
-        except (KeyboardInterrupt, ForcelearnError):
+        except (KeyboardInterrupt, ForcelearnError) as exc:
             session.cell.stop()
             run.rollback_to_saved()
+            recovery.on_exit(exc, len(run.result.records))  # leaves the part first
             write_outputs(run, learner)
             raise
         finally:

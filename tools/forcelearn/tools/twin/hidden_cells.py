@@ -26,7 +26,7 @@ arm lag                    0.01-0.2 s (log)    ``[emulator.arm] lag_s``
 sensor noise               0.05-1 N (log)      ``[emulator.sensor] noise_std`` (forces; moments
                                                a tenth of it in N*m, as today's 0.2 / 0.02)
 nonlinear foam (1 in 2)    n = 1.1-1.6         ``stiffening_exponent`` (else 1: linear)
-hysteresis (1 in 3)        h = 0.05-0.25       ``hysteresis_loss`` (else 0)
+hysteresis (1 in 3)        h = 0.05-0.3        ``hysteresis_loss`` (else 0; docs/materials.md)
 friction (1 in 3)          mu = 0.05-0.4       ``friction_coefficient`` (else 0)
 =========================  ==================  =====================================
 
@@ -120,7 +120,9 @@ class HiddenCellRanges:
     lag_s: Range = (0.01, 0.2)
     noise_n: Range = (0.05, 1.0)
     stiffening_exponent: Range = (1.1, 1.6)
-    hysteresis_loss: Range = (0.05, 0.25)
+    hysteresis_loss: Range = (0.05, 0.3)
+    """Flexible PU foams lose 20-46 % of a compression cycle's work, h = L / (2 - L)
+    (docs/materials.md)."""
     friction_coefficient: Range = (0.05, 0.4)
     nonlinear_share: float = 0.5
     """Share of the cells whose foam stiffens (the rest are linear)."""

@@ -1,0 +1,262 @@
+"""A run that meets a device fault: leave the part, re-zero, and go on with the trial.
+
+The run engine calls :meth:`RunRecovery.train` instead of training directly,
+:meth:`RunRecovery.probe` around the surface probe, :meth:`RunRecovery.on_exit`
+when the run stops on an error or Ctrl-C, and :meth:`RunRecovery.on_resume`
+right after a resumed run opened its cell. After a device fault
+(:func:`forcelearn.tasks.recovery.recoverable`: a sensor that rebooted, went
+silent or sent damage, a controller restart, a dropped link, a move that never
+reached its target) during a trial:
+
+1. the robot is stopped; the trial is rolled back to the last checkpoint
+   (results, records of the unfinished trial, the map's wear state, and the
+   learner: read back from the checkpoint, or the start's copy before the first);
+2. the tool retracts along the force axis and the sensor is started again and
+   zeroed in free space (:func:`~forcelearn.tasks.recovery.retract_and_retare`,
+   the calibration's bias re-derived);
+3. the trial runs again; the re-zero is its first tare record.
+
+Every fault is one line of ``faults.jsonl`` in the run directory (what, when,
+what was lost, what the cell did) and counted in ``summary.json`` (``faults``).
+A trial that faults ``MAX_TRIES_PER_TRIAL`` times, or a recovery that fails,
+ends the run with that typed error; the event says so and whether the tool may
+still be in contact, and the file ``IN_CONTACT`` then tells ``--resume`` to
+retract before anything else.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import dataclasses
+import json
+import logging
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+from forcelearn.cell import Cell
+from forcelearn.errors import ForcelearnError, one_line
+from forcelearn.learning import SRVLearner, load_learner
+from forcelearn.tasks.recovery import Recovered, RecoveryFailed, recoverable, retract
+from forcelearn.tasks.recovery import retract_and_retare as leave_and_rezero
+from forcelearn.tasks.surface import SurfaceYOutput
+
+log = logging.getLogger(__name__)
+
+EVENTS_FILE = "faults.jsonl"
+IN_CONTACT_FILE = "IN_CONTACT"
+MAX_TRIES_PER_TRIAL = 4
+"""Faults one trial may meet before the run ends (each is recovered from before the next)."""
+
+_T = TypeVar("_T")
+
+
+@dataclasses.dataclass(frozen=True)
+class FaultEvent:
+    """One fault the run met, and what the cell did (a line of ``faults.jsonl``)."""
+
+    trial: int
+    """The trial it interrupted (-1: the surface probe, before the first trial)."""
+    error: str
+    """The typed error's class name (``SensorRebooted``, ``LinkTimeout``...)."""
+    message: str
+    """Its one-line message (what happened, what to check)."""
+    action: str
+    """``resumed`` (retracted, re-zeroed, trial run again), ``ended`` (the run stopped),
+    ``interrupted`` (Ctrl-C), ``retracted on resume``."""
+    lost: str = ""
+    """What a rebooted sensor lost (offsets, software bias); empty otherwise."""
+    retract_y_mm: float | None = None
+    """Where the tool retracted to (None: it did not)."""
+    free_reading_n: float | None = None
+    """Free space's reading before the re-zero, N (None: no re-zero)."""
+    in_contact: bool = False
+    """True when the run ended and the tool may still press the part."""
+    cell_time_s: float = 0.0
+    """The cell's clock when the recovery ended, s."""
+
+
+class RunRecovery:
+    """The run's side of faults (the module docstring).
+
+    Args:
+        out: the run directory.
+        cell: the open cell.
+        retract_y_mm: the retract plane (``[task] retract_y_mm``), free space.
+        max_step_mm: the step limit (``[safety] max_step_mm``).
+        output: the learner's output map (its wear state is rolled back with the trial).
+        checkpoint: the run's checkpoint file (the learner is read back from it).
+    """
+
+    def __init__(self, out: Path, cell: Cell, retract_y_mm: float, max_step_mm: float,
+                 output: SurfaceYOutput | None = None, checkpoint: Path | None = None) -> None:
+        self.out, self.cell = out, cell
+        self.retract_y_mm, self.max_step_mm = retract_y_mm, max_step_mm
+        self.output = output
+        self.checkpoint = checkpoint
+        self.events: list[FaultEvent] = []
+        """The faults of this session."""
+        self._start_learner: SRVLearner | None = None
+
+    # ---- the run's calls -------------------------------------------------------------------
+    def train(self, learner: SRVLearner, run: Any,
+              train_remaining: Callable[[SRVLearner, int], object]) -> SRVLearner:
+        """Run the remaining trials, recovering from device faults; return the learner in use.
+
+        ``run`` is the :class:`SurfaceRun` (its ``trials``, ``result``, ``saved`` and
+        ``rollback_to_saved``); ``train_remaining(learner, n)`` runs ``n`` trials.
+        """
+        if run.saved.trials == 0:
+            self._start_learner = _copy_learner(learner)
+        tries: dict[int, int] = {}
+        while (remaining := run.trials - len(run.result.records)) > 0:
+            try:
+                train_remaining(learner, remaining)
+                break
+            except ForcelearnError as exc:
+                if not recoverable(exc):
+                    raise
+                trial = run.saved.trials
+                tries[trial] = tries.get(trial, 0) + 1
+                run.rollback_to_saved()
+                self._restore_map(run)
+                recorder = self.cell.recorder
+                if recorder is not None:
+                    getattr(recorder, "discard", lambda: None)()
+                self._recover(exc, trial, tries[trial])
+                learner = self._saved_learner(run, learner)
+        return learner
+
+    def probe(self, probe: Callable[[], _T]) -> _T:
+        """Run the surface probe, recovering from device faults (the probe starts over)."""
+        for attempt in range(1, MAX_TRIES_PER_TRIAL + 1):
+            try:
+                return probe()
+            except ForcelearnError as exc:
+                if not recoverable(exc):
+                    raise
+                recorder = self.cell.recorder
+                if recorder is not None:
+                    getattr(recorder, "discard", lambda: None)()
+                self._recover(exc, -1, attempt)
+        raise AssertionError("unreachable")  # pragma: no cover - _recover raises at the last try
+
+    def on_exit(self, exc: BaseException, trial: int) -> None:
+        """The run stops (an error it does not recover from, or Ctrl-C): leave the part first.
+
+        A second Ctrl-C during the retract stops it; the tool may then still be in
+        contact, which the log, ``faults.jsonl`` and ``IN_CONTACT`` say.
+        """
+        interrupted = isinstance(exc, KeyboardInterrupt)
+        in_contact = bool(getattr(exc, "in_contact", False))
+        retract_y: float | None = None
+        if interrupted or not isinstance(exc, RecoveryFailed):
+            try:
+                pose, _ = retract(self.cell, self.retract_y_mm, self.max_step_mm, attempts=1)
+                retract_y, in_contact = pose.y_mm, False
+            except KeyboardInterrupt:
+                self.cell.stop()
+                in_contact = True
+                log.error("second Ctrl-C: the retract was stopped; the tool may still press "
+                          "the part at %s", self.cell.known_pose)
+            except ForcelearnError as failed:
+                in_contact = True
+                log.error("could not retract before stopping: %s", one_line(failed))
+        message = "Ctrl-C" if interrupted else one_line(exc)
+        if in_contact:
+            message += ("; the tool may still press the part: retract it by hand, or resume "
+                        "the run (it retracts first)")
+        self._event(FaultEvent(
+            trial, type(exc).__name__, message, "interrupted" if interrupted else "ended",
+            lost=str(getattr(exc, "lost", "")), retract_y_mm=retract_y, in_contact=in_contact,
+            cell_time_s=self.cell.time_s,
+        ))
+        if in_contact:
+            (self.out / IN_CONTACT_FILE).write_text(json.dumps({"error": type(exc).__name__}))
+
+    def on_resume(self) -> None:
+        """A resumed run whose last session stopped in contact retracts and re-zeroes first."""
+        marker = self.out / IN_CONTACT_FILE
+        if not marker.exists():
+            return
+        recovered = leave_and_rezero(self.cell, self.retract_y_mm, self.max_step_mm)
+        self._event(FaultEvent(
+            -1, "StoppedInContact", "the last session stopped with the tool in contact",
+            "retracted on resume", retract_y_mm=recovered.retract_pose.y_mm,
+            free_reading_n=recovered.free_reading_n, cell_time_s=self.cell.time_s,
+        ))
+        marker.unlink()
+
+    # ---- inside ------------------------------------------------------------------------------
+    def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> Recovered:
+        lost = str(getattr(exc, "lost", ""))
+        if attempt > MAX_TRIES_PER_TRIAL - 1:
+            exc.add_note(f"trial {trial} met {attempt} faults; the run stops")
+            raise exc
+        log.warning("trial %d: %s: %s; retracting and re-zeroing", trial, type(exc).__name__,
+                    one_line(exc))
+        try:
+            recovered = leave_and_rezero(self.cell, self.retract_y_mm, self.max_step_mm)
+        except RecoveryFailed as failed:
+            failed.add_note(f"after {type(exc).__name__}: {one_line(exc)}")
+            raise
+        self._event(FaultEvent(
+            trial, type(exc).__name__, one_line(exc), "resumed", lost=lost,
+            retract_y_mm=recovered.retract_pose.y_mm, free_reading_n=recovered.free_reading_n,
+            cell_time_s=self.cell.time_s,
+        ))
+        return recovered
+
+    def _restore_map(self, run: Any) -> None:
+        """The output map's wear state as of the checkpoint (a trial's press moved it)."""
+        if self.output is not None:
+            self.output.shift_mm = run.map_shift_mm
+            self.output.recentre_mm = run.map_recentre_mm
+            self.output.wear_reference_n = run.wear_reference_n
+
+    def _saved_learner(self, run: Any, learner: SRVLearner) -> SRVLearner:
+        """The learner as the checkpoint holds it (or as it started, before any checkpoint)."""
+        if run.saved.trials == 0 and self._start_learner is not None:
+            return _copy_learner(self._start_learner)
+        assert self.checkpoint is not None
+        return load_learner(self.checkpoint, output=learner.output)[0]
+
+    def _event(self, event: FaultEvent) -> None:
+        self.events.append(event)
+        with open(self.out / EVENTS_FILE, "a") as handle:
+            handle.write(json.dumps(dataclasses.asdict(event)) + "\n")
+            handle.flush()
+
+
+def _copy_learner(learner: SRVLearner) -> SRVLearner:
+    """A deep copy that shares the output map (the task and the learner use one object)."""
+    return copy.deepcopy(learner, memo={id(learner.output): learner.output})
+
+
+def read_events(out: Path) -> list[dict[str, Any]]:
+    """The run's fault events from ``faults.jsonl`` (a torn last line is skipped)."""
+    path = out / EVENTS_FILE
+    if not path.exists():
+        return []
+    events = []
+    for line in path.read_text().splitlines():
+        with contextlib.suppress(json.JSONDecodeError):
+            events.append(json.loads(line))
+    return events
+
+
+def fault_summary(out: Path) -> dict[str, Any]:
+    """``summary.json``'s ``faults``: counts by error and action, and how the run ended."""
+    events = read_events(out)
+    by_error: dict[str, int] = {}
+    for event in events:
+        by_error[event["error"]] = by_error.get(event["error"], 0) + 1
+    ended = [e for e in events if e["action"] in ("ended", "interrupted")]
+    return {
+        "count": len(events),
+        "resumed": sum(e["action"] == "resumed" for e in events),
+        "by_error": by_error,
+        "last_stop": ended[-1] if ended else None,
+        "in_contact": (out / IN_CONTACT_FILE).exists(),
+    }

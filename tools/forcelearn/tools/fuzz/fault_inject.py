@@ -1,0 +1,348 @@
+"""Faults at random instants of a run on the emulated cell, and the truth to judge it by.
+
+:class:`Injector` counts the cell's device calls (every waited move and every
+burst, the recovery's own included) and, at instants drawn beforehand, makes a
+device fail through its emulator's fault hooks. :class:`Truth` watches the
+emulated physics, never the readings: the contact force at every motion tick,
+where each zero is taken, and the error of every accepted reading.
+
+=================  ===========================================================
+fault              what the emulator does
+=================  ===========================================================
+``reboot``         JR3: power-cycle (bootup frame, offsets lost); Net F/T: reboot
+                   (``ft_sequence`` restarts, software bias lost)
+``silence``        the sensor sends nothing for the next 1 to 3 bursts
+``corrupt``        JR3: the next 2 to 12 frames with a wrong length; Net F/T:
+                   2 to 12 datagrams of garbage (wrong size) to the driver
+``bias_jump``      the sensor's bias on the normal axis jumps by ±1 to 8 N
+``restart``        computer link: the arm halts where it is and the link drops;
+                   EGM: the controller restarts guidance (a new session)
+``stall``          the next move stops at 20 to 80 % of its way (never in position)
+``link_drop``      computer link: the connection drops after the next request;
+                   EGM: the next 1 to 60 controller datagrams are lost (a watchdog
+                   of 0.5 s is 125 cycles: most are absorbed)
+``kill``           the process dies here (no clean-up); the campaign resumes it
+=================  ===========================================================
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import random
+from collections import Counter
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from forcelearn.cell import Cell
+from forcelearn.emulators.egm.faults import EgmFaultConfig, EgmFaultInjector
+from forcelearn.emulators.robot_controller.faults import Fault, FaultConfig, FaultInjector
+from forcelearn.protocols.jr3_can.codec import Frame
+
+SENSOR_FAULTS = ("reboot", "silence", "corrupt", "bias_jump")
+ROBOT_FAULTS = ("restart", "stall", "link_drop")
+RUN_FAULTS = ("kill",)
+
+
+class Killed(BaseException):
+    """The process "died" (a kill at this instant): nothing below may catch it."""
+
+
+@dataclasses.dataclass
+class Fired:
+    """One fault fired: which, where and when (cell time, s)."""
+
+    device: str
+    kind: str
+    tick: int
+    cell_time_s: float
+    events_before: int = 0
+    """Lines of the run's ``faults.jsonl`` when it fired."""
+    session: int = 0
+    """The run's session (a resume opens another) it fired in."""
+    in_contact: bool = False
+    """The tool touched the part when it fired."""
+
+
+class Truth:
+    """What the emulated physics says, whatever the sensor reads.
+
+    Args:
+        session: an open emulated :class:`~forcelearn.site.session.CellSession`.
+        tolerance_n: largest error of a reading still called good, N.
+    """
+
+    def __init__(self, session: Any, tolerance_n: float) -> None:
+        self.session = session
+        self.physics = session.physics
+        self.tolerance_n = tolerance_n
+        self.max_contact_n = 0.0
+        self.zeros = 0
+        self.zeros_in_contact = 0
+        self.readings = 0
+        self.worst_error_n = 0.0
+        self.bad_readings: Counter[str] = Counter()
+        """Readings off by more than the tolerance, by the fault to blame: a bias jump not yet
+        zeroed away, else the last fault fired before them."""
+        self.jumped = False
+        """A bias jump happened and no zero followed yet."""
+        self._hook_physics()
+        self._hook_zero()
+
+    def contact_n(self) -> float:
+        """Magnitude of the contact force the sponge exerts now, N."""
+        force = self.physics.environment.contact_force_world_n(self.physics._position_mm)
+        return float(np.linalg.norm(force))
+
+    def normal_n(self) -> float:
+        """The normal (+Y) contact force now, N."""
+        force = self.physics.environment.contact_force_world_n(self.physics._position_mm)
+        return float(force[1])
+
+    def judge_reading(self, reading_n: float, last_fault: str) -> None:
+        """Count a reading the cell accepted; a bad one is charged to ``last_fault``."""
+        self.readings += 1
+        error = abs(reading_n - self.normal_n())
+        self.worst_error_n = max(self.worst_error_n, error)
+        if error > self.tolerance_n:
+            self.bad_readings["bias_jump" if self.jumped else last_fault] += 1
+
+    def _hook_physics(self) -> None:
+        physics, move = self.physics, self.physics._move_tool
+
+        def moved(key: Any) -> None:
+            move(key)
+            self.max_contact_n = max(self.max_contact_n, self.contact_n())
+
+        physics._move_tool = moved
+
+    def _hook_zero(self) -> None:
+        model = self.session.sensor_emulator.model
+        name = "zero" if hasattr(model, "zero") else "set_software_bias"
+        zero = getattr(model, name)
+
+        def zeroed(true_wrench: np.ndarray) -> None:
+            self.zeros += 1
+            self.jumped = False
+            if self.contact_n() > 0.0:
+                self.zeros_in_contact += 1
+            zero(true_wrench)
+
+        setattr(model, name, zeroed)
+
+
+class Injector:
+    """Fires the planned faults at their ticks (device calls) of one run, across sessions.
+
+    Args:
+        plan: tick -> list of (device role "robot"/"sensor"/"run", fault kind).
+        rng: draws the faults' sizes and lengths.
+    """
+
+    def __init__(self, plan: dict[int, list[tuple[str, str]]], rng: random.Random) -> None:
+        self.plan = plan
+        self.rng = rng
+        self.tick = 0
+        self.fired: list[Fired] = []
+        self.stops: list[tuple[int, int, float]] = []
+        """Every robot stop: (tick, session, cell time s)."""
+        self.sessions = 0
+        self.session: Any = None
+        self.truth: Truth | None = None
+        self._undo: list[tuple[int, Any]] = []
+        self._after_move: list[Any] = []
+        self._last = "none"
+        self.events: Callable[[], int] = lambda: 0
+        """Counts the run's fault events so far (set by the campaign)."""
+
+    def attach(self, session: Any, truth: Truth) -> None:
+        """Watch a newly opened session's cell (a resumed run opens a new one)."""
+        self.session, self.truth = session, truth
+        self.sessions += 1
+        self._undo, self._after_move = [], []
+        cell: Cell = session.cell
+        move, measure, stop = cell.move_to, cell.measure_force_n, cell.stop
+        zero = cell.zero_in_free_space
+        zeroing = [False]
+
+        def zero_in_free_space() -> float:
+            zeroing[0] = True  # its burst reads the bias it is about to zero: not judged
+            try:
+                return zero()
+            finally:
+                zeroing[0] = False
+
+        def move_to(pose: Any, settle: bool = True) -> None:
+            self._step()
+            try:
+                move(pose, settle)
+            finally:  # a fault of one move ends with it
+                undo, self._after_move = self._after_move, []
+                for action in undo:
+                    action()
+
+        def measure_force_n(samples: int | None = None) -> float:
+            self._step()
+            force = measure(samples)
+            if samples is None and not zeroing[0]:  # a whole burst: what a step is judged by
+                truth.judge_reading(force, self._last)
+            return force
+
+        def stopped() -> None:
+            self.stops.append((self.tick, self.sessions, cell.time_s))
+            stop()
+
+        reinitialise = getattr(session.sensor, "reinitialise", None)
+        if reinitialise is not None:  # the recovery's sensor restarts count as instants too
+
+            def restarted() -> None:
+                self._step()
+                reinitialise()
+
+            session.sensor.reinitialise = restarted
+
+        cell.move_to = move_to  # type: ignore[method-assign]
+        cell.measure_force_n = measure_force_n  # type: ignore[method-assign]
+        cell.stop = stopped  # type: ignore[method-assign]
+        cell.zero_in_free_space = zero_in_free_space  # type: ignore[method-assign]
+
+    def _step(self) -> None:
+        self.tick += 1
+        for due, undo in [u for u in self._undo if u[0] <= self.tick]:
+            self._undo.remove((due, undo))
+            undo()
+        for device, kind in self.plan.pop(self.tick, []):
+            self._fire(device, kind)
+
+    def _fire(self, device: str, kind: str) -> None:
+        cell = self.session.cell
+        assert self.truth is not None
+        self.fired.append(Fired(device, kind, self.tick, cell.time_s, self.events(),
+                                self.sessions, self.truth.contact_n() > 0.0))
+        self._last = kind
+        if kind == "kill":
+            raise Killed
+        getattr(self, f"_{device}_{kind}")()
+
+    # ---- sensor faults ---------------------------------------------------------------------
+    def _sensor_reboot(self) -> None:
+        emulator = self.session.sensor_emulator
+        (emulator.inject_bootup if hasattr(emulator, "inject_bootup") else emulator.inject_reboot)()
+
+    def _sensor_silence(self) -> None:
+        emulator = self.session.sensor_emulator
+        emulator.set_faults(dataclasses.replace(emulator.faults, silent=True))
+        self._undo.append((self.tick + self.rng.randint(1, 3), lambda: emulator.set_faults(
+            dataclasses.replace(emulator.faults, silent=False))))
+
+    def _sensor_corrupt(self) -> None:
+        emulator, count = self.session.sensor_emulator, self.rng.randint(2, 12)
+        if hasattr(emulator, "frame_hook"):  # JR3: frames of a wrong length
+            left = [count]
+
+            def garble(frame: Frame) -> Frame | None:
+                if left[0] <= 0:
+                    return frame
+                left[0] -= 1
+                size = (len(frame.data) + 1 + self.rng.randint(0, 6)) % 9
+                return Frame(frame.arbitration_id, (frame.data + bytes(8))[:size])
+
+            emulator.frame_hook = garble
+            return
+        address = self.session.sensor._sock.getsockname()  # Net F/T: garbage datagrams
+        for _ in range(count):
+            size = self.rng.choice([0, 1, 35, 37, 100])
+            emulator._udp.sendto(self.rng.randbytes(size), address)
+
+    def _sensor_bias_jump(self) -> None:
+        model = self.session.sensor_emulator.model
+        state = model.state_dict()
+        axis = self.session.cell.force_filter.config.axis
+        jump = np.zeros(6)
+        jump[axis] = self.rng.choice((-1.0, 1.0)) * self.rng.uniform(1.0, 8.0)
+        state["bias"] = np.asarray(state["bias"], dtype=float) + jump
+        model.load_state_dict(state)
+        assert self.truth is not None
+        self.truth.jumped = True
+
+    # ---- robot faults ----------------------------------------------------------------------
+    def _robot_restart(self) -> None:
+        emulator = self.session.robot_emulator
+        if isinstance(getattr(emulator, "faults", None), EgmFaultInjector):
+            self._egm_faults(EgmFaultConfig(restart=Fault(1.0, limit=1)))
+            return
+        self._robot_stall(fraction=0.0)
+        emulator.faults = FaultInjector(FaultConfig(drop_connection=Fault(1.0, limit=1)))
+
+    def _robot_stall(self, fraction: float | None = None) -> None:
+        emulator = self.session.robot_emulator
+        share = self.rng.uniform(0.2, 0.8) if fraction is None else fraction
+        engine = getattr(emulator, "engine", None)
+        if engine is not None:  # the computer link's controller: its arm motion
+            engine.motion.stall_fraction = share
+            self._after_move.append(lambda: setattr(engine.motion, "stall_fraction", None))
+            return
+        motion = emulator.model.motion  # EGM: the servo ignores commands for this move
+        motion.command = lambda pose, t_s: None
+        self._after_move.append(lambda: motion.__dict__.pop("command", None))
+
+    def _robot_link_drop(self) -> None:
+        emulator = self.session.robot_emulator
+        if isinstance(getattr(emulator, "faults", None), EgmFaultInjector):
+            self._egm_faults(EgmFaultConfig(lose=Fault(1.0, limit=self.rng.randint(1, 60))))
+            return
+        emulator.faults = FaultInjector(FaultConfig(drop_connection=Fault(1.0, limit=1)))
+
+    def _egm_faults(self, faults: EgmFaultConfig) -> None:
+        emulator = self.session.robot_emulator
+        injector = EgmFaultInjector(faults)
+        injector.cycle = emulator.faults.cycle
+        emulator.faults = emulator.loop.faults = injector
+
+
+CAUSES: dict[str, tuple[str, ...]] = {
+    "SensorRebooted": ("reboot",),
+    "SensorStale": ("silence", "corrupt"),
+    "SensorTimeout": ("silence", "corrupt", "reboot"),
+    "SensorBusError": ("corrupt",),
+    "SensorProtocolError": ("corrupt",),
+    "NotInPosition": ("stall", "restart"),
+    "GuidanceStopped": ("restart",),
+    "LinkTimeout": ("link_drop", "restart"),
+    "LinkError": ("link_drop", "restart"),
+    "ProtocolError": ("link_drop", "restart"),
+}
+"""The fault kinds that can raise each error (to say which fault a recovery recovered from)."""
+
+
+def cause(error: str, fired: list[Fired], events_before: int) -> Fired | None:
+    """The fault a recovery (the run's event number ``events_before``) recovered from."""
+    before = [f for f in fired if f.events_before <= events_before]
+    kinds = CAUSES.get(error)
+    matching = [f for f in before if kinds is None or f.kind in kinds] or before
+    return matching[-1] if matching else None
+
+
+def plan_faults(rng: random.Random, ticks: int, counts: dict[tuple[str, str], int]
+                ) -> dict[int, list[tuple[str, str]]]:
+    """Spread ``counts[(device, kind)]`` faults over ticks 1..``ticks`` at random instants."""
+    plan: dict[int, list[tuple[str, str]]] = {}
+    for (device, kind), count in counts.items():
+        for _ in range(count):
+            plan.setdefault(rng.randint(1, max(1, ticks)), []).append((device, kind))
+    return plan
+
+
+def stop_latency_s(fired: Fired, stops: list[tuple[int, int, float]]) -> float | None:
+    """Cell time from a fault to the first robot stop after it in its session (None: none)."""
+    for tick, session, time_s in stops:
+        if session == fired.session and tick >= fired.tick and time_s >= fired.cell_time_s:
+            return time_s - fired.cell_time_s
+    return None
+
+
+def finite(value: float) -> bool:
+    """True for a finite float."""
+    return math.isfinite(value)
