@@ -173,3 +173,13 @@ def test_a_sample_with_its_sensor_time_is_one_step_of_that_length() -> None:
         counted.on_sample(WrenchSample(wrench, 0.0, i))
     assert timed.force_n == pytest.approx(counted.force_n, rel=1e-12)
     assert timed.rate_n_per_s == pytest.approx(counted.rate_n_per_s, rel=1e-12)
+
+
+@pytest.mark.parametrize(("axis", "sign"), [(1, 1.0), (2, -1.0), (0, -1.0)])
+def test_normal_force_is_the_signed_axis_of_one_wrench_or_of_rows(axis: int,
+                                                                   sign: float) -> None:
+    """``normal_force``: sign x wrench[axis], the same for one wrench and for rows of them."""
+    config = ForceFilterConfig(axis=axis, sign=sign)
+    rows = np.random.default_rng(axis).normal(size=(5, 6))
+    assert np.array_equal(config.normal_force(rows), sign * rows[:, axis])
+    assert [float(config.normal_force(row)) for row in rows] == (sign * rows[:, axis]).tolist()

@@ -1,4 +1,4 @@
-"""The twin's fit (issue 29 items 2 and 4): its model, recovery, stability and verdict."""
+"""The twin's fit: its model, recovery, stability and verdict."""
 
 from __future__ import annotations
 
@@ -14,7 +14,8 @@ from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.records import BurstRecord, MoveRecord, StepRecord, TrialRecords
 from forcelearn.tools.twin import forward
 from forcelearn.tools.twin.arrays import RecordsError, to_arrays
-from forcelearn.tools.twin.fit import TwinFit, family_for, fit_twin
+from forcelearn.tools.twin.choice import family_for
+from forcelearn.tools.twin.fit import TwinFit, fit_twin
 from forcelearn.tools.twin.params import BY_NAME, family
 from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
 

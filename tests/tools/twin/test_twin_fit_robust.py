@@ -1,4 +1,4 @@
-"""The twin's fit is robust and its "determined" honest (issue 29, hidden cells 25 and 30).
+"""The twin's fit is robust and its "determined" honest (hidden cells 25 and 30).
 
 Nested members never fit worse than the member they contain; a misspecified force law is
 not reported as determining the contact; an undetermined value is never written at a bound

@@ -1,4 +1,4 @@
-"""The hidden-cell generator (issue 29): stated ranges, runnable configs, truth beside them."""
+"""The hidden-cell generator: stated ranges, runnable configs, truth beside them."""
 
 from __future__ import annotations
 
