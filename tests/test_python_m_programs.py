@@ -64,7 +64,7 @@ def test_a_program_answers_help(
 def test_python_m_runs_a_program_from_the_command_line() -> None:
     """The command line itself: a real interpreter, ``-m``, ``--help``."""
     result = subprocess.run(
-        [sys.executable, "-m", "forcelearn.emulators.robot_controller", "--help"],
+        [sys.executable, "-m", "forcelearn.emulators.computer_link", "--help"],
         capture_output=True, text=True, timeout=60, check=False,
     )
     assert result.returncode == 0 and "usage:" in result.stdout, result.stderr

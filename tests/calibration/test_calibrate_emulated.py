@@ -1,7 +1,7 @@
 """``forcelearn calibrate`` against the emulated cell: accuracy against known truth, and failures.
 
 The truth is read from the emulator itself: its tool (``ToolParams()``), its
-noise (``SensorModelParams``) and, sample by sample, its drifting bias minus
+noise (``Jr3ModelParams``) and, sample by sample, its drifting bias minus
 the stored offset, logged by wrapping the sensor model.
 """
 
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from forcelearn.calibration import MAX_CONDITION, load_calibration
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import CalibrationError, RobotFault, SafetyStop, SensorStale
 from forcelearn.site.config import load_cell_config
@@ -68,7 +68,7 @@ def _chain(exc: BaseException) -> list[BaseException]:
 @pytest.mark.parametrize("seed", SEEDS)  # one test per seed: the workers share them out
 def test_estimates_match_the_emulator_truth_over_five_seeds(seed: int, tmp_path: Path) -> None:
     """Mass within 2 %, CoM within 2 mm, bias within 0.05 N, noise std within 10 %, per seed."""
-    truth_tool, model = ToolParams(), SensorModelParams()
+    truth_tool, model = ToolParams(), Jr3ModelParams()
     out = tmp_path / f"cal{seed}.toml"
     with CellSession(load_cell_config(), seed=seed) as session:
         truth = TruthLog(session)

@@ -9,6 +9,7 @@ import numpy as np
 
 from forcelearn.calibration import load_calibration
 from forcelearn.site.config import load_cell_config
+from forcelearn.site.netft_kind import box_model
 from forcelearn.tools.commands.calibrate import calibrate
 from forcelearn.tools.experiments.calibration_plan import CalibrationPlan
 
@@ -24,6 +25,6 @@ def test_calibrate_over_egm_and_netft_records_the_box_and_its_noise(tmp_path: Pa
     assert load_calibration(out) == cal
     assert cal.sensor.model == "ATI Net F/T (forcelearn emulator)"
     assert cal.sensor.robot == "ABB EGM rw6"
-    assert cal.sensor.full_scales == config.emulator.netft.ranges
-    truth = np.array(config.emulator.netft.noise_std)
+    assert cal.sensor.full_scales == box_model(config).ranges
+    truth = np.array(box_model(config).noise_std)
     assert np.all(np.abs(np.asarray(cal.noise.std) / truth - 1.0) < 0.2)

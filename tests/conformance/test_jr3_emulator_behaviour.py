@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
 
 FRAME_S = 128.5e-6
@@ -32,7 +32,7 @@ LOOP_S = 0.001
 EEPROM_S = 256 * FRAME_S
 """initialize(): 256 calibration bytes, one per sensor frame (our reading of the stream)."""
 BIAS = (1.5, -2.0, 3.0, 0.05, -0.08, 0.03)
-QUIET = SensorModelParams(noise_std=(0.0,) * 6, bias_drift_per_sqrt_s=(0.0,) * 6,
+QUIET = Jr3ModelParams(noise_std=(0.0,) * 6, bias_drift_per_sqrt_s=(0.0,) * 6,
                           initial_bias=BIAS)
 _numbers = itertools.count()
 

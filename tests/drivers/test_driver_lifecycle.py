@@ -27,17 +27,17 @@ import pytest
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import ComputerLinkRobot, LinkConfig
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
+from forcelearn.drivers.egm import EgmConfig, EgmRobot
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.drivers.lifecycle import Driver
 from forcelearn.drivers.netft import NetFtConfig, NetFtSensor
 from forcelearn.emulators.clock import SimClock
+from forcelearn.emulators.computer_link import ComputerLinkEmulator
 from forcelearn.emulators.egm import EgmControllerEmulator, InProcessEgmController
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
 from forcelearn.emulators.netft.server import NetFtEmulator
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller import RobotControllerEmulator
 from forcelearn.errors import ForcelearnError
 from forcelearn.protocols.egm import codec
 
@@ -66,10 +66,10 @@ class Case:
 
 
 def _computer_link(stack: ExitStack) -> Case:
-    emulator = stack.enter_context(RobotControllerEmulator("inproc"))
+    emulator = stack.enter_context(ComputerLinkEmulator("inproc"))
     fast = {"ack_timeout_s": 0.05, "reply_timeout_s": 0.05}
     commanded: list[float] = []
-    gone = RobotControllerEmulator("inproc")
+    gone = ComputerLinkEmulator("inproc")
     gone.start()
     gone.close()
 
@@ -113,16 +113,16 @@ def _egm_lockstep(stack: ExitStack) -> Case:
     sockets: list[RecordingSocket] = []
     measured: list[Pose] = []
 
-    def make() -> EgmRobotDriver:
+    def make() -> EgmRobot:
         sockets.append(RecordingSocket(controller.socket()))
-        return EgmRobotDriver(EgmConfig(lockstep=True), sock=sockets[-1])
+        return EgmRobot(EgmConfig(lockstep=True), sock=sockets[-1])
 
     def planned(index: int) -> Pose:
         message = codec.decode_sensor(sockets[-1].sent[index], "rw6")
         assert message.planned is not None
         return message.planned
 
-    def busy(robot: EgmRobotDriver) -> None:
+    def busy(robot: EgmRobot) -> None:
         robot.move_by(dz_mm=-8.0)
         robot.dwell(0.05)  # the planned pose ramps down, the measured one lags behind it
         measured.append(robot.read_pose())
@@ -138,7 +138,7 @@ def _egm_lockstep(stack: ExitStack) -> Case:
 
     return Case(
         make=make,
-        make_silent=lambda: EgmRobotDriver(
+        make_silent=lambda: EgmRobot(
             EgmConfig(port=0, lockstep=True, first_message_timeout_s=0.2)
         ),
         use=lambda robot: robot.read_pose(),
@@ -153,8 +153,8 @@ def _egm_real(stack: ExitStack) -> Case:
     config = EgmConfig(port=0, lockstep=False, watchdog_s=1.0, stale_after_s=1.0,
                        first_message_timeout_s=5.0)
 
-    def make() -> EgmRobotDriver:
-        robot = EgmRobotDriver(config)
+    def make() -> EgmRobot:
+        robot = EgmRobot(config)
         controller = EgmControllerEmulator(robot.port, clock=SimClock(time_scale=1.0),
                                            lockstep=False)
         stack.callback(controller.close)
@@ -163,7 +163,7 @@ def _egm_real(stack: ExitStack) -> Case:
 
     return Case(
         make=make,
-        make_silent=lambda: EgmRobotDriver(
+        make_silent=lambda: EgmRobot(
             EgmConfig(port=0, lockstep=False, first_message_timeout_s=0.2)
         ),
         use=lambda robot: robot.read_pose(),
@@ -347,9 +347,9 @@ from forcelearn.drivers.computer_link import ComputerLinkRobot, LinkConfig
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller import RobotControllerEmulator
+from forcelearn.emulators.computer_link import ComputerLinkEmulator
 
-emulator = RobotControllerEmulator("inproc")
+emulator = ComputerLinkEmulator("inproc")
 emulator.start()
 robot = ComputerLinkRobot(LinkConfig(url=emulator.address))
 node = Jr3EmulatorNode(CellPhysics(), channel="exit", in_process=True)

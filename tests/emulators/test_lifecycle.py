@@ -11,13 +11,13 @@ from collections.abc import Callable
 
 import pytest
 
+from forcelearn.emulators.computer_link import ComputerLinkEmulator
 from forcelearn.emulators.egm import EgmControllerEmulator
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
 from forcelearn.emulators.lifecycle import Emulator
 from forcelearn.emulators.netft.server import NetFtEmulator
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.pty_endpoint import PtyEndpoint
-from forcelearn.emulators.robot_controller import RobotControllerEmulator
 from forcelearn.emulators.slcan import SlcanAdapterEmulator
 
 _numbers = itertools.count()
@@ -28,9 +28,9 @@ def _channel() -> str:
 
 
 MAKERS: dict[str, Callable[[], Emulator]] = {
-    "robot-pty": lambda: RobotControllerEmulator("pty"),
-    "robot-tcp": lambda: RobotControllerEmulator("tcp"),
-    "robot-inproc": lambda: RobotControllerEmulator("inproc"),
+    "robot-pty": lambda: ComputerLinkEmulator("pty"),
+    "robot-tcp": lambda: ComputerLinkEmulator("tcp"),
+    "robot-inproc": lambda: ComputerLinkEmulator("inproc"),
     "jr3-virtual": lambda: Jr3EmulatorNode(CellPhysics(), channel=_channel()),
     "jr3-inproc": lambda: Jr3EmulatorNode(CellPhysics(), channel=_channel(), in_process=True),
     "slcan": lambda: SlcanAdapterEmulator(channel=_channel()),

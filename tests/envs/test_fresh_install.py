@@ -101,5 +101,5 @@ def test_both_emulator_routes_open_from_a_fresh_install(target: Path, tmp_path: 
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == [
-        "routes", "0x101", "forcelearn.emulators.robot_controller.serial_port"
+        "routes", "0x101", "forcelearn.emulators.computer_link.serial_port"
     ]

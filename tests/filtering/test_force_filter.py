@@ -14,7 +14,7 @@ from forcelearn.devices import Pose, WrenchSample
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge, surface_y_mm
 from forcelearn.errors import ConfigError
@@ -120,7 +120,7 @@ def test_async_stream_from_the_driver_feeds_the_filter() -> None:
     target_n = filter_experiment.DESIRED_N
     depth = target_n / 2.0 / (1 + 0.15 * np.cos(2 * np.pi * 60 / 120))
     kf = ForceFilter(ForceFilterConfig(sample_period_s=0.001, measurement_variance_n2=NOISE_N**2))
-    white = SensorModelParams(emulate_filter=False)  # the stream filter's model: white noise
+    white = Jr3ModelParams(emulate_filter=False)  # the stream filter's model: white noise
     with Jr3EmulatorNode(physics, channel=channel, seed=4, model=white) as node, \
             can.Bus(interface="virtual", channel=channel) as bus:
         config = Jr3Config(mode="async", period_us=1000, zero_on_init=True, zero_settle_s=0.0)
@@ -173,3 +173,13 @@ def test_a_sample_with_its_sensor_time_is_one_step_of_that_length() -> None:
         counted.on_sample(WrenchSample(wrench, 0.0, i))
     assert timed.force_n == pytest.approx(counted.force_n, rel=1e-12)
     assert timed.rate_n_per_s == pytest.approx(counted.rate_n_per_s, rel=1e-12)
+
+
+@pytest.mark.parametrize(("axis", "sign"), [(1, 1.0), (2, -1.0), (0, -1.0)])
+def test_normal_force_is_the_signed_axis_of_one_wrench_or_of_rows(axis: int,
+                                                                   sign: float) -> None:
+    """``normal_force``: sign x wrench[axis], the same for one wrench and for rows of them."""
+    config = ForceFilterConfig(axis=axis, sign=sign)
+    rows = np.random.default_rng(axis).normal(size=(5, 6))
+    assert np.array_equal(config.normal_force(rows), sign * rows[:, axis])
+    assert [float(config.normal_force(row)) for row in rows] == (sign * rows[:, axis]).tolist()

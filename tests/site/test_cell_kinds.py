@@ -95,7 +95,8 @@ host = "192.168.1.1"
         ('[sensor]\nkind = "jr3"\nhost = "1.2.3.4"\n', "sensor.host"),
         ('[sensor]\nkind = "netft"\n[emulator.sensor]\nemulate_filter = false\n',
          "emulator.sensor.emulate_filter"),
-        ("[emulator.egm]\ncontrol_lag_s = -1.0\n", "emulator.egm"),
+        ('[robot]\nkind = "egm"\n[emulator.egm]\ncontrol_lag_s = -1.0\n', "emulator.egm"),
+        ("[emulator.egm]\ncontrol_lag_s = 0.1\n", "emulator.egm: no device of this cell takes it"),
     ],
 )
 def test_errors_name_the_key(tmp_path: Path, text: str, named: str) -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.faults import FaultConfig
+from forcelearn.emulators.jr3.faults import Jr3FaultConfig
 from forcelearn.errors import ConfigError, SensorStale
 from forcelearn.site.config import load_cell_config
 from forcelearn.site.session import CellSession
@@ -89,7 +89,7 @@ def _silent_sensor_stops(session: CellSession) -> None:
     task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
     task.reset()
     moves = session.robot_emulator.move_count
-    session.sensor_emulator.set_faults(FaultConfig(silent=True))
+    session.sensor_emulator.set_faults(Jr3FaultConfig(silent=True))
     with pytest.raises(SensorStale):
         task.step(np.array([config.task.start_mm[1]]))
     assert session.robot_emulator.move_count == moves + 1  # the step's move, nothing after

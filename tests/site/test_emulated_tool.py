@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from forcelearn.devices import quaternion_to_matrix
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
 from forcelearn.emulators.physics.tool import ToolParams, gravity_wrench
 from forcelearn.errors import ConfigError
@@ -62,7 +62,7 @@ def test_the_mounting_turns_the_sensor_frame_against_the_flange() -> None:
         assert gravity_wrench(mounted, flange) == pytest.approx(expected, abs=1e-12)
 
 
-def _heaviest_kg(model: SensorModelParams | NetFtModelParams) -> float:
+def _heaviest_kg(model: Jr3ModelParams | NetFtModelParams) -> float:
     return float(readable_range(model)[:3].max()) / 9.80665
 
 
@@ -90,7 +90,7 @@ def test_a_tool_outside_physical_bounds_is_refused_by_key(tmp_path: Path, table:
 
 def test_the_bound_follows_the_sensor_model(tmp_path: Path) -> None:
     """A tool the JR3 model carries is refused on the Net F/T's smaller range, and vice versa."""
-    jr3_most, netft_most = _heaviest_kg(SensorModelParams()), _heaviest_kg(NetFtModelParams())
+    jr3_most, netft_most = _heaviest_kg(Jr3ModelParams()), _heaviest_kg(NetFtModelParams())
     between = (jr3_most + netft_most) / 2
     load_cell_config(_config(tmp_path, f"[emulator.tool]\nmass_kg = {min(jr3_most, netft_most)}"
                              "\ncom_mm = [0.0, 0.0, 0.0]\n"))

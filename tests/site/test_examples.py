@@ -12,9 +12,9 @@ import pytest
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link.config import LinkConfig
 from forcelearn.drivers.jr3_can.config import Jr3Config
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.sponge import SpongeParams
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
@@ -39,7 +39,7 @@ TABLES: dict[str, tuple[type, ...]] = {
     "learner": (SRVParams,),
     "probe": (ProbeSpec,),
     "emulator.sponge": (SpongeParams,),
-    "emulator.sensor": (SensorModelParams,),
+    "emulator.sensor": (Jr3ModelParams,),
     "emulator.arm": (ArmConfig,),
     "emulator.arm.home": (Pose,),
 }

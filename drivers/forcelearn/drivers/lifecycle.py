@@ -13,7 +13,7 @@
   ==================  ======================================  =============================
   ComputerLinkRobot   opens the port, identifies the          nothing more (re-opens the
                       controller, reads the target            port if a reconnect failed)
-  EgmRobotDriver      binds the UDP socket (``port`` known)   waits for the controller's
+  EgmRobot            binds the UDP socket (``port`` known)   waits for the controller's
                                                               first EgmRobot (a session)
   Jr3CanSensor        starts the Notifier (async mode)        the host initialisation:
                                                               start, full scales, zero

@@ -8,8 +8,8 @@ from contextlib import ExitStack
 import pytest
 
 from forcelearn.drivers.computer_link import ComputerLinkRobot, LinkConfig
-from forcelearn.emulators.robot_controller import RobotControllerEmulator
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+from forcelearn.emulators.computer_link import ComputerLinkEmulator
+from forcelearn.emulators.physics.arm import ArmConfig
 
 TRANSPORTS = ("pty", "tcp", "inproc")
 
@@ -24,7 +24,7 @@ def transport(request: pytest.FixtureRequest) -> str:
 
 
 @pytest.fixture
-def make_emulator(transport: str) -> Iterator[Callable[..., RobotControllerEmulator]]:
+def make_emulator(transport: str) -> Iterator[Callable[..., ComputerLinkEmulator]]:
     """Start emulators on the current transport; all are stopped at teardown.
 
     Protocol tests get an instant arm unless they pass a ``config`` (motion in
@@ -32,15 +32,15 @@ def make_emulator(transport: str) -> Iterator[Callable[..., RobotControllerEmula
     """
     with ExitStack() as stack:
 
-        def make(**kwargs: object) -> RobotControllerEmulator:
+        def make(**kwargs: object) -> ComputerLinkEmulator:
             kwargs.setdefault("config", ArmConfig(instant=True))
-            return stack.enter_context(RobotControllerEmulator(transport, **kwargs))
+            return stack.enter_context(ComputerLinkEmulator(transport, **kwargs))
 
         yield make
 
 
 @pytest.fixture
-def emulator(make_emulator: Callable[..., RobotControllerEmulator]) -> RobotControllerEmulator:
+def emulator(make_emulator: Callable[..., ComputerLinkEmulator]) -> ComputerLinkEmulator:
     """A fault-free emulated controller."""
     return make_emulator()
 

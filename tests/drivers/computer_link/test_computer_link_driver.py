@@ -9,9 +9,9 @@ import serial
 
 from forcelearn.devices import Pose, Robot
 from forcelearn.drivers.computer_link import Limits
+from forcelearn.emulators.computer_link import ArmConfig, controller
+from forcelearn.emulators.physics.arm import HOME, TOOL_DOWN
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller import ArmConfig, controller
-from forcelearn.emulators.robot_controller.kinematics import HOME, TOOL_DOWN
 from forcelearn.errors import LinkError, ProtocolError, RobotFault
 from forcelearn.protocols.computer_link import messages as m
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import pytest
 
-from forcelearn.emulators.robot_controller import Fault, FaultConfig
-from forcelearn.emulators.robot_controller.kinematics import HOME
+from forcelearn.emulators.computer_link import ComputerLinkFaultConfig, Fault
+from forcelearn.emulators.physics.arm import HOME
 from forcelearn.errors import LinkError
 
 ONCE = Fault(1.0, limit=1)
@@ -54,7 +54,7 @@ def test_dropped_connection_raises_link_error_then_reconnect_works(emulator, con
 
 def test_random_corruption_never_moves_twice(make_emulator, connect) -> None:
     """Under 1 % byte corruption each way, every move executes once or raises a LinkError."""
-    emulator = make_emulator(faults=FaultConfig(corrupt_byte=Fault(0.01), seed=7))
+    emulator = make_emulator(faults=ComputerLinkFaultConfig(corrupt_byte=Fault(0.01), seed=7))
     robot = connect(emulator.address, nak_retries=3, enq_retries=3)
     succeeded = failed = 0
     for i in range(60):

@@ -9,8 +9,8 @@ from __future__ import annotations
 import pytest
 
 from forcelearn.drivers.computer_link import Limits
-from forcelearn.emulators.robot_controller import FaultConfig
-from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig
+from forcelearn.emulators.computer_link import ComputerLinkFaultConfig
+from forcelearn.emulators.physics.arm import HOME, ArmConfig
 from forcelearn.errors import LinkError, NotInPosition, SafetyStop
 
 
@@ -36,7 +36,7 @@ def test_wait_in_position_returns_once_the_robot_is_there_and_settled(
 
 def test_a_robot_that_stops_short_ends_the_wait_and_is_stopped(make_emulator, connect) -> None:
     """Stalled half way: NotInPosition after the timeout of controller time; STOP was sent."""
-    emulator = make_emulator(config=ArmConfig(), faults=FaultConfig(stall_fraction=0.5))
+    emulator = make_emulator(config=ArmConfig(), faults=ComputerLinkFaultConfig(stall_fraction=0.5))
     robot = connect(emulator.address)
     robot.move_by(dz_mm=-8.0)
     start = robot.read_status().time_s
@@ -50,7 +50,8 @@ def test_a_robot_that_stops_short_ends_the_wait_and_is_stopped(make_emulator, co
 
 def test_a_robot_that_never_reports_in_position_ends_the_wait(make_emulator, connect) -> None:
     """Status never says in position: the wait is bounded by its timeout, not endless."""
-    emulator = make_emulator(config=ArmConfig(), faults=FaultConfig(never_in_position=True))
+    emulator = make_emulator(config=ArmConfig(),
+                             faults=ComputerLinkFaultConfig(never_in_position=True))
     robot = connect(emulator.address)
     robot.move_by(dz_mm=-2.0)
     with pytest.raises(NotInPosition):

@@ -8,7 +8,7 @@ import pytest
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.computer_link import Limits, LinkConfig
-from forcelearn.emulators.robot_controller.kinematics import HOME, TOOL_DOWN
+from forcelearn.emulators.physics.arm import HOME, TOOL_DOWN
 from forcelearn.errors import ConfigError, InvalidTarget, SafetyStop
 
 TIGHT = Limits(

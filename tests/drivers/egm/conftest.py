@@ -10,8 +10,8 @@ import pytest
 
 from forcelearn.config import build
 from forcelearn.devices import Pose
-from forcelearn.drivers.computer_link.config import Limits
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
+from forcelearn.drivers.egm import EgmConfig, EgmRobot
+from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
@@ -24,7 +24,7 @@ from forcelearn.emulators.physics.cell import CellPhysics
 DOWN = (0.0, 1.0, 0.0, 0.0)
 HOME = Pose(900.0, 0.0, 600.0, DOWN)
 
-Pair = tuple[EgmRobotDriver, EgmEmulatorBase]
+Pair = tuple[EgmRobot, EgmEmulatorBase]
 ROUTES = ("udp", "in_process")
 
 
@@ -67,10 +67,10 @@ def egm_pair(egm_route: str) -> Iterator[Callable[..., Pair]]:
             if egm_route == "in_process":
                 emu = InProcessEgmController(**emulator_kw)
                 stack.callback(emu.close)
-                robot = EgmRobotDriver(config, sock=emu.socket())
+                robot = EgmRobot(config, sock=emu.socket())
                 stack.callback(robot.close)
             else:
-                robot = EgmRobotDriver(config)
+                robot = EgmRobot(config)
                 stack.callback(robot.close)
                 emu = EgmControllerEmulator(robot.port, **emulator_kw)
                 stack.callback(emu.close)

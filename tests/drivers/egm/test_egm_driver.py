@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from forcelearn.devices import Pose, Robot
-from forcelearn.drivers.egm import EgmRobotDriver
+from forcelearn.drivers.egm import EgmRobot
 from forcelearn.emulators.egm import EgmControllerEmulator, EgmFaultConfig, Fault
 from forcelearn.errors import (
     EgmVersionMismatch,
@@ -22,7 +22,7 @@ from forcelearn.protocols.egm import codec
 
 HOME = Pose(900.0, 0.0, 600.0, (0.0, 1.0, 0.0, 0.0))
 """The conftest's start pose."""
-MakePair = Callable[..., tuple[EgmRobotDriver, EgmControllerEmulator]]
+MakePair = Callable[..., tuple[EgmRobot, EgmControllerEmulator]]
 
 
 @pytest.mark.parametrize("version", codec.VERSIONS)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
+from forcelearn.drivers.egm import EgmConfig, EgmRobot
 from forcelearn.errors import ConfigError, InvalidTarget, LinkError, SafetyStop
 from forcelearn.protocols.egm import codec
 
@@ -80,13 +80,13 @@ class Controller(Peer):
         return reply
 
 
-Cell = tuple[EgmRobotDriver, "Controller", "Peer"]
+Cell = tuple[EgmRobot, "Controller", "Peer"]
 
 
 @pytest.fixture
-def cell() -> Iterator[tuple[EgmRobotDriver, Controller, Peer]]:
+def cell() -> Iterator[tuple[EgmRobot, Controller, Peer]]:
     """A real-mode driver with a session open to the controller, and a host on the network."""
-    robot = EgmRobotDriver(EgmConfig(port=0, lockstep=False, watchdog_s=1.0, stale_after_s=1.0))
+    robot = EgmRobot(EgmConfig(port=0, lockstep=False, watchdog_s=1.0, stale_after_s=1.0))
     controller, intruder = Controller(robot.port), Peer(robot.port)
     try:
         assert controller.cycle() is not None
@@ -252,7 +252,7 @@ def test_a_three_element_quaternion_is_refused_where_it_is_passed(cell: Cell) ->
 
 def test_a_session_starting_from_nan_feedback_is_refused_and_never_sends_nan() -> None:
     """Seqno 0 with x = NaN: no answer, SafetyStop at the wait; a sound cycle then starts it."""
-    with closing(EgmRobotDriver(EgmConfig(port=0, lockstep=False, stale_after_s=1.0))) as robot:
+    with closing(EgmRobot(EgmConfig(port=0, lockstep=False, stale_after_s=1.0))) as robot:
         controller = Controller(robot.port)
         try:
             controller.send(datagram(0, Pose(math.nan, 0.0, 600.0, DOWN)))
@@ -270,7 +270,7 @@ def test_a_session_starting_from_nan_feedback_is_refused_and_never_sends_nan() -
 
 def test_a_session_outside_the_workspace_is_refused() -> None:
     """Feedback x = 2500 mm at the start: refused with SafetyStop, nothing answered."""
-    with closing(EgmRobotDriver(EgmConfig(port=0, lockstep=False))) as robot:
+    with closing(EgmRobot(EgmConfig(port=0, lockstep=False))) as robot:
         controller = Controller(robot.port)
         try:
             controller.send(datagram(0, Pose(2500.0, 0.0, 600.0, DOWN)))
@@ -301,7 +301,7 @@ def test_a_configured_controller_address_and_port_exclude_every_other_sender() -
     probe.bind(("127.0.0.1", 0))
     port = probe.getsockname()[1]
     config = EgmConfig(port=0, lockstep=False, controller_host="127.0.0.1", controller_port=port)
-    with closing(EgmRobotDriver(config)) as robot:
+    with closing(EgmRobot(config)) as robot:
         other = Peer(robot.port)
         try:
             other.send(datagram(0))

@@ -15,13 +15,13 @@ import pytest
 from forcelearn.devices import ForceSensor, Pose
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
-from forcelearn.emulators.jr3 import Jr3EmulatorNode, SensorModelParams
+from forcelearn.emulators.jr3 import Jr3EmulatorNode, Jr3ModelParams
 from forcelearn.emulators.jr3 import node as node_module
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import ConfigError, SensorBusError, SensorError, SensorTimeout
 
-QUIET = SensorModelParams(noise_std=(0.0,) * 6, initial_bias=(0.0,) * 6,
+QUIET = Jr3ModelParams(noise_std=(0.0,) * 6, initial_bias=(0.0,) * 6,
                           bias_drift_per_sqrt_s=(0.0,) * 6)
 TILTED = Pose(0.0, 0.0, 0.0, (0.9, 0.3, -0.2, 0.25))  # gravity shows on all six axes
 TOOL = ToolParams(mass_kg=2.0, com_mm=(30.0, -20.0, 80.0))
@@ -74,7 +74,7 @@ def test_full_scales_are_read_and_used_in_scaling(
     scales = (100.0, 300.0, 500.0, 5.0, 15.0, 25.0)
     physics.tool = TOOL
     physics.set_pose(TILTED)
-    make_node(model=SensorModelParams(**{**QUIET.__dict__, "full_scales": scales}))
+    make_node(model=Jr3ModelParams(**{**QUIET.__dict__, "full_scales": scales}))
     sensor = make_sensor()
     sensor.initialise()
     assert sensor.full_scales.tolist() == list(scales)

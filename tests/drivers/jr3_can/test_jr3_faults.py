@@ -14,7 +14,7 @@ from can.interfaces.virtual import VirtualBus
 from forcelearn.devices import WrenchSample
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
-from forcelearn.emulators.jr3 import FaultConfig, Jr3EmulatorNode
+from forcelearn.emulators.jr3 import Jr3EmulatorNode, Jr3FaultConfig
 from forcelearn.errors import SensorBusError, SensorRebooted, SensorStale
 from forcelearn.protocols.jr3_can.codec import Frame
 
@@ -135,7 +135,7 @@ def test_read_many_replaces_lost_pairs(make_node: NodeFactory, make_sensor: Sens
     node = make_node(seed=2)
     sensor = make_sensor(stale_timeout_s=0.2)
     sensor.initialise()
-    node.set_faults(FaultConfig(drop_probability=0.05))
+    node.set_faults(Jr3FaultConfig(drop_probability=0.05))
     samples = sensor.read_many(150, window=4)
     assert len(samples) == 150
     stats = sensor.stats
@@ -163,7 +163,7 @@ def test_silent_adapter_raises_sensor_stale(
     node = make_node()
     sensor = make_sensor(mode=mode, stale_timeout_s=0.05)
     sensor.read()
-    node.set_faults(FaultConfig(silent=True))
+    node.set_faults(Jr3FaultConfig(silent=True))
     # Samples already on their way may still be read (async); the silence must show
     # within a few reads, whatever the host's speed: count reads, do not sleep.
     for _ in range(5):
@@ -214,7 +214,7 @@ def test_periodic_bootups_from_fault_config(
     make_node: NodeFactory, make_sensor: SensorFactory
 ) -> None:
     """A bootup every 20 samples: each is reported, and reads go on after reinitialise()."""
-    make_node(faults=FaultConfig(bootup_after_samples=20))
+    make_node(faults=Jr3FaultConfig(bootup_after_samples=20))
     sensor = make_sensor()
     samples, reboots = [], 0
     while len(samples) < 100:
@@ -233,7 +233,7 @@ def test_lossy_corrupting_bus_is_counted_never_fatal(
     node = make_node(seed=11)
     sensor = make_sensor(mode="async", period_us=500)
     sensor.initialise()
-    node.set_faults(FaultConfig(drop_probability=0.1, corrupt_length_probability=0.1))
+    node.set_faults(Jr3FaultConfig(drop_probability=0.1, corrupt_length_probability=0.1))
     got = 0
     deadline = time.monotonic() + 5.0
     while got < 150 and time.monotonic() < deadline:
@@ -275,7 +275,7 @@ def test_read_many_from_a_silent_adapter_raises_sensor_stale(
     node = make_node()
     sensor = make_sensor(stale_timeout_s=0.05)
     sensor.read()
-    node.set_faults(FaultConfig(silent=True))
+    node.set_faults(Jr3FaultConfig(silent=True))
     t0 = time.monotonic()
     with pytest.raises(SensorStale):
         sensor.read_many(10)

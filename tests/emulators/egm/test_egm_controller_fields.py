@@ -12,8 +12,8 @@ from forcelearn.emulators.egm.controller import (
 )
 from forcelearn.emulators.egm.joints import tool_pose
 from forcelearn.emulators.egm.servo import ServoParams
+from forcelearn.emulators.physics.arm import HOME, ArmConfig, joint_angles_deg
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig, joint_angles_deg
 from forcelearn.protocols.egm import codec
 
 ARM = ArmConfig()

@@ -12,7 +12,7 @@ from contextlib import closing
 import pytest
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
+from forcelearn.drivers.egm import EgmConfig, EgmRobot
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
@@ -200,7 +200,7 @@ def test_lag_servo_dead_time_then_first_order() -> None:
 
 def test_two_processes_driver_and_emulator(tmp_path: object) -> None:
     """The emulator in its own process (python -m ... prints its port) guides the real driver."""
-    with closing(EgmRobotDriver(EgmConfig(port=0, lockstep=True, watchdog_s=10.0))) as robot:
+    with closing(EgmRobot(EgmConfig(port=0, lockstep=True, watchdog_s=10.0))) as robot:
         process = subprocess.Popen(
             [sys.executable, "-m", "forcelearn.emulators.egm", "--remote-port", str(robot.port)],
             stdout=subprocess.PIPE, text=True,

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import pytest
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
+from forcelearn.drivers.egm import EgmConfig, EgmRobot
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
@@ -22,6 +22,7 @@ from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import GuidanceStopped, LinkError
 from forcelearn.protocols.egm import codec
 from forcelearn.site.config import load_cell_config
+from forcelearn.site.egm_kind import EgmRoute
 from forcelearn.site.session import CellSession
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
@@ -42,12 +43,12 @@ def _session(route: str, faults: EgmFaultConfig | None) -> tuple[list[object], E
     """Moves, waits and a dwell; return what the driver saw and the emulator."""
     emu: EgmEmulatorBase
     if route == "udp":
-        robot = EgmRobotDriver(DRIVER)
+        robot = EgmRobot(DRIVER)
         emu = EgmControllerEmulator(robot.port, **_kwargs(faults))
         emu.start()
     else:
         emu = InProcessEgmController(**_kwargs(faults))
-        robot = EgmRobotDriver(DRIVER, sock=emu.socket())
+        robot = EgmRobot(DRIVER, sock=emu.socket())
     seen: list[object] = []
     try:
         robot.wait_for_session(5.0)
@@ -119,7 +120,7 @@ def test_reading_on_without_answering_leaves_cycles_unanswered_until_comm_timeou
 def test_a_stopped_guidance_fails_the_driver_as_over_udp() -> None:
     """The driver's own checks see what the controller reports, on this route too."""
     emu = InProcessEgmController(physics=CellPhysics(pose=HOME), clock=SimClock())
-    with EgmRobotDriver(DRIVER, sock=emu.socket()) as robot:
+    with EgmRobot(DRIVER, sock=emu.socket()) as robot:
         robot.wait_for_session()
         robot.dwell(0.02)  # a restart at cycle 1 would repeat seqno 0: a duplicate
         emu.restart_guidance()
@@ -136,7 +137,7 @@ def test_one_client_at_a_time_and_a_closed_controller_is_a_link_error() -> None:
     with pytest.raises(RuntimeError, match="client already"):
         emu.socket()
     first.close()
-    robot = EgmRobotDriver(DRIVER, sock=emu.socket())
+    robot = EgmRobot(DRIVER, sock=emu.socket())
     robot.wait_for_session()
     emu.close()
     with pytest.raises(LinkError, match="controller was closed"):
@@ -150,7 +151,7 @@ def test_a_given_socket_needs_lockstep() -> None:
     """Real mode answers from a thread over UDP; an in-process end is refused there."""
     emu = InProcessEgmController(physics=CellPhysics(pose=HOME))
     with pytest.raises(ValueError, match="lockstep"):
-        EgmRobotDriver(EgmConfig(port=0), sock=emu.socket())
+        EgmRobot(EgmConfig(port=0), sock=emu.socket())
     emu.close()
 
 
@@ -158,8 +159,8 @@ def test_the_emulated_cell_gives_the_same_state_on_both_routes() -> None:
     """The egm-cell example: moves and force reads, then every emulator state, per route."""
     config = load_cell_config(EXAMPLES / "egm-cell.toml")
 
-    def session(route: str) -> tuple[list[float], dict[str, Any]]:
-        with CellSession(config, seed=4, egm_route=route) as s:
+    def session(route: Literal["in_process", "udp"]) -> tuple[list[float], dict[str, Any]]:
+        with CellSession(config, seed=4, routes={"egm": EgmRoute(route)}) as s:
             assert s.cell is not None
             start = s.cell.sync()
             forces = []

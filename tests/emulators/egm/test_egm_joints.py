@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from forcelearn.devices import Pose, quaternion_to_matrix
 from forcelearn.emulators.egm.joints import limit_violation, tool_pose
-from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig, joint_angles_deg
+from forcelearn.emulators.physics.arm import HOME, ArmConfig, joint_angles_deg
 
 ARM = ArmConfig()
 

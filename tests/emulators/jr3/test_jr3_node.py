@@ -10,7 +10,7 @@ import can
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3 import FaultConfig, Jr3EmulatorNode
+from forcelearn.emulators.jr3 import Jr3EmulatorNode, Jr3FaultConfig
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.protocols.jr3_can import codec
 from forcelearn.protocols.jr3_can.codec import Ack, Decoded, Rejected
@@ -109,7 +109,7 @@ def test_ignores_other_nodes_and_reads_short_payloads_as_zero(
 def test_silent_node_sends_nothing(wire: tuple[Jr3EmulatorNode, can.BusABC]) -> None:
     """A silent node neither acknowledges nor samples."""
     node, host = wire
-    node.set_faults(FaultConfig(silent=True))
+    node.set_faults(Jr3FaultConfig(silent=True))
     host.send(can.Message(arbitration_id=0x403, data=b"", is_extended_id=False))
     assert host.recv(0.1) is None
 
@@ -121,7 +121,7 @@ def test_drop_and_corrupt_probabilities() -> None:
                          in_process=True) as node, \
             can.Bus(interface="forcelearn-jr3", channel=channel) as host:
         _ask(host, codec.StartSync(12500))
-        node.set_faults(FaultConfig(drop_probability=0.3, corrupt_length_probability=0.2))
+        node.set_faults(Jr3FaultConfig(drop_probability=0.3, corrupt_length_probability=0.2))
         sync = can.Message(arbitration_id=0x080, data=b"", is_extended_id=False)
         results = []
         for _ in range(500):  # one SYNC per loop turn: the host waits for each answer

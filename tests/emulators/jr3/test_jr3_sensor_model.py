@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams, Jr3SensorModel
 
-FS = np.array(SensorModelParams().full_scales)
+FS = np.array(Jr3ModelParams().full_scales)
 QUANTUM = FS / 16384
 SEEDS = [0, 1, 2, 3, 4]
 
 
-def _model(seed: int, **params: object) -> SensorModel:
-    return SensorModel(SensorModelParams(**params), np.random.default_rng(seed))
+def _model(seed: int, **params: object) -> Jr3SensorModel:
+    return Jr3SensorModel(Jr3ModelParams(**params), np.random.default_rng(seed))
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -43,7 +43,7 @@ def test_bias_drifts_as_a_random_walk() -> None:
             model.measure(np.zeros(6), 0.05)
         finals.append(model.bias - np.array(model.params.initial_bias))
     spread = np.std(finals, axis=0)
-    expected = np.array(SensorModelParams().bias_drift_per_sqrt_s) * 10.0
+    expected = np.array(Jr3ModelParams().bias_drift_per_sqrt_s) * 10.0
     assert spread == pytest.approx(expected, rel=0.25)
 
 
@@ -79,4 +79,4 @@ def test_state_round_trip_resumes_bit_identically() -> None:
 def test_bad_parameters_are_refused(params: dict[str, object]) -> None:
     """Wrong axis counts, negative noise, full scales beyond uint16 are ValueErrors."""
     with pytest.raises(ValueError):
-        SensorModelParams(**params)
+        Jr3ModelParams(**params)

@@ -20,11 +20,11 @@ from forcelearn.drivers.computer_link import ComputerLinkRobot, LinkConfig
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators import registry
+from forcelearn.emulators.computer_link import ComputerLinkEmulator
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
+from forcelearn.emulators.physics.arm import HOME
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge
-from forcelearn.emulators.robot_controller import RobotControllerEmulator
-from forcelearn.emulators.robot_controller.kinematics import HOME
 from forcelearn.errors import LinkError, SensorBusError
 
 FAST = {"ack_timeout_s": 0.2, "reply_timeout_s": 0.2}
@@ -39,7 +39,7 @@ def _name(stem: str) -> str:
 
 def test_a_named_controller_is_reached_with_serial_for_url() -> None:
     """The driver opens the emulator's URL and a move executes on it."""
-    with RobotControllerEmulator("inproc", name=_name("robot")) as emulator:
+    with ComputerLinkEmulator("inproc", name=_name("robot")) as emulator:
         assert emulator.address.startswith("forcelearn-robot://")
         with ComputerLinkRobot(LinkConfig(url=emulator.address, **FAST)) as robot:
             robot.move_by(dz_mm=-5.0)
@@ -52,7 +52,7 @@ def test_the_same_exchange_gives_the_same_answers_and_times_as_a_pty() -> None:
     """Statuses and the controller's clock agree, exchange by exchange, with the pty route."""
 
     def session(transport: str) -> list[tuple[object, ...]]:
-        with RobotControllerEmulator(transport) as emulator, \
+        with ComputerLinkEmulator(transport) as emulator, \
                 ComputerLinkRobot(LinkConfig(url=emulator.address)) as robot:
             seen = []
             for step in range(3):
@@ -92,7 +92,7 @@ def test_bad_urls_are_refused_with_what_to_do(url: str, words: str) -> None:
 
 def test_one_client_at_a_time() -> None:
     """A second open is refused while the first holds the port; after it closes, it succeeds."""
-    with RobotControllerEmulator("inproc") as emulator:
+    with ComputerLinkEmulator("inproc") as emulator:
         first = serial.serial_for_url(emulator.address, timeout=0.1)
         with pytest.raises(serial.SerialException, match="another client"):
             serial.serial_for_url(emulator.address, timeout=0.1)
@@ -103,7 +103,7 @@ def test_one_client_at_a_time() -> None:
 
 def test_a_stopped_controller_fails_the_driver_with_a_link_error() -> None:
     """Writing to a controller that has stopped is a lost port, not a hang."""
-    emulator = RobotControllerEmulator("inproc")
+    emulator = ComputerLinkEmulator("inproc")
     emulator.start()
     robot = ComputerLinkRobot(LinkConfig(url=emulator.address, **FAST))
     emulator.close()
@@ -116,7 +116,7 @@ def test_a_stopped_controller_fails_the_driver_with_a_link_error() -> None:
 
 def test_a_read_with_no_answer_coming_waits_its_timeout() -> None:
     """Nothing written, nothing to read: ``read`` returns empty after its timeout, like a port."""
-    with RobotControllerEmulator("inproc") as emulator:
+    with ComputerLinkEmulator("inproc") as emulator:
         port = serial.serial_for_url(emulator.address, timeout=0.05)
         t0 = time.monotonic()
         assert port.read(1) == b""

@@ -16,7 +16,7 @@ import serial
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3 import Jr3EmulatorNode
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.slcan import SlcanAdapterEmulator
 from forcelearn.emulators.slcan.adapter import FLAG_DATA_OVERRUN
@@ -97,7 +97,7 @@ def test_the_jr3_driver_initialises_and_reads_through_slcan(
     Full scales, zeroed means and ~1 ms of sensor time per sample (7 or 8 frames of the counter: one
     answer per adapter loop turn), all through the LAWICEL pty.
     """
-    model = SensorModelParams()
+    model = Jr3ModelParams()
     with Jr3EmulatorNode(CellPhysics(), channel=channel, node_id=5, model=model, seed=3), \
             _slcan(adapter) as bus, \
             Jr3CanSensor(bus, Jr3Config(node_id=5, zero_on_init=True,

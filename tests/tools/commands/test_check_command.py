@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import pytest
 
 from forcelearn.drivers.jr3_can.listener import Jr3Stats
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.errors import SafetyStop
 from forcelearn.protocols.computer_link.messages import Status
 from forcelearn.protocols.jr3_can.codec import Frame
@@ -76,11 +76,11 @@ def test_check_honours_the_emulated_cells_node_id_and_noise(
 ) -> None:
     """An emulated JR3 on node 7 with 1 N noise is reported as such through slcan."""
     base = load_cell_config()
-    noisy = SensorModelParams(noise_std=(1.0, 1.0, 1.0, 0.02, 0.02, 0.02))
+    noisy = Jr3ModelParams(noise_std=(1.0, 1.0, 1.0, 0.02, 0.02, 0.02))
     config = replace(
         base,
         sensor=replace(base.sensor, node_id=7),
-        emulator=EmulatorConfig(sensor=noisy),
+        emulator=EmulatorConfig(devices={"jr3": noisy}),
     )
     with EmulatedCell(config, seed=1) as cell:
         assert "node_id = 7" in cell.site_config()

@@ -227,7 +227,7 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
     The run retracts and tries to restart the sensor; a sensor that
     never answers ends it with RecoveryFailed, the tool retracted in free space.
     """
-    from forcelearn.emulators.jr3.faults import FaultConfig
+    from forcelearn.emulators.jr3.faults import Jr3FaultConfig
     from forcelearn.tasks.recovery import RecoveryFailed
     from forcelearn.tools.experiments import surface_run
     from forcelearn.tools.experiments.fault_recovery import read_events
@@ -258,7 +258,7 @@ def test_a_sensor_failing_mid_run_stops_the_robot_and_keeps_whole_trials(
 
     def silence_after_three(record: object, learner: object) -> None:
         if record.index == 2:  # type: ignore[attr-defined]
-            sessions[0].sensor_emulator.set_faults(FaultConfig(silent=True))
+            sessions[0].sensor_emulator.set_faults(Jr3FaultConfig(silent=True))
 
     out = tmp_path / "run"
     config = tmp_path / "cell.toml"

@@ -10,16 +10,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.records import TrialRecords
 from forcelearn.site.config import load_cell_config
+from forcelearn.site.jr3_kind import sensor_model
 from forcelearn.tools import cli
 from forcelearn.tools.twin import source
 from forcelearn.tools.twin.arrays import RecordsError
 from forcelearn.tools.twin.simulate import SimulatedRun, simulate_run
 
-NOISY = SensorModelParams(noise_std=(0.1,) * 6, initial_bias=(0.0,) * 6,
+NOISY = Jr3ModelParams(noise_std=(0.1,) * 6, initial_bias=(0.0,) * 6,
                           bias_drift_per_sqrt_s=(0.0,) * 6)
 TRUTH = SpongeParams(stiffness_n_per_mm=2.6, surface_y_mm=0.5, relaxation_ratio=0.3)
 
@@ -51,7 +52,7 @@ def test_twin_writes_a_config_that_runs(
     twin = load_cell_config(out)
     assert twin.robot_emulated and twin.sensor_emulated
     assert twin.emulator.sponge.stiffness_n_per_mm == pytest.approx(2.6, rel=0.05)
-    assert twin.emulator.sensor.noise_std[1] == pytest.approx(0.1, rel=0.15)
+    assert sensor_model(twin).noise_std[1] == pytest.approx(0.1, rel=0.15)
     held = document["trials"]["held_out"]
     assert held == [13, 14, 15]
     run_out = tmp_path / "on-twin"

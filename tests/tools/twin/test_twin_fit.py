@@ -1,4 +1,4 @@
-"""The twin's fit (issue 29 items 2 and 4): its model, recovery, stability and verdict."""
+"""The twin's fit: its model, recovery, stability and verdict."""
 
 from __future__ import annotations
 
@@ -8,13 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.arm_motion import MotionParams
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.records import BurstRecord, MoveRecord, StepRecord, TrialRecords
 from forcelearn.tools.twin import forward
 from forcelearn.tools.twin.arrays import RecordsError, to_arrays
-from forcelearn.tools.twin.fit import TwinFit, family_for, fit_twin
+from forcelearn.tools.twin.choice import family_for
+from forcelearn.tools.twin.fit import TwinFit, fit_twin
 from forcelearn.tools.twin.params import BY_NAME, family
 from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
 
@@ -174,7 +175,7 @@ class _SaturatingFoam(Sponge):
 
 def test_records_the_family_cannot_explain_are_not_represented() -> None:
     """A saturating force law: the verdict says so and the bar is missed."""
-    noisy = SensorModelParams(noise_std=(0.05,) * 6, initial_bias=(0.0,) * 6,
+    noisy = Jr3ModelParams(noise_std=(0.05,) * 6, initial_bias=(0.0,) * 6,
                               bias_drift_per_sqrt_s=(0.0,) * 6)
     run = SimulatedRun(trials=20, sensor=noisy, exploration_mm=2.0)
     fit = _fit(simulate_run(run, seed=1, sponge=_SaturatingFoam(run.sponge)))
@@ -185,7 +186,7 @@ def test_records_the_family_cannot_explain_are_not_represented() -> None:
 
 def test_the_noise_is_measured_from_the_bursts() -> None:
     """0.3 N of coloured adapter noise is measured within 10 %."""
-    noisy = SensorModelParams(noise_std=(0.3,) * 6, initial_bias=(0.0,) * 6,
+    noisy = Jr3ModelParams(noise_std=(0.3,) * 6, initial_bias=(0.0,) * 6,
                               bias_drift_per_sqrt_s=(0.0,) * 6)
     fit = _fit(simulate_run(SimulatedRun(trials=10, sponge=TRUTH, sensor=noisy), seed=2))
     assert fit.sensor.noise_n == pytest.approx(0.3, rel=0.1)

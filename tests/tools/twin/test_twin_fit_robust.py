@@ -1,4 +1,4 @@
-"""The twin's fit is robust and its "determined" honest (issue 29, hidden cells 25 and 30).
+"""The twin's fit is robust and its "determined" honest (hidden cells 25 and 30).
 
 Nested members never fit worse than the member they contain; a misspecified force law is
 not reported as determining the contact; an undetermined value is never written at a bound
@@ -12,7 +12,7 @@ import math
 
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.records import TrialRecords
 from forcelearn.tools.twin import fit as fitting
@@ -27,7 +27,7 @@ BASE_ARM = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 
             "lag_s": 0.03}
 RUN = SimulatedRun()
 COLOUR = math.exp(-2 * math.pi * RUN.cutoff_hz * RUN.sample_period_s)
-NOISY = SensorModelParams(noise_std=(0.3,) * 6, initial_bias=(0.0,) * 6,
+NOISY = Jr3ModelParams(noise_std=(0.3,) * 6, initial_bias=(0.0,) * 6,
                           bias_drift_per_sqrt_s=(0.0,) * 6)
 WEARING = SpongeParams(
     surface_y_mm=0.6, surface_slope=0.02, waviness_mm=0.7, stiffness_n_per_mm=3.2,

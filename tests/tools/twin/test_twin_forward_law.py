@@ -1,4 +1,4 @@
-"""The twin's forward model and the emulated sponge are one law (issue 36, item 3).
+"""The twin's forward model and the emulated sponge are one law.
 
 The forward model reads :func:`~forcelearn.emulators.physics.sponge_law.contact_force_n`
 over arrays; the emulated :class:`Sponge` evaluates it one pose at a time with its state.

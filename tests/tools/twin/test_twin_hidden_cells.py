@@ -1,4 +1,4 @@
-"""The hidden-cell generator (issue 29): stated ranges, runnable configs, truth beside them."""
+"""The hidden-cell generator: stated ranges, runnable configs, truth beside them."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from forcelearn.emulators.physics.sponge import (
     surface_y_mm,
 )
 from forcelearn.site.config import load_cell_config
+from forcelearn.site.jr3_kind import sensor_model
 from forcelearn.tasks.surface import KGF_N
 from forcelearn.tools.twin.hidden_cells import (
     HiddenCellRanges,
@@ -100,7 +101,7 @@ def test_written_cells_load_as_run_configs_and_match_their_truth(tmp_path: Path)
         truth = json.loads(path.with_suffix(".truth.json").read_text())
         assert asdict(config.emulator.sponge) == truth["sponge"]
         assert config.emulator.arm.lag_s == truth["arm"]["lag_s"]
-        assert config.emulator.sensor.noise_std[:3] == (truth["sensor"]["noise_n"],) * 3
+        assert sensor_model(config).noise_std[:3] == (truth["sensor"]["noise_n"],) * 3
         assert config.task.desired_force_n == truth["task"]["desired_force_n"]
         assert config.safety.max_force_n > config.task.desired_force_n
         assert math.isclose(config.filter.measurement_variance_n2,

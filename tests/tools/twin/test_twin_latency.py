@@ -1,4 +1,4 @@
-"""In-position detection latency (issue 29): the recorded time is the first poll that saw it."""
+"""In-position detection latency: the recorded time is the first poll that saw it."""
 
 from __future__ import annotations
 

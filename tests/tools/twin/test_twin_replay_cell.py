@@ -1,4 +1,4 @@
-"""``forcelearn replay`` drives the twin's wire-level emulated cell (issue 29 item 4)."""
+"""``forcelearn replay`` drives the twin's wire-level emulated cell."""
 
 from __future__ import annotations
 

@@ -13,18 +13,29 @@ import contextlib
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from forcelearn.config import build
+from forcelearn.devices import Robot
 from forcelearn.drivers.computer_link import ComputerLinkRobot
-from forcelearn.drivers.computer_link.config import Limits, LinkConfig
+from forcelearn.drivers.computer_link.config import LinkConfig
+from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.clock import serial_char_time_s
+from forcelearn.emulators.computer_link.server import ComputerLinkEmulator
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
-from forcelearn.errors import LinkError, SafetyStop
-from forcelearn.protocols.computer_link import messages
-from forcelearn.site.config import EMULATED, EMULATED_LINK_TIMEOUT_S, CellConfig
-from forcelearn.site.kinds import FarEnd, FarEndOptions, Printer, RobotKind
+from forcelearn.errors import ConfigError, LinkError, SafetyStop
+from forcelearn.protocols.computer_link import framing, messages
+from forcelearn.site.config import EMULATED, EMULATED_LINK_TIMEOUT_S
+from forcelearn.site.kinds import (
+    CellView,
+    FarEnd,
+    FarEndOptions,
+    Polling,
+    Printer,
+    RobotConfig,
+    RobotKind,
+)
 
 ROBOT_LINK = "robot"
 """Name of the stable symlink to the robot's pty (``forcelearn emulate --link-dir``)."""
@@ -32,20 +43,27 @@ EMULATE_HINT = (" (for `forcelearn emulate`, name the stable links it prints, wh
                 "restarts, rather than the /dev/pts paths)")
 
 
-def link_char_time_s(config: CellConfig) -> float:
+def link_of(config: CellView) -> LinkConfig:
+    """``[robot]`` of a computer-link cell (``ConfigError`` for another kind)."""
+    if not isinstance(config.robot, LinkConfig):
+        raise ConfigError(f"the robot is a {type(config.robot).__name__}, not a computer link")
+    return config.robot
+
+
+def link_char_time_s(config: CellView) -> float:
     """Seconds per character of the emulated robot link (0 in the ideal profile)."""
     if config.emulator.ideal:
         return 0.0
-    robot = KIND.device_config_or_default(config)
+    robot = config.robot if isinstance(config.robot, LinkConfig) else KIND.default_config()
     return serial_char_time_s(robot.baudrate, robot.bytesize, robot.parity, robot.stopbits)
 
 
 class ComputerLinkFarEnd(FarEnd):
     """The robot-controller emulator on a pty (``emulate``) or in process (``run``)."""
 
-    def __init__(self, config: CellConfig, physics: CellPhysics, in_process: bool) -> None:
+    def __init__(self, config: CellView, physics: CellPhysics, in_process: bool) -> None:
         super().__init__()
-        self.emulator: RobotControllerEmulator = RobotControllerEmulator(
+        self.emulator: ComputerLinkEmulator = ComputerLinkEmulator(
             "inproc" if in_process else "pty",
             config=config.emulator.effective().arm,
             physics=physics,
@@ -53,9 +71,9 @@ class ComputerLinkFarEnd(FarEnd):
         )
         self.emulators = [self.emulator]
 
-    def state_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, object]:
         """The controller's motion and the link's wire timelines."""
-        state: dict[str, Any] = self.emulator.engine.state_dict()
+        state: dict[str, object] = self.emulator.engine.state_dict()
         return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -87,7 +105,7 @@ class ComputerLinkKind(RobotKind):
     config_type = LinkConfig
     emulated_key = "url"
 
-    def load(self, table: dict[str, Any], limits: Limits) -> LinkConfig:
+    def load(self, table: dict[str, object], limits: Limits) -> LinkConfig:
         """``url`` defaults to the emulator, whose timeouts default to EMULATED_LINK_TIMEOUT_S."""
         table = {"url": EMULATED, **table}
         if table["url"] == EMULATED:
@@ -95,42 +113,47 @@ class ComputerLinkKind(RobotKind):
                 table.setdefault(key, EMULATED_LINK_TIMEOUT_S)
         return replace(build(LinkConfig, table, "robot"), limits=limits)
 
-    def emulated(self, robot: LinkConfig) -> bool:
-        """``url = "emulated"``."""
-        return robot.url == EMULATED
+    def default_config(self) -> LinkConfig:
+        """The emulated link's config (what a cell of another robot kind would have)."""
+        return self.load({}, Limits())
 
-    def describe(self, config: CellConfig) -> str:
+    def emulated(self, robot: RobotConfig) -> bool:
+        """``url = "emulated"``."""
+        return isinstance(robot, LinkConfig) and robot.url == EMULATED
+
+    def describe(self, config: CellView) -> str:
         """Port and framing, or the emulator."""
         if config.robot_emulated:
             return "built-in robot-controller emulator on a pty"
-        robot = config.link
+        robot = link_of(config)
         return (f"port {robot.url} at {robot.baudrate} baud, {robot.bytesize}"
                 f"{robot.parity}{robot.stopbits:g}")
 
-    def location(self, config: CellConfig) -> str:
+    def location(self, config: CellView) -> str:
         """The port."""
-        return f"{self.label} {config.link.url}"
+        return f"{self.label} {link_of(config).url}"
 
-    def missing(self, config: CellConfig) -> list[str]:
+    def missing(self, config: CellView) -> list[str]:
         """The serial port, if it is a path that does not exist."""
-        url = config.link.url
+        url = link_of(config).url
         if config.robot_emulated or "://" in url or Path(url).exists():
             return []
         return [f"robot link: port {url} does not exist; check [robot] url and the cable"
                 + EMULATE_HINT]
 
     def far_end(
-        self, config: CellConfig, physics: CellPhysics, options: FarEndOptions
+        self, config: CellView, physics: CellPhysics, options: FarEndOptions
     ) -> ComputerLinkFarEnd:
         """The robot-controller emulator (``start()`` serves it)."""
         return ComputerLinkFarEnd(config, physics, options.in_process)
 
     def open(
-        self, config: CellConfig, far_end: FarEnd | None, stack: contextlib.ExitStack
+        self, config: CellView, far_end: FarEnd | None, stack: contextlib.ExitStack
     ) -> ComputerLinkRobot:
         """The driver on the configured port, or on the in-process emulator's URL."""
-        robot_config = config.link
+        robot_config = link_of(config)
         if far_end is not None:
+            assert isinstance(far_end, ComputerLinkFarEnd)
             robot_config = replace(robot_config, url=far_end.emulator.start())
         try:
             robot = ComputerLinkRobot(robot_config)
@@ -145,8 +168,9 @@ class ComputerLinkKind(RobotKind):
             far_end.driver = robot
         return robot
 
-    def check(self, robot: ComputerLinkRobot, say: Printer) -> Callable[[], None]:
+    def check(self, robot: Robot, say: Printer) -> Callable[[], None]:
         """Identify, pose, status; afterwards, fail if the move counter changed."""
+        robot = cast(ComputerLinkRobot, robot)  # the driver this kind opened
         major, minor = messages.PROTOCOL_VERSION
         say(f"  robot   controller {robot.controller_model!r}, computer link {major}.x "
             f"(this driver speaks {major}.{minor})")
@@ -168,9 +192,29 @@ class ComputerLinkKind(RobotKind):
 
         return unmoved
 
-    def calibration_name(self, robot: ComputerLinkRobot) -> str:
+    def calibration_name(self, robot: Robot) -> str:
         """The model the controller identifies as."""
+        robot = cast(ComputerLinkRobot, robot)
         return robot.controller_model
+
+    def polling(self, robot: RobotConfig, arm: ArmConfig) -> Polling:
+        """One READ_STATUS exchange at the line's character time.
+
+        The request, the reply after the controller's ``reply_latency_s`` (its
+        DLE ACK within it), the PC's DLE ACK; the controller stamps the poll when
+        the request has arrived.
+        """
+        if not isinstance(robot, LinkConfig):
+            raise ConfigError(f"a {type(robot).__name__} is not a computer link's config")
+        bits = 1 + robot.bytesize + (0 if robot.parity == "N" else 1) + robot.stopbits
+        char_s = bits / robot.baudrate
+        request = framing.encode(messages.encode_request(messages.Command.READ_STATUS, 1))
+        reply = framing.encode(messages.encode_reply(messages.Reply(
+            messages.Command.READ_STATUS, 1, messages.ErrorCode.OK,
+            body=messages.status_body(messages.Status(False, True, 0, 0, 0.0)))))
+        ack = len(framing.Control.ACK.wire)
+        unanswered = (len(request) + ack) * char_s
+        return Polling(unanswered + arm.reply_latency_s + len(reply) * char_s, unanswered)
 
 
 KIND = ComputerLinkKind()

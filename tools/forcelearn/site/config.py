@@ -31,12 +31,12 @@ table          holds
 ``[emulator]`` ``time_scale`` (0: as fast as possible; 1: real time), ``profile``
                ("realistic", or "ideal": no time on wires, instant arm, no
                relaxation, no adapter filter); physics of the emulated cell:
-               ``[emulator.sponge]``, ``[emulator.sensor]`` (the JR3's
-               :class:`SensorModelParams`, or with ``[sensor] kind = "netft"``
-               the Net F/T's :class:`NetFtModelParams`), ``[emulator.arm]``,
-               ``[emulator.egm]`` (EGM control lag: :class:`ServoParams`),
-               ``[emulator.tool]`` (the tool: :mod:`forcelearn.site.emulated_tool`)
-               (ignored on a real cell)
+               ``[emulator.sponge]``, ``[emulator.arm]``, ``[emulator.tool]`` (the
+               tool: :mod:`forcelearn.site.emulated_tool`); and each device
+               kind's model table (:attr:`~forcelearn.site.kinds.DeviceKind.emulator_table`):
+               ``[emulator.sensor]`` the sensor's (the JR3's ``Jr3ModelParams``,
+               the Net F/T's ``NetFtModelParams``), ``[emulator.egm]`` EGM's
+               control lag (``ServoParams``) (ignored on a real cell)
 ``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``; ``sensor_serial``:
                this sensor's serial (a file of another is refused)
 =============  ===============================================================
@@ -51,22 +51,17 @@ that key is emulated too, so an empty config is the emulated cell.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal, TypedDict
+from typing import Any, Literal
 
 from forcelearn.config import build, check_sections, read_run_table, read_toml
 from forcelearn.devices import Pose
-from forcelearn.drivers.computer_link.config import Limits, LinkConfig
-from forcelearn.drivers.egm.config import EgmConfig
-from forcelearn.drivers.jr3_can.config import Jr3Config
-from forcelearn.drivers.netft.config import NetFtConfig
-from forcelearn.emulators.egm.servo import ServoParams
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
-from forcelearn.emulators.netft.sensor_model import NetFtModelParams
+from forcelearn.drivers.limits import Limits
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.emulators.physics.tool import ToolParams
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
@@ -75,12 +70,16 @@ from forcelearn.site.emulated_tool import load_tool
 from forcelearn.site.kinds import (
     DEFAULT_ROBOT_KIND,
     DEFAULT_SENSOR_KIND,
-    ROBOT_KINDS,
+    CanBusKwargs,
+    DeviceKind,
+    RobotConfig,
     RobotKind,
+    SensorConfig,
     SensorKind,
-    kind_of,
     robot_kind,
+    robot_kind_of,
     sensor_kind,
+    sensor_kind_of,
 )
 from forcelearn.tasks.surface import SurfaceTaskSpec, check_task_limits
 from forcelearn.tasks.surface_probe import ProbeSpec
@@ -159,13 +158,6 @@ class SafetyLimits:
         Limits(self.workspace_min_mm, self.workspace_max_mm, self.max_step_mm)
 
 
-class CanBusKwargs(TypedDict, total=False):
-    """Extra keyword arguments of ``can.Bus`` that a ``[sensor]`` table may set."""
-
-    sleep_after_open: float
-    """python-can's slcan wait after opening the adapter, s."""
-
-
 @dataclass(frozen=True)
 class BusConfig:
     """Which python-can bus reaches the JR3 adapter."""
@@ -204,12 +196,12 @@ class EmulatorConfig:
     """Pace, time profile, physics and device models of the emulated cell."""
 
     sponge: SpongeParams = field(default_factory=SpongeParams)
-    sensor: SensorModelParams = field(default_factory=SensorModelParams)
     arm: ArmConfig = field(default_factory=ArmConfig)
-    netft: NetFtModelParams = field(default_factory=NetFtModelParams)
-    """The emulated Net F/T's model (``[emulator.sensor]`` when ``[sensor] kind = "netft"``)."""
-    egm: ServoParams = field(default_factory=ServoParams)
-    """EGM control lag (dead time) and servo time constant of the emulated controller."""
+    devices: Mapping[str, object] = field(default_factory=dict)
+    """Kind name -> the model its ``[emulator.*]`` table built (the JR3's
+    :class:`~forcelearn.emulators.jr3.sensor_model.Jr3ModelParams`, EGM's
+    :class:`~forcelearn.emulators.egm.servo.ServoParams`...); a kind absent takes its
+    defaults (:meth:`~forcelearn.site.kinds.DeviceKind.model`)."""
     tool: ToolParams = field(default_factory=ToolParams)
     """The tool on the sensor (``[emulator.tool]``, :mod:`forcelearn.site.emulated_tool`)."""
     time_scale: float = 0.0
@@ -233,30 +225,38 @@ class EmulatorConfig:
         return self.profile == "ideal"
 
     def effective(self) -> EmulatorConfig:
-        """The models with the profile applied (the ideal profile switches time off)."""
+        """The physics with the profile applied (the ideal profile switches time off).
+
+        A device's model takes the profile in its kind (the JR3's adapter filter).
+        """
         if not self.ideal:
             return self
         return replace(
             self,
             sponge=replace(self.sponge, relaxation_ratio=0.0),
-            sensor=replace(self.sensor, emulate_filter=False),
             arm=replace(self.arm, instant=True, reply_latency_s=0.0),
         )
+
+
+def _default_robot() -> RobotConfig:
+    """The emulated computer link (its defaults, with the emulator's link timeouts)."""
+    return robot_kind(DEFAULT_ROBOT_KIND).load({}, Limits())
+
+
+def _default_sensor() -> SensorConfig:
+    """The emulated JR3, zeroed on opening."""
+    return sensor_kind(DEFAULT_SENSOR_KIND).load({"zero_on_init": True})
 
 
 @dataclass(frozen=True)
 class CellConfig:
     """Everything ``forcelearn run`` and ``forcelearn check`` need."""
 
-    robot: LinkConfig | EgmConfig = field(
-        default_factory=lambda: LinkConfig(
-            url=EMULATED,
-            ack_timeout_s=EMULATED_LINK_TIMEOUT_S,
-            reply_timeout_s=EMULATED_LINK_TIMEOUT_S,
-        )
-    )
+    robot: RobotConfig = field(default_factory=_default_robot)
+    """The robot's config, of its kind's type (:data:`~forcelearn.site.kinds.ROBOT_KINDS`)."""
     bus: BusConfig = field(default_factory=BusConfig)
-    sensor: Jr3Config | NetFtConfig = field(default_factory=lambda: Jr3Config(zero_on_init=True))
+    sensor: SensorConfig = field(default_factory=_default_sensor)
+    """The sensor's config, of its kind's type (:data:`~forcelearn.site.kinds.SENSOR_KINDS`)."""
     filter: ForceFilterConfig = field(
         default_factory=lambda: ForceFilterConfig(axis=1, sign=-1.0, noise_cutoff_hz=125.0)
     )
@@ -295,46 +295,12 @@ class CellConfig:
     @property
     def robot_device(self) -> RobotKind:
         """The robot's entry of the kinds table."""
-        kind = kind_of("robot", self.robot)
-        if not isinstance(kind, RobotKind):  # pragma: no cover - kind_of reads ROBOT_KINDS
-            raise TypeError(f"{kind!r} is not a RobotKind")
-        return kind
+        return robot_kind_of(self.robot)
 
     @property
     def sensor_device(self) -> SensorKind:
         """The sensor's entry of the kinds table."""
-        kind = kind_of("sensor", self.sensor)
-        if not isinstance(kind, SensorKind):  # pragma: no cover - kind_of reads SENSOR_KINDS
-            raise TypeError(f"{kind!r} is not a SensorKind")
-        return kind
-
-    @property
-    def link(self) -> LinkConfig:
-        """``robot`` of a computer-link cell (``ConfigError`` for another kind)."""
-        if not isinstance(self.robot, LinkConfig):
-            raise ConfigError(f"the robot is of kind {self.robot_kind!r}, not computer_link")
-        return self.robot
-
-    @property
-    def egm(self) -> EgmConfig:
-        """``robot`` of an EGM cell (``ConfigError`` for another kind)."""
-        if not isinstance(self.robot, EgmConfig):
-            raise ConfigError(f"the robot is of kind {self.robot_kind!r}, not egm")
-        return self.robot
-
-    @property
-    def jr3(self) -> Jr3Config:
-        """``sensor`` of a JR3 cell (``ConfigError`` for another kind)."""
-        if not isinstance(self.sensor, Jr3Config):
-            raise ConfigError(f"the sensor is of kind {self.sensor_kind!r}, not jr3")
-        return self.sensor
-
-    @property
-    def netft(self) -> NetFtConfig:
-        """``sensor`` of a Net F/T cell (``ConfigError`` for another kind)."""
-        if not isinstance(self.sensor, NetFtConfig):
-            raise ConfigError(f"the sensor is of kind {self.sensor_kind!r}, not netft")
-        return self.sensor
+        return sensor_kind_of(self.sensor)
 
     @property
     def robot_emulated(self) -> bool:
@@ -363,13 +329,15 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
     data = read_toml(path) if path else {}
     check_sections(data, set(SECTIONS))
     safety = build(SafetyLimits, data.get("safety"), "safety")
-    robot = load_robot(dict(data.get("robot", {})), robot_limits(safety))
+    robot_table = dict(data.get("robot", {}))
+    robot_device = robot_kind(robot_table.pop("kind", DEFAULT_ROBOT_KIND))
+    robot = load_robot(robot_device, robot_table, robot_limits(safety))
     sensor_table = dict(data.get("sensor", {}))
     kind = sensor_kind(sensor_table.pop("kind", DEFAULT_SENSOR_KIND))  # ConfigError names them
     bus = load_bus(kind, sensor_table)
     sensor = load_sensor(kind, sensor_table, safety)
     safety = emulated_sensor_watchdog(safety, kind.emulated(sensor, bus), data.get("safety", {}))
-    sensor = replace(sensor, stale_timeout_s=safety.stale_sensor_s)
+    sensor = load_sensor(kind, sensor_table, safety)  # with the watchdog that applies
     task = build(SurfaceTaskSpec, data.get("task"), "task")
     check_task_limits(task, safety.max_force_n, safety.workspace_min_mm, safety.workspace_max_mm)
     stop_after, learner_start, trials, seed = load_run(dict(data.get("run", {})))
@@ -384,7 +352,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         learner=build(
             SRVParams, {**SECTION_LEARNER_DEFAULTS, **data.get("learner", {})}, "learner"
         ),
-        emulator=load_emulator(kind, dict(data.get("emulator", {}))),
+        emulator=load_emulator((robot_device, kind), dict(data.get("emulator", {}))),
         probe=build(ProbeSpec, data.get("probe"), "probe"),
         calibration_file=load_calibration_file(data.get("calibration", {}), path),
         sensor_serial=load_sensor_serial(data.get("calibration", {})),
@@ -399,12 +367,8 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
 # -- one builder per table ---------------------------------------------------------------
 
 
-def load_robot(table: dict[str, Any], limits: Limits) -> Any:
-    """``[robot]``: its kind's builder (:data:`~forcelearn.site.kinds.ROBOT_KINDS`)."""
-    name = table.pop("kind", DEFAULT_ROBOT_KIND)
-    if not isinstance(name, str) or name not in ROBOT_KINDS:  # an alias is a CLI spelling
-        raise ConfigError(f"robot.kind = {name!r}: one of {list(ROBOT_KINDS)}")
-    kind = robot_kind(name)
+def load_robot(kind: RobotKind, table: dict[str, Any], limits: Limits) -> RobotConfig:
+    """``[robot]`` (``kind`` removed): its kind's builder, with the limits of [safety]."""
     if "limits" in table:
         raise ConfigError("robot.limits: set the limits in [safety] (one place for all limits)")
     return kind.load(table, limits)
@@ -416,36 +380,52 @@ def load_bus(kind: SensorKind, table: dict[str, Any]) -> BusConfig:
     return BusConfig() if bus_table is None else build(BusConfig, bus_table, "sensor")
 
 
-def load_sensor(kind: SensorKind, table: dict[str, Any], safety: SafetyLimits) -> Any:
+def load_sensor(kind: SensorKind, table: dict[str, Any], safety: SafetyLimits) -> SensorConfig:
     """``[sensor]`` (bus keys removed): its kind's builder, with the watchdog of [safety]."""
     if "stale_timeout_s" in table:
         raise ConfigError("sensor.stale_timeout_s: set safety.stale_sensor_s instead")
-    table.setdefault("zero_on_init", True)
-    return kind.load({**table, "stale_timeout_s": safety.stale_sensor_s})
+    return kind.load({"zero_on_init": True, **table, "stale_timeout_s": safety.stale_sensor_s})
 
 
-def load_emulator(kind: SensorKind, table: dict[str, Any]) -> EmulatorConfig:
-    """``[emulator]``: pace, profile, physics; ``[emulator.sensor]`` is the sensor kind's model."""
-    check_sections(table, {"sponge", "sensor", "arm", "egm", "tool", "time_scale", "profile"})
+PHYSICS_TABLES = ("sponge", "arm", "tool")
+"""``[emulator.*]`` tables of the cell's physics, which every kind shares."""
+
+
+def load_emulator(kinds: tuple[DeviceKind, ...], table: dict[str, Any]) -> EmulatorConfig:
+    """``[emulator]``: pace, profile, physics, and each device kind's model table.
+
+    The cell's robot and sensor kinds own their tables (``[emulator.sensor]``
+    the sensor's model, ``[emulator.egm]`` EGM's servo...:
+    :attr:`~forcelearn.site.kinds.DeviceKind.emulator_table`); ``kinds[-1]`` is
+    the sensor's, whose model bounds ``[emulator.tool]``.
+    """
+    owners = {kind.emulator_table: kind for kind in kinds if kind.emulator_table is not None}
+    for name in table:
+        if isinstance(table[name], dict) and name not in PHYSICS_TABLES and name not in owners:
+            raise ConfigError(
+                f"emulator.{name}: no device of this cell takes it (physics tables: "
+                f"{list(PHYSICS_TABLES)}; this cell's devices: {sorted(owners) or 'none'})"
+            )
+    check_sections(table, {*PHYSICS_TABLES, *owners, "time_scale", "profile"})
     pace: dict[str, Any] = {k: table.pop(k) for k in ("time_scale", "profile") if k in table}
-    models: dict[str, Any] = {}
-    if "sensor" in table:
-        if kind.model_field is None or kind.model_type is None:
-            raise ConfigError(f"emulator.sensor: the {kind.label} emulator takes no model table")
-        models[kind.model_field] = build(kind.model_type, table["sensor"], "emulator.sensor")
+    devices: dict[str, object] = {}
+    for name, kind in owners.items():
+        if kind.model_type is not None:
+            devices[kind.name] = build(kind.model_type, table.get(name), f"emulator.{name}")
+        elif name in table:
+            raise ConfigError(f"emulator.{name}: the {kind.label} emulator takes no model table")
     emulator = build(
         EmulatorConfig,
         {
             **pace,
             "sponge": build(SpongeParams, table.get("sponge"), "emulator.sponge"),
             "arm": build(ArmConfig, _with_home_pose(table.get("arm")), "emulator.arm"),
-            "egm": build(ServoParams, table.get("egm"), "emulator.egm"),
-            **models,
+            "devices": devices,
         },
         "emulator",
     )
-    # [emulator.tool], checked against the range of this kind's sensor model
-    model = getattr(emulator, kind.model_field or "sensor")
+    # [emulator.tool], checked against the range of the sensor kind's model
+    model: Any = kinds[-1].model(emulator)
     return replace(emulator, tool=load_tool(table.get("tool"), model))
 
 
@@ -504,7 +484,7 @@ def emulated_sensor_watchdog(
     return safety
 
 
-def filter_table(kind: SensorKind, sensor: Any, table: dict[str, Any]) -> dict[str, Any]:
+def filter_table(kind: SensorKind, sensor: SensorConfig, table: dict[str, Any]) -> dict[str, Any]:
     """``[filter]`` over its defaults: the normal force is -Fy, and the sensor's own.
 
     The sensor kind adds what follows from the device (the JR3 adapter's

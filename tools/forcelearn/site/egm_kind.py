@@ -7,23 +7,27 @@ which drives the cell's shared arm
 (:class:`~forcelearn.emulators.egm.PhysicsMotion`), so the sponge and the
 sensor see the arm EGM moves. In this process the controller is
 :class:`~forcelearn.emulators.egm.InProcessEgmController` (the same bytes with
-no UDP hand-over per 4 ms cycle), or with ``egm_route="udp"`` the UDP
+no UDP hand-over per 4 ms cycle), or with the route ``EgmRoute("udp")``
+(``CellSession(config, routes={"egm": EgmRoute("udp")})``) the UDP
 emulator's thread toward the driver's loopback port; for ``forcelearn
-emulate`` it sends from 127.0.0.1 to the PC's ``--egm-port``, repeating its
-waiting cycle until a driver answers, so one client may follow another.
+emulate`` it sends from 127.0.0.1 to the PC's ``--egm-port`` (this kind's
+option), repeating its waiting cycle until a driver answers, so one client may
+follow another.
 """
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import socket
 from collections.abc import Callable
-from dataclasses import fields, replace
-from typing import Any
+from dataclasses import dataclass, fields, replace
+from typing import Any, Literal, cast
 
 from forcelearn.config import build
-from forcelearn.drivers.computer_link.config import Limits
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver, open_egm_robot
+from forcelearn.devices import Robot
+from forcelearn.drivers.egm import EgmConfig, EgmRobot, open_egm_robot
+from forcelearn.drivers.limits import Limits
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
     EgmControllerEmulator,
@@ -33,17 +37,61 @@ from forcelearn.emulators.egm import (
     egm_motion_params,
     start_emulated_egm,
 )
+from forcelearn.emulators.egm.servo import ServoParams
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.arm_motion import ArmMotion
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.errors import SafetyStop
-from forcelearn.site.config import EMULATED, CellConfig
-from forcelearn.site.kinds import FarEnd, FarEndOptions, Printer, RobotKind
+from forcelearn.errors import ConfigError, SafetyStop
+from forcelearn.site.config import EMULATED
+from forcelearn.site.kinds import (
+    CellView,
+    FarEnd,
+    FarEndOptions,
+    Polling,
+    Printer,
+    RobotConfig,
+    RobotKind,
+)
 
 EMULATED_EGM_WATCHDOG_S = 5.0
 """Watchdog of the emulated EGM link, s (wall time: the emulator is a thread of a loaded host)."""
 EMULATED_EGM_FIRST_MESSAGE_S = 10.0
 """How long the emulated cell waits for the EGM emulator's first cycle, s (wall time)."""
 EGM_ROUTES = ("in_process", "udp")
+
+
+@dataclass(frozen=True)
+class EgmRoute:
+    """How the emulated EGM controller reaches the driver (this kind's route options).
+
+    Attributes:
+        route: in process (``run``): ``"in_process"`` (the driver takes the
+            controller's socket-like end) or ``"udp"`` (loopback datagrams).
+        port: ``forcelearn emulate``: the PC's UDP port the controller sends to
+            (0: a free one).
+    """
+
+    route: Literal["in_process", "udp"] = "in_process"
+    port: int = 0
+
+    def __post_init__(self) -> None:
+        if self.route not in EGM_ROUTES:
+            raise ValueError(f"EGM route must be one of {EGM_ROUTES}, got {self.route!r}")
+
+
+def egm_of(config: CellView) -> EgmConfig:
+    """``[robot]`` of an EGM cell (``ConfigError`` for another kind)."""
+    if not isinstance(config.robot, EgmConfig):
+        raise ConfigError(f"the robot is a {type(config.robot).__name__}, not EGM")
+    return config.robot
+
+
+def servo_of(config: CellView) -> ServoParams:
+    """``[emulator.egm]``: the emulated controller's control lag and servo."""
+    servo = KIND.model(config.emulator)
+    if not isinstance(servo, ServoParams):
+        raise ConfigError(f"emulator.egm holds a {type(servo).__name__}, not ServoParams")
+    return servo
 
 
 def free_udp_port() -> int:
@@ -53,24 +101,24 @@ def free_udp_port() -> int:
         return int(probe.getsockname()[1])
 
 
-def egm_arm(config: CellConfig, physics: CellPhysics) -> ArmMotion:
+def egm_arm(config: CellView, physics: CellPhysics) -> ArmMotion:
     """Attach (once) and return the shared arm moved by EGM: the cell's arm with EGM's servo."""
     if physics.motion is None:
         arm = config.emulator.effective().arm
-        params = egm_motion_params(arm.motion_params(), config.emulator.egm, arm.max_speed_mm_s)
+        params = egm_motion_params(arm.motion_params(), servo_of(config), arm.max_speed_mm_s)
         physics.attach_motion(ArmMotion(params, arm.home))
     assert physics.motion is not None
     return physics.motion
 
 
-def controller_config(config: CellConfig) -> EgmControllerConfig:
+def controller_config(config: CellView) -> EgmControllerConfig:
     """The emulated controller: the config's RobotWare and cycle, the cell's arm and servo."""
-    robot = KIND.device_config_or_default(config)
+    robot = config.robot if isinstance(config.robot, EgmConfig) else KIND.default_config()
     arm = config.emulator.effective().arm
     return EgmControllerConfig(
         version=robot.version,
         sample_period_s=robot.sample_period_s,
-        servo=config.emulator.egm,
+        servo=servo_of(config),
         workspace_min_mm=arm.workspace_min_mm,
         workspace_max_mm=arm.workspace_max_mm,
         max_speed_mm_s=arm.max_speed_mm_s,
@@ -85,15 +133,16 @@ class EgmFarEnd(FarEnd):
     bound its port (:meth:`connect`).
     """
 
-    def __init__(self, config: CellConfig, physics: CellPhysics, options: FarEndOptions) -> None:
+    def __init__(self, config: CellView, physics: CellPhysics, options: FarEndOptions) -> None:
         super().__init__()
-        if options.egm_route not in EGM_ROUTES:
-            raise ValueError(f"egm_route must be one of {EGM_ROUTES}, got {options.egm_route!r}")
+        route = options.routes.get(KIND.name, EgmRoute())
+        if not isinstance(route, EgmRoute):
+            raise TypeError(f"the EGM kind's route options are an EgmRoute, not {route!r}")
         egm_arm(config, physics)
         self.physics = physics
         self.controller = controller_config(config)
         self.version = self.controller.version
-        self.route = options.egm_route if options.in_process else "served"
+        self.route = route.route if options.in_process else "served"
         self.pc_port = 0
         """The PC's UDP port the controller sends to (``emulate``)."""
         self.emulator: EgmEmulatorBase | None = None
@@ -103,7 +152,7 @@ class EgmFarEnd(FarEnd):
                 motion=PhysicsMotion(physics),
             ))
         elif self.route == "served":
-            self.pc_port = options.egm_port or free_udp_port()
+            self.pc_port = route.port or free_udp_port()
             self._add(EgmControllerEmulator(
                 self.pc_port, physics=physics, clock=physics.clock, config=self.controller,
                 motion=PhysicsMotion(physics), lockstep=True,
@@ -120,11 +169,11 @@ class EgmFarEnd(FarEnd):
             motion=PhysicsMotion(self.physics),
         ))
 
-    def state_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, object]:
         """The controller's cycle state and, in a session, the driver's."""
         assert self.emulator is not None
-        state = {"controller": self.emulator.state_dict()}
-        if self.driver is not None:
+        state: dict[str, object] = {"controller": self.emulator.state_dict()}
+        if isinstance(self.driver, EgmRobot):
             state["driver"] = self.driver.state_dict()
         return state
 
@@ -132,7 +181,7 @@ class EgmFarEnd(FarEnd):
         """Restore :meth:`state_dict` (while the controller waits for the PC's answer)."""
         assert self.emulator is not None
         self.emulator.load_state_dict(state["controller"])
-        if self.driver is not None and "driver" in state:
+        if isinstance(self.driver, EgmRobot) and "driver" in state:
             self.driver.load_state_dict(state["driver"])
 
     def describe(self, paths: dict[str, str]) -> str:
@@ -165,8 +214,10 @@ class EgmKind(RobotKind):
     name = "egm"
     label = "EGM"
     config_type = EgmConfig
+    emulator_table = "egm"
+    model_type = ServoParams
 
-    def load(self, table: dict[str, Any], limits: Limits) -> EgmConfig:
+    def load(self, table: dict[str, object], limits: Limits) -> EgmConfig:
         """``host`` defaults to the emulator; ``max_speed_mm_s`` joins [safety]'s limits."""
         table.setdefault("host", EMULATED)
         if "max_speed_mm_s" in table:  # EGM's ramp-speed ceiling is a robot key
@@ -175,33 +226,48 @@ class EgmKind(RobotKind):
                            "robot")
         return build(EgmConfig, {**table, "limits": limits}, "robot")
 
-    def emulated(self, robot: EgmConfig) -> bool:
-        """``host = "emulated"``."""
-        return robot.host == EMULATED
+    def default_config(self) -> EgmConfig:
+        """The emulated EGM config (what a cell of another robot kind would have)."""
+        return self.load({}, Limits())
 
-    def describe(self, config: CellConfig) -> str:
+    def emulated(self, robot: RobotConfig) -> bool:
+        """``host = "emulated"``."""
+        return isinstance(robot, EgmConfig) and robot.host == EMULATED
+
+    def describe(self, config: CellView) -> str:
         """The address the driver listens on, or the emulator."""
         if config.robot_emulated:
             return "built-in EGM controller emulator on loopback UDP (lockstep)"
-        robot = config.egm
+        robot = egm_of(config)
         return (f"EGM {robot.version}: listening on UDP {robot.host}:{robot.port} for the "
                 "controller (start the ForcelearnEGM RAPID program)")
 
-    def location(self, config: CellConfig) -> str:
+    def location(self, config: CellView) -> str:
         """The port the driver listens on."""
-        return f"{self.label} {config.egm.port}"
+        return f"{self.label} {egm_of(config).port}"
 
     def far_end(
-        self, config: CellConfig, physics: CellPhysics, options: FarEndOptions
+        self, config: CellView, physics: CellPhysics, options: FarEndOptions
     ) -> EgmFarEnd:
         """The EGM controller emulator on the cell's shared arm."""
         return EgmFarEnd(config, physics, options)
 
+    def add_emulate_arguments(self, parser: argparse.ArgumentParser) -> None:
+        """``--egm-port``: the PC's UDP port the emulated controller sends to."""
+        parser.add_argument(
+            "--egm-port", type=int, default=0,
+            help="the PC's UDP port the EGM controller sends to (default: a free one)",
+        )
+
+    def route_from_arguments(self, arguments: argparse.Namespace) -> EgmRoute:
+        """The ``--egm-port`` given."""
+        return EgmRoute(port=int(getattr(arguments, "egm_port", 0) or 0))
+
     def open(
-        self, config: CellConfig, far_end: FarEnd | None, stack: contextlib.ExitStack
-    ) -> EgmRobotDriver:
+        self, config: CellView, far_end: FarEnd | None, stack: contextlib.ExitStack
+    ) -> EgmRobot:
         """The driver: on the real controller, or in lockstep with the emulator."""
-        robot = config.egm
+        robot = egm_of(config)
         if far_end is None:
             driver = open_egm_robot(robot)
             stack.callback(driver.close)
@@ -218,9 +284,9 @@ class EgmKind(RobotKind):
             first_message_timeout_s=EMULATED_EGM_FIRST_MESSAGE_S,
         )
         if isinstance(far_end.emulator, InProcessEgmController):
-            driver = EgmRobotDriver(driver_config, sock=far_end.emulator.socket())
+            driver = EgmRobot(driver_config, sock=far_end.emulator.socket())
         else:
-            driver = EgmRobotDriver(driver_config)
+            driver = EgmRobot(driver_config)
         stack.callback(driver.close)  # closed before its controller: its last answer goes out
         far_end.driver = driver
         if far_end.emulator is None:
@@ -228,8 +294,9 @@ class EgmKind(RobotKind):
         driver.wait_for_session()
         return driver
 
-    def check(self, robot: EgmRobotDriver, say: Printer) -> Callable[[], None]:
+    def check(self, robot: Robot, say: Printer) -> Callable[[], None]:
         """The session as it holds; afterwards, fail if the target ever moved."""
+        robot = cast(EgmRobot, robot)  # the driver this kind opened
         config = robot.config
         pose = robot.read_pose()
         status = robot.read_status()
@@ -262,9 +329,17 @@ class EgmKind(RobotKind):
 
         return unmoved
 
-    def calibration_name(self, robot: EgmRobotDriver) -> str:
+    def calibration_name(self, robot: Robot) -> str:
         """"ABB EGM" and the RobotWare of the session."""
+        robot = cast(EgmRobot, robot)
         return f"ABB EGM {robot.config.version}"
+
+    def polling(self, robot: RobotConfig, arm: ArmConfig) -> Polling:
+        """Every feedback message: the sample period, each message stamped when it is sent."""
+        if not isinstance(robot, EgmConfig):
+            raise ConfigError(f"a {type(robot).__name__} is not an EGM config")
+        period = float(robot.sample_period_s)
+        return Polling(period, period)
 
 
 KIND = EgmKind()

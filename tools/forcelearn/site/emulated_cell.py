@@ -32,7 +32,7 @@ import contextlib
 import copy
 import logging
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -83,8 +83,8 @@ class EmulatedCell:
             client session; the JR3's slcan adapter reports it) the whole cell
             returns to its state at start. Default False: like a real cell, the
             emulator remembers wear.
-        egm_port: ``emulate`` only: the PC's UDP port the EGM controller sends to.
-        egm_route: in-process EGM only: ``"in_process"`` or ``"udp"``.
+        routes: kind name -> that kind's own route options (e.g. ``{"egm":
+            EgmRoute(port=6510)}``: :class:`~forcelearn.site.egm_kind.EgmRoute`).
     """
 
     def __init__(
@@ -97,15 +97,14 @@ class EmulatedCell:
         in_process: bool = False,
         link_dir: Path | None = None,
         fresh_per_connection: bool = False,
-        egm_port: int = 0,
-        egm_route: str = "in_process",
+        routes: Mapping[str, object] | None = None,
     ) -> None:
         self.config = config
         self.link_dir = link_dir
         self.fresh_per_connection = fresh_per_connection
         self.sessions = 0
         """Client sessions seen (opens of a device that reports them)."""
-        options = FarEndOptions(in_process, seed, egm_route, egm_port)
+        options = FarEndOptions(in_process, seed, dict(routes or {}))
         kinds: list[DeviceKind | None] = [
             _pick(robot, config.robot_kind, config.robot_emulated, in_process, robot_kind),
             _pick(sensor, config.sensor_kind, config.sensor_emulated, in_process, sensor_kind),

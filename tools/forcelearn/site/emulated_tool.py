@@ -29,7 +29,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from forcelearn.devices import STANDARD_GRAVITY_M_S2
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
 from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import ConfigError
@@ -42,7 +42,7 @@ JR3_READABLE = 2.0
 """A JR3 counts to twice its full scale (int16 at 16384 counts per full scale)."""
 
 
-def readable_range(model: SensorModelParams | NetFtModelParams) -> np.ndarray:
+def readable_range(model: Jr3ModelParams | NetFtModelParams) -> np.ndarray:
     """What the emulated sensor can read per axis before it saturates (N, N*m)."""
     if isinstance(model, NetFtModelParams):
         return np.asarray(model.ranges, dtype=float) * model.saturation_fraction
@@ -73,7 +73,7 @@ def _vector(table: dict[str, Any], key: str, size: int) -> tuple[float, ...] | N
 
 
 def load_tool(table: dict[str, Any] | None,
-              model: SensorModelParams | NetFtModelParams) -> ToolParams:
+              model: Jr3ModelParams | NetFtModelParams) -> ToolParams:
     """Build the emulated tool from ``[emulator.tool]``; ConfigError names the key."""
     if table is None:
         return ToolParams()

@@ -14,8 +14,9 @@ from __future__ import annotations
 import contextlib
 import logging
 import time
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import can
 import numpy as np
@@ -23,18 +24,27 @@ from can.interfaces.slcan import slcanBus
 
 from forcelearn.calibration import SensorInfo
 from forcelearn.config import build
-from forcelearn.devices import AXES, WrenchSample
+from forcelearn.devices import AXES, ForceSensor, WrenchSample
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators import registry
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.slcan import SlcanAdapterEmulator
-from forcelearn.errors import CalibrationError, ForcelearnError, SensorBusError
+from forcelearn.errors import CalibrationError, ConfigError, ForcelearnError, SensorBusError
 from forcelearn.protocols.jr3_can.opcodes import CounterMeaning
-from forcelearn.site.config import EMULATED, BusConfig, CellConfig
-from forcelearn.site.kinds import FarEnd, FarEndOptions, Printer, SensorKind, jsonable
+from forcelearn.site.config import EMULATED
+from forcelearn.site.kinds import (
+    BusView,
+    CellView,
+    FarEnd,
+    FarEndOptions,
+    Printer,
+    SensorConfig,
+    SensorKind,
+    jsonable,
+)
 
 log = logging.getLogger(__name__)
 
@@ -51,24 +61,41 @@ EMULATE_HINT = (" (for `forcelearn emulate`, name the stable links it prints, wh
                 "restarts, rather than the /dev/pts paths)")
 
 
-def private_channel(config: CellConfig) -> str:
+def private_channel(config: CellView) -> str:
     """A CAN channel name (``virtual`` or ``forcelearn-jr3``) no other cell in this process uses."""
     return registry.new_name(config.bus.channel)
+
+
+def jr3_of(config: CellView) -> Jr3Config:
+    """``[sensor]`` of a JR3 cell (``ConfigError`` for another kind)."""
+    if not isinstance(config.sensor, Jr3Config):
+        raise ConfigError(f"the sensor is a {type(config.sensor).__name__}, not a JR3")
+    return config.sensor
+
+
+def sensor_model(config: CellView) -> Jr3ModelParams:
+    """``[emulator.sensor]`` of a JR3 cell, with the profile (ideal: no adapter filter)."""
+    model = KIND.model(config.emulator)
+    if not isinstance(model, Jr3ModelParams):
+        raise ConfigError(f"emulator.sensor holds a {type(model).__name__}, not the JR3's "
+                          "Jr3ModelParams")
+    return replace(model, emulate_filter=False) if config.emulator.ideal else model
 
 
 class Jr3FarEnd(FarEnd):
     """The JR3 emulator: in process under python-can (``run``), or behind an slcan pty."""
 
-    def __init__(self, config: CellConfig, physics: CellPhysics, options: FarEndOptions) -> None:
+    def __init__(self, config: CellView, physics: CellPhysics, options: FarEndOptions) -> None:
         super().__init__()
         self.channel = private_channel(config)
-        self.node_id = KIND.device_config_or_default(config).node_id
+        sensor = config.sensor if isinstance(config.sensor, Jr3Config) else Jr3Config()
+        self.node_id = sensor.node_id
         self.bitrate = config.bus.bitrate
         self.emulator: Jr3EmulatorNode = Jr3EmulatorNode(
             physics,
             channel=self.channel,
             node_id=self.node_id,
-            model=config.emulator.effective().sensor,
+            model=sensor_model(config),
             seed=options.seed,
             bitrate=None if config.emulator.ideal else config.bus.bitrate,
             in_process=options.in_process,
@@ -84,10 +111,9 @@ class Jr3FarEnd(FarEnd):
         if self.on_session is not None:
             self.on_session()
 
-    def state_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, object]:
         """Noise generator, filter state, bias, offsets, frame counter, bus timeline."""
-        state: dict[str, Any] = jsonable(self.emulator.state_dict())
-        return state
+        return jsonable(self.emulator.state_dict())
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`."""
@@ -127,42 +153,42 @@ class Jr3Kind(SensorKind):
     config_type = Jr3Config
     emulated_key = "interface"
     learner_keys = ("mode", "cutoff_hz", "period_us", "full_scales")
-    model_field = "sensor"
-    model_type = SensorModelParams
+    model_type = Jr3ModelParams
 
-    def take_bus(self, table: dict[str, Any]) -> dict[str, Any]:
+    def take_bus(self, table: dict[str, object]) -> dict[str, object]:
         """The CAN bus keys (``interface = "emulated"`` by default)."""
         return {key: table.pop(key) for key in BUS_KEYS if key in table}
 
-    def load(self, table: dict[str, Any]) -> Jr3Config:
+    def load(self, table: dict[str, object]) -> Jr3Config:
         """The adapter's keys."""
         return build(Jr3Config, table, "sensor")
 
-    def emulated(self, sensor: Jr3Config, bus: BusConfig) -> bool:
+    def emulated(self, sensor: SensorConfig, bus: BusView) -> bool:
         """``interface = "emulated"``."""
         return bus.interface == EMULATED
 
-    def filter_defaults(self, sensor: Jr3Config) -> dict[str, Any]:
+    def filter_defaults(self, sensor: SensorConfig) -> dict[str, object]:
         """The adapter's low-pass colours the noise: the filter's noise band is its cut-off."""
+        sensor = cast(Jr3Config, sensor)  # the config this kind loaded
         return {"noise_cutoff_hz": sensor.cutoff_hz}
 
-    def describe(self, config: CellConfig) -> str:
+    def describe(self, config: CellView) -> str:
         """Interface, channel, bit rate and node, or the emulator."""
         bus = config.bus
         if config.sensor_emulated:
             return "built-in JR3 emulator on a virtual CAN bus"
         described = (f"CAN interface {bus.interface}, channel {bus.channel}, {bus.bitrate} "
-                     f"bit/s, JR3 node {config.jr3.node_id}")
+                     f"bit/s, JR3 node {jr3_of(config).node_id}")
         if bus.interface == "slcan" and bus.sleep_after_open_s is None:
             described += ("\n          (python-can's slcan waits 2 s after every open; set "
                           "[sensor] sleep_after_open_s = 0 if your adapter needs no settle time)")
         return described
 
-    def location(self, config: CellConfig) -> str:
+    def location(self, config: CellView) -> str:
         """Interface and channel."""
         return f"{self.label} on {config.bus.interface}:{config.bus.channel}"
 
-    def missing(self, config: CellConfig) -> list[str]:
+    def missing(self, config: CellView) -> list[str]:
         """The slcan adapter's serial port, if it is a path that does not exist."""
         channel = config.bus.channel
         if config.bus.interface != "slcan" or "://" in channel or Path(channel).exists():
@@ -171,26 +197,26 @@ class Jr3Kind(SensorKind):
                 "[sensor] and that the USB-CAN adapter is plugged in" + EMULATE_HINT]
 
     def far_end(
-        self, config: CellConfig, physics: CellPhysics, options: FarEndOptions
+        self, config: CellView, physics: CellPhysics, options: FarEndOptions
     ) -> Jr3FarEnd:
         """The JR3 emulator (and, for ``emulate``, its slcan adapter)."""
         return Jr3FarEnd(config, physics, options)
 
     def open(
-        self, config: CellConfig, far_end: FarEnd | None, stack: contextlib.ExitStack
+        self, config: CellView, far_end: FarEnd | None, stack: contextlib.ExitStack
     ) -> Jr3CanSensor:
         """The CAN bus (the emulator's or the adapter's), then the JR3 driver, initialised."""
         bus = self._open_bus(config, far_end)
         stack.callback(bus.shutdown)
         if far_end is None and config.bus.interface == "slcan":  # a real slcanBus
             _slcan_barrier(bus, config.bus.channel)
-        sensor = Jr3CanSensor(bus, config.jr3)
+        sensor = Jr3CanSensor(bus, jr3_of(config))
         stack.callback(sensor.close)
         try:
             sensor.initialise()
         except ForcelearnError as exc:  # keeps its type and attributes
             exc.add_note(
-                f"check [sensor] node_id ({config.jr3.node_id}), the bus bitrate and "
+                f"check [sensor] node_id ({jr3_of(config).node_id}), the bus bitrate and "
                 "that the JR3 adapter is powered"
             )
             raise
@@ -199,7 +225,7 @@ class Jr3Kind(SensorKind):
         return sensor
 
     @staticmethod
-    def _open_bus(config: CellConfig, far_end: FarEnd | None) -> can.BusABC:
+    def _open_bus(config: CellView, far_end: FarEnd | None) -> can.BusABC:
         if far_end is not None:
             assert isinstance(far_end, Jr3FarEnd)
             return can.Bus(interface="forcelearn-jr3", channel=far_end.channel)
@@ -215,10 +241,11 @@ class Jr3Kind(SensorKind):
                 "slcan/<serial port>)"
             ) from exc
 
-    def check(self, sensor: Jr3CanSensor, config: CellConfig, seconds: float,
+    def check(self, sensor: ForceSensor, config: CellView, seconds: float,
               say: Printer) -> None:
         """Mode, cut-off, full scales; samples, losses, mean and noise per axis."""
-        cfg = config.jr3
+        sensor = cast(Jr3CanSensor, sensor)  # the driver this kind opened
+        cfg = jr3_of(config)
         scales = sensor.full_scales
         say(f"  sensor  JR3 node {cfg.node_id} initialised: {cfg.mode} mode, cut-off "
             f"{sensor.cutoff_hz:g} Hz, offsets {'zeroed' if cfg.zero_on_init else 'as stored'}")
@@ -248,16 +275,17 @@ class Jr3Kind(SensorKind):
             state = "found" if config.calibration_file.is_file() else "MISSING"
             say(f"  sensor  calibration file {config.calibration_file}: {state}")
 
-    def calibration_info(self, config: CellConfig, sensor: Jr3CanSensor, robot_name: str,
+    def calibration_info(self, config: CellView, sensor: ForceSensor, robot_name: str,
                          model: str | None, serial: str) -> SensorInfo:
         """Node, full scales and cut-off as the adapter reports them."""
+        sensor = cast(Jr3CanSensor, sensor)  # the driver this kind opened
         if sensor.full_scales is None:  # pragma: no cover
             raise CalibrationError("the JR3 did not report its full scales")
         return SensorInfo(
             model=model if model is not None else (
                 "JR3 (forcelearn emulator)" if config.sensor_emulated else ""),
             serial=serial,
-            node_id=config.jr3.node_id,
+            node_id=jr3_of(config).node_id,
             full_scales=tuple(float(v) for v in sensor.full_scales),
             cutoff_hz=sensor.cutoff_hz,
             robot=robot_name,

@@ -13,20 +13,29 @@ import contextlib
 import logging
 import time
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from forcelearn.calibration import SensorInfo
 from forcelearn.config import build
-from forcelearn.devices import AXES
+from forcelearn.devices import AXES, ForceSensor
 from forcelearn.drivers.netft import NetFtConfig, NetFtSensor
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
 from forcelearn.emulators.netft.server import MAX_RDT_RATE_HZ, NetFtEmulator
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import ConfigError, ForcelearnError
-from forcelearn.site.config import EMULATED, BusConfig, CellConfig
-from forcelearn.site.kinds import FarEnd, FarEndOptions, Printer, SensorKind, jsonable
+from forcelearn.site.config import EMULATED
+from forcelearn.site.kinds import (
+    BusView,
+    CellView,
+    FarEnd,
+    FarEndOptions,
+    Printer,
+    SensorConfig,
+    SensorKind,
+    jsonable,
+)
 
 log = logging.getLogger(__name__)
 
@@ -39,13 +48,29 @@ BATCH = 64
 """Records per read_many call while checking (one burst request)."""
 
 
+def netft_of(config: CellView) -> NetFtConfig:
+    """``[sensor]`` of a Net F/T cell (``ConfigError`` for another kind)."""
+    if not isinstance(config.sensor, NetFtConfig):
+        raise ConfigError(f"the sensor is a {type(config.sensor).__name__}, not a Net F/T")
+    return config.sensor
+
+
+def box_model(config: CellView) -> NetFtModelParams:
+    """``[emulator.sensor]`` of a Net F/T cell: the emulated box's model."""
+    model = KIND.model(config.emulator)
+    if not isinstance(model, NetFtModelParams):
+        raise ConfigError(f"emulator.sensor holds a {type(model).__name__}, not the Net F/T's "
+                          "NetFtModelParams")
+    return model
+
+
 class NetFtFarEnd(FarEnd):
     """The Net F/T box emulator on loopback."""
 
-    def __init__(self, config: CellConfig, physics: CellPhysics, options: FarEndOptions) -> None:
+    def __init__(self, config: CellView, physics: CellPhysics, options: FarEndOptions) -> None:
         super().__init__()
-        sensor = KIND.device_config_or_default(config)
-        settings: dict[str, Any] = {"model": config.emulator.netft}
+        sensor = config.sensor if isinstance(config.sensor, NetFtConfig) else NetFtConfig()
+        settings: dict[str, Any] = {"model": box_model(config)}
         if options.in_process:  # free ports; ``emulate`` takes the box's own where free
             settings |= {"rdt_port": 0, "tcp_port": 0}
             if sensor.rdt_rate_hz is not None:
@@ -60,14 +85,13 @@ class NetFtFarEnd(FarEnd):
         )
         self.emulators = [self.emulator]
 
-    def state_dict(self) -> dict[str, Any]:
+    def state_dict(self) -> dict[str, object]:
         """The box's state (bias, noise generator, record counter)."""
-        state: dict[str, Any] = jsonable(self.emulator.state_dict())
-        return state
+        return jsonable(self.emulator.state_dict())
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict` after the driver's requests took effect."""
-        if self.driver is not None:
+        if isinstance(self.driver, NetFtSensor):
             # What the driver sent while initialising (set bias needs no answer) takes
             # effect before the checkpoint's state, never after it.
             sent = self.driver.stats.requests
@@ -131,45 +155,45 @@ class NetFtKind(SensorKind):
     label = "Net F/T"
     config_type = NetFtConfig
     learner_keys = ("rdt_rate_hz",)
-    model_field = "netft"
     model_type = NetFtModelParams
 
-    def load(self, table: dict[str, Any]) -> NetFtConfig:
+    def load(self, table: dict[str, object]) -> NetFtConfig:
         """The box's keys; ``host`` defaults to the emulator."""
         return build(NetFtConfig, {"host": EMULATED, **table}, "sensor")
 
-    def emulated(self, sensor: NetFtConfig, bus: BusConfig) -> bool:
+    def emulated(self, sensor: SensorConfig, bus: BusView) -> bool:
         """``host = "emulated"``."""
-        return sensor.host == EMULATED
+        return isinstance(sensor, NetFtConfig) and sensor.host == EMULATED
 
-    def filter_defaults(self, sensor: NetFtConfig) -> dict[str, Any]:
+    def filter_defaults(self, sensor: SensorConfig) -> dict[str, object]:
         """White noise (no adapter filter); one sample per RDT record."""
+        sensor = cast(NetFtConfig, sensor)  # the config this kind loaded
         return {"noise_cutoff_hz": 0.0,
                 "sample_period_s": 1.0 / (sensor.rdt_rate_hz or NETFT_RDT_HZ)}
 
-    def describe(self, config: CellConfig) -> str:
+    def describe(self, config: CellView) -> str:
         """The box's address, or the emulator."""
         if config.sensor_emulated:
             return "built-in Net F/T emulator on loopback (RDT UDP, READCALINFO TCP, HTTP)"
-        s = config.netft
+        s = netft_of(config)
         return (f"Net F/T at {s.host}: RDT UDP {s.rdt_port}, calibration over "
                 f"{s.calibration_source}")
 
-    def location(self, config: CellConfig) -> str:
+    def location(self, config: CellView) -> str:
         """The box's address."""
-        return f"{self.label} at {config.netft.host}"
+        return f"{self.label} at {netft_of(config).host}"
 
     def far_end(
-        self, config: CellConfig, physics: CellPhysics, options: FarEndOptions
+        self, config: CellView, physics: CellPhysics, options: FarEndOptions
     ) -> NetFtFarEnd:
         """The box emulator (serving from construction)."""
         return NetFtFarEnd(config, physics, options)
 
     def open(
-        self, config: CellConfig, far_end: FarEnd | None, stack: contextlib.ExitStack
+        self, config: CellView, far_end: FarEnd | None, stack: contextlib.ExitStack
     ) -> NetFtSensor:
         """The driver on the box (or its emulator's ports), initialised."""
-        sensor = config.netft
+        sensor = netft_of(config)
         if far_end is not None:
             assert isinstance(far_end, NetFtFarEnd)
             ports = far_end.emulator.ports
@@ -181,7 +205,7 @@ class NetFtKind(SensorKind):
             driver.initialise()
         except ForcelearnError as exc:  # keeps its type and fields (SensorFault...)
             exc.add_note(
-                f"check [sensor] host ({config.netft.host}), that the box is powered and "
+                f"check [sensor] host ({netft_of(config).host}), that the box is powered and "
                 "on this subnet, and its calibration (docs/netft.md, On site)"
             )
             raise
@@ -190,9 +214,10 @@ class NetFtKind(SensorKind):
             far_end.zero_in_order(driver)
         return driver
 
-    def check(self, sensor: NetFtSensor, config: CellConfig, seconds: float,
+    def check(self, sensor: ForceSensor, config: CellView, seconds: float,
               say: Printer) -> None:
         """The box's calibration, a few seconds of records and the counts of faults."""
+        sensor = cast(NetFtSensor, sensor)  # the driver this kind opened
         cal = sensor.calibration
         if cal is not None:
             rate = f"{cal.rdt_rate_hz:g} Hz" if cal.rdt_rate_hz else "not reported (TCP)"
@@ -228,11 +253,12 @@ class NetFtKind(SensorKind):
         say(f"  sensor  normal force ({'+' if sign > 0 else '-'}{AXES[axis]}, [filter] axis "
             f"{axis}): mean {sign * mean[axis]:+.3f} N, noise {noise[axis]:.3f} N")
 
-    def calibration_info(self, config: CellConfig, sensor: NetFtSensor, robot_name: str,
+    def calibration_info(self, config: CellView, sensor: ForceSensor, robot_name: str,
                          model: str | None, serial: str) -> SensorInfo:
         """Ranges and RDT rate as the box reports them."""
+        sensor = cast(NetFtSensor, sensor)  # the driver this kind opened
         cal = sensor.calibration
-        scales = config.netft.full_scales or (cal.ranges_si if cal is not None else None)
+        scales = netft_of(config).full_scales or (cal.ranges_si if cal is not None else None)
         return SensorInfo(
             model=model if model is not None else (
                 "ATI Net F/T (forcelearn emulator)" if config.sensor_emulated
@@ -243,7 +269,7 @@ class NetFtKind(SensorKind):
             # noise's bandwidth is the RDT stream's Nyquist frequency
             cutoff_hz=0.5 * (
                 (cal.rdt_rate_hz if cal is not None else None)
-                or config.netft.rdt_rate_hz
+                or netft_of(config).rdt_rate_hz
                 or NETFT_RDT_HZ
             ),
             robot=robot_name,

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+from collections.abc import Mapping
 from typing import Any
 
 from forcelearn.calibration import Calibration, load_calibration
@@ -52,10 +53,12 @@ class CellSession:
     Args:
         config: the cell configuration.
         seed: seed of the emulated sensor's noise (ignored on a real cell).
-        egm_route: emulated EGM only: ``"in_process"`` (default) or ``"udp"``.
+        routes: emulated devices only: kind name -> that kind's own route options
+            (``{"egm": EgmRoute("udp")}``; a kind absent takes its defaults).
     """
 
-    def __init__(self, config: CellConfig, seed: int = 0, egm_route: str = "in_process"):
+    def __init__(self, config: CellConfig, seed: int = 0,
+                 routes: Mapping[str, object] | None = None):
         self.config = config
         self.emulated_cell: EmulatedCell | None = None
         """The far ends of the emulated devices (None on a real cell)."""
@@ -68,16 +71,16 @@ class CellSession:
         self.cell: Cell | None = None
         self._stack = contextlib.ExitStack()
         try:
-            self._open(seed, egm_route)
+            self._open(seed, routes or {})
         except BaseException:
             self.close()
             raise
 
-    def _open(self, seed: int, egm_route: str) -> None:
+    def _open(self, seed: int, routes: Mapping[str, object]) -> None:
         cfg = self.config
         calibration = load_calibration(cfg.calibration_file) if cfg.calibration_file else None
         if cfg.robot_emulated or cfg.sensor_emulated:
-            self.emulated_cell = EmulatedCell(cfg, seed, in_process=True, egm_route=egm_route)
+            self.emulated_cell = EmulatedCell(cfg, seed, in_process=True, routes=routes)
             self._stack.callback(self.emulated_cell.close)  # after the drivers
             self.sponge, self.physics = self.emulated_cell.sponge, self.emulated_cell.physics
         cell = self.emulated_cell

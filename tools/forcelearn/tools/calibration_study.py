@@ -44,7 +44,7 @@ from scipy.spatial.transform import Rotation
 
 from forcelearn.calibration import dumps, load_calibration
 from forcelearn.devices import STANDARD_GRAVITY_M_S2, TOOL_DOWN, Pose
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
 from forcelearn.errors import LinkError, ToolMismatch
 from forcelearn.site import CellSession, load_cell_config
@@ -81,7 +81,7 @@ def draw_tool(rng: np.random.Generator, cell: str) -> Tool:
     com = (radius * math.cos(azimuth), radius * math.sin(azimuth), float(rng.uniform(0.0, 250.0)))
     contact = (0.0, 0.0, float(rng.uniform(150.0, 300.0)))
     x, y, z, w = Rotation.random(random_state=rng).as_quat()
-    model = NetFtModelParams() if cell == "netft" else SensorModelParams()
+    model = NetFtModelParams() if cell == "netft" else Jr3ModelParams()
     fs = np.asarray(model.ranges if isinstance(model, NetFtModelParams) else model.full_scales)
     weight = mass * STANDARD_GRAVITY_M_S2
     moment = weight * float(np.linalg.norm(com)) / 1000.0
@@ -98,7 +98,7 @@ def config_text(tool: Tool, cell: str) -> str:
         "mass_kg": tool.mass_kg, "com_mm": list(tool.com_mm),
         "contact_point_mm": list(tool.contact_mm), "mounting_quaternion": list(tool.mounting)}}
     if tool.scale > 1.0:
-        model = NetFtModelParams() if cell == "netft" else SensorModelParams()
+        model = NetFtModelParams() if cell == "netft" else Jr3ModelParams()
         k = tool.scale
         scales = (model.ranges if isinstance(model, NetFtModelParams) else model.full_scales)
         emulator["sensor"] = {

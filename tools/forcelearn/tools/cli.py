@@ -42,6 +42,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
         "forcelearn.tools.commands.twin",
         "fit the emulated cell to a run's records (a twin of your cell)",
     ),
+    "identify": (
+        "forcelearn.tools.commands.identify",
+        "run a short force-guarded identification plan for the twin (timing, relaxation...)",
+    ),
     "replay": (
         "forcelearn.tools.commands.replay",
         "drive a twin open-loop with a run's recorded commands; recorded vs predicted force",

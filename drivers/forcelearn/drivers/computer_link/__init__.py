@@ -8,7 +8,8 @@ shared with the emulator. Here, one job per module:
 * ``driver``: :class:`ComputerLinkRobot`, which satisfies ``forcelearn.devices.Robot``.
 """
 
-from forcelearn.drivers.computer_link.config import Limits, LinkConfig
+from forcelearn.drivers.computer_link.config import LinkConfig
 from forcelearn.drivers.computer_link.driver import ComputerLinkRobot
+from forcelearn.drivers.limits import Limits
 
 __all__ = ["ComputerLinkRobot", "Limits", "LinkConfig"]

@@ -5,12 +5,15 @@ The datagrams (``egm.proto`` for RobotWare 6 and 7, the codec) are
 
 * ``config``: :class:`EgmConfig`, address, version, timing, bands and limits.
 * ``guidance``: the session, seqno and ramp rules as pure state.
-* ``driver``: :class:`EgmRobotDriver` (satisfies ``forcelearn.devices.Robot``)
+* ``driver``: :class:`EgmRobot` (satisfies ``forcelearn.devices.Robot``)
   and :func:`open_egm_robot`.
 """
 
+from forcelearn.deprecation import renamed
 from forcelearn.drivers.egm.config import EgmConfig
-from forcelearn.drivers.egm.driver import EgmRobotDriver, EgmStatus, open_egm_robot
+from forcelearn.drivers.egm.driver import EgmRobot, EgmStatus, open_egm_robot
 from forcelearn.drivers.egm.guidance import EgmStats
 
-__all__ = ["EgmConfig", "EgmRobotDriver", "EgmStats", "EgmStatus", "open_egm_robot"]
+__all__ = ["EgmConfig", "EgmRobot", "EgmStats", "EgmStatus", "open_egm_robot"]
+__getattr__ = renamed(__name__, {"EgmRobotDriver": EgmRobot})
+"""``EgmRobotDriver``: the old name of :class:`EgmRobot` (one release, with a warning)."""

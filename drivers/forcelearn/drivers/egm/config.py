@@ -13,7 +13,7 @@ import ipaddress
 import math
 from dataclasses import dataclass, field
 
-from forcelearn.drivers.computer_link.config import Limits
+from forcelearn.drivers.limits import Limits
 from forcelearn.errors import ConfigError
 from forcelearn.protocols.egm.codec import VERSIONS, Version
 

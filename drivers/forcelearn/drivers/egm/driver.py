@@ -6,12 +6,15 @@
         robot.move_to(robot.read_pose().moved(dz_mm=-1.0))
         robot.wait_in_position(timeout_s=2.0, settle_s=0.05)
 
-The PC is the UDP server: the driver binds ``host:port`` and the controller
-sends an EgmRobot every sample period; each fresh one is answered with an
-EgmSensor whose planned pose ramps toward the last accepted target
-(:mod:`.guidance`). Only the paired controller is answered (``controller_host``
-/ ``controller_port``, else the first sender of a valid session start), and no
-datagram ends a session: what cannot be used is counted in :class:`EgmStats`.
+The driver is :class:`EgmRobot` (named as the other drivers are, after its
+device; ``EgmRobotDriver`` is its old name), not to be confused with the
+protocol's EgmRobot message. The PC is the UDP server: the driver binds
+``host:port`` and the controller sends an EgmRobot message every sample
+period; each fresh one is answered with an EgmSensor whose planned pose ramps
+toward the last accepted target (:mod:`.guidance`). Only the paired controller
+is answered (``controller_host`` / ``controller_port``, else the first sender
+of a valid session start), and no datagram ends a session: what cannot be used
+is counted in :class:`EgmStats`.
 ``move_to`` only sets the target: it is checked in full at the call first
 (``InvalidTarget`` / ``SafetyStop``, and no datagram ever carries a refused
 target). Two modes:
@@ -20,8 +23,8 @@ target). Two modes:
   once with the latest planned pose, as abb_libegm does; the controller's
   clock runs on its own.
 * **lockstep** (the emulated cell): nothing answers between calls; calls that
-  let time pass (:meth:`EgmRobotDriver.wait_in_position`,
-  :meth:`EgmRobotDriver.dwell`) answer the held message and read the next
+  let time pass (:meth:`EgmRobot.wait_in_position`,
+  :meth:`EgmRobot.dwell`) answer the held message and read the next
   one, so the controller cycles spent between two host actions are fixed by
   the traffic alone (docs/egm.md, "Lockstep").
 
@@ -49,6 +52,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from forcelearn.deprecation import renamed
 from forcelearn.devices import InPositionWait, Pose
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.guidance import EgmStats, Guidance
@@ -110,7 +114,7 @@ class EgmStatus:
     """planned.joints: the planned axes, degrees (empty if not sent)."""
 
 
-class EgmRobotDriver(Driver):
+class EgmRobot(Driver):
     """Driver of one robot over one EGM UDP channel (satisfies ``Robot`` once a session runs).
 
     Constructing it binds the socket (``port`` tells which, when 0 was asked);
@@ -584,14 +588,14 @@ class EgmRobotDriver(Driver):
         return LinkError(f"the EGM driver on port {self.port} is closed; open a new one")
 
     def _label(self) -> str:
-        return f"EgmRobotDriver on port {self.port}"
+        return f"EgmRobot on port {self.port}"
 
 
-def _serve(driver_ref: weakref.ref[EgmRobotDriver]) -> None:
+def _serve(driver_ref: weakref.ref[EgmRobot]) -> None:
     """The real-mode receive thread: answer every fresh message until the driver closes.
 
     It holds the driver only while it serves one datagram, so a driver dropped
-    without :meth:`~EgmRobotDriver.close` is still collected, warns and closes.
+    without :meth:`~EgmRobot.close` is still collected, warns and closes.
     """
     while True:
         driver = driver_ref()
@@ -611,18 +615,21 @@ def _bind(host: str, port: int) -> socket.socket:
     return sock
 
 
-def open_egm_robot(config: EgmConfig, timeout_s: float | None = None) -> EgmRobotDriver:
+def open_egm_robot(config: EgmConfig, timeout_s: float | None = None) -> EgmRobot:
     """Bind, wait for the controller's first message and return the ready driver.
 
     ``timeout_s`` replaces ``config.first_message_timeout_s``; the driver is
     closed if no session starts.
     """
     if timeout_s is None:
-        return opened(EgmRobotDriver(config))
-    driver = EgmRobotDriver(config)
+        return opened(EgmRobot(config))
+    driver = EgmRobot(config)
     try:
         driver.wait_for_session(timeout_s)
     except BaseException:
         driver.close()
         raise
     return driver
+
+
+__getattr__ = renamed(__name__, {"EgmRobotDriver": EgmRobot})

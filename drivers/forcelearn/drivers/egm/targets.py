@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.computer_link.config import Limits
+from forcelearn.drivers.limits import Limits
 from forcelearn.drivers.targets import finite_number, unit_quaternion
 from forcelearn.errors import InvalidTarget
 

@@ -22,8 +22,8 @@ from forcelearn.emulators.egm.in_process import InProcessEgmController
 from forcelearn.emulators.egm.server import EgmControllerEmulator
 from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
 from forcelearn.emulators.egm.shared_motion import PhysicsMotion, egm_motion_params
+from forcelearn.emulators.faults import Fault
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.faults import Fault
 
 __all__ = [
     "EgmControllerConfig",
@@ -52,7 +52,7 @@ def start_emulated_egm(
 ) -> EgmControllerEmulator:
     """Start an emulated EGM controller for an emulated cell (lockstep) and return it.
 
-    ``remote_port`` is the driver's bound port (``EgmRobotDriver.port``); the
+    ``remote_port`` is the driver's bound port (``EgmRobot.port``); the
     driver must be configured with ``lockstep = True``. ``motion`` replaces the
     private servo (the emulated cell passes :class:`PhysicsMotion` over the shared
     arm). Stop it with ``stop()``.

@@ -64,8 +64,8 @@ import numpy as np
 from forcelearn.devices import Pose, multiply_quaternions
 from forcelearn.emulators.egm import joints as arm_joints
 from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
+from forcelearn.emulators.physics.arm import ArmConfig, joint_angles_deg
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig, joint_angles_deg
 from forcelearn.errors import ProtocolError
 from forcelearn.protocols.egm import carried, codec
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from forcelearn.emulators.robot_controller.faults import Fault
+from forcelearn.emulators.faults import Fault
 
 FAULT_NAMES = ("lose", "duplicate", "reorder", "lose_reply", "late_reply", "restart")
 

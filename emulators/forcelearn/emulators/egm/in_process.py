@@ -3,7 +3,7 @@
 ::
 
     controller = InProcessEgmController(physics=physics, clock=physics.clock)
-    driver = EgmRobotDriver(EgmConfig(lockstep=True), sock=controller.socket())
+    driver = EgmRobot(EgmConfig(lockstep=True), sock=controller.socket())
     driver.wait_for_session()
 
 :meth:`InProcessEgmController.socket` gives what the driver would otherwise
@@ -63,7 +63,7 @@ class InProcessEgmController(EgmEmulatorBase):
         return "in-process"
 
     def socket(self) -> InProcessDatagramSocket:
-        """The one client's socket-like end (pass it to ``EgmRobotDriver(sock=...)``)."""
+        """The one client's socket-like end (pass it to ``EgmRobot(sock=...)``)."""
         if self.closed:
             raise RuntimeError("this InProcessEgmController was closed; create a new one")
         if self._client is not None and not self._client.closed:

@@ -4,7 +4,7 @@ A real controller sends ``feedBack.joints`` and ``planned.joints`` in every
 EgmRobot: the measured and the planned angles of the robot's six axes, in
 degrees "relative to the calibration position of each axis" (manual
 3HAC073318 RW7, p.30 and p.38). The emulated cell has one arm for both robot
-links: :class:`~forcelearn.emulators.robot_controller.kinematics.ArmConfig`,
+links: :class:`~forcelearn.emulators.physics.arm.ArmConfig`,
 a simplified six-axis arm in the spirit of the IRB 2000 (the computer-link
 emulator reports the same joints). Its geometry and limits (defaults):
 
@@ -20,7 +20,7 @@ J4, J5, J6  wrist: Z-Y-Z Euler angles of the tool orientation      -180..180,
 
 Shoulder 750 mm above the base, upper arm 710 mm, forearm 850 mm to the tool
 centre point (no separate wrist offset). Inverse kinematics
-(``robot_controller.kinematics.joint_angles_deg``, the computer-link
+(``physics.arm.joint_angles_deg``, the computer-link
 emulator's own: one arm, one computation) takes the elbow-up branch and J4 = 0 at a wrist
 singularity (J5 = 0 or 180); forward kinematics (:func:`tool_pose`) is its
 inverse. A tool pointing straight down (the cell's home) is J5 = 180 deg,
@@ -38,7 +38,7 @@ from __future__ import annotations
 import math
 
 from forcelearn.devices import Pose, multiply_quaternions
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+from forcelearn.emulators.physics.arm import ArmConfig
 
 
 def limit_violation(arm: ArmConfig, joints_deg: tuple[float, ...]) -> str | None:

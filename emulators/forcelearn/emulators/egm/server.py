@@ -3,7 +3,7 @@
 ::
 
     clock = SimClock()
-    driver = EgmRobotDriver(EgmConfig(port=0, lockstep=True))
+    driver = EgmRobot(EgmConfig(port=0, lockstep=True))
     with EgmControllerEmulator(driver.port, physics=physics, clock=clock):
         driver.wait_for_session()
         ...

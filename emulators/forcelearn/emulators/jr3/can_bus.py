@@ -31,10 +31,10 @@ from can.typechecking import AutoDetectedConfig
 
 from forcelearn.emulators import registry
 from forcelearn.emulators.jr3.node import REGISTRY_KIND, Jr3EmulatorNode
-from forcelearn.emulators.jr3.sensor_model import SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 
 INTERFACE = "forcelearn-jr3"
-_MODEL_OPTIONS = {f.name for f in fields(SensorModelParams)}
+_MODEL_OPTIONS = {f.name for f in fields(Jr3ModelParams)}
 _new_node_lock = threading.Lock()
 _started_by_a_bus: weakref.WeakSet[Jr3EmulatorNode] = weakref.WeakSet()
 """Nodes a bus started (they stop with their last bus); the cell's own nodes are not here."""
@@ -51,7 +51,7 @@ class Jr3EmulatorBus(can.BusABC):
             bus starts; default 1 Mbit/s).
         receive_own_messages: also receive the frames this bus sends.
         **kwargs: sensor-model fields (``noise_std``, ``full_scales``,
-            ``initial_bias``...: :class:`SensorModelParams`) for a node this
+            ``initial_bias``...: :class:`Jr3ModelParams`) for a node this
             bus starts; python-can's generic options are accepted and ignored.
     """
 
@@ -81,7 +81,7 @@ class Jr3EmulatorBus(can.BusABC):
             options: dict[str, Any] = {
                 k: tuple(v) if isinstance(v, list) else v for k, v in model.items()
             }
-            params = SensorModelParams(**options)
+            params = Jr3ModelParams(**options)
         except (TypeError, ValueError) as exc:
             raise can.CanInitializationError(f"{INTERFACE} on {self.channel!r}: {exc}") from exc
         if not 1 <= node_id <= 127:
@@ -172,11 +172,11 @@ class Jr3EmulatorBus(can.BusABC):
 
 
 def _private_node(
-    channel: str, node_id: int, seed: int | None, bitrate: float, params: SensorModelParams
+    channel: str, node_id: int, seed: int | None, bitrate: float, params: Jr3ModelParams
 ) -> Jr3EmulatorNode:
     """A node on a cell of its own (free space, home pose), started for a bus."""
+    from forcelearn.emulators.physics.arm import HOME
     from forcelearn.emulators.physics.cell import CellPhysics
-    from forcelearn.emulators.robot_controller.kinematics import HOME
 
     node = Jr3EmulatorNode(
         CellPhysics(pose=HOME), channel=channel, node_id=node_id, model=params, seed=seed,

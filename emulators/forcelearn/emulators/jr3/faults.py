@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from forcelearn.deprecation import renamed
 from forcelearn.protocols.jr3_can.codec import Frame
 
 FrameHook = Callable[[Frame], Frame | None]
@@ -19,7 +20,7 @@ FrameHook = Callable[[Frame], Frame | None]
 
 
 @dataclass(frozen=True)
-class FaultConfig:
+class Jr3FaultConfig:
     """Wire faults of the emulated adapter.
 
     Attributes:
@@ -42,7 +43,7 @@ class FaultConfig:
             raise ValueError("faults bootup_after_samples must be >= 1 or None")
 
 
-def apply_faults(frame: Frame, faults: FaultConfig, rng: np.random.Generator) -> Frame | None:
+def apply_faults(frame: Frame, faults: Jr3FaultConfig, rng: np.random.Generator) -> Frame | None:
     """Return the frame as the faults let it out: unchanged, corrupted, or None (lost)."""
     if faults.silent:
         return None
@@ -54,3 +55,6 @@ def apply_faults(frame: Frame, faults: FaultConfig, rng: np.random.Generator) ->
         data = (frame.data + bytes(8))[:size]
         return Frame(frame.arbitration_id, data)
     return frame
+
+
+__getattr__ = renamed(__name__, {"FaultConfig": Jr3FaultConfig})

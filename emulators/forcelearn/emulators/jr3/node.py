@@ -3,7 +3,7 @@
 The behaviour follows jr3-mbed-firmware-can (``main.cpp``, 2026-02) and its
 sensor layer jr3-mbed-firmware (``Jr3Controller.cpp``), not our driver; what is
 behind the wire is the shared :class:`~forcelearn.emulators.physics.cell.CellPhysics`
-and a :class:`~.sensor_model.SensorModel`. The fidelity table in
+and a :class:`~.sensor_model.Jr3SensorModel`. The fidelity table in
 docs/emulators.md lists every behaviour with its source and its test.
 
 The firmware's main loop, on the cell's simulated clock (``physics.clock``):
@@ -68,8 +68,8 @@ import numpy as np
 
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import Wire, can_frame_time_s
-from forcelearn.emulators.jr3.faults import FaultConfig, FrameHook, apply_faults
-from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
+from forcelearn.emulators.jr3.faults import FrameHook, Jr3FaultConfig, apply_faults
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams, Jr3SensorModel
 from forcelearn.emulators.lifecycle import Emulator
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.protocols.jr3_can import codec
@@ -79,7 +79,7 @@ from forcelearn.protocols.jr3_can.scaling import cutoff_from_wire, full_scales_t
 
 log = logging.getLogger(__name__)
 
-NO_FAULTS = FaultConfig()
+NO_FAULTS = Jr3FaultConfig()
 
 POLL_S = 0.02
 """Longest the thread blocks on the bus, so ``close()`` returns promptly."""
@@ -141,8 +141,8 @@ class Jr3EmulatorNode(Emulator):
         bus: can.BusABC | None = None,
         channel: str = "forcelearn-jr3",
         node_id: int = 1,
-        model: SensorModelParams | None = None,
-        faults: FaultConfig | None = None,
+        model: Jr3ModelParams | None = None,
+        faults: Jr3FaultConfig | None = None,
         seed: int | None = 0,
         initial_counter: int = 0,
         frame_hook: FrameHook | None = None,
@@ -158,7 +158,7 @@ class Jr3EmulatorNode(Emulator):
         self.faults = faults or NO_FAULTS
         self.frame_hook = frame_hook
         self.rng = np.random.default_rng(seed)
-        self.model = SensorModel(model or SensorModelParams(), self.rng)
+        self.model = Jr3SensorModel(model or Jr3ModelParams(), self.rng)
         self.frame_period_s = self.model.params.sync_sample_period_s
         """One complete sensor frame, s: the counter's unit of time."""
         self.loop_period_s = opcodes.loop_period_s
@@ -220,7 +220,7 @@ class Jr3EmulatorNode(Emulator):
             return self._counter_at(self.clock.now_s)
 
     # ---- public control -------------------------------------------------
-    def set_faults(self, faults: FaultConfig) -> None:
+    def set_faults(self, faults: Jr3FaultConfig) -> None:
         """Change the wire faults now (e.g. go silent)."""
         with self._lock:
             self.faults = faults

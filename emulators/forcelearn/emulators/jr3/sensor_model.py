@@ -56,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from forcelearn.deprecation import renamed
 from forcelearn.protocols.jr3_can.opcodes import SENSOR_FRAME_PERIOD_S
 from forcelearn.protocols.jr3_can.scaling import counts_per_unit, to_count
 
@@ -63,7 +64,7 @@ Six = tuple[float, float, float, float, float, float]
 
 
 @dataclass(frozen=True)
-class SensorModelParams:
+class Jr3ModelParams:
     """The emulated sensor: full scales (N, N*m), noise, bias and drift per axis."""
 
     full_scales: Six = (200.0, 200.0, 400.0, 20.0, 20.0, 20.0)
@@ -93,7 +94,7 @@ class SensorModelParams:
             raise ValueError("sensor model zero_average_samples >= 1, sync_sample_period_s > 0")
 
 
-class SensorModel:
+class Jr3SensorModel:
     """Noise, drifting bias, offset and quantisation of one emulated sensor.
 
     Args:
@@ -101,7 +102,7 @@ class SensorModel:
         rng: the generator every random draw comes from.
     """
 
-    def __init__(self, params: SensorModelParams, rng: np.random.Generator) -> None:
+    def __init__(self, params: Jr3ModelParams, rng: np.random.Generator) -> None:
         self.params = params
         self.rng = rng
         # Plain floats, not 6-element arrays: one sample is a dozen operations per axis, and
@@ -204,3 +205,7 @@ class SensorModel:
         lowpass = state.get("lowpass")
         self._lowpass = None if lowpass is None else np.asarray(lowpass, dtype=float).tolist()
         self._filtered_noise = np.asarray(state.get("noise", np.zeros(6)), dtype=float).tolist()
+
+
+__getattr__ = renamed(__name__, {"SensorModelParams": Jr3ModelParams,
+                                 "SensorModel": Jr3SensorModel})

@@ -1,33 +1,8 @@
-"""``python -m forcelearn.emulators.robot_controller``: serve until Ctrl-C, print the URL."""
+"""Deprecated: ``python -m forcelearn.emulators.computer_link`` (this name warns, then runs it)."""
 
-from __future__ import annotations
-
-import argparse
-import contextlib
 import sys
-import threading
-from collections.abc import Sequence
 
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
-from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run an emulated controller on a pty or 127.0.0.1 TCP until interrupted."""
-    parser = argparse.ArgumentParser(prog="python -m forcelearn.emulators.robot_controller")
-    parser.add_argument("--transport", choices=("pty", "tcp"), default="pty")
-    parser.add_argument("--port", type=int, default=0, help="TCP port (0: any free one)")
-    parser.add_argument("--lag-s", type=float, default=0.0, help="servo time constant, s")
-    args = parser.parse_args(argv)
-    emulator = RobotControllerEmulator(
-        args.transport, config=ArmConfig(lag_s=args.lag_s), port=args.port
-    )
-    with emulator:
-        print(emulator.address, flush=True)
-        with contextlib.suppress(KeyboardInterrupt):
-            threading.Event().wait()
-    return 0
-
+from forcelearn.emulators.computer_link.__main__ import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -5,7 +5,7 @@ A ``.pth`` hook must never stop the interpreter, so any failure is swallowed
 """
 
 try:
-    from forcelearn.emulators.robot_controller.url_scheme import register_url_handler
+    from forcelearn.emulators.computer_link.url_scheme import register_url_handler
 
     register_url_handler()
 except Exception:  # see the module docstring

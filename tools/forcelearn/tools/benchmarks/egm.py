@@ -22,7 +22,7 @@ from contextlib import closing
 
 import numpy as np
 
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
+from forcelearn.drivers.egm import EgmConfig, EgmRobot
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm import EgmControllerEmulator
 
@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def measure(cycles: int, warmup: int) -> tuple[np.ndarray, np.ndarray]:
     """Return (cycle periods, reply latencies) in seconds over ``cycles`` timed cycles."""
     config = EgmConfig(port=0, lockstep=False, watchdog_s=1.0, stale_after_s=1.0)
-    with closing(EgmRobotDriver(config)) as robot:  # opened below, once its port is served
+    with closing(EgmRobot(config)) as robot:  # opened below, once its port is served
         emulator = EgmControllerEmulator(
             robot.port, clock=SimClock(time_scale=1.0), lockstep=False, record_timing=True
         )

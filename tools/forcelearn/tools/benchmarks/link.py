@@ -16,7 +16,7 @@ from typing import Literal
 import numpy as np
 
 from forcelearn.drivers.computer_link import ComputerLinkRobot, LinkConfig
-from forcelearn.emulators.robot_controller import RobotControllerEmulator
+from forcelearn.emulators.computer_link import ComputerLinkEmulator
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def measure(commands: int, warmup: int, transport: Literal["pty", "tcp"] = "pty") -> np.ndarray:
     """Return the round-trip times (s) of ``commands`` MOVE_BY commands."""
     times = np.empty(commands)
-    with RobotControllerEmulator(transport) as emulator, ComputerLinkRobot(
+    with ComputerLinkEmulator(transport) as emulator, ComputerLinkRobot(
         LinkConfig(url=emulator.address)
     ) as robot:
         for i in range(warmup + commands):

@@ -28,7 +28,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from forcelearn.atomic import atomic_write_bytes
-from forcelearn.site import ROBOT_KINDS, SENSOR_KINDS, EmulatedCell, load_cell_config
+from forcelearn.site import EmulatedCell, kinds, load_cell_config
 from forcelearn.site.kinds import ALIASES
 
 WAIT_SLICE_S = 0.2
@@ -54,18 +54,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="give each client session a fresh cell (new sponge, sensor as at start); by "
         "default the cell remembers wear between sessions, as a real one does",
     )
+    robots, sensors = kinds.known("robot"), kinds.known("sensor")
     parser.add_argument(
-        "--robot", choices=[*ROBOT_KINDS, *ALIASES],
-        help=f"one of {', '.join(ROBOT_KINDS)} (default: the config's [robot] kind)",
+        "--robot", choices=[*robots, *ALIASES],
+        help=f"one of {', '.join(robots)} (default: the config's [robot] kind)",
     )
     parser.add_argument(
-        "--sensor", choices=list(SENSOR_KINDS),
-        help=f"one of {', '.join(SENSOR_KINDS)} (default: the config's [sensor] kind)",
+        "--sensor", choices=sensors,
+        help=f"one of {', '.join(sensors)} (default: the config's [sensor] kind)",
     )
-    parser.add_argument(
-        "--egm-port", type=int, default=0,
-        help="the PC's UDP port the EGM controller sends to (default: a free one)",
-    )
+    for name in robots:  # each kind's own route options (EGM: --egm-port)
+        kinds.robot_kind(name).add_emulate_arguments(parser)
+    for name in sensors:
+        kinds.sensor_kind(name).add_emulate_arguments(parser)
 
 
 def default_link_dir() -> Path:
@@ -98,9 +99,11 @@ def run(args: argparse.Namespace, stop: threading.Event | None = None) -> int:
               f"{ALIASES[robot]}", file=sys.stderr)
         robot = ALIASES[robot]
     sensor = getattr(args, "sensor", None) or config.sensor_kind
+    routes = {kind.name: route for kind in (kinds.robot_kind(robot), kinds.sensor_kind(sensor))
+              if (route := kind.route_from_arguments(args)) is not None}
     cell = EmulatedCell(
         config, seed=args.seed, robot=robot, sensor=sensor, link_dir=args.link_dir,
-        fresh_per_connection=args.fresh_per_connection, egm_port=getattr(args, "egm_port", 0),
+        fresh_per_connection=args.fresh_per_connection, routes=routes,
     )
     sessions = ("a fresh cell per client session" if args.fresh_per_connection
                 else "the cell remembers wear between client sessions")

@@ -1,5 +1,8 @@
 """``forcelearn twin RUN_DIR [RUN_DIR...] --out twin.toml``: fit the emulated cell to a run.
 
+``--identification DIR`` adds a ``forcelearn identify`` run (the arm's timing from its
+polled moves; its press, hold and cycles as fitted records).
+
 Writes twin.toml (an emulated-cell config: ``forcelearn run --config twin.toml``),
 twin.md, twin.json and twin_heldout.png beside it. When no member of the model
 family explains the records, says "this cell is not represented by the twin",
@@ -21,6 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run directories of one cell (taken in the order given)")
     parser.add_argument("--calibration", type=Path, default=None,
                         help="a forcelearn calibrate file: its measured noise is used")
+    parser.add_argument("--identification", type=Path, default=None, metavar="DIR",
+                        help="a forcelearn identify folder: its polled moves give the arm, its "
+                             "press, hold and cycles join the fit")
     parser.add_argument("--out", type=Path, required=True,
                         help="the twin's config to write (twin.md, twin.json beside it)")
 
@@ -28,9 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Fit, report, and write the twin if the records are represented."""
     from forcelearn.calibration.file_format import load_calibration
-    from forcelearn.emulators.robot_controller.kinematics import ArmConfig
+    from forcelearn.emulators.physics.arm import ArmConfig
     from forcelearn.tools.twin.arm import polling_of
     from forcelearn.tools.twin.fit import fit_twin
+    from forcelearn.tools.twin.identify import read_identification
     from forcelearn.tools.twin.report import write_report
     from forcelearn.tools.twin.setup import base_arm, base_sponge, configured_colour, reading_of
     from forcelearn.tools.twin.source import read_runs
@@ -40,11 +47,13 @@ def run(args: argparse.Namespace) -> int:
     noise = None
     if args.calibration is not None:
         noise = float(load_calibration(args.calibration).noise.std[config.filter.axis])
+    identification = (read_identification(args.identification)
+                      if args.identification is not None else None)
     arm = ArmConfig()  # the controller's defaults: the run's [emulator.arm] never reaches it
     fit = fit_twin(source.records, base_sponge(config), base_arm(), reading_of(config),
                    arm.in_position_mm, arm.tick_s, noise,
                    configured_phi=configured_colour(config, source.records),
-                   polling=polling_of(config.robot, arm))
+                   polling=polling_of(config.robot, arm), identification=identification)
     document = write_report(fit, source, args.out)
     folder = args.out.parent
     if not fit.represented:

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams, Jr3SensorModel
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.filtering import ForceFilter, ForceFilterConfig
 from forcelearn.protocols.jr3_can.scaling import counts_to_wrench
@@ -85,10 +85,10 @@ class FilterRun:
         return self.filtered_rms_error_n / self.raw_noise_std_n
 
 
-def quiet_drift_model(base: SensorModelParams | None = None) -> SensorModelParams:
+def quiet_drift_model(base: Jr3ModelParams | None = None) -> Jr3ModelParams:
     """The sensor model with bias and drift off (noise and quantisation kept)."""
-    base = base or SensorModelParams()
-    return SensorModelParams(
+    base = base or Jr3ModelParams()
+    return Jr3ModelParams(
         full_scales=base.full_scales, noise_std=base.noise_std, initial_bias=(0.0,) * 6,
         bias_drift_per_sqrt_s=(0.0,) * 6, zero_average_samples=base.zero_average_samples,
         sync_sample_period_s=SAMPLE_PERIOD_S,
@@ -96,7 +96,7 @@ def quiet_drift_model(base: SensorModelParams | None = None) -> SensorModelParam
 
 
 def run(seed: int, config: ForceFilterConfig | None = None,
-        model: SensorModelParams | None = None) -> FilterRun:
+        model: Jr3ModelParams | None = None) -> FilterRun:
     """Run the experiment once with the sensor noise seeded by ``seed``."""
     model_params = quiet_drift_model(model)
     config = config or ForceFilterConfig(
@@ -104,7 +104,7 @@ def run(seed: int, config: ForceFilterConfig | None = None,
     )
     contact = ScriptedContact()
     physics = CellPhysics(contact)
-    sensor = SensorModel(model_params, np.random.default_rng(seed))
+    sensor = Jr3SensorModel(model_params, np.random.default_rng(seed))
     kf = ForceFilter(config)
     full_scales = np.asarray(model_params.full_scales)
     n = round(DURATION_S / SAMPLE_PERIOD_S)

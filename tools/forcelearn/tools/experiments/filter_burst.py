@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from forcelearn.devices import WrenchSample
-from forcelearn.emulators.jr3.sensor_model import SensorModel
+from forcelearn.emulators.jr3.sensor_model import Jr3SensorModel
 from forcelearn.filtering import ForceFilter, ForceFilterConfig, MoveAwareForceFilter
 from forcelearn.protocols.jr3_can.opcodes import ADAPTER_LOOP_PERIOD_S, SENSOR_FRAME_PERIOD_S
 from forcelearn.protocols.jr3_can.scaling import counts_to_wrench
@@ -91,7 +91,7 @@ def run(
     errors: dict[str, list[float]] = {m: [] for m in methods}
     for seed in seeds:
         rng = np.random.default_rng(10_000 + seed)
-        model = SensorModel(params, np.random.default_rng(seed))
+        model = Jr3SensorModel(params, np.random.default_rng(seed))
         config = filter_config(noise)
         moves = MoveAwareForceFilter(config)
         tracker = ForceFilter(replace(config, model="stream"))

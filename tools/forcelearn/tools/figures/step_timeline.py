@@ -20,8 +20,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from forcelearn.emulators.clock import Wire
+from forcelearn.emulators.computer_link.server import ComputerLinkEmulator
 from forcelearn.emulators.jr3.node import Jr3EmulatorNode
-from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
 from forcelearn.site import CellSession, load_cell_config
 from forcelearn.tasks.surface import SurfaceTask
 
@@ -48,7 +48,7 @@ def record_step(seed: int = 0) -> dict[str, Any]:
         assert session.sensor_emulator is not None and session.physics is not None
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm)
         task.reset()
-        robot_emulator: RobotControllerEmulator = session.robot_emulator
+        robot_emulator: ComputerLinkEmulator = session.robot_emulator
         node: Jr3EmulatorNode = session.sensor_emulator
         engine = robot_emulator.engine
         physics = session.physics

@@ -1,7 +1,7 @@
 """Fuzz target ``egm``: hostile datagrams to the real EGM driver over real loopback UDP.
 
 A scripted controller (a UDP socket on 127.0.0.1) opens a session with an
-:class:`~forcelearn.drivers.egm.EgmRobotDriver` in real mode (its receive
+:class:`~forcelearn.drivers.egm.EgmRobot` in real mode (its receive
 thread answers at once) and then runs one cycle per input, its feedback the
 planned pose it was last sent. Before each cycle an input is played: datagrams
 from the controller's own address (as a host forging it would) or from two
@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.egm import EgmConfig, EgmRobotDriver
+from forcelearn.drivers.egm import EgmConfig, EgmRobot
 from forcelearn.drivers.egm.guidance import TURN_DEG_S, angle_deg
 from forcelearn.errors import ForcelearnError
 from forcelearn.protocols.egm import codec
@@ -123,7 +123,7 @@ class EgmInput:
     """One input: datagrams (sender 0 = the controller's address, 1-2 other hosts), a call."""
 
     datagrams: list[tuple[int, bytes]] = field(default_factory=list)
-    call: Callable[[EgmRobotDriver], object] | None = None
+    call: Callable[[EgmRobot], object] | None = None
     restart: bool = False
     what: str = ""
 
@@ -132,7 +132,7 @@ class EgmInput:
 class EgmRig:
     """A real-mode driver, its scripted controller and two other hosts, over loopback UDP."""
 
-    driver: EgmRobotDriver
+    driver: EgmRobot
     controller: socket.socket
     others: list[socket.socket]
     version: codec.Version
@@ -155,7 +155,7 @@ class EgmRig:
             controller_host="127.0.0.1" if pinned else None,
             controller_port=controller.getsockname()[1] if pinned else None,
         )
-        driver = EgmRobotDriver(config)
+        driver = EgmRobot(config)
         rig = cls(driver, controller, [_udp(), _udp()], version, seqno=-1, tm_ms=1000)
         rig.cycle()
         driver.wait_for_session(REPLY_TIMEOUT_S)

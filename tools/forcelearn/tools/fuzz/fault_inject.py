@@ -37,8 +37,9 @@ from typing import Any
 import numpy as np
 
 from forcelearn.cell import Cell
+from forcelearn.emulators.computer_link.faults import ComputerLinkFaultConfig, FaultInjector
 from forcelearn.emulators.egm.faults import EgmFaultConfig, EgmFaultInjector
-from forcelearn.emulators.robot_controller.faults import Fault, FaultConfig, FaultInjector
+from forcelearn.emulators.faults import Fault
 from forcelearn.protocols.jr3_can.codec import Frame
 
 SENSOR_FAULTS = ("reboot", "silence", "corrupt", "bias_jump")
@@ -274,7 +275,8 @@ class Injector:
             self._egm_faults(EgmFaultConfig(restart=Fault(1.0, limit=1)))
             return
         self._robot_stall(fraction=0.0)
-        emulator.faults = FaultInjector(FaultConfig(drop_connection=Fault(1.0, limit=1)))
+        hang_up = ComputerLinkFaultConfig(drop_connection=Fault(1.0, limit=1))
+        emulator.faults = FaultInjector(hang_up)
 
     def _robot_stall(self, fraction: float | None = None) -> None:
         emulator = self.session.robot_emulator
@@ -293,7 +295,8 @@ class Injector:
         if isinstance(getattr(emulator, "faults", None), EgmFaultInjector):
             self._egm_faults(EgmFaultConfig(lose=Fault(1.0, limit=self.rng.randint(1, 60))))
             return
-        emulator.faults = FaultInjector(FaultConfig(drop_connection=Fault(1.0, limit=1)))
+        hang_up = ComputerLinkFaultConfig(drop_connection=Fault(1.0, limit=1))
+        emulator.faults = FaultInjector(hang_up)
 
     def _egm_faults(self, faults: EgmFaultConfig) -> None:
         emulator = self.session.robot_emulator

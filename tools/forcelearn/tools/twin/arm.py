@@ -30,12 +30,11 @@ from scipy.optimize import least_squares, minimize
 from scipy.special import ndtr
 
 from forcelearn.devices import Pose
-from forcelearn.drivers.computer_link.config import LinkConfig
-from forcelearn.drivers.egm.config import EgmConfig
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
-from forcelearn.protocols.computer_link import framing
-from forcelearn.protocols.computer_link import messages as m
+from forcelearn.site.kinds import Polling as Polling  # re-exported: the twin's name for it
+from forcelearn.site.kinds import RobotConfig, robot_kind_of
+from forcelearn.site.kinds import UnmodelledKind as UnmodelledKind
 from forcelearn.tools.twin.arrays import RecordArrays
 from forcelearn.tools.twin.forward import predict_in_position_s
 from forcelearn.tools.twin.params import ARM, BY_NAME
@@ -72,46 +71,19 @@ class ArmFit:
     a wait begins this much after its recorded start (:meth:`Polling.answer_s`)."""
 
 
-@dataclass(frozen=True)
-class Polling:
-    """How the driver's polls of a wait are spaced and stamped, from the config (s)."""
+def polling_of(robot: RobotConfig, arm: ArmConfig | None = None) -> Polling:
+    """How often the driver sees the robot's state while it waits: its kind's model.
 
-    period_s: float
-    """One poll (a guess: :func:`detection_period_s` reads the period from the records)."""
-    unanswered_s: float
-    """The part of each poll outside stamp-to-answer: the controller stamps a poll when its
-    request has arrived, the driver has the answer a reply later, then the next request
-    goes (the computer link: the request and the PC's DLE ACK; EGM: the whole period)."""
+    The computer link: one READ_STATUS exchange at the line's character time;
+    EGM: the feedback's sample period (:meth:`~forcelearn.site.kinds.RobotKind.polling`).
 
-    def answer_s(self, period_s: float) -> float:
-        """From a poll's stamp to the driver holding its answer, for a poll of ``period_s``."""
-        return max(0.0, period_s - self.unanswered_s)
-
-
-def polling_of(robot: LinkConfig | EgmConfig, arm: ArmConfig | None = None) -> Polling:
-    """How often the driver sees the robot's state while it waits, from the config.
-
-    The computer link: one READ_STATUS exchange (request, the reply after the
-    controller's ``reply_latency_s`` (its DLE ACK within it), the PC's DLE ACK)
-    at the line's character time; EGM: the feedback's sample period, each
-    message stamped when it is sent.
+    Raises:
+        UnmodelledKind: the robot's kind gives no polling model (the twin cannot fit it).
     """
-    if isinstance(robot, EgmConfig):
-        period = float(robot.sample_period_s)
-        return Polling(period, period)
-    bits = 1 + robot.bytesize + (0 if robot.parity == "N" else 1) + robot.stopbits
-    char_s = bits / robot.baudrate
-    request = framing.encode(m.encode_request(m.Command.READ_STATUS, 1))
-    reply = framing.encode(m.encode_reply(m.Reply(
-        m.Command.READ_STATUS, 1, m.ErrorCode.OK,
-        body=m.status_body(m.Status(False, True, 0, 0, 0.0)))))
-    ack = len(framing.Control.ACK.wire)
-    latency = (arm or ArmConfig()).reply_latency_s
-    unanswered = (len(request) + ack) * char_s
-    return Polling(unanswered + latency + len(reply) * char_s, unanswered)
+    return robot_kind_of(robot).polling(robot, arm or ArmConfig())
 
 
-def poll_guess_s(robot: LinkConfig | EgmConfig, arm: ArmConfig | None = None) -> float:
+def poll_guess_s(robot: RobotConfig, arm: ArmConfig | None = None) -> float:
     """One poll's time from the config, s (:func:`polling_of`)."""
     return polling_of(robot, arm).period_s
 

@@ -20,6 +20,8 @@ from forcelearn.tools.experiments.records import PROBE_TRIAL
 CONTACT_FLOOR_N = 0.5
 """A burst reads contact above this (N) and above ``CONTACT_SIGMAS`` of its own noise."""
 CONTACT_SIGMAS = 5.0
+ZERO_LIMIT_N = 3.0
+"""A trial's first burst is its zero only when it reads less than this (N): in free space."""
 
 
 class RecordsError(ForcelearnError):
@@ -79,21 +81,30 @@ def passes_before(records: list[TrialRecords], noise_n: float) -> list[list[int]
 
     The sponge counts a pass when the tool, having touched it, leaves it. Seen
     from the records: contact is a burst reading more than ``CONTACT_FLOOR_N``
-    and ``CONTACT_SIGMAS`` of its noise; it ends at the next retreat move or at
-    the next burst that reads free space.
+    and ``CONTACT_SIGMAS`` of its noise above the trial's zero (its first burst, read
+    in free space as a trial or a probe point starts from the retract plane, when that
+    reads under ``ZERO_LIMIT_N``; else 0); it ends at the next retreat move or at the
+    next burst that reads free space. Without the trial's zero a sensor zero that had
+    wandered +0.5 N took a one-sample approach read of 1.05 N for contact and counted
+    passes the sponge did not (2 extra by trial 200 of a default run).
     """
     passes, touched, out = 0, False, []
     for trial in records:
         row = []
+        bursts = [s.burst for s in trial.steps if s.burst is not None]
+        first = bursts[0] if bursts else None
+        zero = first.mean_n if first is not None and abs(first.mean_n) < ZERO_LIMIT_N else 0.0
+        zero_var = noise_n**2 / first.count if first is not None and zero != 0.0 else 0.0
         for step in trial.steps:
             row.append(passes)
             burst = step.burst
             if burst is not None:
-                floor = max(CONTACT_FLOOR_N, CONTACT_SIGMAS * noise_n / math.sqrt(burst.count))
-                if burst.mean_n > floor:
+                spread = math.sqrt(noise_n**2 / burst.count + zero_var)
+                floor = max(CONTACT_FLOOR_N, CONTACT_SIGMAS * spread)
+                if burst.mean_n - zero > floor:
                     touched = True
                     continue
-                if abs(burst.mean_n) <= floor and touched:
+                if abs(burst.mean_n - zero) <= floor and touched:
                     passes, touched = passes + 1, False
                     continue
             if step.stage == "retreat" and touched:
@@ -196,3 +207,20 @@ def to_arrays(records: list[TrialRecords]) -> RecordArrays:
     if not a["has_burst"].any():
         raise RecordsError("the records hold no burst (no force was read): nothing to fit")
     return RecordArrays(trial=np.array([t.trial for t in records]), **a)
+
+
+def stack(first: RecordArrays, second: RecordArrays) -> RecordArrays:
+    """The rows of ``first`` then ``second``, padded to the longer trial (no move, no burst)."""
+    moves = max(first.valid.shape[1], second.valid.shape[1])
+
+    def padded(data: RecordArrays, name: str) -> np.ndarray:
+        value = getattr(data, name)
+        if value.ndim == 1:
+            return np.asarray(value)
+        fill: float | bool = False if value.dtype == bool else (
+            0.0 if name in ("count", "passes") else np.nan)
+        width = [(0, 0), (0, moves - value.shape[1])] + [(0, 0)] * (value.ndim - 2)
+        return np.pad(value, width, constant_values=fill)
+
+    return RecordArrays(**{name: np.concatenate([padded(first, name), padded(second, name)])
+                           for name in RecordArrays.__dataclass_fields__})

@@ -3,10 +3,12 @@
 The last ``HOLD_OUT`` of the trials are held out: every member of the family
 (:func:`~forcelearn.tools.twin.params.family`) is fitted on the others by
 :func:`scipy.optimize.least_squares` and judged by its residuals on the held-out
-trials with the BIC's penalty for its parameter count. The chosen member
-represents the cell when its held-out RMS on the control steps is at most
-``REPRESENTED_FACTOR`` times the sensor's per-sample noise (and at least
-``REPRESENTED_FLOOR_N``); otherwise the verdict says why, and no twin is written.
+trials with the BIC's penalty for its parameter count; a richer member is chosen
+only when it wins that check and the mechanism it adds is determined
+(:mod:`forcelearn.tools.twin.choice`). The chosen member represents the cell when
+its held-out RMS on the control steps is at most ``REPRESENTED_FACTOR`` times the
+sensor's per-sample noise (and at least ``REPRESENTED_FLOOR_N``); otherwise the verdict
+says why, and no twin is written.
 """
 
 from __future__ import annotations
@@ -29,10 +31,13 @@ from forcelearn.tools.twin.arm import (
     timed_moves,
     with_true_in_position,
 )
-from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, to_arrays
+from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
+from forcelearn.tools.twin.choice import choose, diagnose, family_for
 from forcelearn.tools.twin.forward import Reading, ToolPath, motion_shape, predict_means
-from forcelearn.tools.twin.params import BY_NAME, Member, family
+from forcelearn.tools.twin.identify import Identification
+from forcelearn.tools.twin.identify_fit import identified_arm
+from forcelearn.tools.twin.params import BY_NAME, Member
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.uncertainty import sigmas
 
@@ -50,9 +55,6 @@ BURST_FLOOR_N = 0.02
 BIC_RESOLUTION = 0.25
 """Weighted residuals (in units of a burst's expected scatter) below this are not told apart:
 on a (near) noiseless cell two members that both fit to this are equal, and the simpler wins."""
-BIC_MARGIN = 10.0
-"""ΔBIC (held-out trials) a richer member must win by to be chosen (Kass & Raftery 1995: over
-10 is very strong evidence); within it, the simpler member is kept."""
 
 @dataclass
 class MemberFit:
@@ -99,6 +101,8 @@ class TwinFit:
     represented: bool
     reason: str
     diagnostics: list[str] = field(default_factory=list)
+    choice: list[str] = field(default_factory=list)
+    """Why the chosen member and not a richer one (:func:`~forcelearn.tools.twin.choice.choose`)."""
 
     @property
     def train_trials(self) -> int:
@@ -411,55 +415,12 @@ def _rms(residuals: np.ndarray, mask: np.ndarray) -> float:
     return float(np.sqrt(np.mean(values**2))) if values.size else math.nan
 
 
-def _diagnose(train: RecordArrays, predicted: np.ndarray, values: dict[str, float]) -> list[str]:
-    """What the residuals say the model misses (depth trend, press vs ease-off, per trial)."""
-    notes: list[str] = []
-    use = train.is_step & train.has_burst & np.isfinite(predicted)
-    if use.sum() < 10:
-        return notes
-    residual = (train.mean_n - predicted)[use]
-    force = predicted[use]
-    if np.std(force) > 0:
-        curve = np.polyfit(force, residual, 2)
-        bend = np.polyval(curve, force)
-        share = float(np.var(bend) / max(np.var(residual), 1e-300))
-        if share > 0.3:
-            notes.append(
-                f"{share:.0%} of the residual is a curve in the force (the force does not "
-                "grow linearly with depth: a nonlinear foam)"
-            )
-    dy = np.diff(train.commanded[..., 1], axis=1, prepend=np.nan)[use]
-    pressing, easing = residual[dy < 0], residual[dy > 0]
-    if pressing.size > 5 and easing.size > 5:
-        gap = float(np.mean(pressing) - np.mean(easing))
-        if abs(gap) > 3 * float(np.std(residual)) / math.sqrt(min(pressing.size, easing.size)):
-            notes.append(
-                f"steps pressing in read {gap:+.2f} N more than steps easing off, beyond the "
-                "model's relaxation (hysteresis)"
-            )
-    return notes
-
-
-FRICTION_READING_MIN = 0.2
-"""The friction members join only when the reading takes at least this share of a force
-along Z, the roller's travel: the §5 tool reads along the surface's normal, where friction
-shows only through the surface's slope (a few % of it), too little to tell mu apart from
-the other terms (on a hidden cell without friction it fitted mu 0.22 and a surface 13 mm off)."""
-
-
-def family_for(reading: Reading) -> tuple[Member, ...]:
-    """The family (:func:`~forcelearn.tools.twin.params.family`) the reading can tell apart."""
-    members = family()
-    if abs(reading.along_z) >= FRICTION_READING_MIN:
-        return members
-    return tuple(m for m in members if "friction_coefficient" not in m.free)
-
-
 def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
              base_arm: dict[str, float], reading: Reading, band_mm: float, tick_s: float,
              calibration_noise_n: float | None = None,
              members: tuple[Member, ...] | None = None,
-             configured_phi: float | None = None, polling: Polling | None = None) -> TwinFit:
+             configured_phi: float | None = None, polling: Polling | None = None,
+             identification: Identification | None = None) -> TwinFit:
     """Fit every part of the twin to a run's records (trials in order).
 
     ``configured_phi`` is the AR(1) coefficient per burst sample the run's sensor
@@ -467,7 +428,9 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     corrects the noise measured within bursts. ``calibration_noise_n`` replaces
     that measurement by a calibration's. ``polling`` is how the driver polls the
     robot while waiting (:func:`~forcelearn.tools.twin.arm.polling_of`; None: the
-    recorded in-position and burst times are taken as exact).
+    recorded in-position and burst times are taken as exact). ``identification``
+    (``forcelearn identify``, on the fresh cell): its polled moves give the arm, its force
+    records join the fitted trials (passes counted apart, as a fresh foam's).
 
     Raises:
         RecordsError: too few trials, or records that cannot be fitted.
@@ -479,6 +442,11 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     arm = fit_arm(train, base_arm, band_mm, period)
     if polling is not None:
         arm = dataclasses.replace(arm, answer_s=polling.answer_s(period))
+    if identification is not None:
+        arm = identified_arm(arm, identification, band_mm)
+        extra = [t for t in identification.records if t.steps]
+        if extra:
+            train = stack(to_arrays(extra), train)
     # the sponge sees the moves end when the robot was in position, not when a poll saw it
     train = with_true_in_position(train, arm, band_mm)
     heldout = with_true_in_position(heldout, arm, band_mm)
@@ -492,16 +460,20 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
                      lambda d: burst_weights(d, first.noise_n), configured_phi)
     fits = fit_nested(members or family_for(reading), train, heldout, start, base_sponge,
                       arm.values, reading, first.noise_n, walk)
-    eligible = [f for f in fits if f.eligible]
-    best = min(f.bic for f in eligible)
-    # Parsimony: the simplest member (family order) whose BIC is within BIC_MARGIN of the
-    # best; a richer law must explain the held-out trials clearly better, not by rounding.
-    chosen = next(f for f in eligible if f.bic <= best + BIC_MARGIN)
+    resampled: dict[int, dict[str, float]] = {}
+
+    def spread(i: int) -> dict[str, float]:
+        if i not in resampled:
+            resampled[i] = jackknife(fits[i], train, arm.values, reading, first.noise_n,
+                                     walk=walk)
+        return resampled[i]
+
+    choice = choose(fits, spread)
+    chosen = fits[choice.index]
     chosen.jacobian_sigmas = dict(chosen.sigmas)
-    chosen.jackknife_sigmas = jackknife(chosen, train, arm.values, reading, first.noise_n,
-                                         walk=walk)
-    for name, spread in chosen.jackknife_sigmas.items():
-        chosen.sigmas[name] = max(chosen.sigmas[name], spread)
+    chosen.jackknife_sigmas = spread(choice.index)
+    for name, resampled_sigma in chosen.jackknife_sigmas.items():
+        chosen.sigmas[name] = max(chosen.sigmas[name], resampled_sigma)
     sponge = SpongeParams.unchecked(chosen.values)
     train_pred = predict_means(train, sponge, arm.values, reading)
     held_pred = predict_means(heldout, sponge, arm.values, reading)
@@ -511,7 +483,8 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     noise = sensor.noise_n if math.isfinite(sensor.noise_n) else 0.0
     threshold = max(REPRESENTED_FACTOR * noise, REPRESENTED_FLOOR_N)
     represented = chosen.heldout_rms_n <= threshold
-    diagnostics = _diagnose(train, train_pred, chosen.values)
+    diagnostics = diagnose(train.mean_n, train_pred, train.is_step & train.has_burst,
+                           train.commanded[..., 1])
     if represented:
         reason = (f"held-out RMS {chosen.heldout_rms_n:.3f} N is within {threshold:.3f} N "
                   f"({REPRESENTED_FACTOR:g} x the sensor's noise, at least "
@@ -523,5 +496,5 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
         if diagnostics:
             reason += "; " + "; ".join(diagnostics)
     return TwinFit(chosen.values, chosen, fits, arm, delay, base_arm["start_delay_s"], sensor,
-                   train, heldout, held_pred,
-                   threshold, represented, reason, diagnostics)
+                   train, heldout, held_pred, threshold, represented, reason, diagnostics,
+                   choice.notes)

@@ -1,6 +1,6 @@
 """Hidden cells: emulated cells drawn over stated ranges, the truth a twin is checked against.
 
-Issue 29 checks the twin on cells nobody hand-set: each is drawn from a seed,
+The twin is checked on cells nobody hand-set: each is drawn from a seed,
 written as a cell config that ``forcelearn run --config FILE`` runs as it is,
 with a JSON of every drawn parameter (the hidden truth) beside it::
 
@@ -108,7 +108,7 @@ CONTACT_NOISE_RATIO = 3.0
 
 @dataclass(frozen=True)
 class HiddenCellRanges:
-    """The ranges cells are drawn from (issue 29's, plus the contact position); see the module."""
+    """The ranges cells are drawn from (a plausible site's spread, and the contact position)."""
 
     stiffness_n_per_mm: Range = (0.5, 8.0)
     desired_force_kgf: Range = (0.5, 3.0)

@@ -166,7 +166,7 @@ def family() -> tuple[Member, ...]:
     relaxation), the power-law foam, hysteresis, roller friction. A member joins
     only when :class:`SpongeParams` has its keys (a twin.toml must load as it is).
     The fit keeps the simplest member the held-out trials do not clearly reject
-    (``BIC_MARGIN`` in :mod:`forcelearn.tools.twin.fit`).
+    (:mod:`forcelearn.tools.twin.choice`).
     """
     fields = {f.name for f in dataclasses.fields(SpongeParams)}
     members = list(LINEAR_MEMBERS)

@@ -22,12 +22,12 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from forcelearn.records import TrialRecords
 from forcelearn.site.config import CellConfig
-from forcelearn.site.kinds import sensor_kind
 from forcelearn.tools.twin.arm import (
     ArmFit,
     detection_period_s,
@@ -105,7 +105,7 @@ def replay(records: list[TrialRecords], twin: CellConfig, model: str = "cell",
 
 def _drift_rate(twin: CellConfig) -> float:
     """The twin's emulated sensor's bias drift along the reading's axis, N/sqrt(s)."""
-    model = getattr(twin.emulator, sensor_kind(twin.sensor_kind).model_field or "sensor")
+    model: Any = twin.sensor_device.model(twin.emulator)
     return float(model.bias_drift_per_sqrt_s[twin.filter.axis])
 
 

@@ -164,6 +164,7 @@ def twin_document(fit: TwinFit, source: RunSource) -> dict[str, Any]:
         "trials": {"fitted": fit.train.trial.tolist(), "held_out": held.trial.tolist(),
                    "held_out_share": HOLD_OUT},
         "member": fit.chosen.member.name,
+        "choice": fit.choice,
         "members": [
             {"name": m.member.name, "text": m.member.text, "free": m.free,
              "held": list(m.held), "train_cost": m.train_cost, "eligible": m.eligible,
@@ -214,7 +215,8 @@ def twin_markdown(document: dict[str, Any]) -> str:
     trials = document["trials"]
     lines += ["", f"Fitted on {len(trials['fitted'])} trials; the last "
               f"{len(trials['held_out'])} ({trials['held_out_share']:.0%}) held out.", "",
-              "## Members (chosen by the BIC on the held-out trials)", "",
+              "## Members (a richer one only when it wins on the held-out trials and what it "
+              "adds is determined)", "",
               "| member | parameters | train RMS (N) | held-out RMS (N) | BIC |",
               "|---|---|---|---|---|"]
     for m in document["members"]:
@@ -223,6 +225,7 @@ def twin_markdown(document: dict[str, Any]) -> str:
                      f"| {_fmt(m['train_rms_n'])} "
                      f"| {_fmt(m['heldout_rms_n'])} | {_fmt(m['bic'])} |")
     notes = [f"- {m['name']}: {m['note']}" for m in document["members"] if m.get("note")]
+    notes += [f"- {note}" for note in document.get("choice", [])]
     lines += ["", *notes] if notes else []
     held = [p["name"] for p in document["parameters"] if "held at the base" in p.get("note", "")]
     lines += ["", "## Parameters", "",
@@ -283,8 +286,7 @@ def twin_config(fit: TwinFit, source: RunSource) -> dict[str, Any]:
     arm = {p.name: fit.arm.values[p.name] for p in ARM}
     arm["start_delay_s"] = fit.base_start_delay_s  # the twin's emulated link adds its own time
     emulator["arm"] = arm
-    defaults = EmulatorConfig()
-    base_sensor = getattr(defaults, sensor_entry.model_field or "sensor")
+    base_sensor: Any = sensor_entry.model(EmulatorConfig())
     sensor_model: dict[str, Any] = {}
     noise = list(base_sensor.noise_std)
     if math.isfinite(fit.sensor.noise_n):

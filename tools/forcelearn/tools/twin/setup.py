@@ -5,8 +5,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.sponge import SpongeParams
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
 from forcelearn.records import TrialRecords
 from forcelearn.site.config import CellConfig
 from forcelearn.tools.twin.arrays import to_arrays
@@ -49,7 +49,8 @@ def configured_colour(config: CellConfig, records: list[TrialRecords]) -> float 
     is white (0). None when the bursts have no sample period.
     """
     cutoff = float(getattr(config.sensor, "cutoff_hz", 0.0) or 0.0)
-    if cutoff <= 0 or not config.emulator.sensor.emulate_filter:
+    emulate_filter = getattr(config.sensor_device.model(config.emulator), "emulate_filter", True)
+    if cutoff <= 0 or not emulate_filter:
         return 0.0
     period = mean_sample_period_s(to_arrays(records))
     if not math.isfinite(period):

@@ -5,7 +5,7 @@ known. This module drives the same pieces the emulated cell is built of —
 :class:`~forcelearn.emulators.physics.sponge.Sponge`,
 :class:`~forcelearn.emulators.physics.arm_motion.ArmMotion` inside
 :class:`~forcelearn.emulators.physics.cell.CellPhysics`, and the JR3's
-:class:`~forcelearn.emulators.jr3.sensor_model.SensorModel` — through the
+:class:`~forcelearn.emulators.jr3.sensor_model.Jr3SensorModel` — through the
 sequence of a §5 trial, and writes what a run records
 (:mod:`forcelearn.records`):
 
@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from forcelearn.devices import Pose, quaternion_to_matrix
-from forcelearn.emulators.jr3.sensor_model import SensorModel, SensorModelParams
+from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams, Jr3SensorModel
 from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams, stiffness_n_per_mm
@@ -72,8 +72,8 @@ class SimulatedRun:
     probe_force_ratio: float = 1.25
     sponge: SpongeParams = field(default_factory=SpongeParams)
     motion: MotionParams = field(default_factory=MotionParams)
-    sensor: SensorModelParams = field(
-        default_factory=lambda: SensorModelParams(
+    sensor: Jr3ModelParams = field(
+        default_factory=lambda: Jr3ModelParams(
             noise_std=(0.0,) * 6, initial_bias=(0.0,) * 6, bias_drift_per_sqrt_s=(0.0,) * 6
         )
     )
@@ -90,7 +90,7 @@ class _Recorder:
         self.physics = CellPhysics(self.sponge, start)
         self.motion = ArmMotion(run.motion, start)
         self.physics.attach_motion(self.motion)
-        self.sensor = SensorModel(run.sensor, np.random.default_rng(seed))
+        self.sensor = Jr3SensorModel(run.sensor, np.random.default_rng(seed))
         self.rng = np.random.default_rng(seed + 1)
         self.now_s = 0.0
         self.target = start

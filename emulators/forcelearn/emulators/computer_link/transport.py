@@ -12,7 +12,7 @@ a connection begins or ends (the server then drops any half-received frame).
   second connection while one is served is closed at once.
 * :class:`InProcessEndpoint`: no thread and no descriptor; its client is a
   pyserial port opened as ``forcelearn-robot://NAME``
-  (:mod:`~forcelearn.emulators.robot_controller.serial_port`), whose ``write``
+  (:mod:`~forcelearn.emulators.computer_link.serial_port`), whose ``write``
   hands the bytes to the controller in the caller's thread and whose ``read``
   returns the answers. One client at a time: a second open is refused.
 """

@@ -1,4 +1,4 @@
-"""Kinematic model behind the emulated robot controller: geometry, limits and motion settings.
+"""The emulated arm shared by every robot kind: geometry, limits, kinematics, motion settings.
 
 The arm is a simplified six-axis arm in the spirit of the IRB 2000 (not its
 exact geometry): a base joint, a two-link planar shoulder/elbow, and a

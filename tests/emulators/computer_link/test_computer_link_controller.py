@@ -7,10 +7,10 @@ import sys
 
 import pytest
 
+from forcelearn.emulators.computer_link.controller import ControllerEngine
+from forcelearn.emulators.computer_link.faults import ComputerLinkFaultConfig, Fault, FaultInjector
+from forcelearn.emulators.physics.arm import HOME, ArmConfig
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.controller import ControllerEngine
-from forcelearn.emulators.robot_controller.faults import Fault, FaultConfig, FaultInjector
-from forcelearn.emulators.robot_controller.kinematics import HOME, ArmConfig
 from forcelearn.protocols.computer_link import framing
 from forcelearn.protocols.computer_link import messages as m
 
@@ -114,14 +114,15 @@ def test_move_to_carries_the_orientation(engine) -> None:
 
 def test_fault_limits_and_seeded_probability_are_deterministic() -> None:
     """Limit caps the firings; the same seed fires the same way."""
-    once = FaultInjector(FaultConfig(drop_request=Fault(1.0, limit=1)))
+    once = FaultInjector(ComputerLinkFaultConfig(drop_request=Fault(1.0, limit=1)))
     assert [once.drop_request() for _ in range(3)] == [True, False, False]
-    runs = [FaultInjector(FaultConfig(drop_reply=Fault(0.5), seed=3)) for _ in range(2)]
+    runs = [FaultInjector(ComputerLinkFaultConfig(drop_reply=Fault(0.5), seed=3)) for _ in range(2)]
     a = [runs[0].drop_reply() for _ in range(50)]
     b = [runs[1].drop_reply() for _ in range(50)]
     assert a == b
     assert 10 < sum(a) < 40
-    corrupted = FaultInjector(FaultConfig(corrupt_byte=Fault(1.0, limit=2))).corrupt(bytes(5))
+    twice = ComputerLinkFaultConfig(corrupt_byte=Fault(1.0, limit=2))
+    corrupted = FaultInjector(twice).corrupt(bytes(5))
     assert sum(1 for byte in corrupted if byte) == 2
 
 
@@ -133,7 +134,7 @@ def test_emulator_imports_only_the_codec_of_the_driver_package() -> None:
     """
     code = (
         "import sys; before = set(sys.modules);"
-        "import forcelearn.emulators.robot_controller as e;"
+        "import forcelearn.emulators.computer_link as e;"
         "bad = [n for n in set(sys.modules) - before if n.endswith(('computer_link.driver', "
         "'computer_link.link')) or n == 'serial'];"
         "print(bad); sys.exit(1 if bad else 0)"

@@ -2,12 +2,12 @@
 
 Start it in-process (this is what tests and the emulated cell use)::
 
-    with RobotControllerEmulator("pty", physics=cell_physics) as emu:
+    with ComputerLinkEmulator("pty", physics=cell_physics) as emu:
         robot = ComputerLinkRobot(LinkConfig(url=emu.address))
         ...
         assert emu.move_count == 1
 
-or from a shell: ``python -m forcelearn.emulators.robot_controller --transport pty``
+or from a shell: ``python -m forcelearn.emulators.computer_link --transport pty``
 (prints the path to open). ``transport="inproc"`` serves no thread: the driver
 opens ``forcelearn-robot://NAME`` and every byte it writes is answered in its own
 thread (the fastest route, for the emulated cell in this process).
@@ -19,20 +19,21 @@ import logging
 import threading
 from typing import Literal
 
+from forcelearn.deprecation import renamed
 from forcelearn.devices import Pose
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import serial_char_time_s
-from forcelearn.emulators.lifecycle import Emulator
-from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.pty_endpoint import PtyEndpoint
-from forcelearn.emulators.robot_controller.controller import ControllerEngine
-from forcelearn.emulators.robot_controller.faults import FaultConfig, FaultInjector
-from forcelearn.emulators.robot_controller.kinematics import ArmConfig
-from forcelearn.emulators.robot_controller.transport import InProcessEndpoint, TcpEndpoint
-from forcelearn.emulators.robot_controller.url_scheme import (
+from forcelearn.emulators.computer_link.controller import ControllerEngine
+from forcelearn.emulators.computer_link.faults import ComputerLinkFaultConfig, FaultInjector
+from forcelearn.emulators.computer_link.transport import InProcessEndpoint, TcpEndpoint
+from forcelearn.emulators.computer_link.url_scheme import (
     REGISTRY_KIND,
     register_url_handler,
 )
+from forcelearn.emulators.lifecycle import Emulator
+from forcelearn.emulators.physics.arm import ArmConfig
+from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.pty_endpoint import PtyEndpoint
 from forcelearn.protocols.computer_link import framing
 
 log = logging.getLogger(__name__)
@@ -41,7 +42,7 @@ POLL_S = 0.005
 """Longest wait of the server loop (s): bounds stop latency (motion runs on simulated time)."""
 
 
-class RobotControllerEmulator(Emulator):
+class ComputerLinkEmulator(Emulator):
     """A robot controller speaking the computer-link protocol on a pty or loopback TCP.
 
     Args:
@@ -64,7 +65,7 @@ class RobotControllerEmulator(Emulator):
         *,
         config: ArmConfig | None = None,
         physics: CellPhysics | None = None,
-        faults: FaultConfig | None = None,
+        faults: ComputerLinkFaultConfig | None = None,
         port: int = 0,
         char_time_s: float = serial_char_time_s(9600),
         name: str | None = None,
@@ -189,3 +190,6 @@ class RobotControllerEmulator(Emulator):
             self.engine.clock.hold()  # real-time pace, if one is set
             self._endpoint.write(bytes(out))
         return False
+
+
+__getattr__ = renamed(__name__, {"RobotControllerEmulator": ComputerLinkEmulator})

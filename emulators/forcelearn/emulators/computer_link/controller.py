@@ -32,13 +32,13 @@ from typing import Any
 
 from forcelearn.devices import Pose
 from forcelearn.emulators.clock import Wire, serial_char_time_s
-from forcelearn.emulators.physics.arm_motion import ArmMotion
-from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller.kinematics import (
+from forcelearn.emulators.physics.arm import (
     ArmConfig,
     check_target,
     joint_angles_deg,
 )
+from forcelearn.emulators.physics.arm_motion import ArmMotion
+from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import ProtocolError
 from forcelearn.protocols.computer_link import framing
 from forcelearn.protocols.computer_link import messages as m

@@ -1,7 +1,7 @@
 """``forcelearn-robot://``: a pyserial port whose far end is an in-process controller emulator.
 
 ``serial.serial_for_url("forcelearn-robot://NAME")`` attaches to the
-:class:`~forcelearn.emulators.robot_controller.server.RobotControllerEmulator`
+:class:`~forcelearn.emulators.computer_link.server.ComputerLinkEmulator`
 started in this process with ``transport="inproc"`` under NAME (its ``url``);
 ``forcelearn-robot://`` with no name starts a fresh emulator of its own (a
 default arm, no shared physics, stopped when the port closes) whose serial
@@ -30,7 +30,7 @@ from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import serial_char_time_s
-from forcelearn.emulators.robot_controller.url_scheme import REGISTRY_KIND, SCHEME
+from forcelearn.emulators.computer_link.url_scheme import REGISTRY_KIND, SCHEME
 
 
 class EmulatedRobotSerial(SerialBase):
@@ -91,18 +91,18 @@ class EmulatedRobotSerial(SerialBase):
             running = registry.names(REGISTRY_KIND) or ["none"]
             raise SerialException(
                 f"no in-process robot controller emulator named {name!r} (running: "
-                f"{', '.join(running)}); start RobotControllerEmulator('inproc') in this "
+                f"{', '.join(running)}); start ComputerLinkEmulator('inproc') in this "
                 f"process and open its address, or open {SCHEME}:// for a private one"
             )
         return emulator
 
     def _private(self, instant: bool) -> Any:
-        from forcelearn.emulators.robot_controller.kinematics import ArmConfig
-        from forcelearn.emulators.robot_controller.server import RobotControllerEmulator
+        from forcelearn.emulators.computer_link.server import ComputerLinkEmulator
+        from forcelearn.emulators.physics.arm import ArmConfig
 
         char_time = serial_char_time_s(self.baudrate, self.bytesize, self.parity,
                                        self.stopbits)
-        emulator = RobotControllerEmulator(
+        emulator = ComputerLinkEmulator(
             "inproc", config=ArmConfig(instant=instant), char_time_s=char_time
         )
         emulator.start()

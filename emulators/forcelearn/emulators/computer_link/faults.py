@@ -25,23 +25,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
-@dataclass(frozen=True)
-class Fault:
-    """Fire with ``probability`` (0..1), at most ``limit`` times (None: no limit)."""
-
-    probability: float = 0.0
-    limit: int | None = None
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.probability <= 1.0:
-            raise ValueError(f"fault probability must be in 0..1, got {self.probability}")
-        if self.limit is not None and self.limit < 0:
-            raise ValueError(f"fault limit must be >= 0, got {self.limit}")
+from forcelearn.deprecation import renamed
+from forcelearn.emulators.faults import Fault as Fault  # re-exported: its old home
 
 
 @dataclass(frozen=True)
-class FaultConfig:
+class ComputerLinkFaultConfig:
     """Which faults the emulator injects; the default injects none."""
 
     corrupt_byte: Fault = field(default_factory=Fault)
@@ -58,8 +47,8 @@ class FaultConfig:
 class FaultInjector:
     """Decides, call by call, whether a fault fires; counts what fired. Thread-safe."""
 
-    def __init__(self, config: FaultConfig | None = None) -> None:
-        self.config = config or FaultConfig()
+    def __init__(self, config: ComputerLinkFaultConfig | None = None) -> None:
+        self.config = config or ComputerLinkFaultConfig()
         self._rng = np.random.default_rng(self.config.seed)
         self._lock = threading.Lock()
         self.fired: Counter[str] = Counter()
@@ -102,3 +91,6 @@ class FaultInjector:
     def drop_connection(self) -> bool:
         """True if the controller should hang up now."""
         return self._fires("drop_connection")
+
+
+__getattr__ = renamed(__name__, {"FaultConfig": ComputerLinkFaultConfig})

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from forcelearn.devices import IDENTITY_QUATERNION, Pose
-from forcelearn.emulators.robot_controller.kinematics import (
+from forcelearn.emulators.physics.arm import (
     HOME,
     TOOL_DOWN,
     ArmConfig,

@@ -9,9 +9,9 @@ import sys
 import pytest
 import serial
 
+from forcelearn.emulators.computer_link import ArmConfig, ComputerLinkEmulator
+from forcelearn.emulators.physics.arm import HOME
 from forcelearn.emulators.physics.cell import CellPhysics
-from forcelearn.emulators.robot_controller import ArmConfig, RobotControllerEmulator
-from forcelearn.emulators.robot_controller.kinematics import HOME
 from forcelearn.protocols.computer_link import framing
 from forcelearn.protocols.computer_link import messages as m
 
@@ -30,7 +30,7 @@ def _status_exchange(port: serial.SerialBase, tns: int) -> bytes:
 @pytest.mark.parametrize("transport", ["pty", "tcp"])
 def test_raw_client_gets_ack_and_reply(transport: str) -> None:
     """A bare pyserial client speaking the frames by hand is served on either transport."""
-    with RobotControllerEmulator(transport) as emu:
+    with ComputerLinkEmulator(transport) as emu:
         port = serial.serial_for_url(emu.address, timeout=0.02)
         try:
             ack, reply = _status_exchange(port, 500)
@@ -42,7 +42,7 @@ def test_raw_client_gets_ack_and_reply(transport: str) -> None:
 
 def test_tcp_serves_one_client_at_a_time_and_the_next_after_a_disconnect() -> None:
     """A second TCP client is closed at once; after the first leaves, a new one is served."""
-    with RobotControllerEmulator("tcp") as emu:
+    with ComputerLinkEmulator("tcp") as emu:
         host, port_number = emu.address.removeprefix("socket://").split(":")
         first = socket.create_connection((host, int(port_number)), timeout=2)
         first.sendall(framing.Control.ENQ.wire)
@@ -61,7 +61,7 @@ def test_tcp_serves_one_client_at_a_time_and_the_next_after_a_disconnect() -> No
 
 def test_stop_joins_the_thread_and_frees_the_port() -> None:
     """After stop() the listener is closed, and stop() twice is harmless."""
-    emu = RobotControllerEmulator("tcp")
+    emu = ComputerLinkEmulator("tcp")
     url = emu.start()
     emu.close()
     emu.close()
@@ -74,14 +74,14 @@ def test_stop_joins_the_thread_and_frees_the_port() -> None:
 def test_emulator_writes_home_into_the_shared_physics() -> None:
     """The physics object handed in learns the robot's pose at start."""
     physics = CellPhysics()
-    with RobotControllerEmulator("pty", physics=physics, config=ArmConfig()):
+    with ComputerLinkEmulator("pty", physics=physics, config=ArmConfig()):
         assert physics.pose == HOME
 
 
 def test_command_line_prints_the_url_it_serves_on() -> None:
-    """``python -m forcelearn.emulators.robot_controller`` prints a socket URL on 127.0.0.1."""
+    """``python -m forcelearn.emulators.computer_link`` prints a socket URL on 127.0.0.1."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "forcelearn.emulators.robot_controller", "--transport", "tcp"],
+        [sys.executable, "-m", "forcelearn.emulators.computer_link", "--transport", "tcp"],
         stdout=subprocess.PIPE,
         text=True,
     )

@@ -1,0 +1,110 @@
+"""Honest member choice.
+
+A richer member only when it wins on the held-out trials AND what it adds is determined;
+otherwise the records cannot tell the two apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pytest
+
+from forcelearn.tools.twin.choice import BIC_MARGIN, PRESENT_SIGMAS, choose
+from forcelearn.tools.twin.params import (
+    BY_NAME,
+    HYSTERETIC_MEMBER,
+    LINEAR_MEMBERS,
+    NONLINEAR_MEMBER,
+    Member,
+)
+
+LINEAR = LINEAR_MEMBERS[1]
+
+
+@dataclass
+class _Fit:
+    member: Member
+    bic: float
+    values: dict[str, float] = field(default_factory=dict)
+    sigmas: dict[str, float] = field(default_factory=dict)
+    held: tuple[str, ...] = ()
+    eligible: bool = True
+
+
+def _determined_sigma(name: str, value: float) -> float:
+    """A 1-sigma comfortably within the parameter's determination bound."""
+    return BY_NAME[name].bound(value) / 4
+
+
+def _fits(exponent: float, exponent_sigma: float, gain: float) -> list[_Fit]:
+    """The linear member and the nonlinear one, the latter ``gain`` better in held-out BIC."""
+    base = 100.0
+    return [_Fit(LINEAR, base),
+            _Fit(NONLINEAR_MEMBER, base - gain, {"stiffening_exponent": exponent},
+                 {"stiffening_exponent": exponent_sigma})]
+
+
+def test_a_richer_member_that_wins_and_is_determined_is_chosen() -> None:
+    """Held-out ΔBIC beyond the margin and the exponent determined: nonlinear."""
+    fits = _fits(1.3, _determined_sigma("stiffening_exponent", 1.3), 3 * BIC_MARGIN)
+    choice = choose(fits)
+    assert fits[choice.index].member is NONLINEAR_MEMBER
+    assert "chosen over" in choice.notes[-1]
+
+
+def test_within_the_margin_the_records_cannot_tell_and_the_simpler_stays() -> None:
+    """A determined exponent is not enough: the held-out trials must prefer it."""
+    fits = _fits(1.3, _determined_sigma("stiffening_exponent", 1.3), BIC_MARGIN / 2)
+    choice = choose(fits)
+    assert fits[choice.index].member is LINEAR
+    assert "cannot tell" in choice.notes[-1]
+
+
+@pytest.mark.parametrize("case", ["loose", "near-off", "held", "resampled"])
+def test_a_winner_whose_mechanism_is_not_determined_is_not_chosen(case: str) -> None:
+    """The held-out trials favour nonlinear, yet linear is kept.
+
+    A loose exponent, one within 3 sigma of 1, a held one, or one the resampling loosens.
+    """
+    value, sigma = 1.3, _determined_sigma("stiffening_exponent", 1.3)
+    if case == "loose":
+        sigma = 10 * BY_NAME["stiffening_exponent"].bound(value)
+    if case == "near-off":
+        value = 1.0 + 0.5 * PRESENT_SIGMAS * sigma
+    fits = _fits(value, sigma, 3 * BIC_MARGIN)
+    if case == "held":
+        fits[1].held = ("stiffening_exponent",)
+    resampled = ({"stiffening_exponent": 1.0} if case == "resampled" else {})
+    choice = choose(fits, lambda i: resampled)
+    assert fits[choice.index].member is LINEAR
+    assert choice.undetermined == [NONLINEAR_MEMBER.name]
+    assert "cannot tell" in choice.notes[-1]
+    assert fits[1].sigmas["stiffening_exponent"] == sigma  # the fit itself is not changed
+
+
+def test_the_walk_goes_on_from_the_member_kept() -> None:
+    """Nonlinear kept undetermined: hysteretic is judged against linear.
+
+    What it adds over linear counts (exponent, h, d_h).
+    """
+    fits = _fits(1.3, 1.0, 3 * BIC_MARGIN)
+    added = {"stiffening_exponent": 1.2, "hysteresis_loss": 0.2, "hysteresis_depth_mm": 0.6}
+    fits.append(_Fit(HYSTERETIC_MEMBER, 100.0 - 6 * BIC_MARGIN, added,
+                     {n: _determined_sigma(n, v) for n, v in added.items()}))
+    choice = choose(fits)
+    assert fits[choice.index].member is HYSTERETIC_MEMBER
+    assert "over linear" in choice.notes[-1]
+
+
+def test_an_inherited_amplitude_need_not_be_present() -> None:
+    """A hysteretic foam is taken for its own mechanism, h.
+
+    Linear was kept over nonlinear; the hysteretic member's exponent is 1.00 (determined,
+    not present), which does not veto it.
+    """
+    fits = _fits(1.0, _determined_sigma("stiffening_exponent", 1.0), BIC_MARGIN / 2)
+    added = {"stiffening_exponent": 1.0, "hysteresis_loss": 0.2, "hysteresis_depth_mm": 0.6}
+    fits.append(_Fit(HYSTERETIC_MEMBER, 100.0 - 6 * BIC_MARGIN, added,
+                     {n: _determined_sigma(n, v) for n, v in added.items()}))
+    assert fits[choose(fits).index].member is HYSTERETIC_MEMBER

@@ -1,0 +1,79 @@
+"""forcelearn identify: the plan on an emulated cell, the timing fit."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from forcelearn.site.config import load_cell_config
+from forcelearn.tools import cli
+from forcelearn.tools.twin.forward import predict_in_position_s
+from forcelearn.tools.twin.identify import (
+    IDENTIFY_TRIAL,
+    IdentifyPlan,
+    TimedMove,
+    read_identification,
+    run_identification,
+    write_identification,
+)
+from forcelearn.tools.twin.identify_fit import fit_timing
+
+TRUTH = {"start_delay_s": 0.08, "accel_mm_s2": 800.0, "default_speed_mm_s": 60.0,
+         "lag_s": 0.04}
+
+
+def _polled(length: float, speed: float, period: float, rng: np.random.Generator
+            ) -> TimedMove:
+    """A move's polls every ``period`` s from the command (phase at random), as a link's."""
+    arm = {**TRUTH, "default_speed_mm_s": TRUTH["default_speed_mm_s"] if math.isnan(speed)
+           else speed}
+    done = float(predict_in_position_s(np.array([length]), arm, 0.1)[0])
+    times = rng.uniform(0, period) + period * np.arange(1, math.ceil(done / period) + 2)
+    polls = [(float(t), bool(t < done), bool(t >= done)) for t in times]
+    return TimedMove(0.0, length, speed, polls)
+
+
+@pytest.mark.parametrize("period", [0.004, 0.044])
+def test_the_timing_fit_recovers_the_arm_from_polled_moves(period: float) -> None:
+    """EGM's 4 ms and the computer link's 44 ms polls: each value within 3 sigma and 15 %."""
+    rng = np.random.default_rng(int(period * 1000))
+    plan = IdentifyPlan()
+    moves = [_polled(length, speed, period, rng) for speed in (math.nan, *plan.speeds_mm_s)
+             for length in plan.lengths_mm]
+    fit = fit_timing(moves)
+    assert fit is not None
+    for name in ("start_delay_s", "accel_mm_s2", "lag_s"):
+        error = abs(fit.values[name] - TRUTH[name])
+        assert error <= 3 * fit.sigmas[name] + 1e-9, name
+        assert error <= 0.15 * TRUTH[name], name
+
+
+def test_identify_on_the_emulated_cell_writes_what_twin_reads(tmp_path: Path) -> None:
+    """A short plan: polled moves, the press stays under the desired force, the file reads back."""
+    config = load_cell_config(None)
+    plan = IdentifyPlan(lengths_mm=(1.0, 6.0), speeds_mm_s=(20.0, 80.0), free_reads=2,
+                        free_hold_s=1.0, hold_s=(0.1, 0.4), cycles=1, cycle_mm=2.0)
+    result = run_identification(config, plan, seed=1)
+    assert len(result.moves) == 2 * 2 * 3  # two lengths, out and back, own speed + two
+    stages = {s.stage for t in result.records for s in t.steps}
+    assert {"identify-free", "identify-press", "identify-hold", "identify-cycle0"} <= stages
+    press = [s.burst.mean_n for t in result.records for s in t.steps
+             if s.stage == "identify-press" and s.burst is not None]
+    assert press[-1] >= plan.press_force_ratio * config.task.desired_force_n
+    assert max(press) < config.task.desired_force_n  # force-guarded: it stops at the ratio
+    write_identification(result, tmp_path)
+    again = read_identification(tmp_path)
+    assert [t.trial for t in again.records] == [IDENTIFY_TRIAL]
+    assert [(m.command_s, m.length_mm, m.polls) for m in again.moves] == [
+        (m.command_s, m.length_mm, m.polls) for m in result.moves]
+    assert np.array_equal([m.speed_mm_s for m in again.moves],
+                          [m.speed_mm_s for m in result.moves], equal_nan=True)
+
+
+def test_identify_plan_prints_without_moving(capsys: pytest.CaptureFixture[str]) -> None:
+    """--plan: the plan and its cell time, nothing opened."""
+    assert cli.main(["identify", "--plan"]) == 0
+    assert "cell_time_s" in capsys.readouterr().out

@@ -1,0 +1,56 @@
+"""``forcelearn identify --config site.toml --out DIR``: the twin's identification run.
+
+Runs the short, force-guarded plan of :mod:`forcelearn.tools.twin.identify` on the cell
+(emulated by default): polled free-space moves of several lengths and speeds, a
+free-space hold, a press held over time, press in and ease off. Writes
+``DIR/identification.json``; ``forcelearn twin RUN_DIR --identification DIR`` uses it.
+``--plan`` prints the plan and its cell time without moving anything.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``forcelearn identify``."""
+    parser.add_argument("--config", type=Path, help="cell config TOML (default: emulated cell)")
+    parser.add_argument("--seed", type=int, help="emulated sensor noise seed (default [run] seed)")
+    parser.add_argument("--out", type=Path, help="output folder (default runs/identify-<time>)")
+    parser.add_argument("--plan", action="store_true",
+                        help="print the plan and its cell time; move nothing")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the identification plan and write identification.json."""
+    from forcelearn.site.config import load_cell_config
+    from forcelearn.tools.twin.identify import (
+        IdentifyPlan,
+        run_identification,
+        write_identification,
+    )
+    from forcelearn.tools.twin.identify_fit import fit_timing
+
+    plan = IdentifyPlan()
+    if args.plan:
+        print(json.dumps({"plan": dataclasses.asdict(plan),
+                          "cell_time_s": round(plan.cell_time_s(), 1)}, indent=2))
+        return 0
+    config = load_cell_config(args.config)
+    out = args.out or Path("runs") / time.strftime("identify-%Y%m%d-%H%M%S")
+    seed = args.seed if args.seed is not None else config.seed
+    result = run_identification(config, plan, seed)
+    path = write_identification(result, out)
+    timing = fit_timing(result.moves)
+    steps = sum(len(t.steps) for t in result.records)
+    print(f"identification: {len(result.moves)} timed moves, {steps} force steps; "
+          f"wrote {path}")
+    if timing is not None:
+        print("arm from the polled moves: " + ", ".join(
+            f"{name} {value:.4g} ± {timing.sigmas[name]:.2g}"
+            for name, value in timing.values.items()))
+    return 0

@@ -1,0 +1,204 @@
+"""Which member of the foam family the twin reports: the simplest the records do not refute.
+
+Members are fitted simplest first, each containing the one before
+(:func:`~forcelearn.tools.twin.params.family`). Starting from the simplest
+eligible member, a richer one is taken over the present choice only when both
+
+* the present choice fails the held-out check against it: the richer member
+  predicts the held-out trials better by more than ``BIC_MARGIN`` in the BIC of
+  their weighted residuals (Kass & Raftery 1995: over 10 is very strong
+  evidence), and
+* the mechanism it adds is determined: its amplitude (relaxation ratio,
+  exponent, h, mu) fitted (not held) with its 1-sigma within the determination
+  bound (:meth:`~forcelearn.tools.twin.params.Parameter.determined`), the larger
+  of the Jacobian's and the resampled sigma, and more than ``PRESENT_SIGMAS``
+  sigma from the value that switches the mechanism off (no relaxation, exponent
+  1, no hysteresis, no friction); no added parameter at an end of its range. A
+  scale the records leave loose (a relaxation time held at the base value) does
+  not veto it: the amplitude is then the initial rate at that scale, which the
+  report says.
+
+Otherwise the present choice stays, and the report says why: the records cannot
+tell the two apart (within the margin), or they favour the richer member but do
+not determine what it adds (a flexible member explaining the records with a
+mechanism they do not pin down). A system-identification engineer's rule: a
+model is only as good as the experiment that determined it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from forcelearn.tools.twin.forward import Reading
+from forcelearn.tools.twin.params import BY_NAME, Member, family
+
+BIC_MARGIN = 10.0
+"""ΔBIC (held-out trials) a richer member must win by to be considered at all."""
+PRESENT_SIGMAS = 3.0
+"""A mechanism is present when its amplitude is this many sigma from its "off" value."""
+OFF_VALUE = {"relaxation_ratio": 0.0, "stiffening_exponent": 1.0, "hysteresis_loss": 0.0,
+             "friction_coefficient": 0.0}
+"""The value of each mechanism's amplitude that switches the mechanism off."""
+BOUND_SHARE = 1e-5
+"""A value within this share of its range's width from an end sits at that end."""
+
+
+class Fitted(Protocol):
+    """What the choice reads of a fitted member (``fit.MemberFit`` has these)."""
+
+    member: Member
+    values: dict[str, float]
+    sigmas: dict[str, float]
+    held: tuple[str, ...]
+    bic: float
+    eligible: bool
+
+
+@dataclass
+class Choice:
+    """The chosen member's index in the fits and why each richer member was or was not taken."""
+
+    index: int
+    notes: list[str] = field(default_factory=list)
+    undetermined: list[str] = field(default_factory=list)
+    """Members the records favour on the held-out trials but whose mechanism they do not
+    determine (reported: "cannot tell")."""
+
+
+def added(richer: Member, simpler: Member) -> list[str]:
+    """The parameters ``richer`` fits that ``simpler`` does not (its added mechanism)."""
+    fixed = dict(richer.fixed)
+    return [n for n in richer.free if n not in simpler.free and n not in fixed]
+
+
+def _at_bound(name: str, value: float) -> bool:
+    param = BY_NAME[name]
+    margin = BOUND_SHARE * (param.high - param.low)
+    at_low = value <= param.low + margin and OFF_VALUE.get(name) != param.low
+    return bool(at_low or value >= param.high - margin)
+
+
+def mechanism_gap(fit: Fitted, names: list[str], sigmas: dict[str, float] | None = None,
+                  own: list[str] | None = None) -> str:
+    """Why the added parameters ``names`` are not determined in ``fit`` ('' when they are).
+
+    ``sigmas``: their 1-sigma (default: the fit's). ``own``: the member's own mechanism
+    (what it adds over the member just before it in the family; default ``names``): only
+    amplitude must be determined and present; one inherited from a member the walk did
+    not take (an exponent at 1, a relaxation ratio under a hysteretic foam) is judged
+    with that member, not again here.
+    """
+    own = names if own is None else own
+    sigmas = fit.sigmas if sigmas is None else sigmas
+    amplitudes = [n for n in names if n in OFF_VALUE]
+    for name in names:
+        value, sigma = fit.values[name], sigmas.get(name, math.inf)
+        if name in amplitudes and name in own and name in fit.held:
+            return f"{name} is held at the base value (the records do not determine it)"
+        if _at_bound(name, value):
+            return f"{name} sits at an end of its range ({value:.4g})"
+        if name in amplitudes and name in own and not BY_NAME[name].determined(value, sigma):
+            return f"{name} = {value:.4g} ± {sigma:.2g} is not determined"
+    for name in [n for n in amplitudes if n in own]:
+        value, sigma = fit.values[name], sigmas.get(name, math.inf)
+        if not abs(value - OFF_VALUE[name]) > PRESENT_SIGMAS * sigma:
+            return (f"{name} = {value:.4g} ± {sigma:.2g} is within {PRESENT_SIGMAS:g} sigma of "
+                    f"{OFF_VALUE[name]:g} (the mechanism off)")
+    return ""
+
+
+def choose(fits: Sequence[Fitted], resampled: Callable[[int], dict[str, float]] | None = None,
+           margin: float = BIC_MARGIN) -> Choice:
+    """Walk the family from its simplest eligible member; see the module.
+
+    ``resampled(i)`` gives fit ``i``'s resampled 1-sigma (the jackknife); the larger of it
+    and the Jacobian's judges the added mechanism (only called for a member that wins the
+    held-out check).
+    """
+    eligible = [i for i, f in enumerate(fits) if f.eligible]
+    if not eligible:
+        raise ValueError("no eligible member to choose from")
+    current = eligible[0]
+    choice = Choice(current)
+    for i in eligible[1:]:
+        richer, simpler = fits[i], fits[current]
+        if not set(simpler.member.free) <= set(richer.member.free):
+            continue
+        names = added(richer.member, simpler.member)
+        delta = simpler.bic - richer.bic
+        if not delta > margin:
+            choice.notes.append(
+                f"the records cannot tell {simpler.member.name} from {richer.member.name} "
+                f"(held-out ΔBIC {delta:+.1f}, within {margin:g}): {simpler.member.name} kept")
+            continue
+        sigmas = dict(richer.sigmas)
+        if resampled is not None:
+            for name, spread in resampled(i).items():
+                sigmas[name] = max(sigmas.get(name, math.inf), spread)
+        before = [j for j in eligible if j < i
+                  and set(fits[j].member.free) <= set(richer.member.free)]
+        own = added(richer.member, fits[before[-1]].member) if before else names
+        gap = mechanism_gap(richer, names, sigmas, own)
+        if gap:
+            choice.undetermined.append(richer.member.name)
+            choice.notes.append(
+                f"the held-out trials favour {richer.member.name} over {simpler.member.name} "
+                f"(ΔBIC {delta:+.1f}) but the records do not determine what it adds ({gap}): "
+                f"the records cannot tell the two apart; {simpler.member.name} kept")
+            continue
+        choice.notes.append(
+            f"{richer.member.name} chosen over {simpler.member.name}: held-out ΔBIC "
+            f"{delta:+.1f} and its {', '.join(names)} determined")
+        current = i
+        choice.index = i
+    return choice
+
+
+FRICTION_READING_MIN = 0.2
+"""The friction members join only when the reading takes at least this share of a force
+along Z, the roller's travel: the §5 tool reads along the surface's normal, where friction
+shows only through the surface's slope (a few % of it), too little to tell mu apart from
+the other terms (on a hidden cell without friction it fitted mu 0.22 and a surface 13 mm off)."""
+
+
+def family_for(reading: Reading) -> tuple[Member, ...]:
+    """The family (:func:`~forcelearn.tools.twin.params.family`) the reading can tell apart."""
+    members = family()
+    if abs(reading.along_z) >= FRICTION_READING_MIN:
+        return members
+    return tuple(m for m in members if "friction_coefficient" not in m.free)
+
+
+def diagnose(mean_n: np.ndarray, predicted: np.ndarray, use: np.ndarray,
+             commanded_y_mm: np.ndarray) -> list[str]:
+    """What the residuals (N) say the model misses: a curve in the force, press vs ease-off."""
+    notes: list[str] = []
+    use = use & np.isfinite(predicted)
+    if use.sum() < 10:
+        return notes
+    residual = (mean_n - predicted)[use]
+    force = predicted[use]
+    if np.std(force) > 0:
+        curve = np.polyfit(force, residual, 2)
+        bend = np.polyval(curve, force)
+        share = float(np.var(bend) / max(np.var(residual), 1e-300))
+        if share > 0.3:
+            notes.append(
+                f"{share:.0%} of the residual is a curve in the force (the force does not "
+                "grow linearly with depth: a nonlinear foam)"
+            )
+    dy = np.diff(commanded_y_mm, axis=1, prepend=np.nan)[use]
+    pressing, easing = residual[dy < 0], residual[dy > 0]
+    if pressing.size > 5 and easing.size > 5:
+        gap = float(np.mean(pressing) - np.mean(easing))
+        if abs(gap) > 3 * float(np.std(residual)) / math.sqrt(min(pressing.size, easing.size)):
+            notes.append(
+                f"steps pressing in read {gap:+.2f} N more than steps easing off, beyond the "
+                "model's relaxation (hysteresis)"
+            )
+    return notes

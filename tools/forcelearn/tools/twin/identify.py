@@ -1,0 +1,291 @@
+"""An identification run: a short plan on the cell for what a run's records cannot give.
+
+``forcelearn identify --config site.toml --out DIR`` runs it; ``forcelearn twin RUN_DIR
+--identification DIR`` fits with it. A learning run holds its force in band, with moves
+of one length and one speed, timed by polls as coarse as the link's exchange (44 ms
+on a 9600-baud computer link): the arm's lag, acceleration, speed and start delay trade
+off inside those windows, and the foam's relaxation and hysteresis show only as small
+differences between like steps. This plan makes them show (docs/twin-fit.md):
+
+===========================  ================================================  ============
+part                         what it does                                      determines
+===========================  ================================================  ============
+free-space hold              ``free_reads`` bursts of ``free_samples`` over    noise, drift
+                             ``free_hold_s`` at the retract plane
+timed moves                  free-space moves of each length x speed, each     start delay,
+                             polled back to back (READ_STATUS / EGM feedback)  acceleration,
+                             from the command to in position, after a random   speed, lag
+                             dwell (so the polls meet the motion at every
+                             phase), ``repeats`` times
+press                        steps down at the task's start until the force    stiffness,
+                             passes ``press_force_ratio`` x the desired force  contact
+held press                   bursts at ``hold_s`` after the last step          relaxation
+press in, ease off           ``cycles`` of ``cycle_mm`` in then out, in 1-mm   hysteresis
+                             steps, a burst after each
+===========================  ================================================  ============
+
+Safe on a real cell: every move goes through the same drivers, limits (step, speed,
+workspace) and force guard as a run's; the press stops at the probe's contact rules and
+depth limit (``[probe] max_depth_mm``) and the safety force limit. The emulated cell's
+cell time of the default plan is about two minutes.
+
+Writes ``DIR/identification.json``: the plan, the polled timing of each move, and the
+force records (the run's record format, :mod:`forcelearn.tools.experiments.records`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from forcelearn.devices import Pose
+from forcelearn.errors import ForcelearnError
+from forcelearn.records import StepRecord, TrialRecords
+from forcelearn.site.config import CellConfig
+from forcelearn.tools.experiments.records import step_from_json, step_to_json
+from forcelearn.tools.experiments.run_recorder import TrialRecorder
+
+FILE = "identification.json"
+FORMAT = 1
+IDENTIFY_TRIAL = -2
+"""Trial number of the identification's force records (the probe's is -1)."""
+POLL_LIMIT = 2000
+"""Most polls of one timed move (a move that never reports in position is an error)."""
+UNSEEN_S = 1.0
+"""A move whose motion no poll saw within this time (s) ends there (too short to see)."""
+
+
+class IdentificationError(ForcelearnError):
+    """The identification could not finish its plan (the robot has been stopped)."""
+
+
+@dataclass(frozen=True)
+class IdentifyPlan:
+    """The identification's plan; lengths in mm, speeds in mm/s, times in s, forces as ratios."""
+
+    lengths_mm: tuple[float, ...] = (1.0, 2.0, 3.5, 5.0, 7.0, 9.5)
+    speeds_mm_s: tuple[float, ...] = (10.0, 20.0, 35.0, 50.0, 75.0, 100.0)
+    repeats: int = 1
+    """Passes over the lengths x speeds. Many distinct (length, speed) pairs, rather than
+    repeats of a few: the polls are timed from the command, so a repeated move meets them at
+    the same phase; distinct durations spread the phases over the poll period."""
+    dither_s: float = 0.05
+    """Longest random dwell before a timed move (spreads the polls' phase)."""
+    free_reads: int = 10
+    free_samples: int = 32
+    free_hold_s: float = 20.0
+    press_force_ratio: float = 0.5
+    """The press goes on until the force passes this share of the task's desired force."""
+    hold_s: tuple[float, ...] = (0.05, 0.1, 0.2, 0.4, 0.8, 1.6, 3.2)
+    """Times after the press's last step at which the held press is read."""
+    hold_samples: int = 8
+    cycles: int = 2
+    cycle_mm: float = 3.0
+    step_samples: int = 16
+    restore_speed_mm_s: float = 100.0
+    """The speed the arm is left at when the robot config names none (the emulator's)."""
+
+    def __post_init__(self) -> None:
+        if not (self.lengths_mm and self.speeds_mm_s and self.repeats >= 1):
+            raise ValueError("an identification plan needs lengths, speeds and repeats >= 1")
+        if min(self.lengths_mm) <= 0 or min(self.speeds_mm_s) <= 0:
+            raise ValueError("identification lengths and speeds must be > 0")
+        if not 0 < self.press_force_ratio < 1:
+            raise ValueError("press_force_ratio must be in (0, 1): the press stays under the "
+                             "task's desired force")
+
+    def cell_time_s(self) -> float:
+        """A rough cell time of the plan (moves at their speeds, dwells, holds), s."""
+        moves = sum(2 * (length / speed + 0.3) for length in self.lengths_mm
+                    for speed in self.speeds_mm_s) * self.repeats
+        return (self.free_hold_s + moves + sum(self.hold_s) + 60.0
+                + self.cycles * 2 * self.cycle_mm * 0.5)
+
+
+@dataclass(frozen=True)
+class TimedMove:
+    """One polled free-space move: command time, length, speed and the polls, s and mm."""
+
+    command_s: float
+    length_mm: float
+    speed_mm_s: float
+    """The speed set for the move; NaN: the robot's own (what a run's moves use)."""
+    polls: list[tuple[float, bool | None, bool]]
+    """(controller time s, moving (None: not reported), in position) of each poll."""
+
+
+@dataclass(frozen=True)
+class Identification:
+    """What an identification run recorded."""
+
+    plan: IdentifyPlan
+    moves: list[TimedMove]
+    records: list[TrialRecords]
+
+
+def _poll(robot: Any) -> tuple[float, bool | None, bool]:
+    """One status poll of the computer link (time_s, moving) or of EGM (controller time)."""
+    status = robot.read_status()
+    if hasattr(status, "moving"):
+        return float(status.time_s), bool(status.moving), bool(status.in_position)
+    return float(status.controller_time_s), None, bool(status.in_position)
+
+
+def _timed_move(cell: Any, target: Pose, length: float, speed: float) -> TimedMove:
+    robot = cell.robot
+    command_s = _poll(robot)[0]
+    robot.move_to(target)
+    polls, seen = [], False
+    for _ in range(POLL_LIMIT):
+        poll = _poll(robot)
+        polls.append(poll)
+        seen = seen or poll[1] is True or not poll[2]
+        if poll[2] and poll[1] is not True and (seen or poll[0] - command_s > UNSEEN_S):
+            break  # in position after the motion (or a move too short to be seen)
+    else:
+        robot.stop()
+        raise IdentificationError(f"a {length:g} mm move at {speed:g} mm/s did not report in "
+                           f"position within {POLL_LIMIT} polls; the robot was stopped")
+    cell.sync()  # the cell's pose and time follow the robot's
+    return TimedMove(command_s, length, speed, polls)
+
+
+def _timing_part(cell: Any, config: CellConfig, plan: IdentifyPlan,
+                 rng: np.random.Generator) -> list[TimedMove]:
+    """The free-space moves, polled: each length x speed, out and back, ``repeats`` times."""
+    robot = cell.robot
+    if not hasattr(robot, "read_status") or not hasattr(robot, "set_speed"):
+        return []  # a robot kind without status polls or speeds: the records' timing only
+    home = cell.pose
+    limit = getattr(getattr(config.robot, "limits", None), "max_speed_mm_s", math.inf)
+    moves = []
+    # the robot's own speed (NaN: what a run's moves use) first, then each set speed
+    speeds = [math.nan] * plan.repeats + [v for _ in range(plan.repeats)
+                                          for v in plan.speeds_mm_s if v <= limit]
+    for speed in speeds:
+        if not math.isnan(speed):
+            robot.set_speed(speed)
+        for length in plan.lengths_mm:
+            if length > config.safety.max_step_mm:
+                continue
+            for z in (home.z_mm - length, home.z_mm):
+                cell.time_s = robot.wait_in_position(cell.move_timeout_s,
+                                                     float(rng.uniform(0, plan.dither_s)))
+                target = Pose(home.x_mm, home.y_mm, z, home.quaternion)
+                moves.append(_timed_move(cell, target, length, speed))
+    robot.set_speed(float(getattr(config.robot, "speed_mm_s", plan.restore_speed_mm_s)))
+    return moves
+
+
+def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
+    """Free-space hold, press, held press, press in and ease off (records via the cell)."""
+    home = cell.pose
+    cell.stage = ("identify-free", 0)
+    for k in range(plan.free_reads):
+        cell.time_s = cell.robot.wait_in_position(cell.move_timeout_s,
+                                                  plan.free_hold_s / plan.free_reads)
+        cell.stage = ("identify-free", k)
+        cell.measure_force_n(plan.free_samples)
+    probe = config.probe
+    target_n = plan.press_force_ratio * config.task.desired_force_n
+    step = probe.approach_step_mm
+    y, index, force = home.y_mm, 0, 0.0
+    bottom = config.task.start_mm[1] - probe.max_depth_mm  # until contact is found
+    while force < target_n:
+        y -= step
+        if y < bottom:
+            raise IdentificationError(
+                f"the press read {force:.2f} N at most, under {target_n:.2f} N, within "
+                "[probe] max_depth_mm of contact: it pressed no further (check the task's "
+                "start pose and the probe's settings)")
+        index += 1
+        cell.stage = ("identify-press", index)
+        cell.move_to(Pose(home.x_mm, y, home.z_mm, home.quaternion))
+        force = cell.measure_force_n(plan.step_samples)
+        if force > probe.contact_force_n and bottom < y - probe.max_depth_mm:
+            bottom = y - probe.max_depth_mm  # contact: at most max_depth_mm deeper
+    held = cell.time_s
+    for k, after in enumerate(plan.hold_s):
+        cell.stage = ("identify-hold", k)
+        wait = held + after - cell.time_s
+        if wait > 0:
+            cell.time_s = cell.robot.wait_in_position(cell.move_timeout_s, wait)
+        cell.measure_force_n(plan.hold_samples)
+    base_y = y
+    for cycle in range(plan.cycles):
+        for k, depth in enumerate([*np.arange(1, plan.cycle_mm + 0.5),
+                                   *np.arange(plan.cycle_mm - 1, -0.5, -1)]):
+            cell.stage = (f"identify-cycle{cycle}", k)
+            cell.move_to(Pose(home.x_mm, base_y - float(depth), home.z_mm, home.quaternion))
+            cell.measure_force_n(plan.step_samples)
+    cell.stage = ("retreat", 0)
+    cell.move_in_steps(home, config.safety.max_step_mm, guard_force=True)
+
+
+def run_identification(config: CellConfig, plan: IdentifyPlan | None = None,
+                       seed: int = 0) -> Identification:
+    """Run the plan on the cell ``config`` names (emulated or real) and return what it read."""
+    from forcelearn.site import CellSession
+
+    plan = plan or IdentifyPlan()
+    rng = np.random.default_rng(seed)
+    task = config.task
+    with CellSession(config, seed=seed) as session:
+        cell = session.cell
+        assert cell is not None  # an open session has its cell
+        recorder = TrialRecorder(cell)
+        cell.recorder = recorder
+        cell.sync()
+        x0, _, z0 = task.start_mm
+        above = Pose(x0, task.retract_y_mm, z0, task.orientation)
+        cell.stage = ("approach", 0)
+        cell.move_in_steps(above, config.safety.max_step_mm, guard_force=True)
+        cell.tare(task.tare_max_reading_n)
+        recorder.discard()
+        moves = _timing_part(cell, config, plan, rng)
+        _force_part(cell, config, plan)
+        records = [recorder.take(IDENTIFY_TRIAL)]
+        cell.recorder = None
+    return Identification(plan, moves, records)
+
+
+def write_identification(result: Identification, out: Path) -> Path:
+    """Write ``out/identification.json``; return its path."""
+    out.mkdir(parents=True, exist_ok=True)
+    document = {
+        "format": FORMAT,
+        "plan": asdict(result.plan),
+        "moves": [asdict(move) for move in result.moves],
+        "records": [{"trial": t.trial, "steps": [step_to_json(s) for s in t.steps]}
+                    for t in result.records],
+    }
+    path = out / FILE
+    path.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
+    return path
+
+
+def read_identification(folder: Path) -> Identification:
+    """Read ``folder/identification.json`` (ValueError: not an identification's)."""
+    path = folder / FILE
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} not found: run forcelearn identify --out {folder}")
+    document = json.loads(path.read_text(encoding="utf-8"))
+    if document.get("format") != FORMAT:
+        raise ValueError(f"{path}: format {document.get('format')!r}, expected {FORMAT}")
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
+                              for k, v in document["plan"].items()}
+    plan = IdentifyPlan(**fields)
+    moves = [TimedMove(m["command_s"], m["length_mm"], m["speed_mm_s"],
+                       [(float(t), None if mv is None else bool(mv), bool(ip))
+                        for t, mv, ip in m["polls"]]) for m in document["moves"]]
+    records = [TrialRecords(t["trial"], [step_from_json(s) for s in t["steps"]])
+               for t in document["records"]]
+    steps: list[StepRecord] = [s for t in records for s in t.steps]
+    if not steps and not moves:
+        raise ValueError(f"{path} holds no identification data")
+    return Identification(plan, moves, records)
