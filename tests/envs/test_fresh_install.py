@@ -43,7 +43,8 @@ def _isolated(target: Path) -> str:
     return textwrap.dedent(
         f"""
         import site, sys
-        sys.path = [p for p in sys.path if not p.startswith({str(ROOT)!r})]
+        sys.path = [p for p in sys.path  # the source folders, not a venv named like the tree
+                    if p != {str(ROOT)!r} and not p.startswith({str(ROOT) + "/"!r})]
         sys.path.insert(0, {str(target)!r})  # ahead of a copy installed in the venv
         for name in [m for m in sys.modules if m == "forcelearn" or m.startswith("forcelearn.")]:
             del sys.modules[name]  # imported at start-up by an installed copy's .pth hook

@@ -15,6 +15,20 @@ STIFF_SMALL_FORCE = (
 )
 """0.5 kgf on a sponge twice as stiff: a ±0.6 mm band, where a constant centre cannot work."""
 TRIALS = 4
+STEP_Z_MM = {round(-5.0 * step, 6) for step in range(1, 21)}
+"""The task's 20 steps' Z (5 mm down per step from Z = 0)."""
+
+
+def _assert_dense_probe(fits: list[dict[str, float]]) -> None:
+    """3 points, 4 more to follow the surface, then the steps' Z where the grid misses the waves.
+
+    At ±0.6 mm of band the grid's interpolation misses more than 2 bands, so the
+    probe adds points at the steps' Z (and re-reads its first point for its own wear).
+    """
+    grid = [round(f["z_mm"], 6) for f in fits[:7]]
+    extra = [round(f["z_mm"], 6) for f in fits[7:]]
+    assert len(set(grid)) == 7 and extra, [f["z_mm"] for f in fits]
+    assert set(extra) <= STEP_Z_MM | {grid[0]}, extra
 
 
 def _run(tmp_path: Path, name: str, *args: str) -> Path:
@@ -41,7 +55,7 @@ def test_each_trial_presses_in_at_the_desired_force_and_the_map_moves_with_it(
     assert choice["wear_stiffness_n_per_mm"] == pytest.approx(
         summary["probe_stiffness_n_per_mm"]
     )
-    assert len(summary["probe_fits"]) == 7  # 3 points, then 4 more to follow the surface
+    _assert_dense_probe(summary["probe_fits"])
     rows = list(csv.DictReader((straight / "trials.csv").open()))
     desired, band = summary["desired_force_n"], 0.5 * summary["desired_force_n"]
     starts = [float(r["start_force_n"]) for r in rows]
@@ -68,4 +82,5 @@ def test_forcelearn_probe_chooses_the_map_the_run_uses(straight: Path, tmp_path:
     probed = json.loads((out / "probe.json").read_text())
     summary = json.loads((straight / "summary.json").read_text())
     assert probed["output_map"] == summary["output_map"]
-    assert len(probed["fits"]) == len(summary["probe_fits"]) == 7
+    assert len(probed["fits"]) == len(summary["probe_fits"])
+    _assert_dense_probe(probed["fits"])
