@@ -41,6 +41,7 @@ from gymnasium.vector.utils import batch_space
 
 from forcelearn.envs.base import box
 from forcelearn.envs.surface_batch import BatchSpec, SurfaceBatch
+from forcelearn.site.jr3_kind import sensor_model
 from forcelearn.tasks.surface_map import OutputMapChoice
 from forcelearn.tasks.surface_probe import ProbeResult
 
@@ -80,7 +81,7 @@ def probe_map(config: Any, seed: int) -> Probed:
 def batch_spec(config: Any, probed: Probed) -> BatchSpec:
     """The batch's spec from a cell config (``CellConfig``) and the map it runs with."""
     task, emulator, choice = config.task, config.emulator.effective(), probed.output_map
-    sensor = emulator.sensor
+    sensor = sensor_model(config)  # the JR3's model, with the profile applied
     full_scale = float(sensor.full_scales[NORMAL_AXIS])
     _, start_y, start_z = task.start_mm
     return BatchSpec(

@@ -68,6 +68,18 @@ from forcelearn.tools.fuzz.fault_inject import (
 log = logging.getLogger(__name__)
 
 EXAMPLES = Path(__file__).resolve().parents[4] / "examples"
+"""The example cells beside the source tree (an editable install or a checkout)."""
+
+
+def examples_folder() -> Path:
+    """The example cells: beside the source tree, else ./examples (a wheel ships none)."""
+    for folder in (EXAMPLES, Path.cwd() / "examples"):
+        if (folder / CELLS["link+jr3"]).is_file():
+            return folder
+    raise FileNotFoundError(
+        f"the campaign's cells are the project's examples/ ({', '.join(CELLS.values())}): "
+        "run it from a checkout of forcelearn (its top folder holds examples/)"
+    )
 CELLS = {
     "link+jr3": "emulated-cell.toml",
     "egm+jr3": "egm-cell.toml",
@@ -121,7 +133,7 @@ def cell_config(cell: str, folder: Path, trials: int, steps: int, probe: bool) -
     Without ``probe`` the run starts cold on the fallback map (the probe costs
     most of a short run's time; the first run of each cell keeps it).
     """
-    table = tomllib.loads((EXAMPLES / CELLS[cell]).read_text())
+    table = tomllib.loads((examples_folder() / CELLS[cell]).read_text())
     table.setdefault("probe", {})["enabled"] = probe
     if not probe:
         table.setdefault("run", {})["learner_start"] = "cold"
