@@ -23,6 +23,7 @@ def test_check_env_passes_for_the_contour_env() -> None:
     env.close()
 
 
+@pytest.mark.long
 def test_check_env_passes_for_the_surface_env_on_the_emulated_cell() -> None:
     """The same checker accepts §5 through the real drivers."""
     env = SurfaceEnv(render_mode="rgb_array")

@@ -142,7 +142,9 @@ def run(config: Path, out: Path, *extra: str) -> dict:
     return json.loads((out / "summary.json").read_text())
 
 
-@pytest.mark.parametrize("name", ["egm-cell.toml", "netft-cell.toml"])
+@pytest.mark.parametrize(
+    "name", [pytest.param("egm-cell.toml", marks=pytest.mark.long), "netft-cell.toml"]
+)
 def test_run_is_deterministic_and_resumes_bit_identical(name: str, tmp_path: Path) -> None:
     """1 trial, then resume to 3: the same bytes as 3 trials straight (seed 2).
 

@@ -200,6 +200,7 @@ def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
     emulator.wait_for(r"3 client sessions", 5.0)
 
 
+@pytest.mark.long
 def test_a_run_through_emulate_in_another_process_equals_the_in_process_run(
     spawn: Callable[..., Emulator], tmp_path: Path
 ) -> None:

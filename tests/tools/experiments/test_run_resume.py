@@ -133,6 +133,7 @@ def comparable(trials: list[TrialRecords]) -> str:
     return repr([(t.trial, [unfiltered(step) for step in t.steps], t.tares) for t in trials])
 
 
+@pytest.mark.long
 def test_sigkill_mid_run_then_resume_ends_bit_identical(
     uninterrupted: Path, tmp_path: Path, required_summary_keys: frozenset[str]
 ) -> None:

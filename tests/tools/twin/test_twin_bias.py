@@ -141,6 +141,7 @@ NETFT = Path(__file__).parent / "data" / "netft-30"
 
 
 @pytest.mark.slow
+@pytest.mark.long
 def test_the_netft_default_cell_is_represented(tmp_path: Path) -> None:
     """The default cell read by a Net F/T is represented: its sponge is in the family.
 

@@ -35,6 +35,7 @@ def records() -> list[TrialRecords]:
     return simulate_run(SimulatedRun(trials=15, sponge=TRUTH, sensor=NOISY), seed=4)
 
 
+@pytest.mark.long
 def test_twin_writes_a_config_that_runs(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, records: list[TrialRecords],
     capsys: pytest.CaptureFixture[str],
@@ -70,6 +71,7 @@ def test_twin_writes_a_config_that_runs(
     assert overall < 0.2
 
 
+@pytest.mark.long
 def test_a_hysteretic_twin_carries_its_hysteresis_and_runs(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -115,6 +117,7 @@ class _RipplingFoam(Sponge):
         return np.array([0.0, force, 0.0])
 
 
+@pytest.mark.long
 def test_a_cell_outside_the_family_gets_no_twin(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

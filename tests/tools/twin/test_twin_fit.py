@@ -95,6 +95,7 @@ def test_forward_model_follows_hysteresis_and_friction_on_recorded_moves(
     assert ignored.max() > 0.5
 
 
+@pytest.mark.long
 def test_fit_recovers_hysteresis_and_friction() -> None:
     """A noiseless hysteretic foam under a frictional roller: h and mu within a few %."""
     truth = dataclasses.replace(TRUTH, hysteresis_loss=0.15, friction_coefficient=0.4,
@@ -173,6 +174,7 @@ class _SaturatingFoam(Sponge):
         return np.array([0.0, 30.0 * math.tanh(depth / 6.0), 0.0])
 
 
+@pytest.mark.long
 def test_records_the_family_cannot_explain_are_not_represented() -> None:
     """A saturating force law: the verdict says so and the bar is missed."""
     noisy = Jr3ModelParams(noise_std=(0.05,) * 6, initial_bias=(0.0,) * 6,

@@ -87,6 +87,7 @@ def test_the_arm_timing_is_explained_within_the_polling_windows(
     assert aware.period_s == pytest.approx(POLL_S)
 
 
+@pytest.mark.long
 def test_the_relaxation_is_fitted_as_from_exact_times() -> None:
     """Moves end before the poll that saw them, bursts begin after its answer.
 
