@@ -61,6 +61,22 @@ def test_the_learners_first_means_command_the_probes_path(follow: bool) -> None:
         assert not np.allclose(cold, path, atol=0.1)
 
 
+@pytest.mark.parametrize("tare", [False, True], ids=["no-tare", "tare-each-trial"])
+def test_the_warm_start_aims_where_the_drifted_sensor_reads_the_desired_force(tare: bool) -> None:
+    """The probe's last free-space reading is the bias the task reads on top of the force.
+
+    A sensor reading 0.6 N low in free space at the probe's end reads the
+    desired force 0.6 N / k deeper; a task that tares before each trial does not.
+    """
+    k, drift = 2.0, -0.6
+    task = SurfaceTaskSpec(tare_each_trial=tare)
+    drifted = _probe(k, [1.0, 2.5, 1.5, 0.0, 1.2])
+    drifted.baselines_n[-1] = drift
+    targets, _ = step_targets(drifted, task)
+    shift = 0.0 if tare else drift / k
+    assert targets == pytest.approx(drifted.target_path_mm(task) + shift, abs=1e-9)
+
+
 def test_a_target_beyond_the_range_is_held_at_its_end() -> None:
     """μ is clipped to the action range: the command sits at the range's end, not beyond."""
     task = SurfaceTaskSpec()

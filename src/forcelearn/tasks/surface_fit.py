@@ -265,15 +265,24 @@ class ProbeResult:
         """Mean fitted stiffness over the points, N/mm."""
         return float(np.mean([f.stiffness_n_per_mm for f in self.fits]))
 
-    def target_path_mm(self, task: SurfaceTaskSpec) -> np.ndarray:
-        """Y (mm) where each step's fit gives the desired force, one per step of a trial.
+    def target_path_mm(self, task: SurfaceTaskSpec, force_n: float | None = None) -> np.ndarray:
+        """Y (mm) where each step's fit gives ``force_n`` (default the desired force), per step.
 
-        The fits' target Y = contact Y − desired force / stiffness, interpolated
+        The fits' target Y = contact Y − force / stiffness, interpolated
         linearly in Z between the probed points (held beyond them): the surface
         model a force-control engineer would feed forward.
         """
         z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
-        return self._targets_at(task, z_steps)
+        return self._targets_at(task, z_steps, force_n)
+
+    def free_space_reading_n(self) -> float:
+        """The sensor's reading in free space at the probe's last point, N (0: none read).
+
+        The fits' forces are each point's readings less its own free-space
+        baseline; the task's readings are not: they carry the sensor's bias as it
+        has drifted since it was zeroed, best known from the latest baseline.
+        """
+        return float(self.baselines_n[-1]) if self.baselines_n else 0.0
 
     def contact_path_mm(self, task: SurfaceTaskSpec) -> np.ndarray:
         """Contact Y (mm) of the fits at each step's Z, interpolated like :meth:`target_path_mm`."""
@@ -289,12 +298,15 @@ class ProbeResult:
         """Y (mm) where the fits, interpolated in Z, give the desired force at ``z_mm``."""
         return float(self._targets_at(task, np.array([z_mm]))[0])
 
-    def _targets_at(self, task: SurfaceTaskSpec, z_mm: np.ndarray) -> np.ndarray:
+    def _targets_at(
+        self, task: SurfaceTaskSpec, z_mm: np.ndarray, force_n: float | None = None
+    ) -> np.ndarray:
         if not self.fits:
             raise ProbeError("the probe fitted no point")
+        force = task.desired_force_n if force_n is None else force_n
         by_z: dict[float, list[float]] = {}
         for f in self.fits:  # a point probed twice: the mean of its targets
-            by_z.setdefault(f.z_mm, []).append(f.target_y_mm(task.desired_force_n))
+            by_z.setdefault(f.z_mm, []).append(f.target_y_mm(force))
         z_fit = np.array(sorted(by_z))
         y_fit = np.array([float(np.mean(by_z[z])) for z in z_fit])
         if len(z_fit) == 1:

@@ -14,7 +14,9 @@
   what the probe could not know (the relaxation at the pass's speed, the
   wear, the surface between probed points). With this start the probe also
   measures its ``refine_points`` (:func:`probe_and_map`'s ``refine``), so the
-  path has the surface's waves.
+  path has the surface's waves. The target is where the sensor will read
+  the desired force: the fits' forces are free of the sensor's bias, the
+  task's readings carry it as it drifted over the probe (:func:`aimed_force_n`).
 * ``"cold"``: μ = 0 (the map's centre) and r̂ = ``learner.initial_prediction``
   in every box: the §5 experiment as published, the learner finding the path
   by random search.
@@ -62,7 +64,7 @@ def step_targets(probe: ProbeResult, task: SurfaceTaskSpec) -> tuple[np.ndarray,
     :func:`relaxation_share` × F, interpolated in Z between the probed points
     like the target.
     """
-    targets = probe.target_path_mm(task)
+    targets = probe.target_path_mm(task, aimed_force_n(probe, task))
     z_steps = task.start_mm[2] + task.z_step_mm * np.arange(1, task.steps_per_trial + 1)
     force = task.desired_force_n
     evaluation = task.evaluation
@@ -78,6 +80,19 @@ def step_targets(probe: ProbeResult, task: SurfaceTaskSpec) -> tuple[np.ndarray,
     if len(z_fit) == 1:
         return targets, np.full(len(z_steps), float(r_fit[0]))
     return targets, np.asarray(np.interp(z_steps, z_fit, r_fit), dtype=float)
+
+
+def aimed_force_n(probe: ProbeResult, task: SurfaceTaskSpec) -> float:
+    """The contact force (N) at which the task's sensor will read the desired force.
+
+    The desired force less the sensor's free-space reading at the probe's end
+    (:meth:`ProbeResult.free_space_reading_n`: its bias drift since it was
+    zeroed), which the task's readings carry; none when the task tares the
+    sensor before each trial (``task.tare_each_trial``).
+    """
+    if task.tare_each_trial:
+        return task.desired_force_n
+    return task.desired_force_n - probe.free_space_reading_n()
 
 
 def relaxation_share(probe: ProbeResult, least_force_n: float = 1.0) -> float:

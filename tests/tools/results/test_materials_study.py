@@ -7,7 +7,7 @@ import tomllib
 from pathlib import Path
 
 from forcelearn.tools.results.materials import collect, plan
-from forcelearn.tools.results.materials_page import write_figure, write_page
+from forcelearn.tools.results.materials_page import STIFF_N_PER_MM, write_figure, write_page
 from forcelearn.tools.twin.hidden_cells import write_hidden_cells
 
 
@@ -24,17 +24,29 @@ def _fake_run(out: Path, converged: int | None, rms: float) -> None:
 
 
 def test_the_study_plans_both_starts_and_the_designs_on_hysteretic_cells(tmp_path: Path) -> None:
-    """Every cell with both starts; a hysteretic cell also with each design, after its default."""
+    """Every cell with both starts; a hysteretic cell also with each design.
+
+    In the order a stopped study still reports: the default start on every cell,
+    then the designs, then the cold start on the hysteretic and stiff cells first.
+    """
     cells, runs = tmp_path / "cells", tmp_path / "runs"
-    write_hidden_cells(4, 40, cells)
-    jobs = plan(cells, runs, ["direct", "direction"])
-    hysteretic = {p.stem.removesuffix(".truth") for p in cells.glob("*.truth.json")
-                  if json.loads(p.read_text())["sponge"]["hysteresis_loss"] > 0}
+    write_hidden_cells(6, 40, cells)
+    jobs = plan(cells, runs, ["direction", "direct"])
+    truths = {p.stem.removesuffix(".truth"): json.loads(p.read_text())["sponge"]
+              for p in cells.glob("*.truth.json")}
+    hysteretic = {c for c, s in truths.items() if s["hysteresis_loss"] > 0}
+    stiff = {c for c, s in truths.items() if s["stiffness_n_per_mm"] >= STIFF_N_PER_MM}
+    assert hysteretic and stiff - hysteretic and set(truths) - hysteretic - stiff
     assert {(j.cell, j.start) for j in jobs if j.approach == "auto"} == {
-        (f"cell-0{i}", s) for i in range(1, 5) for s in ("probe", "cold")}
+        (c, s) for c in truths for s in ("probe", "cold")}
     assert {j.cell for j in jobs if j.approach == "direct"} == hysteretic
-    first = [(j.cell, j.approach) for j in jobs][: len(hysteretic) + 4]
-    assert all((cell, "direct") in first for cell in hysteretic)  # the before right after
+    order = [(j.start, j.approach) for j in jobs]
+    assert order[: len(truths)] == [("probe", "auto")] * len(truths)
+    designs = order[len(truths):len(truths) + 2 * len(hysteretic)]
+    assert sorted(set(designs)) == [("probe", "direct"), ("probe", "direction")]
+    cold = [j.cell for j in jobs if j.start == "cold"]
+    first_cold = len(hysteretic | stiff)
+    assert set(cold[:first_cold]) == hysteretic | stiff
     config = tomllib.loads(next(j for j in jobs if j.approach == "direction" or j.start == "cold")
                            .config.read_text())
     assert config["run"]["stop_after_converged"] > 0

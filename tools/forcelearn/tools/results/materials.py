@@ -8,9 +8,11 @@
    (``[run] learner_start`` "probe", the default, and "cold") and the default
    ``[task] approach`` ("auto": from the loading side where the probe resolves hysteresis);
 3. per hysteretic cell (the truth's h > 0), the same run with each of ``--designs``
-   (``[task] approach`` values: "direct", the main job before this study, moving straight
-   to each step; "direction", the last move's direction as a second BOXES input), so the
+   (``[task] approach`` values: "direction", the last move's direction as a second BOXES
+   input; "direct", the main job before this study, moving straight to each step), so the
    designs compare on the same cells and seeds;
+   the runs go in the order of :func:`plan`, so a study stopped early has the default
+   start on every cell first;
 4. writes ``DIR/materials.md`` (the table) and ``DIR/materials.png`` (force RMS against
    trial, in bands, of the hysteretic cells with each approach); ``--page`` and
    ``--figure`` to write them elsewhere (docs/results/).
@@ -35,7 +37,13 @@ from typing import Any
 
 import tomli_w
 
-from forcelearn.tools.results.materials_page import CellRun, read_run, write_figure, write_page
+from forcelearn.tools.results.materials_page import (
+    STIFF_N_PER_MM,
+    CellRun,
+    read_run,
+    write_figure,
+    write_page,
+)
 from forcelearn.tools.twin.hidden_cells import write_hidden_cells
 
 TRIALS = 100
@@ -79,19 +87,24 @@ def variant_config(cell_config: Path, start: str, approach: str, out: Path) -> P
 def plan(cells_dir: Path, runs_dir: Path, designs: Sequence[str]) -> list[Job]:
     """Every job of the study, in waves a study stopped early still reports.
 
-    First each cell with the default start, followed on a hysteretic cell by the
-    first design (the before and after of the figure); then the other start, then
-    the other designs.
+    1. every cell with the default start and approach;
+    2. each hysteretic cell (truth h > 0) with each of ``designs``, default start
+       (the designs compared, and the before of the figure);
+    3. the cold start on the hysteretic and the stiff cells (where the approach
+       and the probe's density matter);
+    4. the cold start on the other cells.
     """
-    waves: list[list[Job]] = [[] for _ in range(len(STARTS) + len(designs))]
+    waves: list[list[Job]] = [[], [], [], []]
     for config in sorted(cells_dir.glob("cell-*.toml")):
         name = config.stem
         truth = json.loads((cells_dir / f"{name}.truth.json").read_text(encoding="utf-8"))
-        variants = [(start, "auto") for start in STARTS]
-        if truth["sponge"]["hysteresis_loss"] > 0:
-            variants += [("probe", design) for design in designs]
-        for (start, approach), wave in zip(variants, (0, 1, 0, *range(2, len(waves))),
-                                           strict=False):
+        sponge = truth["sponge"]
+        hysteretic = sponge["hysteresis_loss"] > 0
+        stiff = sponge["stiffness_n_per_mm"] >= STIFF_N_PER_MM
+        variants = [(0, "probe", "auto"), (2 if hysteretic or stiff else 3, "cold", "auto")]
+        if hysteretic:
+            variants += [(1, "probe", design) for design in designs]
+        for wave, start, approach in variants:
             path = variant_config(config, start, approach,
                                   runs_dir / "configs" / f"{name}-{start}-{approach}.toml")
             waves[wave].append(Job(name, start, approach, path,
@@ -133,7 +146,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=37, help="generator seed (default 37)")
     parser.add_argument("--run-seed", type=int, default=0, help="the runs' seed (default 0)")
     parser.add_argument("--trials", type=int, default=TRIALS, help=f"default {TRIALS}")
-    parser.add_argument("--designs", nargs="*", default=["direct", "direction"],
+    parser.add_argument("--designs", nargs="*", default=["direction", "direct"],
                         help="task.approach values compared on the hysteretic cells")
     parser.add_argument("--workers", type=int, default=1, help="runs at once (default 1)")
     parser.add_argument("--out", type=Path, required=True, help="the study's folder")
