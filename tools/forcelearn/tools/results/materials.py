@@ -19,7 +19,8 @@
 
 Every run is a ``nice -n 10`` subprocess on a pool of ``--workers`` local processes; a run
 whose ``.rc`` file exists is not run again, so a stopped study resumes, and
-``--report-only`` only rewrites the page from what has finished.
+``--report-only`` only rewrites the page from what has finished; ``--only cell-18 ...``
+runs those cells only (a re-run after a fix: delete their run folders and ``.rc`` files).
 """
 
 from __future__ import annotations
@@ -153,14 +154,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--page", type=Path, help="write the page here (default DIR/materials.md)")
     parser.add_argument("--figure", type=Path, help="the figure (default DIR/materials.png)")
     parser.add_argument("--report-only", action="store_true", help="only rewrite the page")
+    parser.add_argument("--only", nargs="*", default=None, metavar="CELL",
+                        help="run only these cells (e.g. cell-18); the page has every finished run")
     args = parser.parse_args(argv)
     cells_dir, runs_dir = args.out / "cells", args.out / "runs"
     if not (cells_dir / "hidden-cells.json").exists():
         write_hidden_cells(args.cells, args.seed, cells_dir)
     jobs = plan(cells_dir, runs_dir, args.designs)
     if not args.report_only:
+        todo = [job for job in jobs if args.only is None or job.cell in args.only]
         with ThreadPoolExecutor(max_workers=max(1, args.workers)) as pool:
-            list(pool.map(lambda job: run_job(job, args.trials, args.run_seed), jobs))
+            list(pool.map(lambda job: run_job(job, args.trials, args.run_seed), todo))
     runs = collect(jobs, cells_dir)
     figure = args.figure or args.out / "materials.png"
     page = args.page or args.out / "materials.md"
