@@ -20,7 +20,8 @@
 Every run is a ``nice -n 10`` subprocess on a pool of ``--workers`` local processes; a run
 whose ``.rc`` file exists is not run again, so a stopped study resumes, and
 ``--report-only`` only rewrites the page from what has finished; ``--only cell-18 ...``
-runs those cells only (a re-run after a fix: delete their run folders and ``.rc`` files).
+runs those cells only (a re-run after a fix: delete their run folders and ``.rc`` files),
+``--variants probe-auto ...`` those starts and approaches only (a budget's order).
 """
 
 from __future__ import annotations
@@ -156,13 +157,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--report-only", action="store_true", help="only rewrite the page")
     parser.add_argument("--only", nargs="*", default=None, metavar="CELL",
                         help="run only these cells (e.g. cell-18); the page has every finished run")
+    parser.add_argument("--variants", nargs="*", default=None, metavar="START-APPROACH",
+                        help="run only these variants (e.g. probe-auto cold-auto probe-direction)")
     args = parser.parse_args(argv)
     cells_dir, runs_dir = args.out / "cells", args.out / "runs"
     if not (cells_dir / "hidden-cells.json").exists():
         write_hidden_cells(args.cells, args.seed, cells_dir)
     jobs = plan(cells_dir, runs_dir, args.designs)
     if not args.report_only:
-        todo = [job for job in jobs if args.only is None or job.cell in args.only]
+        todo = [job for job in jobs if (args.only is None or job.cell in args.only) and (
+            args.variants is None or f"{job.start}-{job.approach}" in args.variants)]
         with ThreadPoolExecutor(max_workers=max(1, args.workers)) as pool:
             list(pool.map(lambda job: run_job(job, args.trials, args.run_seed), todo))
     runs = collect(jobs, cells_dir)
