@@ -16,13 +16,14 @@ import pytest
 
 from forcelearn.learning import SRVLearner
 from forcelearn.tasks.surface_probe import ContactFit, ProbeResult
+from forcelearn.tasks.surface_warm_start import aimed_force_n
 from forcelearn.tools.cli import main
 
 DATA = Path(__file__).parent / "data"
 SOFT_WEARING_FAST = (
     "[task]\ndesired_force_n = 21.0\n"
     "[emulator.sponge]\nstiffness_n_per_mm = 0.8\nrelaxation_ratio = 0.8\n"
-    "softening_passes = 6.0\n"
+    "softening_passes = 4.0\n"
 )
 """A 0.8 N/mm foam that loses 30 % of its stiffness within a few passes: 21 N is in reach
 fresh (26 mm of 38) and out of it worn on its softer patch (the issue's cell, sped up)."""
@@ -64,7 +65,11 @@ def frozen(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.usefixtures("frozen")
 def test_the_warm_learners_first_trial_is_the_probes_path(tmp_path: Path) -> None:
-    """By default the SRV means of trial 0 command where the probe's fits give the force."""
+    """By default the SRV means of trial 0 command where the probe's fits give the force.
+
+    The force the sensor will read: the fits' force plus its free-space reading at
+    the probe's end (its bias drift, which the task's readings carry).
+    """
     from forcelearn.site.config import load_cell_config
 
     code, out = _run(tmp_path, "warm", None, "--trials", "1")
@@ -73,8 +78,10 @@ def test_the_warm_learners_first_trial_is_the_probes_path(tmp_path: Path) -> Non
     assert summary["learner_start"] == "probe"
     fits = summary["probe_fits"]
     assert len(fits) == 7  # the 3 points and the 4 refine points: the path has the waves
-    probe = ProbeResult(fits=[ContactFit(**f) for f in fits])
-    path = probe.target_path_mm(load_cell_config().task)
+    baselines = json.loads((out / "probe.json").read_text())["baselines_n"]
+    probe = ProbeResult(fits=[ContactFit(**f) for f in fits], baselines_n=baselines)
+    task = load_cell_config().task
+    path = probe.target_path_mm(task, aimed_force_n(probe, task))
     assert _first_mean_commands(out) == pytest.approx(list(path), abs=1e-6)
 
 
