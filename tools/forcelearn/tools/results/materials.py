@@ -90,22 +90,25 @@ def plan(cells_dir: Path, runs_dir: Path, designs: Sequence[str]) -> list[Job]:
     """Every job of the study, in waves a study stopped early still reports.
 
     1. every cell with the default start and approach;
-    2. each hysteretic cell (truth h > 0) with each of ``designs``, default start
-       (the designs compared, and the before of the figure);
+    2. each hysteretic cell (truth h > 0) with the first of ``designs``, default
+       start; then with the next design, and so on (the designs compared on the
+       same cells, and the before of the figure);
     3. the cold start on the hysteretic and the stiff cells (where the approach
        and the probe's density matter);
     4. the cold start on the other cells.
     """
-    waves: list[list[Job]] = [[], [], [], []]
+    waves: list[list[Job]] = [[] for _ in range(len(designs) + 3)]
+    cold_first, cold_rest = len(designs) + 1, len(designs) + 2
     for config in sorted(cells_dir.glob("cell-*.toml")):
         name = config.stem
         truth = json.loads((cells_dir / f"{name}.truth.json").read_text(encoding="utf-8"))
         sponge = truth["sponge"]
         hysteretic = sponge["hysteresis_loss"] > 0
         stiff = sponge["stiffness_n_per_mm"] >= STIFF_N_PER_MM
-        variants = [(0, "probe", "auto"), (2 if hysteretic or stiff else 3, "cold", "auto")]
+        variants = [(0, "probe", "auto"),
+                    (cold_first if hysteretic or stiff else cold_rest, "cold", "auto")]
         if hysteretic:
-            variants += [(1, "probe", design) for design in designs]
+            variants += [(1 + i, "probe", design) for i, design in enumerate(designs)]
         for wave, start, approach in variants:
             path = variant_config(config, start, approach,
                                   runs_dir / "configs" / f"{name}-{start}-{approach}.toml")
