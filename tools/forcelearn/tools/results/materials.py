@@ -176,7 +176,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     figure = args.figure or args.out / "materials.png"
     page = args.page or args.out / "materials.md"
     write_figure(runs, figure)
-    write_page(runs, page, figure, args.seed, args.trials, " ".join(sys.argv))
+    command = ["python -m forcelearn.tools.results.materials",
+               *(a for a in sys.argv[1:] if a != "--report-only")]  # the study's own command
+    write_page(runs, page, figure, args.seed, args.trials, " ".join(command))
     print(f"{len(runs)} of {len(jobs)} runs: {page}, {figure}")
     return 0
 
