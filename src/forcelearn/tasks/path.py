@@ -49,7 +49,7 @@ import numpy as np
 
 from forcelearn.devices import Pose
 from forcelearn.errors import ForceLimitExceeded
-from forcelearn.learning import AffineOutput, BoxGrid, Dimension
+from forcelearn.learning import BoxGrid, Dimension
 from forcelearn.paths import TaughtPath
 from forcelearn.paths.taught import rotation_from_wxyz
 from forcelearn.tasks.evaluation import FAILURE_R
@@ -66,6 +66,9 @@ RETURN_POINTS = 8
 """Most lifted points the return to the start passes through (free space)."""
 RAMP_FIRST_STEP_S = 0.05
 """Time assumed for the ramp's first step, s (then each step's own)."""
+WEAR_GAIN = 0.5
+"""Share of a pass's mean force error the output's shift corrects after the pass (the wear
+moves every point alike; half a correction a pass follows it without chasing noise)."""
 MIN_RAMP_STEP_MM = 0.1
 """Smallest step of the force ramp, mm (a smaller one costs moves and changes nothing)."""
 
@@ -135,10 +138,35 @@ def path_grid(points: int) -> BoxGrid:
     return BoxGrid([Dimension("point", -0.5, points - 0.5, points)])
 
 
-def offset_output(scale_mm: float, max_deviation_mm: float) -> AffineOutput:
-    """y = scale · a (mm along the force axis), clipped to ±``max_deviation_mm``."""
-    return AffineOutput(scale=(scale_mm,), offset=(0.0,), low=(-max_deviation_mm,),
-                        high=(max_deviation_mm,))
+class PathOffsetOutput:
+    """y(a) = shift + scale · a, mm along the force axis, clipped to ±``max_deviation_mm``.
+
+    ``shift_mm`` follows the wear (the foam sinks and softens pass after pass, at
+    every point alike): after each pass :meth:`follow` moves it by ``WEAR_GAIN`` of
+    the pass's mean force error over the points in contact, through the probe's
+    stiffness; the learner's μ keeps what differs from point to point.
+    """
+
+    def __init__(self, scale_mm: float, max_deviation_mm: float, shift_mm: float = 0.0) -> None:
+        self.scale_mm = scale_mm
+        self.max_deviation_mm = max_deviation_mm
+        self.shift_mm = shift_mm
+
+    def __call__(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The offset command (mm) of action ``a``."""
+        limit = self.max_deviation_mm
+        return np.clip(self.shift_mm + self.scale_mm * np.asarray(a, dtype=float), -limit, limit)
+
+    def follow(self, mean_error_n: float, stiffness_n_per_mm: float) -> None:
+        """Move the shift against a pass's mean force error (N), within ±max_deviation_mm."""
+        limit = self.max_deviation_mm
+        change = -WEAR_GAIN * mean_error_n / stiffness_n_per_mm
+        self.shift_mm = float(np.clip(self.shift_mm + change, -limit, limit))
+
+
+def offset_output(scale_mm: float, max_deviation_mm: float) -> PathOffsetOutput:
+    """The output map of a path task (:class:`PathOffsetOutput`, no shift yet)."""
+    return PathOffsetOutput(scale_mm, max_deviation_mm)
 
 
 class PathTask:
@@ -147,8 +175,11 @@ class PathTask:
     name = "path"
 
     def __init__(self, cell: PathCell, spec: PathTaskSpec, path: TaughtPath, max_step_mm: float,
-                 stiffness_n_per_mm: float) -> None:
+                 stiffness_n_per_mm: float, output: PathOffsetOutput | None = None) -> None:
         self.cell = cell
+        self.output = output
+        """The learner's output map, whose shift follows the wear after each pass (None: none)."""
+        self._errors: list[float] = []
         self.spec = spec
         self.points = PathGeometry(path, spec.force_axis)
         self.max_step_mm = max_step_mm
@@ -212,15 +243,19 @@ class PathTask:
         self._trial_start_s = self.cell.time_s
         self.return_to_start()  # from the point where the last pass ended
         self.cell.tare(self.spec.contact_force_n)
+        self._errors = []
         readings = self.find_contact()
         self.start_force_n = readings[-1][1]
         self.first_contact_peak_n = max(force for _, force in readings)
         return np.array([0.0])
 
     def find_contact(self, until_n: float | None = None) -> list[tuple[float, float]]:
-        """From the approach pose, step in along point 0's force axis until the force passes
-        ``until_n`` (default: the contact threshold) or the offset reaches
-        ``max_deviation_mm``; (offset mm, force N) of every step."""
+        """Step in along point 0's force axis; (offset mm, force N) of every step.
+
+        From the approach pose (or ``CONTACT_MARGIN_MM`` short of a known contact) until
+        the force passes ``until_n`` (default: the contact threshold) or the offset
+        reaches ``max_deviation_mm``.
+        """
         self.cell.stage = ("contact", 0)
         self._step = 0
         self._offset = -self.spec.approach_mm
@@ -276,9 +311,13 @@ class PathTask:
             if self.spec.on_contact_loss == "continue":
                 r, failed = min(r, FAILURE_R), False
         last = k == len(self.points) - 1
+        if not (lost or limit_hit):
+            self._errors.append(judged.force_error_n)
         if failed or last:
             self.retreat()
             self.passes += 1
+            if self.output is not None and self._errors:
+                self.output.follow(float(np.mean(self._errors)), self.stiffness_n_per_mm)
         x, y, z = (float(v) for v in self.points.positions_mm[k])
         extras = {"point": float(k), "offset_mm": offset, "contact_lost": float(lost),
                   "limit_hit": float(limit_hit), "x_mm": x, "y_mm": y, "z_mm": z}

@@ -58,8 +58,11 @@ LEGACY_STATE_KEYS = {"computer_link": "link"}
 
 
 def emulated_physics(config: CellConfig) -> tuple[Sponge | PartFoam, CellPhysics]:
-    """The sponge (or the foam on ``[emulator.part]``) and the one physics object every
-    emulator reads (robot at its home pose)."""
+    """The sponge (or a part's foam) and the one physics object every emulator reads.
+
+    The robot starts at its home pose; ``[emulator.part]`` puts a foam-covered part in
+    place of the §5 sponge.
+    """
     emulator = config.emulator.effective()
     sponge: Sponge | PartFoam = (
         Sponge(emulator.sponge) if emulator.part is None

@@ -64,7 +64,7 @@ class TimedEnvironment(Protocol):
 
 @runtime_checkable
 class OrientedEnvironment(Protocol):
-    """An environment whose contact depends on the tool's orientation (a part under a tilted tool)."""
+    """An environment whose contact depends on the tool's orientation (a part, a tilted tool)."""
 
     def observe_orientation(self, quaternion: Quaternion) -> None:
         """Note the tool's orientation (w, x, y, z), before the pose is reported at it."""

@@ -67,7 +67,7 @@ def load_path(config: CellConfig) -> TaughtPath:
 
 def check_deviation(path: TaughtPath, spec: PathTaskSpec, low: tuple[float, float, float],
                     high: tuple[float, float, float]) -> None:
-    """Refuse a path whose points ± ``max_deviation_mm`` along the force axis leave the workspace."""
+    """Refuse a path whose points ± ``max_deviation_mm`` along the force axis leave the box."""
     points = PathGeometry(path, spec.force_axis)
     for k in range(len(points)):
         for sign in (-1.0, 1.0):
@@ -77,8 +77,9 @@ def check_deviation(path: TaughtPath, spec: PathTaskSpec, low: tuple[float, floa
                 raise PathRefused(
                     k, path.names[k], path.lines[k],
                     f"{sign * spec.max_deviation_mm:+g} mm along the force axis "
-                    f"(task.max_deviation_mm) it would be at ({', '.join(f'{v:.6g}' for v in where)}) "
-                    "mm, outside the workspace (safety.workspace_min_mm/_max_mm)")
+                    f"(task.max_deviation_mm) it would be at "
+                    f"({', '.join(f'{v:.6g}' for v in where)}) mm, outside the workspace "
+                    "(safety.workspace_min_mm/_max_mm)")
 
 
 def run_path(config: CellConfig, out: Path, passes: int, seed: int,
@@ -95,8 +96,8 @@ def run_path(config: CellConfig, out: Path, passes: int, seed: int,
         task = PathTask(cell, spec, path, config.safety.max_step_mm, stiffness_n_per_mm=1.0)
         try:
             probe = probe_pass(task)
-            learner = SRVLearner(task.grid, 1, config.learner, rng=seed,
-                                 output=offset_output(probe.scale_mm, spec.max_deviation_mm))
+            task.output = offset_output(probe.scale_mm, spec.max_deviation_mm)
+            learner = SRVLearner(task.grid, 1, config.learner, rng=seed, output=task.output)
             warm_start(learner, probe)
             logs: list[TrialLog] = []
 
@@ -128,8 +129,11 @@ def run_path(config: CellConfig, out: Path, passes: int, seed: int,
 
 def outside_workspace(config: CellConfig, spec: PathTaskSpec, path: TaughtPath,
                       logs: list[TrialLog]) -> int:
-    """Steps whose commanded pose lay outside ``[safety]``'s workspace (the driver refuses
-    them before sending: a run that ends has none; counted from the log, not assumed)."""
+    """Steps whose commanded pose lay outside ``[safety]``'s workspace.
+
+    The driver refuses them before sending, so a run that ends has none; counted from
+    the log, not assumed.
+    """
     points = PathGeometry(path, spec.force_axis)
     low, high = config.safety.workspace_min_mm, config.safety.workspace_max_mm
     count = 0
@@ -202,6 +206,7 @@ def summary_of(config: CellConfig, spec: PathTaskSpec, path: TaughtPath, probe: 
         "contact_lost_count": len(task.lost_points),
         "contact_lost_points": lost,
         "first_contact_peak_n": task.first_contact_peak_n,
+        "wear_shift_mm": task.output.shift_mm if task.output is not None else 0.0,
         "max_deviation_mm": spec.max_deviation_mm,
         "largest_offset_mm": task.largest_offset_mm,
         "moves_beyond_max_deviation": beyond,
