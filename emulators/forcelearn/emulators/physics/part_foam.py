@@ -108,12 +108,15 @@ class PartFoam:
 
     def _contact(self, position_mm: np.ndarray) -> tuple[float, np.ndarray, float]:
         """(foam depth mm, outward normal, stiffness coordinate z mm), remembered per pose."""
-        key = (self.passes, *(float(c) for c in position_mm), *self._quaternion)
+        radius = self.setup.tip_radius_mm
+        x, y, z = position_mm.tolist() if isinstance(position_mm, np.ndarray) else position_mm
+        key = (self.passes, x, y, z, *(self._quaternion if radius else ()))
         if key != self._key:
             self._key = key
-            centre = tip_centres_mm(np.asarray(position_mm, dtype=float),
-                                    np.asarray(self._quaternion), (0.0, 0.0, 0.0),
-                                    self.setup.tip_radius_mm)
+            centre = np.array([x, y, z], dtype=float)
+            if radius:  # the ball's centre lies back along the turned press axis
+                centre = tip_centres_mm(centre, np.asarray(self._quaternion), (0.0, 0.0, 0.0),
+                                        radius)
             if self.setup.in_gap(centre):
                 self._depth, self._normal, self._z = 0.0, np.zeros(3), float(centre[2])
             else:

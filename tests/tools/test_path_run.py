@@ -1,0 +1,33 @@
+"""The path task end to end on the emulated cell (computer link + JR3), the tool turning."""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import replace
+from pathlib import Path
+
+from forcelearn.site import load_cell_config
+from forcelearn.tools.experiments.path_run import run_path
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "paths" / "cylinder-cell.toml"
+
+
+def test_a_short_run_over_the_turning_cylinder_arc_writes_its_run_directory(
+        tmp_path: Path) -> None:
+    """Probe and 2 passes of 15 points (the tool turns 50 deg): records, summary, limits."""
+    config = load_cell_config(EXAMPLE)
+    assert config.path_task is not None
+    config = replace(config, path_task=replace(config.path_task, points_per_pass=15),
+                     emulator=replace(config.emulator, profile="ideal"))
+    summary = run_path(config, tmp_path, passes=2, seed=0)
+    assert summary["passes"] == 2 and summary["points"] == 15
+    assert summary["moves_outside_workspace"] == 0
+    assert summary["largest_offset_mm"] <= config.path_task.max_deviation_mm
+    assert summary["probe_stiffness_n_per_mm"] > 0
+    rows = list(csv.DictReader((tmp_path / "steps.csv").open()))
+    assert len(rows) == 30 and {float(r["point"]) for r in rows} == set(map(float, range(15)))
+    band = 0.1 * config.path_task.desired_force_n  # the probe's warm start: near the force
+    assert all(abs(float(r["force_error_n"])) <= band for r in rows)
+    assert json.loads((tmp_path / "summary.json").read_text())["task"] == "path"
+    assert (tmp_path / "trials.csv").read_text().startswith("index,phase,steps")
