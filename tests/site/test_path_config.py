@@ -11,7 +11,7 @@ from forcelearn.emulators.physics.part import Cylinder
 from forcelearn.errors import ConfigError, PathRefused
 from forcelearn.paths import read_path_csv
 from forcelearn.site import load_cell_config
-from forcelearn.tools.experiments.path_run import load_path
+from forcelearn.tools.experiments.path_run import load_path, run_path
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "paths"
 CYLINDER_PART = """
@@ -79,3 +79,18 @@ def test_a_path_whose_deviation_leaves_the_workspace_is_refused_before_any_move(
         low[0], low[1], lowest - 5.0)))  # the points fit; 15 mm deeper along the axis does not
     with pytest.raises(PathRefused, match="max_deviation_mm"):
         load_path(tight)
+
+
+def test_run_path_refuses_a_bad_path_before_the_cell_opens(tmp_path: Path) -> None:
+    """A non-unit quaternion on line 3: refused naming it, nothing written, nothing opened."""
+    rows = (EXAMPLES / "cylinder-arc.csv").read_text().splitlines()
+    fields = rows[2].split(",")
+    fields[3] = "0.5"  # qw: |q| is no longer 1
+    rows[2] = ",".join(fields)
+    config = load_cell_config(write(tmp_path, '[task]\nkind = "path"\npath = "bad.csv"\n'
+                                    + CYLINDER_PART))
+    (tmp_path / "bad.csv").write_text("\n".join(rows) + "\n")
+    out = tmp_path / "run"
+    with pytest.raises(PathRefused, match="line 3"):
+        run_path(config, out, passes=1, seed=0)
+    assert not out.exists()
