@@ -31,3 +31,5 @@ def test_a_short_run_over_the_turning_cylinder_arc_writes_its_run_directory(
     assert all(abs(float(r["force_error_n"])) <= band for r in rows)
     assert json.loads((tmp_path / "summary.json").read_text())["task"] == "path"
     assert (tmp_path / "trials.csv").read_text().startswith("index,phase,steps")
+    assert (tmp_path / "path_forces.png").stat().st_size > 0
+    assert (tmp_path / "path_3d.png").stat().st_size > 0

@@ -77,7 +77,8 @@ def run_one(part: str, cell: str, seed: int, passes: int, out: Path) -> dict[str
     row: dict[str, Any] = {"cell": cell, "part": part, "seed": seed, "passes": passes}
     try:
         config = study_config(part, cell, examples_dir())
-        summary = run_path(config, out / cell / part / f"seed{seed}", passes, seed)
+        summary = run_path(config, out / cell / part / f"seed{seed}", passes, seed,
+                           figures=seed == 0)
     except Exception as exc:  # a study records a run that failed and goes on
         row["error"] = f"{type(exc).__name__}: {exc}"
         return row

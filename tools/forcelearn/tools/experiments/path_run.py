@@ -83,8 +83,13 @@ def check_deviation(path: TaughtPath, spec: PathTaskSpec, low: tuple[float, floa
 
 
 def run_path(config: CellConfig, out: Path, passes: int, seed: int,
-             on_pass: Callable[[TrialRecord], Any] | None = None) -> dict[str, Any]:
-    """Probe, learn ``passes`` passes, write the run directory; return the summary."""
+             on_pass: Callable[[TrialRecord], Any] | None = None,
+             figures: bool = True) -> dict[str, Any]:
+    """Probe, learn ``passes`` passes, write the run directory; return the summary.
+
+    ``figures``: also ``path_forces.png`` and ``path_3d.png``
+    (:mod:`forcelearn.tools.figures.path`).
+    """
     spec = config.path_task
     path = load_path(config)
     assert spec is not None
@@ -124,6 +129,11 @@ def run_path(config: CellConfig, out: Path, passes: int, seed: int,
         for k, (o, f, t, r) in enumerate(zip(probe.offsets_mm, probe.forces_n,
                                              probe.targets_mm, probe.r_hats, strict=True))])
     write_summary(out, summary)
+    if figures and logs:
+        from forcelearn.tools.figures.path import plot_forces, plot_path_3d
+
+        plot_forces(logs, spec.desired_force_n, out / "path_forces.png")
+        plot_path_3d(np.asarray(path.positions_mm), logs[-1], out / "path_3d.png")
     return summary
 
 
@@ -231,5 +241,6 @@ def end_lines(summary: dict[str, Any], out: Path) -> list[str]:
         lines.append(f"contact lost {summary['contact_lost_count']} times, at points "
                      f"{summary['contact_lost_points']} (on_contact_loss = "
                      f"{summary['on_contact_loss']!r})")
-    lines.append(f"run directory: {out} (summary.json, trials.csv, passes.csv, steps.csv)")
+    lines.append(f"run directory: {out} (summary.json, trials.csv, passes.csv, steps.csv; "
+                 "figures path_forces.png, path_3d.png)")
     return lines
