@@ -33,3 +33,22 @@ def test_a_short_run_over_the_turning_cylinder_arc_writes_its_run_directory(
     assert (tmp_path / "trials.csv").read_text().startswith("index,phase,steps")
     assert (tmp_path / "path_forces.png").stat().st_size > 0
     assert (tmp_path / "path_3d.png").stat().st_size > 0
+
+
+def test_the_study_table_counts_what_each_run_reported(tmp_path: Path) -> None:
+    """Two seeds of a part: one in band, one not, one run that failed with an error."""
+    from forcelearn.tools.path_study import append, table
+
+    base = {"cell": "link-jr3", "part": "gap", "passes": 20, "max_deviation_mm": 15.0,
+            "moves_outside_workspace": 0, "error": ""}
+    append(tmp_path / "results.csv", {**base, "seed": 0, "in_band_at_end": True,
+                                      "warm_start_in_band_within_5": True,
+                                      "final_force_rms_pct": 1.5, "largest_offset_mm": 9.0,
+                                      "contact_lost_count": 40})
+    append(tmp_path / "results.csv", {**base, "seed": 1, "in_band_at_end": False,
+                                      "warm_start_in_band_within_5": True,
+                                      "final_force_rms_pct": 2.5, "largest_offset_mm": 11.0,
+                                      "contact_lost_count": 41})
+    append(tmp_path / "results.csv", {**base, "seed": 2, "error": "LinkTimeout: gone"})
+    row = table(tmp_path / "results.csv").splitlines()[-1]
+    assert row == "| link-jr3 | gap | 3 | 1/3 | 2/3 | 2.00 (2.50) | 11.00 / 15.0 | 0 | 81 | 1 |"
