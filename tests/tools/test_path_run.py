@@ -52,3 +52,21 @@ def test_the_study_table_counts_what_each_run_reported(tmp_path: Path) -> None:
     append(tmp_path / "results.csv", {**base, "seed": 2, "error": "LinkTimeout: gone"})
     row = table(tmp_path / "results.csv").splitlines()[-1]
     assert row == "| link-jr3 | gap | 3 | 1/3 | 2/3 | 2.00 (2.50) | 11.00 / 15.0 | 0 | 81 | 1 |"
+
+
+def test_forcelearn_run_takes_the_path_task_from_the_option_or_the_config(
+        tmp_path: Path) -> None:
+    """``--path`` or ``[task] kind = "path"`` dispatch to the path run; the §5 run otherwise."""
+    import argparse
+
+    from forcelearn.tools.commands.run import add_arguments
+    from forcelearn.tools.commands.run_path import is_path_run
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    surface = tmp_path / "surface.toml"
+    surface.write_text("[task]\ndesired_force_n = 19.6133\n")
+    assert not is_path_run(parser.parse_args([]))
+    assert not is_path_run(parser.parse_args(["--config", str(surface)]))
+    assert is_path_run(parser.parse_args(["--config", str(surface), "--path", "arc.csv"]))
+    assert is_path_run(parser.parse_args(["--config", str(EXAMPLE)]))
