@@ -94,3 +94,11 @@ def test_run_path_refuses_a_bad_path_before_the_cell_opens(tmp_path: Path) -> No
     with pytest.raises(PathRefused, match="line 3"):
         run_path(config, out, passes=1, seed=0)
     assert not out.exists()
+
+
+def test_a_force_the_safety_limit_would_stop_is_refused(tmp_path: Path) -> None:
+    """The desired force and its tolerance must fit under safety.max_force_n."""
+    config = load_cell_config(write(tmp_path, '[task]\nkind = "path"\npath = "arc.csv"\n'
+                                    'desired_force_n = 150.0\n' + CYLINDER_PART))
+    with pytest.raises(ConfigError, match="safety.max_force_n"):
+        load_path(config)

@@ -59,6 +59,11 @@ def load_path(config: CellConfig) -> TaughtPath:
         raise ConfigError("this config has no path task: set [task] kind = \"path\" and "
                           "path = FILE, or give forcelearn run --path FILE")
     safety = config.safety
+    if spec.desired_force_n + spec.tolerance > safety.max_force_n:
+        raise ConfigError(
+            f"task.desired_force_n = {spec.desired_force_n:g} N plus its tolerance "
+            f"{spec.tolerance:g} N passes safety.max_force_n = {safety.max_force_n:g} N: raise "
+            "the limit (FC Pressure's FCSupvForce) or lower the force")
     path = load_task_path(spec, safety.workspace_min_mm, safety.workspace_max_mm,
                           safety.max_step_mm)
     check_deviation(path, spec, safety.workspace_min_mm, safety.workspace_max_mm)
