@@ -205,6 +205,12 @@ def summary_of(config: CellConfig, spec: PathTaskSpec, path: TaughtPath, probe: 
     diagnosis = "" if in_band_at_end else (
         f"the last {END_WINDOW} passes were not all complete and in band (force RMS <= "
         f"{100 * CONVERGENCE_TOLERANCE:g} % of {desired:.4g} N): see passes.csv")
+    if lost and not in_band_at_end and spec.on_contact_loss == "retreat":
+        diagnosis = (f"contact was lost at points {lost} (force under "
+                     f"{spec.contact_force_n:.3g} N within max_deviation_mm = "
+                     f"{spec.max_deviation_mm:g}) and each such pass ended there "
+                     "(on_contact_loss = \"retreat\"): check the part and the path there, or "
+                     "set on_contact_loss = \"continue\" to go past a known gap")
     return {
         "task": "path", "path": spec.path, "points": len(path), "seed": seed,
         "robot": config.robot_kind, "sensor": config.sensor_kind,
