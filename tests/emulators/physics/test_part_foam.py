@@ -90,3 +90,12 @@ def test_a_pass_is_counted_when_the_tool_leaves_the_foam_and_the_state_round_tri
     other = PartFoam(PartSetup(CYLINDER), FOAM)
     other.load_state_dict(foam.state_dict())
     assert other.state_dict() == foam.state_dict()
+
+
+def test_beyond_the_parts_wall_there_is_nothing() -> None:
+    """Outside a pipe pressed on its inside (the robot's home, say) the tool touches nothing."""
+    pipe = Cylinder((900.0, 0.0, 300.0), (0.0, 1.0, 0.0), 150.0, concave=True)
+    foam = PartFoam(PartSetup(pipe), FOAM)
+    skin_bottom = np.array([900.0, 0.0, 300.0 - 150.0 + FOAM.thickness_mm])
+    assert foam.contact_force_world_n(skin_bottom - np.array([0.0, 0.0, 5.0]))[2] > 0.0
+    assert not foam.contact_force_world_n(np.array([900.0, 0.0, 600.0])).any()

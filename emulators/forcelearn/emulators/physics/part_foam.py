@@ -27,6 +27,10 @@ Hysteresis and friction of ``[emulator.sponge]`` are not modelled on a part
 (their state follows a slide along the §5 strip): a config that sets them with
 a part is refused by the cell config.
 
+The part is a shell: a tip more than ``WALL_MM`` into the rigid material
+under the foam is beyond its wall (outside a pipe pressed on its inside, the
+far side of a plate) and touches nothing.
+
 ``gap_min_mm`` / ``gap_max_mm``: a box (world frame, mm) where the part is cut
 away (a slot, a hole, a missing tile): no force inside it, so a taught path
 across it loses contact there.
@@ -52,6 +56,11 @@ from forcelearn.emulators.physics.sponge_law import (
 )
 
 Quaternion = tuple[float, float, float, float]
+
+WALL_MM = 30.0
+"""Thickness of the rigid part under its foam, mm: a tip further in is beyond the part's wall
+(e.g. outside a pipe pressed on its inside) and touches nothing. Assumption: no tool gets
+there pressing (the backing's 200 N/mm stops it within a millimetre or two)."""
 
 
 @dataclass(frozen=True)
@@ -125,7 +134,8 @@ class PartFoam:
                                 p.thickness_mm)
                 sunk = p.set_mm * (1.0 - np.exp(-self.passes / p.set_passes))
                 depth = float(found.depth_mm) - float(sunk)
-                self._depth = depth if np.isfinite(depth) and depth > 0 else 0.0
+                inside = np.isfinite(depth) and 0 < depth <= p.thickness_mm + WALL_MM
+                self._depth = depth if inside else 0.0
                 self._normal = np.asarray(found.normal, dtype=float)
                 self._z = float(centre[2])
         return self._depth, self._normal, self._z
