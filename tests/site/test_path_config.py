@@ -100,5 +100,5 @@ def test_a_force_the_safety_limit_would_stop_is_refused(tmp_path: Path) -> None:
     """The desired force and its tolerance must fit under safety.max_force_n."""
     config = load_cell_config(write(tmp_path, '[task]\nkind = "path"\npath = "arc.csv"\n'
                                     'desired_force_n = 150.0\n' + CYLINDER_PART))
-    with pytest.raises(ConfigError, match="safety.max_force_n"):
+    with pytest.raises(ConfigError, match=r"safety\.max_force_n"):
         load_path(config)
