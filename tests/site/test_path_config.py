@@ -102,3 +102,10 @@ def test_a_force_the_safety_limit_would_stop_is_refused(tmp_path: Path) -> None:
                                     'desired_force_n = 150.0\n' + CYLINDER_PART))
     with pytest.raises(ConfigError, match=r"safety\.max_force_n"):
         load_path(config)
+
+
+def test_the_emulated_cell_without_a_part_is_refused_for_a_path(tmp_path: Path) -> None:
+    """``--path`` on the default emulated cell: no part to press, said before any move."""
+    config = load_cell_config(write(tmp_path, ""), task_path=tmp_path / "arc.csv")
+    with pytest.raises(ConfigError, match=r"\[emulator\.part\]"):
+        load_path(config)

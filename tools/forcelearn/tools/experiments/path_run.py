@@ -59,6 +59,9 @@ def load_path(config: CellConfig) -> TaughtPath:
         raise ConfigError("this config has no path task: set [task] kind = \"path\" and "
                           "path = FILE, or give forcelearn run --path FILE")
     safety = config.safety
+    if config.robot_emulated and config.emulator.part is None:
+        raise ConfigError("the path task on the emulated cell needs a part to press: add an "
+                          "[emulator.part] table (docs/path.md; examples/paths/*-cell.toml)")
     if spec.desired_force_n + spec.tolerance > safety.max_force_n:
         raise ConfigError(
             f"task.desired_force_n = {spec.desired_force_n:g} N plus its tolerance "
