@@ -131,6 +131,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cells", default=",".join(CELLS), help=f"of {', '.join(CELLS)}")
     parser.add_argument("--parts", default=",".join(PARTS), help=f"of {', '.join(PARTS)}")
     parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="seeds first-seed .. first-seed + seeds - 1 (to extend a study)")
     parser.add_argument("--passes", type=int, default=25)
     parser.add_argument("--table", type=Path, metavar="DIR", help="print the table of DIR")
     args = parser.parse_args(argv)
@@ -147,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     results = args.out / "results.csv"
     for cell in cells:
         for part in parts:
-            for seed in range(args.seeds):
+            for seed in range(args.first_seed, args.first_seed + args.seeds):
                 started = time.perf_counter()
                 row = run_one(part, cell, seed, args.passes, args.out)
                 append(results, row)
