@@ -23,8 +23,7 @@ table          holds
 ``[filter]``   the Kalman force filter; ``axis`` and ``sign`` pick the normal force
 ``[safety]``   ``max_force_n``, ``max_step_mm``, ``workspace_min_mm``,
                ``workspace_max_mm``, ``stale_sensor_s``: always on, never off
-``[task]``     the §5 surface task (:class:`SurfaceTaskSpec`), or with ``kind = "path"``
-               the path task (:class:`PathTaskSpec`, docs/path.md)
+``[task]``     the §5 surface task (:class:`SurfaceTaskSpec`); ``kind = "path"``: docs/path.md
 ``[learner]``  SRV hyperparameters (§5 values as defaults)
 ``[probe]``    the surface probe before learning (:class:`ProbeSpec`)
 ``[run]``      ``trials``, ``seed``, ``stop_after_converged``, ``learner_start``
@@ -33,8 +32,7 @@ table          holds
                ("realistic", or "ideal": no time on wires, instant arm, no
                relaxation, no adapter filter); physics of the emulated cell:
                ``[emulator.sponge]``, ``[emulator.arm]``, ``[emulator.tool]`` (the
-               tool: :mod:`forcelearn.site.emulated_tool`), ``[emulator.part]`` (a
-               foam-covered part: :mod:`forcelearn.site.part_config`); and each device
+               tool: :mod:`forcelearn.site.emulated_tool`), ``[emulator.part]``; each device
                kind's model table (:attr:`~forcelearn.site.kinds.DeviceKind.emulator_table`):
                ``[emulator.sensor]`` the sensor's (the JR3's ``Jr3ModelParams``,
                the Net F/T's ``NetFtModelParams``), ``[emulator.egm]`` EGM's
@@ -67,6 +65,7 @@ from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
+from forcelearn.site import part_config as parts
 from forcelearn.site.calibration_identity import load_sensor_serial
 from forcelearn.site.emulated_tool import load_tool
 from forcelearn.site.kinds import (
@@ -83,8 +82,6 @@ from forcelearn.site.kinds import (
     sensor_kind,
     sensor_kind_of,
 )
-from forcelearn.site.part_config import PartSetup, load_part, load_path_task, path_filter_defaults
-from forcelearn.tasks.path_spec import PathTaskSpec
 from forcelearn.tasks.surface import SurfaceTaskSpec, check_task_limits
 from forcelearn.tasks.surface_probe import ProbeSpec
 from forcelearn.tasks.surface_warm_start import check_learner_start
@@ -208,9 +205,7 @@ class EmulatorConfig:
     defaults (:meth:`~forcelearn.site.kinds.DeviceKind.model`)."""
     tool: ToolParams = field(default_factory=ToolParams)
     """The tool on the sensor (``[emulator.tool]``, :mod:`forcelearn.site.emulated_tool`)."""
-    part: PartSetup | None = None
-    """``[emulator.part]``: a foam-covered part in place of the §5 sponge (None: the sponge;
-    :mod:`forcelearn.site.part_config`)."""
+    part: parts.PartSetup | None = None  # [emulator.part] (site/part_config.py); None: sponge
     time_scale: float = 0.0
     """0: as fast as possible (simulated time only); 1.0: real time; any factor between."""
     profile: Literal["realistic", "ideal"] = "realistic"
@@ -269,8 +264,7 @@ class CellConfig:
     )
     safety: SafetyLimits = field(default_factory=SafetyLimits)
     task: SurfaceTaskSpec = field(default_factory=SurfaceTaskSpec)
-    path_task: PathTaskSpec | None = None
-    """``[task] kind = "path"``: the path task (docs/path.md); None: the §5 task runs."""
+    path_task: parts.PathTaskSpec | None = None  # [task] kind = "path"; None: the §5 task runs
     learner: SRVParams = field(default_factory=lambda: SRVParams(**SECTION_LEARNER_DEFAULTS))
     emulator: EmulatorConfig = field(default_factory=EmulatorConfig)
     probe: ProbeSpec = field(default_factory=ProbeSpec)
@@ -329,12 +323,8 @@ SECTIONS = frozenset({
 """The tables of a cell config."""
 
 
-def load_cell_config(path: str | Path | None = None,
-                     task_path: str | Path | None = None) -> CellConfig:
+def load_cell_config(path: str | Path | None = None, task_path: Path | None = None) -> CellConfig:
     """Read a cell config (or return the emulated default); errors name the key.
-
-    ``task_path`` (``forcelearn run --path FILE``) makes the task the path task on that
-    file, whatever ``[task] kind`` says.
 
     Each table has its builder below; the rules that carry a value from one
     table into another are the named functions after them.
@@ -351,7 +341,7 @@ def load_cell_config(path: str | Path | None = None,
     sensor = load_sensor(kind, sensor_table, safety)
     safety = emulated_sensor_watchdog(safety, kind.emulated(sensor, bus), data.get("safety", {}))
     sensor = load_sensor(kind, sensor_table, safety)  # with the watchdog that applies
-    path_task = load_path_task(data.get("task"), path, task_path)
+    path_task = parts.load_path_task(data.get("task"), path, task_path)  # --path: task_path
     task = SurfaceTaskSpec() if path_task else build(SurfaceTaskSpec, data.get("task"), "task")
     check_task_limits(task, safety.max_force_n, safety.workspace_min_mm, safety.workspace_max_mm)
     stop_after, learner_start, trials, seed = load_run(dict(data.get("run", {})))
@@ -359,16 +349,15 @@ def load_cell_config(path: str | Path | None = None,
         robot=robot,
         bus=bus,
         sensor=sensor,
-        filter=build(ForceFilterConfig, filter_table(kind, sensor, {
-            **path_filter_defaults(path_task), **data.get("filter", {})}), "filter"),
+        filter=build(ForceFilterConfig, filter_table(kind, sensor, parts.filter_keys(
+            path_task, data.get("filter", {}))), "filter"),
         safety=safety,
         task=task,
         path_task=path_task,
         learner=build(
             SRVParams, {**SECTION_LEARNER_DEFAULTS, **data.get("learner", {})}, "learner"
         ),
-        emulator=load_emulator((robot_device, kind), dict(data.get("emulator", {})),
-                               Path(path).parent if path else None),
+        emulator=load_emulator((robot_device, kind), dict(data.get("emulator", {})), path),
         probe=build(ProbeSpec, data.get("probe"), "probe"),
         calibration_file=load_calibration_file(data.get("calibration", {}), path),
         sensor_serial=load_sensor_serial(data.get("calibration", {})),
@@ -408,7 +397,7 @@ PHYSICS_TABLES = ("sponge", "arm", "tool", "part")
 
 
 def load_emulator(kinds: tuple[DeviceKind, ...], table: dict[str, Any],
-                  config_dir: Path | None = None) -> EmulatorConfig:
+                  config_path: str | Path | None = None) -> EmulatorConfig:
     """``[emulator]``: pace, profile, physics, and each device kind's model table.
 
     The cell's robot and sensor kinds own their tables (``[emulator.sensor]``
@@ -443,10 +432,8 @@ def load_emulator(kinds: tuple[DeviceKind, ...], table: dict[str, Any],
     )
     # [emulator.tool], checked against the range of the sensor kind's model
     model: Any = kinds[-1].model(emulator)
-    emulator = replace(emulator, tool=load_tool(table.get("tool"), model))
-    if "part" in table:  # [emulator.part]: a foam-covered part in place of the sponge
-        emulator = replace(emulator, part=load_part(table["part"], emulator.sponge, config_dir))
-    return emulator
+    return replace(emulator, tool=load_tool(table.get("tool"), model),
+                   part=parts.load_part(table.get("part"), emulator.sponge, config_path))
 
 
 def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:

@@ -26,15 +26,22 @@ from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.errors import ConfigError
 from forcelearn.tasks.path_spec import PathTaskSpec, build_path_task, task_kind
 
-__all__ = ["PartSetup", "load_part", "load_path_task", "path_filter_defaults"]
+__all__ = ["PartSetup", "PathTaskSpec", "filter_keys", "load_part", "load_path_task",
+           "path_filter_defaults"]
 
 SECTION = "emulator.part"
 CONTACT_KEYS = ("tip_radius_mm", "gap_min_mm", "gap_max_mm")
 
 
-def load_part(table: Mapping[str, Any], sponge: SpongeParams,
-              config_dir: Path | None) -> PartSetup:
-    """The part of ``[emulator.part]``, its tip and gap; errors name ``emulator.part.<key>``."""
+def load_part(table: Mapping[str, Any] | None, sponge: SpongeParams,
+              config_path: str | Path | None) -> PartSetup | None:
+    """The part of ``[emulator.part]`` (None: no table), its tip and gap; errors name the key.
+
+    ``file`` (a height map's) is relative to the config file at ``config_path``.
+    """
+    if table is None:
+        return None
+    config_dir = Path(config_path).parent if config_path else None
     if not isinstance(table, Mapping):
         raise ConfigError(f"{SECTION}: a table (shape = \"cylinder\" ...)")
     if sponge.hysteresis_loss != 0.0 or sponge.friction_coefficient != 0.0:
@@ -65,7 +72,8 @@ def load_path_task(table: Mapping[str, Any] | None, config_path: str | Path | No
                    task_path: str | Path | None = None) -> PathTaskSpec | None:
     """The path task of ``[task]`` (None for the §5 task); ``task_path`` overrides its file.
 
-    ``path`` is relative to the config file; ``task_path`` (``--path``) as given.
+    ``path`` is relative to the config file; ``task_path`` (``forcelearn run --path FILE``)
+    as given, and makes the task the path task whatever ``[task] kind`` says.
     """
     table = dict(table or {})
     if task_path is None and task_kind(table) != "path":
@@ -76,6 +84,11 @@ def load_path_task(table: Mapping[str, Any] | None, config_path: str | Path | No
         table.update(kind="path", path=str(Path(task_path).resolve()))
     config_dir = Path(config_path).parent if config_path else None
     return build_path_task(table, config_dir)
+
+
+def filter_keys(spec: PathTaskSpec | None, table: Mapping[str, Any]) -> dict[str, Any]:
+    """``[filter]`` over the path task's defaults (:func:`path_filter_defaults`)."""
+    return {**path_filter_defaults(spec), **table}
 
 
 def path_filter_defaults(spec: PathTaskSpec | None) -> dict[str, Any]:
