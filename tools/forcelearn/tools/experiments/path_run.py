@@ -208,6 +208,12 @@ def summary_of(config: CellConfig, spec: PathTaskSpec, path: TaughtPath, probe: 
     diagnosis = "" if in_band_at_end else (
         f"the last {END_WINDOW} passes were not all complete and in band (force RMS <= "
         f"{100 * CONVERGENCE_TOLERANCE:g} % of {desired:.4g} N): see passes.csv")
+    at_limit = [k for k, t in enumerate(probe.targets_mm)
+                if abs(t) >= spec.max_deviation_mm - 1e-9]
+    if at_limit and not in_band_at_end:
+        diagnosis = (f"at points {at_limit} the probe's target offset is at max_deviation_mm = "
+                     f"{spec.max_deviation_mm:g} mm: the force needs a deeper press than "
+                     "allowed (raise task.max_deviation_mm, or check the path's height there)")
     if lost and not in_band_at_end and spec.on_contact_loss == "retreat":
         diagnosis = (f"contact was lost at points {lost} (force under "
                      f"{spec.contact_force_n:.3g} N within max_deviation_mm = "
@@ -220,6 +226,7 @@ def summary_of(config: CellConfig, spec: PathTaskSpec, path: TaughtPath, probe: 
         "passes": len(rows), "desired_force_n": desired,
         "probe_stiffness_n_per_mm": probe.stiffness_n_per_mm,
         "output_scale_mm": probe.scale_mm, "probe_lost_points": list(probe.lost),
+        "probe_targets_mm": list(probe.targets_mm),
         "in_band_at_end": in_band_at_end,
         "first_pass_in_band": first_in_band,
         "warm_start_in_band_within_5": first_in_band is not None and first_in_band < 5,
