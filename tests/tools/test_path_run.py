@@ -7,6 +7,8 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
+import pytest
+
 from forcelearn.site import load_cell_config
 from forcelearn.tools.experiments.path_run import run_path
 
@@ -70,3 +72,19 @@ def test_forcelearn_run_takes_the_path_task_from_the_option_or_the_config(
     assert not is_path_run(parser.parse_args(["--config", str(surface)]))
     assert is_path_run(parser.parse_args(["--config", str(surface), "--path", "arc.csv"]))
     assert is_path_run(parser.parse_args(["--config", str(EXAMPLE)]))
+
+
+@pytest.mark.convergence
+@pytest.mark.parametrize("part", ["cylinder", "sphere", "gap"])
+def test_an_example_part_meets_the_acceptance_on_the_emulated_cell(
+        part: str, tmp_path: Path) -> None:
+    """docs/path.md's acceptance on one seed: in band at the end, from pass 0-4, RMS <= 3 %."""
+    from forcelearn.tools.path_study import run_one
+
+    row = run_one(part, "link-jr3", 1, 12, tmp_path)
+    assert row["error"] == ""
+    assert row["in_band_at_end"] and row["warm_start_in_band_within_5"]
+    assert row["final_force_rms_pct"] <= 3.0
+    assert row["largest_offset_mm"] <= row["max_deviation_mm"]
+    assert row["moves_outside_workspace"] == 0
+    assert (row["contact_lost_count"] > 0) == (part == "gap")
