@@ -198,7 +198,7 @@ class PathTask:
         self.lost_points: list[tuple[int, int]] = []
         """(pass, point) of every contact lost where contact was expected."""
         self.largest_offset_mm = 0.0
-        """The largest |offset| any move of the task commanded, mm."""
+        """The largest |offset| a pressing move of the task commanded, mm."""
         self.passes = 0
         self._step = len(self.points) - 1
         """The point the tool is at (or was last: where the return to the start begins)."""

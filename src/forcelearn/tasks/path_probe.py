@@ -38,9 +38,11 @@ stiffness varies ±15 % over a part, the default sponge's variation)."""
 MIN_R_HAT = 0.05
 """Least predicted evaluation the warm start gives a box (the probe is never exact)."""
 OUTPUT_SCALE_SHARE = 0.25
-"""The output scale in tolerances per unit of action: the learner's widest search (σ_max =
-0.5) moves the force by a quarter of the tolerance. Its steps of μ are noise-driven once the
-probe's start is close; half the scale halves that random walk (measured: 3.5 % vs 2.x %)."""
+"""The output scale in tolerances per unit of action, over k: the learner's widest search
+(σ_max = 0.5) moves the force by an eighth of the tolerance. Once the probe's start is close
+the learner's steps of μ are driven by the force's noise; a smaller scale makes that random
+walk smaller (assumption, chosen with the wear shift on: the study in docs/path.md measures
+the result; it was not tuned against other shares)."""
 FALLBACK_COMPRESSION_MM = 10.0
 """Compression assumed for the desired force when the probe cannot fit a stiffness, mm."""
 
@@ -68,7 +70,7 @@ class PathProbe:
 
     @property
     def scale_mm(self) -> float:
-        """Output scale: mm per action unit (tolerance / k; see the module docstring)."""
+        """Output scale: mm per action unit (OUTPUT_SCALE_SHARE · tolerance / k)."""
         return OUTPUT_SCALE_SHARE * self.tolerance_n / self.stiffness_n_per_mm
 
 
