@@ -40,7 +40,8 @@ or converged and out of band at its end)."""
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``forcelearn run``."""
     parser.add_argument("--config", type=Path, help="cell config TOML (default: emulated cell)")
-    parser.add_argument("--trials", type=int, help="total trials of the run (default 300)")
+    parser.add_argument("--trials", type=int,
+                        help="total trials of the run (default 300; the path task: passes, 25)")
     parser.add_argument("--seed", type=int, help="random seed (default 0)")
     parser.add_argument("--out", type=Path, help="run directory (default runs/surface-<time>)")
     parser.add_argument("--resume", type=Path, metavar="DIR", help="continue the run in DIR")
