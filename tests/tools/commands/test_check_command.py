@@ -143,7 +143,7 @@ def test_a_move_counter_that_changes_during_the_check_fails_it() -> None:
 
 
 def test_check_names_every_missing_device_and_the_slcan_delay_hint(tmp_path, capsys) -> None:
-    """Issue 12.8: with both ports gone, check names both, not only the first it opens."""
+    """With both ports gone, check names both, not only the first it opens."""
     import argparse
 
     from forcelearn.tools.commands import check as check_command
