@@ -35,7 +35,7 @@ import io
 import math
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -166,8 +166,8 @@ def study(cell: str, tools: int, seed: int, orientations: int, folder: Path,
     """Run the study; returns the number of tools that miss a bound."""
     rng = np.random.default_rng(seed)
     print(f"cell {cell}, {tools} tools, seed {seed}, {orientations} orientations each")
-    print(" #   mass kg  err g (lim)    |c| mm  err mm (lim)  mount err deg  scale  "
-          "|F|/sigma  |F|/bound  refused")
+    print(" #   mass kg  err g (lim)    |c| mm  err mm (lim)  sigma mm (target)  passes  "
+          "cell s  mount err deg  scale  |F|/sigma  |F|/bound  refused")
     failures = 0
     for i in range(tools):
         tool = draw_tool(rng, cell)
@@ -178,9 +178,16 @@ def study(cell: str, tools: int, seed: int, orientations: int, folder: Path,
         config_path = folder / f"{cell}-{i}.toml"
         config_path.write_text(config_text(tool, cell))
         out = folder / f"{cell}-{i}-cal.toml"
-        calibrate(load_cell_config(config_path), PLAN, out_path=out, seed=seed + i,
-                  progress=False, stream=io.StringIO())
+        config = load_cell_config(config_path)
+        with CellSession(replace(config, calibration_file=None), seed=seed + i) as opened:
+            assert opened.robot is not None
+            began_s = opened.robot.wait_in_position(5.0, 0.0)
+            calibrate(config, PLAN, out_path=out, seed=seed + i, progress=False,
+                      stream=io.StringIO(), session=opened)
+            cell_s = opened.robot.wait_in_position(5.0, 0.0) - began_s
         cal = load_calibration(out)
+        passes = max((int(p.name.rsplit("pass ", 1)[1]) for p in cal.tool.poses
+                      if ", pass " in p.name), default=1)
         config_path.write_text(config_text(tool, cell) + f'[calibration]\nfile = "{out.name}"\n')
         with CellSession(load_cell_config(config_path), seed=seed + 1000 + i) as session:
             assert session.cell is not None
@@ -198,8 +205,10 @@ def study(cell: str, tools: int, seed: int, orientations: int, folder: Path,
             np.dot(cal.tool.mounting_quaternion, tool.mounting))))))
         ok = mass_err <= mass_lim and com_err <= com_lim and of_bound <= 1.0
         failures += not ok
+        sigma = float(np.linalg.norm(cal.tool.com_std_mm))
         print(f"{i:2d}  {tool.mass_kg:7.3f}  {1000 * mass_err:5.1f} ({1000 * mass_lim:4.1f})  "
-              f"{distance:7.1f}  {com_err:5.2f} ({com_lim:4.2f})  {mount_err:13.3f}  "
+              f"{distance:7.1f}  {com_err:5.2f} ({com_lim:4.2f})  {sigma:8.2f} "
+              f"({com_lim / 3:4.2f})  {passes:6d}  {cell_s:6.0f}  {mount_err:13.3f}  "
               f"{tool.scale:5.2f}  {worst:9.2f}  {of_bound:9.2f}  {refused:7d}"
               f"{'' if ok else '  MISSED'}",
               flush=True)
