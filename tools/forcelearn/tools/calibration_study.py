@@ -9,7 +9,8 @@ For each of ``--tools`` tools drawn from ``--seed`` (docs/calibration.md, "Rando
   the tool's weight or gravity moment needs more, the same model with full
   scales, noise and drift all scaled up by one factor (a larger sensor of the
   same family: 1.25 x the load at 0.9 x full scale);
-* ``forcelearn calibrate`` (mounting estimated, default orientations), then a
+* ``forcelearn calibrate`` (mounting estimated, default orientations, passes
+  repeated until the centre of mass's sigma meets its target), then a
   session with the file, which zeroes tool down and visits ``--orientations``
   random orientations (tilt 0..60 deg about a random horizontal axis, then a
   turn of -90..90 deg about the vertical; an orientation the robot refuses is
@@ -17,7 +18,9 @@ For each of ``--tools`` tools drawn from ``--seed`` (docs/calibration.md, "Rando
   start (``--tare``: the cell tares before each turn instead, as a task does,
   and checks there that the tool fits).
 
-It prints one line per tool and a summary against the issue's bounds: mass
+It prints one line per tool (with the centre of mass's stated sigma against its
+target, the passes and the calibration's cell time) and a summary against the
+issue's bounds: mass
 within 0.5 % + 5 g, centre of mass within 1 mm + 0.5 % (of its distance from
 the sensor), and every compensated free-space force axis, as read, within
 what a site can expect at every orientation: 3 sqrt(sigma^2 + d^2 t), sigma

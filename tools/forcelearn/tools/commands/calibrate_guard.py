@@ -32,9 +32,17 @@ On top of :class:`~forcelearn.tools.experiments.calibration_run.Calibrator`
   (instead of only turning back to it): what changed there is the sensor's
   bias drift, and the fit takes the bias as linear in time (6 more
   parameters, :func:`~forcelearn.calibration.fit.drift_times`).
+* **Passes until precise.** With revisits, the fit is generalised least
+  squares with the bias a random walk about its piecewise-linear fit; while
+  the centre of mass's σ exceeds a third of 1 mm + 0.5 % of its distance, the
+  pass is measured again as often as the design predicts it takes (at most
+  ``max_passes``; turns of up to ``repeat_rotation_step_deg`` per step), and
+  the σ reached and the cell time are printed
+  (:mod:`~forcelearn.tools.commands.calibrate_precision`).
 * **The mounting.** The fit takes the sensor's mounting on the flange as given
-  (``--mounting-rpy-deg``/``--mounting-quaternion``) or estimates it with the
-  tool (:mod:`forcelearn.calibration.mounting`).
+  (``--mounting-rpy-deg``/``--mounting-quaternion``, or ``[calibration]
+  mounting_*`` of the config) or estimates it with the tool
+  (:mod:`forcelearn.calibration.mounting`).
 """
 
 from __future__ import annotations
