@@ -82,9 +82,15 @@ class Whitener:
         self.factors = factors
 
     def __matmul__(self, m: np.ndarray) -> np.ndarray:
-        out = np.empty(np.shape(m))
+        m = np.asarray(m, dtype=float)
+        out = np.zeros(m.shape)
         for axis in range(6):
-            out[axis::6] = self.factors[axis] @ np.asarray(m)[axis::6]
+            rows = m[axis::6]
+            if rows.ndim == 1:
+                out[axis::6] = self.factors[axis] @ rows
+                continue
+            used = np.any(rows != 0.0, axis=0)  # a design's other axes' bias columns are zero
+            out[axis::6, used] = self.factors[axis] @ rows[:, used]
         return out
 
 
