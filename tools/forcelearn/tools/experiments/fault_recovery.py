@@ -16,6 +16,14 @@ reached its target) during a trial:
    the calibration's bias re-derived);
 3. the trial runs again; the re-zero is its first tare record.
 
+During the trials a :class:`~forcelearn.tasks.bias_watch.BiasWatch` judges
+every step's reading by the move that led to it: a reading the foam's
+stiffness cannot explain (a bias step in contact) raises
+:class:`~forcelearn.errors.SensorSuspect` and is recovered from the same way;
+the free-space reading before the re-zero is the zero check (its event says
+how far the zero had moved). A fault-free run never trips it, so it changes
+nothing there.
+
 Every fault is one line of ``faults.jsonl`` in the run directory (what, when,
 what was lost, what the cell did) and counted in ``summary.json`` (``faults``).
 A trial that faults ``MAX_TRIES_PER_TRIAL`` times, or a recovery that fails,
@@ -36,8 +44,9 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from forcelearn.cell import Cell
-from forcelearn.errors import ForcelearnError, one_line
+from forcelearn.errors import ForcelearnError, SensorSuspect, one_line
 from forcelearn.learning import SRVLearner, load_learner
+from forcelearn.tasks.bias_watch import CONTACT_N, BiasWatch
 from forcelearn.tasks.recovery import Recovered, RecoveryFailed, recoverable, retract
 from forcelearn.tasks.recovery import retract_and_retare as leave_and_rezero
 from forcelearn.tasks.surface import SurfaceYOutput
@@ -97,6 +106,8 @@ class RunRecovery:
         self.checkpoint = checkpoint
         self.events: list[FaultEvent] = []
         """The faults of this session."""
+        self.watch = BiasWatch()
+        """Judges the trials' readings by the moves (bias steps in contact)."""
         self._start_learner: SRVLearner | None = None
 
     # ---- the run's calls -------------------------------------------------------------------
@@ -110,22 +121,26 @@ class RunRecovery:
         if run.saved.trials == 0:
             self._start_learner = _copy_learner(learner)
         tries: dict[int, int] = {}
-        while (remaining := run.trials - len(run.result.records)) > 0:
-            try:
-                train_remaining(learner, remaining)
-                break
-            except ForcelearnError as exc:
-                if not recoverable(exc):
-                    raise
-                trial = run.saved.trials
-                tries[trial] = tries.get(trial, 0) + 1
-                run.rollback_to_saved()
-                self._restore_map(run)
-                recorder = self.cell.recorder
-                if recorder is not None:
-                    getattr(recorder, "discard", lambda: None)()
-                self._recover(exc, trial, tries[trial])
-                learner = self._saved_learner(run, learner)
+        self.cell.reading_check = self.watch
+        try:
+            while (remaining := run.trials - len(run.result.records)) > 0:
+                try:
+                    train_remaining(learner, remaining)
+                    break
+                except ForcelearnError as exc:
+                    if not recoverable(exc):
+                        raise
+                    trial = run.saved.trials
+                    tries[trial] = tries.get(trial, 0) + 1
+                    run.rollback_to_saved()
+                    self._restore_map(run)
+                    recorder = self.cell.recorder
+                    if recorder is not None:
+                        getattr(recorder, "discard", lambda: None)()
+                    self._recover(exc, trial, tries[trial])
+                    learner = self._saved_learner(run, learner)
+        finally:
+            self.cell.reading_check = None
         return learner
 
     def probe(self, probe: Callable[[], _T]) -> _T:
@@ -201,8 +216,14 @@ class RunRecovery:
         except RecoveryFailed as failed:
             failed.add_note(f"after {type(exc).__name__}: {one_line(exc)}")
             raise
+        message = one_line(exc)
+        if isinstance(exc, SensorSuspect):  # the free-space reading is the zero check
+            moved = abs(recovered.free_reading_n) > CONTACT_N
+            message += (f"; zero check: free space read {recovered.free_reading_n:.2f} N, "
+                        + ("the zero had moved (re-tared)" if moved
+                           else "the zero had not moved (a false alarm, or a force change)"))
         self._event(FaultEvent(
-            trial, type(exc).__name__, one_line(exc), "resumed", lost=lost,
+            trial, type(exc).__name__, message, "resumed", lost=lost,
             retract_y_mm=recovered.retract_pose.y_mm, free_reading_n=recovered.free_reading_n,
             cell_time_s=self.cell.time_s,
         ))

@@ -62,6 +62,7 @@ from forcelearn.tools.fuzz.fault_inject import (
     Truth,
     cause,
     plan_faults,
+    read_to_stop_s,
     stop_latency_s,
 )
 
@@ -99,7 +100,12 @@ STEP_S = 1.0
 """Allowance for the step in progress when a fault strikes in contact, s of cell time
 (a step of at most ``[safety] max_step_mm`` is far shorter)."""
 MAX_SESSIONS = 20
-"""Resumes one run may take before it counts as not finished."""
+"""Sessions one run may take after its last planned fault before it counts as not finished
+(a run resumes as long as faults are still planned: the probe starts over at each session)."""
+SESSION_CAP = 200
+"""Sessions of one run in all, whatever is still planned."""
+READ_SLACK_S = 2.0
+"""Wall time a loaded host may add to a read's watchdog (2 x ``stale_sensor_s``), s."""
 
 
 @dataclasses.dataclass
@@ -120,6 +126,11 @@ class RunReport:
     bad_readings: Counter[str] = dataclasses.field(default_factory=Counter)
     late_stops: int = 0
     worst_stop_s: float = 0.0
+    """Robot faults: cell time to the stop, s."""
+    worst_read_stop_s: float = 0.0
+    """Sensor faults: wall time from the first read after the fault to the stop, s."""
+    worst_unread_s: float = 0.0
+    """Sensor faults: cell time from the fault to the next read (moves under way), s."""
     lost_or_duplicated: int = 0
     finished: bool = False
     sessions: int = 0
@@ -205,8 +216,10 @@ def one_run(cell: str, config: Path, folder: Path, seed: int, ticks: int, faults
     started = time.perf_counter()
     resume = False
     with injecting(injector, tolerance_n, truths):
-        while report.sessions < MAX_SESSIONS:
+        left = report.sessions  # sessions after the last planned fault fired
+        while left < MAX_SESSIONS and report.sessions < SESSION_CAP:
             report.sessions += 1
+            left = left + 1 if not injector.plan else 0
             try:
                 run, checkpoint = run_state.prepare_run(
                     None if resume else config, folder, None, None if resume else seed, resume
@@ -238,6 +251,7 @@ def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: P
     config = load_cell_config(folder / run_state.CONFIG_COPY)
     limit_n = config.safety.max_force_n
     bound_s = config.safety.stale_sensor_s + config.safety.move_timeout_s + STEP_S
+    read_bound_s = 2 * config.safety.stale_sensor_s + READ_SLACK_S
     for truth in truths:
         report.max_contact_n = max(report.max_contact_n, truth.max_contact_n)
         report.over_limit += truth.max_contact_n > limit_n
@@ -260,11 +274,18 @@ def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: P
             report.resumed_from[f"{names[fired.device]}:{fired.kind}"] += 1
         if not fired.in_contact:  # in free space a fault is found at the next read
             continue
-        latency = stop_latency_s(fired, injector.stops)
-        report.worst_stop_s = max(report.worst_stop_s, latency or 0.0)
-        if latency is None or latency > bound_s:
+        if fired.device == "sensor":  # found at the next read, stopped by its watchdog
+            latency, unread = read_to_stop_s(fired, injector.stops, injector.reads)
+            report.worst_read_stop_s = max(report.worst_read_stop_s, latency or 0.0)
+            report.worst_unread_s = max(report.worst_unread_s, unread)
+            bound = read_bound_s
+        else:
+            latency = stop_latency_s(fired, injector.stops)
+            report.worst_stop_s = max(report.worst_stop_s, latency or 0.0)
+            bound = bound_s
+        if latency is None or latency > bound:
             report.late_stops += 1
-            report.problems.append(f"{fired.kind}: stopped after {latency} s (bound {bound_s})")
+            report.problems.append(f"{fired.kind}: stopped after {latency} s (bound {bound})")
     if report.typed_ends["kill"] and report.finished:
         report.resumed_from["run:kill"] += report.typed_ends["kill"]
     report.lost_or_duplicated = _records_problems(folder, report)
@@ -363,13 +384,17 @@ def table(reports: Sequence[RunReport]) -> str:
         bad.update(report.bad_readings)
     worst = max((r.max_contact_n for r in reports), default=0.0)
     slowest = max((r.worst_stop_s for r in reports), default=0.0)
+    read_stop = max((r.worst_read_stop_s for r in reports), default=0.0)
+    unread = max((r.worst_unread_s for r in reports), default=0.0)
     lines += [
         "",
         f"runs {len(reports)}; true contact force over the limit: {totals['over_limit']} "
         f"(max {worst:.1f} N); zeros in contact: {totals['zeros_in_contact']} of "
         f"{totals['zeros']}; readings off the true force: {totals['bad_readings']} of "
         f"{totals['readings']} (after: {dict(bad)}); stops later than the watchdog: "
-        f"{totals['late_stops']} (slowest {slowest:.2f} s of cell time); lost or duplicated "
+        f"{totals['late_stops']} (robot faults: slowest {slowest:.2f} s of cell time; sensor "
+        f"faults: slowest {read_stop:.2f} s of wall time from the next read, which came up to "
+        f"{unread:.2f} s of cell time after the fault); lost or duplicated "
         f"records: {totals['records']}; "
         f"ends without a typed reason: {totals['untyped']}; runs not finished: "
         f"{totals['unfinished']}",

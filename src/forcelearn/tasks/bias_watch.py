@@ -1,0 +1,100 @@
+"""A bias step in contact, told from a force change by the move the cell made.
+
+A sensor's bias that jumps while the tool presses reads as force: nothing in
+the reading tells the two apart, and a zero check needs free space. The cell
+knows its moves, though. Between two consecutive steps of a trial (the press
+at the trial's start, then step 1, 2...) a foam pressed in by ``Δy`` mm (−Y is
+deeper) changes its force by about ``−k·Δy``, ``k`` its stiffness, and it
+never pulls. :class:`BiasWatch` takes the force a stiffness in
+``stiffness_band_n_per_mm`` allows after the last reading (clamped at 0: the
+tool may leave the foam), and calls a reading more than ``margin_n`` outside
+it suspect (:class:`~forcelearn.errors.SensorSuspect`): the run then retracts,
+reads free space, zeroes there and runs the trial again
+(:mod:`forcelearn.tools.experiments.fault_recovery`).
+
+The defaults come from fault-free runs of the four emulated example cells
+(docs/on-site.md, "Bias steps in contact"): a band of 0.5 to 4 N/mm around
+the sponge's 2 N/mm, and the largest clean excess was 2.05 N (the sponge's
+stiffness varies along Z, relaxes after a fresh press and follows another
+branch when easing off), so a margin of 2.5 N. What it cannot see: a step
+smaller than the margin plus the band's slack, one that comes while the tool
+is in free space or before the trial's first press (every later reading
+agrees with it), and a slow drift.
+"""
+
+from __future__ import annotations
+
+from forcelearn.devices import Pose
+from forcelearn.errors import SensorSuspect
+
+STIFFNESS_BAND_N_PER_MM = (0.5, 4.0)
+"""Stiffnesses a step's force change may follow, N/mm (the emulated sponge: 2 ± 15 %, worn
+softer, fresh presses up to 25 % stiffer)."""
+MARGIN_N = 2.5
+"""Excess over the band that makes a reading suspect, N (fault-free runs: at most 2.05 N)."""
+CONTACT_N = 1.0
+"""The last reading must be at least this, N: a press from free space has no known start."""
+
+
+def follows(before: tuple[str, int], now: tuple[str, int]) -> bool:
+    """True when ``now`` is the next step of the trial after ``before``'s reading."""
+    kind, index = now
+    return kind == "step" and (before == ("approach", 0) or before == ("step", index - 1))
+
+
+class BiasWatch:
+    """Calls a whole burst suspect when the last step's move cannot explain its change.
+
+    Set as the cell's :attr:`~forcelearn.cell.Cell.reading_check`.
+
+    Attributes:
+        checked: readings judged.
+        suspects: readings called suspect.
+    """
+
+    def __init__(self, stiffness_band_n_per_mm: tuple[float, float] = STIFFNESS_BAND_N_PER_MM,
+                 margin_n: float = MARGIN_N, contact_n: float = CONTACT_N) -> None:
+        low, high = stiffness_band_n_per_mm
+        if not 0.0 <= low <= high or margin_n <= 0.0:
+            raise ValueError(f"a stiffness band {stiffness_band_n_per_mm} (0 <= low <= high) "
+                             f"and a margin {margin_n} > 0 N")
+        self.band = (float(low), float(high))
+        self.margin_n = float(margin_n)
+        self.contact_n = float(contact_n)
+        self.checked = 0
+        self.suspects = 0
+        self._last: tuple[tuple[str, int], float, float] | None = None  # stage, y mm, force N
+
+    def expected_n(self, force_n: float, dy_mm: float) -> tuple[float, float]:
+        """The range of force a move of ``dy_mm`` along Y leads to from ``force_n``, N."""
+        low, high = (force_n - k * dy_mm for k in self.band)
+        return max(0.0, min(low, high)), max(0.0, low, high)
+
+    def __call__(self, stage: tuple[str, int], pose: Pose | None, force_n: float) -> None:
+        """Judge one whole burst's normal force (N) at the pose commanded.
+
+        Raises:
+            SensorSuspect: the change since the last step's reading is outside the band.
+        """
+        last = self._last
+        self._last = None if pose is None else (stage, float(pose.y_mm), float(force_n))
+        if last is None or pose is None or not follows(last[0], stage):
+            return
+        _, before_y, before_n = last
+        if before_n < self.contact_n:
+            return
+        self.checked += 1
+        low, high = self.expected_n(before_n, float(pose.y_mm) - before_y)
+        excess = max(low - force_n, force_n - high)
+        if excess <= self.margin_n:
+            return
+        self.suspects += 1
+        self._last = None  # the next trial starts afresh
+        raise SensorSuspect(
+            f"the force read {force_n:.2f} N at {stage[0]} {stage[1]} (y = {pose.y_mm:.2f} mm), "
+            f"{before_n:.2f} N before at y = {before_y:.2f} mm: a stiffness of "
+            f"{self.band[0]:g} to {self.band[1]:g} N/mm gives {low:.2f} to {high:.2f} N, "
+            f"{excess:.2f} N more than the {self.margin_n:g} N allowed: a bias step? The run "
+            "retracts, checks the zero in free space and runs the trial again; if it repeats, "
+            "check the sensor's cable and temperature"
+        )

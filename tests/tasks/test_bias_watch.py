@@ -1,0 +1,52 @@
+"""BiasWatch: a reading the step's move cannot explain is suspect; the foam's changes are not."""
+
+from __future__ import annotations
+
+import pytest
+
+from forcelearn.devices import Pose
+from forcelearn.errors import SensorSuspect
+from forcelearn.tasks.bias_watch import MARGIN_N, STIFFNESS_BAND_N_PER_MM, BiasWatch
+
+K_LOW, K_HIGH = STIFFNESS_BAND_N_PER_MM
+
+
+def at(y_mm: float) -> Pose:
+    """The pose commanded at ``y_mm``."""
+    return Pose(0.0, y_mm, 0.0)
+
+
+def pressed(watch: BiasWatch, force_n: float = 12.0, y_mm: float = -4.0) -> None:
+    """The trial's first press, read in contact."""
+    watch(("approach", 0), at(y_mm), force_n)
+
+
+def test_changes_a_stiffness_in_the_band_explains_pass() -> None:
+    """1 mm deeper: anything from the band's softest to its stiffest, within the margin."""
+    watch = BiasWatch()
+    pressed(watch)
+    watch(("step", 1), at(-5.0), 12.0 + K_HIGH + 0.9 * MARGIN_N)
+    watch(("step", 2), at(-6.0), 12.0 + K_HIGH + K_LOW)
+    watch(("step", 3), at(-2.0), 0.0)  # eased off out of the foam: it never pulls
+    assert (watch.checked, watch.suspects) == (3, 0)
+
+
+@pytest.mark.parametrize("jump_n", [-1.2 * MARGIN_N, 1.2 * MARGIN_N])
+def test_a_step_with_no_move_that_jumps_is_suspect(jump_n: float) -> None:
+    """The same Y, the force steps by more than the margin: a bias step, either way."""
+    watch = BiasWatch()
+    pressed(watch)
+    with pytest.raises(SensorSuspect, match="bias step"):
+        watch(("step", 1), at(-4.0), 12.0 + jump_n)
+    assert watch.suspects == 1
+
+
+def test_only_consecutive_steps_from_contact_are_judged() -> None:
+    """From free space, across trials or stages, nothing is known of the next force."""
+    watch = BiasWatch()
+    pressed(watch, force_n=0.2)  # the press read free space: no reference
+    watch(("step", 1), at(-4.0), 30.0)
+    watch(("step", 3), at(-4.0), 0.0)  # step 2 not read
+    watch(("retreat", 0), at(15.0), 0.0)
+    watch(("step", 1), at(-4.0), 30.0)
+    assert watch.checked == 0
