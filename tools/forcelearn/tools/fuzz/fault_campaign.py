@@ -310,12 +310,15 @@ def _records_problems(folder: Path, report: RunReport) -> int:
 def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int,
              faults: dict[str, int], kills: int, seed: int, folder: Path,
              save: Path | None = None, devices: Sequence[str] = ("robot", "sensor"),
-             ) -> list[RunReport]:
+             replay: Sequence[int] = ()) -> list[RunReport]:
     """Every cell, ``runs[robot]`` runs of ``faults[robot]`` faults per device; a line per run.
 
-    With ``save``, the reports so far are pickled there after every run.
+    With ``save``, the reports so far are pickled there after every run. With
+    ``replay``, only those run seeds (``seed·1000 + 100·cell + run``, as printed) run.
     """
     reports: list[RunReport] = []
+    if replay:
+        cells = [cell for i, cell in enumerate(CELLS) if any(r // 100 % 10 == i for r in replay)]
     for cell in cells:
         config = cell_config(cell, folder, trials, steps, probe=False)
         probed = cell_config(cell, folder, trials, steps, probe=True)
@@ -326,8 +329,10 @@ def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int
               f"{worst_n:.2f} N (tolerance {tolerance_n:.2f} N), max contact {contact_n:.1f} N",
               flush=True)
         robot = cell.split("+")[0]
-        for k in range(runs[robot]):
-            run_seed = seed * 1000 + 100 * list(CELLS).index(cell) + k
+        wanted = [r for r in replay if r // 100 % 10 == list(CELLS).index(cell)]
+        for k in [r % 100 for r in wanted] if replay else range(runs[robot]):
+            run_seed = (wanted[0] // 1000 if replay else seed) * 1000 \
+                + 100 * list(CELLS).index(cell) + k
             first = k == 0
             report = one_run(cell, probed if first else config, folder / f"{cell}-{k}",
                              run_seed, probe_ticks if first else ticks, faults[robot], kills,
@@ -422,6 +427,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--keep", type=Path, default=None, help="keep the run folders here")
     parser.add_argument("--save", type=Path, default=None,
                         help="save the reports (pickle) for --merge")
+    parser.add_argument("--replay", type=int, nargs="*", default=[],
+                        help="run only these run seeds (as printed), with the other options")
     parser.add_argument("--merge", type=Path, nargs="*", default=None,
                         help="print the table of saved reports instead of running")
     args = parser.parse_args(argv)
@@ -435,7 +442,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         folder.mkdir(parents=True, exist_ok=True)
         reports = campaign(args.cells, {"link": args.runs, "egm": args.runs_egm}, args.trials,
                            args.steps, {"link": args.faults, "egm": args.faults_egm},
-                           args.kills, args.seed, folder, args.save, args.devices)
+                           args.kills, args.seed, folder, args.save, args.devices,
+                           args.replay)
     print(table(reports))
     return 1 if _failed(reports) else 0
 
