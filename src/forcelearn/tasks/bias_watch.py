@@ -12,11 +12,11 @@ it suspect (:class:`~forcelearn.errors.SensorSuspect`): the run then retracts,
 reads free space, zeroes there and runs the trial again
 (:mod:`forcelearn.tools.experiments.fault_recovery`).
 
-The defaults come from fault-free runs of the four emulated example cells
+The defaults come from fault-free runs of the emulated example cells
 (docs/on-site.md, "Bias steps in contact"): a band of 0.5 to 4 N/mm around
-the sponge's 2 N/mm, and the largest clean excess was 2.05 N (the sponge's
-stiffness varies along Z, relaxes after a fresh press and follows another
-branch when easing off), so a margin of 2.5 N. What it cannot see: a step
+the sponge's 2 N/mm, and the largest excess over 2,810 judged step pairs was
+1.83 N (the sponge's stiffness varies along Z, relaxes after a fresh press
+and follows another branch when easing off), so a margin of 2.5 N. What it cannot see: a step
 smaller than the margin plus the band's slack, one that comes while the tool
 is in free space or before the trial's first press (every later reading
 agrees with it), and a slow drift.
@@ -31,7 +31,7 @@ STIFFNESS_BAND_N_PER_MM = (0.5, 4.0)
 """Stiffnesses a step's force change may follow, N/mm (the emulated sponge: 2 ± 15 %, worn
 softer, fresh presses up to 25 % stiffer)."""
 MARGIN_N = 2.5
-"""Excess over the band that makes a reading suspect, N (fault-free runs: at most 2.05 N)."""
+"""Excess over the band that makes a reading suspect, N (fault-free runs: at most 1.83 N)."""
 CONTACT_N = 1.0
 """The last reading must be at least this, N: a press from free space has no known start."""
 
