@@ -16,7 +16,7 @@ from forcelearn.devices import ForceSensor, Pose
 from forcelearn.drivers.jr3_can.config import Jr3Config
 from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
 from forcelearn.emulators.jr3 import Jr3EmulatorNode, Jr3ModelParams
-from forcelearn.emulators.jr3 import node as node_module
+from forcelearn.emulators.jr3 import firmware as firmware_module
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import ConfigError, SensorBusError, SensorError, SensorTimeout
@@ -98,7 +98,7 @@ def test_implausible_full_scales_from_the_adapter_are_refused(
 
     Accepted, a zero full scale reads every wrench as 0 N and no force limit can trip.
     """
-    monkeypatch.setattr(node_module, "full_scales_to_wire", lambda _fs: wire)
+    monkeypatch.setattr(firmware_module, "full_scales_to_wire", lambda _fs: wire)
     make_node(model=QUIET)
     sensor = make_sensor()
     with pytest.raises(SensorError, match="implausible"):

@@ -12,7 +12,7 @@ The datagrams (``egm.proto`` for RobotWare 6 and 7, the codec) are
 from forcelearn.deprecation import renamed
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.driver import EgmRobot, EgmStatus, open_egm_robot
-from forcelearn.drivers.egm.guidance import EgmStats
+from forcelearn.drivers.egm.stats import EgmStats
 
 __all__ = ["EgmConfig", "EgmRobot", "EgmStats", "EgmStatus", "open_egm_robot"]
 __getattr__ = renamed(__name__, {"EgmRobotDriver": EgmRobot})

@@ -3,7 +3,8 @@
 :class:`Guidance` is fed every datagram with its source address
 (:meth:`Guidance.on_datagram`) and builds the EgmSensor answer
 (:meth:`Guidance.reply`). Nothing a datagram holds raises here: each one is
-used, or counted and ignored. Rules, in the order they are applied:
+used, or counted and ignored (:class:`.stats.EgmStats`). Rules, in the order
+they are applied:
 
 * **Pairing**: only the controller's datagrams are used: from
   ``controller_host`` (and ``controller_port``) when configured, and from the
@@ -32,9 +33,9 @@ used, or counted and ignored. Rules, in the order they are applied:
   and as many periods without a fresh one (``resyncs``; the target is kept).
 * Every reply moves the planned pose toward the target by at most
   ``speed_mm_s`` x ``sample_period_s`` (and ``TURN_DEG_S`` x period in
-  orientation), then checks it against the workspace: the controller is
-  never asked for a jump nor for a pose outside the box, the first reply
-  included.
+  orientation: :func:`.ramp.step_toward`), then checks it against the
+  workspace: the controller is never asked for a jump nor for a pose outside
+  the box, the first reply included.
 * In position: the planned pose has reached the target, and the controller's
   feedback and its own planned pose are within ``in_position_mm`` /
   ``in_position_deg`` of it.
@@ -43,14 +44,13 @@ used, or counted and ignored. Rules, in the order they are applied:
 from __future__ import annotations
 
 import logging
-import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from typing import Any
-
-import numpy as np
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm.config import EgmConfig
+from forcelearn.drivers.egm.ramp import TURN_DEG_S, angle_deg, distance_mm, finite_pose, step_toward
+from forcelearn.drivers.egm.stats import EgmStats
 from forcelearn.drivers.egm.targets import FEEDBACK_NORM_TOLERANCE, unsafe_reason
 from forcelearn.errors import (
     EgmVersionMismatch,
@@ -61,10 +61,12 @@ from forcelearn.errors import (
 )
 from forcelearn.protocols.egm import carried, codec
 
-log = logging.getLogger(__name__)
+__all__ = [
+    "RESYNC_AFTER", "TURN_DEG_S", "EgmStats", "Guidance", "Source", "angle_deg", "distance_mm",
+    "step_toward",
+]
 
-TURN_DEG_S = 45.0
-"""Largest rate at which the planned orientation turns toward the target (assumption)."""
+log = logging.getLogger(__name__)
 
 _SEQNO_MOD = 1 << 32
 RESYNC_AFTER = 3
@@ -72,95 +74,9 @@ RESYNC_AFTER = 3
 the driver takes that chain up as the controller's stream (:meth:`Guidance._resyncs`)."""
 
 
-@dataclass(frozen=True)
-class EgmStats:
-    """Counters of one driver's traffic since it opened."""
-
-    received: int = 0
-    """EgmRobot datagrams received (fresh or not)."""
-    replies: int = 0
-    """EgmSensor datagrams sent."""
-    missed: int = 0
-    """Controller seqnos skipped (lost, or still to arrive out of order)."""
-    duplicates: int = 0
-    out_of_order: int = 0
-    """Datagrams older than the latest one; ignored."""
-    sessions: int = 0
-    """Sessions seen (1 after opening; +1 per controller restart)."""
-    bad_datagrams: int = 0
-    """Datagrams that were not a readable EgmRobot with a finite feedback pose; ignored."""
-    foreign_datagrams: int = 0
-    """Datagrams from another source than the paired controller; never answered nor read."""
-    wrong_version: int = 0
-    """Datagrams proving the other RobotWare egm.proto than robot.version; ignored."""
-    seqno_jumps: int = 0
-    """Datagrams whose seqno jumps ahead by more than max_seqno_ahead; ignored."""
-    replays: int = 0
-    """Datagrams older (header tm) than the latest: a seqno 0 not newer, or a newer seqno
-    with an older tm (an earlier session's datagram); ignored."""
-    refused_sessions: int = 0
-    """Session starts refused: feedback not finite, not unit or outside the workspace."""
-    resumed_streams: int = 0
-    """Seqno 0s undone: the stream they interrupted went on (a forged restart); answered."""
-    resyncs: int = 0
-    """Times the stream was taken up again after a forged datagram held it back."""
-    unsent_replies: int = 0
-    """Replies withheld because the planned pose failed its check (never expected)."""
-
-
 def _older(tm_ms: int, than_ms: int) -> bool:
     """Whether header tm ``tm_ms`` is before ``than_ms`` (ms, mod 2**32, half a range back)."""
     return 0 < (than_ms - tm_ms) % _SEQNO_MOD <= _SEQNO_MOD // 2
-
-
-def _finite(pose: Pose | None) -> bool:
-    """Whether ``pose`` is there and all 7 of its numbers are finite."""
-    return pose is not None and len(pose.quaternion) == 4 and all(
-        math.isfinite(v) for v in (pose.x_mm, pose.y_mm, pose.z_mm, *pose.quaternion)
-    )
-
-
-def angle_deg(q0: tuple[float, ...], q1: tuple[float, ...]) -> float:
-    """Rotation angle between two quaternions, degrees (inf if either is not finite or zero).
-
-    Unit quaternions are used as they are; others are normalised first (a
-    controller's datagram may carry any four numbers).
-    """
-    n0, n1 = math.hypot(*q0), math.hypot(*q1)
-    if not (math.isfinite(n0) and math.isfinite(n1) and n0 > 0 and n1 > 0):
-        return math.inf
-    if abs(n0 - 1.0) > 1e-6 or abs(n1 - 1.0) > 1e-6:
-        q0, q1 = tuple(c / n0 for c in q0), tuple(c / n1 for c in q1)
-    dot = abs(float(np.dot(q0, q1)))
-    return math.degrees(2.0 * math.acos(min(1.0, dot)))
-
-
-def distance_mm(p0: Pose, p1: Pose) -> float:
-    """Distance between two poses' positions, mm (inf, never a warning, if it overflows)."""
-    return math.hypot(p0.x_mm - p1.x_mm, p0.y_mm - p1.y_mm, p0.z_mm - p1.z_mm)
-
-
-def step_toward(pose: Pose, target: Pose, max_mm: float, max_deg: float) -> Pose:
-    """Return ``pose`` moved toward ``target`` by at most ``max_mm`` and ``max_deg``."""
-    if pose == target and max_mm >= 0.0 and max_deg >= 1e-3 and _finite(pose):
-        return target  # at rest (most cycles): no distance nor angle to compute
-    error = target.position_mm - pose.position_mm
-    distance = float(np.linalg.norm(error))
-    turn = angle_deg(pose.quaternion, target.quaternion)
-    if distance <= max_mm and turn <= max_deg:
-        return target
-    fraction = min(
-        max_mm / distance if distance > 0 else 1.0, max_deg / turn if turn > 0 else 1.0
-    )
-    position = pose.position_mm + fraction * error
-    q0, q1 = np.asarray(pose.quaternion), np.asarray(target.quaternion)
-    if np.dot(q0, q1) < 0:
-        q1 = -q1
-    q = q0 + fraction * (q1 - q0)
-    q = q / np.linalg.norm(q)
-    x, y, z = (float(c) for c in position)
-    w, qx, qy, qz = (float(c) for c in q)
-    return Pose(x, y, z, (w, qx, qy, qz))
 
 
 Source = Any
@@ -244,7 +160,7 @@ class Guidance:
         if counter:
             self._count(**{counter: 1})
             return False
-        if not _finite(message.feedback):
+        if not finite_pose(message.feedback):
             self._count(bad_datagrams=1)  # no feedback, or not finite: nothing to read
             return False
         if message.seqno != 0:
@@ -281,7 +197,8 @@ class Guidance:
         newer than what was seen).
         """
         before = self._before_restart
-        if before is None or not _finite(message.feedback) or _older(message.tm_ms, before.tm_ms):
+        if (before is None or not finite_pose(message.feedback)
+                or _older(message.tm_ms, before.tm_ms)):
             return False
         ahead = (message.seqno - before.seqno) % _SEQNO_MOD
         if not 0 < ahead <= self.config.max_seqno_ahead:

@@ -27,10 +27,9 @@ any other command                nothing; counted likewise (``COMMAND``); a
                                  stream goes on
 ===============================  ============================================
 
-HTTP: ``/netftapi2.xml`` (settings) and ``/netftcalapi.xml`` (calibration,
-root ``netftCalibration``); ``?index=0`` or no index selects the one
-configuration and calibration the emulated box holds, any other page or index
-is 404. The fields and their sources: docs/netft.md.
+READCALINFO (TCP) and the two XML pages (HTTP) are served by
+:mod:`forcelearn.emulators.netft.calibration_servers`, which this module starts
+and stops with the box.
 
 Time
 ----
@@ -48,35 +47,40 @@ time a real box would spend, whatever the host's speed. Infinite streaming
 
 from __future__ import annotations
 
-import contextlib
-import errno
-import html
 import logging
 import socket
-import socketserver
-import sys
 import threading
 import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.lifecycle import Emulator
+from forcelearn.emulators.netft.calibration_servers import (
+    HOST,
+    CalInfoServer,
+    XmlServer,
+    bind_loopback,
+    calibration_fields,
+    settings_fields,
+    xml_page,
+)
 from forcelearn.emulators.netft.faults import FaultCounts, NetFtFaults, RecordsHook, apply_faults
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams, NetFtSensorModel
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.protocols import netft as protocol
 from forcelearn.protocols.netft import Command, Record
 
-log = logging.getLogger(__name__)
+__all__ = [
+    "DEFAULT_RDT_RATE_HZ", "HOST", "INTERNAL_SAMPLE_RATE_HZ", "MAX_RDT_RATE_HZ",
+    "EmulatorStats", "NetFtEmulator", "start_emulated_netft",
+]
 
-HOST = "127.0.0.1"
+log = logging.getLogger(__name__)
 DEFAULT_RDT_RATE_HZ = 7000.0
 """The Net F/T's maximum RDT output rate (manual §10: "up to 7000 Hz"); the factory
 setting of a given box may be lower: ``forcelearn check`` prints the box's ``comrdtrate``."""
@@ -113,81 +117,6 @@ class EmulatorStats:
     calinfo_requests: int = 0
     http_requests: int = 0
     faults: FaultCounts = field(default_factory=FaultCounts)
-
-
-def _bind(kind: int, port: int | None, default: int) -> socket.socket:
-    """Bind a socket on 127.0.0.1: ``port`` exactly, or None = ``default`` where free, else any."""
-    sock = socket.socket(socket.AF_INET, kind)
-    if kind == socket.SOCK_STREAM:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        sock.bind((HOST, default if port is None else port))
-    except OSError as exc:
-        if port is not None or exc.errno != errno.EADDRINUSE:
-            sock.close()
-            raise
-        log.info("port %d is taken; the emulated Net F/T uses a free one", default)
-        sock.bind((HOST, 0))
-    return sock
-
-
-class _CalInfoHandler(socketserver.BaseRequestHandler):
-    def handle(self) -> None:
-        emulator: NetFtEmulator = self.server.emulator  # type: ignore[attr-defined]
-        self.request.settimeout(1.0)
-        data = b""
-        with contextlib.suppress(OSError):
-            while len(data) < protocol.CALINFO_REQUEST_SIZE:
-                chunk = self.request.recv(protocol.CALINFO_REQUEST_SIZE - len(data))
-                if not chunk:
-                    break
-                data += chunk
-            if protocol.is_calinfo_request(data):
-                emulator.stats.calinfo_requests += 1
-                self.request.sendall(protocol.encode_calinfo_reply(emulator.calinfo))
-
-
-class _XmlHandler(BaseHTTPRequestHandler):
-    def do_GET(self) -> None:
-        emulator: NetFtEmulator = self.server.emulator  # type: ignore[attr-defined]
-        emulator.stats.http_requests += 1
-        url = urlsplit(self.path)
-        index = parse_qs(url.query).get("index", ["0"])
-        pages = {protocol.CALIBRATION_XML_PATH: emulator.netftapi2_xml,
-                 protocol.CALIBRATION_API_XML_PATH: emulator.netftcalapi_xml}
-        page = pages.get(url.path)
-        if page is None or index != ["0"]:  # one configuration, one calibration
-            self.send_error(404)
-            return
-        body = page()
-        self.send_response(200)
-        self.send_header("Content-Type", "text/xml")
-        self.send_header("Content-Length", str(len(body)))
-        self.end_headers()
-        self.wfile.write(body)
-
-    def log_message(self, format: str, *args: Any) -> None:
-        log.debug("netft http: " + format, *args)
-
-
-class _QuietOnHangUp:
-    """A client that hangs up mid-reply (its timeout passed) is logged, not printed as a trace."""
-
-    def handle_error(self, request: Any, client_address: Any) -> None:
-        exc = sys.exc_info()[1]
-        if isinstance(exc, OSError):
-            log.debug("netft: client %s hung up: %s", client_address, exc)
-        else:
-            log.error("netft: a request from %s failed", client_address, exc_info=exc)
-
-
-class _TcpServer(_QuietOnHangUp, socketserver.ThreadingTCPServer):
-    daemon_threads = True
-    allow_reuse_address = True
-
-
-class _HttpServer(_QuietOnHangUp, ThreadingHTTPServer):
-    daemon_threads = True
 
 
 class NetFtEmulator(Emulator):
@@ -263,43 +192,17 @@ class NetFtEmulator(Emulator):
         self.calinfo = protocol.CalInfo(force_code, torque_code, self.params.counts_per_force,
                                         self.params.counts_per_torque)
         """What READCALINFO answers (a test may replace it with nonsense)."""
-        self.xml_fields: dict[str, str] = {
-            "prodname": "forcelearn emulated Net F/T",
-            "cfgcpf": str(self.params.counts_per_force),
-            "cfgcpt": str(self.params.counts_per_torque),
-            "scfgfu": self.params.force_unit,
-            "scfgtu": self.params.torque_unit,
-            "cfgmr": ";".join(f"{r:g}" for r in self._ranges_in_units()),
-            "comrdtrate": f"{self.rdt_rate_hz:g}",
-            "setuserfilter": str(filter_index),
-            "runrate": f"{INTERNAL_SAMPLE_RATE_HZ:g}",  # the internal rate, not the RDT rate
-            "comrdtbsiz": str(self.rdt_buffer_size),
-            "setcfgsel": "0",
-            "cfgcalsel": "0",
-        }
+        self.xml_fields = settings_fields(self.params, rdt_rate_hz=self.rdt_rate_hz,
+                                          filter_index=filter_index,
+                                          rdt_buffer_size=self.rdt_buffer_size,
+                                          internal_rate_hz=INTERNAL_SAMPLE_RATE_HZ)
         """The elements of netftapi2.xml (a test may change them)."""
-        self.calibration_fields: dict[str, str] = {
-            "calsn": "FT00000",
-            "calpn": "forcelearn-emulated",
-            "caldt": "2026/01/01",
-            "calfu": str(force_code),
-            "caltu": str(torque_code),
-            "scalfu": self.params.force_unit,
-            "scaltu": self.params.torque_unit,
-            "calcpf": str(self.params.counts_per_force),
-            "calcpt": str(self.params.counts_per_torque),
-            "calmr": self.xml_fields["cfgmr"],
-        }
+        self.calibration_fields = calibration_fields(self.params)
         """The elements of netftcalapi.xml, root ``netftCalibration`` (a test may change them)."""
-        self._udp = _bind(socket.SOCK_DGRAM, rdt_port, protocol.RDT_PORT)
-        tcp_sock = _bind(socket.SOCK_STREAM, tcp_port, protocol.CALIBRATION_TCP_PORT)
-        self._tcp = _TcpServer(tcp_sock.getsockname(), _CalInfoHandler, bind_and_activate=False)
-        self._tcp.socket.close()
-        self._tcp.socket = tcp_sock
-        self._tcp.server_activate()
-        self._tcp.emulator = self  # type: ignore[attr-defined]
-        self._http = _HttpServer((HOST, http_port), _XmlHandler)
-        self._http.emulator = self  # type: ignore[attr-defined]
+        self._udp = bind_loopback(socket.SOCK_DGRAM, rdt_port, protocol.RDT_PORT)
+        self._tcp = CalInfoServer(
+            bind_loopback(socket.SOCK_STREAM, tcp_port, protocol.CALIBRATION_TCP_PORT), self)
+        self._http = XmlServer(http_port, self)
         self._stop = threading.Event()
         self._threads = [
             threading.Thread(target=self._serve_udp, name="netft-emulator-udp", daemon=True),
@@ -349,11 +252,11 @@ class NetFtEmulator(Emulator):
 
     def netftapi2_xml(self) -> bytes:
         """The body of ``/netftapi2.xml`` from :attr:`xml_fields`."""
-        return _xml_page("netft", self.xml_fields)
+        return xml_page("netft", self.xml_fields)
 
     def netftcalapi_xml(self) -> bytes:
         """The body of ``/netftcalapi.xml`` from :attr:`calibration_fields`."""
-        return _xml_page("netftCalibration", self.calibration_fields)
+        return xml_page("netftCalibration", self.calibration_fields)
 
     def state_dict(self) -> dict[str, Any]:
         """What a bit-identical resume needs: model (rng, biases), sequences, last sample time."""
@@ -555,17 +458,6 @@ class NetFtEmulator(Emulator):
         self._records_since_boot = 0
         self.model.power_cycle()
         log.info("netft emulator: rebooted")
-
-    def _ranges_in_units(self) -> list[float]:
-        f = protocol.FORCE_UNIT_SI[self.params.force_unit]
-        t = protocol.TORQUE_UNIT_SI[self.params.torque_unit]
-        return [r / (f if i < 3 else t) for i, r in enumerate(self.params.ranges)]
-
-
-def _xml_page(root: str, fields: dict[str, str]) -> bytes:
-    """An XML page as the box serves it: one root element, one child element per field."""
-    inner = "".join(f"<{k}>{html.escape(v)}</{k}>" for k, v in fields.items())
-    return f'<?xml version="1.0" encoding="utf-8"?><{root}>{inner}</{root}>'.encode()
 
 
 def start_emulated_netft(physics: CellPhysics, clock: SimClock | None = None, seed: int = 0,
