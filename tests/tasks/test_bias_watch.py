@@ -6,7 +6,12 @@ import pytest
 
 from forcelearn.devices import Pose
 from forcelearn.errors import SensorSuspect
-from forcelearn.tasks.bias_watch import MARGIN_N, STIFFNESS_BAND_N_PER_MM, BiasWatch
+from forcelearn.tasks.bias_watch import (
+    MARGIN_N,
+    PRESS_MARGIN_N,
+    STIFFNESS_BAND_N_PER_MM,
+    BiasWatch,
+)
 
 K_LOW, K_HIGH = STIFFNESS_BAND_N_PER_MM
 
@@ -50,3 +55,16 @@ def test_only_consecutive_steps_from_contact_are_judged() -> None:
     watch(("retreat", 0), at(15.0), 0.0)
     watch(("step", 1), at(-4.0), 30.0)
     assert watch.checked == 0
+
+
+def test_a_step_between_trials_shows_at_the_next_first_press() -> None:
+    """The same press pose: a 1.5 N difference is suspect, unless the sensor was zeroed between."""
+    watch = BiasWatch()
+    pressed(watch)
+    watch(("step", 1), at(-5.0), 14.0)
+    pressed(watch, force_n=12.3)  # the next trial: as before, within the press margin
+    with pytest.raises(SensorSuspect):
+        pressed(watch, force_n=12.3 + 1.25 * PRESS_MARGIN_N)
+    pressed(watch, force_n=12.0, y_mm=-4.0)
+    watch(("approach", 0), at(-4.0), 16.0, zeros=1)  # a zero came between: a new reference
+    assert watch.suspects == 1

@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from forcelearn.cell import Cell
+from forcelearn.devices import Pose
 from forcelearn.errors import ForcelearnError, SensorSuspect, one_line
 from forcelearn.learning import SRVLearner, load_learner
 from forcelearn.tasks.bias_watch import CONTACT_N, BiasWatch
@@ -121,7 +122,7 @@ class RunRecovery:
         if run.saved.trials == 0:
             self._start_learner = _copy_learner(learner)
         tries: dict[int, int] = {}
-        self.cell.reading_check = self.watch
+        self.cell.reading_check = self._check
         try:
             while (remaining := run.trials - len(run.result.records)) > 0:
                 try:
@@ -204,6 +205,10 @@ class RunRecovery:
         marker.unlink()
 
     # ---- inside ------------------------------------------------------------------------------
+    def _check(self, stage: tuple[str, int], pose: Pose | None, force_n: float) -> None:
+        """The cell's reading check: the bias watch, told how many zeros the sensor took."""
+        self.watch(stage, pose, force_n, zeros=self.cell.tares)
+
     def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> Recovered:
         lost = str(getattr(exc, "lost", ""))
         if attempt > MAX_TRIES_PER_TRIAL - 1:
