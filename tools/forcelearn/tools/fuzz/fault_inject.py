@@ -20,8 +20,9 @@ fault              what the emulator does
                    EGM: the controller restarts guidance (a new session)
 ``stall``          the next move stops at 20 to 80 % of its way (never in position)
 ``link_drop``      computer link: the connection drops after the next request;
-                   EGM: the next 1 to 60 controller datagrams are lost (a watchdog
-                   of 0.5 s is 125 cycles: most are absorbed)
+                   EGM: the next 1 to 250 controller datagrams are lost (up to 1 s:
+                   the examples' 0.5 s watchdog is 125 cycles, so about half are
+                   absorbed and half end the session)
 ``kill``           the process dies here (no clean-up); the campaign resumes it
 =================  ===========================================================
 """
@@ -45,6 +46,8 @@ from forcelearn.emulators.faults import Fault
 from forcelearn.protocols.jr3_can.codec import Frame
 
 SENSOR_FAULTS = ("reboot", "silence", "corrupt", "bias_jump")
+EGM_LOST_MAX = 250
+"""Most controller datagrams one EGM ``link_drop`` loses (4 ms cycles: 1 s)."""
 ROBOT_FAULTS = ("restart", "stall", "link_drop")
 RUN_FAULTS = ("kill",)
 
@@ -312,7 +315,8 @@ class Injector:
     def _robot_link_drop(self) -> None:
         emulator = self.session.robot_emulator
         if isinstance(getattr(emulator, "faults", None), EgmFaultInjector):
-            self._egm_faults(EgmFaultConfig(lose=Fault(1.0, limit=self.rng.randint(1, 60))))
+            lost = self.rng.randint(1, EGM_LOST_MAX)
+            self._egm_faults(EgmFaultConfig(lose=Fault(1.0, limit=lost)))
             return
         hang_up = ComputerLinkFaultConfig(drop_connection=Fault(1.0, limit=1))
         emulator.faults = FaultInjector(hang_up)
