@@ -7,6 +7,7 @@ import pytest
 from forcelearn.devices import Pose
 from forcelearn.errors import SensorSuspect
 from forcelearn.tasks.bias_watch import (
+    FREE_MARGIN_N,
     MARGIN_N,
     PRESS_MARGIN_N,
     STIFFNESS_BAND_N_PER_MM,
@@ -68,3 +69,13 @@ def test_a_step_between_trials_shows_at_the_next_first_press() -> None:
     pressed(watch, force_n=12.0, y_mm=-4.0)
     watch(("approach", 0), at(-4.0), 16.0, zeros=1)  # a zero came between: a new reference
     assert watch.suspects == 1
+
+
+def test_free_space_at_the_retract_plane_must_read_zero() -> None:
+    """At or above the retract plane nothing touches: more than the free margin is suspect."""
+    watch = BiasWatch(free_y_mm=15.0)
+    watch(("probe", 0), at(15.0), 0.9 * FREE_MARGIN_N)
+    with pytest.raises(SensorSuspect, match="zero moved"):
+        watch(("probe", 1), at(15.0), -1.5 * FREE_MARGIN_N)
+    watch(("probe", 1), at(14.0), 3.0)  # below the plane: not known to be free
+    assert (watch.checked, watch.suspects) == (2, 1)

@@ -10,9 +10,12 @@ pulls. :class:`BiasWatch` takes the force a stiffness in
 tool may leave the foam) and calls a reading more than ``margin_n`` outside
 it suspect. A trial's first press is also compared with the last trial's at
 the same X and Z (within ``PRESS_DY_MM`` in Y) when no zero came between,
-within ``press_margin_n``: that catches a step that came in free space. A
-suspect reading raises :class:`~forcelearn.errors.SensorSuspect`: the run
-retracts, reads free space, zeroes there and runs the trial again
+within ``press_margin_n``: that catches a step that came in free space. And
+with ``free_y_mm`` (the retract plane, free space by the cell's
+configuration) every reading at or above it must be within ``free_margin_n``
+of 0: the surface probe starts each point there. A suspect reading raises
+:class:`~forcelearn.errors.SensorSuspect`: the run retracts, reads free
+space, zeroes there and runs the trial (or the probe) again
 (:mod:`forcelearn.tools.experiments.fault_recovery`).
 
 The defaults come from fault-free runs of the emulated example cells
@@ -39,6 +42,8 @@ MARGIN_N = 2.5
 PRESS_MARGIN_N = 1.2
 """The same for a trial's first press against the last trial's at the same X and Z with no zero
 between, N (fault-free runs: at most 0.36 N over 196 pairs)."""
+FREE_MARGIN_N = 1.0
+"""Most a reading at the retract plane (free space) may be from 0, N (fault-free: 0.37 N)."""
 PRESS_DY_MM = 3.0
 """A trial's first press is compared with the last one's only this close in Y, mm (the map's
 wear shift moves it a little; a tare's reading at the retract plane is far)."""
@@ -64,7 +69,8 @@ class BiasWatch:
 
     def __init__(self, stiffness_band_n_per_mm: tuple[float, float] = STIFFNESS_BAND_N_PER_MM,
                  margin_n: float = MARGIN_N, contact_n: float = CONTACT_N,
-                 press_margin_n: float = PRESS_MARGIN_N) -> None:
+                 press_margin_n: float = PRESS_MARGIN_N, free_y_mm: float | None = None,
+                 free_margin_n: float = FREE_MARGIN_N) -> None:
         low, high = stiffness_band_n_per_mm
         if not 0.0 <= low <= high or margin_n <= 0.0 or press_margin_n <= 0.0:
             raise ValueError(f"a stiffness band {stiffness_band_n_per_mm} (0 <= low <= high) "
@@ -72,6 +78,8 @@ class BiasWatch:
         self.band = (float(low), float(high))
         self.margin_n = float(margin_n)
         self.press_margin_n = float(press_margin_n)
+        self.free_y_mm = free_y_mm
+        self.free_margin_n = float(free_margin_n)
         self.contact_n = float(contact_n)
         self.checked = 0
         self.suspects = 0
@@ -99,6 +107,13 @@ class BiasWatch:
             return
         here = (stage, float(pose.y_mm), float(force_n))
         last, self._last = self._last, here
+        if self.free_y_mm is not None and here[1] >= self.free_y_mm:  # free space: reads 0
+            self.checked += 1
+            if abs(force_n) > self.free_margin_n:
+                self._suspect(f"the force read {force_n:.2f} N at {stage[0]} {stage[1]} at the "
+                              f"retract plane (y = {here[1]:.2f} mm, free space), more than "
+                              f"{self.free_margin_n:g} N from 0: the zero moved")
+            return
         margin = self.margin_n
         reference: tuple[float, float] | None = None  # (y mm, force N)
         if stage == ("approach", 0):  # a trial's first press: the last trial's, same X and Z
@@ -122,13 +137,17 @@ class BiasWatch:
         excess = max(low - force_n, force_n - high)
         if excess <= margin_n:
             return
-        self.suspects += 1
-        self._last = self._press = None  # the trial starts afresh after the zero check
-        raise SensorSuspect(
+        self._suspect(
             f"the force read {force_n:.2f} N at {stage[0]} {stage[1]} (y = {y_mm:.2f} mm), "
             f"{before_n:.2f} N before at y = {before_y:.2f} mm: a stiffness of "
             f"{self.band[0]:g} to {self.band[1]:g} N/mm gives {low:.2f} to {high:.2f} N, "
-            f"{excess:.2f} N more than the {margin_n:g} N allowed: a bias step? The run "
-            "retracts, checks the zero in free space and runs the trial again; if it repeats, "
-            "check the sensor's cable and temperature"
+            f"{excess:.2f} N more than the {margin_n:g} N allowed: a bias step?"
+        )
+
+    def _suspect(self, what: str) -> None:
+        self.suspects += 1
+        self._last = self._press = None  # the trial starts afresh after the zero check
+        raise SensorSuspect(
+            f"{what} The run retracts, checks the zero in free space and runs the trial "
+            "again; if it repeats, check the sensor's cable and temperature"
         )

@@ -39,7 +39,7 @@ import copy
 import dataclasses
 import json
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -107,7 +107,7 @@ class RunRecovery:
         self.checkpoint = checkpoint
         self.events: list[FaultEvent] = []
         """The faults of this session."""
-        self.watch = BiasWatch()
+        self.watch = BiasWatch(free_y_mm=retract_y_mm)
         """Judges the trials' readings by the moves (bias steps in contact)."""
         self._start_learner: SRVLearner | None = None
 
@@ -122,8 +122,7 @@ class RunRecovery:
         if run.saved.trials == 0:
             self._start_learner = _copy_learner(learner)
         tries: dict[int, int] = {}
-        self.cell.reading_check = self._check
-        try:
+        with self._watching():
             while (remaining := run.trials - len(run.result.records)) > 0:
                 try:
                     train_remaining(learner, remaining)
@@ -140,15 +139,14 @@ class RunRecovery:
                         getattr(recorder, "discard", lambda: None)()
                     self._recover(exc, trial, tries[trial])
                     learner = self._saved_learner(run, learner)
-        finally:
-            self.cell.reading_check = None
         return learner
 
     def probe(self, probe: Callable[[], _T]) -> _T:
         """Run the surface probe, recovering from device faults (the probe starts over)."""
         for attempt in range(1, MAX_TRIES_PER_TRIAL + 1):
             try:
-                return probe()
+                with self._watching():
+                    return probe()
             except ForcelearnError as exc:
                 if not recoverable(exc):
                     raise
@@ -205,6 +203,15 @@ class RunRecovery:
         marker.unlink()
 
     # ---- inside ------------------------------------------------------------------------------
+    @contextlib.contextmanager
+    def _watching(self) -> Iterator[None]:
+        """The bias watch judges the readings inside."""
+        self.cell.reading_check = self._check
+        try:
+            yield
+        finally:
+            self.cell.reading_check = None
+
     def _check(self, stage: tuple[str, int], pose: Pose | None, force_n: float) -> None:
         """The cell's reading check: the bias watch, told how many zeros the sensor took."""
         self.watch(stage, pose, force_n, zeros=self.cell.tares)
@@ -216,11 +223,14 @@ class RunRecovery:
             raise exc
         log.warning("trial %d: %s: %s; retracting and re-zeroing", trial, type(exc).__name__,
                     one_line(exc))
+        check, self.cell.reading_check = self.cell.reading_check, None  # the zero check reads
         try:
             recovered = leave_and_rezero(self.cell, self.retract_y_mm, self.max_step_mm)
         except RecoveryFailed as failed:
             failed.add_note(f"after {type(exc).__name__}: {one_line(exc)}")
             raise
+        finally:
+            self.cell.reading_check = check
         message = one_line(exc)
         if isinstance(exc, SensorSuspect):  # the free-space reading is the zero check
             moved = abs(recovered.free_reading_n) > CONTACT_N
