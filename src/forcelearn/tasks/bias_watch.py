@@ -23,10 +23,11 @@ The defaults come from fault-free runs of the emulated example cells
 the sponge's 2 N/mm; the largest excess over 2,810 step pairs was 1.83 N
 (the sponge's stiffness varies along Z, relaxes after a fresh press and
 follows another branch when easing off), so a margin of 2.5 N; over 196
-pairs of first presses, 0.36 N, so 1.2 N. It cannot see a step smaller than
-its margin (plus what the band leaves open), a slow drift, or a step during
-the surface probe; a step in free space is seen only at the next trial's
-first press, so the readings of the trial it came in (after it) are kept.
+pairs of first presses, 0.36 N, so 1.2 N; over 56 probe readings at the
+retract plane, 0.37 N, so 1.0 N. It cannot see a step smaller than its
+margin (plus what the band leaves open) or a slow drift; a step in free
+space is seen only at the next trial's first press or probe point, so the
+readings of the trial it came in (after it) are kept.
 """
 
 from __future__ import annotations

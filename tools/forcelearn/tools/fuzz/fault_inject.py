@@ -20,9 +20,9 @@ fault              what the emulator does
                    EGM: the controller restarts guidance (a new session)
 ``stall``          the next move stops at 20 to 80 % of its way (never in position)
 ``link_drop``      computer link: the connection drops after the next request;
-                   EGM: the next 1 to 250 controller datagrams are lost (up to 1 s:
-                   the examples' 0.5 s watchdog is 125 cycles, so about half are
-                   absorbed and half end the session)
+                   EGM: the next 1 to 250 controller datagrams are lost (up to 1 s;
+                   the emulated cell's EGM watchdog is 5 s, 1,250 cycles: all are
+                   absorbed)
 ``kill``           the process dies here (no clean-up); the campaign resumes it
 =================  ===========================================================
 """
