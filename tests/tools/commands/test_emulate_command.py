@@ -137,7 +137,7 @@ def test_ctrl_c_stops_the_emulator_cleanly(spawn: Callable[..., Emulator]) -> No
 def test_emulate_prints_its_pid_and_stable_links_that_survive_a_restart(
     spawn: Callable[..., Emulator], tmp_path: Path
 ) -> None:
-    """Issue 12.8: the PID is printed; a site config saved once still reaches a restarted cell."""
+    """The PID is printed; a site config saved once still reaches a restarted cell."""
     links, site = tmp_path / "links", tmp_path / "site.toml"
     first = spawn("--link-dir", str(links), "--write-config", str(site))
     pid = int(first.wait_for(r"running, PID (\d+)", STARTUP_S).group(1))
@@ -168,7 +168,7 @@ def test_emulate_prints_its_pid_and_stable_links_that_survive_a_restart(
 def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
     spawn: Callable[..., Emulator], tmp_path: Path, configured_map_toml: str
 ) -> None:
-    """Issue 12.8: run, check, run again on one emulator: the two runs' trials are identical.
+    """Run, check, run again on one emulator: the two runs' trials are identical.
 
     Without --fresh-per-connection the second run meets a worn sponge and a sensor
     further along its noise sequence, and its trials differ (the default, as on a
@@ -204,7 +204,7 @@ def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
 def test_a_run_through_emulate_in_another_process_equals_the_in_process_run(
     spawn: Callable[..., Emulator], tmp_path: Path
 ) -> None:
-    """Issue 10: the same seed gives the same trials with the cell in this process or in another.
+    """The same seed gives the same trials with the cell in this process or in another.
 
     The emulate process speaks to the run over a pty and an slcan adapter pty
     instead of an in-process pty and virtual bus; simulated time is charged by

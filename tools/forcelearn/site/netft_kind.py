@@ -36,6 +36,7 @@ from forcelearn.site.kinds import (
     SensorConfig,
     SensorKind,
     jsonable,
+    typed_part,
 )
 
 log = logging.getLogger(__name__)
@@ -51,18 +52,13 @@ BATCH = 64
 
 def netft_of(config: CellView) -> NetFtConfig:
     """``[sensor]`` of a Net F/T cell (``ConfigError`` for another kind)."""
-    if not isinstance(config.sensor, NetFtConfig):
-        raise ConfigError(f"the sensor is a {type(config.sensor).__name__}, not a Net F/T")
-    return config.sensor
+    return typed_part(config.sensor, NetFtConfig, "[sensor]", KIND.label)
 
 
 def box_model(config: CellView) -> NetFtModelParams:
     """``[emulator.sensor]`` of a Net F/T cell: the emulated box's model."""
-    model = KIND.model(config.emulator)
-    if not isinstance(model, NetFtModelParams):
-        raise ConfigError(f"emulator.sensor holds a {type(model).__name__}, not the Net F/T's "
-                          "NetFtModelParams")
-    return model
+    return typed_part(KIND.model(config.emulator), NetFtModelParams, "[emulator.sensor]",
+                      KIND.label)
 
 
 class NetFtFarEnd(FarEnd):
