@@ -79,3 +79,35 @@ def test_free_space_at_the_retract_plane_must_read_zero() -> None:
         watch(("probe", 1), at(15.0), -1.5 * FREE_MARGIN_N)
     watch(("probe", 1), at(14.0), 3.0)  # below the plane: not known to be free
     assert (watch.checked, watch.suspects) == (2, 1)
+
+
+def test_a_stiff_part_the_probe_measured_is_not_a_bias_step() -> None:
+    """8 N/mm over a 1 mm step is suspect for the example sponge's band, not once fitted to it."""
+    step_n = 8.0 * 1.0
+    assert step_n > K_HIGH * 1.0 + MARGIN_N  # the default band cannot explain it
+    default = BiasWatch()
+    pressed(default)
+    with pytest.raises(SensorSuspect):
+        default(("step", 1), at(-5.0), 12.0 + step_n)
+    fitted = BiasWatch()
+    fitted.fit_to_probe([6.5, 8.0, 7.2], hysteresis_loss=0.0, force_n=12.0)
+    pressed(fitted)
+    fitted(("step", 1), at(-5.0), 12.0 + step_n)
+    with pytest.raises(SensorSuspect):  # a jump with no move is still seen
+        fitted(("step", 2), at(-5.0), 12.0 + step_n + 1.2 * MARGIN_N)
+
+
+def test_a_hysteretic_foam_widens_the_margin_by_its_branch_gap() -> None:
+    """Easing off on h = 0.25 at 20 N drops 2 h F = 10 N more than the elastic law: not suspect."""
+    watch = BiasWatch()
+    watch.fit_to_probe([2.0], hysteresis_loss=0.25, force_n=20.0)
+    pressed(watch, force_n=20.0)
+    watch(("step", 1), at(-3.5), 20.0 - K_HIGH * 0.5 - 9.0)
+    assert watch.suspects == 0
+
+
+def test_fitting_never_narrows_the_defaults() -> None:
+    """A soft-only probe keeps the default band's high end; no hysteresis keeps the margin."""
+    watch = BiasWatch()
+    watch.fit_to_probe([1.0], hysteresis_loss=float("nan"), force_n=20.0)
+    assert watch.band == (0.25, K_HIGH) and watch.margin_n == MARGIN_N

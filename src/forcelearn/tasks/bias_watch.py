@@ -24,13 +24,22 @@ the sponge's 2 N/mm; the largest excess over 2,810 step pairs was 1.83 N
 (the sponge's stiffness varies along Z, relaxes after a fresh press and
 follows another branch when easing off), so a margin of 2.5 N; over 196
 pairs of first presses, 0.36 N, so 1.2 N; over 56 probe readings at the
-retract plane, 0.37 N, so 1.0 N. It cannot see a step smaller than its
+retract plane, 0.37 N, so 1.0 N. Those defaults fit the example sponge
+only: after the surface probe the run widens them to the material it
+measured (:meth:`BiasWatch.fit_to_probe`): the band to a quarter of the
+softest and twice the stiffest point's fitted stiffness (a stiff part of
+8 N/mm changes by 8 N over a 1 mm step), the margin by the branch gap a
+resolved hysteresis opens at the desired force (2 h F). It never narrows
+them. It cannot see a step smaller than its
 margin (plus what the band leaves open) or a slow drift; a step in free
 space is seen only at the next trial's first press or probe point, so the
 readings of the trial it came in (after it) are kept.
 """
 
 from __future__ import annotations
+
+import math
+from collections.abc import Sequence
 
 from forcelearn.devices import Pose
 from forcelearn.errors import SensorSuspect
@@ -48,6 +57,11 @@ FREE_MARGIN_N = 1.0
 PRESS_DY_MM = 3.0
 """A trial's first press is compared with the last one's only this close in Y, mm (the map's
 wear shift moves it a little; a tare's reading at the retract plane is far)."""
+SOFTEST_SHARE = 0.25
+"""The band's low end as a share of the softest point the probe fitted (the default's 0.5 of 2)."""
+STIFFEST_SHARE = 2.0
+"""The band's high end as a share of the stiffest point the probe fitted (the default's 4 of 2:
+a fresh press and a stiffening foam read stiffer than the probe's fit near the force)."""
 CONTACT_N = 1.0
 """The last reading must be at least this, N: a press from free space has no known start."""
 
@@ -87,6 +101,23 @@ class BiasWatch:
         self._last: tuple[tuple[str, int], float, float] | None = None  # stage, y mm, force N
         self._press: tuple[tuple[int, float, float], float, float] | None = None
         """The last trial's first press: ((zeros, x mm, z mm), y mm, force N)."""
+
+    def fit_to_probe(self, stiffness_n_per_mm: Sequence[float], hysteresis_loss: float,
+                     force_n: float) -> None:
+        """Widen the band and margin to the material the probe measured (never narrow them).
+
+        ``stiffness_n_per_mm``: the probe's fitted stiffness per point, N/mm;
+        ``hysteresis_loss``: the resolved loss h (0 or NaN: none); ``force_n``: the
+        desired force, N (the branch gap a reversal opens there is 2 h F).
+        """
+        stiff = [float(k) for k in stiffness_n_per_mm if math.isfinite(k) and k > 0.0]
+        if stiff:
+            self.band = (min(self.band[0], SOFTEST_SHARE * min(stiff)),
+                         max(self.band[1], STIFFEST_SHARE * max(stiff)))
+        if math.isfinite(hysteresis_loss) and hysteresis_loss > 0.0:
+            gap_n = 2.0 * hysteresis_loss * abs(force_n)
+            self.margin_n = max(self.margin_n, MARGIN_N + gap_n)
+            self.press_margin_n = max(self.press_margin_n, PRESS_MARGIN_N + gap_n)
 
     def expected_n(self, force_n: float, dy_mm: float) -> tuple[float, float]:
         """The range of force a move of ``dy_mm`` along Y leads to from ``force_n``, N."""
