@@ -94,7 +94,7 @@ def test_a_stiff_part_the_probe_measured_is_not_a_bias_step() -> None:
     pressed(fitted)
     fitted(("step", 1), at(-5.0), 12.0 + step_n)
     with pytest.raises(SensorSuspect):  # a jump with no move is still seen
-        fitted(("step", 2), at(-5.0), 12.0 + step_n + 1.2 * MARGIN_N)
+        fitted(("step", 2), at(-5.0), 12.0 + step_n + 1.2 * fitted.margin_n)
 
 
 def test_a_hysteretic_foam_widens_the_margin_by_its_branch_gap() -> None:
@@ -110,4 +110,15 @@ def test_fitting_never_narrows_the_defaults() -> None:
     """A soft-only probe keeps the default band's high end; no hysteresis keeps the margin."""
     watch = BiasWatch()
     watch.fit_to_probe([1.0], hysteresis_loss=float("nan"), force_n=20.0)
-    assert watch.band == (0.25, K_HIGH) and watch.margin_n == MARGIN_N
+    assert watch.band == (0.25, K_HIGH) and watch.margin_n == MARGIN_N  # 1 N/mm: below 2
+
+
+def test_the_margin_grows_with_the_probed_stiffness() -> None:
+    """A stiff part's unexplained depth (its surface between steps) reads as more force."""
+    watch = BiasWatch()
+    watch.fit_to_probe([8.0], hysteresis_loss=0.0, force_n=29.4)
+    assert watch.margin_n > MARGIN_N and watch.press_margin_n > PRESS_MARGIN_N
+    pressed(watch, force_n=29.4)
+    watch(("step", 1), at(-3.66), 29.4 + 3.0)  # eased off 0.34 mm, the surface rose 0.7 mm
+    with pytest.raises(SensorSuspect):
+        watch(("step", 2), at(-3.66), 32.4 + 1.2 * watch.margin_n)

@@ -29,7 +29,9 @@ only: after the surface probe the run widens them to the material it
 measured (:meth:`BiasWatch.fit_to_probe`): the band to a quarter of the
 softest and twice the stiffest point's fitted stiffness (a stiff part of
 8 N/mm changes by 8 N over a 1 mm step), the margin by the branch gap a
-resolved hysteresis opens at the desired force (2 h F). It never narrows
+resolved hysteresis opens at the desired force (2 h F), and the margins
+scale with the stiffest point (what a move leaves unexplained is depth: the
+surface between the steps' Z). It never narrows
 them. It cannot see a step smaller than its
 margin (plus what the band leaves open) or a slow drift; a step in free
 space is seen only at the next trial's first press or probe point, so the
@@ -62,6 +64,15 @@ SOFTEST_SHARE = 0.25
 STIFFEST_SHARE = 2.0
 """The band's high end as a share of the stiffest point the probe fitted (the default's 4 of 2:
 a fresh press and a stiffening foam read stiffer than the probe's fit near the force)."""
+EXAMPLE_STIFFNESS_N_PER_MM = 2.0
+"""The sponge the margins were measured on, N/mm."""
+SLACK_MM = MARGIN_N / EXAMPLE_STIFFNESS_N_PER_MM
+"""The margin as depth, mm: what a step's move leaves unexplained is mostly position (the
+surface rising or falling between the steps' Z, the contact's spread), so on a stiffer part
+the margin grows with the stiffness (an 8 N/mm part with 1 mm waviness read 2.8 N more than
+the band over a 0.34 mm step, fault-free)."""
+PRESS_SLACK_MM = PRESS_MARGIN_N / EXAMPLE_STIFFNESS_N_PER_MM
+"""The first press's margin as depth, mm."""
 CONTACT_N = 1.0
 """The last reading must be at least this, N: a press from free space has no known start."""
 
@@ -114,6 +125,8 @@ class BiasWatch:
         if stiff:
             self.band = (min(self.band[0], SOFTEST_SHARE * min(stiff)),
                          max(self.band[1], STIFFEST_SHARE * max(stiff)))
+            self.margin_n = max(self.margin_n, SLACK_MM * max(stiff))
+            self.press_margin_n = max(self.press_margin_n, PRESS_SLACK_MM * max(stiff))
         if math.isfinite(hysteresis_loss) and hysteresis_loss > 0.0:
             gap_n = 2.0 * hysteresis_loss * abs(force_n)
             self.margin_n = max(self.margin_n, MARGIN_N + gap_n)
