@@ -38,7 +38,10 @@ table          holds
                the Net F/T's ``NetFtModelParams``), ``[emulator.egm]`` EGM's
                control lag (``ServoParams``) (ignored on a real cell)
 ``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``; ``sensor_serial``:
-               this sensor's serial (a file of another is refused)
+               this sensor's serial (a file of another is refused);
+               ``mounting_rpy_deg`` or ``mounting_quaternion``: the sensor's
+               mounting on the flange as drawn, taken as given by ``forcelearn
+               calibrate`` (default: estimated with the tool)
 =============  ===============================================================
 
 The kinds are the entries of :mod:`forcelearn.site.kinds`; each builds its
@@ -66,7 +69,7 @@ from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
 from forcelearn.site.calibration_identity import load_sensor_serial
-from forcelearn.site.emulated_tool import load_tool
+from forcelearn.site.emulated_tool import load_mounting, load_tool
 from forcelearn.site.kinds import (
     DEFAULT_ROBOT_KIND,
     DEFAULT_SENSOR_KIND,
@@ -269,6 +272,9 @@ class CellConfig:
     sensor_serial: str = ""
     """``[calibration] sensor_serial``: the serial of this cell's sensor; a calibration file
     of another serial is refused (:mod:`forcelearn.site.calibration_identity`)."""
+    calibration_mounting: tuple[float, float, float, float] | None = None
+    """``[calibration] mounting_rpy_deg`` or ``mounting_quaternion`` (w, x, y, z): the sensor's
+    mounting on the flange, given; None: ``forcelearn calibrate`` estimates it."""
     trials: int = DEFAULT_TRIALS
     seed: int = 0
     stop_after_converged: int = 0
@@ -356,6 +362,7 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
         probe=build(ProbeSpec, data.get("probe"), "probe"),
         calibration_file=load_calibration_file(data.get("calibration", {}), path),
         sensor_serial=load_sensor_serial(data.get("calibration", {})),
+        calibration_mounting=load_mounting(data.get("calibration", {}), "calibration"),
         trials=trials,
         seed=seed,
         stop_after_converged=stop_after,
@@ -441,8 +448,9 @@ def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:
 
 def load_calibration_file(table: dict[str, Any], config_path: str | Path | None) -> Path | None:
     """``[calibration] file``, relative to the config file's folder."""
-    if set(table) - {"file", "sensor_serial"}:
-        raise ConfigError("[calibration] takes the keys file and sensor_serial")
+    if set(table) - {"file", "sensor_serial", "mounting_rpy_deg", "mounting_quaternion"}:
+        raise ConfigError("[calibration] takes the keys file, sensor_serial, mounting_rpy_deg "
+                          "and mounting_quaternion")
     if "file" not in table:
         return None
     if not isinstance(table["file"], str) or not table["file"]:
