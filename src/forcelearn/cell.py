@@ -143,6 +143,11 @@ class Cell:
         self.stage: tuple[str, int] = ("move", 0)
         """What the present moves are for, (kind, index) as in
         :class:`~forcelearn.records.StepRecord`: set by the task, read by recorders."""
+        self.reading_check: Callable[[tuple[str, int], Pose | None, float], None] | None = None
+        """Called with (stage, pose commanded, normal force N) after every burst of more than
+        one sample; may
+        raise a :class:`~forcelearn.errors.SensorError` (the robot is then stopped), e.g.
+        :class:`~forcelearn.tasks.bias_watch.BiasWatch`. None: nothing checked."""
 
     @property
     def pose(self) -> Pose:
@@ -275,6 +280,8 @@ class Cell:
                 f"filtered normal force {force:.2f} N passed safety.max_force_n = "
                 f"{self.max_force_n} N; the robot was stopped"
             )
+        if (samples is None or samples > 1) and self.reading_check is not None:
+            self._guarded(self.reading_check, self.stage, self._pose, force)
         return force
 
     def _burst_record(self, samples: list[WrenchSample], filtered_n: float) -> BurstRecord:

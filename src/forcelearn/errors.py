@@ -185,6 +185,16 @@ class SensorRebooted(SensorStale):
         self.lost = lost
 
 
+class SensorSuspect(SensorError):
+    """A reading in contact changed by more than the move can explain (a bias step?).
+
+    The reading alone cannot tell a bias step from a force change; the cell
+    can, by the move it made (:mod:`forcelearn.tasks.bias_watch`). The reading
+    is not used: the run retracts, reads free space (the zero check), zeroes
+    there and runs the trial again.
+    """
+
+
 class SensorBusError(SensorError):
     """The CAN bus, the sensor's network or their interface reported an error."""
 

@@ -9,15 +9,16 @@ refusals and one tool end to end.
 from __future__ import annotations
 
 import io
+import re
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from forcelearn.calibration import MOUNTING_ESTIMATED
+from forcelearn.calibration import MOUNTING_ESTIMATED, MOUNTING_GIVEN
 from forcelearn.devices import TOOL_DOWN
-from forcelearn.errors import CalibrationError, PoseOutOfRange
+from forcelearn.errors import CalibrationError, ConfigError, PoseOutOfRange
 from forcelearn.site.config import load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tools.calibration_study import PLAN
@@ -51,15 +52,46 @@ def test_a_heavy_off_axis_tool_on_a_turned_sensor_is_recovered(tmp_path: Path) -
     path = _config(tmp_path, "mass_kg = 6.0\ncom_mm = [150.0, 0.0, 60.0]\n"
                    "mounting_rpy_deg = [0.0, 0.0, 45.0]")
     truth = load_cell_config(path).emulator.tool
+    stream = io.StringIO()
     cal = calibrate(load_cell_config(path), QUICK, out_path=tmp_path / "cal.toml", seed=1,
-                    progress=False, stream=io.StringIO())
+                    progress=False, stream=stream)
     t = cal.tool
     assert t.mounting_source == MOUNTING_ESTIMATED
+    assert "estimated with the tool (none given" in stream.getvalue()
+    assert re.search(r"precision: centre of mass sigma \S+ mm .* met; 1 pass\(es\)",
+                     stream.getvalue())  # a heavy tool needs no more than one pass
     assert abs(t.mass_kg - truth.mass_kg) <= 0.005 * truth.mass_kg + 0.005
     com_err = float(np.linalg.norm(np.subtract(t.com_mm, truth.com_mm)))
     assert com_err <= 1.0 + 0.005 * float(np.linalg.norm(truth.com_mm))
     assert _angle_deg(t.mounting_quaternion, truth.mounting_quaternion) < 1.0
     assert t.mass_std_kg > 0 and min(t.com_std_mm) > 0 and t.mounting_std_deg > 0
+
+
+def test_the_mounting_given_in_the_config_is_used_and_said_so(tmp_path: Path) -> None:
+    """[calibration] mounting_rpy_deg: taken as given (not estimated), the report says where."""
+    path = _config(tmp_path, "mounting_rpy_deg = [0.0, 0.0, 60.0]")
+    path.write_text(path.read_text() + "[calibration]\nmounting_rpy_deg = [0.0, 0.0, 60.0]\n")
+    config = load_cell_config(path)
+    assert config.calibration_mounting == pytest.approx(config.emulator.tool.mounting_quaternion)
+    stream = io.StringIO()
+    cal = calibrate(config, replace(QUICK, max_passes=1), out_path=tmp_path / "cal.toml",
+                    seed=4, progress=False, stream=stream)
+    assert cal.tool.mounting_source == MOUNTING_GIVEN and cal.tool.mounting_std_deg == 0.0
+    assert cal.tool.mounting_quaternion == pytest.approx(config.calibration_mounting)
+    assert "as given ([calibration] mounting_* of the config), not estimated" in stream.getvalue()
+    assert abs(cal.tool.mass_kg - config.emulator.tool.mass_kg) < 0.005 * 0.9 + 0.005
+
+
+@pytest.mark.parametrize("table", [
+    "mounting_rpy_deg = [0.0, 0.0, 60.0]\nmounting_quaternion = [1.0, 0.0, 0.0, 0.0]",
+    "mounting_quaternion = [1.0, 0.5, 0.0, 0.0]", "mounting_rpy_deg = [0.0, 60.0]",
+    "mounting = [0.0, 0.0, 60.0]"], ids=["both", "not unit", "two angles", "unknown key"])
+def test_a_bad_mounting_in_the_config_is_refused_by_key(tmp_path: Path, table: str) -> None:
+    """[calibration] mounting_*: one of the two, a rotation, named in the refusal."""
+    path = tmp_path / "cell.toml"
+    path.write_text(f"[calibration]\n{table}\n")
+    with pytest.raises(ConfigError, match=r"calibration|\[calibration\]"):
+        load_cell_config(path)
 
 
 def test_a_pose_that_would_saturate_the_sensor_is_refused_before_the_robot_goes(

@@ -32,8 +32,9 @@ from forcelearn.tools.experiments.calibration_plan import (
 
 SEEDS = range(*(int(v) for v in os.environ.get("FORCELEARN_CALIBRATION_SEEDS", "0:5").split(":")))
 """Seeds of the accuracy test; FORCELEARN_CALIBRATION_SEEDS=5:25 measures 20 more."""
-FAST = CalibrationPlan(record_s=2.0, samples_per_pose=800, settle_s=0.2, settle_timeout_s=5.0)
-"""Short recordings: the test budget, not the site's (5 s and 500 samples there)."""
+FAST = CalibrationPlan(record_s=2.0, samples_per_pose=800, settle_s=0.2, settle_timeout_s=5.0,
+                       max_passes=1)
+"""Short recordings, one pass: the test budget, not the site's (5 s and 500 samples there)."""
 
 
 class TruthLog:
@@ -218,10 +219,11 @@ def test_cli_writes_file_and_figure_with_the_matrix_check(tmp_path: Path, capsys
     out = tmp_path / "site" / "cal.toml"
     code = main(["calibrate", "--out", str(out), "--record-s", "0.3", "--samples-per-pose", "100",
                  "--settle-s", "0", "--loads", str(loads), "--no-progress", "--sensor-serial",
-                 "SN 42"])
+                 "SN 42", "--max-passes", "1"])
     printed = capsys.readouterr().out
     assert code == 0
     assert "mass" in printed and " ± " in printed and "calibration-matrix check" in printed
+    assert "precision: centre of mass sigma" in printed and "1 pass(es)" in printed
     cal = load_calibration(out)
     assert cal.sensor.serial == "SN 42" and cal.matrix_check is not None
     assert cal.matrix_check.loads == 24 and max(cal.matrix_check.rms_residual_fit) < 1e-9

@@ -1,6 +1,6 @@
 """Physical bounds at load: a file whose digest is right but whose values are absurd is refused.
 
-Finding of issue 27: ``cutoff_hz = 1e9`` and a tool of 10^6 kg loaded, because the
+What a hostile review found: ``cutoff_hz = 1e9`` and a tool of 10^6 kg loaded, because the
 digest proves only that a file is the one written. Each case below rewrites one
 value of a good file and recomputes the digest, as a hand-made file would.
 """

@@ -166,7 +166,7 @@ def test_the_serializer_writes_what_tomllib_reads_back() -> None:
 )
 def test_wrong_values_are_refused(tmp_path: Path, calibration, old: str, new: str,
                                   message: str) -> None:
-    """Issue 12.6: values that used to load silently are ConfigErrors naming the key."""
+    """Values that used to load silently are ConfigErrors naming the key."""
     path = tmp_path / "cal.toml"
     path.write_text(_edit(to_toml(calibration), old, new))
     with pytest.raises(ConfigError, match=message):
@@ -174,7 +174,7 @@ def test_wrong_values_are_refused(tmp_path: Path, calibration, old: str, new: st
 
 
 def test_a_file_cut_after_a_complete_pose_is_refused(tmp_path: Path, calibration) -> None:
-    """Issue 12.6: truncation at a table boundary leaves valid TOML; the pose count catches it."""
+    """Truncation at a table boundary leaves valid TOML; the pose count catches it."""
     text = to_toml(calibration)
     first = text.index("[[tool.pose]]")
     cut = text.index("[[tool.pose]]", first + 1)  # keep one whole pose, drop the rest
@@ -195,7 +195,7 @@ def _digit_positions(text: str) -> list[int]:
 
 
 def test_every_digit_flip_is_refused_or_harmless(tmp_path: Path, calibration) -> None:
-    """Issue 12.6: any digit changed in a value is refused (digest), never a different value."""
+    """Any digit changed in a value is refused (digest), never a different value."""
     text = to_toml(calibration)
     path = tmp_path / "cal.toml"
     positions = _digit_positions(text)
@@ -212,7 +212,7 @@ def test_every_digit_flip_is_refused_or_harmless(tmp_path: Path, calibration) ->
 
 def test_astral_characters_are_written_so_that_they_read_back(tmp_path: Path,
                                                               calibration) -> None:
-    """Issue 12.6: an emoji in a string was written as a surrogate pair tomllib refused."""
+    """An emoji in a string was written as a surrogate pair tomllib refused."""
     from dataclasses import replace
 
     odd = replace(calibration, sensor=replace(calibration.sensor, model="JR3 😀 \U0010fffd"))
@@ -234,7 +234,7 @@ def test_a_calibration_the_reader_would_refuse_is_not_written(tmp_path: Path,
 
 def test_undecodable_bytes_and_directories_are_config_errors(tmp_path: Path,
                                                              calibration) -> None:
-    """Issue 12.5: a non-UTF-8 byte and a directory named as the file were not ConfigErrors."""
+    """A non-UTF-8 byte and a directory named as the file were not ConfigErrors."""
     path = tmp_path / "cal.toml"
     data = bytearray(to_toml(calibration).encode())
     data[data.index(b"created") + 12] = 0xFF  # inside the created string

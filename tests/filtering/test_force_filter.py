@@ -160,7 +160,7 @@ def test_a_sample_with_its_sensor_time_is_one_step_of_that_length() -> None:
 
     A JR3 adapter's counter steps by ~8 sensor frames per 1 ms sample: with the sample's sensor time
     the stream filter makes one 1 ms step, exactly as a filter of 1 ms period fed consecutive
-    counters; before issue 28 it predicted 7 extra steps for every sample.
+    counters; a filter that counted frames instead predicted 7 extra steps for every sample.
     """
     config = ForceFilterConfig(model="stream", sample_period_s=0.001)
     timed, counted = ForceFilter(config), ForceFilter(config)

@@ -181,7 +181,7 @@ def _saved_arrays(tmp_path: Path) -> dict[str, np.ndarray]:
 def test_nonsense_values_are_refused(
     tmp_path: Path, key: str, value: object, match: str
 ) -> None:
-    """Issue 12.4: each nonsense value is a StateFileError naming the key, never a silent load.
+    """Each nonsense value is a StateFileError naming the key, never a silent load.
 
     NaN weights, counters out of range or not integers, a list as metadata, a
     foreign rng name (which used to be *called*, re-seeding the global RNG).
@@ -201,7 +201,7 @@ def test_nonsense_values_are_refused(
 
 
 def test_damaged_zip_compression_field_is_a_state_file_error(tmp_path: Path) -> None:
-    """Issue 12.4: an unknown compression method in the zip headers raised NotImplementedError."""
+    """An unknown compression method in the zip headers raised NotImplementedError."""
     path = tmp_path / "learner.npz"
     save_learner(trained_learner(), path)
     data = bytearray(path.read_bytes())

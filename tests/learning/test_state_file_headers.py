@@ -1,6 +1,6 @@
 """A damaged ``.npy`` header inside the learner's ``.npz`` is a StateFileError, always.
 
-Finding of issue 27: a header numpy had to re-tokenize raised ``tokenize.TokenError``
+What a hostile review found: a header numpy had to re-tokenize raised ``tokenize.TokenError``
 out of ``load_learner``. numpy's header parser (``numpy.lib.format``) also reaches
 ``IndentationError``, ``IndexError``, ``OverflowError`` and ``RecursionError``.
 """

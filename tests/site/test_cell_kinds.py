@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -103,6 +105,25 @@ def test_errors_name_the_key(tmp_path: Path, text: str, named: str) -> None:
     """Every bad value or unknown key is named with its table."""
     with pytest.raises(ConfigError, match=named.replace(".", r"\.")):
         load_cell_config(write(tmp_path, text))
+
+
+@pytest.mark.parametrize(
+    ("module", "accessor", "own_cell"),
+    [("computer_link_kind", "link_of", "default"), ("jr3_kind", "jr3_of", "default"),
+     ("egm_kind", "egm_of", "egm-netft"), ("netft_kind", "netft_of", "egm-netft")],
+)
+def test_a_kind_asked_about_another_kinds_device_says_which(
+    module: str, accessor: str, own_cell: str
+) -> None:
+    """Each kind's accessor reads its own cell and refuses another's with a ConfigError."""
+    cells = {"default": load_cell_config(None),
+             "egm-netft": load_cell_config(EXAMPLES / "egm-netft-cell.toml")}
+    kind_module = importlib.import_module(f"forcelearn.site.{module}")
+    read = getattr(kind_module, accessor)
+    assert isinstance(read(cells[own_cell]), kind_module.KIND.config_type)
+    other = cells["egm-netft" if own_cell == "default" else "default"]
+    with pytest.raises(ConfigError, match=f"not the {re.escape(kind_module.KIND.label)}'s"):
+        read(other)
 
 
 def test_an_rdt_rate_the_emulated_box_cannot_stream_is_a_config_error(tmp_path: Path) -> None:

@@ -23,7 +23,7 @@ def _open_session(cell: EmulatedCell) -> None:
 
 @pytest.mark.parametrize("fresh", [False, True])
 def test_sessions_start_fresh_only_when_asked(tmp_path: Path, fresh: bool) -> None:
-    """Issue 12.8: sponge wear carries over between sessions unless fresh_per_connection."""
+    """Sponge wear carries over between sessions unless fresh_per_connection."""
     with EmulatedCell(load_cell_config(), link_dir=tmp_path, fresh_per_connection=fresh) as cell:
         _open_session(cell)
         start = cell.sponge.state_dict()

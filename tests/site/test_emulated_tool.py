@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcelearn.devices import quaternion_to_matrix
+from forcelearn.calibration import Calibration, NoiseEstimate, SensorInfo, ToolLoad
+from forcelearn.devices import TOOL_DOWN, quaternion_to_matrix
 from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
 from forcelearn.emulators.physics.tool import ToolParams, gravity_wrench
@@ -60,6 +61,34 @@ def test_the_mounting_turns_the_sensor_frame_against_the_flange() -> None:
         plain = ToolParams(mass_kg=2.0, com_mm=com)
         expected = gravity_wrench(plain, flange @ quaternion_to_matrix(mounting))
         assert gravity_wrench(mounted, flange) == pytest.approx(expected, abs=1e-12)
+
+
+@pytest.mark.parametrize(("rpy", "mounting", "weight_axis", "sign"), [
+    ((0, 0, 0), (1.0, 0.0, 0.0, 0.0), 2, 1.0),                              # Fz = +m g
+    ((0, 90, 0), (0.7071067811865476, 0.0, 0.7071067811865476, 0.0), 0, -1.0),  # Fx = -m g
+    ((90, 0, 0), (0.7071067811865476, 0.7071067811865476, 0.0, 0.0), 1, 1.0),   # Fy = +m g
+], ids=["none", "pitch 90", "roll 90"])
+def test_the_documented_conventions_hold_in_the_emulator_and_the_calibration(
+        rpy: tuple, mounting: tuple, weight_axis: int, sign: float) -> None:
+    """docs/calibration.md's conventions, in the emulator and in the calibration alike.
+
+    Quaternions w first, R_s = R_f R_m; tool down, the weight on the axis and
+    with the sign the mounting gives; its moment c x (m g_s); the calibration's
+    compensation of that tool removes exactly the emulated reading.
+    """
+    tool = ToolParams(mass_kg=2.0, com_mm=(30.0, -40.0, 50.0), mounting_quaternion=mounting)
+    emulated = gravity_wrench(tool, quaternion_to_matrix(TOOL_DOWN))
+    expected_force = np.zeros(3)
+    expected_force[weight_axis] = sign * 2.0 * 9.80665
+    assert emulated[:3] == pytest.approx(expected_force, abs=1e-9)
+    assert emulated[3:] == pytest.approx(np.cross(np.array(tool.com_mm) / 1000, expected_force))
+    assert rpy_to_quaternion(rpy) == pytest.approx(mounting)  # w first, fixed axes
+    load = ToolLoad(2.0, 0.0, tool.com_mm, (0.0,) * 3, (0.0,) * 3, (0.0,) * 3, (0.0,) * 3,
+                    (0.0,) * 3, mounting_quaternion=mounting)
+    noise = NoiseEstimate((0.0,) * 6, tuple(tuple(float(i == j) for j in range(6))
+                                            for i in range(6)), (0.0,) * 6, 10, 1.0, 10.0)
+    cal = Calibration("2026-01-01T00:00:00+00:00", SensorInfo(), noise, load)
+    assert cal.compensate(emulated, TOOL_DOWN) == pytest.approx(np.zeros(6), abs=1e-9)
 
 
 def _heaviest_kg(model: Jr3ModelParams | NetFtModelParams) -> float:

@@ -94,7 +94,8 @@ def test_the_path_is_refused_before_any_move() -> None:
 def test_the_documented_table_is_the_defaults() -> None:
     """docs/path.md's [task] example builds to the spec's defaults (so the page cannot drift)."""
     page = (Path(__file__).parents[2] / "docs" / "path.md").read_text()
-    block = page.split("```toml\n", 1)[1].split("```", 1)[0]
+    blocks = [part.split("```", 1)[0] for part in page.split("```toml\n")[1:]]
+    block = next(b for b in blocks if b.startswith("[task]\nkind = \"path\""))
     table = tomllib.loads(block)["task"]
     root = Path(__file__).parents[2]
     assert build_path_task(table, root) == PathTaskSpec(path=str(root / table["path"]))

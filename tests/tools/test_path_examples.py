@@ -50,7 +50,7 @@ def test_each_path_is_on_its_parts_foam_skin_with_the_tool_against_the_normal(na
 
 
 def test_the_cylinder_arc_turns_the_tool_at_least_40_degrees() -> None:
-    """Issue 40's example: >= 25 points, the tool turning >= 40 deg from first to last."""
+    """The taught-path example: >= 25 points, the tool turning >= 40 deg from first to last."""
     path = read_path_csv(EXAMPLES / "cylinder-arc.csv")
     turns = Rotation.from_quat(path.quaternions_wxyz[:, [1, 2, 3, 0]])
     assert len(path) >= 25

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from forcelearn.calibration.drift import DriftModel, Whitener, diagonal_whitener, whitener
 from forcelearn.calibration.model import (
     MM_PER_M,
     STANDARD_GRAVITY_M_S2,
@@ -69,11 +70,11 @@ def design_with_drift(quaternions: list[Quaternion], times_s: np.ndarray | None 
     if knots_s is None or times_s is None:
         return a
     knots = np.asarray(knots_s, dtype=float)
-    hats = np.array([[np.interp(t, knots, np.eye(len(knots))[k]) for k in range(len(knots))]
-                     for t in np.asarray(times_s, dtype=float)])  # (n, K)
-    blocks = [np.hstack([a[6 * i:6 * i + 6, :4], np.kron(hats[i], np.eye(6))])
-              for i in range(len(quaternions))]
-    return np.vstack(blocks) if blocks else np.zeros((0, 4 + 6 * len(knots)))
+    t = np.asarray(times_s, dtype=float)
+    hats = np.array([np.interp(t, knots, e) for e in np.eye(len(knots))]).T  # (n, K)
+    n, k = len(quaternions), len(knots)
+    bias = np.einsum("ik,ab->iakb", hats, np.eye(6)).reshape(6 * n, 6 * k)
+    return np.hstack([a[:, :4], bias])
 
 
 def condition_number(quaternions: list[Quaternion], times_s: np.ndarray | None = None,
@@ -204,6 +205,7 @@ def fit_tool_load(
     limit: float = MAX_CONDITION,
     times_s: np.ndarray | None = None,
     knots_s: np.ndarray | None = None,
+    drift: DriftModel | None = None,
 ) -> ToolLoad:
     """Fit mass, centre of mass and bias to the mean readings (n, 6) at ``quaternions``.
 
@@ -211,7 +213,10 @@ def fit_tool_load(
     and moments count alike; uncertainties are ``s^2 (A^T A)^-1`` on the weighted
     rows, ``s^2`` the residual variance. With ``times_s`` (each pose's mean sample
     time, s) and ``knots_s`` (:func:`bias_knots`) the bias drifts piecewise
-    linearly between the knots; F0, M0 are then the first knot's. Raises
+    linearly between the knots; F0, M0 are then the first knot's. With ``drift``
+    (and ``times_s``) the rows are whitened by the noise of each pose mean and the
+    bias's random walk about that fit (:mod:`.drift`, generalised least squares), and
+    the covariance is ``max(s^2, 1) (A^T W^T W A)^-1``: never tighter than that model. Raises
     CalibrationError when the set is ill-conditioned or the mass comes out
     non-positive.
     """
@@ -222,12 +227,12 @@ def fit_tool_load(
     if knots_s is not None:
         cond = max(cond, condition_number(quaternions, times_s, knots_s))
     a, y = design_with_drift(quaternions, times_s, knots_s), means.ravel()
-    weights = np.tile(1.0 / np.asarray(axis_std, dtype=float), len(quaternions))
-    aw, yw = a * weights[:, None], y * weights
+    white = row_whitener(len(quaternions), axis_std, times_s, knots_s, drift)
+    aw, yw = white @ a, white @ y
     p, *_ = np.linalg.lstsq(aw, yw, rcond=None)
     dof = len(yw) - a.shape[1]
     s2 = float(np.sum((yw - aw @ p) ** 2) / dof) if dof > 0 else math.nan
-    cov = s2 * np.linalg.inv(aw.T @ aw)
+    cov = (max(s2, 1.0) if drift is not None else s2) * np.linalg.inv(aw.T @ aw)
     mass, mc = float(p[0]), p[1:4]
     if not mass > 0:
         raise CalibrationError(
@@ -259,6 +264,15 @@ def fit_tool_load(
     )
 
 
+def row_whitener(count: int, axis_std: np.ndarray | tuple[float, ...],
+                 times_s: np.ndarray | None, knots_s: np.ndarray | None,
+                 drift: DriftModel | None) -> Whitener:
+    """W (6n rows): 1 / axis_std per row, or with ``drift`` the GLS whitener of :mod:`.drift`."""
+    if drift is None or times_s is None:
+        return diagonal_whitener(count, np.asarray(axis_std, dtype=float))
+    return whitener(np.asarray(times_s, dtype=float), knots_s, drift)
+
+
 REVISIT_DEG = 1.0
 """A pose within this angle (deg) of the first is a visit to the reference orientation."""
 
@@ -282,7 +296,7 @@ def bias_knots(quaternions: list[Quaternion], times_s: np.ndarray | None,
                              if abs(float(q[i] @ q[0])) >= cos_limit}))
     if len(knots) < 2 or not np.all(np.isfinite(knots)):
         return None
-    if condition_number(quaternions, t, knots) > limit:
+    if math.isfinite(limit) and condition_number(quaternions, t, knots) > limit:
         return None
     return knots
 

@@ -10,9 +10,11 @@ runs on ``R_f R_m`` unchanged. Estimated, three more unknowns join it:
    ``A`` and ``F0``; least squares, then the rotation nearest ``A`` (SVD,
    determinant +1) is the first estimate of ``R_m^T``.
 2. All six axes, 13 parameters (a small rotation ``delta`` on that estimate,
-   then ``m, m c, F0, M0``), weighted by the noise as the linear fit, by
-   :func:`scipy.optimize.least_squares`; the covariance ``s^2 (J^T J)^-1``
-   gives every parameter's uncertainty, the mounting's as the RMS angle.
+   then ``m, m c, F0, M0``; 6 more per bias knot), weighted (or whitened, with
+   the drift model) as the linear fit: :func:`scipy.optimize.least_squares`
+   over ``delta`` alone, the rest solved linearly for each ``delta`` (variable
+   projection); the covariance ``s^2 (J^T J)^-1`` of the whole model gives
+   every parameter's uncertainty, the mounting's as the RMS angle.
 
 Why estimate by default: the sensor's clocking on its adapter plate is often
 not what the drawing says (a bolt circle of 6 or 8 holes allows 45 or 60 deg
@@ -24,19 +26,23 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from forcelearn.calibration.drift import DriftModel
 from forcelearn.calibration.fit import (
     DEFAULT_AXIS_STD,
     MAX_CONDITION,
     bias_knots,
     check_pose_set,
+    design_matrix,
     design_with_drift,
     drift_fields,
     fit_tool_load,
+    row_whitener,
 )
 from forcelearn.calibration.model import (
     MM_PER_M,
@@ -80,13 +86,14 @@ def fit_with_mounting(
     limit: float = MAX_CONDITION,
     mounting: Quaternion | None = None,
     times_s: np.ndarray | None = None,
+    drift: DriftModel | None = None,
 ) -> ToolLoad:
     """Fit the tool load at the robot's (flange) orientations; the mounting given or estimated.
 
     ``times_s``: each pose's mean sample time (s); the bias is fitted as drifting
     piecewise linearly between the visits to the first orientation when
     :func:`~forcelearn.calibration.fit.bias_knots` finds they determine it,
-    else constant. Raises
+    else constant; with ``drift`` by generalised least squares (:mod:`.drift`). Raises
     CalibrationError when the pose set is ill-conditioned (checked in the
     sensor frame, before any fit) or the mass comes out non-positive.
     """
@@ -94,37 +101,52 @@ def fit_with_mounting(
     knots = bias_knots(list(flange), times_s, limit)
     if mounting is not None:
         load = fit_tool_load([sensor_quaternion(q, mounting) for q in flange], means, axis_std,
-                             names, samples, limit, times_s, knots)
+                             names, samples, limit, times_s, knots, drift)
         return _in_flange_frame(load, flange, mounting, 0.0, MOUNTING_GIVEN)
     check_pose_set(list(flange), limit)  # conditioning does not depend on a fixed rotation
     start = Rotation.from_quat(_xyzw(initial_mounting(flange, means)))
-    first = fit_tool_load([sensor_quaternion(q, _quaternion(start)) for q in flange], means,
-                          axis_std, names, samples, limit, times_s, knots)
-    weights = np.tile(1.0 / np.asarray(axis_std, dtype=float), len(flange))
-    y = means.ravel() * weights
+    white = row_whitener(len(flange), axis_std, times_s, knots, drift)
+    y = white @ means.ravel()
+    bias_columns = white @ design_with_drift(list(flange), times_s, knots)[:, 4:]
 
-    def residual(x: np.ndarray) -> np.ndarray:
-        r_m = _quaternion(start * Rotation.from_rotvec(x[:3]))
-        a = design_with_drift([sensor_quaternion(q, r_m) for q in flange], times_s,
-                              knots) * weights[:, None]
-        residuals: np.ndarray = y - a @ x[3:]
+    def load_columns(x: np.ndarray) -> np.ndarray:
+        r_m = _quaternion(start * Rotation.from_rotvec(x))
+        load: np.ndarray = white @ design_matrix([sensor_quaternion(q, r_m) for q in flange])[:, :4]
+        return load
+
+    def residual(x: np.ndarray) -> np.ndarray:  # variable projection: the rest is linear
+        a = np.hstack([load_columns(x), bias_columns])
+        p, *_ = np.linalg.lstsq(a, y, rcond=None)
+        residuals: np.ndarray = y - a @ p
         return residuals
 
-    mc = np.asarray(first.com_mm) / MM_PER_M * first.mass_kg
-    bias = np.concatenate([first.force_bias_n, first.torque_bias_nm])
-    knot_count = 1 if knots is None else len(knots)
-    x0 = np.concatenate([np.zeros(3), [first.mass_kg], mc, np.tile(bias, knot_count)])
-    solved = least_squares(residual, x0, method="lm", x_scale="jac")
-    mounting_q = _quaternion(start * Rotation.from_rotvec(solved.x[:3]))
+    solved = least_squares(residual, np.zeros(3), method="lm")
+    mounting_q = _quaternion(start * Rotation.from_rotvec(solved.x))
     load = fit_tool_load([sensor_quaternion(q, mounting_q) for q in flange], means, axis_std,
-                         names, samples, limit, times_s, knots)
-    dof = len(y) - len(solved.x)
-    s2 = float(np.sum(solved.fun**2) / dof) if dof > 0 else math.nan
-    cov = s2 * np.linalg.pinv(solved.jac.T @ solved.jac)
+                         names, samples, limit, times_s, knots, drift)
+    a = np.hstack([load_columns(solved.x), bias_columns])
+    p, *_ = np.linalg.lstsq(a, y, rcond=None)
+    jac = np.hstack([_rotation_jacobian(load_columns, solved.x, p[:4]), a])  # of the model
+    dof = len(y) - jac.shape[1]
+    s2 = float(np.sum((y - a @ p) ** 2) / dof) if dof > 0 else math.nan
+    if drift is not None:
+        s2 = max(s2, 1.0)  # never tighter than the noise and drift model
+    cov = s2 * np.linalg.pinv(jac.T @ jac)
     std_deg = math.degrees(math.sqrt(max(float(np.trace(cov[:3, :3])), 0.0)))
     return _with_joint_uncertainty(
         _in_flange_frame(load, flange, mounting_q, std_deg, MOUNTING_ESTIMATED), cov[3:, 3:],
-        solved.x[3:], knots)
+        p, knots)
+
+
+def _rotation_jacobian(columns: Any, x: np.ndarray, p: np.ndarray,
+                       step: float = 1e-6) -> np.ndarray:
+    """d(model)/d(rotation vector) (rows, 3) by central differences; the model is columns(x) p."""
+    out = np.empty((len(columns(x)), 3))
+    for k in range(3):
+        dx = np.zeros(3)
+        dx[k] = step
+        out[:, k] = (columns(x + dx) @ p - columns(x - dx) @ p) / (2 * step)
+    return out
 
 
 def _xyzw(q: Quaternion) -> tuple[float, float, float, float]:

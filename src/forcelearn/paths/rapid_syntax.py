@@ -11,6 +11,7 @@ old ``.prg`` files is skipped. Every token and node carries its 1-based line.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from forcelearn.errors import PathParseError
@@ -186,21 +187,23 @@ class TokenStream:
 
 def parse_expression(stream: TokenStream) -> Node:
     """``term (('+'|'-') term)*``."""
-    start = stream.at
-    node = _term(stream)
-    while stream.peek().key in ("+", "-") and stream.peek().kind == "op":
-        op = stream.next().text
-        right = _term(stream)
-        node = Operation(node.line, stream.text_since(start), op, node, right)
-    return node
+    return _binary(stream, ("+", "-"), _term)
 
 
 def _term(stream: TokenStream) -> Node:
+    """``factor (('*'|'/') factor)*``."""
+    return _binary(stream, ("*", "/"), _factor)
+
+
+def _binary(
+    stream: TokenStream, ops: tuple[str, str], operand: Callable[[TokenStream], Node]
+) -> Node:
+    """``operand (op operand)*`` for ``op`` in ``ops``, left-associative."""
     start = stream.at
-    node = _factor(stream)
-    while stream.peek().key in ("*", "/") and stream.peek().kind == "op":
+    node = operand(stream)
+    while stream.peek().key in ops and stream.peek().kind == "op":
         op = stream.next().text
-        right = _factor(stream)
+        right = operand(stream)
         node = Operation(node.line, stream.text_since(start), op, node, right)
     return node
 

@@ -1,8 +1,8 @@
 r"""The path task: what ``[task] kind = "path"`` configures, checked before any move.
 
-A sketch of the task's configuration, complete and tested, not yet run by
-``forcelearn run`` (the cell config in ``forcelearn.site.config`` still builds
-the §5 spec; :func:`task_kind` is the dispatch it will call). The keys map
+The path task's configuration, read by the cell config
+(``forcelearn.site.part_config``) and run by ``forcelearn run``
+(:mod:`forcelearn.tasks.path`). The keys map
 FC Pressure's arguments (docs/path.md):
 
 =========================  =========================================  =====================

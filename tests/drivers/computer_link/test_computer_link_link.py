@@ -87,7 +87,7 @@ def _link(port: ScriptedController, nak_retries: int = 3) -> Link:
 
 
 def test_undecodable_reply_is_nakked_and_the_reply_fetched_again() -> None:
-    """Issue 12.1: a CRC-valid frame that is not a reply is damaged: NAK, retry, counted."""
+    """A CRC-valid frame that is not a reply is damaged: NAK, retry, counted."""
     port = ScriptedController(bad_replies=1)
     link = _link(port)
     reply = link.transact(m.Command.MOVE_BY, m.increment_body((0.0, 0.0, -1.0)))

@@ -1,7 +1,7 @@
-"""Issue 27: the EGM driver on a hostile network, over real loopback UDP (real mode, a thread).
+"""The EGM driver on a hostile network, over real loopback UDP (real mode, a thread).
 
 A scripted controller socket plays the robot; a second socket plays a host on
-the cell network. One test per finding of the issue's review.
+the cell network. One test per way a hostile review found to break it.
 """
 
 from __future__ import annotations

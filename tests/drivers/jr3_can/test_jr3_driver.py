@@ -94,7 +94,7 @@ def test_implausible_full_scales_from_the_adapter_are_refused(
     monkeypatch: pytest.MonkeyPatch,
     wire: tuple[tuple[int, ...], tuple[int, ...]],
 ) -> None:
-    """Issue 12.2: full scales of 0 or 0xFFFF from the wire stop initialisation with SensorError.
+    """Full scales of 0 or 0xFFFF from the wire stop initialisation with SensorError.
 
     Accepted, a zero full scale reads every wrench as 0 N and no force limit can trip.
     """

@@ -97,7 +97,7 @@ def test_restart_forgets_the_counter() -> None:
 
 
 def test_pending_newer_frame_is_kept_or_counted_when_a_pair_completes() -> None:
-    """Issue 12.7: out of order, M(11) waits while F(10), M(10) pair; it is not lost silently."""
+    """Out of order, M(11) waits while F(10), M(10) pair; it is not lost silently."""
     pairer = Pairer()
     pairer.push(_m(11))
     pairer.push(_f(10))

@@ -1,6 +1,6 @@
 """A hostile or broken box: every failure of the calibration read is a typed SensorError.
 
-Findings of issue 27: ``setuserfilter`` nan/inf raised ValueError/OverflowError, an
+What a hostile review found: ``setuserfilter`` nan/inf raised ValueError/OverflowError, an
 unknown encoding declaration LookupError, and a server dripping one byte at a time
 held the HTTP read forever whatever ``timeout_s`` said.
 """

@@ -1,4 +1,4 @@
-"""The sponge's model family (issue 29): nonlinear law, hysteresis, friction; off by default."""
+"""The sponge's model family: nonlinear law, hysteresis, friction; each off by default."""
 
 from __future__ import annotations
 

@@ -222,7 +222,7 @@ def test_fuzz_decoder_survives_any_damage_and_resyncs(
 
 
 def test_leading_zero_after_stx_is_rejected() -> None:
-    """Issue 12.1: a 0x00 inserted after DLE STX left CRC-16/ARC unchanged; now it fails."""
+    """A 0x00 inserted after DLE STX left CRC-16/ARC unchanged; now it fails."""
     for payload in (b"\x07\x2a\x00", b"\x83\x01\x00\x00", bytes(range(1, 40))):
         wire = encode(payload)
         for zeros in range(1, 4):

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from forcelearn.site.config import load_cell_config
+from forcelearn.tools.cli import main
 
 STARTUP_S = 20.0
 STOP_S = 10.0
@@ -137,7 +138,7 @@ def test_ctrl_c_stops_the_emulator_cleanly(spawn: Callable[..., Emulator]) -> No
 def test_emulate_prints_its_pid_and_stable_links_that_survive_a_restart(
     spawn: Callable[..., Emulator], tmp_path: Path
 ) -> None:
-    """Issue 12.8: the PID is printed; a site config saved once still reaches a restarted cell."""
+    """The PID is printed; a site config saved once still reaches a restarted cell."""
     links, site = tmp_path / "links", tmp_path / "site.toml"
     first = spawn("--link-dir", str(links), "--write-config", str(site))
     pid = int(first.wait_for(r"running, PID (\d+)", STARTUP_S).group(1))
@@ -166,19 +167,24 @@ def test_emulate_prints_its_pid_and_stable_links_that_survive_a_restart(
 
 
 def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
-    spawn: Callable[..., Emulator], tmp_path: Path, configured_map_toml: str
+    spawn: Callable[..., Emulator],
+    tmp_path: Path,
+    configured_map_toml: str,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """Issue 12.8: run, check, run again on one emulator: the two runs' trials are identical.
+    """Run, check, run again on one emulator: the two runs' trials are identical.
 
     Without --fresh-per-connection the second run meets a worn sponge and a sensor
     further along its noise sequence, and its trials differ (the default, as on a
-    real cell).
+    real cell). The run and check commands run in this process (the emulator's own
+    process is the point; a check in another process is the test above).
     """
     site = tmp_path / "site.toml"
     links = str(tmp_path / "links")  # its own stable links: no other emulator's can interfere
     emulator = spawn("--write-config", str(site), "--fresh-per-connection", "--link-dir", links)
     emulator.wait_for(r"^site config written to", STARTUP_S)
-    env = {k: v for k, v in os.environ.items() if not k.startswith("CAN_")}
+    for name in [k for k in os.environ if k.startswith("CAN_")]:
+        monkeypatch.delenv(name)
     # the in-process cell's watchdog and timeouts, so a stall of this host cannot make a
     # driver re-ask; and a whole output map: no probe (the sessions' independence is the point)
     timeouts = "[robot]\nack_timeout_s = 10.0\nreply_timeout_s = 10.0\n"
@@ -186,9 +192,7 @@ def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
     site.write_text(text + "\n[safety]\nstale_sensor_s = 10.0\n\n" + configured_map_toml)
 
     def cli(*args: str) -> None:
-        done = subprocess.run([sys.executable, "-m", "forcelearn.tools.cli", *args],
-                              capture_output=True, text=True, timeout=120, env=env)
-        assert done.returncode == 0, done.stdout + done.stderr
+        assert main(list(args)) == 0
 
     run = ("run", "--config", str(site), "--trials", "1", "--seed", "3", "--no-progress")
     cli(*run, "--out", str(tmp_path / "first"))
@@ -204,7 +208,7 @@ def test_fresh_per_connection_makes_a_run_independent_of_a_check_before_it(
 def test_a_run_through_emulate_in_another_process_equals_the_in_process_run(
     spawn: Callable[..., Emulator], tmp_path: Path
 ) -> None:
-    """Issue 10: the same seed gives the same trials with the cell in this process or in another.
+    """The same seed gives the same trials with the cell in this process or in another.
 
     The emulate process speaks to the run over a pty and an slcan adapter pty
     instead of an in-process pty and virtual bus; simulated time is charged by

@@ -3,7 +3,7 @@
 The driver's "set bias" on opening needs no answer, so the emulator's thread
 may handle it after the session has restored the checkpoint, and then the
 bias it computes overwrites the restored one: on a loaded host, a resumed run
-read other forces than the straight run (issue 10's host-speed rule).
+read other forces than the straight run (the host's speed must never change a result).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""records.mcap (issue 29 item 1): round trip, agreement with trials.csv, crash recovery, damage."""
+"""records.mcap: round trip, agreement with trials.csv, crash recovery, damage."""
 
 from __future__ import annotations
 

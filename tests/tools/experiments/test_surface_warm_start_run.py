@@ -1,4 +1,4 @@
-"""``forcelearn run`` with issue 31: the warm start, wear following, feasibility, the end verdict.
+"""``forcelearn run`` with the warm start, wear following, feasibility and the end verdict.
 
 Short runs of the emulated cell (1-12 trials); the 10-seed figures are the
 study in docs/results/surface.md.
@@ -173,10 +173,10 @@ def test_the_summary_says_whether_the_run_ended_in_band(tmp_path: Path) -> None:
 
 
 def test_a_checkpoint_of_the_previous_version_resumes_as_it_ran(tmp_path: Path) -> None:
-    """A version-4 checkpoint (main before issue 31, 2 trials, seed 0) resumes cold and untracked.
+    """A version-4 checkpoint (before the warm start, 2 trials, seed 0) resumes cold and untracked.
 
     Its 2 checkpointed trials are kept as main's own 4-trial run made them; trials 2-3 run on
-    today's cell (since issue 28 the emulated JR3 answers one SYNC a millisecond, so their
+    today's cell (the emulated JR3 now answers one SYNC a millisecond, as the firmware, so their
     figures are not the old code's), complete, and the same on every resume of that file.
     """
     outs = []

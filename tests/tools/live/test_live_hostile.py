@@ -1,6 +1,6 @@
 """The live server against hostile clients: bad queries, idle and dripping connections, floods.
 
-Findings of issue 27: ``/api/state?since=²`` printed a traceback and sent no reply
+What a hostile review found: ``/api/state?since=²`` printed a traceback and sent no reply
 (``"²".isdigit()`` is True, ``int("²")`` raises), and idle or half-sent connections
 were held forever (150 slow clients all held).
 """

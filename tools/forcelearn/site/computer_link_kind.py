@@ -35,6 +35,7 @@ from forcelearn.site.kinds import (
     Printer,
     RobotConfig,
     RobotKind,
+    typed_part,
 )
 
 ROBOT_LINK = "robot"
@@ -45,9 +46,7 @@ EMULATE_HINT = (" (for `forcelearn emulate`, name the stable links it prints, wh
 
 def link_of(config: CellView) -> LinkConfig:
     """``[robot]`` of a computer-link cell (``ConfigError`` for another kind)."""
-    if not isinstance(config.robot, LinkConfig):
-        raise ConfigError(f"the robot is a {type(config.robot).__name__}, not a computer link")
-    return config.robot
+    return typed_part(config.robot, LinkConfig, "[robot]", KIND.label)
 
 
 def link_char_time_s(config: CellView) -> float:

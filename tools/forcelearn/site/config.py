@@ -23,7 +23,7 @@ table          holds
 ``[filter]``   the Kalman force filter; ``axis`` and ``sign`` pick the normal force
 ``[safety]``   ``max_force_n``, ``max_step_mm``, ``workspace_min_mm``,
                ``workspace_max_mm``, ``stale_sensor_s``: always on, never off
-``[task]``     the §5 surface task (:class:`SurfaceTaskSpec`)
+``[task]``     the §5 surface task (:class:`SurfaceTaskSpec`); ``kind = "path"``: docs/path.md
 ``[learner]``  SRV hyperparameters (§5 values as defaults)
 ``[probe]``    the surface probe before learning (:class:`ProbeSpec`)
 ``[run]``      ``trials``, ``seed``, ``stop_after_converged``, ``learner_start``
@@ -32,13 +32,16 @@ table          holds
                ("realistic", or "ideal": no time on wires, instant arm, no
                relaxation, no adapter filter); physics of the emulated cell:
                ``[emulator.sponge]``, ``[emulator.arm]``, ``[emulator.tool]`` (the
-               tool: :mod:`forcelearn.site.emulated_tool`); and each device
+               tool: :mod:`forcelearn.site.emulated_tool`), ``[emulator.part]``; each device
                kind's model table (:attr:`~forcelearn.site.kinds.DeviceKind.emulator_table`):
                ``[emulator.sensor]`` the sensor's (the JR3's ``Jr3ModelParams``,
                the Net F/T's ``NetFtModelParams``), ``[emulator.egm]`` EGM's
                control lag (``ServoParams``) (ignored on a real cell)
 ``[calibration]`` ``file``: a calibration TOML from ``forcelearn calibrate``; ``sensor_serial``:
-               this sensor's serial (a file of another is refused)
+               this sensor's serial (a file of another is refused);
+               ``mounting_rpy_deg`` or ``mounting_quaternion``: the sensor's
+               mounting on the flange as drawn, taken as given by ``forcelearn
+               calibrate`` (default: estimated with the tool)
 =============  ===============================================================
 
 The kinds are the entries of :mod:`forcelearn.site.kinds`; each builds its
@@ -65,8 +68,9 @@ from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import ConfigError
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.learning import SRVParams
+from forcelearn.site import part_config as parts
 from forcelearn.site.calibration_identity import load_sensor_serial
-from forcelearn.site.emulated_tool import load_tool
+from forcelearn.site.emulated_tool import load_mounting, load_tool
 from forcelearn.site.kinds import (
     DEFAULT_ROBOT_KIND,
     DEFAULT_SENSOR_KIND,
@@ -204,6 +208,7 @@ class EmulatorConfig:
     defaults (:meth:`~forcelearn.site.kinds.DeviceKind.model`)."""
     tool: ToolParams = field(default_factory=ToolParams)
     """The tool on the sensor (``[emulator.tool]``, :mod:`forcelearn.site.emulated_tool`)."""
+    part: parts.PartSetup | None = None  # [emulator.part] (site/part_config.py); None: sponge
     time_scale: float = 0.0
     """0: as fast as possible (simulated time only); 1.0: real time; any factor between."""
     profile: Literal["realistic", "ideal"] = "realistic"
@@ -262,6 +267,7 @@ class CellConfig:
     )
     safety: SafetyLimits = field(default_factory=SafetyLimits)
     task: SurfaceTaskSpec = field(default_factory=SurfaceTaskSpec)
+    path_task: parts.PathTaskSpec | None = None  # [task] kind = "path"; None: the §5 task runs
     learner: SRVParams = field(default_factory=lambda: SRVParams(**SECTION_LEARNER_DEFAULTS))
     emulator: EmulatorConfig = field(default_factory=EmulatorConfig)
     probe: ProbeSpec = field(default_factory=ProbeSpec)
@@ -269,6 +275,9 @@ class CellConfig:
     sensor_serial: str = ""
     """``[calibration] sensor_serial``: the serial of this cell's sensor; a calibration file
     of another serial is refused (:mod:`forcelearn.site.calibration_identity`)."""
+    calibration_mounting: tuple[float, float, float, float] | None = None
+    """``[calibration] mounting_rpy_deg`` or ``mounting_quaternion`` (w, x, y, z): the sensor's
+    mounting on the flange, given; None: ``forcelearn calibrate`` estimates it."""
     trials: int = DEFAULT_TRIALS
     seed: int = 0
     stop_after_converged: int = 0
@@ -320,7 +329,7 @@ SECTIONS = frozenset({
 """The tables of a cell config."""
 
 
-def load_cell_config(path: str | Path | None = None) -> CellConfig:
+def load_cell_config(path: str | Path | None = None, task_path: Path | None = None) -> CellConfig:
     """Read a cell config (or return the emulated default); errors name the key.
 
     Each table has its builder below; the rules that carry a value from one
@@ -338,24 +347,27 @@ def load_cell_config(path: str | Path | None = None) -> CellConfig:
     sensor = load_sensor(kind, sensor_table, safety)
     safety = emulated_sensor_watchdog(safety, kind.emulated(sensor, bus), data.get("safety", {}))
     sensor = load_sensor(kind, sensor_table, safety)  # with the watchdog that applies
-    task = build(SurfaceTaskSpec, data.get("task"), "task")
+    path_task = parts.load_path_task(data.get("task"), path, task_path)  # --path: task_path
+    task = SurfaceTaskSpec() if path_task else build(SurfaceTaskSpec, data.get("task"), "task")
     check_task_limits(task, safety.max_force_n, safety.workspace_min_mm, safety.workspace_max_mm)
     stop_after, learner_start, trials, seed = load_run(dict(data.get("run", {})))
     return CellConfig(
         robot=robot,
         bus=bus,
         sensor=sensor,
-        filter=build(ForceFilterConfig, filter_table(kind, sensor, data.get("filter", {})),
-                     "filter"),
+        filter=build(ForceFilterConfig, filter_table(kind, sensor, parts.filter_keys(
+            path_task, data.get("filter", {}))), "filter"),
         safety=safety,
         task=task,
+        path_task=path_task,
         learner=build(
             SRVParams, {**SECTION_LEARNER_DEFAULTS, **data.get("learner", {})}, "learner"
         ),
-        emulator=load_emulator((robot_device, kind), dict(data.get("emulator", {}))),
+        emulator=load_emulator((robot_device, kind), dict(data.get("emulator", {})), path),
         probe=build(ProbeSpec, data.get("probe"), "probe"),
         calibration_file=load_calibration_file(data.get("calibration", {}), path),
         sensor_serial=load_sensor_serial(data.get("calibration", {})),
+        calibration_mounting=load_mounting(data.get("calibration", {}), "calibration"),
         trials=trials,
         seed=seed,
         stop_after_converged=stop_after,
@@ -387,11 +399,12 @@ def load_sensor(kind: SensorKind, table: dict[str, Any], safety: SafetyLimits) -
     return kind.load({"zero_on_init": True, **table, "stale_timeout_s": safety.stale_sensor_s})
 
 
-PHYSICS_TABLES = ("sponge", "arm", "tool")
+PHYSICS_TABLES = ("sponge", "arm", "tool", "part")
 """``[emulator.*]`` tables of the cell's physics, which every kind shares."""
 
 
-def load_emulator(kinds: tuple[DeviceKind, ...], table: dict[str, Any]) -> EmulatorConfig:
+def load_emulator(kinds: tuple[DeviceKind, ...], table: dict[str, Any],
+                  config_path: str | Path | None = None) -> EmulatorConfig:
     """``[emulator]``: pace, profile, physics, and each device kind's model table.
 
     The cell's robot and sensor kinds own their tables (``[emulator.sensor]``
@@ -426,7 +439,8 @@ def load_emulator(kinds: tuple[DeviceKind, ...], table: dict[str, Any]) -> Emula
     )
     # [emulator.tool], checked against the range of the sensor kind's model
     model: Any = kinds[-1].model(emulator)
-    return replace(emulator, tool=load_tool(table.get("tool"), model))
+    return replace(emulator, tool=load_tool(table.get("tool"), model),
+                   part=parts.load_part(table.get("part"), emulator.sponge, config_path))
 
 
 def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:
@@ -441,8 +455,9 @@ def load_run(table: dict[str, Any]) -> tuple[int, str, int, int]:
 
 def load_calibration_file(table: dict[str, Any], config_path: str | Path | None) -> Path | None:
     """``[calibration] file``, relative to the config file's folder."""
-    if set(table) - {"file", "sensor_serial"}:
-        raise ConfigError("[calibration] takes the keys file and sensor_serial")
+    if set(table) - {"file", "sensor_serial", "mounting_rpy_deg", "mounting_quaternion"}:
+        raise ConfigError("[calibration] takes the keys file, sensor_serial, mounting_rpy_deg "
+                          "and mounting_quaternion")
     if "file" not in table:
         return None
     if not isinstance(table["file"], str) or not table["file"]:

@@ -51,6 +51,7 @@ from forcelearn.site.kinds import (
     Printer,
     RobotConfig,
     RobotKind,
+    typed_part,
 )
 
 EMULATED_EGM_WATCHDOG_S = 5.0
@@ -81,17 +82,12 @@ class EgmRoute:
 
 def egm_of(config: CellView) -> EgmConfig:
     """``[robot]`` of an EGM cell (``ConfigError`` for another kind)."""
-    if not isinstance(config.robot, EgmConfig):
-        raise ConfigError(f"the robot is a {type(config.robot).__name__}, not EGM")
-    return config.robot
+    return typed_part(config.robot, EgmConfig, "[robot]", KIND.label)
 
 
 def servo_of(config: CellView) -> ServoParams:
     """``[emulator.egm]``: the emulated controller's control lag and servo."""
-    servo = KIND.model(config.emulator)
-    if not isinstance(servo, ServoParams):
-        raise ConfigError(f"emulator.egm holds a {type(servo).__name__}, not ServoParams")
-    return servo
+    return typed_part(KIND.model(config.emulator), ServoParams, "[emulator.egm]", KIND.label)
 
 
 def free_udp_port() -> int:

@@ -38,6 +38,7 @@ from typing import Any
 
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.physics.part_foam import PartFoam
 from forcelearn.emulators.physics.sponge import Sponge
 from forcelearn.site.config import CellConfig
 from forcelearn.site.kinds import (
@@ -56,10 +57,16 @@ LEGACY_STATE_KEYS = {"computer_link": "link"}
 """Kind -> the key older checkpoints saved its state under (still read on resume)."""
 
 
-def emulated_physics(config: CellConfig) -> tuple[Sponge, CellPhysics]:
-    """The sponge and the one physics object every emulator reads (robot at its home pose)."""
+def emulated_physics(config: CellConfig) -> tuple[Sponge | PartFoam, CellPhysics]:
+    """The sponge (or a part's foam) and the one physics object every emulator reads.
+
+    The robot starts at its home pose; ``[emulator.part]`` puts a foam-covered part in
+    place of the §5 sponge.
+    """
     emulator = config.emulator.effective()
-    sponge = Sponge(emulator.sponge)
+    sponge: Sponge | PartFoam = (
+        Sponge(emulator.sponge) if emulator.part is None
+        else PartFoam(emulator.part, emulator.sponge))
     clock = SimClock(emulator.time_scale)
     return sponge, CellPhysics(sponge, emulator.arm.home, emulator.tool, clock=clock)
 

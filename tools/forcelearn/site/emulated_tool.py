@@ -61,15 +61,33 @@ def mounting_rpy_deg(quaternion: tuple[float, float, float, float]) -> tuple[flo
     return tuple(float(a) for a in Rotation.from_quat((x, y, z, w)).as_euler("xyz", degrees=True))
 
 
-def _vector(table: dict[str, Any], key: str, size: int) -> tuple[float, ...] | None:
+def _vector(table: dict[str, Any], key: str, size: int,
+            section: str = SECTION) -> tuple[float, ...] | None:
     if key not in table:
         return None
     value = table[key]
     if (not isinstance(value, list | tuple) or len(value) != size
             or not all(isinstance(c, int | float) and not isinstance(c, bool)
                        and math.isfinite(c) for c in value)):
-        raise ConfigError(f"{SECTION}.{key} = {value!r}: must be {size} finite numbers")
+        raise ConfigError(f"{section}.{key} = {value!r}: must be {size} finite numbers")
     return tuple(float(c) for c in value)
+
+
+def load_mounting(table: dict[str, Any],
+                  section: str = SECTION) -> tuple[float, float, float, float] | None:
+    """``mounting_rpy_deg`` or ``mounting_quaternion`` of a table (w, x, y, z), or None."""
+    rpy = _vector(table, "mounting_rpy_deg", 3, section)
+    quaternion = _vector(table, "mounting_quaternion", 4, section)
+    if rpy is not None and quaternion is not None:
+        raise ConfigError(f"{section}: give mounting_rpy_deg or mounting_quaternion, not both")
+    if quaternion is None:
+        return rpy_to_quaternion((rpy[0], rpy[1], rpy[2])) if rpy is not None else None
+    norm = math.sqrt(sum(c * c for c in quaternion))
+    if abs(norm - 1.0) > 1e-3:
+        raise ConfigError(f"{section}.mounting_quaternion = {list(quaternion)}: must be a unit "
+                          f"quaternion (w, x, y, z), its norm is {norm:.4g}")
+    w, x, y, z = (c / norm for c in quaternion)
+    return (w, x, y, z)
 
 
 def load_tool(table: dict[str, Any] | None,
@@ -87,18 +105,7 @@ def load_tool(table: dict[str, Any] | None,
         raise ConfigError(f"{SECTION}.mass_kg = {mass!r}: must be a finite number of kg")
     com = _vector(table, "com_mm", 3) or default.com_mm
     contact = _vector(table, "contact_point_mm", 3) or default.contact_point_mm
-    rpy = _vector(table, "mounting_rpy_deg", 3)
-    quaternion = _vector(table, "mounting_quaternion", 4)
-    if rpy is not None and quaternion is not None:
-        raise ConfigError(f"{SECTION}: give mounting_rpy_deg or mounting_quaternion, not both")
-    if quaternion is not None:
-        norm = math.sqrt(sum(c * c for c in quaternion))
-        if abs(norm - 1.0) > 1e-3:
-            raise ConfigError(f"{SECTION}.mounting_quaternion = {list(quaternion)}: must be a unit "
-                              f"quaternion (w, x, y, z), its norm is {norm:.4g}")
-        mounting = tuple(c / norm for c in quaternion)
-    else:
-        mounting = rpy_to_quaternion(rpy) if rpy is not None else default.mounting_quaternion  # type: ignore[arg-type]
+    mounting = load_mounting(table) or default.mounting_quaternion
     check_tool(float(mass), com, contact, readable_range(model))
     return ToolParams(float(mass), com, contact, mounting)  # type: ignore[arg-type]
 

@@ -32,7 +32,7 @@ from forcelearn.emulators.jr3.node import Jr3EmulatorNode
 from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.slcan import SlcanAdapterEmulator
-from forcelearn.errors import CalibrationError, ConfigError, ForcelearnError, SensorBusError
+from forcelearn.errors import CalibrationError, ForcelearnError, SensorBusError
 from forcelearn.protocols.jr3_can.opcodes import CounterMeaning
 from forcelearn.site.config import EMULATED
 from forcelearn.site.kinds import (
@@ -44,6 +44,7 @@ from forcelearn.site.kinds import (
     SensorConfig,
     SensorKind,
     jsonable,
+    typed_part,
 )
 
 log = logging.getLogger(__name__)
@@ -68,17 +69,13 @@ def private_channel(config: CellView) -> str:
 
 def jr3_of(config: CellView) -> Jr3Config:
     """``[sensor]`` of a JR3 cell (``ConfigError`` for another kind)."""
-    if not isinstance(config.sensor, Jr3Config):
-        raise ConfigError(f"the sensor is a {type(config.sensor).__name__}, not a JR3")
-    return config.sensor
+    return typed_part(config.sensor, Jr3Config, "[sensor]", KIND.label)
 
 
 def sensor_model(config: CellView) -> Jr3ModelParams:
     """``[emulator.sensor]`` of a JR3 cell, with the profile (ideal: no adapter filter)."""
-    model = KIND.model(config.emulator)
-    if not isinstance(model, Jr3ModelParams):
-        raise ConfigError(f"emulator.sensor holds a {type(model).__name__}, not the JR3's "
-                          "Jr3ModelParams")
+    model = typed_part(KIND.model(config.emulator), Jr3ModelParams, "[emulator.sensor]",
+                       KIND.label)
     return replace(model, emulate_filter=False) if config.emulator.ideal else model
 
 

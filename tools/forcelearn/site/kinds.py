@@ -49,7 +49,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
-from typing import ClassVar, Literal, Protocol
+from typing import ClassVar, Literal, Protocol, TypeVar
 
 from forcelearn.calibration import SensorInfo
 from forcelearn.devices import ForceSensor, Robot
@@ -77,7 +77,7 @@ __all__ = [
     "FarEnd", "FarEndOptions", "Polling", "Printer", "RobotConfig", "RobotKind", "Role",
     "SensorConfig", "SensorKind", "Serving", "UnmodelledKind", "installed_entry_points",
     "jsonable", "kind_of", "known", "load_entry_points", "register", "robot_kind",
-    "robot_kind_of", "sensor_kind", "sensor_kind_of",
+    "robot_kind_of", "sensor_kind", "sensor_kind_of", "typed_part",
 ]
 
 
@@ -415,6 +415,24 @@ def sensor_kind_of(sensor: object) -> SensorKind:
 def kind_of(role: Role, device_config: object) -> DeviceKind:
     """The kind whose config type ``device_config`` is (``ConfigError`` if none is)."""
     return robot_kind_of(device_config) if role == "robot" else sensor_kind_of(device_config)
+
+
+PartT = TypeVar("PartT")
+
+
+def typed_part(value: object, cls: type[PartT], key: str, owner: str) -> PartT:
+    """``value``, the cell's ``key`` (``[robot]``, ``[emulator.sensor]``...), as ``owner``'s type.
+
+    ``cls`` is that type; every kind's accessor (``egm_of``, ``sensor_model``...) narrows with it.
+
+    Raises:
+        ConfigError: ``value`` is not a ``cls``: the kind ``owner`` was asked about a
+            cell whose device is of another kind.
+    """
+    if not isinstance(value, cls):
+        raise ConfigError(f"{key} holds a {type(value).__name__}, not the {owner}'s "
+                          f"{cls.__name__}: this cell's device is of another kind")
+    return value
 
 
 def known(role: Role) -> list[str]:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, cast
 
@@ -35,6 +36,7 @@ from forcelearn.site.kinds import (
     SensorConfig,
     SensorKind,
     jsonable,
+    typed_part,
 )
 
 log = logging.getLogger(__name__)
@@ -50,18 +52,13 @@ BATCH = 64
 
 def netft_of(config: CellView) -> NetFtConfig:
     """``[sensor]`` of a Net F/T cell (``ConfigError`` for another kind)."""
-    if not isinstance(config.sensor, NetFtConfig):
-        raise ConfigError(f"the sensor is a {type(config.sensor).__name__}, not a Net F/T")
-    return config.sensor
+    return typed_part(config.sensor, NetFtConfig, "[sensor]", KIND.label)
 
 
 def box_model(config: CellView) -> NetFtModelParams:
     """``[emulator.sensor]`` of a Net F/T cell: the emulated box's model."""
-    model = KIND.model(config.emulator)
-    if not isinstance(model, NetFtModelParams):
-        raise ConfigError(f"emulator.sensor holds a {type(model).__name__}, not the Net F/T's "
-                          "NetFtModelParams")
-    return model
+    return typed_part(KIND.model(config.emulator), NetFtModelParams, "[emulator.sensor]",
+                      KIND.label)
 
 
 class NetFtFarEnd(FarEnd):
@@ -100,6 +97,8 @@ class NetFtFarEnd(FarEnd):
                             "within %.1f s; the resumed run may differ", sent,
                             NETFT_SETTLE_TIMEOUT_S)
         self.emulator.load_state_dict(state)
+        if isinstance(self.driver, NetFtSensor):  # the clock jumped with the restore
+            self.driver.restart_uptime_check()
 
     def zero_in_order(self, driver: NetFtSensor) -> None:
         """Make the driver's "set software bias" take effect before it returns.
@@ -141,11 +140,22 @@ class NetFtFarEnd(FarEnd):
             f"rdt_port = {ports['rdt_port']}",
             f"tcp_port = {ports['tcp_port']}",
             f"http_port = {ports['http_port']}",
+            "uptime_check = false  # the emulator's samples follow its own clock, not wall time",
         ]
 
     def summary(self) -> str:
         """Records sent."""
         return f"{self.emulator.stats.records_sent} Net F/T records sent"
+
+
+def _clock_of(emulator: NetFtEmulator) -> Callable[[], float]:
+    """The emulated box's clock, s: the cell's simulated one (its samples follow it)."""
+    sim = emulator.clock
+
+    def now_s() -> float:
+        return sim.now_s
+
+    return now_s
 
 
 class NetFtKind(SensorKind):
@@ -194,12 +204,16 @@ class NetFtKind(SensorKind):
     ) -> NetFtSensor:
         """The driver on the box (or its emulator's ports), initialised."""
         sensor = netft_of(config)
+        clock: Callable[[], float] | None = None
         if far_end is not None:
             assert isinstance(far_end, NetFtFarEnd)
             ports = far_end.emulator.ports
             sensor = replace(sensor, host=far_end.emulator.host, rdt_port=ports["rdt_port"],
                              tcp_port=ports["tcp_port"], http_port=ports["http_port"])
-        driver = NetFtSensor(sensor)
+            clock = _clock_of(far_end.emulator)
+        elif sensor.uptime_check:  # a real box counts its samples in wall time
+            clock = time.monotonic
+        driver = NetFtSensor(sensor, clock=clock)
         stack.callback(driver.close)
         try:
             driver.initialise()

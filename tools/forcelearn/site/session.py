@@ -38,6 +38,7 @@ from typing import Any
 from forcelearn.calibration import Calibration, load_calibration
 from forcelearn.cell import Cell
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.physics.part_foam import PartFoam
 from forcelearn.emulators.physics.sponge import Sponge
 from forcelearn.filtering import make_force_filter
 from forcelearn.site.calibration_identity import check_identity
@@ -63,7 +64,7 @@ class CellSession:
         self.emulated_cell: EmulatedCell | None = None
         """The far ends of the emulated devices (None on a real cell)."""
         self.physics: CellPhysics | None = None
-        self.sponge: Sponge | None = None
+        self.sponge: Sponge | PartFoam | None = None
         self.robot: Any = None
         """The robot driver of the config's robot kind."""
         self.sensor: Any = None

@@ -118,7 +118,7 @@ def parts_toml() -> str:
 
     return "\n".join([
         "# The parts of the path examples (python -m forcelearn.tools.path_examples writes this).",
-        "# Keys of [emulator.part] (part_from_table); not yet read by `forcelearn run`.",
+        "# Keys of [emulator.part] (part_from_table); the *-cell.toml beside this file run them.",
         f"# Each part is covered by {FOAM_MM:g} mm of foam; the paths are taught on its skin.",
         "",
         "[cylinder]",

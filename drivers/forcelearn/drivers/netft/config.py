@@ -43,6 +43,9 @@ class NetFtConfig:
         status_error_mask: status bits that raise ``SensorFault`` (the manual:
             a healthy box sends 0; any set bit needs attention).
         zero_on_init: send "set software bias" at initialisation (tool in free space!).
+        uptime_check: the cell passes the host's clock to the driver, which then sees a
+            reboot whose sample count did not go back (:mod:`.uptime`); off only for
+            a box that does not follow wall time (an emulator in another process).
         log_path: optional traffic log of every datagram (:mod:`.traffic_log`).
     """
 
@@ -64,6 +67,7 @@ class NetFtConfig:
     full_scales: tuple[float, float, float, float, float, float] | None = None
     status_error_mask: int = 0xFFFFFFFF
     zero_on_init: bool = False
+    uptime_check: bool = True
     log_path: str | None = None
 
     def __post_init__(self) -> None:

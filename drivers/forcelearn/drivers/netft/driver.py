@@ -20,8 +20,10 @@ streaming. :meth:`close` sends stop and is idempotent
 (:mod:`forcelearn.drivers.lifecycle`).
 
 Every record goes through :class:`~.sequence.SequenceTracker` (lost,
-duplicated, out-of-order; a reboot when ``ft_sequence`` goes back) and the
-status check. ``WrenchSample.counter`` is the host's stream position modulo
+duplicated, out-of-order; a reboot when ``ft_sequence`` goes back),
+:class:`~.uptime.UptimeCheck` (a reboot when ``ft_sequence`` grew less than
+the host's clock since the last record or the bias: the reboots the first
+misses) and the status check. ``WrenchSample.counter`` is the host's stream position modulo
 65536 (one step per record asked for), so the force filter sees a lost
 record as a counter gap, as with the JR3.
 
@@ -60,6 +62,7 @@ from forcelearn.drivers.netft.calibration import (
 from forcelearn.drivers.netft.config import NetFtConfig
 from forcelearn.drivers.netft.sequence import SequenceTracker, Verdict
 from forcelearn.drivers.netft.traffic_log import TrafficLog
+from forcelearn.drivers.netft.uptime import UptimeCheck
 from forcelearn.errors import (
     ConfigError,
     SensorBusError,
@@ -108,13 +111,20 @@ class NetFtSensor(Driver):
     Args:
         config: address, ports, calibration source and expectations, timeouts, log.
         on_sample: called with every delivered sample (in the reading thread).
+        clock: the time the box's samples follow, s (the host's monotonic clock for a
+            real box, an emulated box's simulated clock): with one, the uptime check
+            (:mod:`.uptime`) sees reboots the sequence does not; None: no uptime check.
     """
 
     def __init__(self, config: NetFtConfig | None = None, *,
-                 on_sample: SampleCallback | None = None) -> None:
+                 on_sample: SampleCallback | None = None,
+                 clock: Callable[[], float] | None = None) -> None:
         self.config = config or NetFtConfig()
         self.callbacks: list[SampleCallback] = [on_sample] if on_sample else []
         self._tracker = SequenceTracker()
+        self._uptime = UptimeCheck()
+        self._clock = clock or _no_clock
+        self._request_s = 0.0
         self._stats = NetFtStats()
         self._calibration: Calibration | None = None
         self._scale = np.ones(6)
@@ -155,8 +165,8 @@ class NetFtSensor(Driver):
         t = self._tracker
         s = self._stats
         return NetFtStats(s.requests, s.datagrams, t.records, t.lost, t.duplicates,
-                          t.out_of_order, t.reboots, s.stale_drained, s.status_errors,
-                          Counter(s.rejected))
+                          t.out_of_order, t.reboots + self._uptime.restarts, s.stale_drained,
+                          s.status_errors, Counter(s.rejected))
 
     # ---- commands -------------------------------------------------------
     def initialise(self) -> None:
@@ -186,7 +196,7 @@ class NetFtSensor(Driver):
             np.asarray(ranges, dtype=float) * cfg.near_saturation_fraction
         )
         if bias:
-            self._send(protocol.Request(protocol.Command.SET_BIAS, 0))
+            self._set_bias()
         if cfg.mode == "stream":
             self._start(0)
         log.info("Net F/T at %s: %g counts/%s, %g counts/%s (%s), RDT rate %s Hz, filter %s",
@@ -196,7 +206,12 @@ class NetFtSensor(Driver):
     def zero_offsets(self) -> None:
         """Send "set software bias": the present load reads zero from now on (tool free!)."""
         self._ensure_initialised()
-        self._send(protocol.Request(protocol.Command.SET_BIAS, 0))
+        self._set_bias()
+
+    def restart_uptime_check(self) -> None:
+        """Forget the box's last sample count (its clock or state was restored: a resume)."""
+        self._uptime.forget()
+        self._uptime.note_bias(self._clock())
 
     # ---- reading --------------------------------------------------------
     def read(self) -> WrenchSample:
@@ -295,7 +310,8 @@ class NetFtSensor(Driver):
             if acc.lost_before:
                 log.debug("Net F/T: %d record(s) lost before %d", acc.lost_before,
                           record.rdt_sequence)
-            if acc.reboot:
+            if acc.reboot or self._uptime.restarted(record.ft_sequence, self._request_s,
+                                                    self._clock()):
                 self._on_reboot()
             if record.status & self.config.status_error_mask:
                 self._stats.status_errors += 1
@@ -326,6 +342,7 @@ class NetFtSensor(Driver):
 
     def _on_reboot(self) -> None:
         self._tracker.forget_ft()
+        self._uptime.forget()
         self._rebooted = True
         self._streaming = False  # a rebooted box streams nothing until asked again
         log.warning("Net F/T at %s rebooted: software bias lost", self.config.host)
@@ -363,8 +380,13 @@ class NetFtSensor(Driver):
                     "settings; readings would be wrongly scaled"
                 )
 
+    def _set_bias(self) -> None:
+        self._send(protocol.Request(protocol.Command.SET_BIAS, 0))
+        self._uptime.note_bias(self._clock())
+
     def _start(self, sample_count: int) -> None:
         self._tracker.new_request()
+        self._request_s = self._clock()
         self._send(protocol.Request(protocol.Command.START_REALTIME, sample_count))
         self._streaming = sample_count == 0
 
@@ -434,6 +456,11 @@ class NetFtSensor(Driver):
 
     def _label(self) -> str:
         return f"NetFtSensor on {self.config.host}"
+
+
+def _no_clock() -> float:
+    """No clock given: every time is 0, so the uptime check never judges."""
+    return 0.0
 
 
 def open_netft_sensor(config: NetFtConfig, *,

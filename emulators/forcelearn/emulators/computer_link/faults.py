@@ -19,14 +19,11 @@ never_in_position  READ_STATUS never reports in position
 
 from __future__ import annotations
 
-import threading
-from collections import Counter
 from dataclasses import dataclass, field
-
-import numpy as np
 
 from forcelearn.deprecation import renamed
 from forcelearn.emulators.faults import Fault as Fault  # re-exported: its old home
+from forcelearn.emulators.faults import FaultInjectorBase
 
 
 @dataclass(frozen=True)
@@ -44,26 +41,11 @@ class ComputerLinkFaultConfig:
     seed: int = 0
 
 
-class FaultInjector:
+class FaultInjector(FaultInjectorBase[ComputerLinkFaultConfig]):
     """Decides, call by call, whether a fault fires; counts what fired. Thread-safe."""
 
     def __init__(self, config: ComputerLinkFaultConfig | None = None) -> None:
-        self.config = config or ComputerLinkFaultConfig()
-        self._rng = np.random.default_rng(self.config.seed)
-        self._lock = threading.Lock()
-        self.fired: Counter[str] = Counter()
-
-    def _fires(self, name: str) -> bool:
-        fault: Fault = getattr(self.config, name)
-        if fault.probability == 0.0:
-            return False
-        with self._lock:
-            if fault.limit is not None and self.fired[name] >= fault.limit:
-                return False
-            if fault.probability < 1.0 and self._rng.random() >= fault.probability:
-                return False
-            self.fired[name] += 1
-            return True
+        super().__init__(config or ComputerLinkFaultConfig())
 
     def corrupt(self, data: bytes) -> bytes:
         """Return ``data`` with each byte damaged with the corrupt_byte probability."""
@@ -71,26 +53,26 @@ class FaultInjector:
             return data
         out = bytearray(data)
         for i in range(len(out)):
-            if self._fires("corrupt_byte"):
+            if self.fires("corrupt_byte"):
                 with self._lock:
                     out[i] ^= int(self._rng.integers(1, 256))
         return bytes(out)
 
     def drop_request(self) -> bool:
         """True if the request just received is to be lost."""
-        return self._fires("drop_request")
+        return self.fires("drop_request")
 
     def drop_reply(self) -> bool:
         """True if the reply about to be sent is to be lost."""
-        return self._fires("drop_reply")
+        return self.fires("drop_reply")
 
     def ack_delay_s(self) -> float:
         """Seconds to wait before the next DLE ACK (0 when the fault does not fire)."""
-        return self.config.ack_delay_s if self._fires("delay_ack") else 0.0
+        return self.config.ack_delay_s if self.fires("delay_ack") else 0.0
 
     def drop_connection(self) -> bool:
         """True if the controller should hang up now."""
-        return self._fires("drop_connection")
+        return self.fires("drop_connection")
 
 
 __getattr__ = renamed(__name__, {"FaultConfig": ComputerLinkFaultConfig})

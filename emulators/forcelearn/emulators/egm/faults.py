@@ -19,13 +19,9 @@ restart          the controller restarts guidance: a new session, seqno 0
 
 from __future__ import annotations
 
-import threading
-from collections import Counter
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from forcelearn.emulators.faults import Fault
+from forcelearn.emulators.faults import Fault, FaultInjectorBase
 
 FAULT_NAMES = ("lose", "duplicate", "reorder", "lose_reply", "late_reply", "restart")
 
@@ -48,26 +44,14 @@ class EgmFaultConfig:
     seed: int = 0
 
 
-class EgmFaultInjector:
-    """Decides, cycle by cycle, whether a fault fires; counts what fired. Thread-safe."""
+class EgmFaultInjector(FaultInjectorBase[EgmFaultConfig]):
+    """Decides, cycle by cycle, whether a fault of :data:`FAULT_NAMES` fires. Thread-safe."""
 
     def __init__(self, config: EgmFaultConfig | None = None) -> None:
-        self.config = config or EgmFaultConfig()
-        self._rng = np.random.default_rng(self.config.seed)
-        self._lock = threading.Lock()
-        self.fired: Counter[str] = Counter()
+        super().__init__(config or EgmFaultConfig())
         self.cycle = 0
         """The emulator's cycle count, set by the emulator before it asks."""
 
-    def fires(self, name: str) -> bool:
-        """True if fault ``name`` (one of :data:`FAULT_NAMES`) fires now."""
-        fault: Fault = getattr(self.config, name)
-        if fault.probability == 0.0 or self.cycle < self.config.after_cycles:
-            return False
-        with self._lock:
-            if fault.limit is not None and self.fired[name] >= fault.limit:
-                return False
-            if fault.probability < 1.0 and self._rng.random() >= fault.probability:
-                return False
-            self.fired[name] += 1
-            return True
+    def _armed(self) -> bool:
+        """No fault fires during the first ``after_cycles`` cycles."""
+        return self.cycle >= self.config.after_cycles

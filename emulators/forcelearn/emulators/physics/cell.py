@@ -62,6 +62,15 @@ class TimedEnvironment(Protocol):
         ...
 
 
+@runtime_checkable
+class OrientedEnvironment(Protocol):
+    """An environment whose contact depends on the tool's orientation (a part, a tilted tool)."""
+
+    def observe_orientation(self, quaternion: Quaternion) -> None:
+        """Note the tool's orientation (w, x, y, z), before the pose is reported at it."""
+        ...
+
+
 class NoContact:
     """Free space: never any contact force."""
 
@@ -99,6 +108,8 @@ class CellPhysics:
         """The tool's pose (None: moved by a motion tick since last read; see :attr:`pose`)."""
         self._pose_key: PoseKey = (first.x_mm, first.y_mm, first.z_mm, first.quaternion)
         """Where the tool is as (x, y, z, quaternion): what the hot path compares."""
+        if self._oriented is not None:
+            self._oriented.observe_orientation(first.quaternion)
         self._position_mm = first.position_mm
         self._rotation, self._gravity = self._orientation_terms(first.quaternion)
         self._wrench_key: tuple[float, ...] | None = None
@@ -109,6 +120,8 @@ class CellPhysics:
         """Record the tool at (x, y, z, quaternion); the Pose is built when :attr:`pose` is read."""
         if key[3] != self._pose_key[3]:
             self._rotation, self._gravity = self._orientation_terms(key[3])
+            if self._oriented is not None:
+                self._oriented.observe_orientation(key[3])
         self._pose = None  # a motion tick moves the tool far more often than anyone reads it
         self._pose_key = key
         self._position_mm = np.array(key[:3], dtype=float)
@@ -126,6 +139,9 @@ class CellPhysics:
         self._environment = environment
         self._timed = environment if isinstance(environment, TimedEnvironment) else None
         self._observer = environment if isinstance(environment, PoseObserver) else None
+        self._oriented = environment if isinstance(environment, OrientedEnvironment) else None
+        if self._oriented is not None and hasattr(self, "_pose_key"):
+            self._oriented.observe_orientation(self._pose_key[3])
 
     def attach_motion(self, motion: ArmMotion) -> None:
         """Let ``motion`` move the tool from now on (its pose is published at once)."""

@@ -47,6 +47,7 @@ acts along ``n``. Nothing here knows the tool, the sensor or a wire.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -251,7 +252,14 @@ def _distance(part: Part, c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
 
 def _perpendicular(axis: np.ndarray) -> np.ndarray:
     """A unit vector perpendicular to ``axis`` (the direction used on the axis itself)."""
-    trial = np.array([1.0, 0.0, 0.0]) if abs(axis[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    return _perpendicular_of(float(axis[0]), float(axis[1]), float(axis[2])).copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _perpendicular_of(ax: float, ay: float, az: float) -> np.ndarray:
+    """:func:`_perpendicular` of one axis, kept (asked at every motion tick of a cell)."""
+    axis = np.array([ax, ay, az])
+    trial = np.array([1.0, 0.0, 0.0]) if abs(ax) < 0.9 else np.array([0.0, 1.0, 0.0])
     out = np.cross(axis, trial)
     return np.asarray(out / np.linalg.norm(out), dtype=float)
 

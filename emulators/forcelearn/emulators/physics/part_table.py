@@ -10,8 +10,8 @@ heightmap      ``file`` (CSV or .npy, relative to the config file),
                ``interpolation``
 =============  ==============================================================
 
-Not yet read by ``forcelearn run``: the cell config will call
-:func:`part_from_table` for its ``[emulator.part]`` table.
+The cell config reads ``[emulator.part]`` through :func:`part_from_table`
+(``forcelearn.site.part_config``, which adds the tool's tip and a gap).
 """
 
 from __future__ import annotations

@@ -117,8 +117,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, TypeVar
 
 import numpy as np
@@ -224,33 +225,25 @@ class SpongeParams:
 # Elementwise helpers: math on floats (the emulator's hot path), numpy on arrays.
 
 
-def _sin(x: F) -> F:
-    if isinstance(x, np.ndarray):
-        result: np.ndarray = np.sin(x)
-        return result
-    return math.sin(x)
+def _elementwise(
+    array_fn: Callable[[np.ndarray], np.ndarray], float_fn: Callable[[float], float]
+) -> Callable[[F], F]:
+    """One function of ``x``: ``array_fn`` on arrays, ``float_fn`` on floats."""
+
+    def apply(x: F) -> F:
+        if isinstance(x, np.ndarray):
+            result: np.ndarray = array_fn(x)
+            return result
+        return float_fn(x)
+
+    return apply
 
 
-def _cos(x: F) -> F:
-    if isinstance(x, np.ndarray):
-        result: np.ndarray = np.cos(x)
-        return result
-    return math.cos(x)
-
-
-def _exp(x: F) -> F:
-    if isinstance(x, np.ndarray):
-        result: np.ndarray = np.exp(x)
-        return result
-    return math.exp(x)
-
-
-def _positive(x: F) -> F:
-    """``max(0, x)``."""
-    if isinstance(x, np.ndarray):
-        result: np.ndarray = np.maximum(0.0, x)
-        return result
-    return max(0.0, x)
+_sin = _elementwise(np.sin, math.sin)
+_cos = _elementwise(np.cos, math.cos)
+_exp = _elementwise(np.exp, math.exp)
+_positive = _elementwise(partial(np.maximum, 0.0), lambda x: x if x > 0.0 else 0.0)
+"""``max(0, x)`` (on floats written out: what ``max(0.0, x)`` returns, NaN included, faster)."""
 
 
 def _at_most(x: F, limit: float) -> F:

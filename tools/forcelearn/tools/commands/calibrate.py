@@ -78,6 +78,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--revisit-every", type=int, default=defaults.revisit_every,
                         help="measure the first orientation again after every N poses and at "
                         "the end, for the bias drift (0: never; default %(default)s)")
+    parser.add_argument("--max-passes", type=int, default=defaults.max_passes,
+                        help="most passes over the orientations to bring the centre of mass's "
+                        "sigma under a third of 1 mm + 0.5 %% of its distance (default "
+                        "%(default)s)")
     parser.add_argument("--settle-s", type=float, default=defaults.settle_s,
                         help="dwell at each pose before the settling check, s "
                         "(default %(default)s)")
@@ -107,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     config = load_cell_config(args.config)
     plan = CalibrationPlan(
         record_s=args.record_s, samples_per_pose=args.samples_per_pose, settle_s=args.settle_s,
-        revisit_every=args.revisit_every,
+        revisit_every=args.revisit_every, max_passes=args.max_passes,
         settle_timeout_s=args.settle_timeout_s,
         max_rotation_step_deg=args.max_rotation_step_deg,
     )
@@ -146,11 +150,15 @@ def calibrate(
 
     ``session``: an open cell to use (the caller closes it); default: open one
     from ``config`` without its calibration file, closed at the end.
-    ``mounting``: the sensor's mounting on the flange (w, x, y, z) as given; None: estimated.
+    ``mounting``: the sensor's mounting on the flange (w, x, y, z) as given on the command
+    line; None: the config's ``[calibration] mounting_*`` if set, else estimated.
     With the default orientations, poses out of the sensor's range are skipped and
     orientations added where the fit needs them; with others, either is refused.
     """
     stream = stream or sys.stdout
+    given_by = "--mounting-rpy-deg/--mounting-quaternion"
+    if mounting is None and config.calibration_mounting is not None:
+        mounting, given_by = config.calibration_mounting, "[calibration] mounting_* of the config"
     out = Path(out_path or config.calibration_file or "calibration.toml")
     figure = Path(figure_path or out.with_name(f"{out.stem}-residuals.png"))
     try:
@@ -167,7 +175,7 @@ def calibrate(
             created=datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
             sensor=sensor, noise=measurement.noise, tool=measurement.tool, matrix_check=check,
         )
-        print(report(cal), file=stream)
+        print(report(cal, given_by), file=stream)
         write_residual_png(cal, figure)
         save_calibration(cal, out)
     except OSError as exc:
@@ -223,16 +231,20 @@ def read_loads(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return table[:, :6], table[:, 6:]
 
 
-def report(cal: Calibration) -> str:
-    """Return the human-readable result: parameters ± uncertainty, residuals, noise."""
+def report(cal: Calibration, given_by: str = "--mounting-*") -> str:
+    """Return the human-readable result: parameters ± uncertainty, residuals, noise.
+
+    ``given_by``: where a given mounting came from (the command line or the config).
+    """
     t, n = cal.tool, cal.noise
 
     def pm(values: tuple[float, ...], stds: tuple[float, ...], digits: int) -> str:
         return ", ".join(f"{v:.{digits}f} ± {s:.{digits}f}" for v, s in zip(values, stds,
                                                                               strict=True))
 
-    why = ("estimated with the tool" if t.mounting_source == MOUNTING_ESTIMATED
-           else "as given (--mounting-*), not estimated")
+    why = ("estimated with the tool (none given: a sensor's clocking on its plate is often "
+           "not the drawing's)" if t.mounting_source == MOUNTING_ESTIMATED
+           else f"as given ({given_by}), not estimated")
     lines = [
         f"tool load ({len(t.poses)} poses, condition number {t.condition_number:.2f}):",
         f"  mass            {t.mass_kg:.4f} ± {t.mass_std_kg:.4f} kg",

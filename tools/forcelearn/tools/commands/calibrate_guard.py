@@ -32,9 +32,17 @@ On top of :class:`~forcelearn.tools.experiments.calibration_run.Calibrator`
   (instead of only turning back to it): what changed there is the sensor's
   bias drift, and the fit takes the bias as linear in time (6 more
   parameters, :func:`~forcelearn.calibration.fit.drift_times`).
+* **Passes until precise.** With revisits, the fit is generalised least
+  squares with the bias a random walk about its piecewise-linear fit; while
+  the centre of mass's σ exceeds a third of 1 mm + 0.5 % of its distance, the
+  pass is measured again as often as the design predicts it takes (at most
+  ``max_passes``; turns of up to ``repeat_rotation_step_deg`` per step), and
+  the σ reached and the cell time are printed
+  (:mod:`~forcelearn.tools.commands.calibrate_precision`).
 * **The mounting.** The fit takes the sensor's mounting on the flange as given
-  (``--mounting-rpy-deg``/``--mounting-quaternion``) or estimates it with the
-  tool (:mod:`forcelearn.calibration.mounting`).
+  (``--mounting-rpy-deg``/``--mounting-quaternion``, or ``[calibration]
+  mounting_*`` of the config) or estimates it with the tool
+  (:mod:`forcelearn.calibration.mounting`).
 """
 
 from __future__ import annotations
@@ -47,20 +55,26 @@ from typing import Any, TextIO
 import numpy as np
 
 from forcelearn.calibration import AXES, MAX_CONDITION, check_pose_set, condition_number
-from forcelearn.calibration.fit import CANDIDATES, orientation_with_down
-from forcelearn.calibration.model import Quaternion
+from forcelearn.calibration.fit import CANDIDATES, bias_knots, orientation_with_down
+from forcelearn.calibration.model import Quaternion, ToolLoad
 from forcelearn.calibration.mounting import fit_with_mounting
 from forcelearn.calibration.predict import ReadingModel, out_of_range
 from forcelearn.devices import Pose, multiply_quaternions
 from forcelearn.errors import CalibrationError, PoseOutOfRange
 from forcelearn.site.session import CellSession
+from forcelearn.tools.commands.calibrate_precision import (
+    Measured,
+    com_sigma_mm,
+    drift_model,
+    mean_variance,
+    passes_needed,
+    target_mm,
+)
 from forcelearn.tools.experiments.calibration_plan import CalibrationPlan, NamedPose, slerp_steps
 from forcelearn.tools.experiments.calibration_run import Ask, Calibrator, Measurement
 
 log = logging.getLogger(__name__)
 
-Measured = tuple[str, Quaternion, np.ndarray, int, float]
-"""One measured pose: name, orientation reached, mean wrench, samples, time read (s)."""
 PROBE_DEG = 10.0
 """Turn of each probe from the first orientation, deg."""
 PROBE_AXES = (("+x", (1.0, 0.0, 0.0)), ("+y", (0.0, 1.0, 0.0)), ("-x", (-1.0, 0.0, 0.0)))
@@ -147,6 +161,11 @@ class GuardedCalibrator(Calibrator):
         """Poses not measured: out of the sensor's range (default plan only)."""
         self.added: list[str] = []
         """Orientations added to keep the fit well-conditioned."""
+        self._commanded: dict[str, Quaternion] = {}
+        self.start_s = math.nan
+        """The controller's time (s) at the zero."""
+        self.duration_s = math.nan
+        """Cell time (s) from the zero to the last pose read (with revisits)."""
 
     def run(self) -> Measurement:
         """Measure bias, noise and tool load; raises CalibrationError on any failure."""
@@ -164,6 +183,7 @@ class GuardedCalibrator(Calibrator):
             self._go_to_start()
         with self._step("bias and noise"):
             noise = self._bias_and_noise()
+        self.start_s = self.in_position_s
         self.model = ReadingModel(np.maximum(noise.std, 1e-6))
         again = NamedPose(f"{poses[0].name}, again (bias drift)", poses[0].quaternion)
         queue = [(f"pose {i}/{len(poses)}", p) for i, p in enumerate(poses, start=1)]
@@ -189,15 +209,59 @@ class GuardedCalibrator(Calibrator):
             self._add_where_needed(measured)
         if every > 0 and self._first_measured(measured, poses[0]):
             self._measure("revisit", again, measured)  # also turns back to the first
-        elif not self.manual:
-            with self._step("turning back to the first orientation"):
-                self._turn_to(poses[0].quaternion)
-        tool = fit_with_mounting(
-            [m[1] for m in measured], np.array([m[2] for m in measured]).reshape(-1, 6),
-            axis_std=np.maximum(noise.std, 1e-6), names=[m[0] for m in measured],
-            samples=[m[3] for m in measured], limit=plan.max_condition, mounting=self.mounting,
-            times_s=np.array([m[4] for m in measured]))
+            tool = self._fit(measured, noise.std)
+            tool = self._until_precise(measured, noise.std, tool)
+        else:
+            if not self.manual:
+                with self._step("turning back to the first orientation"):
+                    self._turn_to(poses[0].quaternion)
+            tool = self._fit(measured, noise.std)
         return Measurement(noise, tool)
+
+    def _fit(self, measured: list[Measured], std: np.ndarray) -> ToolLoad:
+        """The tool-load fit of the poses so far (GLS when the first pose was revisited)."""
+        times = np.array([m[4] for m in measured])
+        revisited = bias_knots([m[1] for m in measured], times, self.plan.max_condition)
+        return fit_with_mounting(
+            [m[1] for m in measured], np.array([m[2] for m in measured]).reshape(-1, 6),
+            axis_std=np.maximum(std, 1e-6), names=[m[0] for m in measured],
+            samples=[m[3] for m in measured], limit=self.plan.max_condition,
+            mounting=self.mounting, times_s=times,
+            drift=drift_model(measured) if revisited is not None else None)
+
+    def _until_precise(self, measured: list[Measured], std: np.ndarray,
+                       tool: ToolLoad) -> ToolLoad:
+        """Repeat the pass until the centre of mass's sigma meets its target.
+
+        How many passes: :mod:`.calibrate_precision`; prints what was achieved and the
+        cell time taken.
+        """
+        cycle, passes = list(measured), 1
+        while com_sigma_mm(tool) > target_mm(tool) and passes < self.plan.max_passes:
+            more = passes_needed(measured, cycle, tool, self.plan.max_passes - passes,
+                                 self.plan.max_condition)
+            print(f"centre of mass sigma {com_sigma_mm(tool):.2f} mm > target "
+                  f"{target_mm(tool):.2f} mm: {more} more pass(es) of the orientations",
+                  file=self.out)
+            first_pass = self.plan  # the path is known: turn in the repeat passes' steps
+            self.plan = replace(first_pass, max_rotation_step_deg=max(
+                first_pass.max_rotation_step_deg, first_pass.repeat_rotation_step_deg))
+            try:
+                for _ in range(more):
+                    passes += 1
+                    for m in cycle[1:]:
+                        self._measure(f"pass {passes}", NamedPose(
+                            f"{m[0]}, pass {passes}", self._commanded[m[0]]), measured)
+            finally:
+                self.plan = first_pass
+            tool = self._fit(measured, std)
+        met = "met" if com_sigma_mm(tool) <= target_mm(tool) else "NOT met"
+        self.duration_s = measured[-1][4] - self.start_s
+        print(f"precision: centre of mass sigma {com_sigma_mm(tool):.2f} mm (RMS of the error's "
+              f"norm), target {target_mm(tool):.2f} mm (a third of 1 mm + 0.5 % of "
+              f"|c|) {met}; {passes} pass(es), {len(measured)} poses, "
+              f"{self.duration_s:.0f} s of cell time from the zero", file=self.out)
+        return tool
 
     @staticmethod
     def _first_measured(measured: list[Measured], first: NamedPose) -> bool:
@@ -223,14 +287,16 @@ class GuardedCalibrator(Calibrator):
                 self.model.noise_std if self.model is not None else 1.0))
             if result is None:
                 return False
-            check_still(self.sensor.last, np.asarray(self.model.noise_std if self.model
-                                                     is not None else 0.0))
+            std = np.asarray(self.model.noise_std if self.model is not None else 0.0)
+            check_still(self.sensor.last, std)
+            variance = mean_variance(self.sensor.last, std)
             # the pose's time on the controller's clock (the cell's one clock when emulated;
             # the samples' own stamps are the host's): midway from in position to read done
             read_s = (self.in_position_s + self.robot.wait_in_position(
                 self.plan.settle_timeout_s, 0.0)) / 2
         reached, mean, count = result
-        measured.append((pose.name, reached, mean, count, read_s))
+        measured.append((pose.name, reached, mean, count, read_s, variance))
+        self._commanded.setdefault(pose.name, pose.quaternion)
         if self.model is not None:
             self.model.add(reached, mean, count)
             if self.model.determined:  # the force limit now watches for contact, not weight

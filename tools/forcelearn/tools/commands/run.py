@@ -23,6 +23,8 @@ from tqdm import tqdm
 
 from forcelearn.learning import SRVLearner
 from forcelearn.run_output import summary_text
+from forcelearn.tools.commands.run_path import is_path_run
+from forcelearn.tools.commands.run_path import run as run_path
 from forcelearn.tools.experiments.surface_outputs import end_lines
 from forcelearn.tools.experiments.surface_run import execute
 from forcelearn.tools.experiments.surface_state import prepare_run
@@ -38,10 +40,14 @@ or converged and out of band at its end)."""
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``forcelearn run``."""
     parser.add_argument("--config", type=Path, help="cell config TOML (default: emulated cell)")
-    parser.add_argument("--trials", type=int, help="total trials of the run (default 300)")
+    parser.add_argument("--trials", type=int,
+                        help="total trials of the run (default 300; the path task: passes, 25)")
     parser.add_argument("--seed", type=int, help="random seed (default 0)")
     parser.add_argument("--out", type=Path, help="run directory (default runs/surface-<time>)")
     parser.add_argument("--resume", type=Path, metavar="DIR", help="continue the run in DIR")
+    parser.add_argument("--path", type=Path, metavar="FILE",
+                        help="run the path task over this taught path (CSV or RAPID module; "
+                        "docs/path.md) instead of [task]'s")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument(
         "--json", action="store_true", help="end by printing the summary as JSON (for scripts)"
@@ -57,6 +63,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run or resume the surface experiment and write its run directory."""
+    if is_path_run(args):  # [task] kind = "path" or --path: the path task's own run
+        return run_path(args)
     if args.resume and (args.config or args.out or args.seed is not None):
         print(
             "forcelearn run: --resume takes the run's own config, seed and folder; "

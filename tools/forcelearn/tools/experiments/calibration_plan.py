@@ -121,13 +121,23 @@ class CalibrationPlan:
     """Measure the first orientation again after every this many poses, and at the end: the
     bias drift's knots (0: never, the bias fitted constant)."""
     max_condition: float = MAX_CONDITION
+    repeat_rotation_step_deg: float = 30.0
+    """Largest turn per move command in the passes after the first, which follow the turns the
+    first made (in max_rotation_step_deg steps, the force limit read after each) and whose
+    range is predicted at every step: fewer stops, so less bias drift between poses."""
+    max_passes: int = 16
+    """Most passes over the orientations (with revisits) to bring the centre of mass's sigma
+    under its target (forcelearn.tools.commands.calibrate_precision; 1: one pass)."""
 
     def __post_init__(self) -> None:
-        for name in ("record_s", "settle_timeout_s", "max_rotation_step_deg"):
+        for name in ("record_s", "settle_timeout_s", "max_rotation_step_deg",
+                     "repeat_rotation_step_deg"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
                 raise ConfigError(f"calibration {name} must be > 0, got {getattr(self, name)}")
         if not (math.isfinite(self.settle_s) and self.settle_s >= 0):
             raise ConfigError(f"calibration settle_s must be >= 0, got {self.settle_s}")
+        if self.max_passes < 1:
+            raise ConfigError(f"calibration max_passes must be >= 1, got {self.max_passes}")
         if self.revisit_every < 0:
             raise ConfigError(f"calibration revisit_every must be >= 0, got {self.revisit_every}")
         if self.samples_per_pose < 10:

@@ -16,6 +16,14 @@ reached its target) during a trial:
    the calibration's bias re-derived);
 3. the trial runs again; the re-zero is its first tare record.
 
+During the trials a :class:`~forcelearn.tasks.bias_watch.BiasWatch` judges
+every step's reading by the move that led to it: a reading the foam's
+stiffness cannot explain (a bias step in contact) raises
+:class:`~forcelearn.errors.SensorSuspect` and is recovered from the same way;
+the free-space reading before the re-zero is the zero check (its event says
+how far the zero had moved). A fault-free run never trips it, so it changes
+nothing there.
+
 Every fault is one line of ``faults.jsonl`` in the run directory (what, when,
 what was lost, what the cell did) and counted in ``summary.json`` (``faults``).
 A trial that faults ``MAX_TRIES_PER_TRIAL`` times, or a recovery that fails,
@@ -31,13 +39,15 @@ import copy
 import dataclasses
 import json
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
 from forcelearn.cell import Cell
-from forcelearn.errors import ForcelearnError, one_line
+from forcelearn.devices import Pose
+from forcelearn.errors import ForcelearnError, SensorSuspect, one_line
 from forcelearn.learning import SRVLearner, load_learner
+from forcelearn.tasks.bias_watch import CONTACT_N, BiasWatch
 from forcelearn.tasks.recovery import Recovered, RecoveryFailed, recoverable, retract
 from forcelearn.tasks.recovery import retract_and_retare as leave_and_rezero
 from forcelearn.tasks.surface import SurfaceYOutput
@@ -97,6 +107,8 @@ class RunRecovery:
         self.checkpoint = checkpoint
         self.events: list[FaultEvent] = []
         """The faults of this session."""
+        self.watch = BiasWatch(free_y_mm=retract_y_mm)
+        """Judges the trials' readings by the moves (bias steps in contact)."""
         self._start_learner: SRVLearner | None = None
 
     # ---- the run's calls -------------------------------------------------------------------
@@ -110,29 +122,31 @@ class RunRecovery:
         if run.saved.trials == 0:
             self._start_learner = _copy_learner(learner)
         tries: dict[int, int] = {}
-        while (remaining := run.trials - len(run.result.records)) > 0:
-            try:
-                train_remaining(learner, remaining)
-                break
-            except ForcelearnError as exc:
-                if not recoverable(exc):
-                    raise
-                trial = run.saved.trials
-                tries[trial] = tries.get(trial, 0) + 1
-                run.rollback_to_saved()
-                self._restore_map(run)
-                recorder = self.cell.recorder
-                if recorder is not None:
-                    getattr(recorder, "discard", lambda: None)()
-                self._recover(exc, trial, tries[trial])
-                learner = self._saved_learner(run, learner)
+        with self._watching():
+            while (remaining := run.trials - len(run.result.records)) > 0:
+                try:
+                    train_remaining(learner, remaining)
+                    break
+                except ForcelearnError as exc:
+                    if not recoverable(exc):
+                        raise
+                    trial = run.saved.trials
+                    tries[trial] = tries.get(trial, 0) + 1
+                    run.rollback_to_saved()
+                    self._restore_map(run)
+                    recorder = self.cell.recorder
+                    if recorder is not None:
+                        getattr(recorder, "discard", lambda: None)()
+                    self._recover(exc, trial, tries[trial])
+                    learner = self._saved_learner(run, learner)
         return learner
 
     def probe(self, probe: Callable[[], _T]) -> _T:
         """Run the surface probe, recovering from device faults (the probe starts over)."""
         for attempt in range(1, MAX_TRIES_PER_TRIAL + 1):
             try:
-                return probe()
+                with self._watching():
+                    return probe()
             except ForcelearnError as exc:
                 if not recoverable(exc):
                     raise
@@ -189,6 +203,19 @@ class RunRecovery:
         marker.unlink()
 
     # ---- inside ------------------------------------------------------------------------------
+    @contextlib.contextmanager
+    def _watching(self) -> Iterator[None]:
+        """The bias watch judges the readings inside."""
+        self.cell.reading_check = self._check
+        try:
+            yield
+        finally:
+            self.cell.reading_check = None
+
+    def _check(self, stage: tuple[str, int], pose: Pose | None, force_n: float) -> None:
+        """The cell's reading check: the bias watch, told how many zeros the sensor took."""
+        self.watch(stage, pose, force_n, zeros=self.cell.tares)
+
     def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> Recovered:
         lost = str(getattr(exc, "lost", ""))
         if attempt > MAX_TRIES_PER_TRIAL - 1:
@@ -196,13 +223,22 @@ class RunRecovery:
             raise exc
         log.warning("trial %d: %s: %s; retracting and re-zeroing", trial, type(exc).__name__,
                     one_line(exc))
+        check, self.cell.reading_check = self.cell.reading_check, None  # the zero check reads
         try:
             recovered = leave_and_rezero(self.cell, self.retract_y_mm, self.max_step_mm)
         except RecoveryFailed as failed:
             failed.add_note(f"after {type(exc).__name__}: {one_line(exc)}")
             raise
+        finally:
+            self.cell.reading_check = check
+        message = one_line(exc)
+        if isinstance(exc, SensorSuspect):  # the free-space reading is the zero check
+            moved = abs(recovered.free_reading_n) > CONTACT_N
+            message += (f"; zero check: free space read {recovered.free_reading_n:.2f} N, "
+                        + ("the zero had moved (re-tared)" if moved
+                           else "the zero had not moved (a false alarm, or a force change)"))
         self._event(FaultEvent(
-            trial, type(exc).__name__, one_line(exc), "resumed", lost=lost,
+            trial, type(exc).__name__, message, "resumed", lost=lost,
             retract_y_mm=recovered.retract_pose.y_mm, free_reading_n=recovered.free_reading_n,
             cell_time_s=self.cell.time_s,
         ))

@@ -129,6 +129,7 @@ def execute(
         output.recentre_mm = run.map_recentre_mm  # and its re-centring on the learner
         output.wear_reference_n = run.wear_reference_n
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
+        fit_watch_to_probe(recovery, run)
         if checkpoint is not None:
             learner = load_learner(checkpoint, output=output)[0]
         else:
@@ -356,6 +357,17 @@ def feasibility_check(run: SurfaceRun) -> Callable[[int], Feasibility | None]:
         )
 
     return check
+
+
+def fit_watch_to_probe(recovery: RunRecovery, run: SurfaceRun) -> None:
+    """Widen the bias-step watch to the material the probe measured (stiff parts, hysteresis)."""
+    probe = run.probe
+    if probe is None or not probe.fits:
+        return
+    hysteresis = probe.hysteresis()
+    loss = hysteresis.loss + 2.0 * hysteresis.loss_std if hysteresis.resolved else 0.0
+    recovery.watch.fit_to_probe([f.stiffness_n_per_mm for f in probe.fits], loss,
+                                run.config.task.desired_force_n)
 
 
 def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:

@@ -62,6 +62,7 @@ from forcelearn.tools.fuzz.fault_inject import (
     Truth,
     cause,
     plan_faults,
+    read_to_stop_s,
     stop_latency_s,
 )
 
@@ -99,7 +100,12 @@ STEP_S = 1.0
 """Allowance for the step in progress when a fault strikes in contact, s of cell time
 (a step of at most ``[safety] max_step_mm`` is far shorter)."""
 MAX_SESSIONS = 20
-"""Resumes one run may take before it counts as not finished."""
+"""Sessions one run may take after its last planned fault before it counts as not finished
+(a run resumes as long as faults are still planned: the probe starts over at each session)."""
+SESSION_CAP = 200
+"""Sessions of one run in all, whatever is still planned."""
+READ_SLACK_S = 2.0
+"""Wall time a loaded host may add to a read's watchdog (2 x ``stale_sensor_s``), s."""
 
 
 @dataclasses.dataclass
@@ -120,6 +126,11 @@ class RunReport:
     bad_readings: Counter[str] = dataclasses.field(default_factory=Counter)
     late_stops: int = 0
     worst_stop_s: float = 0.0
+    """Robot faults: cell time to the stop, s."""
+    worst_read_stop_s: float = 0.0
+    """Sensor faults: wall time from the first read after the fault to the stop, s."""
+    worst_unread_s: float = 0.0
+    """Sensor faults: cell time from the fault to the next read (moves under way), s."""
     lost_or_duplicated: int = 0
     finished: bool = False
     sessions: int = 0
@@ -205,8 +216,10 @@ def one_run(cell: str, config: Path, folder: Path, seed: int, ticks: int, faults
     started = time.perf_counter()
     resume = False
     with injecting(injector, tolerance_n, truths):
-        while report.sessions < MAX_SESSIONS:
+        left = report.sessions  # sessions after the last planned fault fired
+        while left < MAX_SESSIONS and report.sessions < SESSION_CAP:
             report.sessions += 1
+            left = left + 1 if not injector.plan else 0
             try:
                 run, checkpoint = run_state.prepare_run(
                     None if resume else config, folder, None, None if resume else seed, resume
@@ -238,6 +251,7 @@ def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: P
     config = load_cell_config(folder / run_state.CONFIG_COPY)
     limit_n = config.safety.max_force_n
     bound_s = config.safety.stale_sensor_s + config.safety.move_timeout_s + STEP_S
+    read_bound_s = 2 * config.safety.stale_sensor_s + READ_SLACK_S
     for truth in truths:
         report.max_contact_n = max(report.max_contact_n, truth.max_contact_n)
         report.over_limit += truth.max_contact_n > limit_n
@@ -260,11 +274,18 @@ def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: P
             report.resumed_from[f"{names[fired.device]}:{fired.kind}"] += 1
         if not fired.in_contact:  # in free space a fault is found at the next read
             continue
-        latency = stop_latency_s(fired, injector.stops)
-        report.worst_stop_s = max(report.worst_stop_s, latency or 0.0)
-        if latency is None or latency > bound_s:
+        if fired.device == "sensor":  # found at the next read, stopped by its watchdog
+            latency, unread = read_to_stop_s(fired, injector.stops, injector.reads)
+            report.worst_read_stop_s = max(report.worst_read_stop_s, latency or 0.0)
+            report.worst_unread_s = max(report.worst_unread_s, unread)
+            bound = read_bound_s
+        else:
+            latency = stop_latency_s(fired, injector.stops)
+            report.worst_stop_s = max(report.worst_stop_s, latency or 0.0)
+            bound = bound_s
+        if latency is None or latency > bound:
             report.late_stops += 1
-            report.problems.append(f"{fired.kind}: stopped after {latency} s (bound {bound_s})")
+            report.problems.append(f"{fired.kind}: stopped after {latency} s (bound {bound})")
     if report.typed_ends["kill"] and report.finished:
         report.resumed_from["run:kill"] += report.typed_ends["kill"]
     report.lost_or_duplicated = _records_problems(folder, report)
@@ -289,12 +310,15 @@ def _records_problems(folder: Path, report: RunReport) -> int:
 def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int,
              faults: dict[str, int], kills: int, seed: int, folder: Path,
              save: Path | None = None, devices: Sequence[str] = ("robot", "sensor"),
-             ) -> list[RunReport]:
+             replay: Sequence[int] = ()) -> list[RunReport]:
     """Every cell, ``runs[robot]`` runs of ``faults[robot]`` faults per device; a line per run.
 
-    With ``save``, the reports so far are pickled there after every run.
+    With ``save``, the reports so far are pickled there after every run. With
+    ``replay``, only those run seeds (``seed·1000 + 100·cell + run``, as printed) run.
     """
     reports: list[RunReport] = []
+    if replay:
+        cells = [cell for i, cell in enumerate(CELLS) if any(r // 100 % 10 == i for r in replay)]
     for cell in cells:
         config = cell_config(cell, folder, trials, steps, probe=False)
         probed = cell_config(cell, folder, trials, steps, probe=True)
@@ -305,8 +329,10 @@ def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int
               f"{worst_n:.2f} N (tolerance {tolerance_n:.2f} N), max contact {contact_n:.1f} N",
               flush=True)
         robot = cell.split("+")[0]
-        for k in range(runs[robot]):
-            run_seed = seed * 1000 + 100 * list(CELLS).index(cell) + k
+        wanted = [r for r in replay if r // 100 % 10 == list(CELLS).index(cell)]
+        for k in [r % 100 for r in wanted] if replay else range(runs[robot]):
+            run_seed = (wanted[0] // 1000 if replay else seed) * 1000 \
+                + 100 * list(CELLS).index(cell) + k
             first = k == 0
             report = one_run(cell, probed if first else config, folder / f"{cell}-{k}",
                              run_seed, probe_ticks if first else ticks, faults[robot], kills,
@@ -363,13 +389,17 @@ def table(reports: Sequence[RunReport]) -> str:
         bad.update(report.bad_readings)
     worst = max((r.max_contact_n for r in reports), default=0.0)
     slowest = max((r.worst_stop_s for r in reports), default=0.0)
+    read_stop = max((r.worst_read_stop_s for r in reports), default=0.0)
+    unread = max((r.worst_unread_s for r in reports), default=0.0)
     lines += [
         "",
         f"runs {len(reports)}; true contact force over the limit: {totals['over_limit']} "
         f"(max {worst:.1f} N); zeros in contact: {totals['zeros_in_contact']} of "
         f"{totals['zeros']}; readings off the true force: {totals['bad_readings']} of "
         f"{totals['readings']} (after: {dict(bad)}); stops later than the watchdog: "
-        f"{totals['late_stops']} (slowest {slowest:.2f} s of cell time); lost or duplicated "
+        f"{totals['late_stops']} (robot faults: slowest {slowest:.2f} s of cell time; sensor "
+        f"faults: slowest {read_stop:.2f} s of wall time from the next read, which came up to "
+        f"{unread:.2f} s of cell time after the fault); lost or duplicated "
         f"records: {totals['records']}; "
         f"ends without a typed reason: {totals['untyped']}; runs not finished: "
         f"{totals['unfinished']}",
@@ -397,6 +427,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--keep", type=Path, default=None, help="keep the run folders here")
     parser.add_argument("--save", type=Path, default=None,
                         help="save the reports (pickle) for --merge")
+    parser.add_argument("--replay", type=int, nargs="*", default=[],
+                        help="run only these run seeds (as printed), with the other options")
     parser.add_argument("--merge", type=Path, nargs="*", default=None,
                         help="print the table of saved reports instead of running")
     args = parser.parse_args(argv)
@@ -410,7 +442,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         folder.mkdir(parents=True, exist_ok=True)
         reports = campaign(args.cells, {"link": args.runs, "egm": args.runs_egm}, args.trials,
                            args.steps, {"link": args.faults, "egm": args.faults_egm},
-                           args.kills, args.seed, folder, args.save, args.devices)
+                           args.kills, args.seed, folder, args.save, args.devices,
+                           args.replay)
     print(table(reports))
     return 1 if _failed(reports) else 0
 

@@ -13,14 +13,16 @@ fault              what the emulator does
                    (``ft_sequence`` restarts, software bias lost)
 ``silence``        the sensor sends nothing for the next 1 to 3 bursts
 ``corrupt``        JR3: the next 2 to 12 frames with a wrong length; Net F/T:
-                   2 to 12 datagrams of garbage (wrong size) to the driver
+                   2 to 12 datagrams of garbage to the driver (wrong sizes, or a
+                   record's 36 bytes: random sequences, status and counts)
 ``bias_jump``      the sensor's bias on the normal axis jumps by ±1 to 8 N
 ``restart``        computer link: the arm halts where it is and the link drops;
                    EGM: the controller restarts guidance (a new session)
 ``stall``          the next move stops at 20 to 80 % of its way (never in position)
 ``link_drop``      computer link: the connection drops after the next request;
-                   EGM: the next 1 to 60 controller datagrams are lost (a watchdog
-                   of 0.5 s is 125 cycles: most are absorbed)
+                   EGM: the next 1 to 250 controller datagrams are lost (up to 1 s;
+                   the emulated cell's EGM watchdog is 5 s, 1,250 cycles: all are
+                   absorbed)
 ``kill``           the process dies here (no clean-up); the campaign resumes it
 =================  ===========================================================
 """
@@ -30,6 +32,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import random
+import time
 from collections import Counter
 from collections.abc import Callable
 from typing import Any
@@ -43,6 +46,8 @@ from forcelearn.emulators.faults import Fault
 from forcelearn.protocols.jr3_can.codec import Frame
 
 SENSOR_FAULTS = ("reboot", "silence", "corrupt", "bias_jump")
+EGM_LOST_MAX = 250
+"""Most controller datagrams one EGM ``link_drop`` loses (4 ms cycles: 1 s)."""
 ROBOT_FAULTS = ("restart", "stall", "link_drop")
 RUN_FAULTS = ("kill",)
 
@@ -65,6 +70,16 @@ class Fired:
     """The run's session (a resume opens another) it fired in."""
     in_contact: bool = False
     """The tool touched the part when it fired."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Mark:
+    """When something happened: device call (tick), session, cell time s, wall time s."""
+
+    tick: int
+    session: int
+    cell_time_s: float
+    wall_s: float
 
 
 class Truth:
@@ -147,8 +162,10 @@ class Injector:
         self.rng = rng
         self.tick = 0
         self.fired: list[Fired] = []
-        self.stops: list[tuple[int, int, float]] = []
-        """Every robot stop: (tick, session, cell time s)."""
+        self.stops: list[Mark] = []
+        """Every robot stop."""
+        self.reads: list[Mark] = []
+        """Every sensor read (a burst, a guard sample, a restart), as it starts."""
         self.sessions = 0
         self.session: Any = None
         self.truth: Truth | None = None
@@ -186,13 +203,14 @@ class Injector:
 
         def measure_force_n(samples: int | None = None) -> float:
             self._step()
+            self.reads.append(self._mark())
             force = measure(samples)
             if samples is None and not zeroing[0]:  # a whole burst: what a step is judged by
                 truth.judge_reading(force, self._last)
             return force
 
         def stopped() -> None:
-            self.stops.append((self.tick, self.sessions, cell.time_s))
+            self.stops.append(self._mark())
             stop()
 
         reinitialise = getattr(session.sensor, "reinitialise", None)
@@ -200,6 +218,7 @@ class Injector:
 
             def restarted() -> None:
                 self._step()
+                self.reads.append(self._mark())
                 reinitialise()
 
             session.sensor.reinitialise = restarted
@@ -208,6 +227,9 @@ class Injector:
         cell.measure_force_n = measure_force_n  # type: ignore[method-assign]
         cell.stop = stopped  # type: ignore[method-assign]
         cell.zero_in_free_space = zero_in_free_space  # type: ignore[method-assign]
+
+    def _mark(self) -> Mark:
+        return Mark(self.tick, self.sessions, self.session.cell.time_s, time.perf_counter())
 
     def _step(self) -> None:
         self.tick += 1
@@ -254,7 +276,7 @@ class Injector:
             return
         address = self.session.sensor._sock.getsockname()  # Net F/T: garbage datagrams
         for _ in range(count):
-            size = self.rng.choice([0, 1, 35, 37, 100])
+            size = self.rng.choice([0, 1, 35, 36, 37, 100])  # 36: a record's own size
             emulator._udp.sendto(self.rng.randbytes(size), address)
 
     def _sensor_bias_jump(self) -> None:
@@ -293,7 +315,8 @@ class Injector:
     def _robot_link_drop(self) -> None:
         emulator = self.session.robot_emulator
         if isinstance(getattr(emulator, "faults", None), EgmFaultInjector):
-            self._egm_faults(EgmFaultConfig(lose=Fault(1.0, limit=self.rng.randint(1, 60))))
+            lost = self.rng.randint(1, EGM_LOST_MAX)
+            self._egm_faults(EgmFaultConfig(lose=Fault(1.0, limit=lost)))
             return
         hang_up = ComputerLinkFaultConfig(drop_connection=Fault(1.0, limit=1))
         emulator.faults = FaultInjector(hang_up)
@@ -307,6 +330,7 @@ class Injector:
 
 CAUSES: dict[str, tuple[str, ...]] = {
     "SensorRebooted": ("reboot",),
+    "SensorSuspect": ("bias_jump", "reboot"),
     "SensorStale": ("silence", "corrupt"),
     "SensorTimeout": ("silence", "corrupt", "reboot"),
     "SensorBusError": ("corrupt",),
@@ -338,12 +362,31 @@ def plan_faults(rng: random.Random, ticks: int, counts: dict[tuple[str, str], in
     return plan
 
 
-def stop_latency_s(fired: Fired, stops: list[tuple[int, int, float]]) -> float | None:
+def stop_latency_s(fired: Fired, stops: list[Mark]) -> float | None:
     """Cell time from a fault to the first robot stop after it in its session (None: none)."""
-    for tick, session, time_s in stops:
-        if session == fired.session and tick >= fired.tick and time_s >= fired.cell_time_s:
-            return time_s - fired.cell_time_s
+    for stop in stops:
+        if (stop.session == fired.session and stop.tick >= fired.tick
+                and stop.cell_time_s >= fired.cell_time_s):
+            return stop.cell_time_s - fired.cell_time_s
     return None
+
+
+def read_to_stop_s(fired: Fired, stops: list[Mark], reads: list[Mark]
+                   ) -> tuple[float | None, float]:
+    """(wall s from the first read after a sensor fault to the stop, cell s the fault went unread).
+
+    The cell consults the sensor only when it reads: a fault during a move is
+    found at the next read, which stops the robot within the driver's watchdog
+    (no cell time passes during a read, so that part is wall time). A robot
+    stopped before that read gives 0; no stop at all, None.
+    """
+    first = next((r for r in reads if r.session == fired.session and r.tick >= fired.tick), None)
+    stop = next((s for s in stops if s.session == fired.session and s.tick >= fired.tick), None)
+    if stop is None:
+        return None, 0.0
+    if first is None or stop.tick < first.tick:
+        return 0.0, max(0.0, stop.cell_time_s - fired.cell_time_s)
+    return max(0.0, stop.wall_s - first.wall_s), max(0.0, first.cell_time_s - fired.cell_time_s)
 
 
 def finite(value: float) -> bool:

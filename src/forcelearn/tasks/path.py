@@ -1,0 +1,326 @@
+"""The path task: a taught path over a curved part, a force along the tool's axis, learned.
+
+The second task kind (docs/tasks.md, docs/path.md), FC Pressure's job on a robot
+with position control only. Its parts:
+
+=====================================  ==============================================
+:mod:`~forcelearn.tasks.path_spec`     the ``[task]`` keys, the path read and checked
+:mod:`~forcelearn.tasks.evaluation`    r = |F − F_d| / tolerance, failure above 1
+:mod:`~forcelearn.tasks.path_probe`    the probe pass and the learner's warm start
+this module                            :class:`PathTask`: a pass over the points
+=====================================  ==============================================
+
+A pass (one trial of the trainer): from the retreat of the last pass the tool
+goes back over the path lifted by ``approach_mm`` along each point's force axis
+(free space), to the first point's approach pose; there it tares (the
+calibration follows the orientation), moves in along the force axis in
+``contact_step_mm`` steps until the force passes the contact threshold
+(``contact_threshold_pct`` of the force), then each step k presses at point k
+with the learner's offset along the force axis (mm, > 0 deeper), measures the
+filtered force and is evaluated. The first step ramps the force: it moves in
+steps whose force rise stays under ``force_ramp_n_s`` at the cell's pace. The
+pass ends after the last point, or at a failure, with a retreat of
+``retreat_mm`` along the force axis.
+
+The learner's input is the point's index (the position along the path), one
+box per point; its output the offset, ``AffineOutput(scale, 0, ±max_deviation_mm)``:
+the command is clipped to ``max_deviation_mm``, so no move goes further from
+the taught path along the force axis (FC Pressure's ``PosSupvDist``).
+
+**Contact lost** where contact is expected (the force below the threshold at a
+point): the point is recorded (:attr:`PathTask.lost_points`); with
+``on_contact_loss = "retreat"`` the step fails and the pass ends with the
+retreat; with ``"continue"`` the step counts as r = 1 (the edge of the band:
+not a failure) and the pass goes on at the next point. It never chases the
+surface beyond ``max_deviation_mm``.
+
+Safety on every move, as the §5 task: the driver refuses a step above
+``safety.max_step_mm`` or a target outside the workspace before sending
+anything; every move towards the part is guarded (one sample per step against
+``safety.max_force_n``); the sensor's watchdog raises on stale samples.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Protocol
+
+import numpy as np
+
+from forcelearn.devices import Pose
+from forcelearn.errors import ForceLimitExceeded
+from forcelearn.learning import BoxGrid, Dimension
+from forcelearn.paths import TaughtPath
+from forcelearn.paths.taught import rotation_from_wxyz
+from forcelearn.tasks.evaluation import FAILURE_R
+from forcelearn.tasks.path_spec import PathTaskSpec
+from forcelearn.tasks.surface import FilteredForce
+from forcelearn.trainer import StepOutcome
+
+CONTACT_STEP_MM = 1.0
+"""Step along the force axis while looking for the first contact, mm (assumption: a tenth
+of the foam a site presses; FC Pressure approaches at v5-v30)."""
+CONTACT_MARGIN_MM = 3.0
+"""Once the contact's offset is known, the search starts this far short of it, mm."""
+RETURN_POINTS = 8
+"""Most lifted points the return to the start passes through (free space)."""
+RAMP_FIRST_STEP_S = 0.05
+"""Time assumed for the ramp's first step, s (then each step's own)."""
+WEAR_GAIN = 0.5
+"""Share of a pass's mean force error the output's shift corrects after the pass (the wear
+moves every point alike; half a correction a pass follows it without chasing noise)."""
+MIN_RAMP_STEP_MM = 0.1
+"""Smallest step of the force ramp, mm (a smaller one costs moves and changes nothing)."""
+
+
+class PathCell(Protocol):
+    """What the path task needs of a cell (:class:`forcelearn.cell.Cell` is one; tests fake it)."""
+
+    stage: tuple[str, int]
+
+    @property
+    def pose(self) -> Pose:
+        """The last pose commanded or read."""
+        ...
+
+    @property
+    def time_s(self) -> float:
+        """The cell's clock, s."""
+        ...
+
+    @property
+    def force_filter(self) -> FilteredForce:
+        """The force filter."""
+        ...
+
+    def sync(self) -> Pose:
+        """Take the robot's commanded target as the cell's pose."""
+        ...
+
+    def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False) -> int:
+        """Move in steps of at most ``max_step_mm`` (ForceLimitExceeded when guarded)."""
+        ...
+
+    def tare(self, max_reading_n: float) -> bool:
+        """Zero the sensor here, unless it reads more than ``max_reading_n``."""
+        ...
+
+    def reset_filter(self) -> None:
+        """Forget the filter's track."""
+        ...
+
+    def measure_force_n(self, samples: int | None = None) -> float:
+        """Read and filter a burst; return the force along the force axis, N."""
+        ...
+
+
+class PathGeometry:
+    """The points of a pass: positions (mm), orientations and the world force axis of each."""
+
+    def __init__(self, path: TaughtPath, force_axis: tuple[float, float, float]) -> None:
+        self.path = path
+        self.positions_mm = np.array(path.positions_mm)
+        self.quaternions = [tuple(float(v) for v in q) for q in path.quaternions_wxyz]
+        self.axes = rotation_from_wxyz(path.quaternions_wxyz).apply(np.asarray(force_axis))
+
+    def __len__(self) -> int:
+        return len(self.positions_mm)
+
+    def pose(self, k: int, offset_mm: float) -> Pose:
+        """Point k moved ``offset_mm`` along its force axis (> 0: into the part)."""
+        x, y, z = (float(v) for v in self.positions_mm[k] + offset_mm * self.axes[k])
+        q = self.quaternions[k]
+        return Pose(x, y, z, (q[0], q[1], q[2], q[3]))
+
+
+def path_grid(points: int) -> BoxGrid:
+    """One box per point of the pass: the input is the point's index."""
+    return BoxGrid([Dimension("point", -0.5, points - 0.5, points)])
+
+
+class PathOffsetOutput:
+    """y(a) = shift + scale · a, mm along the force axis, clipped to ±``max_deviation_mm``.
+
+    ``shift_mm`` follows the wear (the foam sinks and softens pass after pass, at
+    every point alike): after each pass :meth:`follow` moves it by ``WEAR_GAIN`` of
+    the pass's mean force error over the points in contact, through the probe's
+    stiffness; the learner's μ keeps what differs from point to point.
+    """
+
+    def __init__(self, scale_mm: float, max_deviation_mm: float, shift_mm: float = 0.0) -> None:
+        self.scale_mm = scale_mm
+        self.max_deviation_mm = max_deviation_mm
+        self.shift_mm = shift_mm
+
+    def __call__(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """The offset command (mm) of action ``a``."""
+        limit = self.max_deviation_mm
+        return np.clip(self.shift_mm + self.scale_mm * np.asarray(a, dtype=float), -limit, limit)
+
+    def follow(self, mean_error_n: float, stiffness_n_per_mm: float) -> None:
+        """Move the shift against a pass's mean force error (N), within ±max_deviation_mm."""
+        limit = self.max_deviation_mm
+        change = -WEAR_GAIN * mean_error_n / stiffness_n_per_mm
+        self.shift_mm = float(np.clip(self.shift_mm + change, -limit, limit))
+
+
+def offset_output(scale_mm: float, max_deviation_mm: float) -> PathOffsetOutput:
+    """The output map of a path task (:class:`PathOffsetOutput`, no shift yet)."""
+    return PathOffsetOutput(scale_mm, max_deviation_mm)
+
+
+class PathTask:
+    """The path task on a cell (module docstring); an episodic task of the trainer."""
+
+    name = "path"
+
+    def __init__(self, cell: PathCell, spec: PathTaskSpec, path: TaughtPath, max_step_mm: float,
+                 stiffness_n_per_mm: float, output: PathOffsetOutput | None = None) -> None:
+        self.cell = cell
+        self.output = output
+        """The learner's output map, whose shift follows the wear after each pass (None: none)."""
+        self._errors: list[float] = []
+        self.spec = spec
+        self.points = PathGeometry(path, spec.force_axis)
+        self.max_step_mm = max_step_mm
+        self.stiffness_n_per_mm = stiffness_n_per_mm
+        """The foam's stiffness the force ramp's steps are sized by, N/mm (the probe's)."""
+        self.steps_per_trial = len(self.points)
+        self.desired_force_n = spec.desired_force_n
+        self.evaluation = spec.evaluation
+        self.grid = path_grid(len(self.points))
+        self.start_force_n = math.nan
+        self.contact_offset_mm: float | None = None
+        """Where point 0's contact began on the last probe, mm (None: unknown, search from
+        the approach pose)."""
+        self.first_contact_peak_n = math.nan
+        """The largest force of the last pass's first contact and ramp, N."""
+        self.lost_points: list[tuple[int, int]] = []
+        """(pass, point) of every contact lost where contact was expected."""
+        self.largest_offset_mm = 0.0
+        """The largest |offset| a pressing move of the task commanded, mm."""
+        self.passes = 0
+        self._step = len(self.points) - 1
+        """The point the tool is at (or was last: where the return to the start begins)."""
+        self._offset = 0.0
+        self._trial_start_s = 0.0
+
+    @property
+    def trial_cell_time_s(self) -> float:
+        """Cell time since the present pass began, s."""
+        return self.cell.time_s - self._trial_start_s
+
+    def move_to_point(self, k: int, offset_mm: float, guard: bool = True,
+                      pressing: bool = False) -> None:
+        """Move to point k, ``offset_mm`` along its force axis (guarded: one sample a step).
+
+        ``pressing``: a move that presses the path (a step, the ramp, the probe), whose offset
+        ``max_deviation_mm`` bounds (approach and retreat are set by their own keys).
+        """
+        self._step, self._offset = k, offset_mm
+        if pressing:
+            self.largest_offset_mm = max(self.largest_offset_mm, abs(offset_mm))
+        self.cell.move_in_steps(self.points.pose(k, offset_mm), self.max_step_mm,
+                                guard_force=guard)
+
+    def retreat(self) -> None:
+        """Back off ``retreat_mm`` along the force axis from the present point."""
+        self.cell.stage = ("retreat", 0)
+        k = min(self._step, len(self.points) - 1)
+        self.move_to_point(k, -self.spec.retreat_mm, guard=False)
+
+    def return_to_start(self) -> None:
+        """Go back over the path, lifted by ``approach_mm``, to the first point's approach pose."""
+        self.cell.stage = ("approach", 0)
+        n = len(self.points)
+        stride = max(1, math.ceil(n / RETURN_POINTS))
+        for k in [*range(min(self._step, n - 1), 0, -stride), 0]:
+            self.move_to_point(k, -self.spec.approach_mm, guard=False)
+
+    def reset(self) -> np.ndarray:
+        """Return to the start, tare in free space, find the first contact; input of point 0."""
+        self.cell.sync()
+        self._trial_start_s = self.cell.time_s
+        self.return_to_start()  # from the point where the last pass ended
+        self.cell.tare(self.spec.contact_force_n)
+        self._errors = []
+        readings = self.find_contact()
+        self.start_force_n = readings[-1][1]
+        self.first_contact_peak_n = max(force for _, force in readings)
+        return np.array([0.0])
+
+    def find_contact(self, until_n: float | None = None) -> list[tuple[float, float]]:
+        """Step in along point 0's force axis; (offset mm, force N) of every step.
+
+        From the approach pose (or ``CONTACT_MARGIN_MM`` short of a known contact) until
+        the force passes ``until_n`` (default: the contact threshold) or the offset
+        reaches ``max_deviation_mm``.
+        """
+        self.cell.stage = ("contact", 0)
+        self._step = 0
+        self._offset = -self.spec.approach_mm
+        limit_n = self.spec.contact_force_n if until_n is None else until_n
+        deepest = self.spec.max_deviation_mm
+        hint = self.contact_offset_mm
+        if hint is not None and hint - CONTACT_MARGIN_MM > self._offset:  # known: go near it
+            self.move_to_point(0, min(hint - CONTACT_MARGIN_MM, deepest))
+        self.cell.reset_filter()
+        readings = [(self._offset, self.cell.measure_force_n())]
+        while readings[-1][1] < limit_n and self._offset < deepest:
+            self._offset = min(self._offset + CONTACT_STEP_MM, deepest)
+            self.move_to_point(0, self._offset, pressing=self._offset > 0)
+            readings.append((self._offset, self.cell.measure_force_n()))
+        return readings
+
+    def _ramp_to(self, offset_mm: float) -> float:
+        """Press from the contact to ``offset_mm`` at point 0 under the force ramp; the peak, N.
+
+        Each step's force rise (stiffness x step) over the time the last step took stays
+        under ``force_ramp_n_s``.
+        """
+        peak, took_s = -math.inf, RAMP_FIRST_STEP_S
+        while self._offset < offset_mm:
+            step = max(MIN_RAMP_STEP_MM,
+                       self.spec.force_ramp_n_s * took_s / self.stiffness_n_per_mm)
+            self._offset = min(self._offset + step, offset_mm)
+            before = self.cell.time_s
+            self.move_to_point(0, self._offset, pressing=True)
+            took_s = max(self.cell.time_s - before, RAMP_FIRST_STEP_S)
+            peak = max(peak, self.cell.measure_force_n(1))
+        return peak
+
+    def step(self, command: np.ndarray) -> StepOutcome:
+        """Press at the next point with the commanded offset (mm); evaluate the force."""
+        k = self._step
+        offset = float(command[0])
+        self.cell.stage = ("step", k + 1)
+        try:
+            if k == 0 and offset > self._offset:
+                self.first_contact_peak_n = max(self.first_contact_peak_n, self._ramp_to(offset))
+            self.move_to_point(k, offset, pressing=True)
+            force = self.cell.measure_force_n()
+            limit_hit = False
+        except ForceLimitExceeded:
+            force = self.cell.force_filter.force_n
+            limit_hit = True
+        judged = self.evaluation.evaluate(force, limit_hit)
+        lost = (not limit_hit) and force < self.spec.contact_force_n
+        r, failed = judged.r, judged.failed
+        if lost:
+            self.lost_points.append((self.passes, k))
+            if self.spec.on_contact_loss == "continue":
+                r, failed = min(r, FAILURE_R), False
+        last = k == len(self.points) - 1
+        if not (lost or limit_hit):
+            self._errors.append(judged.force_error_n)
+        if failed or last:
+            self.retreat()
+            self.passes += 1
+            if self.output is not None and self._errors:
+                self.output.follow(float(np.mean(self._errors)), self.stiffness_n_per_mm)
+        x, y, z = (float(v) for v in self.points.positions_mm[k])
+        extras = {"point": float(k), "offset_mm": offset, "contact_lost": float(lost),
+                  "limit_hit": float(limit_hit), "x_mm": x, "y_mm": y, "z_mm": z}
+        self._step = k if (failed or last) else k + 1
+        return StepOutcome(np.array([float(min(k + 1, len(self.points) - 1))]), r, failed,
+                           force, judged.force_error_n, extras)

@@ -1,0 +1,69 @@
+"""A bias step while the tool presses is caught by the move, recovered from, never read as force."""
+
+from __future__ import annotations
+
+import random
+from pathlib import Path
+from typing import Any
+
+from forcelearn.tasks.bias_watch import MARGIN_N
+from forcelearn.tools.experiments import surface_run as engine
+from forcelearn.tools.experiments import surface_state as run_state
+from forcelearn.tools.experiments.fault_recovery import read_events
+from forcelearn.tools.fuzz.fault_campaign import cell_config, injecting
+from forcelearn.tools.fuzz.fault_inject import Injector, Truth
+
+SEED = 5
+STEP = ("step", 3)
+
+
+class Largest(random.Random):
+    """Draws the largest bias jump upwards (the injector's sizes)."""
+
+    def uniform(self, a: float, b: float) -> float:
+        """The upper end."""
+        return b
+
+    def choice(self, seq: Any) -> Any:
+        """The last one."""
+        return seq[-1]
+
+
+class Tracer(Injector):
+    """Notes the cell's stage at every device call (tick)."""
+
+    def __init__(self) -> None:
+        super().__init__({}, random.Random(0))
+        self.stages: list[tuple[str, int]] = []
+
+    def _step(self) -> None:
+        super()._step()
+        self.stages.append(self.session.cell.stage)
+
+
+def run(config: Path, folder: Path, injector: Injector) -> Truth:
+    """One run of ``config`` in ``folder`` with ``injector``; the truth of its first session."""
+    truths: list[Truth] = []
+    with injecting(injector, 1.0, truths):
+        run_, checkpoint = run_state.prepare_run(config, folder, None, SEED, resume=False)
+        engine.execute(run_, checkpoint)
+    return truths[0]
+
+
+def test_a_bias_jump_in_contact_is_detected_retracted_from_and_retared(tmp_path: Path) -> None:
+    """Clean: no alarm. Jump 8 N just before step 3's move: suspect, zero moved, trial again."""
+    config = cell_config("link+jr3", tmp_path, trials=2, steps=4, probe=False)
+    tracer = Tracer()
+    clean = run(config, tmp_path / "clean", tracer)
+    assert read_events(tmp_path / "clean") == []  # no false alarm on a fault-free run
+    assert clean.readings > 0 and not clean.bad_readings
+    tick = tracer.stages.index(STEP) + 1  # the move to step 3 of the first trial
+
+    injector = Injector({tick: [("sensor", "bias_jump")]}, Largest())
+    truth = run(config, tmp_path / "jump", injector)
+    assert injector.fired and injector.fired[0].in_contact
+    events = read_events(tmp_path / "jump")
+    assert [(e["error"], e["action"]) for e in events] == [("SensorSuspect", "resumed")]
+    assert abs(events[0]["free_reading_n"]) > MARGIN_N and "had moved" in events[0]["message"]
+    assert truth.zeros_in_contact == 0 and truth.zeros == 1
+    assert not truth.bad_readings  # no reading after the jump was taken for force
