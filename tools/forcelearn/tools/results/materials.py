@@ -1,4 +1,4 @@
-"""The main job on real foam (issue 37's study): writes docs/results/materials.md and its figure.
+"""The main job on real foam (the materials study): writes docs/results/materials.md and its figure.
 
 ``python -m forcelearn.tools.results.materials --cells 30 --seed 37 --out DIR [--workers 2]``
 

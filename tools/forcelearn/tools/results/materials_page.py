@@ -14,7 +14,7 @@ from typing import Any
 from forcelearn.trainer import CONVERGENCE_TOLERANCE
 
 STIFF_N_PER_MM = 5.0
-"""A cell at least this stiff counts as a stiff part (issue 37), N/mm."""
+"""A cell at least this stiff counts as a stiff part (the real-foam study's stiff cells), N/mm."""
 
 
 @dataclass(frozen=True)
