@@ -110,7 +110,15 @@ def test_fitting_never_narrows_the_defaults() -> None:
     """A soft-only probe keeps the default band's high end; no hysteresis keeps the margin."""
     watch = BiasWatch()
     watch.fit_to_probe([1.0], hysteresis_loss=float("nan"), force_n=20.0)
-    assert watch.band == (0.25, K_HIGH) and watch.margin_n == MARGIN_N  # 1 N/mm: below 2
+    assert watch.band[0] < K_LOW and watch.band[1] == K_HIGH and watch.margin_n == MARGIN_N
+
+
+def test_the_example_sponges_probe_keeps_the_measured_defaults() -> None:
+    """Points of 1.7-2.3 N/mm (the example's 2 N/mm +- 15 %): band and margins as measured."""
+    watch = BiasWatch()
+    watch.fit_to_probe([1.7, 2.0, 2.3], hysteresis_loss=0.0, force_n=19.6)
+    assert watch.band == STIFFNESS_BAND_N_PER_MM
+    assert (watch.margin_n, watch.press_margin_n) == (MARGIN_N, PRESS_MARGIN_N)
 
 
 def test_the_margin_grows_with_the_probed_stiffness() -> None:

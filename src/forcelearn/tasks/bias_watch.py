@@ -26,12 +26,12 @@ follows another branch when easing off), so a margin of 2.5 N; over 196
 pairs of first presses, 0.36 N, so 1.2 N; over 56 probe readings at the
 retract plane, 0.37 N, so 1.0 N. Those defaults fit the example sponge
 only: after the surface probe the run widens them to the material it
-measured (:meth:`BiasWatch.fit_to_probe`): the band to a quarter of the
-softest and twice the stiffest point's fitted stiffness (a stiff part of
-8 N/mm changes by 8 N over a 1 mm step), the margin by the branch gap a
-resolved hysteresis opens at the desired force (2 h F), and the margins
-scale with the stiffest point (what a move leaves unexplained is depth: the
-surface between the steps' Z). It never narrows
+measured (:meth:`BiasWatch.fit_to_probe`): the band and the margins scale
+with the softest and stiffest points the probe fitted against the example's
+(1.7 and 2.3 N/mm: a stiff part of 8 N/mm changes by 8 N over a 1 mm step,
+and what a move leaves unexplained is depth, the surface between the steps'
+Z), the margins grow by the branch gap a resolved hysteresis opens at the
+desired force (2 h F). On the example sponge nothing changes; it never narrows
 them. It cannot see a step smaller than its
 margin (plus what the band leaves open) or a slow drift; a step in free
 space is seen only at the next trial's first press or probe point, so the
@@ -59,19 +59,17 @@ FREE_MARGIN_N = 1.0
 PRESS_DY_MM = 3.0
 """A trial's first press is compared with the last one's only this close in Y, mm (the map's
 wear shift moves it a little; a tare's reading at the retract plane is far)."""
-SOFTEST_SHARE = 0.25
-"""The band's low end as a share of the softest point the probe fitted (the default's 0.5 of 2)."""
-STIFFEST_SHARE = 2.0
-"""The band's high end as a share of the stiffest point the probe fitted (the default's 4 of 2:
-a fresh press and a stiffening foam read stiffer than the probe's fit near the force)."""
-EXAMPLE_STIFFNESS_N_PER_MM = 2.0
-"""The sponge the margins were measured on, N/mm."""
-SLACK_MM = MARGIN_N / EXAMPLE_STIFFNESS_N_PER_MM
+EXAMPLE_SOFTEST_N_PER_MM = 1.7
+"""The softest point the example sponge's probe fits (2 N/mm - 15 %), N/mm: the defaults'
+band and margins were measured there."""
+EXAMPLE_STIFFEST_N_PER_MM = 2.3
+"""The stiffest point the example sponge's probe fits (2 N/mm + 15 %), N/mm."""
+SLACK_MM = MARGIN_N / EXAMPLE_STIFFEST_N_PER_MM
 """The margin as depth, mm: what a step's move leaves unexplained is mostly position (the
 surface rising or falling between the steps' Z, the contact's spread), so on a stiffer part
 the margin grows with the stiffness (an 8 N/mm part with 1 mm waviness read 2.8 N more than
 the band over a 0.34 mm step, fault-free)."""
-PRESS_SLACK_MM = PRESS_MARGIN_N / EXAMPLE_STIFFNESS_N_PER_MM
+PRESS_SLACK_MM = PRESS_MARGIN_N / EXAMPLE_STIFFEST_N_PER_MM
 """The first press's margin as depth, mm."""
 CONTACT_N = 1.0
 """The last reading must be at least this, N: a press from free space has no known start."""
@@ -123,8 +121,9 @@ class BiasWatch:
         """
         stiff = [float(k) for k in stiffness_n_per_mm if math.isfinite(k) and k > 0.0]
         if stiff:
-            self.band = (min(self.band[0], SOFTEST_SHARE * min(stiff)),
-                         max(self.band[1], STIFFEST_SHARE * max(stiff)))
+            low, high = STIFFNESS_BAND_N_PER_MM
+            self.band = (min(self.band[0], low / EXAMPLE_SOFTEST_N_PER_MM * min(stiff)),
+                         max(self.band[1], high / EXAMPLE_STIFFEST_N_PER_MM * max(stiff)))
             self.margin_n = max(self.margin_n, SLACK_MM * max(stiff))
             self.press_margin_n = max(self.press_margin_n, PRESS_SLACK_MM * max(stiff))
         if math.isfinite(hysteresis_loss) and hysteresis_loss > 0.0:
