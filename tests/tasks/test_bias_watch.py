@@ -130,3 +130,17 @@ def test_the_margin_grows_with_the_probed_stiffness() -> None:
     watch(("step", 1), at(-3.66), 29.4 + 3.0)  # eased off 0.34 mm, the surface rose 0.7 mm
     with pytest.raises(SensorSuspect):
         watch(("step", 2), at(-3.66), 32.4 + 1.2 * watch.margin_n)
+
+
+def test_a_false_alarm_widens_the_margins_it_tripped() -> None:
+    """After a zero check found the zero in place, the same move's change is no longer suspect."""
+    watch = BiasWatch()
+    pressed(watch)
+    with pytest.raises(SensorSuspect):
+        watch(("step", 1), at(-4.0), 12.0 - 1.2 * MARGIN_N)
+    watch.widen(1.5)
+    pressed(watch)
+    watch(("step", 1), at(-4.0), 12.0 - 1.2 * MARGIN_N)
+    assert (watch.false_alarms, watch.margin_n) == (1, 1.5 * MARGIN_N)
+    with pytest.raises(ValueError):
+        watch.widen(1.0)

@@ -89,6 +89,8 @@ class BiasWatch:
     Attributes:
         checked: readings judged.
         suspects: readings called suspect.
+        false_alarms: suspects a zero check then found the zero in place for (each widened
+            the margins: :meth:`widen`).
     """
 
     def __init__(self, stiffness_band_n_per_mm: tuple[float, float] = STIFFNESS_BAND_N_PER_MM,
@@ -107,6 +109,7 @@ class BiasWatch:
         self.contact_n = float(contact_n)
         self.checked = 0
         self.suspects = 0
+        self.false_alarms = 0
         self._last: tuple[tuple[str, int], float, float] | None = None  # stage, y mm, force N
         self._press: tuple[tuple[int, float, float], float, float] | None = None
         """The last trial's first press: ((zeros, x mm, z mm), y mm, force N)."""
@@ -130,6 +133,14 @@ class BiasWatch:
             gap_n = 2.0 * hysteresis_loss * abs(force_n)
             self.margin_n = max(self.margin_n, MARGIN_N + gap_n)
             self.press_margin_n = max(self.press_margin_n, PRESS_MARGIN_N + gap_n)
+
+    def widen(self, factor: float) -> None:
+        """Widen both in-contact margins by ``factor`` (> 1): a zero check proved an alarm false."""
+        if factor <= 1.0:
+            raise ValueError(f"a widening factor > 1, not {factor}")
+        self.margin_n *= factor
+        self.press_margin_n *= factor
+        self.false_alarms += 1
 
     def expected_n(self, force_n: float, dy_mm: float) -> tuple[float, float]:
         """The range of force a move of ``dy_mm`` along Y leads to from ``force_n``, N."""
