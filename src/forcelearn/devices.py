@@ -111,6 +111,25 @@ def multiply_quaternions(
     )
 
 
+
+def blend_poses(a: Pose, b: Pose, fraction: float) -> Pose:
+    """Pose ``fraction`` of the way from ``a`` to ``b`` (``fraction`` >= 1 gives ``b``).
+
+    Position linearly (mm), orientation by nlerp along the shorter quaternion arc.
+    """
+    if fraction >= 1.0:
+        return b
+    position = a.position_mm + fraction * (b.position_mm - a.position_mm)
+    q0, q1 = np.asarray(a.quaternion), np.asarray(b.quaternion)
+    if np.dot(q0, q1) < 0:
+        q1 = -q1
+    q = q0 + fraction * (q1 - q0)
+    q = q / np.linalg.norm(q)
+    x, y, z = (float(c) for c in position)
+    w, qx, qy, qz = (float(c) for c in q)
+    return Pose(x, y, z, (w, qx, qy, qz))
+
+
 AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 """Names of a wrench's six components, in :attr:`WrenchSample.wrench` order."""
 

@@ -43,7 +43,6 @@ anything; every move towards the part is guarded (one sample per step against
 from __future__ import annotations
 
 import math
-from typing import Protocol
 
 import numpy as np
 
@@ -54,7 +53,7 @@ from forcelearn.paths import TaughtPath
 from forcelearn.paths.taught import rotation_from_wxyz
 from forcelearn.tasks.evaluation import FAILURE_R
 from forcelearn.tasks.path_spec import PathTaskSpec
-from forcelearn.tasks.surface import FilteredForce
+from forcelearn.tasks.surface import SurfaceCell
 from forcelearn.trainer import StepOutcome
 
 CONTACT_STEP_MM = 1.0
@@ -73,45 +72,9 @@ MIN_RAMP_STEP_MM = 0.1
 """Smallest step of the force ramp, mm (a smaller one costs moves and changes nothing)."""
 
 
-class PathCell(Protocol):
-    """What the path task needs of a cell (:class:`forcelearn.cell.Cell` is one; tests fake it)."""
-
-    stage: tuple[str, int]
-
-    @property
-    def pose(self) -> Pose:
-        """The last pose commanded or read."""
-        ...
-
-    @property
-    def time_s(self) -> float:
-        """The cell's clock, s."""
-        ...
-
-    @property
-    def force_filter(self) -> FilteredForce:
-        """The force filter."""
-        ...
-
-    def sync(self) -> Pose:
-        """Take the robot's commanded target as the cell's pose."""
-        ...
-
-    def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False) -> int:
-        """Move in steps of at most ``max_step_mm`` (ForceLimitExceeded when guarded)."""
-        ...
-
-    def tare(self, max_reading_n: float) -> bool:
-        """Zero the sensor here, unless it reads more than ``max_reading_n``."""
-        ...
-
-    def reset_filter(self) -> None:
-        """Forget the filter's track."""
-        ...
-
-    def measure_force_n(self, samples: int | None = None) -> float:
-        """Read and filter a burst; return the force along the force axis, N."""
-        ...
+PathCell = SurfaceCell
+"""What the path task needs of a cell: the §5 task's cell (:class:`forcelearn.cell.Cell` is one;
+tests fake it); its ``measure_force_n`` is the force along the task's force axis."""
 
 
 class PathGeometry:

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from forcelearn.devices import Pose
+from forcelearn.devices import Pose, blend_poses
 
 TURN_DEG_S = 45.0
 """Largest rate at which the planned orientation turns toward the target (assumption)."""
@@ -57,12 +57,4 @@ def step_toward(pose: Pose, target: Pose, max_mm: float, max_deg: float) -> Pose
     fraction = min(
         max_mm / distance if distance > 0 else 1.0, max_deg / turn if turn > 0 else 1.0
     )
-    position = pose.position_mm + fraction * error
-    q0, q1 = np.asarray(pose.quaternion), np.asarray(target.quaternion)
-    if np.dot(q0, q1) < 0:
-        q1 = -q1
-    q = q0 + fraction * (q1 - q0)
-    q = q / np.linalg.norm(q)
-    x, y, z = (float(c) for c in position)
-    w, qx, qy, qz = (float(c) for c in q)
-    return Pose(x, y, z, (w, qx, qy, qz))
+    return blend_poses(pose, target, fraction)

@@ -29,9 +29,7 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Protocol
 
-import numpy as np
-
-from forcelearn.devices import Pose
+from forcelearn.devices import Pose, blend_poses
 
 
 class MotionModel(Protocol):
@@ -101,19 +99,5 @@ class LagServo:
             return
         tau = self.params.time_constant_s
         fraction = 1.0 if tau == 0 else 1.0 - math.exp(-dt / tau)
-        self.pose = blend(self.pose, self.target, fraction)
+        self.pose = blend_poses(self.pose, self.target, fraction)
 
-
-def blend(a: Pose, b: Pose, fraction: float) -> Pose:
-    """Pose ``fraction`` of the way from ``a`` to ``b`` (nlerp for the orientation)."""
-    if fraction >= 1.0:
-        return b
-    position = a.position_mm + fraction * (b.position_mm - a.position_mm)
-    q0, q1 = np.asarray(a.quaternion), np.asarray(b.quaternion)
-    if np.dot(q0, q1) < 0:
-        q1 = -q1
-    q = q0 + fraction * (q1 - q0)
-    q = q / np.linalg.norm(q)
-    x, y, z = (float(c) for c in position)
-    w, qx, qy, qz = (float(c) for c in q)
-    return Pose(x, y, z, (w, qx, qy, qz))
