@@ -48,7 +48,7 @@ from forcelearn.devices import Pose
 from forcelearn.errors import ForcelearnError, SensorSuspect, one_line
 from forcelearn.learning import SRVLearner, load_learner
 from forcelearn.tasks.bias_watch import CONTACT_N, BiasWatch
-from forcelearn.tasks.recovery import Recovered, RecoveryFailed, recoverable, retract
+from forcelearn.tasks.recovery import RecoveryFailed, recoverable, retract
 from forcelearn.tasks.recovery import retract_and_retare as leave_and_rezero
 from forcelearn.tasks.surface import SurfaceYOutput
 
@@ -115,8 +115,6 @@ class RunRecovery:
         self.watch = BiasWatch(free_y_mm=retract_y_mm)
         """Judges the trials' readings by the moves (bias steps in contact)."""
         self._start_learner: SRVLearner | None = None
-        self._false_alarm = False
-        """The last recovery was a bias-step alarm whose zero check found the zero in place."""
 
     # ---- the run's calls -------------------------------------------------------------------
     def train(self, learner: SRVLearner, run: Any,
@@ -144,8 +142,7 @@ class RunRecovery:
                     recorder = self.cell.recorder
                     if recorder is not None:
                         getattr(recorder, "discard", lambda: None)()
-                    self._recover(exc, trial, tries[trial])
-                    if self._false_alarm:  # the zero had not moved: the watch was too tight
+                    if self._recover(exc, trial, tries[trial]):  # a false bias-step alarm
                         tries[trial] -= 1
                     learner = self._saved_learner(run, learner)
         return learner
@@ -225,7 +222,8 @@ class RunRecovery:
         """The cell's reading check: the bias watch, told how many zeros the sensor took."""
         self.watch(stage, pose, force_n, zeros=self.cell.tares)
 
-    def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> Recovered:
+    def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> bool:
+        """Leave the part and re-zero; True: a bias-step alarm the zero check proved false."""
         lost = str(getattr(exc, "lost", ""))
         if attempt > MAX_TRIES_PER_TRIAL - 1:
             exc.add_note(f"trial {trial} met {attempt} faults; the run stops")
@@ -241,23 +239,24 @@ class RunRecovery:
         finally:
             self.cell.reading_check = check
         message = one_line(exc)
-        self._false_alarm = False
+        false_alarm = False
         if isinstance(exc, SensorSuspect):  # the free-space reading is the zero check
             moved = abs(recovered.free_reading_n) > CONTACT_N
-            self._false_alarm = not moved and trial >= 0
-            if self._false_alarm:  # this material moves more than the watch allowed
+            false_alarm = not moved and trial >= 0
+            if false_alarm:  # this material moves more than the watch allowed
                 self.watch.widen(FALSE_ALARM_WIDENING)
             message += (f"; zero check: free space read {recovered.free_reading_n:.2f} N, "
                         + ("the zero had moved (re-tared)" if moved
                            else "the zero had not moved (a false alarm: the watch's margins "
                                 f"widened x{FALSE_ALARM_WIDENING:g} to "
-                                f"{self.watch.margin_n:.2f} N; the trial runs again)"))
+                                f"{self.watch.margin_n:.2f} N; the trial runs again)" if false_alarm
+                           else "the zero had not moved (a false alarm, or a force change)"))
         self._event(FaultEvent(
             trial, type(exc).__name__, message, "resumed", lost=lost,
             retract_y_mm=recovered.retract_pose.y_mm, free_reading_n=recovered.free_reading_n,
             cell_time_s=self.cell.time_s,
         ))
-        return recovered
+        return false_alarm
 
     def _restore_map(self, run: Any) -> None:
         """The output map's wear state as of the checkpoint (a trial's press moved it)."""
