@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from forcelearn.envs.base import TaskEnv, box
+from forcelearn.envs.surface_learner import SurfaceLearnerAdapter
 from forcelearn.tasks.surface import SurfaceTask
 from forcelearn.tasks.surface_map import OutputMapChoice, SurfaceYOutput, configured_map
 from forcelearn.tasks.surface_probe import ProbeResult, SurfaceProbe, probe_and_map
@@ -22,7 +23,7 @@ from forcelearn.tasks.surface_probe import ProbeResult, SurfaceProbe, probe_and_
 log = logging.getLogger(__name__)
 
 
-class SurfaceEnv(TaskEnv):
+class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
     """Paper §5: press a roller into a sponge with 2 kgf while moving down 5 mm per step.
 
     ## Description
@@ -191,22 +192,3 @@ class SurfaceEnv(TaskEnv):
             finally:
                 session.close()
         super().close_task()
-
-    # -- what a learner over BOXES needs (forcelearn.baselines.srv) --------------------------
-    def learner_input(self, obs: np.ndarray) -> np.ndarray:
-        """The SRV learner's input: distance travelled, mm."""
-        return np.asarray(obs[:1], dtype=float)
-
-    def learner_action(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """Map the learner's action a (action units) to this env's action in [-1, 1].
-
-        The native output map: Y offset = scale · a, clipped to ± the half-range.
-        """
-        choice = self.output_map
-        offset = np.clip(a * choice.scale_mm, -choice.max_offset_mm, choice.max_offset_mm)
-        return offset / choice.max_offset_mm
-
-    @property
-    def grid(self) -> Any:
-        """The BOXES partition of the native task (distance travelled)."""
-        return self.task_spec.grid()

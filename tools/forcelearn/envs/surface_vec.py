@@ -41,6 +41,7 @@ from gymnasium.vector.utils import batch_space
 
 from forcelearn.envs.base import box
 from forcelearn.envs.surface_batch import BatchSpec, SurfaceBatch
+from forcelearn.envs.surface_learner import SurfaceLearnerAdapter
 from forcelearn.site.jr3_kind import sensor_model
 from forcelearn.tasks.surface_map import OutputMapChoice
 from forcelearn.tasks.surface_probe import ProbeResult
@@ -207,7 +208,7 @@ class SurfaceVecEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         return self._observation(batch), reward, terminated, truncated, info
 
 
-class SurfaceSimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
+class SurfaceSimEnv(SurfaceLearnerAdapter, gymnasium.Env[np.ndarray, np.ndarray]):
     """One cell of :class:`SurfaceVecEnv` as a ``gymnasium.Env`` (what ``gymnasium.make`` gives).
 
     Offers what ``Surface-v0`` offers a learner over BOXES (``grid``,
@@ -268,22 +269,6 @@ class SurfaceSimEnv(gymnasium.Env[np.ndarray, np.ndarray]):
             "y_cmd_mm": float(info["y_cmd_mm"][0]), "failed": failed,
             "step": int(self._vec._batch.step_index[0]) if self._vec._batch else 0,
         }
-
-    # -- what a learner over BOXES needs (as Surface-v0) -------------------------------------
-    def learner_input(self, obs: np.ndarray) -> np.ndarray:
-        """The SRV learner's input: distance travelled, mm."""
-        return np.asarray(obs[:1], dtype=float)
-
-    def learner_action(self, a: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """The learner's action a (action units) as this env's action in [-1, 1]."""
-        choice = self.output_map
-        offset = np.clip(a * choice.scale_mm, -choice.max_offset_mm, choice.max_offset_mm)
-        return offset / choice.max_offset_mm
-
-    @property
-    def grid(self) -> Any:
-        """The BOXES partition of the native task (distance travelled)."""
-        return self.task_spec.grid()
 
 
 __all__ = ["Probed", "SurfaceSimEnv", "SurfaceVecEnv", "batch_spec", "probe_map"]
