@@ -370,6 +370,28 @@ class Cell:
         self._take_zero()
         return True
 
+    def check_zero(self, max_change_n: float) -> float:
+        """In free space: read a burst; zero here if it is within ``max_change_n`` (N) of 0.
+
+        The zero check at a trial's end: the tool at rest in free space must read
+        the zero the trial ran with. Returns the reading (N); a reading beyond
+        the bound zeroes nothing (the caller voids what was read since the last
+        zero, :class:`~forcelearn.errors.ZeroMoved`). Recorded as a tare, accepted
+        or not; the reading check is not consulted (this is the check).
+        """
+        check, self.reading_check = self.reading_check, None
+        try:
+            force = self.measure_force_n()
+        finally:
+            self.reading_check = check
+        accepted = abs(force) <= max_change_n
+        if self.recorder is not None:
+            here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
+            self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, accepted))
+        if accepted:
+            self._take_zero()
+        return force
+
     def _take_zero(self) -> None:
         """Zero the sensor here and make the calibration follow (the tool's weight at this pose)."""
         self._guarded(self.sensor.zero_offsets)

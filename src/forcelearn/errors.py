@@ -195,6 +195,18 @@ class SensorSuspect(SensorError):
     """
 
 
+class ZeroMoved(SensorSuspect):
+    """Free space read off zero at a trial's end: the zero moved while the trial ran.
+
+    A bias step the move could not show (smaller than the watch's margin, or in
+    free space before the trial's first press) leaves every later reading of the
+    trial off by the step. The trial is void: its readings are set aside
+    (``voided.jsonl``), the learner and the map return to their state before it,
+    the sensor is zeroed in free space and the trial runs again
+    (``[task] zero_check``).
+    """
+
+
 class SensorBusError(SensorError):
     """The CAN bus, the sensor's network or their interface reported an error."""
 

@@ -134,6 +134,10 @@ class BiasWatch:
             self.margin_n = max(self.margin_n, MARGIN_N + gap_n)
             self.press_margin_n = max(self.press_margin_n, PRESS_MARGIN_N + gap_n)
 
+    def forget(self) -> None:
+        """Drop the reference readings (the last one, the last trial's first press): rolled back."""
+        self._last = self._press = None
+
     def widen(self, factor: float) -> None:
         """Widen both in-contact margins by ``factor`` (> 1): a zero check proved an alarm false."""
         if factor <= 1.0:

@@ -9,7 +9,10 @@ part. Nothing else happens before it leaves:
 2. it retracts along the force axis (+Y) to the task's retract plane, from
    where it *is* (the pose is read again), in limited steps and without reading
    the sensor (its readings are what is in doubt); a link that dropped is
-   reconnected first, if the driver can (``reconnect()``);
+   reconnected first, if the driver can (``reconnect()``), and a controller
+   that stopped guiding (EGM after its CommTimeout: the session dropped) is
+   waited for until its RAPID program opens a new session
+   (``wait_for_guidance()``, up to :data:`GUIDANCE_WAIT_S`);
 3. in free space the sensor is started again without zeroing (a rebooted one
    reads its raw bias) and zeroed there (:meth:`~forcelearn.cell.Cell.zero_in_free_space`),
    which also re-derives the calibration's bias for this pose.
@@ -29,6 +32,7 @@ from forcelearn.devices import Pose
 from forcelearn.errors import (
     ForcelearnError,
     ForceLimitExceeded,
+    GuidanceStopped,
     InvalidTarget,
     LinkError,
     SafetyStop,
@@ -42,6 +46,11 @@ RECOVERABLE: tuple[type[ForcelearnError], ...] = (LinkError, SensorError)
 
 ATTEMPTS = 3
 """Tries of the retract before the recovery gives up."""
+
+GUIDANCE_WAIT_S = 10.0
+"""Longest wait for a controller that stopped guiding to open a new session, s of its time
+(rapid/ForcelearnEGM.modx re-opens it 1 s after its 1 s CommTimeout; a link down longer
+stops it again each time until the link is back)."""
 
 ZERO_ATTEMPTS = 5
 """Tries of the sensor's restart and zero (each bounded by its ACK or stale timeout)."""
@@ -95,6 +104,8 @@ def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
             last = exc
             log.warning("retract try %d of %d failed: %s", attempt, attempts, exc)
             cell.stop()
+            if isinstance(exc, GuidanceStopped):
+                _wait_for_guidance(cell)
     raise RecoveryFailed(
         f"could not retract the tool to y = {retract_y_mm} mm after a fault ({attempts} tries; "
         f"last: {last}): the tool may still press the part; retract it by hand (jog +Y), "
@@ -136,6 +147,18 @@ def retract_and_retare(cell: Cell, retract_y_mm: float, max_step_mm: float,
     log.warning("recovered: retracted to y = %.1f mm, re-zeroed (free space read %.2f N)",
                 pose.y_mm, reading)
     return Recovered(pose, reading, retract_tries, zero_tries)
+
+
+def _wait_for_guidance(cell: Cell) -> None:
+    """Wait for a controller that stopped guiding to guide again (a driver that can say so)."""
+    wait = getattr(cell.robot, "wait_for_guidance", None)
+    if wait is None:
+        return
+    try:
+        wait(GUIDANCE_WAIT_S)
+        log.warning("the controller guides again (a new session): retracting")
+    except ForcelearnError as exc:
+        log.warning("the controller did not guide again: %s", exc)
 
 
 def _reconnect_if_down(cell: Cell) -> bool:

@@ -80,6 +80,12 @@ class SurfaceTaskSpec:
     the paper's setup, zeroed once when the sensor opens)."""
     tare_max_reading_n: float = 2.0
     """A tare is refused (warned) when the free-space normal force reads more than this, N."""
+    zero_check: bool = False
+    """Read free space at every trial's end (the retract plane) before the trial counts: off
+    zero by more than 3 sigma of the sensor's noise (the filter's R), the zero moved during the
+    trial, which is then void and runs again after a zero in free space; within it, the sensor
+    is zeroed there (docs/on-site.md, "The zero check"). Costs a burst and a zero per trial;
+    off by default: the paper's setup, and the extra readings change an emulated run."""
     approach: str = "auto"
     """How each step reaches its Y (:data:`APPROACHES`): "loading" first stands a few branch
     depths shallower at the new Z, then presses in, so a hysteretic foam is read on its
@@ -108,6 +114,8 @@ class SurfaceTaskSpec:
             )
         if not isinstance(self.tare_each_trial, bool):
             raise ConfigError(f"task.tare_each_trial = {self.tare_each_trial!r}: true or false")
+        if not isinstance(self.zero_check, bool):
+            raise ConfigError(f"task.zero_check = {self.zero_check!r}: true or false")
         positive = ("desired_force_n", "tolerance_n", "output_scale_mm", "max_offset_mm",
                     "tare_max_reading_n")
         for name in positive:

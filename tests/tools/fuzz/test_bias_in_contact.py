@@ -65,5 +65,52 @@ def test_a_bias_jump_in_contact_is_detected_retracted_from_and_retared(tmp_path:
     events = read_events(tmp_path / "jump")
     assert [(e["error"], e["action"]) for e in events] == [("SensorSuspect", "resumed")]
     assert abs(events[0]["free_reading_n"]) > MARGIN_N and "had moved" in events[0]["message"]
-    assert truth.zeros_in_contact == 0 and truth.zeros == 1
+    assert truth.zeros_in_contact == 0 and truth.zeros == clean.zeros + 1  # + the recovery's
     assert not truth.bad_readings  # no reading after the jump was taken for force
+
+
+class Sized(random.Random):
+    """Draws a bias jump of ``size_n`` (N, signed) for the injector."""
+
+    def __init__(self, size_n: float) -> None:
+        super().__init__(0)
+        self.size_n = size_n
+
+    def uniform(self, a: float, b: float) -> float:
+        """The jump's size."""
+        return abs(self.size_n)
+
+    def choice(self, seq: Any) -> Any:
+        """The jump's sign."""
+        return seq[0] if self.size_n < 0 else seq[-1]
+
+
+class OnStage(Injector):
+    """A bias jump at the first device call of each given stage, each after the last's event."""
+
+    def __init__(self, jumps: list[tuple[tuple[str, int], float]], folder: Path) -> None:
+        super().__init__({}, random.Random(0))
+        self.jumps = jumps
+        self.events = lambda: len(read_events(folder))
+
+    def _step(self) -> None:
+        super()._step()
+        if (self.jumps and self.session.cell.stage == self.jumps[0][0]
+                and self.events() == len(self.fired)):
+            self.rng = Sized(self.jumps.pop(0)[1])
+            self._fire("sensor", "bias_jump")
+
+
+def test_bias_jumps_the_watch_cannot_see_void_the_trial_and_no_reading_is_used(
+    tmp_path: Path,
+) -> None:
+    """Jumps in free space before the first press, and under the margin in contact: voided."""
+    config = cell_config("link+jr3", tmp_path, trials=2, steps=4, probe=False)
+    injector = OnStage([(("approach", 0), -6.9), (STEP, 0.6 * MARGIN_N)], tmp_path / "unseen")
+    truth = run(config, tmp_path / "unseen", injector)
+    assert len(injector.fired) == 2 and injector.fired[1].in_contact
+    events = read_events(tmp_path / "unseen")
+    assert [(e["error"], e["action"]) for e in events] == [("ZeroMoved", "voided")] * 2
+    assert sum(truth.voided_bad.values()) > 0  # the readings were off, and set aside
+    assert truth.readings > 0 and not truth.bad_readings  # none of them was used
+    assert truth.zeros_in_contact == 0

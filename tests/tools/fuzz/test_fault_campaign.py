@@ -23,4 +23,4 @@ def test_faults_at_random_instants_never_press_too_hard_zero_in_contact_or_lose_
     assert report.over_limit == 0 and report.zeros_in_contact == 0
     assert report.lost_or_duplicated == 0 and report.untyped_ends == 0, report.problems
     assert report.late_stops == 0, report.problems
-    assert not {k: n for k, n in report.bad_readings.items() if k != "bias_jump"}
+    assert not report.bad_readings and report.readings > 0  # every used reading was true

@@ -59,6 +59,9 @@ EMULATED_EGM_WATCHDOG_S = 5.0
 EMULATED_EGM_FIRST_MESSAGE_S = 10.0
 """How long the emulated cell waits for the EGM emulator's first cycle, s (wall time)."""
 EGM_ROUTES = ("in_process", "udp")
+RAPID_RESTART_S = 1.0
+"""The emulated controller runs rapid/ForcelearnEGM.modx: after a CommTimeout its ERROR handler
+waits this long (WaitTime 1) and opens a new EGM session from where the robot holds, s."""
 
 
 @dataclass(frozen=True)
@@ -119,6 +122,7 @@ def controller_config(config: CellView) -> EgmControllerConfig:
         workspace_max_mm=arm.workspace_max_mm,
         max_speed_mm_s=arm.max_speed_mm_s,
         arm=arm,
+        restart_after_s=RAPID_RESTART_S,
     )
 
 

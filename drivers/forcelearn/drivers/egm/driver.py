@@ -263,6 +263,37 @@ class EgmRobot(EgmChannel):
         with self._lock:
             return self._wait(duration_s, 0.0, until_in_position=False)
 
+    def wait_for_guidance(self, span_s: float) -> Pose:
+        """Answer the controller until it guides again (a new session); return its feedback pose.
+
+        After a CommTimeout (or any stop) the controller holds the robot; its RAPID
+        program opens a new session when it restarts (rapid/ForcelearnEGM.modx does
+        so by itself). Waits up to ``span_s`` of controller time.
+
+        Raises:
+            GuidanceStopped: still not guided after ``span_s``.
+            LinkTimeout: the controller fell silent (``watchdog_s``), or its time did not
+                advance ``span_s`` in wall time.
+        """
+        if not span_s > 0:
+            raise ValueError(f"span_s must be > 0, got {span_s}")
+        with self._lock:
+            guidance = self._guidance
+            self._latest()
+            start = guidance.controller_time_s()
+            wall_deadline = time.monotonic() + span_s + self.config.watchdog_s + 1.0
+            while True:
+                self._check()
+                try:
+                    guidance.require_running()
+                    return self.read_pose()
+                except GuidanceStopped:
+                    if guidance.controller_time_s() - start >= span_s:
+                        raise
+                if time.monotonic() > wall_deadline:
+                    raise LinkTimeout(f"controller time did not advance {span_s} s in wall time")
+                self._next_message()
+
     def _wait(self, span_s: float, settle_s: float, until_in_position: bool) -> Pose:
         guidance = self._guidance
         self._latest()

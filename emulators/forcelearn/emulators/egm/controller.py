@@ -17,7 +17,9 @@ driver. One :class:`EgmControllerModel` is one robot running
   (EGMRunPose raised ERR_UDPUC_COMM and the program stopped), the stream goes
   on (\\StreamStart), and EgmSensor datagrams are ignored until
   :meth:`EgmControllerModel.restart` (the operator restarts the program:
-  a new session, seqno 0).
+  a new session, seqno 0). With ``restart_after_s`` the RAPID program's ERROR
+  handler does that itself (``rapid/ForcelearnEGM.modx``: EGMReset, WaitTime,
+  guidance again from where the robot holds) that long after the timeout.
 
 What every EgmRobot carries beside the poses (manual 3HAC073318 RW7, p.35-38):
 
@@ -94,6 +96,10 @@ class EgmControllerConfig:
     """EGMActPose \\SampleRate: 4 ms default, multiples of 4 ms."""
     comm_timeout_s: float = 1.0
     """EGMSetupUC \\CommTimeout (the manual states no default; 1 s is an assumption)."""
+    restart_after_s: float | None = None
+    """After a CommTimeout, a new session starts this long later, s (the RAPID program's ERROR
+    handler re-opens guidance, as ``rapid/ForcelearnEGM.modx`` does); None: the program stops
+    and waits for the operator (:meth:`EgmControllerModel.restart`)."""
     servo: ServoParams = field(default_factory=ServoParams)
     workspace_min_mm: tuple[float, float, float] = (300.0, -800.0, -200.0)
     workspace_max_mm: tuple[float, float, float] = (1500.0, 800.0, 1400.0)
@@ -124,6 +130,9 @@ class EgmControllerConfig:
                              f"{self.sample_period_s}")
         if not (math.isfinite(self.comm_timeout_s) and self.comm_timeout_s > 0):
             raise ValueError(f"comm_timeout_s must be > 0, got {self.comm_timeout_s}")
+        again = self.restart_after_s
+        if again is not None and not (math.isfinite(again) and again >= 0):
+            raise ValueError(f"restart_after_s must be None or >= 0, got {again}")
 
 
 class EgmControllerModel:
@@ -165,6 +174,8 @@ class EgmControllerModel:
         """EgmSensor datagrams with position data only for the other mode (reference kept)."""
         self._seqno = 0
         self._last_read_s = t_s
+        self._timed_out_s: float | None = None
+        """When the last CommTimeout ended guidance, s (None: guided, or restarted since)."""
         self._last_pose_s = (t_s, physics.pose)
         self._last_checked: tuple[Pose, str | None, tuple[float, ...] | None] | None = None
         """The latest target checked, its refusal and its axes (a target is sent every cycle)."""
@@ -174,8 +185,14 @@ class EgmControllerModel:
         """True while EGM guidance runs (MCI_RUNNING)."""
         return self.mci is codec.MciState.RUNNING
 
+    def restart_due(self, t_s: float) -> bool:
+        """True when the RAPID program re-opens guidance at ``t_s`` after a CommTimeout."""
+        again, since = self.config.restart_after_s, self._timed_out_s
+        return again is not None and since is not None and t_s - since >= again - 1e-9
+
     def restart(self, t_s: float) -> None:
         """Start a new session at ``t_s`` (seqno 0), holding the robot where it is."""
+        self._timed_out_s = None
         self._hold(t_s)
         self.mci, self.rapid = codec.MciState.RUNNING, codec.RapidState.RUNNING
         self._seqno = 0
@@ -321,6 +338,7 @@ class EgmControllerModel:
                         t_s - self._last_read_s)
             self._hold(t_s)
             self.mci, self.rapid = codec.MciState.STOPPED, codec.RapidState.STOPPED
+            self._timed_out_s = t_s
         self.pose = self.motion.advance_to(t_s)
         self.physics.set_pose(self.pose)
         t0, p0 = self._last_pose_s
@@ -373,7 +391,7 @@ class EgmControllerModel:
             "seqno": self._seqno,
             "last_read_s": self._last_read_s,
             "last_pose": [t0, *_pose_list(p0)],
-        }
+        } | ({} if self._timed_out_s is None else {"timed_out_s": self._timed_out_s})
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`."""
@@ -390,6 +408,8 @@ class EgmControllerModel:
         self.sessions = int(state["sessions"])
         self.targets_read = int(state["targets_read"])
         self.ignored = int(state["ignored"])
+        timed_out = state.get("timed_out_s")
+        self._timed_out_s = None if timed_out is None else float(timed_out)
         self._seqno = int(state["seqno"])
         self._last_read_s = float(state["last_read_s"])
         last = state["last_pose"]

@@ -71,7 +71,8 @@ class CycleLoop:
         for datagram in self._inbox:
             model.apply_sensor(datagram, t)
         self._inbox, self._late = self._late, []
-        if self.restart_requested.is_set() or (self.cycles and faults.fires("restart")):
+        if (self.restart_requested.is_set() or (self.cycles and faults.fires("restart"))
+                or model.restart_due(t)):
             self.restart_requested.clear()
             model.restart(t)
             self.guidance_stopped.clear()

@@ -24,6 +24,18 @@ the free-space reading before the re-zero is the zero check (its event says
 how far the zero had moved). A fault-free run never trips it, so it changes
 nothing there.
 
+A bias step the watch cannot see (smaller than its margin, or in free space
+before a trial's first press) would leave the trial's readings off by the step.
+With ``[task] zero_check`` every trial is a transaction: at its end, before
+its checkpoint, the tool reads free space at the retract plane
+(:meth:`~forcelearn.cell.Cell.check_zero`); off zero by more than
+:data:`ZERO_CHECK_SIGMAS` x the sensor's noise (the filter's R), the zero moved
+during the trial, which is void (:class:`~forcelearn.errors.ZeroMoved`):
+rolled back as after a fault, re-zeroed in free space and run again. The same
+check closes the surface probe (which then starts over). What a rolled-back
+trial or probe had recorded is kept in ``voided.jsonl``, never in
+``records.mcap`` or ``trials.csv``: nothing is lost and nothing counted twice.
+
 Every fault is one line of ``faults.jsonl`` in the run directory (what, when,
 what was lost, what the cell did) and counted in ``summary.json`` (``faults``).
 A trial that faults ``MAX_TRIES_PER_TRIAL`` times, or a recovery that fails,
@@ -45,16 +57,22 @@ from typing import Any, TypeVar
 
 from forcelearn.cell import Cell
 from forcelearn.devices import Pose
-from forcelearn.errors import ForcelearnError, SensorSuspect, one_line
+from forcelearn.errors import ForcelearnError, SensorSuspect, ZeroMoved, one_line
 from forcelearn.learning import SRVLearner, load_learner
 from forcelearn.tasks.bias_watch import CONTACT_N, BiasWatch
 from forcelearn.tasks.recovery import RecoveryFailed, recoverable, retract
 from forcelearn.tasks.recovery import retract_and_retare as leave_and_rezero
 from forcelearn.tasks.surface import SurfaceYOutput
+from forcelearn.tools.experiments.records import step_to_json, tare_to_json
 
 log = logging.getLogger(__name__)
 
 EVENTS_FILE = "faults.jsonl"
+VOIDED_FILE = "voided.jsonl"
+ZERO_CHECK_SIGMAS = 3.0
+"""The zero check's bound, in the sensor's noise sigma (sqrt of the filter's R): a bias step
+it lets through leaves readings within this of the true force (a 25 ms burst's own noise is
+about a third of one sigma, so fault-free checks stay far inside it)."""
 IN_CONTACT_FILE = "IN_CONTACT"
 FALSE_ALARM_WIDENING = 1.5
 """A bias-step alarm whose zero check finds the zero in place widens the watch's margins by
@@ -79,7 +97,8 @@ class FaultEvent:
     """Its one-line message (what happened, what to check)."""
     action: str
     """``resumed`` (retracted, re-zeroed, trial run again), ``ended`` (the run stopped),
-    ``interrupted`` (Ctrl-C), ``retracted on resume``."""
+    ``voided`` (the zero check found the zero moved: the trial rolled back, re-zeroed, run
+    again), ``interrupted`` (Ctrl-C), ``retracted on resume``."""
     lost: str = ""
     """What a rebooted sensor lost (offsets, software bias); empty otherwise."""
     retract_y_mm: float | None = None
@@ -102,11 +121,19 @@ class RunRecovery:
         max_step_mm: the step limit (``[safety] max_step_mm``).
         output: the learner's output map (its wear state is rolled back with the trial).
         checkpoint: the run's checkpoint file (the learner is read back from it).
+        zero_check: read free space at each trial's (and the probe's) end
+            (``[task] zero_check``; :meth:`check_zero`).
     """
 
     def __init__(self, out: Path, cell: Cell, retract_y_mm: float, max_step_mm: float,
-                 output: SurfaceYOutput | None = None, checkpoint: Path | None = None) -> None:
+                 output: SurfaceYOutput | None = None, checkpoint: Path | None = None,
+                 zero_check: bool = False) -> None:
         self.out, self.cell = out, cell
+        self.zero_check_n = (
+            ZERO_CHECK_SIGMAS * cell.force_filter.measurement_variance_n2 ** 0.5
+            if zero_check else None
+        )
+        """The zero check's bound, N (None: no zero check)."""
         self.retract_y_mm, self.max_step_mm = retract_y_mm, max_step_mm
         self.output = output
         self.checkpoint = checkpoint
@@ -139,9 +166,7 @@ class RunRecovery:
                     tries[trial] = tries.get(trial, 0) + 1
                     run.rollback_to_saved()
                     self._restore_map(run)
-                    recorder = self.cell.recorder
-                    if recorder is not None:
-                        getattr(recorder, "discard", lambda: None)()
+                    self._void(trial, exc)
                     if self._recover(exc, trial, tries[trial]):  # a false bias-step alarm
                         tries[trial] -= 1
                     learner = self._saved_learner(run, learner)
@@ -152,13 +177,13 @@ class RunRecovery:
         for attempt in range(1, MAX_TRIES_PER_TRIAL + 1):
             try:
                 with self._watching():
-                    return probe()
+                    found = probe()
+                    self.check_zero(-1)
+                    return found
             except ForcelearnError as exc:
                 if not recoverable(exc):
                     raise
-                recorder = self.cell.recorder
-                if recorder is not None:
-                    getattr(recorder, "discard", lambda: None)()
+                self._void(-1, exc)
                 self._recover(exc, -1, attempt)
         raise AssertionError("unreachable")  # pragma: no cover - _recover raises at the last try
 
@@ -208,6 +233,35 @@ class RunRecovery:
         ))
         marker.unlink()
 
+    def check_zero(self, trial: int) -> None:
+        """The zero check closing a trial (-1: the probe): free space must read the zero.
+
+        Called before the trial's checkpoint. The tool goes up to the retract plane
+        if it is not there (a trial ends there), reads one burst and, within
+        :attr:`zero_check_n`, zeroes there (the next trial's baseline).
+
+        Raises:
+            ZeroMoved: the reading is beyond the bound: the trial's readings are void.
+        """
+        bound = self.zero_check_n
+        if bound is None:
+            return
+        cell = self.cell
+        here = cell.pose
+        if here.y_mm < self.retract_y_mm:
+            cell.move_in_steps(Pose(here.x_mm, self.retract_y_mm, here.z_mm, here.quaternion),
+                               self.max_step_mm)
+        force = cell.check_zero(bound)
+        if abs(force) > bound:
+            cell.stop()
+            what = "the probe" if trial < 0 else f"trial {trial}"
+            raise ZeroMoved(
+                f"the zero check after {what} read {force:.2f} N in free space, more than "
+                f"{bound:.2f} N ({ZERO_CHECK_SIGMAS:g} sigma of the sensor's noise) from 0: the "
+                f"zero moved during {what}, whose readings are void; the run re-zeroes in free "
+                "space and runs it again (if it repeats, check the sensor's cable and temperature)"
+            )
+
     # ---- inside ------------------------------------------------------------------------------
     @contextlib.contextmanager
     def _watching(self) -> Iterator[None]:
@@ -240,7 +294,11 @@ class RunRecovery:
             self.cell.reading_check = check
         message = one_line(exc)
         false_alarm = False
-        if isinstance(exc, SensorSuspect):  # the free-space reading is the zero check
+        action = "resumed"
+        if isinstance(exc, ZeroMoved):
+            action = "voided"
+            message += f"; re-zeroed (free space read {recovered.free_reading_n:.2f} N)"
+        elif isinstance(exc, SensorSuspect):  # the free-space reading is the zero check
             moved = abs(recovered.free_reading_n) > CONTACT_N
             false_alarm = not moved and trial >= 0
             if false_alarm:  # this material moves more than the watch allowed
@@ -252,11 +310,27 @@ class RunRecovery:
                                 f"{self.watch.margin_n:.2f} N; the trial runs again)" if false_alarm
                            else "the zero had not moved (a false alarm, or a force change)"))
         self._event(FaultEvent(
-            trial, type(exc).__name__, message, "resumed", lost=lost,
+            trial, type(exc).__name__, message, action, lost=lost,
             retract_y_mm=recovered.retract_pose.y_mm, free_reading_n=recovered.free_reading_n,
             cell_time_s=self.cell.time_s,
         ))
         return false_alarm
+
+    def _void(self, trial: int, exc: ForcelearnError) -> None:
+        """Set aside what a rolled-back trial (-1: the probe) recorded: a line of voided.jsonl."""
+        self.watch.forget()
+        recorder = self.cell.recorder
+        take = getattr(recorder, "take", None)
+        if take is None:
+            return
+        records = take(trial)
+        if not records.steps and not records.tares:
+            return
+        line = {"trial": trial, "error": type(exc).__name__,
+                "steps": [step_to_json(step) for step in records.steps],
+                "tares": [tare_to_json(tare) for tare in records.tares]}
+        with open(self.out / VOIDED_FILE, "a") as handle:
+            handle.write(json.dumps(line) + "\n")
 
     def _restore_map(self, run: Any) -> None:
         """The output map's wear state as of the checkpoint (a trial's press moved it)."""
@@ -306,6 +380,7 @@ def fault_summary(out: Path) -> dict[str, Any]:
     return {
         "count": len(events),
         "resumed": sum(e["action"] == "resumed" for e in events),
+        "voided": sum(e["action"] == "voided" for e in events),
         "by_error": by_error,
         "last_stop": ended[-1] if ended else None,
         "in_contact": (out / IN_CONTACT_FILE).exists(),

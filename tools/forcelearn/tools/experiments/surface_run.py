@@ -103,7 +103,8 @@ def execute(
         stack.callback(writer.close)
         recorder = TrialRecorder(session.cell)
         recovery = RunRecovery(run.out, session.cell, config.task.retract_y_mm,
-                               config.safety.max_step_mm, checkpoint=run.out / CHECKPOINT)
+                               config.safety.max_step_mm, checkpoint=run.out / CHECKPOINT,
+                               zero_check=config.task.zero_check)
         if checkpoint is not None:
             try:  # a session that stopped in contact: retract and re-zero first
                 recovery.on_resume()
@@ -147,6 +148,7 @@ def execute(
         trial_end = TrialEnd(
             run, session, output, writer, recorder,
             on_trial=on_trial, on_warning=on_warning, wall_clock=(wall_before, started),
+            check=recovery.check_zero,
         )
         recovery.output = output
         try:  # a device fault: retract, re-zero, run the trial again (fault_recovery)
@@ -205,6 +207,8 @@ class TrialEnd:
         on_warning: receives each warning's text.
         wall_clock: the run's wall time before this session (s) and the session's
             start (``time.perf_counter()``).
+        check: called with the trial's index before anything is booked (the zero check,
+            :meth:`RunRecovery.check_zero`: it raises to void the trial).
     """
 
     def __init__(
@@ -217,6 +221,7 @@ class TrialEnd:
         on_trial: Callable[[TrialRecord, SRVLearner], Any] | None = None,
         on_warning: Callable[[str], Any] | None = None,
         wall_clock: tuple[float, float] = (0.0, 0.0),
+        check: Callable[[int], None] | None = None,
     ) -> None:
         assert session.cell is not None and run.monitor is not None
         self.run, self.session, self.output = run, session, output
@@ -229,9 +234,12 @@ class TrialEnd:
         self.cell.recorder = recorder
         self._tares_before = run.tares
         self._wall_before, self._started = wall_clock
+        self.check = check
 
     def __call__(self, record: TrialRecord, trial_log: TrialLog, learner: SRVLearner) -> None:
         """Book the trial that just ended (raises ``_ConvergedStop`` to end the run)."""
+        if self.check is not None:
+            self.check(record.index)
         run = self.run
         run.traces.append(self._trace(trial_log))
         run.wall_s = self._wall_before + time.perf_counter() - self._started

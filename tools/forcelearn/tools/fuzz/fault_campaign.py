@@ -11,9 +11,12 @@ completes. Then, from the emulated physics (:class:`~.fault_inject.Truth`):
 
 * the true contact force never passed ``[safety] max_force_n``;
 * every zero was taken with no contact;
-* every reading the cell accepted was within the tolerance of the true force
+* every reading the run used was within the tolerance of the true force
   (the tolerance: twice the worst error of a fault-free run of the same cell,
-  at least 1 N), charged to the last fault before it;
+  at least 1 N), charged to the last fault before it. A reading is *used* when
+  the run books the trial (or the probe) it belongs to (its records written,
+  then its checkpoint); the readings of a trial rolled back (a fault, a void
+  by the zero check, a kill) are *voided*, counted apart and never used;
 * after every fault that raised, the robot was stopped within the watchdog
   (``stale_sensor_s + move_timeout_s`` of cell time);
 * every session that ended on an error ended on one of forcelearn's, with an
@@ -50,8 +53,8 @@ from forcelearn.site.config import load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tools.experiments import surface_run as engine
 from forcelearn.tools.experiments import surface_state as run_state
-from forcelearn.tools.experiments.fault_recovery import read_events
-from forcelearn.tools.experiments.records import RECORDS_FILE, scan_records
+from forcelearn.tools.experiments.fault_recovery import RunRecovery, read_events
+from forcelearn.tools.experiments.records import RECORDS_FILE, RecordsWriter, scan_records
 from forcelearn.tools.figures import probe as figures_probe
 from forcelearn.tools.figures import surface as figures_surface
 from forcelearn.tools.fuzz.fault_inject import (
@@ -123,7 +126,13 @@ class RunReport:
     zeros: int = 0
     zeros_in_contact: int = 0
     readings: int = 0
+    """Readings the run used (booked with a kept trial or probe)."""
     bad_readings: Counter[str] = dataclasses.field(default_factory=Counter)
+    voided: int = 0
+    """Readings of rolled-back trials (never used)."""
+    voided_bad: Counter[str] = dataclasses.field(default_factory=Counter)
+    voids: int = 0
+    """Trials the zero check voided."""
     late_stops: int = 0
     worst_stop_s: float = 0.0
     """Robot faults: cell time to the stop, s."""
@@ -148,6 +157,7 @@ def cell_config(cell: str, folder: Path, trials: int, steps: int, probe: bool) -
     table.setdefault("probe", {})["enabled"] = probe
     if not probe:
         table.setdefault("run", {})["learner_start"] = "cold"
+    table.setdefault("task", {})["zero_check"] = True
     table.setdefault("safety", {})["stale_sensor_s"] = STALE_SENSOR_S
     table.setdefault("safety", {})["move_timeout_s"] = MOVE_TIMEOUT_S
     table.setdefault("run", {})["trials"] = trials
@@ -172,7 +182,19 @@ def injecting(injector: Injector | None, tolerance_n: float,
             if injector is not None:
                 injector.attach(self, truth)
 
+    write_trial, void = RecordsWriter.write_trial, RunRecovery._void
+
+    def booked(writer: RecordsWriter, trial: Any) -> None:
+        truths[-1].commit()  # the trial (or probe) is kept: its readings are used
+        write_trial(writer, trial)
+
+    def voided(recovery: RunRecovery, trial: int, exc: ForcelearnError) -> None:
+        truths[-1].void()  # rolled back: its readings are set aside
+        void(recovery, trial, exc)
+
     with mock.patch.object(engine, "CellSession", Session), \
+            mock.patch.object(RecordsWriter, "write_trial", booked), \
+            mock.patch.object(RunRecovery, "_void", voided), \
             mock.patch.object(figures_surface, "write_all", _no_figure), \
             mock.patch.object(figures_probe, "write_probe_figure", _no_figure):
         yield
@@ -253,6 +275,9 @@ def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: P
     bound_s = config.safety.stale_sensor_s + config.safety.move_timeout_s + STEP_S
     read_bound_s = 2 * config.safety.stale_sensor_s + READ_SLACK_S
     for truth in truths:
+        truth.finish()
+        report.voided += truth.voided
+        report.voided_bad.update(truth.voided_bad)
         report.max_contact_n = max(report.max_contact_n, truth.max_contact_n)
         report.over_limit += truth.max_contact_n > limit_n
         report.zeros += truth.zeros
@@ -264,14 +289,17 @@ def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: P
     for fired in injector.fired:
         report.fired[(names[fired.device], fired.kind)] += 1
     for index, event in enumerate(events):
-        if event["action"] not in ("resumed", "ended"):
+        if event["action"] not in ("resumed", "ended", "voided"):
             continue
         found = cause(event["error"], injector.fired, index)
         if found is None:
             continue
         fired = found
-        if event["action"] == "resumed":
+        if event["action"] in ("resumed", "voided"):
             report.resumed_from[f"{names[fired.device]}:{fired.kind}"] += 1
+        if event["action"] == "voided":  # unseen until free space: the trial's end, not a stop
+            report.voids += 1
+            continue
         if not fired.in_contact:  # in free space a fault is found at the next read
             continue
         if fired.device == "sensor":  # found at the next read, stopped by its watchdog
@@ -343,7 +371,9 @@ def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int
             print(f"{cell} run {k} seed {run_seed}: {sum(report.fired.values())} faults, "
                   f"{report.sessions} sessions, finished {report.finished}, max contact "
                   f"{report.max_contact_n:.1f} N, zeros in contact {report.zeros_in_contact}, "
-                  f"bad readings {dict(report.bad_readings)}, late stops {report.late_stops}, "
+                  f"bad readings {dict(report.bad_readings)} of {report.readings} used "
+                  f"(voided {report.voided}, {sum(report.voided_bad.values())} off; "
+                  f"{report.voids} voids), late stops {report.late_stops}, "
                   f"records {report.lost_or_duplicated}, ends {dict(report.typed_ends)}, "
                   f"resumed from {dict(report.resumed_from)}, {report.wall_s:.0f} s"
                   + (f"; {report.problems}" if report.problems else ""), flush=True)
@@ -380,6 +410,9 @@ def table(reports: Sequence[RunReport]) -> str:
         totals["zeros"] += report.zeros
         totals["readings"] += report.readings
         totals["bad_readings"] += sum(report.bad_readings.values())
+        totals["voided"] += report.voided
+        totals["voided_bad"] += sum(report.voided_bad.values())
+        totals["voids"] += report.voids
         totals["late_stops"] += report.late_stops
         totals["records"] += report.lost_or_duplicated
         totals["untyped"] += report.untyped_ends
@@ -395,8 +428,10 @@ def table(reports: Sequence[RunReport]) -> str:
         "",
         f"runs {len(reports)}; true contact force over the limit: {totals['over_limit']} "
         f"(max {worst:.1f} N); zeros in contact: {totals['zeros_in_contact']} of "
-        f"{totals['zeros']}; readings off the true force: {totals['bad_readings']} of "
-        f"{totals['readings']} (after: {dict(bad)}); stops later than the watchdog: "
+        f"{totals['zeros']}; used readings off the true force: {totals['bad_readings']} of "
+        f"{totals['readings']} (after: {dict(bad)}); voided readings: {totals['voided']} "
+        f"({totals['voided_bad']} of them off), trials voided by the zero check: "
+        f"{totals['voids']}; stops later than the watchdog: "
         f"{totals['late_stops']} (robot faults: slowest {slowest:.2f} s of cell time; sensor "
         f"faults: slowest {read_stop:.2f} s of wall time from the next read, which came up to "
         f"{unread:.2f} s of cell time after the fault); lost or duplicated "

@@ -20,9 +20,11 @@ fault              what the emulator does
                    EGM: the controller restarts guidance (a new session)
 ``stall``          the next move stops at 20 to 80 % of its way (never in position)
 ``link_drop``      computer link: the connection drops after the next request;
-                   EGM: the next 1 to 250 controller datagrams are lost (up to 1 s;
-                   the emulated cell's EGM watchdog is 5 s, 1,250 cycles: all are
-                   absorbed)
+                   EGM: the next 1 to 250 controller datagrams are lost (up to 1 s,
+                   absorbed) or, one time in three, 250 to 2,000 (1 to 8 s: past
+                   the controller's 1 s CommTimeout, which stops guidance until its
+                   RAPID program opens a new session, as rapid/ForcelearnEGM.modx
+                   does 1 s later)
 ``kill``           the process dies here (no clean-up); the campaign resumes it
 =================  ===========================================================
 """
@@ -47,7 +49,11 @@ from forcelearn.protocols.jr3_can.codec import Frame
 
 SENSOR_FAULTS = ("reboot", "silence", "corrupt", "bias_jump")
 EGM_LOST_MAX = 250
-"""Most controller datagrams one EGM ``link_drop`` loses (4 ms cycles: 1 s)."""
+"""Most controller datagrams a short EGM ``link_drop`` loses (4 ms cycles: 1 s)."""
+EGM_LONG_LOST_MAX = 2000
+"""Most controller datagrams a long EGM ``link_drop`` loses (8 s: past the CommTimeout)."""
+EGM_LONG_SHARE = 1 / 3
+"""The share of EGM ``link_drop`` faults that are long."""
 ROBOT_FAULTS = ("restart", "stall", "link_drop")
 RUN_FAULTS = ("kill",)
 
@@ -98,10 +104,17 @@ class Truth:
         self.zeros = 0
         self.zeros_in_contact = 0
         self.readings = 0
+        """Readings the run used: booked with a whole trial (or the probe) it kept."""
         self.worst_error_n = 0.0
         self.bad_readings: Counter[str] = Counter()
-        """Readings off by more than the tolerance, by the fault to blame: a bias jump not yet
-        zeroed away, else the last fault fired before them."""
+        """Used readings off by more than the tolerance, by the fault to blame: a bias jump not
+        yet zeroed away, else the last fault fired before them."""
+        self.voided = 0
+        """Readings of trials (or probes) the run rolled back: never used, kept in voided.jsonl."""
+        self.voided_bad: Counter[str] = Counter()
+        """Voided readings off by more than the tolerance, by the fault to blame."""
+        self._pending: list[str | None] = []
+        """Readings since the last booking: the fault to blame if off, else None."""
         self.jumped = False
         """A bias jump happened and no zero followed yet."""
         self._hook_physics()
@@ -118,12 +131,31 @@ class Truth:
         return float(force[1])
 
     def judge_reading(self, reading_n: float, last_fault: str) -> None:
-        """Count a reading the cell accepted; a bad one is charged to ``last_fault``."""
-        self.readings += 1
+        """Judge a reading the cell accepted (a bad one is charged to ``last_fault``).
+
+        It counts as used once the run books it (:meth:`commit`), as voided when
+        the run rolls it back (:meth:`void`) or never books it (:meth:`finish`).
+        """
         error = abs(reading_n - self.normal_n())
         self.worst_error_n = max(self.worst_error_n, error)
-        if error > self.tolerance_n:
-            self.bad_readings["bias_jump" if self.jumped else last_fault] += 1
+        bad = ("bias_jump" if self.jumped else last_fault) if error > self.tolerance_n else None
+        self._pending.append(bad)
+
+    def commit(self) -> None:
+        """The run booked a trial (records written): the readings since are used."""
+        self.readings += len(self._pending)
+        self.bad_readings.update(b for b in self._pending if b is not None)
+        self._pending = []
+
+    def void(self) -> None:
+        """The run rolled a trial back: the readings since the last booking are void."""
+        self.voided += len(self._pending)
+        self.voided_bad.update(b for b in self._pending if b is not None)
+        self._pending = []
+
+    def finish(self) -> None:
+        """The session ended: what it read and never booked is void (a resume runs it again)."""
+        self.void()
 
     def _hook_physics(self) -> None:
         physics, move = self.physics, self.physics._move_tool
@@ -182,13 +214,20 @@ class Injector:
         self._undo, self._after_move = [], []
         cell: Cell = session.cell
         move, measure, stop = cell.move_to, cell.measure_force_n, cell.stop
-        zero = cell.zero_in_free_space
+        zero, check_zero = cell.zero_in_free_space, cell.check_zero
         zeroing = [False]
 
         def zero_in_free_space() -> float:
             zeroing[0] = True  # its burst reads the bias it is about to zero: not judged
             try:
                 return zero()
+            finally:
+                zeroing[0] = False
+
+        def checked_zero(max_change_n: float) -> float:
+            zeroing[0] = True  # the zero check's burst judges the zero, not a force
+            try:
+                return check_zero(max_change_n)
             finally:
                 zeroing[0] = False
 
@@ -227,6 +266,7 @@ class Injector:
         cell.measure_force_n = measure_force_n  # type: ignore[method-assign]
         cell.stop = stopped  # type: ignore[method-assign]
         cell.zero_in_free_space = zero_in_free_space  # type: ignore[method-assign]
+        cell.check_zero = checked_zero  # type: ignore[method-assign]
 
     def _mark(self) -> Mark:
         return Mark(self.tick, self.sessions, self.session.cell.time_s, time.perf_counter())
@@ -315,7 +355,8 @@ class Injector:
     def _robot_link_drop(self) -> None:
         emulator = self.session.robot_emulator
         if isinstance(getattr(emulator, "faults", None), EgmFaultInjector):
-            lost = self.rng.randint(1, EGM_LOST_MAX)
+            lost = (self.rng.randint(EGM_LOST_MAX, EGM_LONG_LOST_MAX)
+                    if self.rng.random() < EGM_LONG_SHARE else self.rng.randint(1, EGM_LOST_MAX))
             self._egm_faults(EgmFaultConfig(lose=Fault(1.0, limit=lost)))
             return
         hang_up = ComputerLinkFaultConfig(drop_connection=Fault(1.0, limit=1))
@@ -331,6 +372,7 @@ class Injector:
 CAUSES: dict[str, tuple[str, ...]] = {
     "SensorRebooted": ("reboot",),
     "SensorSuspect": ("bias_jump", "reboot"),
+    "ZeroMoved": ("bias_jump", "reboot"),
     "SensorStale": ("silence", "corrupt"),
     "SensorTimeout": ("silence", "corrupt", "reboot"),
     "SensorBusError": ("corrupt",),
