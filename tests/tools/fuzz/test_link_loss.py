@@ -12,8 +12,8 @@ from forcelearn.tools.fuzz.fault_campaign import cell_config, injecting
 from forcelearn.tools.fuzz.fault_inject import Injector, Truth
 
 STEP = ("step", 3)
-LOST = 400
-"""Controller datagrams lost: 1.6 s of 4 ms cycles, past the 1 s CommTimeout."""
+LOST = 300
+"""Controller datagrams lost: 1.2 s of 4 ms cycles, past the 1 s CommTimeout."""
 
 
 class Long(random.Random):
@@ -44,7 +44,7 @@ def test_a_link_lost_past_the_comm_timeout_in_contact_retracts_and_resumes(
     tmp_path: Path,
 ) -> None:
     """The controller stops, re-opens its session; the run retracts, re-zeroes, goes on."""
-    config = cell_config("egm+jr3", tmp_path, trials=2, steps=4, probe=False)
+    config = cell_config("egm+jr3", tmp_path, trials=1, steps=4, probe=False)
     injector, truths = AtStep(), list[Truth]()
     with injecting(injector, 1.0, truths):
         run, checkpoint = run_state.prepare_run(config, tmp_path / "run", None, 5, resume=False)
@@ -53,7 +53,7 @@ def test_a_link_lost_past_the_comm_timeout_in_contact_retracts_and_resumes(
     events = read_events(tmp_path / "run")
     assert [(e["error"], e["action"]) for e in events] == [("GuidanceStopped", "resumed")]
     assert events[0]["retract_y_mm"] == config_retract_y(tmp_path / "run")
-    assert len(run.result.records) == 2 and truths[0].zeros_in_contact == 0
+    assert len(run.result.records) == 1 and truths[0].zeros_in_contact == 0
 
 
 def config_retract_y(out: Path) -> float:

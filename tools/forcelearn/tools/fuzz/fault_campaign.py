@@ -147,13 +147,23 @@ class RunReport:
     problems: list[str] = dataclasses.field(default_factory=list)
 
 
-def cell_config(cell: str, folder: Path, trials: int, steps: int, probe: bool) -> Path:
+def cell_config(cell: str, folder: Path, trials: int, steps: int, probe: bool,
+                settings: Sequence[str] = ()) -> Path:
     """The example cell's config with the campaign's watchdogs, trials and steps, as a file.
 
     Without ``probe`` the run starts cold on the fallback map (the probe costs
     most of a short run's time; the first run of each cell keeps it).
+    ``settings``: ``table.key=value`` overrides (TOML values), e.g. another
+    material: ``emulator.sponge.stiffness_n_per_mm=8``.
     """
     table = tomllib.loads((examples_folder() / CELLS[cell]).read_text())
+    for setting in settings:
+        *tables, (key_value) = setting.split(".")
+        key, _, value = key_value.partition("=")
+        place = table
+        for name in tables:
+            place = place.setdefault(name, {})
+        place[key] = tomllib.loads(f"v = {value}")["v"]
     table.setdefault("probe", {})["enabled"] = probe
     if not probe:
         table.setdefault("run", {})["learner_start"] = "cold"
@@ -338,7 +348,7 @@ def _records_problems(folder: Path, report: RunReport) -> int:
 def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int,
              faults: dict[str, int], kills: int, seed: int, folder: Path,
              save: Path | None = None, devices: Sequence[str] = ("robot", "sensor"),
-             replay: Sequence[int] = ()) -> list[RunReport]:
+             replay: Sequence[int] = (), settings: Sequence[str] = ()) -> list[RunReport]:
     """Every cell, ``runs[robot]`` runs of ``faults[robot]`` faults per device; a line per run.
 
     With ``save``, the reports so far are pickled there after every run. With
@@ -348,8 +358,8 @@ def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int
     if replay:
         cells = [cell for i, cell in enumerate(CELLS) if any(r // 100 % 10 == i for r in replay)]
     for cell in cells:
-        config = cell_config(cell, folder, trials, steps, probe=False)
-        probed = cell_config(cell, folder, trials, steps, probe=True)
+        config = cell_config(cell, folder, trials, steps, probe=False, settings=settings)
+        probed = cell_config(cell, folder, trials, steps, probe=True, settings=settings)
         ticks, worst_n, contact_n = fault_free_run(config, folder / f"{cell}-free", seed)
         probe_ticks = fault_free_run(probed, folder / f"{cell}-free-probe", seed)[0]
         tolerance_n = max(1.0, 2.0 * worst_n)
@@ -459,6 +469,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--devices", nargs="+", default=["robot", "sensor"],
                         choices=["robot", "sensor"], help="the devices that fail")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--set", dest="settings", action="append", default=[],
+                        metavar="TABLE.KEY=VALUE",
+                        help="override a setting of every cell (TOML value), e.g. "
+                             "emulator.sponge.stiffness_n_per_mm=8")
     parser.add_argument("--keep", type=Path, default=None, help="keep the run folders here")
     parser.add_argument("--save", type=Path, default=None,
                         help="save the reports (pickle) for --merge")
@@ -478,7 +492,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         reports = campaign(args.cells, {"link": args.runs, "egm": args.runs_egm}, args.trials,
                            args.steps, {"link": args.faults, "egm": args.faults_egm},
                            args.kills, args.seed, folder, args.save, args.devices,
-                           args.replay)
+                           args.replay, args.settings)
     print(table(reports))
     return 1 if _failed(reports) else 0
 
