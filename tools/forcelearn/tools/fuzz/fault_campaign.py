@@ -158,8 +158,8 @@ def cell_config(cell: str, folder: Path, trials: int, steps: int, probe: bool,
     """
     table = tomllib.loads((examples_folder() / CELLS[cell]).read_text())
     for setting in settings:
-        *tables, (key_value) = setting.split(".")
-        key, _, value = key_value.partition("=")
+        name, _, value = setting.partition("=")
+        *tables, key = name.strip().split(".")
         place = table
         for name in tables:
             place = place.setdefault(name, {})

@@ -21,7 +21,8 @@ fault              what the emulator does
 ``stall``          the next move stops at 20 to 80 % of its way (never in position)
 ``link_drop``      computer link: the connection drops after the next request;
                    EGM: the next 1 to 250 controller datagrams are lost (up to 1 s,
-                   absorbed) or, one time in three, 250 to 2,000 (1 to 8 s: past
+                   absorbed) or, one time in three, 251 to 2,000 (``long_link_drop``
+                   in the reports; 1 to 8 s: past
                    the controller's 1 s CommTimeout, which stops guidance until its
                    RAPID program opens a new session, as rapid/ForcelearnEGM.modx
                    does 1 s later)
@@ -355,8 +356,10 @@ class Injector:
     def _robot_link_drop(self) -> None:
         emulator = self.session.robot_emulator
         if isinstance(getattr(emulator, "faults", None), EgmFaultInjector):
-            lost = (self.rng.randint(EGM_LOST_MAX, EGM_LONG_LOST_MAX)
+            lost = (self.rng.randint(EGM_LOST_MAX + 1, EGM_LONG_LOST_MAX)
                     if self.rng.random() < EGM_LONG_SHARE else self.rng.randint(1, EGM_LOST_MAX))
+            if lost > EGM_LOST_MAX:  # past the CommTimeout: counted as its own kind
+                self.fired[-1].kind = "long_link_drop"
             self._egm_faults(EgmFaultConfig(lose=Fault(1.0, limit=lost)))
             return
         hang_up = ComputerLinkFaultConfig(drop_connection=Fault(1.0, limit=1))
@@ -378,10 +381,10 @@ CAUSES: dict[str, tuple[str, ...]] = {
     "SensorBusError": ("corrupt",),
     "SensorProtocolError": ("corrupt",),
     "NotInPosition": ("stall", "restart"),
-    "GuidanceStopped": ("restart",),
-    "LinkTimeout": ("link_drop", "restart"),
-    "LinkError": ("link_drop", "restart"),
-    "ProtocolError": ("link_drop", "restart"),
+    "GuidanceStopped": ("restart", "long_link_drop"),
+    "LinkTimeout": ("link_drop", "long_link_drop", "restart"),
+    "LinkError": ("link_drop", "long_link_drop", "restart"),
+    "ProtocolError": ("link_drop", "long_link_drop", "restart"),
 }
 """The fault kinds that can raise each error (to say which fault a recovery recovered from)."""
 
