@@ -113,4 +113,7 @@ def test_bias_jumps_the_watch_cannot_see_void_the_trial_and_no_reading_is_used(
     assert [(e["error"], e["action"]) for e in events] == [("ZeroMoved", "voided")] * 2
     assert sum(truth.voided_bad.values()) > 0  # the readings were off, and set aside
     assert truth.readings > 0 and not truth.bad_readings  # none of them was used
+    axis = truth.session.cell.force_filter.config.axis
+    sigma_n = truth.session.sensor_emulator.model.params.noise_std[axis]
+    assert truth.worst_used_n <= 3 * sigma_n  # every used reading within 3 sigma of the truth
     assert truth.zeros_in_contact == 0

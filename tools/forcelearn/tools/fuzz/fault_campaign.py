@@ -133,6 +133,8 @@ class RunReport:
     voided_bad: Counter[str] = dataclasses.field(default_factory=Counter)
     voids: int = 0
     """Trials the zero check voided."""
+    worst_used_n: float = 0.0
+    """The largest error of a used reading, N."""
     late_stops: int = 0
     worst_stop_s: float = 0.0
     """Robot faults: cell time to the stop, s."""
@@ -288,6 +290,7 @@ def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: P
         truth.finish()
         report.voided += truth.voided
         report.voided_bad.update(truth.voided_bad)
+        report.worst_used_n = max(report.worst_used_n, truth.worst_used_n)
         report.max_contact_n = max(report.max_contact_n, truth.max_contact_n)
         report.over_limit += truth.max_contact_n > limit_n
         report.zeros += truth.zeros
@@ -434,12 +437,14 @@ def table(reports: Sequence[RunReport]) -> str:
     slowest = max((r.worst_stop_s for r in reports), default=0.0)
     read_stop = max((r.worst_read_stop_s for r in reports), default=0.0)
     unread = max((r.worst_unread_s for r in reports), default=0.0)
+    worst_used = max((getattr(r, "worst_used_n", 0.0) for r in reports), default=0.0)
     lines += [
         "",
         f"runs {len(reports)}; true contact force over the limit: {totals['over_limit']} "
         f"(max {worst:.1f} N); zeros in contact: {totals['zeros_in_contact']} of "
         f"{totals['zeros']}; used readings off the true force: {totals['bad_readings']} of "
-        f"{totals['readings']} (after: {dict(bad)}); voided readings: {totals['voided']} "
+        f"{totals['readings']} (after: {dict(bad)}; the largest error of a used reading "
+        f"{worst_used:.2f} N); voided readings: {totals['voided']} "
         f"({totals['voided_bad']} of them off), trials voided by the zero check: "
         f"{totals['voids']}; stops later than the watchdog: "
         f"{totals['late_stops']} (robot faults: slowest {slowest:.2f} s of cell time; sensor "

@@ -114,8 +114,10 @@ class Truth:
         """Readings of trials (or probes) the run rolled back: never used, kept in voided.jsonl."""
         self.voided_bad: Counter[str] = Counter()
         """Voided readings off by more than the tolerance, by the fault to blame."""
-        self._pending: list[str | None] = []
-        """Readings since the last booking: the fault to blame if off, else None."""
+        self.worst_used_n = 0.0
+        """The largest error of a used reading, N."""
+        self._pending: list[tuple[float, str | None]] = []
+        """Readings since the last booking: (error N, the fault to blame if off, else None)."""
         self.jumped = False
         """A bias jump happened and no zero followed yet."""
         self._hook_physics()
@@ -140,18 +142,19 @@ class Truth:
         error = abs(reading_n - self.normal_n())
         self.worst_error_n = max(self.worst_error_n, error)
         bad = ("bias_jump" if self.jumped else last_fault) if error > self.tolerance_n else None
-        self._pending.append(bad)
+        self._pending.append((error, bad))
 
     def commit(self) -> None:
         """The run booked a trial (records written): the readings since are used."""
         self.readings += len(self._pending)
-        self.bad_readings.update(b for b in self._pending if b is not None)
+        self.bad_readings.update(b for _, b in self._pending if b is not None)
+        self.worst_used_n = max([self.worst_used_n, *(e for e, _ in self._pending)])
         self._pending = []
 
     def void(self) -> None:
         """The run rolled a trial back: the readings since the last booking are void."""
         self.voided += len(self._pending)
-        self.voided_bad.update(b for b in self._pending if b is not None)
+        self.voided_bad.update(b for _, b in self._pending if b is not None)
         self._pending = []
 
     def finish(self) -> None:
