@@ -82,10 +82,11 @@ class SurfaceTaskSpec:
     """A tare is refused (warned) when the free-space normal force reads more than this, N."""
     zero_check: bool = False
     """Read free space at every trial's end (the retract plane) before the trial counts: off
-    zero by more than 3 sigma of the sensor's noise (the filter's R; at least 0.5 N), the zero moved during the
-    trial, which is then void and runs again after a zero in free space; within it, the sensor
-    is zeroed there (docs/on-site.md, "The zero check"). Costs a burst and a zero per trial;
-    off by default: the paper's setup, and the extra readings change an emulated run."""
+    zero by more than 3 sigma of the sensor's noise (the filter's R; at least 0.5 N), the zero
+    moved during the trial, which is then void and runs again after a zero in free space;
+    within it, the sensor is zeroed there (docs/on-site.md, "The zero check"). Costs a burst
+    and a zero per trial; off by default: the paper's setup, and the extra readings change an
+    emulated run."""
     approach: str = "auto"
     """How each step reaches its Y (:data:`APPROACHES`): "loading" first stands a few branch
     depths shallower at the new Z, then presses in, so a hysteretic foam is read on its
