@@ -260,7 +260,7 @@ class RunRecovery:
         force = cell.check_zero(bound)
         if abs(force) > bound:
             cell.stop()
-            what = "the probe" if trial < 0 else f"trial {trial}"
+            what = "the probe (or the session's start)" if trial < 0 else f"trial {trial}"
             raise ZeroMoved(
                 f"the zero check after {what} read {force:.2f} N in free space, more than "
                 f"{bound:.2f} N ({ZERO_CHECK_SIGMAS:g} sigma of the sensor's noise, at least "
