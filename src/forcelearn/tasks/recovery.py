@@ -6,8 +6,9 @@ dropped, a move that never reached its target), the tool may be pressing the
 part. Nothing else happens before it leaves:
 
 1. the robot is stopped;
-2. it retracts along the force axis (+Y) to the task's retract plane, from
-   where it *is* (the pose is read again), in limited steps and without reading
+2. it retracts along the force axis (+Y) to the task's retract plane (or where
+   the task's ``away`` says: the path task's force axis), from where it *is* (the
+   pose is read again), in limited steps and without reading
    the sensor (its readings are what is in doubt); a link that dropped is
    reconnected first, if the driver can (``reconnect()``);
 3. in free space the sensor is started again without zeroing (a rebooted one
@@ -22,6 +23,7 @@ back within them is used again); when a stage still fails,
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from forcelearn.cell import Cell
@@ -74,9 +76,16 @@ class Recovered:
     """Tries the re-zero took."""
 
 
+AwayFrom = Callable[[Pose], Pose]
+"""The free-space pose to retract to from the pose the tool is at (a task's force axis)."""
+
+
 def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
-            attempts: int = ATTEMPTS) -> tuple[Pose, int]:
+            attempts: int = ATTEMPTS, away: AwayFrom | None = None) -> tuple[Pose, int]:
     """Stop, then move along +Y to ``retract_y_mm`` without reading the sensor; (pose, tries).
+
+    ``away``: where to retract to from the pose read instead (the path task: back along
+    its force axis); None: +Y to the §5 task's retract plane.
 
     Raises:
         RecoveryFailed: the robot did not retract in ``attempts`` tries (``in_contact``).
@@ -88,7 +97,8 @@ def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
             if _reconnect_if_down(cell):
                 cell.stop()  # the stop before went nowhere: the controller may still move
             here = cell.read_pose()
-            target = Pose(here.x_mm, max(here.y_mm, retract_y_mm), here.z_mm, here.quaternion)
+            target = (away(here) if away is not None else
+                      Pose(here.x_mm, max(here.y_mm, retract_y_mm), here.z_mm, here.quaternion))
             cell.move_in_steps(target, max_step_mm)
             return target, attempt
         except (LinkError, SensorError, SafetyStop) as exc:  # a refused step: stop, plan again
@@ -125,13 +135,15 @@ def rezero(cell: Cell, attempts: int = ZERO_ATTEMPTS) -> tuple[float, int]:
 
 
 def retract_and_retare(cell: Cell, retract_y_mm: float, max_step_mm: float,
-                       attempts: int = ATTEMPTS) -> Recovered:
+                       attempts: int = ATTEMPTS, away: AwayFrom | None = None) -> Recovered:
     """Retract to free space, then start the sensor again and zero it (the module docstring).
+
+    ``away``: as :func:`retract`'s.
 
     Raises:
         RecoveryFailed: a stage failed ``attempts`` times; ``in_contact`` says which.
     """
-    pose, retract_tries = retract(cell, retract_y_mm, max_step_mm, attempts)
+    pose, retract_tries = retract(cell, retract_y_mm, max_step_mm, attempts, away)
     reading, zero_tries = rezero(cell, max(attempts, ZERO_ATTEMPTS))
     log.warning("recovered: retracted to y = %.1f mm, re-zeroed (free space read %.2f N)",
                 pose.y_mm, reading)
