@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from forcelearn.site import load_cell_config
@@ -136,3 +137,95 @@ def test_an_example_part_meets_the_acceptance_on_the_emulated_cell(
     assert row["largest_offset_mm"] <= row["max_deviation_mm"]
     assert row["moves_outside_workspace"] == 0
     assert (row["contact_lost_count"] > 0) == (part == "gap")
+
+
+def test_a_sensor_reboot_mid_pass_retracts_along_the_axis_and_runs_the_pass_again(
+        tmp_path: Path) -> None:
+    """Reboot while pressing in pass 1: retract back along the axis, re-zero, pass 1 again.
+
+    Then a resume of a run marked as stopped in contact retracts (and re-zeroes) first.
+    """
+    from unittest import mock
+
+    from forcelearn.site import CellSession
+    from forcelearn.tools.experiments import path_run
+    from forcelearn.tools.experiments.fault_recovery import IN_CONTACT_FILE, read_events
+    from forcelearn.tools.experiments.path_state import prepare_path_run
+    from forcelearn.tools.experiments.records import read_records
+
+    out = tmp_path / "run"
+    fired: list[int] = []
+
+    class Rebooting(CellSession):
+        def __init__(self, *args: object, **kwargs: object) -> None:
+            super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+            cell, measure = self.cell, self.cell.measure_force_n  # type: ignore[union-attr]
+
+            def measured(samples: int | None = None) -> float:
+                if not fired and cell.stage == ("step", 3) and (out / "checkpoint.npz").exists():
+                    fired.append(1)
+                    self.sensor_emulator.inject_bootup()
+                return measure(samples)
+
+            cell.measure_force_n = measured  # type: ignore[method-assign,union-attr]
+
+    config = short_config(tmp_path)
+    run, _ = prepare_path_run(config, None, out, 2, 0, 25, resume=False)
+    with mock.patch.object(path_run, "CellSession", Rebooting):
+        summary = path_run.execute(run, None, figures=False)
+    events = read_events(out)
+    assert fired and [(e["error"], e["action"], e["trial"]) for e in events] == [
+        ("SensorRebooted", "resumed", 1)]
+    assert summary["passes"] == 2 and summary["faults"]["resumed"] == 1
+    trials = {t.trial: t for t in read_records(out)}
+    assert sorted(trials) == [0, 1]
+    tare = trials[1].tares[0]  # the re-zero where the retract ended: free space on the axis
+    assert tare.accepted
+    assert run.task is not None
+    points = run.task.points
+    k = int(np.argmin(np.linalg.norm(points.positions_mm - tare.position_mm, axis=1)))
+    lifted = points.pose(k, -20.0)
+    assert tare.position_mm == pytest.approx((lifted.x_mm, lifted.y_mm, lifted.z_mm), abs=0.5)
+
+    (out / IN_CONTACT_FILE).write_text("{}")  # as a second Ctrl-C during a retract leaves it
+    resumed, state = prepare_path_run(None, None, out, 3, None, 25, resume=True)
+    path_run.execute(resumed, state, figures=False)
+    assert read_events(out)[-1]["action"] == "retracted on resume"
+    assert not (out / IN_CONTACT_FILE).exists()
+
+
+def test_a_sensor_mounted_at_an_angle_reads_the_force_along_the_tool_axis(
+        tmp_path: Path) -> None:
+    """The calibration's mounting turns the tool's force axis into the sensor's frame.
+
+    A sensor turned 20, -30, 45 deg on the flange sees the tool's z at 0.81 of its own z:
+    read on one axis the probe would fit a foam 19 % softer than the straight cell's.
+    """
+    import dataclasses
+
+    from forcelearn.calibration import load_calibration, save_calibration
+    from forcelearn.site.emulated_tool import load_mounting
+    from forcelearn.tools.experiments.path_run import execute
+    from forcelearn.tools.experiments.path_state import prepare_path_run
+
+    mounting = load_mounting({"mounting_rpy_deg": [20.0, -30.0, 45.0]})
+    assert mounting is not None
+    straight = load_calibration(EXAMPLE.parent / "emulated-jr3-cal.toml")
+    save_calibration(dataclasses.replace(straight, tool=dataclasses.replace(
+        straight.tool, mounting_quaternion=mounting)), tmp_path / "turned-cal.toml")
+    stiffness = {}
+    for name in ("straight", "turned"):
+        folder = tmp_path / name
+        folder.mkdir()
+        extra = "" if name == "straight" else \
+            "[emulator.tool]\nmounting_rpy_deg = [20.0, -30.0, 45.0]\n"
+        config = short_config(folder, extra)
+        if name == "turned":
+            config.write_text(config.read_text().replace(
+                str(EXAMPLE.parent / "emulated-jr3-cal.toml"), str(tmp_path / "turned-cal.toml")))
+        run, _ = prepare_path_run(config, None, folder / "run", 1, 0, 25, resume=False)
+        assert (run.config.filter.direction is None) == (name == "straight")
+        summary = execute(run, None, figures=False)
+        stiffness[name] = summary["probe_stiffness_n_per_mm"]
+        assert summary["final_force_rms_n"] < 0.05 * 19.6133
+    assert stiffness["turned"] == pytest.approx(stiffness["straight"], rel=0.05)

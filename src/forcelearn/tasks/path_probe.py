@@ -18,7 +18,7 @@ evaluation r̂ at what the linear step does not know: ``STIFFNESS_SPREAD`` of th
 error the step corrects, in tolerances (at least ``MIN_R_HAT``). A probe pass
 that did not settle (its errors above ``UNSETTLED_RMS_SHARE`` of the force: a
 hysteretic foam, whose force depends on the way in) gets its targets smoothed
-along the path. A point where
+along the path and its output scale from the stiffness met between points. A point where
 the probe lost contact gets the target interpolated from its neighbours along
 the path and r̂ = 1 (the widest search). The output scale is
 ``OUTPUT_SCALE_SHARE`` · tolerance / k mm per action unit.
@@ -82,11 +82,21 @@ class PathProbe:
 
     tolerance_n: float
     """The task's tolerance (r = 1), N."""
+    pass_stiffness_n_per_mm: float | None = None
+    """An unsettled probe's stiffness between consecutive points (force change over offset
+    change, least squares), N/mm, when above k: a hysteretic foam meets it whenever the
+    offset reverses from one point to the next. None: a settled probe."""
 
     @property
     def scale_mm(self) -> float:
-        """Output scale: mm per action unit (OUTPUT_SCALE_SHARE · tolerance / k)."""
-        return OUTPUT_SCALE_SHARE * self.tolerance_n / self.stiffness_n_per_mm
+        """Output scale: mm per action unit (OUTPUT_SCALE_SHARE · tolerance / k).
+
+        On an unsettled probe k is the stiffer of k and ``pass_stiffness_n_per_mm``: the
+        learner's search from point to point then moves the force as little as on a foam
+        without hysteresis.
+        """
+        k = max(self.stiffness_n_per_mm, self.pass_stiffness_n_per_mm or 0.0)
+        return OUTPUT_SCALE_SHARE * self.tolerance_n / k
 
 
 def fit_stiffness(readings: list[tuple[float, float]], contact_n: float,
@@ -132,15 +142,21 @@ def probe_pass(task: PathTask) -> PathProbe:
     raw = np.array(offsets) + (desired - np.array(forces)) / k
     targets = np.interp(index, index[found], raw[found])
     errors = np.array(forces)[found] - desired
+    pass_k = None
     if np.sqrt(np.mean(errors**2)) > UNSETTLED_RMS_SHARE * desired and len(targets) > 2:
         targets = convolve1d(targets, SMOOTHING, mode="nearest")  # the branches' mean
+        both = found[1:] & found[:-1]
+        d_offset, d_force = np.diff(offsets)[both], np.diff(forces)[both]
+        if np.any(d_offset != 0):
+            pass_k = float(d_force @ d_offset / (d_offset @ d_offset))
+            pass_k = pass_k if pass_k > k else None
     targets = np.clip(targets, -limit, limit)
     evaluation = spec.evaluation
     r_hats = np.where(found, [max(MIN_R_HAT, evaluation.ratio(STIFFNESS_SPREAD * (desired - f)))
                               for f in forces], 1.0)
     return PathProbe(k, contact, tuple(offsets), tuple(forces), tuple(float(t) for t in targets),
                      tuple(float(r) for r in r_hats),
-                     tuple(int(i) for i in index[~found]), spec.tolerance)
+                     tuple(int(i) for i in index[~found]), spec.tolerance, pass_k)
 
 
 def warm_start(learner: SRVLearner, probe: PathProbe) -> None:

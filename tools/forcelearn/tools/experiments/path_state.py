@@ -153,7 +153,8 @@ def restore(run: PathRun, state: dict[str, Any]) -> dict[str, Any]:
             contact_offset_mm=float(probe["contact_offset_mm"]),
             offsets_mm=floats["offsets_mm"], forces_n=floats["forces_n"],
             targets_mm=floats["targets_mm"], r_hats=floats["r_hats"],
-            lost=tuple(int(v) for v in probe["lost"]), tolerance_n=float(probe["tolerance_n"]))
+            lost=tuple(int(v) for v in probe["lost"]), tolerance_n=float(probe["tolerance_n"]),
+            pass_stiffness_n_per_mm=probe.get("pass_stiffness_n_per_mm"))
         result = run.result
         result.records = [TrialRecord(**r) for r in state["records"]]
         run.logs = [TrialLog(int(d["index"]), str(d["phase"]), list(d["rows"]))
