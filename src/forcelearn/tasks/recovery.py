@@ -105,9 +105,11 @@ def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
             last = exc
             log.warning("retract try %d of %d failed: %s", attempt, attempts, exc)
             cell.stop()
+    where, jog = ((f"to y = {retract_y_mm} mm", "jog +Y") if away is None else
+                  ("back along the task's force axis", "jog it back along the tool's axis"))
     raise RecoveryFailed(
-        f"could not retract the tool to y = {retract_y_mm} mm after a fault ({attempts} tries; "
-        f"last: {last}): the tool may still press the part; retract it by hand (jog +Y), "
+        f"could not retract the tool {where} after a fault ({attempts} tries; "
+        f"last: {last}): the tool may still press the part; retract it by hand ({jog}), "
         "check the robot link, then resume the run (it retracts first)",
         in_contact=True,
     ) from last
@@ -145,8 +147,8 @@ def retract_and_retare(cell: Cell, retract_y_mm: float, max_step_mm: float,
     """
     pose, retract_tries = retract(cell, retract_y_mm, max_step_mm, attempts, away)
     reading, zero_tries = rezero(cell, max(attempts, ZERO_ATTEMPTS))
-    log.warning("recovered: retracted to y = %.1f mm, re-zeroed (free space read %.2f N)",
-                pose.y_mm, reading)
+    log.warning("recovered: retracted to (%.1f, %.1f, %.1f) mm, re-zeroed (free space read "
+                "%.2f N)", pose.x_mm, pose.y_mm, pose.z_mm, reading)
     return Recovered(pose, reading, retract_tries, zero_tries)
 
 
