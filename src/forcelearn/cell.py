@@ -396,11 +396,19 @@ class Cell:
         """Zero the sensor here and make the calibration follow (the tool's weight at this pose)."""
         self._guarded(self.sensor.zero_offsets)
         self.tares += 1
-        if self.calibration is not None:  # the zero now holds the tool's weight at this pose
-            self.calibration = self.calibration.rezeroed(self.pose.quaternion)
-            self.compensation = self.calibration.compensation
+        self.zero_taken_at(self.pose.quaternion)
         if self.on_tare is not None:
             self.on_tare(self.pose)
+
+    def zero_taken_at(self, quaternion: tuple[float, float, float, float]) -> None:
+        """The sensor's zero holds the tool's weight at ``quaternion``: the calibration follows.
+
+        After every zero; and when a resumed run restored an emulated sensor with the zero
+        its last session took (at another orientation than this session's first).
+        """
+        if self.calibration is not None:
+            self.calibration = self.calibration.rezeroed(quaternion)
+            self.compensation = self.calibration.compensation
 
     def zero_in_free_space(self) -> float:
         """Zero the sensor after a fault, the tool retracted to free space; return the reading (N).

@@ -26,7 +26,8 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 EMULATED = EXAMPLES / "emulated-cell.toml"
 REAL = EXAMPLES / "real-cell.toml"
 
-NOT_IN_TOML = {"limits", "stale_timeout_s", "full_scales", "log_path", "sleep_after_open_s"}
+NOT_IN_TOML = {"limits", "stale_timeout_s", "full_scales", "log_path", "sleep_after_open_s",
+               "direction"}
 """Fields a file cannot or must not set: limits come from [safety], None defaults stay unset."""
 DERIVED = {"tolerance_n", "output_centre_y_mm", "output_scale_mm", "max_offset_mm"}
 """[task] keys whose default is derived (from the desired force, or the probe): shown commented."""

@@ -52,8 +52,6 @@ def test_the_path_option_makes_any_config_a_path_run(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("text", "key"), [
     ('[task]\nkind = "path"\npath = "arc.csv"\nforce_axis = [0.6, 0.0, 0.8]\n', "force_axis"),
-    ('[task]\nkind = "path"\npath = "arc.csv"\n[emulator.sponge]\nhysteresis_loss = 0.2\n'
-     + CYLINDER_PART, "hysteresis_loss"),
     ('[emulator.part]\nshape = "cylinder"\npoint_mm = [0, 0, 0]\naxis = [0, 1, 0]\n'
      'radius_mm = 1\ncolour = "red"\n', "emulator.part.colour"),
     ('[emulator.part]\nshape = "plane"\npoint_mm = [0, 0, 0]\nnormal = [0, 0, 1]\n'

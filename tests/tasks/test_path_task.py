@@ -189,3 +189,37 @@ def test_the_probe_fills_a_point_it_lost_from_its_neighbours() -> None:
     k = probe.lost[0]
     assert min(probe.targets_mm[k - 1], probe.targets_mm[k + 1]) <= probe.targets_mm[k] <= max(
         probe.targets_mm[k - 1], probe.targets_mm[k + 1])
+
+
+@dataclass
+class BranchFoamCell(FoamPlaneCell):
+    """A foam plane that pushes (1 + h) harder after a press deeper, (1 - h) after easing off."""
+
+    hysteresis: float = 0.2
+    _depth_mm: float = 0.0
+    _branch: float = 1.0
+
+    def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False) -> int:
+        """As the plane's, following the branch of the last depth change."""
+        depth = max(0.0, -target.z_mm)
+        if depth != self._depth_mm:
+            self._branch = 1.0 if depth > self._depth_mm else -1.0
+        self._depth_mm = depth
+        return super().move_in_steps(target, max_step_mm, guard_force)
+
+    def force_at(self, pose: Pose) -> float:
+        """The plane's force on the present branch, N."""
+        return super().force_at(pose) * (1.0 + self.hysteresis * self._branch)
+
+
+def test_a_probe_that_alternates_between_branches_is_smoothed_and_scaled() -> None:
+    """Hysteresis: the targets' point-to-point alternation is removed, the scale stiffened."""
+    plain = probe_pass(make_task(FoamPlaneCell()))
+    assert plain.pass_stiffness_n_per_mm is None  # settled: targets as measured
+    probe = probe_pass(make_task(BranchFoamCell()))
+    raw_swing = np.abs(np.diff(probe.offsets_mm[2:])).max()
+    assert raw_swing > 1.0  # the correction jumped between branches
+    assert np.abs(np.diff(probe.targets_mm)).max() < 0.25 * raw_swing
+    assert probe.pass_stiffness_n_per_mm is not None
+    assert probe.pass_stiffness_n_per_mm > probe.stiffness_n_per_mm
+    assert probe.scale_mm < 0.25 * probe.tolerance_n / probe.stiffness_n_per_mm

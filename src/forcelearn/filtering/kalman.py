@@ -70,6 +70,10 @@ class ForceFilterConfig:
             (the adapter's ``cutoff_hz``; 0: white noise), moves model.
         move_change_std_n: how much the force may change across a move when
             nothing predicts it (a wide prior), N, moves model.
+        direction: a unit direction (sensor frame) whose force component is the
+            normal force, in place of one axis: ``sign * (Fx, Fy, Fz) . direction``
+            (a sensor mounted at an angle to the tool's force axis; ``axis`` then names
+            the nearest sensor axis, whose noise stands for it). None: ``axis``.
     """
 
     model: str = "moves"
@@ -81,6 +85,7 @@ class ForceFilterConfig:
     sign: float = 1.0
     noise_cutoff_hz: float = 0.0
     move_change_std_n: float = 30.0
+    direction: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.model not in ("moves", "stream"):
@@ -95,12 +100,21 @@ class ForceFilterConfig:
             raise ConfigError(f"filter.noise_cutoff_hz={cutoff!r}: must be >= 0 (0: white)")
         if self.axis not in range(6) or self.sign not in (1.0, -1.0):
             raise ConfigError("filter.axis must be 0..5 and filter.sign +1 or -1")
+        if self.direction is not None:
+            d = np.asarray(self.direction, dtype=float)
+            if d.shape != (3,) or not np.all(np.isfinite(d)) or abs(np.linalg.norm(d) - 1) > 1e-6:
+                raise ConfigError(f"filter.direction={self.direction!r}: must be a unit "
+                                  "3-vector (sensor frame)")
 
     def normal_force(self, wrenches: np.ndarray | Sequence[float]) -> np.ndarray:
         """Return the normal force (N), ``sign * wrench[axis]``: pressing harder reads larger.
 
         Of one wrench (6,), a 0-d array (``float()`` it); of rows (n, 6), an array (n,).
         """
+        if self.direction is not None:
+            along: np.ndarray = self.sign * (
+                np.asarray(wrenches, dtype=float)[..., :3] @ np.asarray(self.direction))
+            return along
         result: np.ndarray = self.sign * np.asarray(wrenches, dtype=float)[..., self.axis]
         return result
 

@@ -43,6 +43,8 @@ anything; every move towards the part is guarded (one sample per step against
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -167,6 +169,49 @@ class PathTask:
         """The point the tool is at (or was last: where the return to the start begins)."""
         self._offset = 0.0
         self._trial_start_s = 0.0
+
+    def state_dict(self) -> dict[str, Any]:
+        """What a pass leaves behind (JSON-safe): counters, the contact found, the wear shift."""
+        return {
+            "passes": self.passes, "step": self._step, "offset_mm": self._offset,
+            "lost_points": [list(p) for p in self.lost_points],
+            "largest_offset_mm": self.largest_offset_mm,
+            "first_contact_peak_n": self.first_contact_peak_n,
+            "contact_offset_mm": self.contact_offset_mm,
+            "stiffness_n_per_mm": self.stiffness_n_per_mm,
+            "start_force_n": self.start_force_n,
+            "shift_mm": self.output.shift_mm if self.output is not None else 0.0,
+        }
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restore :meth:`state_dict` (a resumed run, or a pass rolled back after a fault)."""
+        self.passes, self._step = int(state["passes"]), int(state["step"])
+        self._offset = float(state["offset_mm"])
+        self.lost_points = [(int(a), int(b)) for a, b in state["lost_points"]]
+        self.largest_offset_mm = float(state["largest_offset_mm"])
+        self.first_contact_peak_n = float(state["first_contact_peak_n"])
+        contact = state["contact_offset_mm"]
+        self.contact_offset_mm = None if contact is None else float(contact)
+        self.stiffness_n_per_mm = float(state["stiffness_n_per_mm"])
+        self.start_force_n = float(state["start_force_n"])
+        if self.output is not None:
+            self.output.shift_mm = float(state["shift_mm"])
+
+    def away(self, here: Pose) -> Pose:
+        """Free space from ``here``: back along its force axis to ``approach_mm`` off the path.
+
+        The nearest point's offset along the axis (how deep ``here`` presses) plus the
+        approach: a fault's retract (:mod:`forcelearn.tasks.recovery`), the tool's own axis
+        as the pose turns it.
+        """
+        where = np.array([here.x_mm, here.y_mm, here.z_mm])
+        k = int(np.argmin(np.linalg.norm(self.points.positions_mm - where, axis=1)))
+        axis = rotation_from_wxyz(np.array([here.quaternion])).apply(
+            np.asarray(self.spec.force_axis))[0]
+        depth = float((where - self.points.positions_mm[k]) @ axis)
+        back = max(0.0, depth + self.spec.approach_mm)
+        x, y, z = (float(v) for v in where - back * axis)
+        return Pose(x, y, z, here.quaternion)
 
     @property
     def trial_cell_time_s(self) -> float:

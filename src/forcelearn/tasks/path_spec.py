@@ -177,13 +177,14 @@ def load_task_path(spec: PathTaskSpec, workspace_min_mm: tuple[float, float, flo
     validate_path(path, PathLimits(workspace_min_mm, workspace_max_mm, max_step_mm,
                                    spec.max_turn_deg))
     low, high = np.array(workspace_min_mm), np.array(workspace_max_mm)
-    for index, distance, what in ((0, spec.approach_mm, "approach"),
-                                  (len(path) - 1, spec.retreat_mm, "retreat")):
-        axis = rotation_from_wxyz(path.quaternions_wxyz[index]).apply(spec.force_axis)
-        point = path.positions_mm[index] - distance * axis
-        if np.any(point < low) or np.any(point > high):
-            where = ", ".join(f"{v:.6g}" for v in point)
-            raise PathRefused(index, path.names[index], path.lines[index],
+    axes = rotation_from_wxyz(path.quaternions_wxyz).apply(spec.force_axis)
+    for distance, what in ((spec.approach_mm, "approach"), (spec.retreat_mm, "retreat")):
+        # every point's: the return to the start, a failed step's retreat and a fault's
+        # retract leave the path there
+        points = path.positions_mm - distance * axes
+        for index in np.flatnonzero(np.any((points < low) | (points > high), axis=1))[:1]:
+            where = ", ".join(f"{v:.6g}" for v in points[index])
+            raise PathRefused(int(index), path.names[index], path.lines[index],
                               f"its {what} point ({where}) mm, {distance:g} mm back along the "
                               f"force axis (task.{what}_mm), is outside the workspace")
     return path

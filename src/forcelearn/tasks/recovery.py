@@ -6,8 +6,9 @@ dropped, a move that never reached its target), the tool may be pressing the
 part. Nothing else happens before it leaves:
 
 1. the robot is stopped;
-2. it retracts along the force axis (+Y) to the task's retract plane, from
-   where it *is* (the pose is read again), in limited steps and without reading
+2. it retracts along the force axis (+Y) to the task's retract plane (or where
+   the task's ``away`` says: the path task's force axis), from where it *is* (the
+   pose is read again), in limited steps and without reading
    the sensor (its readings are what is in doubt); a link that dropped is
    reconnected first, if the driver can (``reconnect()``), and a controller
    that stopped guiding (EGM after its CommTimeout: the session dropped) is
@@ -25,6 +26,7 @@ back within them is used again); when a stage still fails,
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from forcelearn.cell import Cell
@@ -83,9 +85,16 @@ class Recovered:
     """Tries the re-zero took."""
 
 
+AwayFrom = Callable[[Pose], Pose]
+"""The free-space pose to retract to from the pose the tool is at (a task's force axis)."""
+
+
 def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
-            attempts: int = ATTEMPTS) -> tuple[Pose, int]:
+            attempts: int = ATTEMPTS, away: AwayFrom | None = None) -> tuple[Pose, int]:
     """Stop, then move along +Y to ``retract_y_mm`` without reading the sensor; (pose, tries).
+
+    ``away``: where to retract to from the pose read instead (the path task: back along
+    its force axis); None: +Y to the §5 task's retract plane.
 
     Raises:
         RecoveryFailed: the robot did not retract in ``attempts`` tries (``in_contact``).
@@ -97,18 +106,24 @@ def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
             if _reconnect_if_down(cell):
                 cell.stop()  # the stop before went nowhere: the controller may still move
             here = cell.read_pose()
-            target = Pose(here.x_mm, max(here.y_mm, retract_y_mm), here.z_mm, here.quaternion)
+            target = (away(here) if away is not None else
+                      Pose(here.x_mm, max(here.y_mm, retract_y_mm), here.z_mm, here.quaternion))
             cell.move_in_steps(target, max_step_mm)
             return target, attempt
         except (LinkError, SensorError, SafetyStop) as exc:  # a refused step: stop, plan again
             last = exc
             log.warning("retract try %d of %d failed: %s", attempt, attempts, exc)
             cell.stop()
+<<<<<<< HEAD
             if isinstance(exc, GuidanceStopped):
                 _wait_for_guidance(cell)
+=======
+    where, jog = ((f"to y = {retract_y_mm} mm", "jog +Y") if away is None else
+                  ("back along the task's force axis", "jog it back along the tool's axis"))
+>>>>>>> path
     raise RecoveryFailed(
-        f"could not retract the tool to y = {retract_y_mm} mm after a fault ({attempts} tries; "
-        f"last: {last}): the tool may still press the part; retract it by hand (jog +Y), "
+        f"could not retract the tool {where} after a fault ({attempts} tries; "
+        f"last: {last}): the tool may still press the part; retract it by hand ({jog}), "
         "check the robot link, then resume the run (it retracts first)",
         in_contact=True,
     ) from last
@@ -136,16 +151,18 @@ def rezero(cell: Cell, attempts: int = ZERO_ATTEMPTS) -> tuple[float, int]:
 
 
 def retract_and_retare(cell: Cell, retract_y_mm: float, max_step_mm: float,
-                       attempts: int = ATTEMPTS) -> Recovered:
+                       attempts: int = ATTEMPTS, away: AwayFrom | None = None) -> Recovered:
     """Retract to free space, then start the sensor again and zero it (the module docstring).
+
+    ``away``: as :func:`retract`'s.
 
     Raises:
         RecoveryFailed: a stage failed ``attempts`` times; ``in_contact`` says which.
     """
-    pose, retract_tries = retract(cell, retract_y_mm, max_step_mm, attempts)
+    pose, retract_tries = retract(cell, retract_y_mm, max_step_mm, attempts, away)
     reading, zero_tries = rezero(cell, max(attempts, ZERO_ATTEMPTS))
-    log.warning("recovered: retracted to y = %.1f mm, re-zeroed (free space read %.2f N)",
-                pose.y_mm, reading)
+    log.warning("recovered: retracted to (%.1f, %.1f, %.1f) mm, re-zeroed (free space read "
+                "%.2f N)", pose.x_mm, pose.y_mm, pose.z_mm, reading)
     return Recovered(pose, reading, retract_tries, zero_tries)
 
 

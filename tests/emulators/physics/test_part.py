@@ -13,6 +13,8 @@ from forcelearn.emulators.physics.part import (
     Heightmap,
     Plane,
     Sphere,
+    _heightmap_distance,
+    _heightmap_point,
     contact,
     load_heights,
     tip_centres_mm,
@@ -120,6 +122,21 @@ def test_a_cubic_heightmap_of_a_sphere_cap_is_near_the_sphere() -> None:
         got, exact = contact(part, c, offset_mm=40.0), contact(sphere, c, offset_mm=40.0)
         np.testing.assert_allclose(got.depth_mm, exact.depth_mm, atol=0.05)
         assert np.all(np.einsum("ij,ij->i", got.normal, exact.normal) > np.cos(np.radians(0.5)))
+
+
+@pytest.mark.parametrize("interpolation", ["linear", "cubic"])
+def test_one_point_at_a_time_is_the_vectorised_form_bit_for_bit(interpolation: str) -> None:
+    """A cell asks for one tip at a time (a faster path): the general form's numbers exactly."""
+    grid = np.arange(0.0, 60.0, 5.0)
+    heights = 8.0 * np.sin(grid[:, None] / 9.0) + 0.2 * grid[None, :]
+    part = Heightmap(heights, (10.0, -20.0, 5.0), 5.0, normal=(0.0, 0.2, 1.0),
+                     u_axis=(1.0, 0.0, 0.0), interpolation=interpolation)  # type: ignore[arg-type]
+    c = np.column_stack([RNG.uniform(0, 80, 60), RNG.uniform(-40, 50, 60),
+                         RNG.uniform(-10, 40, 60)])
+    for point in c:
+        fast, general = _heightmap_point(part, point), _heightmap_distance(part, point)
+        for got, expected in zip(fast, general, strict=True):
+            assert np.asarray(got).tobytes() == np.asarray(expected).tobytes()
 
 
 def test_beyond_the_heightmap_there_is_no_contact() -> None:

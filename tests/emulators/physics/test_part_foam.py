@@ -99,3 +99,31 @@ def test_beyond_the_parts_wall_there_is_nothing() -> None:
     skin_bottom = np.array([900.0, 0.0, 300.0 - 150.0 + FOAM.thickness_mm])
     assert foam.contact_force_world_n(skin_bottom - np.array([0.0, 0.0, 5.0]))[2] > 0.0
     assert not foam.contact_force_world_n(np.array([900.0, 0.0, 600.0])).any()
+
+
+def test_hysteresis_and_friction_on_a_part_follow_the_law_along_its_normal() -> None:
+    """Pressing in loads (1 + h), easing off unloads (1 - h); a slide drags mu N against it."""
+    h, mu, depth = 0.2, 0.3, 8.0
+    plane = Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    foam = PartFoam(PartSetup(plane), SpongeParams(relaxation_ratio=0.0, hysteresis_loss=h,
+                                                   friction_coefficient=mu))
+    skin = FOAM.thickness_mm
+    for z in np.linspace(skin + 5.0, skin - depth, 40):  # press straight in
+        foam.observe_pose(np.array([0.0, 0.0, z]))
+    pressed = np.array([0.0, 0.0, skin - depth])
+    elastic = float(normal_force_n(foam.params, 0.0, depth, pressed[2]))
+    force = foam.contact_force_world_n(pressed)
+    assert force[2] == pytest.approx(elastic * (1 + h), rel=0.01)
+    assert force[0] == force[1] == 0.0  # no slide yet: no friction
+    for x in np.linspace(0.0, 20.0, 21):  # slide along +x at that depth
+        foam.observe_pose(np.array([x, 0.0, skin - depth]))
+    force = foam.contact_force_world_n(np.array([20.0, 0.0, skin - depth]))
+    assert force[0] == pytest.approx(-mu * force[2], rel=1e-9) and force[1] == 0.0
+    for z in np.linspace(skin - depth - 3.0, skin - depth, 20):  # ease off 3 mm back
+        foam.observe_pose(np.array([20.0, 0.0, z]))
+    eased = foam.contact_force_world_n(np.array([20.0, 0.0, skin - depth]))
+    assert eased[2] == pytest.approx(elastic * (1 - h), rel=0.05)
+    again = PartFoam(PartSetup(plane), foam.params)
+    again.load_state_dict(foam.state_dict())
+    assert again.contact_force_world_n(np.array([20.0, 0.0, skin - depth])).tolist() == \
+        eased.tolist()

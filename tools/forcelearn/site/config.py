@@ -356,7 +356,9 @@ def load_cell_config(path: str | Path | None = None, task_path: Path | None = No
         bus=bus,
         sensor=sensor,
         filter=build(ForceFilterConfig, filter_table(kind, sensor, parts.filter_keys(
-            path_task, data.get("filter", {}))), "filter"),
+            path_task, data.get("filter", {}), None if path_task is None else parts.sensor_mounting(
+                data.get("calibration", {}),
+                load_calibration_file(data.get("calibration", {}), path)))), "filter"),
         safety=safety,
         task=task,
         path_task=path_task,

@@ -10,21 +10,35 @@
 =================  =========================================================
 
 The foam on the part is ``[emulator.sponge]``'s (thickness, stiffness, wear,
-relaxation); its hysteresis and friction follow a slide along the §5 strip and
-are refused with a part.
+relaxation, hysteresis, friction), on the part's normal
+(:mod:`forcelearn.emulators.physics.part_foam`).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from forcelearn.calibration import load_calibration
+from forcelearn.devices import IDENTITY_QUATERNION, quaternion_to_matrix
 from forcelearn.emulators.physics.part_foam import PartSetup
 from forcelearn.emulators.physics.part_table import part_from_table
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.errors import ConfigError
+from forcelearn.site.emulated_tool import load_mounting
 from forcelearn.tasks.path_spec import PathTaskSpec, build_path_task, task_kind
+
+Quaternion = tuple[float, float, float, float]
+
+AXIS_SNAP_DEG = 1.0
+"""A force axis this close to a sensor axis (deg) is read on that axis: the force along it is
+then within cos 1 deg = 0.99985 of the whole (under a sensor's calibration accuracy), and an
+estimated mounting of a straight sensor (``forcelearn calibrate``: within ~0.5 deg) stays
+straight, so its runs read what they read before the mounting was known."""
 
 __all__ = ["PartSetup", "PathTaskSpec", "filter_keys", "load_part", "load_path_task",
            "path_filter_defaults"]
@@ -44,9 +58,6 @@ def load_part(table: Mapping[str, Any] | None, sponge: SpongeParams,
     config_dir = Path(config_path).parent if config_path else None
     if not isinstance(table, Mapping):
         raise ConfigError(f"{SECTION}: a table (shape = \"cylinder\" ...)")
-    if sponge.hysteresis_loss != 0.0 or sponge.friction_coefficient != 0.0:
-        raise ConfigError("emulator.sponge.hysteresis_loss and friction_coefficient are not "
-                          "modelled on a part ([emulator.part]): leave them at 0")
     values = dict(table)
     contact = {key: values.pop(key) for key in CONTACT_KEYS if key in values}
     part = part_from_table(values, config_dir, SECTION)
@@ -86,24 +97,55 @@ def load_path_task(table: Mapping[str, Any] | None, config_path: str | Path | No
     return build_path_task(table, config_dir)
 
 
-def filter_keys(spec: PathTaskSpec | None, table: Mapping[str, Any]) -> dict[str, Any]:
-    """``[filter]`` over the path task's defaults (:func:`path_filter_defaults`)."""
-    return {**path_filter_defaults(spec), **table}
+def filter_keys(spec: PathTaskSpec | None, table: Mapping[str, Any],
+                mounting: Quaternion | None = None) -> dict[str, Any]:
+    """``[filter]`` over the path task's defaults (:func:`path_filter_defaults`).
+
+    A ``[filter]`` that names its ``axis`` or ``sign`` reads that axis (no direction).
+    """
+    defaults = path_filter_defaults(spec, mounting)
+    if "axis" in table or "sign" in table:
+        defaults.pop("direction", None)
+    return {**defaults, **table}
 
 
-def path_filter_defaults(spec: PathTaskSpec | None) -> dict[str, Any]:
+def path_filter_defaults(spec: PathTaskSpec | None,
+                         mounting: Quaternion | None = None) -> dict[str, Any]:
     """``[filter]`` defaults of the path task: the normal force is minus the force axis's.
 
-    The part pushes back against the tool's press, so along a tool axis the
-    pressing force reads negative; ``axis`` is the sensor axis the force axis
-    is (a straight mounting: sensor axes = tool axes). A force axis that is
-    not a tool axis is refused (the filter reads one axis).
+    The part pushes back against the tool's press, so along the force axis the
+    pressing force reads negative. ``force_axis`` must be a tool axis (as FC
+    Pressure's Fx, Fy, Fz). ``mounting`` (w, x, y, z; sensor frame ->
+    flange frame, the calibration's) turns it into the sensor frame, ``R_m^T a``:
+    when that is a sensor axis the filter reads that axis, else the component along
+    it (``direction``). None: a straight mounting (sensor axes = tool axes). Within
+    ``AXIS_SNAP_DEG`` of a sensor axis (an estimated mounting of a straight sensor) the
+    filter reads that axis.
     """
     if spec is None:
         return {}
     axis = [round(c, 9) for c in spec.force_axis]
-    for index in range(3):
-        if abs(abs(axis[index]) - 1.0) < 1e-9:
-            return {"axis": index, "sign": -1.0 if axis[index] > 0 else 1.0}
-    raise ConfigError(f"task.force_axis = {list(spec.force_axis)}: the force filter reads one "
-                      "sensor axis; give a tool axis, e.g. [0, 0, 1] (tool z) or [1, 0, 0]")
+    tool = next((index for index in range(3) if abs(abs(axis[index]) - 1.0) < 1e-9), None)
+    if tool is None:
+        raise ConfigError(f"task.force_axis = {list(spec.force_axis)}: give a tool axis, e.g. "
+                          "[0, 0, 1] (tool z) or [1, 0, 0] (FC Pressure's Fz or Fx)")
+    if mounting is None or tuple(mounting) == IDENTITY_QUATERNION:
+        return {"axis": tool, "sign": -1.0 if axis[tool] > 0 else 1.0}
+    along = quaternion_to_matrix(mounting).T @ np.asarray(axis, dtype=float)
+    nearest = int(np.argmax(np.abs(along)))
+    if math.degrees(math.acos(min(1.0, abs(float(along[nearest]))))) <= AXIS_SNAP_DEG:
+        return {"axis": nearest, "sign": -1.0 if along[nearest] > 0 else 1.0}
+    unit = along / np.linalg.norm(along)
+    return {"axis": nearest, "sign": -1.0,
+            "direction": (float(unit[0]), float(unit[1]), float(unit[2]))}
+
+
+def sensor_mounting(table: Mapping[str, Any], calibration_file: Path | None) -> Quaternion | None:
+    """The sensor's mounting on the flange (w, x, y, z) the force axis is read through.
+
+    The calibration file's (what compensates the readings), else ``[calibration]
+    mounting_*`` (given), else None (straight).
+    """
+    if calibration_file is not None and calibration_file.is_file():
+        return load_calibration(calibration_file).tool.mounting_quaternion
+    return load_mounting(dict(table), "calibration")

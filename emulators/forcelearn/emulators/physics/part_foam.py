@@ -23,9 +23,14 @@ relaxation         the standard linear solid's q, brought up to date on the
                    motion grid (:meth:`evolve`), exactly as the §5 sponge's
 =================  ==========================================================
 
-Hysteresis and friction of ``[emulator.sponge]`` are not modelled on a part
-(their state follows a slide along the §5 strip): a config that sets them with
-a part is refused by the cell config.
+Hysteresis and friction of ``[emulator.sponge]`` follow the law's own terms
+(:func:`.sponge_law.hysteresis_step`, :func:`.sponge_law.slides`), with the part's
+normal in place of the strip's: at every reported pose the tool's move less its
+component along the part's normal n is its slide along the surface; the Dahl
+state s follows the foam depth and that travel, and the friction is ``mu N``
+against the last slide's direction t, so the force is ``N (1 + h s) n - mu N t``
+(tangential to the part: the sensor's axes across the press axis read it). Off
+the foam both are forgotten. With both at 0 (the default) nothing of this runs.
 
 The part is a shell: a tip more than ``WALL_MM`` into the rigid material
 under the foam is beyond its wall (outside a pipe pressed on its inside, the
@@ -51,8 +56,10 @@ from forcelearn.emulators.physics.part import Part, contact, tip_centres_mm
 from forcelearn.emulators.physics.sponge_law import (
     SpongeParams,
     elastic_depth_mm,
+    hysteresis_step,
     normal_force_n,
     relaxation_step,
+    slides,
 )
 
 Quaternion = tuple[float, float, float, float]
@@ -110,6 +117,12 @@ class PartFoam:
         self._depth = 0.0
         self._normal = np.zeros(3)
         self._z = 0.0
+        self.hysteresis_state = 0.0
+        """The Dahl state s in [-1, 1] (0 off the foam)."""
+        self._hysteresis_foam_mm = 0.0
+        self.slide_direction: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        """Unit direction of the tool's last slide along the part (zeros: none)."""
+        self._last_position: tuple[float, float, float] | None = None
 
     def observe_orientation(self, quaternion: Quaternion) -> None:
         """Note the tool's orientation (w, x, y, z), sensor frame to world."""
@@ -145,8 +158,13 @@ class PartFoam:
         depth, normal, z = self._contact(position_mm)
         if depth <= 0.0:
             return np.zeros(3)
-        force = normal_force_n(self.params, float(self.passes), depth, z, self.relaxing_mm)
-        return np.asarray(float(force) * normal, dtype=float)
+        p = self.params
+        force = float(normal_force_n(p, float(self.passes), depth, z, self.relaxing_mm,
+                                     self.hysteresis_state))
+        if p.friction_coefficient != 0.0 and any(self.slide_direction):
+            return np.asarray(force * normal - p.friction_coefficient * force
+                              * np.asarray(self.slide_direction), dtype=float)
+        return np.asarray(force * normal, dtype=float)
 
     def evolve(self, position_mm: np.ndarray, dt_s: float) -> None:
         """Advance the relaxation over ``dt_s`` (the depth taken to change linearly)."""
@@ -163,19 +181,57 @@ class PartFoam:
 
     def observe_pose(self, position_mm: np.ndarray) -> None:
         """Note where the tool is; a pass ends when it leaves the foam after touching it."""
-        depth, _, _ = self._contact(position_mm)
+        depth, normal, _ = self._contact(position_mm)
+        p = self.params
+        if p.hysteresis_loss != 0.0 or p.friction_coefficient != 0.0:
+            self._follow_move(position_mm, depth, normal)
         if depth > 0.0:
             self._touched = True
         elif self._touched:
             self.passes += 1
             self._touched = False
 
+    def _follow_move(self, position_mm: np.ndarray, depth_mm: float, normal: np.ndarray) -> None:
+        """Bring the hysteresis state and the last slide to a reported pose (as the sponge's)."""
+        p = self.params
+        here = (float(position_mm[0]), float(position_mm[1]), float(position_mm[2]))
+        last, self._last_position = self._last_position, here
+        if depth_mm <= 0.0:  # off the foam: it forgets its branch, nothing holds its skin
+            self.hysteresis_state = 0.0
+            self._hysteresis_foam_mm = 0.0
+            self.slide_direction = (0.0, 0.0, 0.0)
+            return
+        along_mm, direction = 0.0, None
+        if last is not None and last != here:
+            move = np.subtract(here, last)
+            along = move - float(move @ normal) * normal  # the slide along the part
+            length = float(np.linalg.norm(along))
+            if slides(length, float(np.linalg.norm(move))):
+                along_mm, direction = length, along / length
+        if p.hysteresis_loss != 0.0:
+            foam = min(depth_mm, p.thickness_mm)
+            self.hysteresis_state = hysteresis_step(
+                p, self.hysteresis_state, foam - self._hysteresis_foam_mm, along_mm)
+            self._hysteresis_foam_mm = foam
+        if p.friction_coefficient != 0.0 and direction is not None:
+            self.slide_direction = (float(direction[0]), float(direction[1]),
+                                    float(direction[2]))
+
     def state_dict(self) -> dict[str, int | bool | float]:
         """The state to checkpoint (plain numbers; the same keys as the sponge's where shared)."""
         w, x, y, z = self._quaternion
-        return {"passes": self.passes, "touched": self._touched,
-                "relaxing_mm": self.relaxing_mm, "foam_mm": self._foam_mm,
-                "qw": w, "qx": x, "qy": y, "qz": z}
+        state: dict[str, int | bool | float] = {
+            "passes": self.passes, "touched": self._touched,
+            "relaxing_mm": self.relaxing_mm, "foam_mm": self._foam_mm,
+            "qw": w, "qx": x, "qy": y, "qz": z,
+            "hysteresis_state": self.hysteresis_state,
+            "hysteresis_foam_mm": self._hysteresis_foam_mm,
+            "has_last_position": self._last_position is not None}
+        for axis, value in zip("xyz", self.slide_direction, strict=True):
+            state[f"slide_{axis}"] = value
+        for axis, value in zip("xyz", self._last_position or (0.0, 0.0, 0.0), strict=True):
+            state[f"last_{axis}_mm"] = value
+        return state
 
     def load_state_dict(self, state: dict[str, int | bool | float]) -> None:
         """Restore :meth:`state_dict`."""
@@ -185,4 +241,11 @@ class PartFoam:
         self._foam_mm = float(state.get("foam_mm", 0.0))
         self._quaternion = (float(state.get("qw", 1.0)), float(state.get("qx", 0.0)),
                             float(state.get("qy", 0.0)), float(state.get("qz", 0.0)))
+        self.hysteresis_state = float(state.get("hysteresis_state", 0.0))
+        self._hysteresis_foam_mm = float(state.get("hysteresis_foam_mm", 0.0))
+        x, y, z = (float(state.get(f"slide_{axis}", 0.0)) for axis in "xyz")
+        self.slide_direction = (x, y, z)
+        self._last_position = (
+            (float(state["last_x_mm"]), float(state["last_y_mm"]), float(state["last_z_mm"]))
+            if state.get("has_last_position") else None)
         self._key = None

@@ -60,7 +60,7 @@ from forcelearn.devices import Pose
 from forcelearn.errors import ForcelearnError, SensorSuspect, ZeroMoved, one_line
 from forcelearn.learning import SRVLearner, load_learner
 from forcelearn.tasks.bias_watch import CONTACT_N, BiasWatch
-from forcelearn.tasks.recovery import RecoveryFailed, recoverable, retract
+from forcelearn.tasks.recovery import AwayFrom, RecoveryFailed, recoverable, retract
 from forcelearn.tasks.recovery import retract_and_retare as leave_and_rezero
 from forcelearn.tasks.surface import SurfaceYOutput
 from forcelearn.tools.experiments.records import step_to_json, tare_to_json
@@ -128,11 +128,16 @@ class RunRecovery:
         checkpoint: the run's checkpoint file (the learner is read back from it).
         zero_check: read free space at each trial's (and the probe's) end
             (``[task] zero_check``; :meth:`check_zero`).
+        away: where to retract to from where the tool is (the path task: back along its
+            force axis); None: +Y to ``retract_y_mm``.
+        watch: judge the readings by the moves (:class:`BiasWatch`, made for the §5 task's
+            moves along Y); False: faults only.
     """
 
     def __init__(self, out: Path, cell: Cell, retract_y_mm: float, max_step_mm: float,
                  output: SurfaceYOutput | None = None, checkpoint: Path | None = None,
-                 zero_check: bool = False) -> None:
+                 zero_check: bool = False, away: AwayFrom | None = None,
+                 watch: bool = True) -> None:
         self.out, self.cell = out, cell
         self.zero_check_n = (
             max(ZERO_CHECK_SIGMAS * cell.force_filter.measurement_variance_n2 ** 0.5,
@@ -143,6 +148,8 @@ class RunRecovery:
         self.retract_y_mm, self.max_step_mm = retract_y_mm, max_step_mm
         self.output = output
         self.checkpoint = checkpoint
+        self.away = away
+        self.watching = watch
         self.events: list[FaultEvent] = []
         """The faults of this session."""
         self.watch = BiasWatch(free_y_mm=retract_y_mm)
@@ -204,7 +211,8 @@ class RunRecovery:
         retract_y: float | None = None
         if interrupted or not isinstance(exc, RecoveryFailed):
             try:
-                pose, _ = retract(self.cell, self.retract_y_mm, self.max_step_mm, attempts=1)
+                pose, _ = retract(self.cell, self.retract_y_mm, self.max_step_mm, attempts=1,
+                                  away=self.away)
                 retract_y, in_contact = pose.y_mm, False
             except KeyboardInterrupt:
                 self.cell.stop()
@@ -231,7 +239,8 @@ class RunRecovery:
         marker = self.out / IN_CONTACT_FILE
         if not marker.exists():
             return
-        recovered = leave_and_rezero(self.cell, self.retract_y_mm, self.max_step_mm)
+        recovered = leave_and_rezero(self.cell, self.retract_y_mm, self.max_step_mm,
+                                     away=self.away)
         self._event(FaultEvent(
             -1, "StoppedInContact", "the last session stopped with the tool in contact",
             "retracted on resume", retract_y_mm=recovered.retract_pose.y_mm,
@@ -272,7 +281,10 @@ class RunRecovery:
     # ---- inside ------------------------------------------------------------------------------
     @contextlib.contextmanager
     def _watching(self) -> Iterator[None]:
-        """The bias watch judges the readings inside."""
+        """The bias watch judges the readings inside (unless the run does not watch)."""
+        if not self.watching:
+            yield
+            return
         self.cell.reading_check = self._check
         try:
             yield
@@ -293,7 +305,8 @@ class RunRecovery:
                     one_line(exc))
         check, self.cell.reading_check = self.cell.reading_check, None  # the zero check reads
         try:
-            recovered = leave_and_rezero(self.cell, self.retract_y_mm, self.max_step_mm)
+            recovered = leave_and_rezero(self.cell, self.retract_y_mm, self.max_step_mm,
+                                         away=self.away)
         except RecoveryFailed as failed:
             failed.add_note(f"after {type(exc).__name__}: {one_line(exc)}")
             raise

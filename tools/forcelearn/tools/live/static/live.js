@@ -77,10 +77,11 @@ function drawForce() {
 }
 
 function drawY() {
-  const series = [];
+  const series = [], path = state.meta.task === "path";
+  const mean = path ? "mean_offset_mm" : "mean_y_mm";
   const add = (trace, what, color) => {
     if (!trace || !trace.rows.length) return;
-    series.push({ x: col(trace, "step"), y: col(trace, "mean_y_mm"), color, marker: "dot", label: label(trace, `${what}: mean`) });
+    series.push({ x: col(trace, "step"), y: col(trace, mean), color, marker: "dot", label: label(trace, `${what}: mean`) });
     series.push({ x: col(trace, "step"), y: col(trace, "command_0"), color, dash: [5, 3], width: 1, label: `${what}: searched` });
   };
   add(state.previous, "previous", "#9aa1ab");
@@ -91,7 +92,8 @@ function drawY() {
     series.push({ x: col(p, "step"), y: col(p, "map_centre_y_mm"), color: "#6d4c41", dash: [2, 2], width: 1, label: `map centre (wear shift ${shift.toFixed(2)} mm)` });
   }
   Plot.draw(document.getElementById("plot-y"), {
-    xlabel: "step", ylabel: "Y command (mm)", xlim: [0.5, state.meta.steps_per_trial + 0.5], series,
+    xlabel: path ? "point" : "step", ylabel: path ? "offset along the force axis (mm)" : "Y command (mm)",
+    xlim: [0.5, state.meta.steps_per_trial + 0.5], series,
   });
 }
 
