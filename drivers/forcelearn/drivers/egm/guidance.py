@@ -89,8 +89,7 @@ class Guidance:
     def __init__(self, config: EgmConfig) -> None:
         self.config = config
         self.latest: codec.RobotMessage | None = None
-        self.latest_raw: bytes | None = None
-        """The datagram ``latest`` was decoded from (what a checkpoint keeps)."""
+        self._latest_raw: carried.Datagram | None = None
         self.target: Pose | None = None
         """Last accepted target (the step limit is measured from it)."""
         self.planned: Pose | None = None
@@ -111,8 +110,14 @@ class Guidance:
 
     # -- input ------------------------------------------------------------------------------
 
+    @property
+    def latest_raw(self) -> bytes | None:
+        """The datagram ``latest`` was read from (what a checkpoint keeps)."""
+        raw = self._latest_raw
+        return None if raw is None else bytes(raw)
+
     def on_datagram(
-        self, data: bytes, source: Source = None, now_s: float | None = None
+        self, data: carried.Datagram, source: Source = None, now_s: float | None = None
     ) -> bool:
         """Take one datagram from ``source``; True if it is fresh and must be answered.
 
@@ -127,7 +132,7 @@ class Guidance:
             return False
         message = carried.received_robot(data, self.config.version)
         if message is None:
-            message = self._decode(data)
+            message = self._decode(bytes(data))
             if message is None:
                 return False
         latest = self.latest
@@ -244,14 +249,14 @@ class Guidance:
                     message.seqno)
         return True
 
-    def _fresh(self, data: bytes, now_s: float | None) -> bool:
+    def _fresh(self, data: carried.Datagram, now_s: float | None) -> bool:
         """Keep ``data`` as the latest (``self.latest`` is its message); True: answer it."""
         latest = self.latest
         if self.origin_us is None and latest is not None and latest.time_us is not None:
             self.origin_us = latest.time_us  # only a datagram taken sets the controller's time 0
         self._chain = None
         self.refusal = None  # the controller's stream goes on: an earlier refusal is moot
-        self.latest_raw = data
+        self._latest_raw = data
         self._latest_s = now_s
         return True
 
@@ -331,6 +336,10 @@ class Guidance:
         stepped pose is not finite or leaves the workspace, which the checks
         on targets and feedback should make impossible.
         """
+        return bytes(self.reply_carried())
+
+    def reply_carried(self) -> carried.Carried:
+        """:meth:`reply` not encoded yet (an in-process controller reads its message as it is)."""
         if self.latest is None or self.planned is None or self.target is None:
             raise RuntimeError("no EGM session yet: nothing to answer")
         period = self.config.sample_period_s
@@ -367,8 +376,9 @@ class Guidance:
         def pose(p: Pose | None) -> list[float] | None:
             return None if p is None else [p.x_mm, p.y_mm, p.z_mm, *p.quaternion]
 
+        raw = self.latest_raw
         return {
-            "latest": None if self.latest_raw is None else self.latest_raw.hex(),
+            "latest": None if raw is None else raw.hex(),
             "target": pose(self.target),
             "planned": pose(self.planned),
             "speed_mm_s": self.speed_mm_s,
@@ -388,10 +398,10 @@ class Guidance:
             return Pose(x, y, z, (w, qx, qy, qz))
 
         raw = state["latest"]
-        self.latest_raw = None if raw is None else bytes.fromhex(raw)
+        self._latest_raw = None if raw is None else bytes.fromhex(raw)
         self.latest = (
-            None if self.latest_raw is None
-            else codec.decode_robot(self.latest_raw, self.config.version)
+            None if self._latest_raw is None
+            else codec.decode_robot(self._latest_raw, self.config.version)
         )
         self.target = pose(state["target"])
         self.planned = pose(state["planned"])

@@ -198,7 +198,7 @@ class EgmControllerModel:
         joints = joint_angles_deg(self.config.arm, pose)
         return fallback if joints is None else joints
 
-    def apply_sensor(self, datagram: bytes, t_s: float) -> None:
+    def apply_sensor(self, datagram: carried.Datagram, t_s: float) -> None:
         """Read one EgmSensor at the cycle of time ``t_s``."""
         if not self.running:
             self.ignored += 1
@@ -206,7 +206,7 @@ class EgmControllerModel:
         message = carried.received_sensor(datagram, self.config.version)
         if message is None:
             try:
-                message = codec.decode_sensor(datagram, self.config.version)
+                message = codec.decode_sensor(bytes(datagram), self.config.version)
             except ProtocolError as exc:
                 log.info("EgmSensor ignored: %s", exc)
                 self.ignored += 1
@@ -316,6 +316,14 @@ class EgmControllerModel:
 
     def robot_datagram(self, t_s: float) -> bytes:
         """Advance to the cycle at ``t_s`` and return its EgmRobot datagram."""
+        return codec.encode_robot(self.robot_message(t_s), self.config.version)
+
+    def robot_carried(self, t_s: float) -> carried.Carried:
+        """:meth:`robot_datagram` not encoded yet (the in-process route)."""
+        return carried.carry_robot(self.robot_message(t_s), self.config.version)
+
+    def robot_message(self, t_s: float) -> codec.RobotMessage:
+        """Advance to the cycle at ``t_s`` and return its EgmRobot as sent."""
         if self.running and t_s - self._last_read_s >= self.config.comm_timeout_s - 1e-9:
             log.warning("EGM comm timeout at %.3f s: no EgmSensor for %.3f s", t_s,
                         t_s - self._last_read_s)
@@ -352,7 +360,7 @@ class EgmControllerModel:
             fc_active=self.config.force_control_active if force is not None else None,
         )
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
-        return carried.carry_robot(message, self.config.version)
+        return message
 
     # -- checkpoint -------------------------------------------------------------------------
 

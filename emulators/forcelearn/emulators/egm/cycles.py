@@ -23,11 +23,13 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Sequence
 from typing import Any
 
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm.controller import EgmControllerModel
 from forcelearn.emulators.egm.faults import EgmFaultInjector
+from forcelearn.protocols.egm.carried import Datagram
 
 
 class CycleLoop:
@@ -55,31 +57,33 @@ class CycleLoop:
         """Simulated time of the present cycle, s."""
         self.cycles = 0
         """Cycles run (EgmRobot datagrams built, sent or not)."""
+        self.carried = False
+        """Build datagrams not encoded (the in-process route), else wire bytes."""
         self.restart_requested = threading.Event()
         """Set by an operator restart; the next :meth:`begin` starts a new session."""
         self.guidance_stopped = threading.Event()
         """Set when guidance ends (CommTimeout or motion error); cleared by a restart."""
-        self._held: bytes | None = None  # a reordered datagram, sent after the next one
-        self._inbox: list[bytes] = []  # answers read at the next cycle
-        self._late: list[bytes] = []  # read one cycle later still
+        self._held: Datagram | None = None  # a reordered datagram, sent after the next one
+        self._inbox: list[Datagram] = []  # answers read at the next cycle
+        self._late: list[Datagram] = []  # read one cycle later still
 
-    def begin(self) -> tuple[list[bytes], bool]:
+    def begin(self) -> tuple[list[Datagram], bool]:
         """Start the cycle at :attr:`t_s`; return (datagrams to send, answer expected)."""
         t = self.t_s
         model, faults = self.model, self.faults
         faults.cycle = self.cycles
-        for datagram in self._inbox:
-            model.apply_sensor(datagram, t)
+        for reply in self._inbox:
+            model.apply_sensor(reply, t)
         self._inbox, self._late = self._late, []
         if self.restart_requested.is_set() or (self.cycles and faults.fires("restart")):
             self.restart_requested.clear()
             model.restart(t)
             self.guidance_stopped.clear()
-        datagram = model.robot_datagram(t)
+        datagram = model.robot_carried(t) if self.carried else model.robot_datagram(t)
         if not model.running:
             self.guidance_stopped.set()
         self.cycles += 1
-        out: list[bytes] = []
+        out: list[Datagram] = []
         expect, held = True, None
         if faults.fires("lose"):
             expect = False
@@ -94,7 +98,7 @@ class CycleLoop:
         self._held = held
         return out, expect
 
-    def end(self, replies: list[bytes]) -> float:
+    def end(self, replies: Sequence[Datagram]) -> float:
         """Take this cycle's answers and move to the next cycle; return its time, s."""
         for reply in replies:
             if self.faults.fires("lose_reply"):

@@ -1,19 +1,24 @@
-"""EGM datagrams that carry the message they encode, so an in-process receiver skips the parse.
+"""EGM datagrams handed over in process unencoded, so neither side encodes nor parses them.
 
 On the emulated cell the controller and the driver run in one thread and hand
-each other every datagram (4 ms cycles); parsing it back is a third of a
-cycle's work. :class:`CarriedDatagram` is the datagram itself (``bytes``: the
-same bytes go to a socket, a record or a checkpoint) with the message the
-receiver *would* decode from it attached. The attached message is built by
+each other every datagram (4 ms cycles); encoding each message and parsing it
+back was a third of a cycle's work. A :class:`Carried` datagram is the message
+as it was sent and the message its receiver *would* decode from its bytes;
+the bytes themselves are made only when asked (``bytes(carried)``: a record,
+a checkpoint, a reader that wants the wire), and are then exactly those of
+``codec.encode_*`` of the sent message. The message as received is built by
 :func:`as_received_robot` / :func:`as_received_sensor`, which apply what the
 wire does to each value (32-bit header fields, ``float`` doubles, absent
 fields), and is attached only where that is known exactly; anything else
-carries nothing and is decoded as usual. ``tests/protocols/egm`` checks that
-the attached message equals the decoded one.
+carries nothing and is decoded from its bytes as usual. ``tests/protocols/egm``
+checks that the attached message equals the decoded one.
+
+Only the emulated lockstep route carries datagrams: over UDP (a real cell)
+the bytes are the bytes, and every one is decoded and checked.
 
 A receiver calls :func:`received_robot` / :func:`received_sensor`: the
 carried message when the datagram carries one of the receiver's version,
-else ``None`` (decode the bytes).
+else ``None`` (decode ``bytes(datagram)``).
 """
 
 from __future__ import annotations
@@ -24,11 +29,43 @@ from forcelearn.protocols.egm import codec
 _MASK = 0xFFFFFFFF
 
 
-class CarriedDatagram(bytes):
-    """An encoded datagram with the message its receiver would decode (see the module doc)."""
+class Carried:
+    """A datagram not encoded yet: the message sent, and the one its receiver reads from it.
 
-    message: codec.RobotMessage | codec.SensorMessage | None
-    version: codec.Version
+    ``bytes(datagram)`` encodes the sent message (once); ``message`` is what
+    decoding those bytes gives, or None where that is not known exactly.
+    """
+
+    __slots__ = ("_data", "message", "sent", "version")
+
+    def __init__(
+        self,
+        sent: codec.RobotMessage | codec.SensorMessage,
+        message: codec.RobotMessage | codec.SensorMessage | None,
+        version: codec.Version,
+    ) -> None:
+        self.sent = sent
+        self.message = message
+        self.version: codec.Version = version
+        self._data: bytes | None = None
+
+    def __bytes__(self) -> bytes:
+        data = self._data
+        if data is None:
+            sent = self.sent
+            if isinstance(sent, codec.RobotMessage):
+                data = codec.encode_robot(sent, self.version)
+            else:
+                data = codec.encode_sensor(sent, self.version)
+            self._data = data
+        return data
+
+    def __len__(self) -> int:
+        return len(bytes(self))
+
+
+Datagram = bytes | Carried
+"""What an in-process EGM endpoint hands over: wire bytes, or a datagram not encoded yet."""
 
 
 def _pose(pose: Pose | None) -> Pose | None:
@@ -100,39 +137,34 @@ def as_received_sensor(m: codec.SensorMessage) -> codec.SensorMessage:
     )
 
 
-def carry_robot(message: codec.RobotMessage, version: codec.Version) -> CarriedDatagram:
-    """``codec.encode_robot(message, version)``, carrying the message as it will be read."""
-    datagram = CarriedDatagram(codec.encode_robot(message, version))
-    datagram.version = version
-    datagram.message = as_received_robot(message, version) if _simple_robot(message) else None
-    return datagram
+def carry_robot(message: codec.RobotMessage, version: codec.Version) -> Carried:
+    """``message`` as a ``version`` controller sends it, carrying the message as it will be read."""
+    received = as_received_robot(message, version) if _simple_robot(message) else None
+    return Carried(message, received, version)
 
 
-def carry_sensor(message: codec.SensorMessage, version: codec.Version) -> CarriedDatagram:
-    """``codec.encode_sensor(message, version)``, carrying the message as it will be read."""
-    datagram = CarriedDatagram(codec.encode_sensor(message, version))
-    datagram.version = version
+def carry_sensor(message: codec.SensorMessage, version: codec.Version) -> Carried:
+    """``message`` as an EgmSensor of ``version``, carrying the message as it will be read."""
     simple = (
         message.speed_ref is None
         and message.speed_ref_joints_deg_s is None
         and (message.planned is None or len(message.planned.quaternion) == 4)
     )
-    datagram.message = as_received_sensor(message) if simple else None
-    return datagram
+    return Carried(message, as_received_sensor(message) if simple else None, version)
 
 
-def received_robot(data: bytes, version: codec.Version) -> codec.RobotMessage | None:
-    """The EgmRobot ``data`` carries for a ``version`` reader, or None: decode it."""
-    if type(data) is CarriedDatagram and data.version == version:
+def received_robot(data: Datagram, version: codec.Version) -> codec.RobotMessage | None:
+    """The EgmRobot ``data`` carries for a ``version`` reader, or None: decode its bytes."""
+    if type(data) is Carried and data.version == version:
         message = data.message
         if isinstance(message, codec.RobotMessage):
             return message
     return None
 
 
-def received_sensor(data: bytes, version: codec.Version) -> codec.SensorMessage | None:
-    """The EgmSensor ``data`` carries for a ``version`` reader, or None: decode it."""
-    if type(data) is CarriedDatagram and data.version == version:
+def received_sensor(data: Datagram, version: codec.Version) -> codec.SensorMessage | None:
+    """The EgmSensor ``data`` carries for a ``version`` reader, or None: decode its bytes."""
+    if type(data) is Carried and data.version == version:
         message = data.message
         if isinstance(message, codec.SensorMessage):
             return message
