@@ -110,6 +110,20 @@ class Guidance:
 
     # -- input ------------------------------------------------------------------------------
 
+    def finish_latest(self) -> None:
+        """Fill in what the latest in-process EgmRobot left out (``Carried.pending``).
+
+        The emulated lockstep controller leaves the measured force out of the
+        messages a wait reads cycle after cycle; the message the wait ends on
+        is finished here, before the cell moves on (over UDP: nothing to do).
+        """
+        raw = self._latest_raw
+        if type(raw) is carried.Carried and raw.pending is not None:
+            raw.finish()
+            message = raw.message
+            self.latest = (message if isinstance(message, codec.RobotMessage)
+                           else codec.decode_robot(bytes(raw), self.config.version))
+
     @property
     def latest_raw(self) -> bytes | None:
         """The datagram ``latest`` was read from (what a checkpoint keeps)."""

@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -164,6 +164,7 @@ class EgmControllerModel:
         self.wrong_mode = 0
         """EgmSensor datagrams with position data only for the other mode (reference kept)."""
         self._seqno = 0
+        self._built = 0  # EgmRobot messages built (a deferred force is of the latest only)
         self._last_read_s = t_s
         self._last_pose_s = (t_s, physics.pose)
         self._last_checked: tuple[Pose, str | None, tuple[float, ...] | None] | None = None
@@ -318,12 +319,44 @@ class EgmControllerModel:
         """Advance to the cycle at ``t_s`` and return its EgmRobot datagram."""
         return codec.encode_robot(self.robot_message(t_s), self.config.version)
 
-    def robot_carried(self, t_s: float) -> carried.Carried:
-        """:meth:`robot_datagram` not encoded yet (the in-process route)."""
-        return carried.carry_robot(self.robot_message(t_s), self.config.version)
+    def robot_carried(self, t_s: float, defer_force: bool = False) -> carried.Carried:
+        """:meth:`robot_datagram` not encoded yet (the in-process route).
 
-    def robot_message(self, t_s: float) -> codec.RobotMessage:
-        """Advance to the cycle at ``t_s`` and return its EgmRobot as sent."""
+        ``defer_force``: the measured force is left out and filled in when the
+        datagram is finished (``Carried.finish``), which must happen before the
+        cell's clock moves on (else ``RuntimeError``): the emulated lockstep
+        cell's driver finishes only the message a wait ends on, so the true
+        wrench (a pure function of the cell's state at this cycle) is not
+        computed for the hundreds of cycles no one reads it of. The
+        finished message and its bytes are those of ``defer_force=False``.
+        """
+        version = self.config.version
+        if not (defer_force and self.config.send_measured_force):
+            return carried.carry_robot(self.robot_message(t_s), version)
+        message = self.robot_message(t_s, with_force=False)
+        datagram = carried.carry_robot(message, version)
+        clock = self.physics.clock
+        now_s, built = clock.now_s, self._built
+
+        def finish() -> codec.RobotMessage:
+            if clock.now_s != now_s or self._built != built:
+                raise RuntimeError("an EgmRobot's deferred measured force was asked after the "
+                                   "cell moved on: finish it before the next cycle or read")
+            return replace(message, measured_force=self._measured_force(),
+                           fc_active=self.config.force_control_active)
+
+        datagram.pending = finish
+        return datagram
+
+    def _measured_force(self) -> tuple[float, ...]:
+        """The physics' true wrench as the controller's sensor force (N, N·m)."""
+        return tuple(float(v) for v in self.physics.true_wrench())
+
+    def robot_message(self, t_s: float, with_force: bool = True) -> codec.RobotMessage:
+        """Advance to the cycle at ``t_s`` and return its EgmRobot as sent.
+
+        ``with_force=False`` leaves the measured force out (:meth:`robot_carried`).
+        """
         if self.running and t_s - self._last_read_s >= self.config.comm_timeout_s - 1e-9:
             log.warning("EGM comm timeout at %.3f s: no EgmSensor for %.3f s", t_s,
                         t_s - self._last_read_s)
@@ -335,8 +368,8 @@ class EgmControllerModel:
         speed = float(np.linalg.norm(self.pose.position_mm - p0.position_mm)) / max(t_s - t0, 1e-9)
         self._last_pose_s = (t_s, self.pose)
         force = None
-        if self.config.send_measured_force:
-            force = tuple(float(v) for v in self.physics.true_wrench())
+        if self.config.send_measured_force and with_force:
+            force = self._measured_force()
         gap = float(np.linalg.norm(self.pose.position_mm - self.planned.position_mm))
         if self.pose != self._feedback_joints_pose:  # at rest the axes stay
             self._feedback_joints = self._joints(self.pose, self._feedback_joints)
@@ -360,6 +393,7 @@ class EgmControllerModel:
             fc_active=self.config.force_control_active if force is not None else None,
         )
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
+        self._built += 1
         return message
 
     # -- checkpoint -------------------------------------------------------------------------

@@ -79,7 +79,10 @@ class CycleLoop:
             self.restart_requested.clear()
             model.restart(t)
             self.guidance_stopped.clear()
-        datagram = model.robot_carried(t) if self.carried else model.robot_datagram(t)
+        if self.carried:  # a force no one reads is not computed while no fault can fire
+            datagram: Datagram = model.robot_carried(t, defer_force=faults.none_armed)
+        else:
+            datagram = model.robot_datagram(t)
         if not model.running:
             self.guidance_stopped.set()
         self.cycles += 1

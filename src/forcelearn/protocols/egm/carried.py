@@ -23,6 +23,8 @@ else ``None`` (decode ``bytes(datagram)``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from forcelearn.devices import Pose
 from forcelearn.protocols.egm import codec
 
@@ -34,9 +36,13 @@ class Carried:
 
     ``bytes(datagram)`` encodes the sent message (once); ``message`` is what
     decoding those bytes gives, or None where that is not known exactly.
+
+    An EgmRobot may leave a field to be filled in later (:attr:`pending`: the
+    in-process controller's measured force, needed only of the message a wait
+    ends on); :meth:`finish` fills it, and asking for the bytes finishes first.
     """
 
-    __slots__ = ("_data", "message", "sent", "version")
+    __slots__ = ("_data", "message", "pending", "sent", "version")
 
     def __init__(
         self,
@@ -48,8 +54,20 @@ class Carried:
         self.message = message
         self.version: codec.Version = version
         self._data: bytes | None = None
+        self.pending: Callable[[], codec.RobotMessage] | None = None
+        """Gives the complete sent EgmRobot, while a field of ``sent`` is left out."""
+
+    def finish(self) -> None:
+        """Complete a message that left a field out (:attr:`pending`); no-op when complete."""
+        pending = self.pending
+        if pending is not None:
+            sent = pending()
+            self.pending = None
+            self.sent = sent
+            self.message = as_received_robot(sent, self.version) if _simple_robot(sent) else None
 
     def __bytes__(self) -> bytes:
+        self.finish()
         data = self._data
         if data is None:
             sent = self.sent
