@@ -107,6 +107,8 @@ class Guidance:
         self._before_restart: codec.RobotMessage | None = None
         self._chain: tuple[codec.RobotMessage, int] | None = None  # refused, consecutive
         self._latest_s: float | None = None  # host time of the latest fresh datagram
+        self._sent: Pose | None = None  # the latest planned pose checked and sent
+        self._in_position: tuple[tuple[Pose | None, ...], bool] | None = None  # inputs, result
 
     # -- input ------------------------------------------------------------------------------
 
@@ -356,15 +358,17 @@ class Guidance:
         """:meth:`reply` not encoded yet (an in-process controller reads its message as it is)."""
         if self.latest is None or self.planned is None or self.target is None:
             raise RuntimeError("no EGM session yet: nothing to answer")
-        period = self.config.sample_period_s
-        planned = step_toward(
-            self.planned, self.target, self.speed_mm_s * period, TURN_DEG_S * period
-        )
-        reason = unsafe_reason(planned, self.config.limits, FEEDBACK_NORM_TOLERANCE)
-        if reason is not None:
-            self._count(unsent_replies=1)
-            raise SafetyStop(f"withheld an EgmSensor whose planned pose has {reason}")
-        self.planned = planned
+        planned = self.planned
+        if not (planned is self.target and planned is self._sent):  # else at rest: sent as is
+            period = self.config.sample_period_s
+            planned = step_toward(
+                planned, self.target, self.speed_mm_s * period, TURN_DEG_S * period
+            )
+            reason = unsafe_reason(planned, self.config.limits, FEEDBACK_NORM_TOLERANCE)
+            if reason is not None:
+                self._count(unsent_replies=1)
+                raise SafetyStop(f"withheld an EgmSensor whose planned pose has {reason}")
+            self.planned = self._sent = planned
         message = codec.SensorMessage(self._next_seqno, self.latest.tm_ms, planned)
         self._next_seqno = (self._next_seqno + 1) % _SEQNO_MOD
         self._count(replies=1)
@@ -470,10 +474,16 @@ class Guidance:
         m, target = self.latest, self.target
         if m is None or target is None or m.feedback is None or self.planned != target:
             return False
+        asked = (m.feedback, m.planned, target)
+        known = self._in_position
+        if known is not None and known[0] == asked:
+            return known[1]  # the same poses as in the cycle before (at rest: most cycles)
         poses = [m.feedback] + ([m.planned] if m.planned is not None else [])
         band_mm, band_deg = self.config.in_position_mm, self.config.in_position_deg
-        return all(
+        reached = all(
             distance_mm(p, target) <= band_mm
             and angle_deg(p.quaternion, target.quaternion) <= band_deg
             for p in poses
         )
+        self._in_position = (asked, reached)
+        return reached

@@ -165,6 +165,7 @@ class EgmControllerModel:
         """EgmSensor datagrams with position data only for the other mode (reference kept)."""
         self._seqno = 0
         self._built = 0  # EgmRobot messages built (a deferred force is of the latest only)
+        self._gap_of: tuple[Pose, Pose, float] | None = None  # feedback, planned, their distance
         self._last_read_s = t_s
         self._last_pose_s = (t_s, physics.pose)
         self._last_checked: tuple[Pose, str | None, tuple[float, ...] | None] | None = None
@@ -362,15 +363,22 @@ class EgmControllerModel:
                         t_s - self._last_read_s)
             self._hold(t_s)
             self.mci, self.rapid = codec.MciState.STOPPED, codec.RapidState.STOPPED
-        self.pose = self.motion.advance_to(t_s)
-        self.physics.set_pose(self.pose)
+        self.pose = pose = self.motion.advance_to(t_s)
+        self.physics.set_pose(pose)
         t0, p0 = self._last_pose_s
-        speed = float(np.linalg.norm(self.pose.position_mm - p0.position_mm)) / max(t_s - t0, 1e-9)
-        self._last_pose_s = (t_s, self.pose)
+        if pose == p0:  # at rest (most cycles): no distance to compute, the speed is 0.0
+            speed = 0.0
+        else:
+            speed = float(np.linalg.norm(pose.position_mm - p0.position_mm)) / max(t_s - t0, 1e-9)
+        self._last_pose_s = (t_s, pose)
         force = None
         if self.config.send_measured_force and with_force:
             force = self._measured_force()
-        gap = float(np.linalg.norm(self.pose.position_mm - self.planned.position_mm))
+        gap_of = self._gap_of
+        if gap_of is None or gap_of[0] != pose or gap_of[1] != self.planned:
+            gap = float(np.linalg.norm(pose.position_mm - self.planned.position_mm))
+            self._gap_of = gap_of = (pose, self.planned, gap)
+        gap = gap_of[2]
         if self.pose != self._feedback_joints_pose:  # at rest the axes stay
             self._feedback_joints = self._joints(self.pose, self._feedback_joints)
             self._feedback_joints_pose = self.pose
