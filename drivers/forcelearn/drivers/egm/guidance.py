@@ -142,7 +142,7 @@ class Guidance:
         monotonic seconds) lets a seqno 0 restart a session after the
         controller was silent for ``watchdog_s``; None: never silent.
         """
-        self._count(received=1)
+        self._counts["received"] += 1  # (not _count: every datagram, hot)
         if not self._from_controller(source):
             self._count(foreign_datagrams=1)
             return False
@@ -186,7 +186,7 @@ class Guidance:
             return False
         if message.seqno != 0:
             self._before_restart = None  # the new session is confirmed by its own stream
-        self._count(missed=ahead - 1)
+        self._counts["missed"] += ahead - 1
         self.latest = message
         return self._fresh(data, now_s)
 
@@ -371,7 +371,7 @@ class Guidance:
             self.planned = self._sent = planned
         message = codec.SensorMessage(self._next_seqno, self.latest.tm_ms, planned)
         self._next_seqno = (self._next_seqno + 1) % _SEQNO_MOD
-        self._count(replies=1)
+        self._counts["replies"] += 1
         return carried.carry_sensor(message, self.config.version)
 
     def hold(self) -> None:

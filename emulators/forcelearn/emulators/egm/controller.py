@@ -289,32 +289,37 @@ class EgmControllerModel:
             )
 
     def _checked(self, target: Pose) -> tuple[str | None, tuple[float, ...] | None]:
-        """``_refusal(target)`` and the arm's axes there (None: unreachable), kept for a repeat.
+        """``_refusal(target)`` and the arm's axes there (None: refused), kept for a repeat.
 
         The checks depend on the target and the fixed configuration only, and the
         PC sends the same target cycle after cycle while the arm rests or follows.
         """
         last = self._last_checked
-        if last is not None and last[0] == target:
+        if last is not None and (last[0] is target or last[0] == target):
             return last[1], last[2]
-        refusal = self._refusal(target)
-        joints = joint_angles_deg(self.config.arm, target)
+        refusal, joints = self._refusal_and_joints(target)
         self._last_checked = (target, refusal, joints)
         return refusal, joints
 
     def _refusal(self, pose: Pose) -> str | None:
-        position = pose.position_mm
+        return self._refusal_and_joints(pose)[0]
+
+    def _refusal_and_joints(self, pose: Pose) -> tuple[str | None, tuple[float, ...] | None]:
+        """Why the controller refuses ``pose`` (None: it does not), and the arm's axes there."""
+        position = (pose.x_mm, pose.y_mm, pose.z_mm)
         norm = math.sqrt(sum(c * c for c in pose.quaternion))
-        if not (np.all(np.isfinite(position)) and abs(norm - 1.0) <= 1e-3):
-            return f"planned pose {pose} is not finite or its quaternion not unit length"
-        low = np.asarray(self.config.workspace_min_mm)
-        high = np.asarray(self.config.workspace_max_mm)
-        if np.any(position < low) or np.any(position > high):
-            return f"planned position {np.round(position, 3).tolist()} mm is outside the workspace"
+        if not (all(math.isfinite(c) for c in position) and abs(norm - 1.0) <= 1e-3):
+            return f"planned pose {pose} is not finite or its quaternion not unit length", None
+        low, high = self.config.workspace_min_mm, self.config.workspace_max_mm
+        if any(c < lo or c > hi for c, lo, hi in zip(position, low, high, strict=True)):
+            return (f"planned position {np.round(position, 3).tolist()} mm is outside the "
+                    "workspace"), None
         joints = joint_angles_deg(self.config.arm, pose)
         if joints is None:
-            return f"planned position {np.round(position, 3).tolist()} mm is out of the arm's reach"
-        return arm_joints.limit_violation(self.config.arm, joints)
+            return (f"planned position {np.round(position, 3).tolist()} mm is out of the arm's "
+                    "reach"), None
+        refusal = arm_joints.limit_violation(self.config.arm, joints)
+        return refusal, None if refusal else joints
 
     def robot_datagram(self, t_s: float) -> bytes:
         """Advance to the cycle at ``t_s`` and return its EgmRobot datagram."""

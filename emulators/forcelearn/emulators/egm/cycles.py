@@ -75,17 +75,21 @@ class CycleLoop:
         for reply in self._inbox:
             model.apply_sensor(reply, t)
         self._inbox, self._late = self._late, []
-        if self.restart_requested.is_set() or (self.cycles and faults.fires("restart")):
+        quiet = faults.none_armed  # no fault can fire: none is asked (none would draw)
+        if self.restart_requested.is_set() or (
+                self.cycles and not quiet and faults.fires("restart")):
             self.restart_requested.clear()
             model.restart(t)
             self.guidance_stopped.clear()
         if self.carried:  # a force no one reads is not computed while no fault can fire
-            datagram: Datagram = model.robot_carried(t, defer_force=faults.none_armed)
+            datagram: Datagram = model.robot_carried(t, defer_force=quiet)
         else:
             datagram = model.robot_datagram(t)
         if not model.running:
             self.guidance_stopped.set()
         self.cycles += 1
+        if quiet and self._held is None:
+            return [datagram], True
         out: list[Datagram] = []
         expect, held = True, None
         if faults.fires("lose"):
@@ -103,10 +107,14 @@ class CycleLoop:
 
     def end(self, replies: Sequence[Datagram]) -> float:
         """Take this cycle's answers and move to the next cycle; return its time, s."""
-        for reply in replies:
-            if self.faults.fires("lose_reply"):
-                continue
-            (self._late if self.faults.fires("late_reply") else self._inbox).append(reply)
+        faults = self.faults
+        if faults.none_armed:
+            self._inbox.extend(replies)
+        else:
+            for reply in replies:
+                if faults.fires("lose_reply"):
+                    continue
+                (self._late if faults.fires("late_reply") else self._inbox).append(reply)
         t = self.t_s  # a resume may have moved the grid meanwhile (load_state_dict)
         next_t = t + self.period_s
         now = self.clock.now_s

@@ -123,8 +123,33 @@ def _simple_robot(m: codec.RobotMessage) -> bool:
     )
 
 
+def _received_as_is(m: codec.RobotMessage, version: codec.Version) -> bool:
+    """Whether ``m`` is already what decoding its bytes gives (an emulator's usual message)."""
+    force = m.measured_force
+    seqno, tm_ms = m.seqno, m.tm_ms
+    return (
+        type(seqno) is int and 0 <= seqno <= _MASK and type(tm_ms) is int and 0 <= tm_ms <= _MASK
+        and (m.feedback is None or _pose(m.feedback) is m.feedback)
+        and (m.planned is None or _pose(m.planned) is m.planned)
+        and type(m.joints_deg) is tuple and _floats(m.joints_deg)
+        and type(m.planned_joints_deg) is tuple and _floats(m.planned_joints_deg)
+        and (m.time_us is None or (type(m.time_us) is int and m.time_us >= 0))
+        and (m.planned_time_us is None
+             or (type(m.planned_time_us) is int and m.planned_time_us >= 0))
+        and type(m.motor) is codec.MotorState and type(m.mci) is codec.MciState
+        and type(m.rapid) is codec.RapidState
+        and (m.convergence_met is None or type(m.convergence_met) is bool)
+        and (m.utilization_pct is None or type(m.utilization_pct) is float)
+        and (force is None or (type(force) is tuple and _floats(force)))
+        and (m.fc_active is None if version != "rw7" or force is None
+             else type(m.fc_active) is bool)
+    )
+
+
 def as_received_robot(m: codec.RobotMessage, version: codec.Version) -> codec.RobotMessage:
     """The message :func:`codec.decode_robot` reads from ``codec.encode_robot(m, version)``."""
+    if _received_as_is(m, version):
+        return m  # frozen: shared safely
     force = None if m.measured_force is None else _tuple(m.measured_force)
     return codec.RobotMessage(
         seqno=m.seqno & _MASK,
