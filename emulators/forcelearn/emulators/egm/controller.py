@@ -166,6 +166,7 @@ class EgmControllerModel:
         self._seqno = 0
         self._built = 0  # EgmRobot messages built (a deferred force is of the latest only)
         self._gap_of: tuple[Pose, Pose, float] | None = None  # feedback, planned, their distance
+        self._published: Pose | None = None  # the pose last written to the physics
         self._last_read_s = t_s
         self._last_pose_s = (t_s, physics.pose)
         self._last_checked: tuple[Pose, str | None, tuple[float, ...] | None] | None = None
@@ -369,7 +370,10 @@ class EgmControllerModel:
             self._hold(t_s)
             self.mci, self.rapid = codec.MciState.STOPPED, codec.RapidState.STOPPED
         self.pose = pose = self.motion.advance_to(t_s)
-        self.physics.set_pose(pose)
+        published = self._published
+        if pose != published or self.physics.pose is not published:
+            self.physics.set_pose(pose)  # else at rest where it was published (and observed)
+            self._published = pose
         t0, p0 = self._last_pose_s
         if pose == p0:  # at rest (most cycles): no distance to compute, the speed is 0.0
             speed = 0.0
@@ -447,6 +451,7 @@ class EgmControllerModel:
         self.ignored = int(state["ignored"])
         self._seqno = int(state["seqno"])
         self._last_read_s = float(state["last_read_s"])
+        self._published = None  # the physics is restored on its own
         last = state["last_pose"]
         self._last_pose_s = (float(last[0]), _list_pose(last[1:]))
 
