@@ -165,7 +165,6 @@ class EgmControllerModel:
         """EgmSensor datagrams with position data only for the other mode (reference kept)."""
         self._seqno = 0
         self._built = 0  # EgmRobot messages built (a deferred force is of the latest only)
-        self._gap_of: tuple[Pose, Pose, float] | None = None  # feedback, planned, their distance
         self._published: Pose | None = None  # the pose last written to the physics
         self._last_read_s = t_s
         self._last_pose_s = (t_s, physics.pose)
@@ -375,19 +374,12 @@ class EgmControllerModel:
             self.physics.set_pose(pose)  # else at rest where it was published (and observed)
             self._published = pose
         t0, p0 = self._last_pose_s
-        if pose == p0:  # at rest (most cycles): no distance to compute, the speed is 0.0
-            speed = 0.0
-        else:
-            speed = float(np.linalg.norm(pose.position_mm - p0.position_mm)) / max(t_s - t0, 1e-9)
+        speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
         self._last_pose_s = (t_s, pose)
         force = None
         if self.config.send_measured_force and with_force:
             force = self._measured_force()
-        gap_of = self._gap_of
-        if gap_of is None or gap_of[0] != pose or gap_of[1] != self.planned:
-            gap = float(np.linalg.norm(pose.position_mm - self.planned.position_mm))
-            self._gap_of = gap_of = (pose, self.planned, gap)
-        gap = gap_of[2]
+        gap = _distance_mm(pose, self.planned)
         if self.pose != self._feedback_joints_pose:  # at rest the axes stay
             self._feedback_joints = self._joints(self.pose, self._feedback_joints)
             self._feedback_joints_pose = self.pose
@@ -454,6 +446,16 @@ class EgmControllerModel:
         self._published = None  # the physics is restored on its own
         last = state["last_pose"]
         self._last_pose_s = (float(last[0]), _list_pose(last[1:]))
+
+
+def _distance_mm(a: Pose, b: Pose) -> float:
+    """Distance |a - b| of two positions, mm, without arrays (a cycle's hot path).
+
+    The float operations of ``numpy.linalg.norm`` of the difference: the sum of
+    the three squares in order, then its square root.
+    """
+    dx, dy, dz = a.x_mm - b.x_mm, a.y_mm - b.y_mm, a.z_mm - b.z_mm
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 def _pose_list(pose: Pose) -> list[float]:
