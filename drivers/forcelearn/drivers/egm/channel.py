@@ -300,6 +300,7 @@ class EgmChannel(Driver):
 
     def _latest(self) -> codec.RobotMessage:
         self._check()
+        self._guidance.finish_latest()  # in process: the wait that read it may have left a field
         latest = self._guidance.latest
         if latest is None:
             raise LinkError("no EGM session yet: call wait_for_session() (or open_egm_robot)")
