@@ -29,7 +29,7 @@ import socket
 import threading
 import time
 import weakref
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, cast
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm.config import EgmConfig
@@ -55,7 +55,6 @@ class DatagramSocket(Protocol):
     def close(self) -> None: ...  # noqa: D102
 
 
-@runtime_checkable
 class CarryingSocket(DatagramSocket, Protocol):
     """An in-process controller's end that also hands datagrams over unencoded (lockstep).
 
@@ -99,7 +98,7 @@ class EgmChannel(Driver):
             if not config.lockstep:
                 raise ValueError("a given socket (an in-process controller) needs lockstep = True")
             self._sock = sock
-            self._carrier = sock if isinstance(sock, CarryingSocket) else None
+            self._carrier = _carrying(sock)
         else:
             self._sock = _bind(config.host, config.port)
         self.port: int = self._sock.getsockname()[1]
@@ -362,6 +361,19 @@ def _serve(driver_ref: weakref.ref[EgmChannel]) -> None:
         if driver is None or not driver._serve_once():
             return
         del driver
+
+
+def _carrying(sock: DatagramSocket) -> CarryingSocket | None:
+    """``sock`` if its class hands datagrams over unencoded, else None (bytes, decoded).
+
+    Asked of the class, not the object: a wrapper that forwards unknown
+    attributes (a recorder of ``sendto``) keeps the bytes it intercepts.
+    """
+    kind = type(sock)
+    if callable(getattr(kind, "recv_carried", None)) and callable(
+            getattr(kind, "send_carried", None)):
+        return cast(CarryingSocket, sock)
+    return None
 
 
 def _bind(host: str, port: int) -> socket.socket:
