@@ -19,8 +19,10 @@ from forcelearn.emulators.egm import (
     InProcessEgmController,
 )
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import GuidanceStopped, LinkError
 from forcelearn.protocols.egm import codec
+from forcelearn.protocols.egm.carried import Carried
 from forcelearn.site.config import load_cell_config
 from forcelearn.site.egm_kind import EgmRoute
 from forcelearn.site.session import CellSession
@@ -32,7 +34,7 @@ DRIVER = EgmConfig(port=0, lockstep=True, watchdog_s=5.0)
 
 def _kwargs(faults: EgmFaultConfig | None = None) -> dict[str, Any]:
     return {
-        "physics": CellPhysics(pose=HOME),
+        "physics": CellPhysics(pose=HOME, tool=ToolParams()),  # a weight: a measured force
         "clock": SimClock(),
         "config": EgmControllerConfig(),
         "faults": faults,
@@ -62,6 +64,9 @@ def _session(route: str, faults: EgmFaultConfig | None) -> tuple[list[object], E
         # while the controller waits for the answer to its latest cycle (the UDP
         # route's thread goes on after the driver closes, in wall time)
         seen += [emu.clock.now_s, emu.cycles, emu.model.targets_read, emu.state_dict()]
+        # the whole status (the measured force, which the in-process route fills in only
+        # for the message a wait ends on) and the checkpoint's bytes of the latest EgmRobot
+        seen += [status, robot.state_dict()]
     finally:
         robot.close()
         emu.close()
@@ -171,3 +176,20 @@ def test_the_emulated_cell_gives_the_same_state_on_both_routes() -> None:
             return forces, s.emulator_state()
 
     assert session("in_process") == session("udp")
+
+
+def test_a_deferred_measured_force_is_asked_before_the_cell_moves_on() -> None:
+    """The in-process EgmRobot's force, left out until asked, is refused once time moved."""
+    physics = CellPhysics(pose=HOME, tool=ToolParams())
+    emu = InProcessEgmController(physics=physics, clock=physics.clock)
+    sock = emu.socket()
+    first, _ = sock.recv_carried()
+    assert isinstance(first, Carried) and first.pending is not None
+    measured = codec.decode_robot(bytes(first), "rw7").measured_force  # finished now
+    assert measured == tuple(float(v) for v in physics.true_wrench()) and any(measured)
+    sock.send_carried(b"", None)  # an unreadable answer: the cycle ends, the clock moves on
+    second, _ = sock.recv_carried()
+    physics.clock.advance(0.001)
+    with pytest.raises(RuntimeError, match="moved on"):
+        bytes(second)
+    emu.close()

@@ -29,14 +29,14 @@ import socket
 import threading
 import time
 import weakref
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.guidance import Guidance
 from forcelearn.drivers.lifecycle import Driver
 from forcelearn.errors import ForcelearnError, LinkError, LinkTimeout, SafetyStop
-from forcelearn.protocols.egm import codec
+from forcelearn.protocols.egm import carried, codec
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +53,20 @@ class DatagramSocket(Protocol):
     def settimeout(self, value: float | None, /) -> None: ...  # noqa: D102
     def getsockname(self) -> Any: ...  # noqa: D102
     def close(self) -> None: ...  # noqa: D102
+
+
+class CarryingSocket(DatagramSocket, Protocol):
+    """An in-process controller's end that also hands datagrams over unencoded (lockstep).
+
+    ``recv_carried``/``send_carried`` are ``recvfrom``/``sendto`` with
+    :class:`~forcelearn.protocols.egm.carried.Carried` datagrams: neither side
+    encodes a message nor parses one (the emulated cell's route; a socket
+    that receives from a network has no such methods, and every datagram it
+    gives is decoded and checked).
+    """
+
+    def recv_carried(self) -> tuple[carried.Datagram, Any]: ...  # noqa: D102
+    def send_carried(self, data: carried.Datagram, address: Any, /) -> None: ...  # noqa: D102
 
 
 class EgmChannel(Driver):
@@ -79,10 +93,12 @@ class EgmChannel(Driver):
         self._stopping = threading.Event()
         self._thread: threading.Thread | None = None
         self._sock: DatagramSocket | None
+        self._carrier: CarryingSocket | None = None
         if sock is not None:
             if not config.lockstep:
                 raise ValueError("a given socket (an in-process controller) needs lockstep = True")
             self._sock = sock
+            self._carrier = _carrying(sock)
         else:
             self._sock = _bind(config.host, config.port)
         self.port: int = self._sock.getsockname()[1]
@@ -154,7 +170,7 @@ class EgmChannel(Driver):
                 log.warning("cannot send EgmSensor to %s: %s (the controller will time out "
                             "if this goes on)", address, exc)
 
-    def _take(self, data: bytes, address: Any) -> bool:
+    def _take(self, data: carried.Datagram, address: Any) -> bool:
         fresh = self._guidance.on_datagram(data, address, time.monotonic())
         if fresh:
             self._fresh_count += 1
@@ -175,9 +191,10 @@ class EgmChannel(Driver):
                 self._fresh.wait(remaining)
             return
         sock = self._require_socket()
+        carrier = self._carrier
         if self._pending is not None:
             try:
-                reply = self._guidance.reply()
+                reply = self._guidance.reply_carried() if carrier else self._guidance.reply()
             except SafetyStop as exc:
                 log.error("EGM answer withheld: %s", exc)
             else:
@@ -188,9 +205,12 @@ class EgmChannel(Driver):
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise self._silent(watchdog)
-            sock.settimeout(remaining)
             try:
-                data, address = sock.recvfrom(MAX_DATAGRAM)
+                if carrier is not None:
+                    data, address = carrier.recv_carried()
+                else:
+                    sock.settimeout(remaining)
+                    data, address = sock.recvfrom(MAX_DATAGRAM)
             except TimeoutError:
                 continue
             except (ConnectionResetError, ConnectionRefusedError):
@@ -215,9 +235,13 @@ class EgmChannel(Driver):
             f"program running, and does its UDP Unicast Device point at this PC, port {self.port}?"
         )
 
-    def _send(self, datagram: bytes, address: tuple[str, int]) -> None:
+    def _send(self, datagram: carried.Datagram, address: tuple[str, int]) -> None:
         try:
-            self._require_socket().sendto(datagram, address)
+            sock, carrier = self._require_socket(), self._carrier
+            if carrier is not None:
+                carrier.send_carried(datagram, address)
+            else:
+                sock.sendto(bytes(datagram), address)
         except OSError as exc:
             raise LinkError(f"cannot send EgmSensor to {address}: {exc}") from exc
 
@@ -275,6 +299,7 @@ class EgmChannel(Driver):
 
     def _latest(self) -> codec.RobotMessage:
         self._check()
+        self._guidance.finish_latest()  # in process: the wait that read it may have left a field
         latest = self._guidance.latest
         if latest is None:
             raise LinkError("no EGM session yet: call wait_for_session() (or open_egm_robot)")
@@ -317,6 +342,7 @@ class EgmChannel(Driver):
             if self._sock is not None:
                 self._sock.close()
                 self._sock = None
+                self._carrier = None
 
     def _closed_error(self) -> LinkError:
         return LinkError(f"the EGM driver on port {self.port} is closed; open a new one")
@@ -335,6 +361,19 @@ def _serve(driver_ref: weakref.ref[EgmChannel]) -> None:
         if driver is None or not driver._serve_once():
             return
         del driver
+
+
+def _carrying(sock: DatagramSocket) -> CarryingSocket | None:
+    """``sock`` if its class hands datagrams over unencoded, else None (bytes, decoded).
+
+    Asked of the class, not the object: a wrapper that forwards unknown
+    attributes (a recorder of ``sendto``) keeps the bytes it intercepts.
+    """
+    kind = type(sock)
+    if callable(getattr(kind, "recv_carried", None)) and callable(
+            getattr(kind, "send_carried", None)):
+        return cast(CarryingSocket, sock)
+    return None
 
 
 def _bind(host: str, port: int) -> socket.socket:

@@ -43,6 +43,7 @@ receive thread, lockstep cycles, watchdog, session wait) is :mod:`.channel`.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass
@@ -295,6 +296,16 @@ class EgmRobot(EgmChannel):
                 self._next_message()
 
     def _wait(self, span_s: float, settle_s: float, until_in_position: bool) -> Pose:
+        try:
+            reached = self._wait_cycles(span_s, settle_s, until_in_position)
+        except BaseException:
+            with contextlib.suppress(RuntimeError):  # the error that ended the wait comes first
+                self._guidance.finish_latest()
+            raise
+        self._guidance.finish_latest()
+        return reached
+
+    def _wait_cycles(self, span_s: float, settle_s: float, until_in_position: bool) -> Pose:
         guidance = self._guidance
         self._latest()
         session = guidance.session

@@ -89,8 +89,7 @@ class Guidance:
     def __init__(self, config: EgmConfig) -> None:
         self.config = config
         self.latest: codec.RobotMessage | None = None
-        self.latest_raw: bytes | None = None
-        """The datagram ``latest`` was decoded from (what a checkpoint keeps)."""
+        self._latest_raw: carried.Datagram | None = None
         self.target: Pose | None = None
         """Last accepted target (the step limit is measured from it)."""
         self.planned: Pose | None = None
@@ -108,11 +107,33 @@ class Guidance:
         self._before_restart: codec.RobotMessage | None = None
         self._chain: tuple[codec.RobotMessage, int] | None = None  # refused, consecutive
         self._latest_s: float | None = None  # host time of the latest fresh datagram
+        self._sent: Pose | None = None  # the latest planned pose checked and sent
+        self._in_position: tuple[tuple[Pose | None, ...], bool] | None = None  # inputs, result
 
     # -- input ------------------------------------------------------------------------------
 
+    def finish_latest(self) -> None:
+        """Fill in what the latest in-process EgmRobot left out (``Carried.pending``).
+
+        The emulated lockstep controller leaves the measured force out of the
+        messages a wait reads cycle after cycle; the message the wait ends on
+        is finished here, before the cell moves on (over UDP: nothing to do).
+        """
+        raw = self._latest_raw
+        if type(raw) is carried.Carried and raw.pending is not None:
+            raw.finish()
+            message = raw.message
+            self.latest = (message if isinstance(message, codec.RobotMessage)
+                           else codec.decode_robot(bytes(raw), self.config.version))
+
+    @property
+    def latest_raw(self) -> bytes | None:
+        """The datagram ``latest`` was read from (what a checkpoint keeps)."""
+        raw = self._latest_raw
+        return None if raw is None else bytes(raw)
+
     def on_datagram(
-        self, data: bytes, source: Source = None, now_s: float | None = None
+        self, data: carried.Datagram, source: Source = None, now_s: float | None = None
     ) -> bool:
         """Take one datagram from ``source``; True if it is fresh and must be answered.
 
@@ -121,13 +142,13 @@ class Guidance:
         monotonic seconds) lets a seqno 0 restart a session after the
         controller was silent for ``watchdog_s``; None: never silent.
         """
-        self._count(received=1)
+        self._counts["received"] += 1  # (not _count: every datagram, hot)
         if not self._from_controller(source):
             self._count(foreign_datagrams=1)
             return False
         message = carried.received_robot(data, self.config.version)
         if message is None:
-            message = self._decode(data)
+            message = self._decode(bytes(data))
             if message is None:
                 return False
         latest = self.latest
@@ -165,7 +186,7 @@ class Guidance:
             return False
         if message.seqno != 0:
             self._before_restart = None  # the new session is confirmed by its own stream
-        self._count(missed=ahead - 1)
+        self._counts["missed"] += ahead - 1
         self.latest = message
         return self._fresh(data, now_s)
 
@@ -244,14 +265,14 @@ class Guidance:
                     message.seqno)
         return True
 
-    def _fresh(self, data: bytes, now_s: float | None) -> bool:
+    def _fresh(self, data: carried.Datagram, now_s: float | None) -> bool:
         """Keep ``data`` as the latest (``self.latest`` is its message); True: answer it."""
         latest = self.latest
         if self.origin_us is None and latest is not None and latest.time_us is not None:
             self.origin_us = latest.time_us  # only a datagram taken sets the controller's time 0
         self._chain = None
         self.refusal = None  # the controller's stream goes on: an earlier refusal is moot
-        self.latest_raw = data
+        self._latest_raw = data
         self._latest_s = now_s
         return True
 
@@ -331,20 +352,26 @@ class Guidance:
         stepped pose is not finite or leaves the workspace, which the checks
         on targets and feedback should make impossible.
         """
+        return bytes(self.reply_carried())
+
+    def reply_carried(self) -> carried.Carried:
+        """:meth:`reply` not encoded yet (an in-process controller reads its message as it is)."""
         if self.latest is None or self.planned is None or self.target is None:
             raise RuntimeError("no EGM session yet: nothing to answer")
-        period = self.config.sample_period_s
-        planned = step_toward(
-            self.planned, self.target, self.speed_mm_s * period, TURN_DEG_S * period
-        )
-        reason = unsafe_reason(planned, self.config.limits, FEEDBACK_NORM_TOLERANCE)
-        if reason is not None:
-            self._count(unsent_replies=1)
-            raise SafetyStop(f"withheld an EgmSensor whose planned pose has {reason}")
-        self.planned = planned
+        planned = self.planned
+        if not (planned is self.target and planned is self._sent):  # else at rest: sent as is
+            period = self.config.sample_period_s
+            planned = step_toward(
+                planned, self.target, self.speed_mm_s * period, TURN_DEG_S * period
+            )
+            reason = unsafe_reason(planned, self.config.limits, FEEDBACK_NORM_TOLERANCE)
+            if reason is not None:
+                self._count(unsent_replies=1)
+                raise SafetyStop(f"withheld an EgmSensor whose planned pose has {reason}")
+            self.planned = self._sent = planned
         message = codec.SensorMessage(self._next_seqno, self.latest.tm_ms, planned)
         self._next_seqno = (self._next_seqno + 1) % _SEQNO_MOD
-        self._count(replies=1)
+        self._counts["replies"] += 1
         return carried.carry_sensor(message, self.config.version)
 
     def hold(self) -> None:
@@ -367,8 +394,9 @@ class Guidance:
         def pose(p: Pose | None) -> list[float] | None:
             return None if p is None else [p.x_mm, p.y_mm, p.z_mm, *p.quaternion]
 
+        raw = self.latest_raw
         return {
-            "latest": None if self.latest_raw is None else self.latest_raw.hex(),
+            "latest": None if raw is None else raw.hex(),
             "target": pose(self.target),
             "planned": pose(self.planned),
             "speed_mm_s": self.speed_mm_s,
@@ -388,10 +416,10 @@ class Guidance:
             return Pose(x, y, z, (w, qx, qy, qz))
 
         raw = state["latest"]
-        self.latest_raw = None if raw is None else bytes.fromhex(raw)
+        self._latest_raw = None if raw is None else bytes.fromhex(raw)
         self.latest = (
-            None if self.latest_raw is None
-            else codec.decode_robot(self.latest_raw, self.config.version)
+            None if self._latest_raw is None
+            else codec.decode_robot(self._latest_raw, self.config.version)
         )
         self.target = pose(state["target"])
         self.planned = pose(state["planned"])
@@ -446,10 +474,16 @@ class Guidance:
         m, target = self.latest, self.target
         if m is None or target is None or m.feedback is None or self.planned != target:
             return False
+        asked = (m.feedback, m.planned, target)
+        known = self._in_position
+        if known is not None and known[0] == asked:
+            return known[1]  # the same poses as in the cycle before (at rest: most cycles)
         poses = [m.feedback] + ([m.planned] if m.planned is not None else [])
         band_mm, band_deg = self.config.in_position_mm, self.config.in_position_deg
-        return all(
+        reached = all(
             distance_mm(p, target) <= band_mm
             and angle_deg(p.quaternion, target.quaternion) <= band_deg
             for p in poses
         )
+        self._in_position = (asked, reached)
+        return reached

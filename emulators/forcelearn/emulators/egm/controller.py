@@ -58,7 +58,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -173,6 +173,8 @@ class EgmControllerModel:
         self.wrong_mode = 0
         """EgmSensor datagrams with position data only for the other mode (reference kept)."""
         self._seqno = 0
+        self._built = 0  # EgmRobot messages built (a deferred force is of the latest only)
+        self._published: Pose | None = None  # the pose last written to the physics
         self._last_read_s = t_s
         self._timed_out_s: float | None = None
         """When the last CommTimeout ended guidance, s (None: guided, or restarted since)."""
@@ -215,7 +217,7 @@ class EgmControllerModel:
         joints = joint_angles_deg(self.config.arm, pose)
         return fallback if joints is None else joints
 
-    def apply_sensor(self, datagram: bytes, t_s: float) -> None:
+    def apply_sensor(self, datagram: carried.Datagram, t_s: float) -> None:
         """Read one EgmSensor at the cycle of time ``t_s``."""
         if not self.running:
             self.ignored += 1
@@ -223,7 +225,7 @@ class EgmControllerModel:
         message = carried.received_sensor(datagram, self.config.version)
         if message is None:
             try:
-                message = codec.decode_sensor(datagram, self.config.version)
+                message = codec.decode_sensor(bytes(datagram), self.config.version)
             except ProtocolError as exc:
                 log.info("EgmSensor ignored: %s", exc)
                 self.ignored += 1
@@ -304,50 +306,98 @@ class EgmControllerModel:
             )
 
     def _checked(self, target: Pose) -> tuple[str | None, tuple[float, ...] | None]:
-        """``_refusal(target)`` and the arm's axes there (None: unreachable), kept for a repeat.
+        """``_refusal(target)`` and the arm's axes there (None: refused), kept for a repeat.
 
         The checks depend on the target and the fixed configuration only, and the
         PC sends the same target cycle after cycle while the arm rests or follows.
         """
         last = self._last_checked
-        if last is not None and last[0] == target:
+        if last is not None and (last[0] is target or last[0] == target):
             return last[1], last[2]
-        refusal = self._refusal(target)
-        joints = joint_angles_deg(self.config.arm, target)
+        refusal, joints = self._refusal_and_joints(target)
         self._last_checked = (target, refusal, joints)
         return refusal, joints
 
     def _refusal(self, pose: Pose) -> str | None:
-        position = pose.position_mm
+        return self._refusal_and_joints(pose)[0]
+
+    def _refusal_and_joints(self, pose: Pose) -> tuple[str | None, tuple[float, ...] | None]:
+        """Why the controller refuses ``pose`` (None: it does not), and the arm's axes there."""
+        position = (pose.x_mm, pose.y_mm, pose.z_mm)
         norm = math.sqrt(sum(c * c for c in pose.quaternion))
-        if not (np.all(np.isfinite(position)) and abs(norm - 1.0) <= 1e-3):
-            return f"planned pose {pose} is not finite or its quaternion not unit length"
-        low = np.asarray(self.config.workspace_min_mm)
-        high = np.asarray(self.config.workspace_max_mm)
-        if np.any(position < low) or np.any(position > high):
-            return f"planned position {np.round(position, 3).tolist()} mm is outside the workspace"
+        if not (all(math.isfinite(c) for c in position) and abs(norm - 1.0) <= 1e-3):
+            return f"planned pose {pose} is not finite or its quaternion not unit length", None
+        low, high = self.config.workspace_min_mm, self.config.workspace_max_mm
+        if any(c < lo or c > hi for c, lo, hi in zip(position, low, high, strict=True)):
+            return (f"planned position {np.round(position, 3).tolist()} mm is outside the "
+                    "workspace"), None
         joints = joint_angles_deg(self.config.arm, pose)
         if joints is None:
-            return f"planned position {np.round(position, 3).tolist()} mm is out of the arm's reach"
-        return arm_joints.limit_violation(self.config.arm, joints)
+            return (f"planned position {np.round(position, 3).tolist()} mm is out of the arm's "
+                    "reach"), None
+        refusal = arm_joints.limit_violation(self.config.arm, joints)
+        return refusal, None if refusal else joints
 
     def robot_datagram(self, t_s: float) -> bytes:
         """Advance to the cycle at ``t_s`` and return its EgmRobot datagram."""
+        return codec.encode_robot(self.robot_message(t_s), self.config.version)
+
+    def robot_carried(self, t_s: float, defer_force: bool = False) -> carried.Carried:
+        """:meth:`robot_datagram` not encoded yet (the in-process route).
+
+        ``defer_force``: the measured force is left out and filled in when the
+        datagram is finished (``Carried.finish``), which must happen before the
+        cell's clock moves on (else ``RuntimeError``): the emulated lockstep
+        cell's driver finishes only the message a wait ends on, so the true
+        wrench (a pure function of the cell's state at this cycle) is not
+        computed for the hundreds of cycles no one reads it of. The
+        finished message and its bytes are those of ``defer_force=False``.
+        """
+        version = self.config.version
+        if not (defer_force and self.config.send_measured_force):
+            return carried.carry_robot(self.robot_message(t_s), version)
+        message = self.robot_message(t_s, with_force=False)
+        datagram = carried.carry_robot(message, version)
+        clock = self.physics.clock
+        now_s, built = clock.now_s, self._built
+
+        def finish() -> codec.RobotMessage:
+            if clock.now_s != now_s or self._built != built:
+                raise RuntimeError("an EgmRobot's deferred measured force was asked after the "
+                                   "cell moved on: finish it before the next cycle or read")
+            return replace(message, measured_force=self._measured_force(),
+                           fc_active=self.config.force_control_active)
+
+        datagram.pending = finish
+        return datagram
+
+    def _measured_force(self) -> tuple[float, ...]:
+        """The physics' true wrench as the controller's sensor force (N, N·m)."""
+        return tuple(float(v) for v in self.physics.true_wrench())
+
+    def robot_message(self, t_s: float, with_force: bool = True) -> codec.RobotMessage:
+        """Advance to the cycle at ``t_s`` and return its EgmRobot as sent.
+
+        ``with_force=False`` leaves the measured force out (:meth:`robot_carried`).
+        """
         if self.running and t_s - self._last_read_s >= self.config.comm_timeout_s - 1e-9:
             log.warning("EGM comm timeout at %.3f s: no EgmSensor for %.3f s", t_s,
                         t_s - self._last_read_s)
             self._hold(t_s)
             self.mci, self.rapid = codec.MciState.STOPPED, codec.RapidState.STOPPED
             self._timed_out_s = t_s
-        self.pose = self.motion.advance_to(t_s)
-        self.physics.set_pose(self.pose)
+        self.pose = pose = self.motion.advance_to(t_s)
+        published = self._published
+        if pose != published or self.physics.pose is not published:
+            self.physics.set_pose(pose)  # else at rest where it was published (and observed)
+            self._published = pose
         t0, p0 = self._last_pose_s
-        speed = float(np.linalg.norm(self.pose.position_mm - p0.position_mm)) / max(t_s - t0, 1e-9)
-        self._last_pose_s = (t_s, self.pose)
+        speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
+        self._last_pose_s = (t_s, pose)
         force = None
-        if self.config.send_measured_force:
-            force = tuple(float(v) for v in self.physics.true_wrench())
-        gap = float(np.linalg.norm(self.pose.position_mm - self.planned.position_mm))
+        if self.config.send_measured_force and with_force:
+            force = self._measured_force()
+        gap = _distance_mm(pose, self.planned)
         if self.pose != self._feedback_joints_pose:  # at rest the axes stay
             self._feedback_joints = self._joints(self.pose, self._feedback_joints)
             self._feedback_joints_pose = self.pose
@@ -370,7 +420,8 @@ class EgmControllerModel:
             fc_active=self.config.force_control_active if force is not None else None,
         )
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
-        return carried.carry_robot(message, self.config.version)
+        self._built += 1
+        return message
 
     # -- checkpoint -------------------------------------------------------------------------
 
@@ -412,8 +463,19 @@ class EgmControllerModel:
         self._timed_out_s = None if timed_out is None else float(timed_out)
         self._seqno = int(state["seqno"])
         self._last_read_s = float(state["last_read_s"])
+        self._published = None  # the physics is restored on its own
         last = state["last_pose"]
         self._last_pose_s = (float(last[0]), _list_pose(last[1:]))
+
+
+def _distance_mm(a: Pose, b: Pose) -> float:
+    """Distance |a - b| of two positions, mm, without arrays (a cycle's hot path).
+
+    The float operations of ``numpy.linalg.norm`` of the difference: the sum of
+    the three squares in order, then its square root.
+    """
+    dx, dy, dz = a.x_mm - b.x_mm, a.y_mm - b.y_mm, a.z_mm - b.z_mm
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 def _pose_list(pose: Pose) -> list[float]:

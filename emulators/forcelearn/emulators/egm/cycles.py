@@ -23,11 +23,13 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Sequence
 from typing import Any
 
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm.controller import EgmControllerModel
 from forcelearn.emulators.egm.faults import EgmFaultInjector
+from forcelearn.protocols.egm.carried import Datagram
 
 
 class CycleLoop:
@@ -55,32 +57,41 @@ class CycleLoop:
         """Simulated time of the present cycle, s."""
         self.cycles = 0
         """Cycles run (EgmRobot datagrams built, sent or not)."""
+        self.carried = False
+        """Build datagrams not encoded (the in-process route), else wire bytes."""
         self.restart_requested = threading.Event()
         """Set by an operator restart; the next :meth:`begin` starts a new session."""
         self.guidance_stopped = threading.Event()
         """Set when guidance ends (CommTimeout or motion error); cleared by a restart."""
-        self._held: bytes | None = None  # a reordered datagram, sent after the next one
-        self._inbox: list[bytes] = []  # answers read at the next cycle
-        self._late: list[bytes] = []  # read one cycle later still
+        self._held: Datagram | None = None  # a reordered datagram, sent after the next one
+        self._inbox: list[Datagram] = []  # answers read at the next cycle
+        self._late: list[Datagram] = []  # read one cycle later still
 
-    def begin(self) -> tuple[list[bytes], bool]:
+    def begin(self) -> tuple[list[Datagram], bool]:
         """Start the cycle at :attr:`t_s`; return (datagrams to send, answer expected)."""
         t = self.t_s
         model, faults = self.model, self.faults
         faults.cycle = self.cycles
-        for datagram in self._inbox:
-            model.apply_sensor(datagram, t)
+        for reply in self._inbox:
+            model.apply_sensor(reply, t)
         self._inbox, self._late = self._late, []
-        if (self.restart_requested.is_set() or (self.cycles and faults.fires("restart"))
+        quiet = faults.none_armed  # no fault can fire: none is asked (none would draw)
+        if (self.restart_requested.is_set()
+                or (self.cycles and not quiet and faults.fires("restart"))
                 or model.restart_due(t)):
             self.restart_requested.clear()
             model.restart(t)
             self.guidance_stopped.clear()
-        datagram = model.robot_datagram(t)
+        if self.carried:  # a force no one reads is not computed while no fault can fire
+            datagram: Datagram = model.robot_carried(t, defer_force=quiet)
+        else:
+            datagram = model.robot_datagram(t)
         if not model.running:
             self.guidance_stopped.set()
         self.cycles += 1
-        out: list[bytes] = []
+        if quiet and self._held is None:
+            return [datagram], True
+        out: list[Datagram] = []
         expect, held = True, None
         if faults.fires("lose"):
             expect = False
@@ -95,12 +106,16 @@ class CycleLoop:
         self._held = held
         return out, expect
 
-    def end(self, replies: list[bytes]) -> float:
+    def end(self, replies: Sequence[Datagram]) -> float:
         """Take this cycle's answers and move to the next cycle; return its time, s."""
-        for reply in replies:
-            if self.faults.fires("lose_reply"):
-                continue
-            (self._late if self.faults.fires("late_reply") else self._inbox).append(reply)
+        faults = self.faults
+        if faults.none_armed:
+            self._inbox.extend(replies)
+        else:
+            for reply in replies:
+                if faults.fires("lose_reply"):
+                    continue
+                (self._late if faults.fires("late_reply") else self._inbox).append(reply)
         t = self.t_s  # a resume may have moved the grid meanwhile (load_state_dict)
         next_t = t + self.period_s
         now = self.clock.now_s

@@ -51,6 +51,9 @@ class EgmFaultInjector(FaultInjectorBase[EgmFaultConfig]):
         super().__init__(config or EgmFaultConfig())
         self.cycle = 0
         """The emulator's cycle count, set by the emulator before it asks."""
+        self.none_armed = all(getattr(self.config, name).probability == 0.0
+                              for name in FAULT_NAMES)
+        """No fault can ever fire (every probability is 0): every datagram goes as built."""
 
     def _armed(self) -> bool:
         """No fault fires during the first ``after_cycles`` cycles."""

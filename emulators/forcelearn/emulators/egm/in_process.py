@@ -33,7 +33,7 @@ from collections import deque
 from typing import Any
 
 from forcelearn.emulators.egm.base import EgmEmulatorBase
-from forcelearn.protocols.egm.carried import CarriedDatagram
+from forcelearn.protocols.egm.carried import Carried, Datagram
 
 log = logging.getLogger(__name__)
 
@@ -49,8 +49,9 @@ class InProcessEgmController(EgmEmulatorBase):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self._outbox: deque[bytes] = deque()
-        self._early: list[bytes] = []  # answers sent while none was due: the next due one
+        self.loop.carried = True  # nothing here needs the bytes: they are made when asked
+        self._outbox: deque[Datagram] = deque()
+        self._early: list[Datagram] = []  # answers sent while none was due: the next due one
         self._awaiting = False  # the present cycle's answer is due
         self._client: InProcessDatagramSocket | None = None
         self.unanswered = 0
@@ -76,7 +77,7 @@ class InProcessEgmController(EgmEmulatorBase):
 
     # -- the two halves, driven by the client ---------------------------------------------
 
-    def _next_datagram(self) -> bytes:
+    def _next_datagram(self) -> Datagram:
         """Run cycles until one has a datagram to send; return it."""
         loop = self.loop
         while not self._outbox:
@@ -96,7 +97,7 @@ class InProcessEgmController(EgmEmulatorBase):
                 self._awaiting = True
         return self._outbox.popleft()
 
-    def _answer(self, datagram: bytes) -> None:
+    def _answer(self, datagram: Datagram) -> None:
         """Take one EgmSensor: it ends the cycle that waits for it, or the next one that will."""
         self.replies += 1
         if self._awaiting:
@@ -121,15 +122,22 @@ class InProcessDatagramSocket:
         return self._controller
 
     def recvfrom(self, bufsize: int, /) -> tuple[bytes, tuple[str, int]]:
-        """Run the controller to its next datagram and return it (never blocks)."""
-        datagram = self._require_open()._next_datagram()
+        """Run the controller to its next datagram and return its bytes (never blocks)."""
+        datagram = bytes(self._require_open()._next_datagram())
         return (datagram if len(datagram) <= bufsize else datagram[:bufsize]), SOURCE
 
     def sendto(self, data: bytes, address: Any, /) -> int:
         """Hand an EgmSensor to the controller (``address`` is not used)."""
-        # a CarriedDatagram is kept as it is: the controller reads its message unparsed
-        self._require_open()._answer(data if type(data) is CarriedDatagram else bytes(data))
+        self._require_open()._answer(bytes(data))
         return len(data)
+
+    def recv_carried(self) -> tuple[Datagram, tuple[str, int]]:
+        """:meth:`recvfrom`, the datagram not encoded (the driver reads its message as it is)."""
+        return self._require_open()._next_datagram(), SOURCE
+
+    def send_carried(self, data: Datagram, address: Any, /) -> None:
+        """:meth:`sendto` of a datagram not encoded (the controller reads its message)."""
+        self._require_open()._answer(data if type(data) is Carried else bytes(data))
 
     def settimeout(self, value: float | None, /) -> None:
         """Accepted and not needed: nothing here ever waits."""

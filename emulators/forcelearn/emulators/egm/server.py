@@ -49,6 +49,7 @@ from forcelearn.emulators.egm.controller import EgmControllerConfig
 from forcelearn.emulators.egm.faults import EgmFaultConfig
 from forcelearn.emulators.egm.servo import MotionModel
 from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.protocols.egm.carried import Datagram
 
 log = logging.getLogger(__name__)
 
@@ -163,7 +164,7 @@ class EgmControllerEmulator(EgmEmulatorBase):
         try:
             while not self._stop.is_set():
                 out, expect_reply = loop.begin()
-                self._waiting = out[0] if expect_reply else None
+                self._waiting = bytes(out[0]) if expect_reply else None
                 for datagram in out:
                     self._send(datagram)
                 self.clock.hold()
@@ -177,10 +178,10 @@ class EgmControllerEmulator(EgmEmulatorBase):
             if not self._stop.is_set():
                 log.error("EGM emulator socket failed: %s", exc)
 
-    def _send(self, datagram: bytes) -> None:
+    def _send(self, datagram: Datagram) -> None:
         if self.timing is not None:
             self.timing.send_s.append(time.perf_counter())
-        self._sock.sendto(datagram, self._remote)
+        self._sock.sendto(bytes(datagram), self._remote)
 
     def _receive(self, timeout_s: float) -> bytes | None:
         ready, _, _ = select.select([self._sock], [], [], max(timeout_s, 0.0))

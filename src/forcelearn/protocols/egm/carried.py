@@ -1,22 +1,29 @@
-"""EGM datagrams that carry the message they encode, so an in-process receiver skips the parse.
+"""EGM datagrams handed over in process unencoded, so neither side encodes nor parses them.
 
 On the emulated cell the controller and the driver run in one thread and hand
-each other every datagram (4 ms cycles); parsing it back is a third of a
-cycle's work. :class:`CarriedDatagram` is the datagram itself (``bytes``: the
-same bytes go to a socket, a record or a checkpoint) with the message the
-receiver *would* decode from it attached. The attached message is built by
+each other every datagram (4 ms cycles); encoding each message and parsing it
+back was a third of a cycle's work. A :class:`Carried` datagram is the message
+as it was sent and the message its receiver *would* decode from its bytes;
+the bytes themselves are made only when asked (``bytes(carried)``: a record,
+a checkpoint, a reader that wants the wire), and are then exactly those of
+``codec.encode_*`` of the sent message. The message as received is built by
 :func:`as_received_robot` / :func:`as_received_sensor`, which apply what the
 wire does to each value (32-bit header fields, ``float`` doubles, absent
 fields), and is attached only where that is known exactly; anything else
-carries nothing and is decoded as usual. ``tests/protocols/egm`` checks that
-the attached message equals the decoded one.
+carries nothing and is decoded from its bytes as usual. ``tests/protocols/egm``
+checks that the attached message equals the decoded one.
+
+Only the emulated lockstep route carries datagrams: over UDP (a real cell)
+the bytes are the bytes, and every one is decoded and checked.
 
 A receiver calls :func:`received_robot` / :func:`received_sensor`: the
 carried message when the datagram carries one of the receiver's version,
-else ``None`` (decode the bytes).
+else ``None`` (decode ``bytes(datagram)``).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 from forcelearn.devices import Pose
 from forcelearn.protocols.egm import codec
@@ -24,11 +31,59 @@ from forcelearn.protocols.egm import codec
 _MASK = 0xFFFFFFFF
 
 
-class CarriedDatagram(bytes):
-    """An encoded datagram with the message its receiver would decode (see the module doc)."""
+class Carried:
+    """A datagram not encoded yet: the message sent, and the one its receiver reads from it.
 
-    message: codec.RobotMessage | codec.SensorMessage | None
-    version: codec.Version
+    ``bytes(datagram)`` encodes the sent message (once); ``message`` is what
+    decoding those bytes gives, or None where that is not known exactly.
+
+    An EgmRobot may leave a field to be filled in later (:attr:`pending`: the
+    in-process controller's measured force, needed only of the message a wait
+    ends on); :meth:`finish` fills it, and asking for the bytes finishes first.
+    """
+
+    __slots__ = ("_data", "message", "pending", "sent", "version")
+
+    def __init__(
+        self,
+        sent: codec.RobotMessage | codec.SensorMessage,
+        message: codec.RobotMessage | codec.SensorMessage | None,
+        version: codec.Version,
+    ) -> None:
+        self.sent = sent
+        self.message = message
+        self.version: codec.Version = version
+        self._data: bytes | None = None
+        self.pending: Callable[[], codec.RobotMessage] | None = None
+        """Gives the complete sent EgmRobot, while a field of ``sent`` is left out."""
+
+    def finish(self) -> None:
+        """Complete a message that left a field out (:attr:`pending`); no-op when complete."""
+        pending = self.pending
+        if pending is not None:
+            sent = pending()
+            self.pending = None
+            self.sent = sent
+            self.message = as_received_robot(sent, self.version) if _simple_robot(sent) else None
+
+    def __bytes__(self) -> bytes:
+        self.finish()
+        data = self._data
+        if data is None:
+            sent = self.sent
+            if isinstance(sent, codec.RobotMessage):
+                data = codec.encode_robot(sent, self.version)
+            else:
+                data = codec.encode_sensor(sent, self.version)
+            self._data = data
+        return data
+
+    def __len__(self) -> int:
+        return len(bytes(self))
+
+
+Datagram = bytes | Carried
+"""What an in-process EGM endpoint hands over: wire bytes, or a datagram not encoded yet."""
 
 
 def _pose(pose: Pose | None) -> Pose | None:
@@ -68,8 +123,33 @@ def _simple_robot(m: codec.RobotMessage) -> bool:
     )
 
 
+def _received_as_is(m: codec.RobotMessage, version: codec.Version) -> bool:
+    """Whether ``m`` is already what decoding its bytes gives (an emulator's usual message)."""
+    force = m.measured_force
+    seqno, tm_ms = m.seqno, m.tm_ms
+    return (
+        type(seqno) is int and 0 <= seqno <= _MASK and type(tm_ms) is int and 0 <= tm_ms <= _MASK
+        and (m.feedback is None or _pose(m.feedback) is m.feedback)
+        and (m.planned is None or _pose(m.planned) is m.planned)
+        and type(m.joints_deg) is tuple and _floats(m.joints_deg)
+        and type(m.planned_joints_deg) is tuple and _floats(m.planned_joints_deg)
+        and (m.time_us is None or (type(m.time_us) is int and m.time_us >= 0))
+        and (m.planned_time_us is None
+             or (type(m.planned_time_us) is int and m.planned_time_us >= 0))
+        and type(m.motor) is codec.MotorState and type(m.mci) is codec.MciState
+        and type(m.rapid) is codec.RapidState
+        and (m.convergence_met is None or type(m.convergence_met) is bool)
+        and (m.utilization_pct is None or type(m.utilization_pct) is float)
+        and (force is None or (type(force) is tuple and _floats(force)))
+        and (m.fc_active is None if version != "rw7" or force is None
+             else type(m.fc_active) is bool)
+    )
+
+
 def as_received_robot(m: codec.RobotMessage, version: codec.Version) -> codec.RobotMessage:
     """The message :func:`codec.decode_robot` reads from ``codec.encode_robot(m, version)``."""
+    if _received_as_is(m, version):
+        return m  # frozen: shared safely
     force = None if m.measured_force is None else _tuple(m.measured_force)
     return codec.RobotMessage(
         seqno=m.seqno & _MASK,
@@ -100,39 +180,34 @@ def as_received_sensor(m: codec.SensorMessage) -> codec.SensorMessage:
     )
 
 
-def carry_robot(message: codec.RobotMessage, version: codec.Version) -> CarriedDatagram:
-    """``codec.encode_robot(message, version)``, carrying the message as it will be read."""
-    datagram = CarriedDatagram(codec.encode_robot(message, version))
-    datagram.version = version
-    datagram.message = as_received_robot(message, version) if _simple_robot(message) else None
-    return datagram
+def carry_robot(message: codec.RobotMessage, version: codec.Version) -> Carried:
+    """``message`` as a ``version`` controller sends it, carrying the message as it will be read."""
+    received = as_received_robot(message, version) if _simple_robot(message) else None
+    return Carried(message, received, version)
 
 
-def carry_sensor(message: codec.SensorMessage, version: codec.Version) -> CarriedDatagram:
-    """``codec.encode_sensor(message, version)``, carrying the message as it will be read."""
-    datagram = CarriedDatagram(codec.encode_sensor(message, version))
-    datagram.version = version
+def carry_sensor(message: codec.SensorMessage, version: codec.Version) -> Carried:
+    """``message`` as an EgmSensor of ``version``, carrying the message as it will be read."""
     simple = (
         message.speed_ref is None
         and message.speed_ref_joints_deg_s is None
         and (message.planned is None or len(message.planned.quaternion) == 4)
     )
-    datagram.message = as_received_sensor(message) if simple else None
-    return datagram
+    return Carried(message, as_received_sensor(message) if simple else None, version)
 
 
-def received_robot(data: bytes, version: codec.Version) -> codec.RobotMessage | None:
-    """The EgmRobot ``data`` carries for a ``version`` reader, or None: decode it."""
-    if type(data) is CarriedDatagram and data.version == version:
+def received_robot(data: Datagram, version: codec.Version) -> codec.RobotMessage | None:
+    """The EgmRobot ``data`` carries for a ``version`` reader, or None: decode its bytes."""
+    if type(data) is Carried and data.version == version:
         message = data.message
         if isinstance(message, codec.RobotMessage):
             return message
     return None
 
 
-def received_sensor(data: bytes, version: codec.Version) -> codec.SensorMessage | None:
-    """The EgmSensor ``data`` carries for a ``version`` reader, or None: decode it."""
-    if type(data) is CarriedDatagram and data.version == version:
+def received_sensor(data: Datagram, version: codec.Version) -> codec.SensorMessage | None:
+    """The EgmSensor ``data`` carries for a ``version`` reader, or None: decode its bytes."""
+    if type(data) is Carried and data.version == version:
         message = data.message
         if isinstance(message, codec.SensorMessage):
             return message

@@ -18,12 +18,23 @@ Surface-v0 step            step time / pty echo    500 steps/s where the echo is
 SurfaceVec-v0, N = 64      env steps per foam      100,000 steps/s on one core
                            step (x foam step s)
 cells: real-time factor    EGM, Net F/T, EGM +     >= 1 / 1.5 (within 1.5x)
-                           Net F/T / link + JR3
+ (wall and CPU)            Net F/T / link + JR3
+cells: steps per CPU s     / link + JR3's          >= 1 / 1.5
 learner / contour, N = 64  steps x foam step s     100,000 steps/s on one core
 =========================  ======================  ===============================
 
-``--quick`` shortens every figure (a smoke run: the ratios are noisier).
-Results go to stdout as a Markdown table; ``--json PATH`` also writes them.
+A cell's real-time factor is the trials' cell time over the time from the
+start of ``forcelearn run``'s code path to the last trial's end (the probe
+included, as in summary.json), in wall time and in the process's CPU time; a
+shared machine disturbs the CPU figure far less. The trials are the same on
+every cell (4 trials of 20 steps after a probe), so steps per CPU second
+compare the cells' cost for the same work, whatever cell time their robots
+take (an EGM step takes about half a computer-link step's cell time, which
+halves its real-time factor for the same CPU).
+
+The 1-minute load average is printed with every figure. ``--quick`` shortens
+every figure (a smoke run: the ratios are noisier). Results go to stdout as a
+Markdown table; ``--json PATH`` also writes them.
 """
 
 from __future__ import annotations
@@ -31,10 +42,11 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import os
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -62,6 +74,8 @@ class Figure:
     target: str
     floor: str
     """The floor this figure's ratio used, as measured just before it."""
+    load: float = 0.0
+    """The host's 1-minute load average when the figure was measured."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -77,11 +91,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", type=Path, help="also write the floors and figures here")
 
 
+def _load() -> float:
+    """The 1-minute load average (0.0 where the platform has none)."""
+    try:
+        return os.getloadavg()[0]
+    except OSError:
+        return 0.0
+
+
 def _timed(label: str, fn: Callable[[], Figure | list[Figure]]) -> list[Figure]:
     started = time.perf_counter()
     result = fn()
-    figures = result if isinstance(result, list) else [result]
-    print(f"  {label}: {time.perf_counter() - started:.1f} s", flush=True)
+    load = _load()
+    figures = [replace(f, load=load) for f in (result if isinstance(result, list) else [result])]
+    print(f"  {label}: {time.perf_counter() - started:.1f} s, load {load:.2f}", flush=True)
     return figures
 
 
@@ -135,24 +158,55 @@ def _vec(quick: bool) -> list[Figure]:
                    "x foam step s", ">= 100,000 steps/s", floor)]
 
 
-def _cells(trials: int, examples: Path) -> list[Figure]:
+@dataclass(frozen=True)
+class CellRun:
+    """One emulated cell's run: its trials' cell time, and the wall and CPU time it took."""
+
+    cell_s: float
+    wall_s: float
+    cpu_s: float
+    steps: int
+
+
+def _cell_run(config: Path | None, trials: int) -> CellRun:
+    """``forcelearn run``'s code path, timed from its start to its last trial's end."""
     from forcelearn.tools.experiments.surface_run import execute
     from forcelearn.tools.experiments.surface_state import prepare_run
 
-    factors: dict[str, float] = {}
+    ends: list[float] = []
+    with tempfile.TemporaryDirectory(prefix="forcelearn-bench-all-") as tmp:
+        surface_run, _ = prepare_run(config, Path(tmp), trials, 0, False)
+        cpu0 = time.process_time()
+        summary = execute(surface_run, None, on_trial=lambda *_: ends.append(time.process_time()))
+    return CellRun(float(summary["cell_time_s"]), float(summary["wall_s"]),
+                   (ends[-1] if ends else time.process_time()) - cpu0, int(summary["steps"]))
+
+
+def _cells(trials: int, examples: Path) -> list[Figure]:
+    runs: dict[str, CellRun] = {}
     for label, name in CELL_CONFIGS.items():
         config = None if name is None else examples / Path(name).name
-        with tempfile.TemporaryDirectory(prefix="forcelearn-bench-all-") as tmp:
-            surface_run, _ = prepare_run(config, Path(tmp), trials, 0, False)
-            summary = execute(surface_run, None)
-        factors[label] = float(summary["cell_time_s"]) / float(summary["wall_s"])
-        print(f"    {label}: real-time factor {factors[label]:.2f}, "
-              f"{summary['steps_per_s']:.0f} steps/s", flush=True)
-    base = factors["link + JR3"]
-    return [Figure(f"cell {label}: real-time factor", rtf, "x real time", rtf / base,
-                   "/ link + JR3", ">= 0.67 (within 1.5x)" if rtf != base else "-",
-                   "the link + JR3 cell, same run")
-            for label, rtf in factors.items()]
+        runs[label] = run = _cell_run(config, trials)
+        print(f"    {label}: real-time factor {run.cell_s / run.wall_s:.2f} (wall), "
+              f"{run.cell_s / run.cpu_s:.2f} (CPU), {run.steps / run.cpu_s:.1f} steps per CPU s, "
+              f"load {_load():.2f}", flush=True)
+    base = runs["link + JR3"]
+    floor = "the link + JR3 cell, same run"
+    figures = []
+    for label, run in runs.items():
+        target = ">= 0.67 (within 1.5x)" if run is not base else "-"
+        figures += [
+            Figure(f"cell {label}: real-time factor (wall)", run.cell_s / run.wall_s,
+                   "x real time", (run.cell_s / run.wall_s) / (base.cell_s / base.wall_s),
+                   "/ link + JR3", target, floor),
+            Figure(f"cell {label}: real-time factor (CPU)", run.cell_s / run.cpu_s,
+                   "x real time", (run.cell_s / run.cpu_s) / (base.cell_s / base.cpu_s),
+                   "/ link + JR3", target, floor),
+            Figure(f"cell {label}: steps per CPU s", run.steps / run.cpu_s, "steps/s",
+                   (run.steps / run.cpu_s) / (base.steps / base.cpu_s), "/ link + JR3", target,
+                   floor),
+        ]
+    return figures
 
 
 def _learner(quick: bool) -> Figure:
@@ -177,25 +231,27 @@ def _number(value: float) -> str:
     return f"{value:,.0f}" if abs(value) >= 100 else f"{value:.3g}"
 
 
-def table(fl: floor_module.Floors, figures: list[Figure]) -> str:
+def table(fl: floor_module.Floors, figures: list[Figure], load: float = 0.0) -> str:
     """The floors (at the start) and the figures with the floor each used, as Markdown."""
     lines = [
         "| floor | value |", "|---|---|",
+        f"| host load average (1 min) at the start | {load:.2f} |",
         f"| pty echo round trip p50 | {fl.pty_echo_s * 1e6:.1f} us |",
         f"| python-can virtual bus round trips | {fl.can_round_trips_per_s:,.0f} /s |",
         f"| numpy foam-law step, 64 cells | {fl.foam_step_s * 1e6:.1f} us |",
         "",
-        "| figure | value | its floor (just before it) | ratio | ratio is | target |",
-        "|---|---|---|---|---|---|",
+        "| figure | value | its floor (just before it) | ratio | ratio is | target | load |",
+        "|---|---|---|---|---|---|---|",
     ]
     lines += [f"| {f.name} | {_number(f.value)} {f.unit} | {f.floor} | {f.ratio:.3g} | "
-              f"{f.ratio_means} | {f.target} |" for f in figures]
+              f"{f.ratio_means} | {f.target} | {f.load:.1f} |" for f in figures]
     return "\n".join(lines)
 
 
 def run(args: argparse.Namespace) -> int:
     """Measure the floors, then every figure, and print the table."""
-    print("floors...", flush=True)
+    load = _load()
+    print(f"floors... (load {load:.2f})", flush=True)
     fl = floor_module.measure()
     print(f"  pty echo {fl.pty_echo_s * 1e6:.1f} us, CAN {fl.can_round_trips_per_s:,.0f} "
           f"round trips/s, foam step {fl.foam_step_s * 1e6:.1f} us", flush=True)
@@ -216,8 +272,9 @@ def run(args: argparse.Namespace) -> int:
         if name not in skip:
             figures += _timed(name, job)
     print()
-    print(table(fl, figures))
+    print(table(fl, figures, load))
     if args.json:
         args.json.write_text(json.dumps(
-            {"floors": asdict(fl), "figures": [asdict(f) for f in figures]}, indent=1) + "\n")
+            {"floors": asdict(fl), "load": load, "figures": [asdict(f) for f in figures]},
+            indent=1) + "\n")
     return 0
