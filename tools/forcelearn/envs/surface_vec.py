@@ -163,10 +163,13 @@ class SurfaceVecEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._needs_reset = np.zeros(num_envs, dtype=bool)
 
     def _observation(self, batch: SurfaceBatch) -> np.ndarray:
-        travel = batch.step_index * abs(self.spec_.z_step_mm)
-        obs = np.stack([travel.astype(float), batch.force, self._offset], axis=1)
-        clipped: np.ndarray = np.clip(obs, self._low, self._high)
-        return clipped
+        obs = np.empty((self.num_envs, 3))
+        np.multiply(batch.step_index, abs(self.spec_.z_step_mm), out=obs[:, 0])
+        obs[:, 1] = batch.force
+        obs[:, 2] = self._offset
+        np.maximum(obs, self._low, out=obs)
+        np.minimum(obs, self._high, out=obs)  # np.clip's bounds, at a third of its cost
+        return obs
 
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
@@ -191,11 +194,12 @@ class SurfaceVecEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         if batch is None:
             raise gymnasium.error.ResetNeeded("call reset() first")
         a = np.asarray(actions, dtype=float).reshape(self.num_envs)
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"actions must be finite, got {actions!r}")
         resetting = self._needs_reset
-        offset = np.clip(a, -1.0, 1.0) * self.spec_.max_offset_mm
-        self._offset = np.where(resetting, 0.0, offset)
+        offset = np.minimum(np.maximum(a, -1.0), 1.0) * self.spec_.max_offset_mm
+        offset[resetting] = 0.0
+        self._offset = offset
         out = batch.advance(self._offset, resetting)  # ended cells start again instead
         info: dict[str, Any] = {"r": out["r"], "force_n": out["force_n"],
                                 "y_cmd_mm": out["y_cmd_mm"], "failed": out["failed"]}
