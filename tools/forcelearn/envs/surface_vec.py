@@ -265,13 +265,16 @@ class SurfaceSimEnv(SurfaceLearnerAdapter, gymnasium.Env[np.ndarray, np.ndarray]
         if self._done:
             raise gymnasium.error.ResetNeeded("the episode has ended: call reset() first")
         obs, reward, terminated, truncated, info = self._vec.step(np.asarray(action).reshape(1))
+        batch = self._vec._batch
+        assert batch is not None  # stepped
         self._done = bool(terminated[0] or truncated[0])
         failed = bool(info["failed"][0])
         return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), {
             "r": float(info["r"][0]), "force_n": float(info["force_n"][0]),
             "force_error_n": float(info["force_n"][0]) - self.task_desired_force_n,
             "y_cmd_mm": float(info["y_cmd_mm"][0]), "failed": failed,
-            "step": int(self._vec._batch.step_index[0]) if self._vec._batch else 0,
+            "step": int(batch.step_index[0]),
+            "trial_cell_time_s": float(batch.cell_time_s[0]),
         }
 
 
