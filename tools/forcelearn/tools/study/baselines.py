@@ -105,6 +105,22 @@ def variant_config(variant: str, base: CellConfig | None = None) -> CellConfig:
     return replace(config, emulator=replace(config.emulator, sponge=sponge))
 
 
+_PROBES: dict[tuple[str, str, int], Any] = {}
+"""The wire-level probes this process ran for numpy-cell runs: (variant, start, seed) ->
+``Probed``. CMA-ES and SAC on a variant and seed start from the same probe, run once."""
+
+
+def probed(config: BaselinesConfig, seed: int) -> Any:
+    """The wire-level cell's probe of ``config``'s variant and start for ``seed`` (cached)."""
+    from forcelearn.envs.surface_vec import probe_map
+
+    key = (config.variant, config.learner_start, seed)
+    if key not in _PROBES:
+        cell = replace(variant_config(config.variant), learner_start=config.learner_start)
+        _PROBES[key] = probe_map(cell, seed)
+    return _PROBES[key]
+
+
 def run_baseline(
     config: BaselinesConfig,
     seed: int,
@@ -119,9 +135,9 @@ def run_baseline(
     cell = replace(variant_config(config.variant), learner_start=config.learner_start)
     env: Any
     if config.env == "vec":
-        from forcelearn.envs.surface_vec import SurfaceSimEnv, probe_map
+        from forcelearn.envs.surface_vec import SurfaceSimEnv
 
-        env = SurfaceSimEnv(cell, seed=seed, probed=probe_map(cell, seed))
+        env = SurfaceSimEnv(cell, seed=seed, probed=probed(config, seed))
     else:
         from forcelearn.envs import SurfaceEnv
 
