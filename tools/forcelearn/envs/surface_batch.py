@@ -31,7 +31,8 @@ the task            the §5 evaluation (``ForceEvaluation.ratio``, failure above
                     map and its wear tracking (``SurfaceYOutput``'s rule)
 ==================  ==========================================================
 
-Per step each cell moves 5 mm down and to its commanded Y: the relaxing part
+Per step each cell moves 5 mm down and to its commanded Y (when the map has
+an approach height, first to that much above it, then in: two moves): the relaxing part
 decays through the arm's start delay, follows the elastic depth's ramp over
 the travel, decays through the settle and the polls, and the burst of
 ``samples`` readings 1 ms apart is taken while it still decays. A trial's end
@@ -149,6 +150,9 @@ class BatchSpec:
     shift_range_mm: tuple[float, float] | None
     passes_at_start: int
     """Passes the sponge has when the first trial starts (the probe's presses)."""
+    approach_mm: float = 0.0
+    """Each step first stands this much shallower at its Z, then presses to its command
+    (the map's ``approach_mm``; 0: straight there), mm."""
     bias_time_s: float = 0.0
     """Cell time from the sensor's zeroing to the first trial (its bias drifts meanwhile), s."""
 
@@ -216,19 +220,21 @@ class SurfaceBatch:
         self.cell_time_s = np.zeros(shape)
 
     # -- pieces ------------------------------------------------------------------------------
-    def _move(self, y1: np.ndarray, z1: np.ndarray, fresh: np.ndarray) -> None:
-        """Move every cell to (y1, z1), wait the settle in position; ``fresh``: pressing in.
+    def _move(self, y1: np.ndarray, z1: np.ndarray, pressing: np.ndarray) -> None:
+        """Move every cell to (y1, z1), wait the settle in position; ``pressing``: from above.
 
         A move longer than ``max_step_mm`` is made of equal moves (the cell's
         ``move_in_steps``), each waited for. The relaxing part decays through
         the moves before the last, the link's command and the arm's start; it
         follows the elastic depth's ramp over the part of the last move in
         contact (all of it for a cell in the foam; from where it meets the
-        surface for the ``fresh`` cells, pressing in from above), then decays
-        through the poll and the settle.
+        surface for the ``pressing`` cells, out of the foam before the move),
+        then decays through the poll and the settle. A cell already at (y1, z1)
+        sends nothing and waits nothing.
         """
         s, p = self.spec, self.spec.sponge
         length = np.hypot(y1 - self.y, z1 - self.z)
+        still = length == 0.0
         moves = np.ceil(length * (1.0 / (0.99 * s.max_step_mm)))
         np.maximum(moves, 1.0, out=moves)
         depth = law.penetration_mm(p, self.passes, y1, z1)
@@ -236,9 +242,10 @@ class SurfaceBatch:
         row = np.rint(length / moves * (1.0 / self._dl)).astype(np.intp)
         in_position_s = self._in_position.take(row, mode="clip")
         touch_s = self._reach_first.take(row, mode="clip")
-        if fresh.size:
-            touch_s[fresh] = self._touch_s(fresh, y1, z1, moves, row)
+        if pressing.size:
+            touch_s[pressing] = self._touch_s(pressing, y1, z1, moves, row)
         each_s = in_position_s + (LINK_COMMAND_S + LINK_POLL_S)  # a move, seen in position
+        q_before = self.q
         if p.relaxation_ratio != 0.0:
             rate = 1.0 / p.relaxation_time_s
             before_s = (moves - 1.0) * each_s + LINK_COMMAND_S + touch_s  # not pressing yet
@@ -251,7 +258,10 @@ class SurfaceBatch:
             self.q = q
         self.depth, self.foam, self.y, self.z = depth, foam, y1, z1
         elapsed = moves * each_s + self._settled_s
-        self.cell_time_s += elapsed + s.samples * s.sample_period_s  # the burst follows
+        if still.any():
+            self.q[still] = q_before[still]
+            elapsed[still] = 0.0
+        self.cell_time_s += elapsed
         self.bias += (s.bias_drift_n_per_sqrt_s * np.sqrt(elapsed)
                       * self.rng.standard_normal(self.n))
 
@@ -355,7 +365,13 @@ class SurfaceBatch:
             y1[fresh] = s.start_press_y_mm + self.shift[fresh]
             index[fresh] = 0
         self.step_index = index
-        self._move(y1, self._z_of.take(index, mode="clip"), fresh)
+        z1 = self._z_of.take(index, mode="clip")
+        if s.approach_mm > 0.0:  # stand shallower at the new Z first (a started cell: stay)
+            above_y, above_z = y1 + s.approach_mm, z1.copy()
+            above_y[fresh], above_z[fresh] = self.y[fresh], self.z[fresh]
+            self._move(above_y, above_z, np.flatnonzero(self.foam == 0.0))
+        self._move(y1, z1, np.flatnonzero(self.foam == 0.0))
+        self.cell_time_s += s.samples * s.sample_period_s  # the burst
         force = self._burst(fresh, index)
         self.force = force
         limit = np.abs(force) > s.max_force_n

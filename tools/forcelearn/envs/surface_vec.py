@@ -111,6 +111,7 @@ def batch_spec(config: Any, probed: Probed) -> BatchSpec:
         wear_stiffness_n_per_mm=choice.wear_stiffness_n_per_mm,
         shift_range_mm=choice.shift_range_mm,
         passes_at_start=probed.passes,
+        approach_mm=choice.approach_mm,
         bias_time_s=probed.cell_time_s,
     )
 
