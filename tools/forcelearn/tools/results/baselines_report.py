@@ -131,7 +131,11 @@ def learning_curves_figure(
         ax.set_title(f"cell: {variant}")
         ax.set_xlabel("trial")
     axes[0].set_ylabel("force RMS per trial (N)")
-    axes[-1].legend(fontsize=8)
+    named: dict[str, Any] = {}  # every panel's lines (a row may be on one variant only)
+    for ax in axes:
+        for handle, name in zip(*ax.get_legend_handles_labels(), strict=True):
+            named.setdefault(name, handle)
+    axes[-1].legend(list(named.values()), list(named), fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
