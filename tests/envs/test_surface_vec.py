@@ -82,15 +82,15 @@ def test_the_numpy_cells_agree_with_the_wire_level_cell_over_ten_seeds(policy: s
 
 
 def test_a_method_runs_trial_by_trial_on_one_numpy_cell_with_the_cells_clock() -> None:
-    """CMA-ES through SurfaceSimEnv: one record per trial, each with the cell time it took."""
-    from forcelearn.baselines.controllers import PathSearchController, PathSearchParams
+    """ILC through SurfaceSimEnv: one record per trial, each with the cell time it took."""
+    from forcelearn.baselines.controllers import ILCController
     from forcelearn.baselines.runner import run_controller
     from forcelearn.envs.surface_batch import RESET_TRAVEL_S
 
     env = SurfaceSimEnv(probed=_probed())
-    search = PathSearchController(env, seed=0, params=PathSearchParams(popsize=4))
-    records = run_controller(env, search, 4, seed=0, stop_early=False).records
-    assert len(records) == 4 and search.es.countiter == 1
+    ilc = ILCController(env)
+    records = run_controller(env, ilc, 4, seed=0, stop_early=False).records
+    assert len(records) == 4
     assert all(r.cell_time_s > RESET_TRAVEL_S + r.steps * env.task_spec.settle_s for r in records)
 
 
