@@ -25,3 +25,20 @@ def test_sac_trains_on_the_surface_env_and_is_scored_trial_by_trial() -> None:
     assert model.num_timesteps == sum(r.steps + r.failed for r in records)
     assert model._n_updates > 0, "SAC learned (past its random warm-up)"
     assert all(r.cell_time_s > 0 for r in records)
+
+
+def test_sac_trains_on_a_numpy_cell_of_the_vector_env() -> None:
+    """The same run on SurfaceSimEnv (what the study's env = "vec" uses): scored the same way."""
+    pytest.importorskip("stable_baselines3", reason="needs pip install 'forcelearn[baselines]'")
+    from forcelearn.baselines.sac import SACParams, run_sac
+    from forcelearn.envs.surface_vec import Probed, SurfaceSimEnv
+    from forcelearn.site import load_cell_config
+    from forcelearn.tasks.surface_map import configured_map
+
+    env = SurfaceSimEnv(probed=Probed(configured_map(load_cell_config(None).task)))
+    recorder, model = run_sac(env, seed=0, trials=20, params=SACParams(learning_starts=10))
+    records = recorder.records
+    assert len(records) == 20
+    assert model.num_timesteps == sum(r.steps + r.failed for r in records)
+    assert model._n_updates > 0
+    assert all(r.cell_time_s > 0 for r in records)

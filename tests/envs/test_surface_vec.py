@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import gymnasium
 import numpy as np
 import pytest
@@ -77,3 +79,63 @@ def test_the_numpy_cells_agree_with_the_wire_level_cell_over_ten_seeds(policy: s
     vec = np.array([r[policy]["numpy"][0] for r in results])
     largest, pooled = agreement(wire, vec)
     assert largest <= 2.0 * pooled, (largest, pooled)
+
+
+def test_a_method_runs_trial_by_trial_on_one_numpy_cell_with_the_cells_clock() -> None:
+    """ILC through SurfaceSimEnv: one record per trial, each with the cell time it took."""
+    from forcelearn.baselines.controllers import ILCController
+    from forcelearn.baselines.runner import run_controller
+    from forcelearn.envs.surface_batch import RESET_TRAVEL_S
+
+    env = SurfaceSimEnv(probed=_probed())
+    ilc = ILCController(env)
+    records = run_controller(env, ilc, 4, seed=0, stop_early=False).records
+    assert len(records) == 4
+    assert all(r.cell_time_s > RESET_TRAVEL_S + r.steps * env.task_spec.settle_s for r in records)
+
+
+@pytest.mark.long
+def test_without_sensor_noise_a_fixed_path_reads_the_wire_cells_forces_within_its_noise(
+    tmp_path: Path,
+) -> None:
+    """One probed wire-level cell, its numpy twin from the same probe, the probe's path.
+
+    With the JR3's noise and drift off, both are deterministic: every step's force
+    of the numpy cell is within the default sensor's noise (one standard deviation of
+    the normal axis) of the wire-level cell's. The probe on a noiseless sensor also
+    fits a hysteresis, so each step approaches from above (two moves) on both.
+    """
+    from forcelearn.envs.surface import SurfaceEnv
+    from forcelearn.site.jr3_kind import sensor_model
+    from forcelearn.tools.results.surface_vec import FixedPath
+
+    noise_n = float(sensor_model(load_cell_config(None)).noise_std[1])
+    quiet = tmp_path / "quiet.toml"
+    quiet.write_text("[emulator.sensor]\nnoise_std = [0, 0, 0, 0, 0, 0]\n"
+                     "bias_drift_per_sqrt_s = [0, 0, 0, 0, 0, 0]\n")
+    config = load_cell_config(quiet)
+
+    def forces(env: gymnasium.Env[np.ndarray, np.ndarray], seeded: bool) -> np.ndarray:
+        obs, info = env.reset(seed=0) if seeded else env.reset()
+        path = FixedPath(env)
+        path.begin(obs, info)
+        out, done = [], False
+        while not done:
+            obs, _, terminated, truncated, step = env.step(path.act(obs))
+            out.append(step["force_n"])
+            done = terminated or truncated
+        return np.array(out)
+
+    wire = SurfaceEnv(config, seed=0)
+    try:
+        wire.reset(seed=0)
+        physics = wire.session.physics  # type: ignore[union-attr]
+        probed = Probed(wire.output_map, int(physics.environment.passes),
+                        float(physics.clock.now_s), wire.probe)
+        assert probed.output_map.approach_mm > 0.0
+        on_wires = forces(wire, seeded=False)
+    finally:
+        wire.close()
+    in_numpy = forces(SurfaceSimEnv(config, seed=0, probed=probed), seeded=True)
+    assert len(on_wires) == len(in_numpy) == config.task.steps_per_trial
+    assert np.abs(in_numpy - on_wires).max() <= noise_n

@@ -36,6 +36,9 @@ class SACParams:
     """Discount; 0.9 (SB3: 0.99) as an episode is only 20 steps and r is per step."""
     net_arch: tuple[int, ...] = (64, 64)
     """Hidden layers of actor and critics (SB3: 256, 256; smaller is quicker on 2 cores)."""
+    threads: int = 1
+    """PyTorch's CPU threads (``torch.set_num_threads``): one, as a study runs one process a
+    core; at this network size more threads do not pay for their hand-overs."""
 
 
 def run_sac(
@@ -53,6 +56,9 @@ def run_sac(
             "SAC needs stable-baselines3: pip install 'forcelearn[baselines]'"
         ) from exc
     p = params or SACParams()
+    import torch
+
+    torch.set_num_threads(p.threads)
     recorder = TrialRecorder(env, "sac")
     task: Any = recorder.unwrapped
     wrapped = gymnasium.wrappers.RescaleObservation(recorder, np.float64(-1.0), np.float64(1.0))

@@ -31,7 +31,8 @@ the task            the §5 evaluation (``ForceEvaluation.ratio``, failure above
                     map and its wear tracking (``SurfaceYOutput``'s rule)
 ==================  ==========================================================
 
-Per step each cell moves 5 mm down and to its commanded Y: the relaxing part
+Per step each cell moves 5 mm down and to its commanded Y (when the map has
+an approach height, first to that much above it, then in: two moves): the relaxing part
 decays through the arm's start delay, follows the elastic depth's ramp over
 the travel, decays through the settle and the polls, and the burst of
 ``samples`` readings 1 ms apart is taken while it still decays. A trial's end
@@ -149,12 +150,23 @@ class BatchSpec:
     shift_range_mm: tuple[float, float] | None
     passes_at_start: int
     """Passes the sponge has when the first trial starts (the probe's presses)."""
+    approach_mm: float = 0.0
+    """Each step first stands this much shallower at its Z, then presses to its command
+    (the map's ``approach_mm``; 0: straight there), mm."""
     bias_time_s: float = 0.0
     """Cell time from the sensor's zeroing to the first trial (its bias drifts meanwhile), s."""
 
 
 class SurfaceBatch:
-    """The state of N cells and their one step (see the module docstring)."""
+    """The state of N cells and their one step (see the module docstring).
+
+    A step costs a fixed number of numpy calls over the N cells, whatever N:
+    what depends only on the step index (Z, the share of the normal force
+    along the sensor's Y, the map's centre) is tabulated per index at
+    construction through the law's own functions; the cells that start a
+    trial (a few per step at N = 64) retract and find the surface on their
+    own subset; the three phases of a move's relaxation are one expression.
+    """
 
     def __init__(self, spec: BatchSpec, num_envs: int, rng: np.random.Generator) -> None:
         p = spec.sponge
@@ -164,7 +176,10 @@ class SurfaceBatch:
                              "or use forcelearn/Surface-v0")
         self.spec, self.n, self.rng = spec, num_envs, rng
         self._dl = spec.max_step_mm * 1.05 / 63
-        self._table = _motion_table(spec.motion, tuple((np.arange(64) * self._dl).tolist()))
+        table = _motion_table(spec.motion, tuple((np.arange(64) * self._dl).tolist()))
+        self._table = table
+        self._flat = table.ravel()
+        self._reach_first, self._in_position = table[:, 0].copy(), table[:, -1].copy()
         k = np.arange(spec.samples)
         self._sample_t = k * spec.sample_period_s
         correlation = math.exp(-2.0 * math.pi * spec.noise_cutoff_hz * spec.sample_period_s)
@@ -177,185 +192,199 @@ class SurfaceBatch:
         lags = k[:, None] - k[None, :]
         self._mix = np.where(lags >= 0, spread * correlation ** np.maximum(lags, 0), 0.0).T
         self._carry = correlation ** (k + 1.0)
-        self._mean_decay = float(np.exp(-self._sample_t / spec.sponge.relaxation_time_s)
-                                 @ self._weights)
-        self._centres = np.asarray(spec.centres_mm)
+        self._mean_decay = float(np.exp(-self._sample_t / p.relaxation_time_s) @ self._weights)
+        # per step index 0..steps: Z, the normal force's share along the sensor's Y, the centre
+        index = np.arange(spec.steps + 1)
+        self._z_of = spec.start_z_mm + index * spec.z_step_mm
+        slope = law.surface_dy_dz(p, self._z_of)
+        self._y_share = 1.0 / np.sqrt(1.0 + slope * slope)
+        centres = np.asarray(spec.centres_mm)
+        self._centre_of = centres[np.minimum(index, len(centres) - 1)]
+        self._settled_s = spec.settle_s + SETTLE_POLL_S if spec.settle_s > 0 else 0.0
+        self._after_decay = math.exp(-(LINK_POLL_S + self._settled_s) / p.relaxation_time_s)
         shape = (num_envs,)
         self.passes = np.full(shape, float(spec.passes_at_start))
         self.y, self.z = np.full(shape, spec.retract_y_mm), np.full(shape, spec.start_z_mm)
+        self.depth = np.zeros(shape)
+        """Penetration of each cell's roller (mm; the law's ``penetration_mm``)."""
         self.foam = np.zeros(shape)
         self.q = np.zeros(shape)
         drifted = spec.bias_drift_n_per_sqrt_s * math.sqrt(spec.bias_time_s)
         self.bias = drifted * rng.standard_normal(num_envs)  # since the zeroing
         self.noise = np.zeros(shape)
         self.x, self.p_var = np.zeros(shape), np.full(shape, 1.0e8)
-        self.step_index = np.zeros(shape, dtype=int)
+        self.step_index = np.zeros(shape, dtype=np.intp)
         self.shift = np.zeros(shape)
         self.wear_reference = np.full(shape, np.nan)
         self.force = np.zeros(shape)
         self.cell_time_s = np.zeros(shape)
 
     # -- pieces ------------------------------------------------------------------------------
-    def _foam_at(self, y: np.ndarray, z: np.ndarray) -> np.ndarray:
-        p = self.spec.sponge
-        depth = law.penetration_mm(p, self.passes, y, z)
-        return law.elastic_depth_mm(p, np.minimum(depth, p.thickness_mm))
-
-    def _relax(self, change: np.ndarray | float, dt_s: np.ndarray | float) -> None:
-        """Q after ``dt_s`` (per cell) over which the elastic depth changed by ``change``."""
-        p = self.spec.sponge
-        if p.relaxation_ratio == 0.0:
-            return
-        keep = np.exp(-dt_s / p.relaxation_time_s)
-        ramp = np.where(dt_s > 0.0, p.relaxation_time_s / np.maximum(dt_s, 1e-12), 0.0)
-        self.q = self.q * keep + change * ramp * (1.0 - keep)
-
-    def _move(self, y1: np.ndarray, z1: np.ndarray, settle_s: float, pressing: bool) -> None:
-        """Move every cell to (y1, z1) and wait ``settle_s`` in position.
+    def _move(self, y1: np.ndarray, z1: np.ndarray, pressing: np.ndarray) -> None:
+        """Move every cell to (y1, z1), wait the settle in position; ``pressing``: from above.
 
         A move longer than ``max_step_mm`` is made of equal moves (the cell's
-        ``move_in_steps``), each waited for. The elastic depth ramps over the
-        part of the last move in contact: all of it for a cell in the foam,
-        from where it meets the surface for one ``pressing`` in from above.
+        ``move_in_steps``), each waited for. The relaxing part decays through
+        the moves before the last, the link's command and the arm's start; it
+        follows the elastic depth's ramp over the part of the last move in
+        contact (all of it for a cell in the foam; from where it meets the
+        surface for the ``pressing`` cells, out of the foam before the move),
+        then decays through the poll and the settle. A cell already at (y1, z1)
+        sends nothing and waits nothing.
         """
-        s = self.spec
-        dy = y1 - self.y
-        length = np.hypot(dy, z1 - self.z)
-        moves = np.maximum(1.0, np.ceil(length / (0.99 * s.max_step_mm)))
-        foam = self._foam_at(y1, z1)
-        contact: np.ndarray | float = 0.0
-        if pressing:  # the last move meets the foam where it crosses the surface
-            start_y = y1 - dy / moves
-            outside = np.maximum(start_y - law.surface_y_mm(s.sponge, self.passes, z1), 0.0)
-            contact = np.clip(outside / np.maximum(start_y - y1, 1e-12), 0.0, 1.0)
-            contact = np.where(self.foam > 0.0, 0.0, contact)
-        touch_s, in_position_s = self._times(length / moves, contact)
-        each_s = LINK_COMMAND_S + in_position_s + LINK_POLL_S  # a move, seen in position
-        settled_s = settle_s + SETTLE_POLL_S if settle_s > 0 else 0.0
-        self._relax(0.0, (moves - 1.0) * each_s + LINK_COMMAND_S + touch_s)  # not pressing yet
-        self._relax(foam - self.foam, np.maximum(in_position_s - touch_s, s.motion.tick_s))
-        self._relax(0.0, LINK_POLL_S + settled_s)
-        self.q = np.where((foam == 0.0) & (self.q > 0.0), 0.0, self.q)  # off the foam it recovers
-        self.foam, self.y, self.z = foam, y1, z1
-        elapsed = moves * each_s + settled_s
-        self.cell_time_s = self.cell_time_s + elapsed
-        self._drift(None, elapsed)
+        s, p = self.spec, self.spec.sponge
+        length = np.hypot(y1 - self.y, z1 - self.z)
+        still = length == 0.0
+        moves = np.ceil(length * (1.0 / (0.99 * s.max_step_mm)))
+        np.maximum(moves, 1.0, out=moves)
+        depth = law.penetration_mm(p, self.passes, y1, z1)
+        foam = law.elastic_depth_mm(p, np.minimum(depth, p.thickness_mm))
+        row = np.rint(length / moves * (1.0 / self._dl)).astype(np.intp)
+        in_position_s = self._in_position.take(row, mode="clip")
+        touch_s = self._reach_first.take(row, mode="clip")
+        if pressing.size:
+            touch_s[pressing] = self._touch_s(pressing, y1, z1, moves, row)
+        each_s = in_position_s + (LINK_COMMAND_S + LINK_POLL_S)  # a move, seen in position
+        q_before = self.q
+        if p.relaxation_ratio != 0.0:
+            rate = 1.0 / p.relaxation_time_s
+            before_s = (moves - 1.0) * each_s + LINK_COMMAND_S + touch_s  # not pressing yet
+            ramp_s = np.maximum(in_position_s - touch_s, s.motion.tick_s)
+            keep = np.exp(ramp_s * -rate)
+            q = self.q * np.exp(before_s * -rate) * keep
+            q += (foam - self.foam) * (p.relaxation_time_s / ramp_s) * (1.0 - keep)
+            q *= self._after_decay  # the poll and the settle
+            q[(foam == 0.0) & (q > 0.0)] = 0.0  # off the foam it recovers
+            self.q = q
+        self.depth, self.foam, self.y, self.z = depth, foam, y1, z1
+        elapsed = moves * each_s + self._settled_s
+        if still.any():
+            self.q[still] = q_before[still]
+            elapsed[still] = 0.0
+        self.cell_time_s += elapsed
+        self.bias += (s.bias_drift_n_per_sqrt_s * np.sqrt(elapsed)
+                      * self.rng.standard_normal(self.n))
 
-    def _times(
-        self, length: np.ndarray, fraction: np.ndarray | float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(time the tool reaches ``fraction`` of a move, time in position), s, per cell."""
-        row = np.minimum(np.rint(length / self._dl).astype(int), len(self._table) - 1)
-        times = self._table[row]
-        if np.ndim(fraction) == 0 and fraction == 0.0:
-            return times[:, 0], times[:, -1]
-        at = np.asarray(fraction) * (len(FRACTIONS) - 1)
-        low = np.minimum(at.astype(int), len(FRACTIONS) - 2)
+    def _touch_s(self, cells: np.ndarray, y1: np.ndarray, z1: np.ndarray, moves: np.ndarray,
+                 row: np.ndarray) -> np.ndarray:
+        """When the ``cells``' last move, pressing in, meets the surface: s after its command."""
+        p, y_end = self.spec.sponge, y1[cells]
+        start_y = y_end - (y_end - self.y[cells]) / moves[cells]
+        outside = np.maximum(start_y - law.surface_y_mm(p, self.passes[cells], z1[cells]), 0.0)
+        fraction = np.clip(outside / np.maximum(start_y - y_end, 1e-12), 0.0, 1.0)
+        at = fraction * (len(FRACTIONS) - 1)
+        low = np.minimum(at.astype(np.intp), len(FRACTIONS) - 2)
         part = at - low
-        cells = np.arange(self.n)
-        reached = times[cells, low] * (1.0 - part) + times[cells, low + 1] * part
-        return reached, times[:, -1]
+        base = np.minimum(row[cells], len(self._table) - 1) * len(FRACTIONS) + low
+        reached: np.ndarray = self._flat[base] * (1.0 - part) + self._flat[base + 1] * part
+        return reached
 
-    def _drift(self, mask: np.ndarray | None, dt_s: np.ndarray | float) -> None:
-        """The sensor's bias random walk over ``dt_s`` on the ``mask`` cells (None: all)."""
-        step = self.spec.bias_drift_n_per_sqrt_s * np.sqrt(dt_s) * self.rng.standard_normal(self.n)
-        self.bias = self.bias + (step if mask is None else np.where(mask, step, 0.0))
-
-    def _burst(self, fresh: np.ndarray | None) -> np.ndarray:
+    def _burst(self, fresh: np.ndarray, index: np.ndarray) -> np.ndarray:
         """Read a burst on every cell through the filter; the filtered forces (N).
 
-        ``fresh``: the cells whose filter starts over (a trial's start; None: none).
+        ``fresh``: the cells whose filter starts over (a trial's start).
         The foam relaxes through the burst (q decays); the law is evaluated once,
         at the burst's filter-weighted mean decay, which is exact for a force
         linear in q (the foam in contact), and the samples are that force plus
         the sensor's bias and noise, quantised to counts.
         """
         s, p = self.spec, self.spec.sponge
-        depth = law.penetration_mm(p, self.passes, self.y, self.z)
-        normal = law.normal_force_n(p, self.passes, depth, self.z, self.q * self._mean_decay)
-        slope = law.surface_dy_dz(p, self.z)
-        true = normal / np.sqrt(1.0 + slope * slope)  # the normal force along the sensor's Y
-        draws = self.rng.standard_normal((self.n, s.samples))
-        noise = draws @ self._mix + self.noise[:, None] * self._carry
-        reading = np.round(((true + self.bias)[:, None] + noise) / s.count_n) * s.count_n
-        mean = reading @ self._weights
+        normal = law.normal_force_n(p, self.passes, self.depth, self.z, self.q * self._mean_decay)
+        true = normal * self._y_share.take(index, mode="clip")  # along the sensor's Y
+        noise = self.rng.standard_normal((self.n, s.samples)) @ self._mix
+        noise += np.multiply.outer(self.noise, self._carry)
+        self.noise = noise[:, -1].copy()
+        noise += (true + self.bias)[:, None]
+        reading = np.round(noise / s.count_n)
+        mean = (reading @ self._weights) * s.count_n
         # the step filter: a move forgets (P += change std^2), a trial's start knows nothing
         r_m = s.filter_variance_n2 * self._burst_factor
         prior = self.p_var + s.move_change_std_n ** 2
         x = self.x
-        if fresh is not None:
-            prior = np.where(fresh, 1.0e8, prior)
-            x = np.where(fresh, 0.0, x)
-        self.x = x + prior / (prior + r_m) * (mean - x)
-        self.p_var = r_m * prior / (prior + r_m)
-        self.noise = noise[:, -1]
-        self.cell_time_s = self.cell_time_s + s.samples * s.sample_period_s
+        if fresh.size:
+            prior[fresh] = 1.0e8
+            x[fresh] = 0.0
+        gain = prior / (prior + r_m)
+        self.x = x + gain * (mean - x)
+        self.p_var = r_m * gain
         return self.x
 
     # -- the task ----------------------------------------------------------------------------
     def centre_y_mm(self) -> np.ndarray:
         """The map's centre Y (mm) of each cell's next step, its wear shift included."""
-        index = np.minimum(self.step_index, len(self._centres) - 1)
-        return self._centres[index] + self.shift
+        centre: np.ndarray = self._centre_of.take(self.step_index, mode="clip") + self.shift
+        return centre
 
     def reset(self) -> np.ndarray:
         """Retract every cell (a pass), press in at the start; the start forces (N)."""
         force: np.ndarray = self.advance(np.zeros(self.n), np.ones(self.n, dtype=bool))["force_n"]
         return force
 
-    def _retract(self, mask: np.ndarray) -> None:
-        """The ``mask`` cells pull out (a pass if they touched) and travel above the start."""
+    def _retract(self, cells: np.ndarray) -> None:
+        """The ``cells`` pull out (a pass if they touched) and travel above the start."""
         s = self.spec
-        self.passes = self.passes + (mask & (self.foam > 0.0))
-        self.q = np.where(mask, 0.0, self.q)
-        self.foam = np.where(mask, 0.0, self.foam)
-        self.y = np.where(mask, s.retract_y_mm, self.y)
-        self.z = np.where(mask, s.start_z_mm, self.z)
-        self._drift(mask, RESET_TRAVEL_S)
-        self.cell_time_s = np.where(mask, 0.0, self.cell_time_s) + np.where(
-            mask, RESET_TRAVEL_S, 0.0)
+        self.passes[cells] += self.foam[cells] > 0.0
+        for state in (self.q, self.foam, self.depth):
+            state[cells] = 0.0
+        self.y, self.z = self.y.copy(), self.z.copy()  # the last step's are the caller's
+        self.y[cells] = s.retract_y_mm
+        self.z[cells] = s.start_z_mm
+        self.bias[cells] += (s.bias_drift_n_per_sqrt_s * math.sqrt(RESET_TRAVEL_S)
+                             * self.rng.standard_normal(cells.size))
+        self.cell_time_s[cells] = RESET_TRAVEL_S
 
-    def _track_wear(self, mask: np.ndarray, start_force: np.ndarray) -> None:
-        """``SurfaceYOutput.track_wear`` on every ``mask`` cell."""
+    def _track_wear(self, cells: np.ndarray, start_force: np.ndarray) -> None:
+        """``SurfaceYOutput.track_wear`` on the ``cells`` (their start forces, N)."""
         k = self.spec.wear_stiffness_n_per_mm
         if k is None:
             return
-        first = mask & np.isnan(self.wear_reference)
-        self.wear_reference = np.where(first, start_force, self.wear_reference)
-        later = mask & ~first & np.isfinite(start_force)
-        shift = self.shift + 0.5 * (start_force - self.wear_reference) / k
+        reference = self.wear_reference[cells]
+        first = np.isnan(reference)
+        reference[first] = start_force[first]
+        self.wear_reference[cells] = reference
+        shift = self.shift[cells] + 0.5 * (start_force - reference) / k
         if self.spec.shift_range_mm is not None:
             shift = np.clip(shift, *self.spec.shift_range_mm)
-        self.shift = np.where(later, shift, self.shift)
+        later = ~first & np.isfinite(start_force)
+        self.shift[cells[later]] = shift[later]
 
     def advance(self, offset_mm: np.ndarray, resetting: np.ndarray) -> dict[str, Any]:
         """One pass over every cell: the ``resetting`` ones start a trial, the others step.
 
         A stepping cell moves 5 mm down to its centre + ``offset_mm`` and is
         evaluated (r, failure, the path's end); a resetting one retracts and
-        presses in at the start (its ``force_n`` is the start force, r 0).
+        presses in at the start (its ``force_n`` is the start force, r 0). A
+        cell whose trial is done must be resetting.
         """
         s = self.spec
-        pressing = bool(resetting.any())
+        fresh = np.flatnonzero(resetting)
         y1 = self.centre_y_mm() + offset_mm
         index = self.step_index + 1
-        if pressing:
-            self._retract(resetting)
-            y1 = np.where(resetting, s.start_press_y_mm + self.shift, y1)
-            index = np.where(resetting, 0, index)
+        if fresh.size:
+            self._retract(fresh)
+            y1[fresh] = s.start_press_y_mm + self.shift[fresh]
+            index[fresh] = 0
         self.step_index = index
-        z1 = s.start_z_mm + index * s.z_step_mm
-        self._move(y1, z1, s.settle_s, pressing)
-        force = self._burst(resetting if pressing else None)
+        z1 = self._z_of.take(index, mode="clip")
+        if s.approach_mm > 0.0:  # stand shallower at the new Z first (a started cell: stay)
+            above_y, above_z = y1 + s.approach_mm, z1.copy()
+            above_y[fresh], above_z[fresh] = self.y[fresh], self.z[fresh]
+            self._move(above_y, above_z, np.flatnonzero(self.foam == 0.0))
+        self._move(y1, z1, np.flatnonzero(self.foam == 0.0))
+        self.cell_time_s += s.samples * s.sample_period_s  # the burst
+        force = self._burst(fresh, index)
         self.force = force
         limit = np.abs(force) > s.max_force_n
         # the task's own ratio, elementwise (abs and / are numpy's on an array)
-        error = cast(float, force - s.evaluation.desired_force_n)
-        r = np.where(limit, SAFETY_R, s.evaluation.ratio(error))
-        failed = (r > FAILURE_R) | limit
-        if pressing:
-            self._track_wear(resetting, force)
-            r, failed = np.where(resetting, 0.0, r), failed & ~resetting
+        r = cast(np.ndarray, s.evaluation.ratio(cast(float, force - s.evaluation.desired_force_n)))
+        failed: np.ndarray = r > FAILURE_R
+        if limit.any():
+            r[limit] = SAFETY_R
+            failed |= limit
+        if fresh.size:
+            self._track_wear(fresh, force[fresh])
+            r[fresh] = 0.0
+            failed[fresh] = False
         done = failed | (index >= s.steps)
         return {"r": r, "failed": failed, "done": done, "force_n": force, "y_cmd_mm": y1,
-                "z_mm": z1, "limit_hit": limit}
+                "z_mm": self.z, "limit_hit": limit}

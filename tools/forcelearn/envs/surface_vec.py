@@ -111,6 +111,7 @@ def batch_spec(config: Any, probed: Probed) -> BatchSpec:
         wear_stiffness_n_per_mm=choice.wear_stiffness_n_per_mm,
         shift_range_mm=choice.shift_range_mm,
         passes_at_start=probed.passes,
+        approach_mm=choice.approach_mm,
         bias_time_s=probed.cell_time_s,
     )
 
@@ -163,10 +164,13 @@ class SurfaceVecEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         self._needs_reset = np.zeros(num_envs, dtype=bool)
 
     def _observation(self, batch: SurfaceBatch) -> np.ndarray:
-        travel = batch.step_index * abs(self.spec_.z_step_mm)
-        obs = np.stack([travel.astype(float), batch.force, self._offset], axis=1)
-        clipped: np.ndarray = np.clip(obs, self._low, self._high)
-        return clipped
+        obs = np.empty((self.num_envs, 3))
+        np.multiply(batch.step_index, abs(self.spec_.z_step_mm), out=obs[:, 0])
+        obs[:, 1] = batch.force
+        obs[:, 2] = self._offset
+        np.maximum(obs, self._low, out=obs)
+        np.minimum(obs, self._high, out=obs)  # np.clip's bounds, at a third of its cost
+        return obs
 
     def reset(
         self, *, seed: int | list[int] | None = None, options: dict[str, Any] | None = None
@@ -191,11 +195,12 @@ class SurfaceVecEnv(VectorEnv[np.ndarray, np.ndarray, np.ndarray]):
         if batch is None:
             raise gymnasium.error.ResetNeeded("call reset() first")
         a = np.asarray(actions, dtype=float).reshape(self.num_envs)
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"actions must be finite, got {actions!r}")
         resetting = self._needs_reset
-        offset = np.clip(a, -1.0, 1.0) * self.spec_.max_offset_mm
-        self._offset = np.where(resetting, 0.0, offset)
+        offset = np.minimum(np.maximum(a, -1.0), 1.0) * self.spec_.max_offset_mm
+        offset[resetting] = 0.0
+        self._offset = offset
         out = batch.advance(self._offset, resetting)  # ended cells start again instead
         info: dict[str, Any] = {"r": out["r"], "force_n": out["force_n"],
                                 "y_cmd_mm": out["y_cmd_mm"], "failed": out["failed"]}
@@ -261,13 +266,16 @@ class SurfaceSimEnv(SurfaceLearnerAdapter, gymnasium.Env[np.ndarray, np.ndarray]
         if self._done:
             raise gymnasium.error.ResetNeeded("the episode has ended: call reset() first")
         obs, reward, terminated, truncated, info = self._vec.step(np.asarray(action).reshape(1))
+        batch = self._vec._batch
+        assert batch is not None  # stepped
         self._done = bool(terminated[0] or truncated[0])
         failed = bool(info["failed"][0])
         return obs[0], float(reward[0]), bool(terminated[0]), bool(truncated[0]), {
             "r": float(info["r"][0]), "force_n": float(info["force_n"][0]),
             "force_error_n": float(info["force_n"][0]) - self.task_desired_force_n,
             "y_cmd_mm": float(info["y_cmd_mm"][0]), "failed": failed,
-            "step": int(self._vec._batch.step_index[0]) if self._vec._batch else 0,
+            "step": int(batch.step_index[0]),
+            "trial_cell_time_s": float(batch.cell_time_s[0]),
         }
 
 

@@ -1,11 +1,13 @@
 """The paper's learner against classic and modern baselines on §5 (docs/results/baselines.md).
 
 One run = one method on one cell variant for one seed, through ``forcelearn/Surface-v0``
-on the emulated cell (real drivers), scored by ``converged_trial`` and stopped by
-the budget rule of :mod:`forcelearn.baselines.runner` (converged + 10 trials, or
-``trials``). Runs go through the study runner, so ``forcelearn study baselines
---set method=srv,pi,ilc,cma --set variant=default,fast_wear,soft`` works like any
-study; :mod:`.baselines_report` runs the same study and writes
+on the emulated cell (real drivers; ``env = "wire"``) or through one numpy cell of
+``forcelearn/SurfaceVec-v0`` started from the same wire-level cell's probe (``env =
+"vec"``: the methods that need hundreds of trials, CMA-ES and SAC), scored by
+``converged_trial`` and stopped by the budget rule of :mod:`forcelearn.baselines.runner`
+(converged + 10 trials, or ``trials``). Runs go through the study runner, so
+``forcelearn study baselines --set method=srv,pi,ilc,cma --set variant=default,fast_wear,soft``
+works like any study; :mod:`.baselines_report` runs the same study and writes
 ``docs/results/baselines.md`` and its figure.
 
 =============  ==================================================================
@@ -50,6 +52,7 @@ from forcelearn.trainer import converged_trial, criterion_trial
 log = logging.getLogger(__name__)
 
 METHODS = ("srv", "pi", "ilc", "cma", "sac")
+ENVS = ("wire", "vec")
 VARIANTS = ("default", "fast_wear", "soft")
 DEVICE_RETRIES = 2
 """A run whose emulated devices time out (host overloaded: the drivers' watchdogs are
@@ -75,9 +78,14 @@ class BaselinesConfig:
     ilc: ILCParams = field(default_factory=ILCParams)
     cma: PathSearchParams = field(default_factory=PathSearchParams)
     sac: SACParams = field(default_factory=SACParams)
+    env: str = "wire"
+    """"wire": ``Surface-v0`` through the real drivers; "vec": one numpy cell of
+    ``SurfaceVec-v0`` from the wire-level cell's probe (docs/results/surface-vec.md)."""
 
     def __post_init__(self) -> None:
         check_learner_start(self.learner_start)
+        if self.env not in ENVS:
+            raise ConfigError(f"env = {self.env!r}: one of {', '.join(ENVS)}")
         if self.method not in METHODS:
             raise ConfigError(f"method = {self.method!r}: one of {', '.join(METHODS)}")
         if self.variant not in VARIANTS:
@@ -97,6 +105,22 @@ def variant_config(variant: str, base: CellConfig | None = None) -> CellConfig:
     return replace(config, emulator=replace(config.emulator, sponge=sponge))
 
 
+_PROBES: dict[tuple[str, str, int], Any] = {}
+"""The wire-level probes this process ran for numpy-cell runs: (variant, start, seed) ->
+``Probed``. CMA-ES and SAC on a variant and seed start from the same probe, run once."""
+
+
+def probed(config: BaselinesConfig, seed: int) -> Any:
+    """The wire-level cell's probe of ``config``'s variant and start for ``seed`` (cached)."""
+    from forcelearn.envs.surface_vec import probe_map
+
+    key = (config.variant, config.learner_start, seed)
+    if key not in _PROBES:
+        cell = replace(variant_config(config.variant), learner_start=config.learner_start)
+        _PROBES[key] = probe_map(cell, seed)
+    return _PROBES[key]
+
+
 def run_baseline(
     config: BaselinesConfig,
     seed: int,
@@ -108,10 +132,16 @@ def run_baseline(
     (under the recorder), e.g. to time them; the controllers still read the
     bare environment's task figures.
     """
-    from forcelearn.envs import SurfaceEnv
-
     cell = replace(variant_config(config.variant), learner_start=config.learner_start)
-    env = SurfaceEnv(cell, seed=seed)
+    env: Any
+    if config.env == "vec":
+        from forcelearn.envs.surface_vec import SurfaceSimEnv
+
+        env = SurfaceSimEnv(cell, seed=seed, probed=probed(config, seed))
+    else:
+        from forcelearn.envs import SurfaceEnv
+
+        env = SurfaceEnv(cell, seed=seed)
     trial_env = wrap(env) if wrap is not None else env
     started = time.perf_counter()
     try:
