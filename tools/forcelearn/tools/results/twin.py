@@ -79,9 +79,7 @@ def site_and_twin(out: Path, cell: str, identify: bool = False, fit: bool = True
           folder / "site.log")
     extra: list[str] = []
     if identify:
-        _step(folder / "identify.done",
-              _forcelearn("identify", "--config", config, "--out", str(folder / "identify")),
-              folder / "identify.log")
+        identification(out, cell)
         extra = ["--identification", str(folder / "identify")]
     if not fit:
         return
@@ -92,6 +90,18 @@ def site_and_twin(out: Path, cell: str, identify: bool = False, fit: bool = True
           _forcelearn("twin", str(site), *extra, "--out", str(folder / "twin" / "twin.toml")),
           folder / "twin.log")
     print(f"{cell}: twin {(folder / 'twin.done').read_text().strip()}", flush=True)
+
+
+def identification(out: Path, cell: str) -> None:
+    """The cell's ``forcelearn identify`` run (skipped when done)."""
+    folder = out / cell
+    folder.mkdir(parents=True, exist_ok=True)
+    _step(folder / "identify.done",
+          _forcelearn("identify", "--config", str(out / "cells" / f"{cell}.toml"), "--out",
+                      str(folder / "identify")),
+          folder / "identify.log")
+    print(f"{cell}: identification {(folder / 'identify.done').read_text().strip()}",
+          flush=True)
 
 
 def learning_run(out: Path, cell: str, side: str, seed: int) -> None:
@@ -190,6 +200,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             subprocess.run([sys.executable, "-m", "forcelearn.tools.twin.hidden_cells",
                             "--count", str(args.cells), "--seed", str(args.seed),
                             "--out", str(out / "cells")], check=True)
+        if args.identify:  # every cell's short identification first: the arm of all of them
+            with ThreadPoolExecutor(args.workers) as pool:
+                list(pool.map(lambda c: identification(out, c), cells))
         with ThreadPoolExecutor(args.workers) as pool:
             list(pool.map(lambda c: site_and_twin(out, c, args.identify, not args.runs_only,
                                                   args.refit), cells))
@@ -214,7 +227,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     write_figure(results, figure)
     page = args.page or out / "twin.md"
     write_page(results, page, figure, generator_seed=args.seed, seeds=args.seeds,
-               trials=TRIALS)
+               trials=TRIALS, workers=args.workers, identify=args.identify)
     try:
         checks = page_lines(out, cells)
     except StudyError as exc:

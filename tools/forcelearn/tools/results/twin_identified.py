@@ -157,6 +157,24 @@ def three_sigma_offs(truth: dict[str, Any], twin: dict[str, Any]) -> list[str]:
     return offs
 
 
+def identification_arm(truth: dict[str, Any], folder: Path) -> list[Identified]:
+    """Lag and acceleration from a cell's identification run alone (``folder``), vs truth.
+
+    The values ``forcelearn twin --identification`` takes (:func:`fit_timing` of its polled
+    moves); empty when the folder has none or too few moves.
+    """
+    from forcelearn.tools.twin.identify import read_identification
+    from forcelearn.tools.twin.identify_fit import fit_timing
+
+    timing = fit_timing(read_identification(folder).moves)
+    if timing is None:
+        return []
+    values = truth_values(truth)
+    return [Identified(n, values[n], timing.values[n], timing.sigmas[n],
+                       BY_NAME[n].determined(timing.values[n], timing.sigmas[n]))
+            for n in ("lag_s", "accel_mm_s2")]
+
+
 def _count(flags: Sequence[bool]) -> str:
     return f"{sum(flags)}/{len(flags)}"
 
@@ -193,7 +211,21 @@ def page_lines(out: Path, cells: Sequence[str]) -> list[str]:
                      f"reported determined on {_count([i.determined for i in rows])}")
     lines += ["", f"- Parameters reported determined more than {OFF_SIGMAS:g} sigma from the "
               f"truth: {len(offs)}" + (":" if offs else "."), *[f"  - {o}" for o in offs], ""]
-    lines += ["| cell | true member | chosen | verdict | " + " | ".join(IDENTIFIED) + " |",
+    arm_rows: list[tuple[str, list[Identified]]] = []
+    for cell in cells:
+        if (out / cell / "identify.done").exists() and (out / cell / "identify").is_dir():
+            truth = _load(out / "cells" / f"{cell}.truth.json")
+            arm_rows.append((cell, identification_arm(truth, out / cell / "identify")))
+    lines += [f"- From the identification runs alone ({len(arm_rows)} cells; the arm the twin "
+              "takes from them):"]
+    for name in ("lag_s", "accel_mm_s2"):
+        rows = [i for _, values in arm_rows for i in values if i.name == name]
+        share = f"{IDENTIFIED_TOLERANCE:.0%}"
+        lines.append(f"  - {name}: within {share} on {_count([i.within for i in rows])}; "
+                     f"reported determined on {_count([i.determined for i in rows])}; "
+                     + ", ".join(f"{c} {i.value:.4g} vs {i.truth:.4g} ({i.relative:+.0%})"
+                                 for c, values in arm_rows for i in values if i.name == name))
+    lines += ["", "| cell | true member | chosen | verdict | " + " | ".join(IDENTIFIED) + " |",
               "|---|---|---|---|" + "---|" * len(IDENTIFIED)]
     for check, (_, values) in zip(members, found, strict=True):
         by = {i.name: i for i in values}
