@@ -176,6 +176,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="learner seeds (default 5; 0: no learning part)")
     parser.add_argument("--identify", action="store_true",
                         help="also run forcelearn identify on each cell; its twin uses it")
+    parser.add_argument("--identify-first", action="store_true",
+                        help="with --identify: every cell's identification before any site run")
     parser.add_argument("--runs-only", action="store_true",
                         help="run the cells' site (and identification) runs, fit nothing")
     parser.add_argument("--refit", action="store_true",
@@ -200,7 +202,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             subprocess.run([sys.executable, "-m", "forcelearn.tools.twin.hidden_cells",
                             "--count", str(args.cells), "--seed", str(args.seed),
                             "--out", str(out / "cells")], check=True)
-        if args.identify:  # every cell's short identification first: the arm of all of them
+        if args.identify and args.identify_first:  # the arm of every cell before site runs
             with ThreadPoolExecutor(args.workers) as pool:
                 list(pool.map(lambda c: identification(out, c), cells))
         with ThreadPoolExecutor(args.workers) as pool:

@@ -86,8 +86,9 @@ def recorded_force_n(p: SpongeParams, passes: np.ndarray, y_mm: np.ndarray,
     return result
 
 
-PATH_POINTS = 20
-"""Points per move on which the depth's path in time is followed (midpoint rule)."""
+PATH_POINTS = 10
+"""Points per move on which the depth's path in time is followed (midpoint rule; on the
+emulator's own path 10 fit a noiseless run's steps to 0.0049899 N RMS, 20 to 0.0049884)."""
 
 
 @dataclass(frozen=True)
