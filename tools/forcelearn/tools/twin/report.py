@@ -106,7 +106,15 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
                          "needs tares (task.tare_each_trial = true); the base config's value "
                          "is kept")
     rows.append(drift)
-    return amplitudes_need_their_scales(rows)
+    rows = amplitudes_need_their_scales(rows)
+    if not fit.represented:  # the foam's values are a model's that does not hold
+        for row in rows:
+            if row["table"] == "sponge" and row["determined"]:
+                row["determined"] = False
+                row["trials_to_determine"] = None
+                row["note"] = ("the cell is not represented by the twin: a value of a foam "
+                               "model the records refute is not a measurement")
+    return rows
 
 
 SELF_STANDING = frozenset({"hysteresis_loss"})
