@@ -108,3 +108,14 @@ def test_an_inherited_amplitude_need_not_be_present() -> None:
     fits.append(_Fit(HYSTERETIC_MEMBER, 100.0 - 6 * BIC_MARGIN, added,
                      {n: _determined_sigma(n, v) for n, v in added.items()}))
     assert fits[choose(fits).index].member is HYSTERETIC_MEMBER
+
+
+def test_a_departure_below_the_resolution_is_no_mechanism() -> None:
+    """An exponent many sigma from 1 but within its determination bound of 1: linear kept."""
+    resolution = BY_NAME["stiffening_exponent"].absolute
+    assert resolution is not None
+    exponent = 1.0 - resolution / 2
+    sigma = resolution / (4 * PRESENT_SIGMAS)
+    choice = choose(_fits(exponent, sigma, 3 * BIC_MARGIN))
+    assert choice.index == 0
+    assert "resolution" in choice.notes[-1]

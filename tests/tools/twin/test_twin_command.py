@@ -130,6 +130,9 @@ def test_a_cell_outside_the_family_gets_no_twin(
     assert "this cell is not represented by the twin" in capsys.readouterr().out
     assert not out.exists()
     assert "not represented" in (tmp_path / "twin.md").read_text()
+    document = json.loads((tmp_path / "twin.json").read_text())
+    sponge = [row for row in document["parameters"] if row["table"] == "sponge"]
+    assert sponge and not any(row["determined"] for row in sponge)
 
 
 def test_damaged_records_are_a_typed_error(

@@ -37,6 +37,7 @@ from forcelearn.tools.results.twin_compare import (
     learning_side,
     run_outcome,
 )
+from forcelearn.tools.results.twin_identified import page_lines
 from forcelearn.tools.results.twin_page import CellResult, write_figure, write_page
 
 TRIALS = 60
@@ -58,21 +59,49 @@ def _forcelearn(*args: str) -> list[str]:
     return [sys.executable, "-m", "forcelearn.tools.cli", *args]
 
 
-def site_and_twin(out: Path, cell: str) -> None:
-    """The site run (seed 0) then the twin of that run alone; skips finished steps."""
+def site_and_twin(out: Path, cell: str, identify: bool = False, fit: bool = True,
+                  refit: bool = False) -> None:
+    """The site run (seed 0), with ``identify`` an identification run, then the twin.
+
+    The twin is fitted on that run alone (and the identification's records); skips
+    finished steps. ``fit`` False: the cell's runs only. ``refit``: fit the twin again
+    even when a fit finished (the fit's code changed, the runs did not).
+    """
     folder = out / cell
     folder.mkdir(parents=True, exist_ok=True)
     site = folder / "site"
+    config = str(out / "cells" / f"{cell}.toml")
     if not (folder / "site.done").exists() and site.exists():
         _remove(site)
     _step(folder / "site.done",
-          _forcelearn("run", "--config", str(out / "cells" / f"{cell}.toml"), "--trials",
-                      str(TRIALS), "--seed", "0", "--out", str(site), "--no-progress"),
+          _forcelearn("run", "--config", config, "--trials", str(TRIALS), "--seed", "0",
+                      "--out", str(site), "--no-progress"),
           folder / "site.log")
+    extra: list[str] = []
+    if identify:
+        identification(out, cell)
+        extra = ["--identification", str(folder / "identify")]
+    if not fit:
+        return
     (folder / "twin").mkdir(exist_ok=True)
+    if refit and (folder / "twin.done").exists():
+        (folder / "twin.done").unlink()
     _step(folder / "twin.done",
-          _forcelearn("twin", str(site), "--out", str(folder / "twin" / "twin.toml")),
+          _forcelearn("twin", str(site), *extra, "--out", str(folder / "twin" / "twin.toml")),
           folder / "twin.log")
+    print(f"{cell}: twin {(folder / 'twin.done').read_text().strip()}", flush=True)
+
+
+def identification(out: Path, cell: str) -> None:
+    """The cell's ``forcelearn identify`` run (skipped when done)."""
+    folder = out / cell
+    folder.mkdir(parents=True, exist_ok=True)
+    _step(folder / "identify.done",
+          _forcelearn("identify", "--config", str(out / "cells" / f"{cell}.toml"), "--out",
+                      str(folder / "identify")),
+          folder / "identify.log")
+    print(f"{cell}: identification {(folder / 'identify.done').read_text().strip()}",
+          flush=True)
 
 
 def learning_run(out: Path, cell: str, side: str, seed: int) -> None:
@@ -108,6 +137,8 @@ def _run_dir(out: Path, cell: str, side: str, seed: int) -> Path | None:
 
 
 def _side(out: Path, cell: str, side: str, seeds: int, first: int = 0) -> LearningSide | None:
+    if seeds == 0:
+        return None
     outcomes: list[RunOutcome] = []
     for seed in range(first, first + seeds):
         run = _run_dir(out, cell, side, seed)
@@ -141,7 +172,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1, help="generator seed (default 1)")
     parser.add_argument("--out", type=Path, required=True, help="study folder")
     parser.add_argument("--workers", type=int, default=2, help="local processes (default 2)")
-    parser.add_argument("--seeds", type=int, default=5, help="learner seeds (default 5)")
+    parser.add_argument("--seeds", type=int, default=5,
+                        help="learner seeds (default 5; 0: no learning part)")
+    parser.add_argument("--identify", action="store_true",
+                        help="also run forcelearn identify on each cell; its twin uses it")
+    parser.add_argument("--identify-first", action="store_true",
+                        help="with --identify: every cell's identification before any site run")
+    parser.add_argument("--runs-only", action="store_true",
+                        help="run the cells' site (and identification) runs, fit nothing")
+    parser.add_argument("--refit", action="store_true",
+                        help="fit every twin again (the fit changed, the runs did not)")
     parser.add_argument("--learning-cells", type=int, default=None,
                         help="run the learning part on the first N cells with a twin only")
     parser.add_argument("--self-check", type=int, default=0, metavar="EVERY",
@@ -153,8 +193,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--figure", type=Path, default=None,
                         help="figure (default OUT/twin.png)")
     args = parser.parse_args(argv)
-    if args.cells < 1 or args.workers < 1 or args.seeds < 1:
-        parser.error("--cells, --workers and --seeds must be at least 1")
+    if args.cells < 1 or args.workers < 1 or args.seeds < 0:
+        parser.error("--cells and --workers must be at least 1, --seeds at least 0")
     out: Path = args.out
     cells = [f"cell-{i:02d}" for i in range(1, args.cells + 1)]
     if not args.report_only:
@@ -162,8 +202,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             subprocess.run([sys.executable, "-m", "forcelearn.tools.twin.hidden_cells",
                             "--count", str(args.cells), "--seed", str(args.seed),
                             "--out", str(out / "cells")], check=True)
+        if args.identify and args.identify_first:  # the arm of every cell before site runs
+            with ThreadPoolExecutor(args.workers) as pool:
+                list(pool.map(lambda c: identification(out, c), cells))
         with ThreadPoolExecutor(args.workers) as pool:
-            list(pool.map(lambda c: site_and_twin(out, c), cells))
+            list(pool.map(lambda c: site_and_twin(out, c, args.identify, not args.runs_only,
+                                                  args.refit), cells))
+        if args.runs_only:
+            print(f"ran the cells' runs in {out}; fit them without --runs-only")
+            return 0
         with_twin = [c for c in cells if (out / c / "twin" / "twin.toml").exists()]
         chosen = with_twin[: args.learning_cells] if args.learning_cells else with_twin
         jobs = [(c, side, seed) for c in chosen for seed in range(args.seeds)
@@ -182,7 +229,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     write_figure(results, figure)
     page = args.page or out / "twin.md"
     write_page(results, page, figure, generator_seed=args.seed, seeds=args.seeds,
-               trials=TRIALS)
+               trials=TRIALS, workers=args.workers, identify=args.identify)
+    try:
+        checks = page_lines(out, cells)
+    except StudyError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    page.write_text(page.read_text() + "\n" + "\n".join(checks))
     print(f"wrote {page} and {figure}")
     return 0
 

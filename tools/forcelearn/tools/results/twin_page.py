@@ -194,8 +194,16 @@ def unrepresented_lines(results: Sequence[CellResult]) -> list[str]:
 
 
 def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
-               generator_seed: int, seeds: int, trials: int) -> None:
+               generator_seed: int, seeds: int, trials: int, workers: int = 2,
+               identify: bool = False) -> None:
     """Write the Markdown page of the study."""
+    twin_line = "#           forcelearn twin DIR/cell-XX/site --out DIR/cell-XX/twin/twin.toml"
+    identify_lines = []
+    if identify:
+        identify_lines = ["#           forcelearn identify --config cell-XX.toml --out "
+                          "DIR/cell-XX/identify   (every cell's first)"]
+        twin_line = twin_line.replace("site --out", "site --identification DIR/cell-XX/identify "
+                                                    "--out")
     lines = [
         "# The twin against hidden cells",
         "",
@@ -203,10 +211,12 @@ def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
         "",
         "```",
         f"python -m forcelearn.tools.results.twin --cells {len(results)} "
-        f"--seed {generator_seed} --out DIR --workers 2 --seeds {seeds}",
+        f"--seed {generator_seed} --out DIR --workers {workers} --seeds {seeds}"
+        + (" --identify" if identify else ""),
+        *identify_lines,
         "# per cell: forcelearn run --config cell-XX.toml --trials "
         f"{trials} --seed 0 --out DIR/cell-XX/site",
-        "#           forcelearn twin DIR/cell-XX/site --out DIR/cell-XX/twin/twin.toml",
+        twin_line,
         f"#           forcelearn run --config {{cell-XX.toml, twin.toml}} --trials {trials} "
         "--seed S   (S = 0..seeds-1)",
         "```",

@@ -13,10 +13,10 @@ and ``period / sqrt(12)`` to its scatter (:func:`fit_arm`), and the motion the
 force model follows ends before the recorded time (:func:`with_true_in_position`).
 The period comes from the records themselves (:func:`detection_period_s`: the
 settle dwells are whole numbers of polls), with the link's own exchange time
-(:func:`poll_guess_s`) to count them. The model runs in continuous time, the emulator on its tick
-grid, which adds a few ms; :func:`emulator_delay_s` measures that on the
-emulator's own :class:`~forcelearn.emulators.physics.arm_motion.ArmMotion`
-so the twin's arm reproduces the recorded times.
+(:func:`poll_guess_s`) to count them. The model is the emulator's own tick-grid motion
+(:mod:`forcelearn.tools.twin.arm_model`); :func:`emulator_delay_s` checks the fitted delay
+on the emulator's :class:`~forcelearn.emulators.physics.arm_motion.ArmMotion` (it was the
+continuous model's few ms of tick-grid offset; now a fraction of a ms).
 """
 
 from __future__ import annotations

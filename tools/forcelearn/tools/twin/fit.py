@@ -18,7 +18,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import OptimizeResult, least_squares
 
 from forcelearn.emulators.physics.sponge_law import SpongeParams
 from forcelearn.records import TrialRecords
@@ -34,10 +33,11 @@ from forcelearn.tools.twin.arm import (
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
 from forcelearn.tools.twin.choice import choose, diagnose, family_for
-from forcelearn.tools.twin.forward import Reading, ToolPath, motion_shape, predict_means
+from forcelearn.tools.twin.forward import Reading, predict_means
 from forcelearn.tools.twin.identify import Identification
 from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, Member
+from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.uncertainty import sigmas
 
@@ -48,8 +48,6 @@ REPRESENTED_FACTOR = 2.0
 """Held-out RMS at most this many times the sensor's per-sample noise: represented."""
 REPRESENTED_FLOOR_N = 0.05
 """...and never a stricter bar than this, N (a noiseless cell)."""
-BURST_FLOOR_N = 0.02
-"""Floor of a burst mean's expected scatter in the weights, N."""
 
 
 BIC_RESOLUTION = 0.25
@@ -120,13 +118,6 @@ def split(data: RecordArrays) -> tuple[RecordArrays, RecordArrays]:
     held = max(1, round(HOLD_OUT * np.unique(data.trial).size))  # the probe's rows: one trial
     order = np.arange(data.trials)
     return data.rows(order[:-held]), data.rows(order[-held:])
-
-
-def burst_weights(data: RecordArrays, noise_n: float) -> np.ndarray:
-    """1 / expected scatter of each burst mean (T, M); 0 where no burst."""
-    noise = noise_n if math.isfinite(noise_n) else 0.0
-    spread = np.sqrt(noise**2 / np.maximum(data.count, 1.0) + BURST_FLOOR_N**2)
-    return np.where(data.has_burst, 1.0 / spread, 0.0)
 
 
 def initial_sponge(data: RecordArrays, base: dict[str, float], reading: Reading,
@@ -201,51 +192,6 @@ def _held_at_base(values: dict[str, float], base: dict[str, float], names: list[
 
 NESTED_TOLERANCE = 1e-6
 """A richer member's train cost may exceed its nested parent's by this share (rounding)."""
-JACKKNIFE_BLOCKS = 4
-"""Contiguous blocks of the fitted trials left out in turn to check the chosen member."""
-JACKKNIFE_NFEV = 15
-"""Function evaluations (iterations) of a jackknife refit: it starts at the solution."""
-
-
-class _Problem:
-    """The weighted residuals of the train trials' bursts for a member's free parameters."""
-
-    def __init__(self, train: RecordArrays, arm: dict[str, float], reading: Reading,
-                 noise_n: float, walk: BiasWalk | None = None) -> None:
-        self.train, self.arm, self.reading, self.walk = train, arm, reading, walk
-        self.weights = burst_weights(train, noise_n)
-        self.use = train.has_burst
-        self.groups = (np.broadcast_to(train.trial[:, None], self.use.shape)[self.use]
-                       if walk is None else walk.groups())
-        self.shape = motion_shape(train, arm)
-        self.path = ToolPath(train, arm)
-
-    def solve(self, names: list[str], values: dict[str, float], keep: np.ndarray | None = None,
-              max_nfev: int | None = None) -> tuple[np.ndarray, OptimizeResult]:
-        """Least squares over ``names`` from ``values`` (the rest frozen).
-
-        ``keep`` (trials, moves) bool: fit only those bursts.
-        """
-        low = np.array([BY_NAME[n].low for n in names])
-        high = np.array([BY_NAME[n].high for n in names])
-        x0 = np.clip(np.array([values[n] for n in names]), low + 1e-6 * (high - low),
-                     high - 1e-6 * (high - low))
-        frozen = dict(values)
-        use = self.use if keep is None else self.use & keep
-
-        def residuals(x: np.ndarray) -> np.ndarray:
-            sponge = SpongeParams.unchecked({**frozen, **dict(zip(names, x.tolist(),
-                                                                   strict=True))})
-            predicted = predict_means(self.train, sponge, self.arm, self.reading, self.shape,
-                                      self.path)
-            if self.walk is not None:  # the sensor's bias, profiled out (twin/bias.py)
-                return self.walk.residuals(predicted - self.train.mean_n, keep)
-            error: np.ndarray = ((predicted - self.train.mean_n) * self.weights)[use]
-            return error
-
-        result = least_squares(residuals, x0, bounds=(low, high), x_scale="jac",
-                               method="trf", max_nfev=max_nfev or 100 * len(names))
-        return np.asarray(result.x), result
 
 
 def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
@@ -268,7 +214,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     held: list[str] = []
     free = [n for n in member.free if n not in fixed]
     held_sigmas: dict[str, float] = {}
-    problem = _Problem(train, arm, reading, noise_n, walk)
+    problem = Problem(train, arm, reading, noise_n, walk)
 
     def solve(names: list[str], start: dict[str, float]
               ) -> tuple[dict[str, float], dict[str, float], float]:
@@ -363,51 +309,6 @@ def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: Record
                             "dropped: a richer member never fits worse than the one it contains")
         fits.append(fit)
     return fits
-
-
-def jackknife(fit: MemberFit, train: RecordArrays, arm: dict[str, float], reading: Reading,
-              noise_n: float, blocks: int = JACKKNIFE_BLOCKS,
-              walk: BiasWalk | None = None) -> dict[str, float]:
-    """Resampled 1-sigma of the member's fitted (not held) parameters: the larger of two.
-
-    * Delete-a-block jackknife over trials: the trials with control steps are cut into
-      ``blocks`` contiguous blocks, each left out in turn (rows without control steps,
-      the surface probe's, stay in every refit: without them stiffness and contact trade
-      off); ``sqrt((B-1)/B * sum (theta_b - mean)^2)``. Early exploring trials and later
-      worn ones pull the parameters apart where the model misses how the cell changes.
-    * Split by force: the contact bursts below and above their median force refitted
-      apart (free-space bursts in both); ``|theta_low - theta_high| / 2``, about the full
-      fit's sigma when the force law holds over the depths, far more when it does not
-      (a linear law on a stiffening foam: its stiffness and contact depend on the depths).
-
-    Each refit starts at the member's solution. Infinite when there are fewer trials
-    with control steps than blocks.
-    """
-    names = [n for n in fit.member.free if n not in dict(fit.member.fixed) and n not in fit.held]
-    control = np.flatnonzero((train.is_step & train.has_burst).any(axis=1))
-    if control.size < blocks or not names:
-        return {n: math.inf for n in names}
-    problem = _Problem(train, arm, reading, noise_n, walk)
-    estimates = []
-    for part in np.array_split(control, blocks):
-        rows = np.ones(train.trials, bool)
-        rows[part] = False
-        x, _ = problem.solve(names, fit.values, np.broadcast_to(rows[:, None], problem.use.shape),
-                             JACKKNIFE_NFEV)
-        estimates.append(x)
-    theta = np.array(estimates)
-    spread = np.sqrt((blocks - 1) / blocks * np.sum((theta - theta.mean(axis=0)) ** 2, axis=0))
-    force = np.where(train.has_burst, train.mean_n, np.nan)  # the reading: + pressing
-    contact = train.has_burst & (force > max(0.5, 3.0 * (noise_n if math.isfinite(noise_n)
-                                                              else 0.0)))
-    if contact.sum() >= 2 * len(names):
-        median = float(np.median(force[contact]))
-        halves = [problem.solve(names, fit.values, ~(contact & (force > median)),
-                                JACKKNIFE_NFEV)[0],
-                  problem.solve(names, fit.values, ~(contact & (force <= median)),
-                                JACKKNIFE_NFEV)[0]]
-        spread = np.maximum(spread, np.abs(halves[0] - halves[1]) / 2)
-    return dict(zip(names, spread.tolist(), strict=True))
 
 
 def _rms(residuals: np.ndarray, mask: np.ndarray) -> float:

@@ -8,9 +8,9 @@ checks the two agree to 1e-12 on every member of the foam family): surface
 ``surface_y(z, n)`` and stiffness ``k(z, n)`` after ``n`` passes, a standard
 linear solid's relaxing part ``q``, hysteresis and friction, the rigid backing
 beyond the foam. What is the forward model's own is the state at each burst,
-from the recorded moves. The depth is taken to change linearly
-from one reached pose to the next while the arm moves (from the command plus
-the start delay to the recorded in-position time), for which ``q`` is exact;
+from the recorded moves. The depth follows the tool from one reached pose to the
+next along the emulated arm's own path in time, ending at the (true) in-position
+time, linear within each of ``PATH_POINTS`` slices, for which ``q`` is exact;
 ``q`` then decays until the burst, and the burst reads its mean over the
 burst's span. The tool's remaining lag error at the burst decays from the
 reached pose toward the command with the servo lag. The reading is the
@@ -26,17 +26,16 @@ model is the one without them, operation for operation.
 
 Arm
 ---
-The time from a command to in position: the start delay, a trapezoidal path
-(acceleration, speed) over the commanded distance, and the first-order servo
-lag's remaining error decaying into the in-position band, in continuous
-time (the emulator's tick grid adds a near-constant few ms, which the fit
-measures on the emulator itself: :func:`forcelearn.tools.twin.arm.emulator_delay_s`).
+The time from a command to in position and the tool's path over each move: the
+emulated arm's own motion on its tick grid (start delay, trapezoidal reference,
+first-order servo lag, in-position band), :mod:`forcelearn.tools.twin.arm_model`.
 
 Units: mm, s, N, passes.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -45,6 +44,7 @@ import numpy as np
 from forcelearn.devices import quaternion_to_matrix
 from forcelearn.emulators.physics import sponge_law as law
 from forcelearn.emulators.physics.sponge_law import SpongeParams
+from forcelearn.tools.twin import arm_model
 from forcelearn.tools.twin.arrays import RecordArrays
 
 
@@ -86,8 +86,9 @@ def recorded_force_n(p: SpongeParams, passes: np.ndarray, y_mm: np.ndarray,
     return result
 
 
-PATH_POINTS = 20
-"""Points per move on which the depth's path in time is followed (midpoint rule)."""
+PATH_POINTS = 10
+"""Points per move on which the depth's path in time is followed (midpoint rule; on the
+emulator's own path 10 fit a noiseless run's steps to 0.0049899 N RMS, 20 to 0.0049884)."""
 
 
 @dataclass(frozen=True)
@@ -103,38 +104,34 @@ class MotionShape:
 def motion_shape(data: RecordArrays, arm: dict[str, float]) -> MotionShape:
     """The tool's path in time over each recorded move, from the arm's model.
 
-    The move ends at its recorded in-position time and began the arm model's
-    motion time before it (never before the command): the recorded start also
-    holds the link's time to send the command, which the motion does not. The
-    reference runs the trapezoidal profile over the commanded distance; the tool
-    follows it through the first-order lag (the share is scaled to reach 1).
+    The emulated arm's own motion on its tick grid (:func:`arm_model.profile`): the move
+    ends at its (true) in-position time and began its whole ticks of motion before it (never
+    before the command was recorded). The share is scaled to reach 1 at in position (the
+    depth there is the reached pose's).
     """
     k = PATH_POINTS
-    distance = np.nan_to_num(data.move_mm)
-    motion_s = predict_in_position_s(distance, {**arm, "start_delay_s": 0.0},
-                                     arm.get("in_position_mm", 0.1))
-    begin = np.maximum(data.in_position_s - motion_s, data.start_s)
+    tick = float(arm.get("tick_s", arm_model.TICK_S))
+    found = arm_model.profile(data.move_mm, arm, arm.get("in_position_mm", 0.1),
+                              keep_path=True)
+    assert found.share is not None  # asked for
+    # in position at the whole tick its band crossing falls in; the first tick's motion
+    # runs over the tick before it
+    ticks = np.ceil(found.ticks[found.inverse] - 1e-9)
+    begin = np.maximum(data.in_position_s - ticks * tick, data.start_s)
     total = np.maximum(np.nan_to_num(data.in_position_s - begin), 1e-4)
-    speed, accel, lag = arm["default_speed_mm_s"], arm["accel_mm_s2"], arm["lag_s"]
-    cruise = distance >= speed * speed / accel
-    t_acc = np.where(cruise, speed / accel, np.sqrt(distance / accel))
-    t_ref = np.maximum(2 * t_acc + np.where(cruise, distance / speed - speed / accel, 0.0),
-                       1e-6)
-    dt = total / k
-    keep = np.exp(-dt / lag) if lag > 0 else np.zeros_like(dt)
-    tool = np.zeros_like(total)
+    offset = total - np.minimum(ticks * tick, total)  # a path cut by the recorded start
+    path = found.share
+    last = path.shape[1] - 1
+    rows = found.inverse
     shares = np.empty((*total.shape, k))
     for i in range(1, k + 1):
-        t = np.minimum(i * dt, t_ref)
-        travelled = np.where(
-            t <= t_acc, 0.5 * accel * t * t,
-            np.where(t <= t_ref - t_acc, 0.5 * accel * t_acc**2 + accel * t_acc * (t - t_acc),
-                     distance - 0.5 * accel * (t_ref - t) ** 2),
-        )
-        reference = np.where(distance > 0, travelled / np.maximum(distance, 1e-12), 1.0)
-        tool = reference + (tool - reference) * keep
-        shares[..., i - 1] = tool
+        x = np.clip((i * total / k - offset) / tick, 0.0, last)
+        low = np.floor(x).astype(int)
+        high = np.minimum(low + 1, last)
+        part = x - low
+        shares[..., i - 1] = path[rows, low] * (1.0 - part) + path[rows, high] * part
     shares = shares / np.maximum(shares[..., -1:], 1e-12)
+    dt = total / k
     middles = (np.arange(k) + 0.5)[None, None, :] * dt[..., None]
     return MotionShape(np.clip(shares, 0.0, 1.0), total[..., None] - middles)
 
@@ -364,8 +361,12 @@ def predict_means(data: RecordArrays, p: SpongeParams, arm: dict[str, float],
 
     ``shape`` is :func:`motion_shape` of ``data`` and ``arm``, ``path`` its
     :class:`ToolPath` (each computed when needed and not given: pass them when
-    predicting many times with one arm).
+    predicting many times with one arm). A sample reads the cell as the last motion
+    tick before it left it (the emulated cell advances on its tick grid): the bursts
+    are read half a tick earlier than their times, on average.
     """
+    tick = float(arm.get("tick_s", arm_model.TICK_S))
+    data = dataclasses.replace(data, burst_start_s=data.burst_start_s - 0.5 * tick)
     passes = data.passes
     lag_s = arm["lag_s"]
     y = np.where(data.valid, data.reached[..., 1], 1e9)
@@ -394,34 +395,14 @@ def predict_means(data: RecordArrays, p: SpongeParams, arm: dict[str, float],
     return np.where(burst, force, np.nan)
 
 
-def _lag_error_mm(distance: np.ndarray, speed: float, accel: float, lag: float,
-                  points: int = 96) -> tuple[np.ndarray, np.ndarray]:
-    """Path time (s) and the lagging tool's error (mm) when the path stops, per distance."""
-    reach = speed * speed / accel
-    cruise = distance >= reach
-    t_acc = np.where(cruise, speed / accel, np.sqrt(np.maximum(distance, 0.0) / accel))
-    t_cruise = np.where(cruise, distance / speed - speed / accel, 0.0)
-    total = 2 * t_acc + t_cruise
-    if lag <= 0:
-        return total, np.zeros_like(distance)
-    u = np.linspace(0.0, 1.0, points)
-    s = u * total[..., None]
-    peak = accel * t_acc[..., None]
-    velocity = np.minimum(np.minimum(accel * s, peak),
-                          np.maximum(0.0, accel * (total[..., None] - s)))
-    kernel = np.exp(-(total[..., None] - s) / lag)
-    error = np.trapezoid(velocity * kernel, s, axis=-1)
-    return total, error
-
-
 def predict_in_position_s(distance: np.ndarray, arm: dict[str, float],
                           band_mm: float) -> np.ndarray:
-    """Predicted time from command to in position (s) for moves of ``distance`` mm."""
-    total, error = _lag_error_mm(distance, arm["default_speed_mm_s"], arm["accel_mm_s2"],
-                                 arm["lag_s"])
-    settle = arm["lag_s"] * np.log(np.maximum(error, band_mm) / band_mm)
-    result: np.ndarray = arm["start_delay_s"] + total + settle
-    return result
+    """Predicted time from command to in position (s) for moves of ``distance`` mm.
+
+    The emulated arm's tick-grid motion, its mean over the command's phase
+    (:func:`arm_model.in_position_s`).
+    """
+    return arm_model.in_position_s(distance, arm, band_mm)
 
 
 def mean_sample_period_s(data: RecordArrays) -> float:

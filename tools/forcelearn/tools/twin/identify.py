@@ -68,7 +68,7 @@ class IdentificationError(ForcelearnError):
 class IdentifyPlan:
     """The identification's plan; lengths in mm, speeds in mm/s, times in s, forces as ratios."""
 
-    lengths_mm: tuple[float, ...] = (1.0, 2.0, 3.5, 5.0, 7.0, 9.5)
+    lengths_mm: tuple[float, ...] = (1.0, 1.5, 2.0, 2.75, 3.5, 4.25, 5.0, 6.0, 7.0, 8.25, 9.5)
     speeds_mm_s: tuple[float, ...] = (10.0, 20.0, 35.0, 50.0, 75.0, 100.0)
     repeats: int = 1
     """Passes over the lengths x speeds. Many distinct (length, speed) pairs, rather than

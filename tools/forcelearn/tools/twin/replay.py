@@ -36,8 +36,8 @@ from forcelearn.tools.twin.arm import (
 )
 from forcelearn.tools.twin.arrays import RecordArrays, to_arrays
 from forcelearn.tools.twin.bias import build_chain, offsets, solve_biases, tare_times
-from forcelearn.tools.twin.fit import burst_weights
 from forcelearn.tools.twin.forward import predict_means
+from forcelearn.tools.twin.problem import burst_weights
 from forcelearn.tools.twin.replay_cell import replay_trials
 from forcelearn.tools.twin.setup import base_arm, reading_of
 

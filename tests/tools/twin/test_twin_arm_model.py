@@ -1,0 +1,51 @@
+"""The twin's arm model is the emulated arm's motion on its tick grid."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from forcelearn.devices import Pose
+from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams
+from forcelearn.tools.twin.arm_model import in_position_s, profile
+
+DOWN = (0.0, 1.0, 0.0, 0.0)
+
+
+def _emulated_s(params: MotionParams, distance: float, phase: float) -> float:
+    """Command to in position on the emulator's own arm, s."""
+    home = Pose(900.0, 0.0, 0.0, DOWN)
+    motion = ArmMotion(params, home)
+    begin = (10 + phase) * params.tick_s
+    motion.command(Pose(900.0, distance, 0.0, DOWN), begin)
+    t = begin
+    while not motion.in_position:
+        t = (math.floor(t / params.tick_s + 1e-9) + 1) * params.tick_s
+        motion.advance_to(t)
+    return t - begin
+
+
+@pytest.mark.parametrize("lag, accel", [(0.01, 1000.0), (0.03, 1000.0), (0.15, 3000.0)])
+def test_in_position_time_is_the_emulators_mean(lag: float, accel: float) -> None:
+    """Over lengths and command phases: the emulator's mean time, within a tick each."""
+    params = MotionParams(lag_s=lag, accel_mm_s2=accel)
+    arm = {"start_delay_s": params.start_delay_s, "accel_mm_s2": accel,
+           "default_speed_mm_s": params.speed_mm_s, "lag_s": lag}
+    rng = np.random.default_rng(1)
+    lengths = rng.uniform(0.5, 10.0, 60)
+    took = np.array([_emulated_s(params, d, rng.uniform()) for d in lengths])
+    error = in_position_s(lengths, arm, params.in_position_mm) - took
+    assert abs(error.mean()) < params.tick_s / 4
+    assert np.abs(error).max() <= params.tick_s
+
+
+def test_profile_groups_lengths_and_ends_at_the_target() -> None:
+    """One run per distinct length; the tool's share of the path ends at 1."""
+    arm = {"accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0, "lag_s": 0.03}
+    found = profile(np.array([[5.0, 5.0], [2.0, 0.0]]), arm, 0.1, keep_path=True)
+    assert found.lengths_mm.tolist() == [0.0, 2.0, 5.0]
+    assert found.share is not None
+    assert found.share[:, -1] == pytest.approx(1.0, abs=0.1 / 2.0)
+    assert found.ticks[0] == 0.0

@@ -1,0 +1,116 @@
+"""The emulated arm's motion on its tick grid, over arrays of move lengths: the twin's arm model.
+
+The emulated arm (:class:`~forcelearn.emulators.physics.arm_motion.ArmMotion`) runs a
+trapezoidal reference on a ``tick_s`` grid (``v = min(v + a dt, speed, sqrt(2 a
+remaining))``, ``s += v dt``) and a tool that follows it through a first-order lag
+sampled on the same grid (``tool += (1 - exp(-dt / lag)) (ref - tool)``); it is in
+position at the first tick where the reference has stopped on the target and the tool
+is within the band. This module runs the same recursion for many move lengths at once,
+so the twin's timing and the path its foam model follows are the emulator's, tick for
+tick, not a continuous-time stand-in (which read a lag 16 % long off polled moves, and
+left the relaxing part of the force 1 % short after a step: a relaxation ratio 1 % high).
+
+A move's motion begins at the first tick after its command plus the start delay; the
+command's phase on the grid is unknown (uniform), so the time from command to in
+position is taken as ``start_delay + tick / 2 + (N - 1/2) tick``, with ``N`` the ticks
+of motion, counted with its fraction (the tool's error crosses the band between two
+ticks, geometrically once the reference has stopped): smooth in the parameters, which a
+least-squares fit needs, and equal to the emulator's mean over phases and lengths.
+
+Units: mm, s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+TICK_S = 0.004
+"""The emulated controller's interpolation period, s (``[emulator.arm] tick_s``)."""
+MAX_TICKS = 20000
+"""Longest motion followed, ticks (80 s at 4 ms): a longer one is cut there."""
+ROUND_MM = 1e-3
+"""Move lengths are grouped to this (mm): the model runs once per distinct length."""
+_SNAP_MM = 1e-4
+"""The emulator's snap of the lagging tool onto a stopped reference, mm."""
+
+
+@dataclass(frozen=True)
+class Profile:
+    """The tool's motion over each distinct move length, on the tick grid."""
+
+    lengths_mm: np.ndarray
+    """(U,) the distinct lengths, mm."""
+    inverse: np.ndarray
+    """Index into ``lengths_mm`` of each move of the input (input's shape)."""
+    ticks: np.ndarray
+    """(U,) ticks of motion to in position, with the fraction of the band crossing."""
+    share: np.ndarray | None
+    """(U, L + 1) share of the path the tool has done after 0..L ticks (1 after in
+    position); None when not asked for."""
+
+
+def profile(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
+            keep_path: bool = False) -> Profile:
+    """Run the emulator's motion for every distinct length of ``distance_mm`` (mm).
+
+    ``arm`` holds ``default_speed_mm_s``, ``accel_mm_s2``, ``lag_s`` and optionally
+    ``tick_s``. ``keep_path``: also return the tool's share of the path per tick.
+    """
+    tick = float(arm.get("tick_s", TICK_S))
+    speed, accel, lag = arm["default_speed_mm_s"], arm["accel_mm_s2"], arm["lag_s"]
+    flat = np.nan_to_num(np.asarray(distance_mm, dtype=float))
+    lengths, inverse = np.unique(np.round(np.maximum(flat, 0.0) / ROUND_MM), return_inverse=True)
+    d = lengths * ROUND_MM
+    keep = math.exp(-tick / lag) if lag > 0 else 0.0
+    gain = 1.0 - keep
+    s, v, tool = np.zeros_like(d), np.zeros_like(d), np.zeros_like(d)
+    # within the band at once: in position at the first tick of motion (half a tick, mean)
+    ticks = np.where(d <= band_mm, np.where(d > 0, 0.5, 0.0), np.nan)
+    error = d.copy()
+    shares = [np.where(d > 0, 0.0, 1.0)] if keep_path else []
+    for i in range(1, MAX_TICKS + 1):
+        moving = s < d
+        step = np.minimum(np.minimum(v + accel * tick, speed),
+                          np.sqrt(2.0 * accel * np.maximum(d - s, 0.0)))
+        s = np.where(moving, np.minimum(d, s + step * tick), s)
+        v = np.where(moving & (s < d), step, 0.0)
+        tool = tool + gain * (s - tool)
+        stopped = s >= d
+        tool = np.where(stopped & (np.abs(s - tool) < _SNAP_MM), s, tool)
+        new_error = d - tool
+        reached = stopped & (new_error <= band_mm) & np.isnan(ticks)
+        if reached.any():
+            # the error decays geometrically once the reference has stopped: the crossing's
+            # fraction of this tick (the whole tick when the reference stopped in it)
+            was_stopped = error > new_error
+            with np.errstate(divide="ignore", invalid="ignore"):
+                fraction = np.log(error / band_mm) / np.log(error / np.maximum(new_error, 1e-300))
+            fraction = np.where(was_stopped & np.isfinite(fraction),
+                                np.clip(fraction, 0.0, 1.0), 1.0)
+            ticks = np.where(reached, i - 1 + fraction, ticks)
+        error = new_error
+        if keep_path:
+            shares.append(np.where(d > 0, tool / np.maximum(d, 1e-12), 1.0))
+        if not np.isnan(ticks).any():
+            break
+    ticks = np.where(np.isnan(ticks), float(MAX_TICKS), ticks)
+    share = np.stack(shares, axis=1) if keep_path else None
+    return Profile(d, inverse.reshape(flat.shape), ticks, share)
+
+
+def in_position_s(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float
+                  ) -> np.ndarray:
+    """Mean time (s) from a command to in position for moves of ``distance_mm``.
+
+    ``start_delay + tick / 2 + (N - 1/2) tick`` (module doc); 0 motion for a move within
+    the band.
+    """
+    tick = float(arm.get("tick_s", TICK_S))
+    found = profile(distance_mm, arm, band_mm)
+    ticks = found.ticks[found.inverse]
+    motion = np.where(ticks > 0, ticks * tick, 0.0)
+    result: np.ndarray = arm["start_delay_s"] + motion
+    return result
