@@ -114,13 +114,10 @@ def retract(cell: Cell, retract_y_mm: float, max_step_mm: float,
             last = exc
             log.warning("retract try %d of %d failed: %s", attempt, attempts, exc)
             cell.stop()
-<<<<<<< HEAD
             if isinstance(exc, GuidanceStopped):
                 _wait_for_guidance(cell)
-=======
     where, jog = ((f"to y = {retract_y_mm} mm", "jog +Y") if away is None else
                   ("back along the task's force axis", "jog it back along the tool's axis"))
->>>>>>> path
     raise RecoveryFailed(
         f"could not retract the tool {where} after a fault ({attempts} tries; "
         f"last: {last}): the tool may still press the part; retract it by hand ({jog}), "
