@@ -131,7 +131,8 @@ class TwinCheck:
         return self.heldout_rms_n <= PREDICTION_NOISE_FACTOR * self.noise_n
 
 
-def _load(path: Path) -> dict[str, Any]:
+def load_json(path: Path) -> dict[str, Any]:
+    """A study file's JSON object (StudyError saying to rerun the study if it is unreadable)."""
     try:
         data = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:
@@ -147,8 +148,8 @@ def check_twin(cell: str, truth_path: Path, twin_json: Path) -> TwinCheck:
     Raises:
         StudyError: a file is missing or is not what its writer writes.
     """
-    truth = _load(truth_path)
-    twin = _load(twin_json)
+    truth = load_json(truth_path)
+    twin = load_json(twin_json)
     try:
         rows = {row["name"]: row for row in twin["parameters"]}
         checks = [_operating_check(truth, twin, rows)]
@@ -216,7 +217,7 @@ def run_outcome(run_dir: Path) -> RunOutcome:
     Raises:
         StudyError: the run did not finish (no summary or no trials).
     """
-    summary = _load(run_dir / "summary.json")
+    summary = load_json(run_dir / "summary.json")
     try:
         with (run_dir / "trials.csv").open(newline="") as handle:
             rows = list(csv.DictReader(handle))

@@ -17,7 +17,6 @@ Pure functions over a study's files (``cell-XX.truth.json`` and the twin's ``twi
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -25,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from forcelearn.emulators.physics.arm import ArmConfig
-from forcelearn.errors import StudyError
+from forcelearn.tools.results.twin_compare import load_json
 from forcelearn.tools.twin.params import BY_NAME
 
 IDENTIFIED_TOLERANCE = 0.15
@@ -39,16 +38,6 @@ MECHANISM_OF = (("relaxation_ratio", 0.0, "linear"), ("stiffening_exponent", 1.0
                 ("hysteresis_loss", 0.0, "hysteretic"),
                 ("friction_coefficient", 0.0, "hysteretic+friction"))
 """Each mechanism's amplitude, its off value, and the first member that fits it."""
-
-
-def _load(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise StudyError(f"cannot read {path}: {exc}; rerun the study to remake it") from exc
-    if not isinstance(data, dict):
-        raise StudyError(f"{path} does not hold a JSON object; rerun the study to remake it")
-    return data
 
 
 def truth_values(truth: dict[str, Any]) -> dict[str, float]:
@@ -190,8 +179,8 @@ def page_lines(out: Path, cells: Sequence[str]) -> list[str]:
         if not twin_json.exists():
             missing.append(cell)
             continue
-        truth = _load(out / "cells" / f"{cell}.truth.json")
-        twin = _load(twin_json)
+        truth = load_json(out / "cells" / f"{cell}.truth.json")
+        twin = load_json(twin_json)
         members.append(member_check(cell, truth, twin))
         found.append((cell, identified(truth, twin)))
         offs.extend(f"{cell}: {text}" for text in three_sigma_offs(truth, twin))
@@ -214,7 +203,7 @@ def page_lines(out: Path, cells: Sequence[str]) -> list[str]:
     arm_rows: list[tuple[str, list[Identified]]] = []
     for cell in cells:
         if (out / cell / "identify.done").exists() and (out / cell / "identify").is_dir():
-            truth = _load(out / "cells" / f"{cell}.truth.json")
+            truth = load_json(out / "cells" / f"{cell}.truth.json")
             arm_rows.append((cell, identification_arm(truth, out / cell / "identify")))
     lines += [f"- From the identification runs alone ({len(arm_rows)} cells; the arm the twin "
               "takes from them):"]
