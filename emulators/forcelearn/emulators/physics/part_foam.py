@@ -52,6 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from forcelearn.emulators.physics.foam_memory import FoamMemory, State
 from forcelearn.emulators.physics.part import Part, contact, tip_centres_mm
 from forcelearn.emulators.physics.sponge_law import (
     SpongeParams,
@@ -97,7 +98,7 @@ class PartSetup:
         return bool(np.all(centre_mm >= self.gap_min_mm) and np.all(centre_mm <= self.gap_max_mm))
 
 
-class PartFoam:
+class PartFoam(FoamMemory):
     """The foam on a part, with its wear and relaxation; a ``ContactEnvironment``.
 
     Not thread-safe on its own: :class:`~.cell.CellPhysics` serialises calls.
@@ -107,22 +108,12 @@ class PartFoam:
                  passes: int = 0) -> None:
         self.setup = setup
         self.params = params or SpongeParams()
-        self.passes = passes
-        self.relaxing_mm = 0.0
-        """The relaxing part q of the standard linear solid, mm."""
-        self._foam_mm = 0.0
-        self._touched = False
+        super().__init__(passes)
         self._quaternion: Quaternion = (1.0, 0.0, 0.0, 0.0)
         self._key: tuple[float, ...] | None = None
         self._depth = 0.0
         self._normal = np.zeros(3)
         self._z = 0.0
-        self.hysteresis_state = 0.0
-        """The Dahl state s in [-1, 1] (0 off the foam)."""
-        self._hysteresis_foam_mm = 0.0
-        self.slide_direction: tuple[float, float, float] = (0.0, 0.0, 0.0)
-        """Unit direction of the tool's last slide along the part (zeros: none)."""
-        self._last_position: tuple[float, float, float] | None = None
 
     def observe_orientation(self, quaternion: Quaternion) -> None:
         """Note the tool's orientation (w, x, y, z), sensor frame to world."""
@@ -197,9 +188,7 @@ class PartFoam:
         here = (float(position_mm[0]), float(position_mm[1]), float(position_mm[2]))
         last, self._last_position = self._last_position, here
         if depth_mm <= 0.0:  # off the foam: it forgets its branch, nothing holds its skin
-            self.hysteresis_state = 0.0
-            self._hysteresis_foam_mm = 0.0
-            self.slide_direction = (0.0, 0.0, 0.0)
+            self._forget_branch()
             return
         along_mm, direction = 0.0, None
         if last is not None and last != here:
@@ -217,35 +206,14 @@ class PartFoam:
             self.slide_direction = (float(direction[0]), float(direction[1]),
                                     float(direction[2]))
 
-    def state_dict(self) -> dict[str, int | bool | float]:
-        """The state to checkpoint (plain numbers; the same keys as the sponge's where shared)."""
+    def state_dict(self) -> State:
+        """The state to checkpoint (plain numbers; the sponge's keys and the tool's orientation)."""
         w, x, y, z = self._quaternion
-        state: dict[str, int | bool | float] = {
-            "passes": self.passes, "touched": self._touched,
-            "relaxing_mm": self.relaxing_mm, "foam_mm": self._foam_mm,
-            "qw": w, "qx": x, "qy": y, "qz": z,
-            "hysteresis_state": self.hysteresis_state,
-            "hysteresis_foam_mm": self._hysteresis_foam_mm,
-            "has_last_position": self._last_position is not None}
-        for axis, value in zip("xyz", self.slide_direction, strict=True):
-            state[f"slide_{axis}"] = value
-        for axis, value in zip("xyz", self._last_position or (0.0, 0.0, 0.0), strict=True):
-            state[f"last_{axis}_mm"] = value
-        return state
+        return {**self._memory_state(), "qw": w, "qx": x, "qy": y, "qz": z}
 
-    def load_state_dict(self, state: dict[str, int | bool | float]) -> None:
+    def load_state_dict(self, state: State) -> None:
         """Restore :meth:`state_dict`."""
-        self.passes = int(state["passes"])
-        self._touched = bool(state["touched"])
-        self.relaxing_mm = float(state.get("relaxing_mm", 0.0))
-        self._foam_mm = float(state.get("foam_mm", 0.0))
+        self._load_memory(state)
         self._quaternion = (float(state.get("qw", 1.0)), float(state.get("qx", 0.0)),
                             float(state.get("qy", 0.0)), float(state.get("qz", 0.0)))
-        self.hysteresis_state = float(state.get("hysteresis_state", 0.0))
-        self._hysteresis_foam_mm = float(state.get("hysteresis_foam_mm", 0.0))
-        x, y, z = (float(state.get(f"slide_{axis}", 0.0)) for axis in "xyz")
-        self.slide_direction = (x, y, z)
-        self._last_position = (
-            (float(state["last_x_mm"]), float(state["last_y_mm"]), float(state["last_z_mm"]))
-            if state.get("has_last_position") else None)
         self._key = None

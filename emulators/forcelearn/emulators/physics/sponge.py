@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from forcelearn.emulators.physics.foam_memory import FoamMemory, State
 from forcelearn.emulators.physics.sponge_law import (
     SLIDE_MIN_FRACTION,
     SpongeParams,
@@ -43,7 +44,7 @@ __all__ = [
 ]
 
 
-class Sponge:
+class Sponge(FoamMemory):
     """A sponge that counts its passes; a ``ContactEnvironment`` for :class:`CellPhysics`.
 
     A pass is counted each time the tool, having been in contact, leaves the
@@ -57,19 +58,7 @@ class Sponge:
 
     def __init__(self, params: SpongeParams | None = None, passes: int = 0) -> None:
         self.params = params or SpongeParams()
-        self.passes = passes
-        self._touched = False
-        self.relaxing_mm = 0.0
-        """The relaxing part q of the standard linear solid, mm."""
-        self._foam_mm = 0.0
-        self.hysteresis_state = 0.0
-        """The Dahl state s in [-1, 1] (+1: pressing in, -1: easing off)."""
-        self._hysteresis_foam_mm = 0.0
-        """The foam depth the hysteresis state was last brought to, mm."""
-        self.slide_direction: tuple[float, float, float] = (0.0, 0.0, 0.0)
-        """Unit direction of the tool's last slide along the surface (zeros: none)."""
-        self._last_position: tuple[float, float, float] | None = None
-        """Where the tool was at the last report (friction only), mm."""
+        super().__init__(passes)
         self._memo_key: tuple[float, ...] | None = None
         self._memo_force = np.zeros(3)
         self._depth_key: tuple[float, ...] | None = None
@@ -129,9 +118,7 @@ class Sponge:
         here = (float(position_mm[0]), float(position_mm[1]), float(position_mm[2]))
         last, self._last_position = self._last_position, here
         if depth_mm <= 0.0:  # off the foam: it forgets its branch, nothing holds its skin
-            self.hysteresis_state = 0.0
-            self._hysteresis_foam_mm = 0.0
-            self.slide_direction = (0.0, 0.0, 0.0)
+            self._forget_branch()
             return
         move = np.subtract(here, last) if last is not None and last != here else None
         along_mm = 0.0  # travel along the surface; a press within ~6 degrees of the normal: none
@@ -155,34 +142,10 @@ class Sponge:
         self.passes += 1
         self._touched = False
 
-    def state_dict(self) -> dict[str, int | bool | float]:
+    def state_dict(self) -> State:
         """Return the state to checkpoint (plain numbers)."""
-        state: dict[str, int | bool | float] = {
-            "passes": self.passes,
-            "touched": self._touched,
-            "relaxing_mm": self.relaxing_mm,
-            "foam_mm": self._foam_mm,
-            "hysteresis_state": self.hysteresis_state,
-            "hysteresis_foam_mm": self._hysteresis_foam_mm,
-            "has_last_position": self._last_position is not None,
-        }
-        for axis, value in zip("xyz", self.slide_direction, strict=True):
-            state[f"slide_{axis}"] = value
-        for axis, value in zip("xyz", self._last_position or (0.0, 0.0, 0.0), strict=True):
-            state[f"last_{axis}_mm"] = value
-        return state
+        return self._memory_state()
 
-    def load_state_dict(self, state: dict[str, int | bool | float]) -> None:
+    def load_state_dict(self, state: State) -> None:
         """Restore a state from :meth:`state_dict` (keys it lacks take their fresh values)."""
-        self.passes = int(state["passes"])
-        self._touched = bool(state["touched"])
-        self.relaxing_mm = float(state.get("relaxing_mm", 0.0))
-        self._foam_mm = float(state.get("foam_mm", 0.0))
-        self.hysteresis_state = float(state.get("hysteresis_state", 0.0))
-        self._hysteresis_foam_mm = float(state.get("hysteresis_foam_mm", 0.0))
-        x, y, z = (float(state.get(f"slide_{axis}", 0.0)) for axis in "xyz")
-        self.slide_direction = (x, y, z)
-        self._last_position = None
-        if state.get("has_last_position", False):
-            x, y, z = (float(state[f"last_{axis}_mm"]) for axis in "xyz")
-            self._last_position = (x, y, z)
+        self._load_memory(state)
