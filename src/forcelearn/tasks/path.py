@@ -49,13 +49,12 @@ from typing import Any
 import numpy as np
 
 from forcelearn.devices import Pose
-from forcelearn.errors import ForceLimitExceeded
 from forcelearn.learning import BoxGrid, Dimension
 from forcelearn.paths import TaughtPath
 from forcelearn.paths.taught import rotation_from_wxyz
 from forcelearn.tasks.evaluation import FAILURE_R
 from forcelearn.tasks.path_spec import PathTaskSpec
-from forcelearn.tasks.surface import SurfaceCell
+from forcelearn.tasks.surface import SurfaceCell, read_after
 from forcelearn.trainer import StepOutcome
 
 CONTACT_STEP_MM = 1.0
@@ -302,15 +301,13 @@ class PathTask:
         k = self._step
         offset = float(command[0])
         self.cell.stage = ("step", k + 1)
-        try:
+
+        def moves() -> None:
             if k == 0 and offset > self._offset:
                 self.first_contact_peak_n = max(self.first_contact_peak_n, self._ramp_to(offset))
             self.move_to_point(k, offset, pressing=True)
-            force = self.cell.measure_force_n()
-            limit_hit = False
-        except ForceLimitExceeded:
-            force = self.cell.force_filter.force_n
-            limit_hit = True
+
+        force, limit_hit = read_after(self.cell, moves)
         judged = self.evaluation.evaluate(force, limit_hit)
         lost = (not limit_hit) and force < self.spec.contact_force_n
         r, failed = judged.r, judged.failed

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from typing import Protocol, TypedDict
 
 import numpy as np
@@ -127,6 +128,19 @@ class SurfaceCell(Protocol):
     def measure_force_n(self, samples: int | None = None) -> float:
         """Read and filter a burst; return the normal force, N."""
         ...
+
+
+def read_after(cell: SurfaceCell, moves: Callable[[], None]) -> tuple[float, bool]:
+    """Make ``moves``, read the filtered force: (force N, whether the force limit stopped them).
+
+    On a force-limit stop (in a move or the read) the force is the filter's estimate, which the
+    task's evaluation judges as a safety failure.
+    """
+    try:
+        moves()
+        return cell.measure_force_n(), False
+    except ForceLimitExceeded:
+        return cell.force_filter.force_n, True
 
 
 class TrialTrace(TypedDict):
@@ -244,16 +258,14 @@ class SurfaceTask:
             start.x_mm, y_cmd, start.z_mm + self._step * self.spec.z_step_mm, start.quaternion
         )
         self.cell.stage = ("step", self._step)
-        try:
+
+        def moves() -> None:
             if self.approach_mm > 0:  # from the loading side: the foam's branch is known
                 above = Pose(target.x_mm, y_cmd + self.approach_mm, target.z_mm, start.quaternion)
                 self.cell.move_in_steps(above, self.max_step_mm, guard_force=True)
             self.cell.move_in_steps(target, self.max_step_mm, guard_force=True)
-            force = self.cell.measure_force_n()
-            limit_hit = False
-        except ForceLimitExceeded:
-            force = self.cell.force_filter.force_n
-            limit_hit = True
+
+        force, limit_hit = read_after(self.cell, moves)
         judged = self.evaluation.evaluate(force, limit_hit)
         if judged.failed or self._step == self.steps_per_trial:
             self.retract()
