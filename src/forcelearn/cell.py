@@ -37,7 +37,6 @@ import numpy as np
 from forcelearn.calibration.model import Calibration
 from forcelearn.calibration.tool_check import MIN_TURN_DEG, check_free_space, turn_deg
 from forcelearn.devices import (
-    AXES,
     BatchForceSensor,
     ForceSensor,
     InPositionWait,
@@ -54,7 +53,9 @@ from forcelearn.errors import (
     ToolMismatch,
 )
 from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
-from forcelearn.records import BurstRecord, CellRecorder, MoveRecord, TareRecord
+from forcelearn.filtering.burst_record import burst_record
+from forcelearn.press_guard import MIN_STEP_MM, PressGuard, check_samples
+from forcelearn.records import CellRecorder, MoveRecord, TareRecord
 
 log = logging.getLogger(__name__)
 
@@ -148,6 +149,15 @@ class Cell:
         one sample; may
         raise a :class:`~forcelearn.errors.SensorError` (the robot is then stopped), e.g.
         :class:`~forcelearn.tasks.bias_watch.BiasWatch`. None: nothing checked."""
+        self.zero_residual = np.zeros(6)
+        """The zero's correction in software (the last zero check's mean wrench), N and N*m."""
+        self.zero_std_n: float | None = None
+        """The zero's own standard deviation on the normal axis, N (None: the sensor's zero)."""
+        self.zero_time_s = 0.0
+        """The cell time of the last zero, s."""
+        self._last_mean_wrench = np.zeros(6)
+        self.press_guard: PressGuard | None = None
+        """Bounds each guarded move's press-in by the known stiffness (None: no bound)."""
 
     @property
     def pose(self) -> Pose:
@@ -215,7 +225,9 @@ class Cell:
         for a step it must refuse. Each step is waited for; only the last one
         settles. With ``guard_force`` (moves that may meet contact) one sample
         is read after every intermediate step, so the force limit stops the
-        robot on the way, not only at the target.
+        robot on the way, not only at the target, and with a :attr:`press_guard`
+        a step whose predicted force passes the limit is cut where the prediction
+        allows, and the force read there (:mod:`forcelearn.press_guard`).
         """
         start = self.pose
         distance = float(np.linalg.norm(target.position_mm - start.position_mm))
@@ -228,20 +240,37 @@ class Cell:
                 f"(safety.max_step_mm) would take {count} steps, more than "
                 f"{MAX_STEPS_PER_MOVE}: raise safety.max_step_mm; nothing was sent"
             )
-        for i in range(1, count + 1):
-            f = i / count
-            self.move_to(
-                Pose(
-                    start.x_mm + f * (target.x_mm - start.x_mm),
-                    start.y_mm + f * (target.y_mm - start.y_mm),
-                    start.z_mm + f * (target.z_mm - start.z_mm),
-                    target.quaternion,
-                ),
-                settle=i == count,
-            )
+        guard = self.press_guard if guard_force else None
+        moves, i = 0, 1
+        while i <= count:
+            step = _towards(start, target, i / count)
+            if guard is not None and (share := guard.reach(self.pose.position_mm,
+                                                           step.position_mm)) < 1.0:
+                self._guarded_part(guard, step, share)
+                moves += 1
+                if moves > MAX_STEPS_PER_MOVE:
+                    raise InvalidTarget(f"a guarded move took over {MAX_STEPS_PER_MOVE} steps")
+                continue
+            self.move_to(step, settle=i == count)
+            moves += 1
             if guard_force and i < count:
                 self.measure_force_n(1)
-        return count
+            i += 1
+        return moves
+
+    def _guarded_part(self, guard: PressGuard, step: Pose, share: float) -> None:
+        """Move ``share`` of the way to ``step`` (as far as the press guard allows) and read."""
+        here = self.pose
+        guard.cuts += 1
+        if share * float(np.linalg.norm(step.position_mm - here.position_mm)) < MIN_STEP_MM:
+            self.stop()
+            raise ForceLimitExceeded(
+                f"the next move would press past safety.max_force_n = {self.max_force_n} N "
+                f"(last reading {guard.last[1] if guard.last else math.nan:.2f} N, stiffness "
+                f"{guard.stiffness_n_per_mm:.1f} N/mm); the robot was stopped"
+            )
+        self.move_to(_towards(here, step, share), settle=False)
+        self.measure_force_n(1)
 
     def reset_filter(self) -> None:
         """Forget the filter's track (at the start of a trial)."""
@@ -261,9 +290,18 @@ class Cell:
         else:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
         compensated = [self._compensated(raw) for raw in batch]
+        self._last_mean_wrench = np.mean([s.wrench for s in compensated], axis=0)
         force = math.nan
+        if self.press_guard is not None and self._pose is not None:
+            wrenches = np.array([s.wrench for s in compensated])
+            normal = self.force_filter.config.normal_force(wrenches)
+            self.press_guard.note(self._pose.position_mm, float(np.max(normal)))
         try:
-            self._check_samples(compensated)
+            try:
+                check_samples(compensated, self.max_force_n, self.force_filter.config)
+            except ForceLimitExceeded:
+                self.stop()
+                raise
             on_burst = getattr(self.force_filter, "on_burst", None)
             if on_burst is not None:
                 on_burst(compensated)
@@ -273,7 +311,8 @@ class Cell:
             force = self.force_filter.force_n
         finally:  # a burst that passed the limit is recorded too (filtered: NaN)
             if self.recorder is not None:
-                self.recorder.on_burst(self._burst_record(compensated, force))
+                self.recorder.on_burst(burst_record(self.force_filter.config, compensated, force,
+                                                 self.time_s))
         if abs(force) > self.max_force_n:
             self.stop()
             raise ForceLimitExceeded(
@@ -283,68 +322,6 @@ class Cell:
         if (samples is None or samples > 1) and self.reading_check is not None:
             self._guarded(self.reading_check, self.stage, self._pose, force)
         return force
-
-    def _burst_record(self, samples: list[WrenchSample], filtered_n: float) -> BurstRecord:
-        """Statistics of a burst's compensated normal force (N) and its time span (s).
-
-        The burst starts at the cell time of the last wait (the first sample is
-        requested then); its span is the sensor's own time between its samples
-        when the sensor tells it, else the filter's sample period per sample.
-        """
-        config = self.force_filter.config
-        wrenches = np.array([s.wrench for s in samples], dtype=float)
-        normal = config.normal_force(wrenches)
-        gaps = [s.sensor_dt_s for s in samples[1:]]
-        span = (
-            float(sum(g for g in gaps if g is not None)) if all(g is not None for g in gaps)
-            else (len(samples) - 1) * config.sample_period_s
-        )
-        mean = wrenches.mean(axis=0)
-        return BurstRecord(
-            mean_n=float(normal.mean()),
-            std_n=float(normal.std()),
-            first_n=float(normal[0]),
-            last_n=float(normal[-1]),
-            count=len(samples),
-            start_s=self.time_s,
-            span_s=span,
-            filtered_n=float(filtered_n),
-            wrench_mean=(float(mean[0]), float(mean[1]), float(mean[2]),
-                         float(mean[3]), float(mean[4]), float(mean[5])),
-        )
-
-    def _check_samples(self, samples: list[WrenchSample]) -> None:
-        """Stop on a sample whose force magnitude passes the limit, or that saturated.
-
-        The limit is on |(Fx, Fy, Fz)|, not on the signed normal force alone: a
-        wrong ``[filter] axis`` or ``sign`` must not let the robot press on unseen.
-        A saturated axis means the sensor cannot tell the force, so it stops too.
-        """
-        forces = np.array([s.wrench[:3] for s in samples], dtype=float)
-        magnitudes = np.sqrt(np.einsum("ij,ij->i", forces, forces))
-        worst = int(np.argmax(magnitudes))
-        magnitude = float(magnitudes[worst])
-        any_saturated = any(any(s.saturated) for s in samples)
-        if magnitude <= self.max_force_n and not any_saturated:
-            return
-        self.stop()
-        config = self.force_filter.config
-        saturated = [AXES[i] for i in range(6) if any(s.saturated[i] for s in samples)]
-        if saturated:
-            raise ForceLimitExceeded(
-                f"the sensor is near its full scale on {', '.join(saturated)} (force "
-                f"{magnitude:.2f} N): the force is not known; the robot was stopped"
-            )
-        normal = float(config.normal_force(samples[worst].wrench))
-        hint = (
-            f"; only {normal:.2f} N of it is along the normal ([filter] axis = {config.axis}, "
-            f"sign = {config.sign:g}): check that axis and sign"
-            if normal < 0.5 * magnitude else ""
-        )
-        raise ForceLimitExceeded(
-            f"contact force {magnitude:.2f} N passed safety.max_force_n = "
-            f"{self.max_force_n} N{hint}; the robot was stopped"
-        )
 
     def tare(self, max_reading_n: float) -> bool:
         """Zero the sensor here (the tool at rest in free space); True if it was zeroed.
@@ -370,32 +347,44 @@ class Cell:
         self._take_zero()
         return True
 
-    def check_zero(self, max_change_n: float) -> float:
-        """In free space: read a burst; zero here if it is within ``max_change_n`` (N) of 0.
+    def check_zero(self, bound_n: Callable[[float], float]) -> tuple[float, float]:
+        """In free space: read a burst; zero on its mean if within the bound; (reading, bound) N.
 
         The zero check at a trial's end: the tool at rest in free space must read
-        the zero the trial ran with. Returns the reading (N); a reading beyond
-        the bound zeroes nothing (the caller voids what was read since the last
-        zero, :class:`~forcelearn.errors.ZeroMoved`). Recorded as a tare, accepted
-        or not; the reading check is not consulted (this is the check).
+        the zero the trial ran with. ``bound_n`` maps the burst's own standard
+        deviation (the filter's, N) to the bound. Within it, the burst's mean wrench
+        becomes the zero (in software: a zero of a whole burst, not of the sensor's
+        own few samples); beyond it nothing is zeroed (the caller voids what was read
+        since the last zero, :class:`~forcelearn.errors.ZeroMoved`). Recorded as a
+        tare, accepted or not; the reading check is not consulted (this is the check).
         """
         check, self.reading_check = self.reading_check, None
         try:
             force = self.measure_force_n()
         finally:
             self.reading_check = check
-        accepted = abs(force) <= max_change_n
+        std = getattr(self.force_filter, "force_std_n", math.nan)
+        if not math.isfinite(std):
+            std = math.sqrt(self.force_filter.measurement_variance_n2 / self.samples_per_step)
+        bound = bound_n(std)
+        accepted = abs(force) <= bound
         if self.recorder is not None:
             here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
             self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, accepted))
         if accepted:
-            self._take_zero()
-        return force
+            self.zero_residual = self.zero_residual + self._last_mean_wrench
+            self.zero_std_n, self.zero_time_s = std, self.time_s
+            self._take_zero(hardware=False)
+        return force, bound
 
-    def _take_zero(self) -> None:
-        """Zero the sensor here and make the calibration follow (the tool's weight at this pose)."""
-        self._guarded(self.sensor.zero_offsets)
+    def _take_zero(self, hardware: bool = True) -> None:
+        """Zero the sensor here (else the caller zeroed in software); the calibration follows."""
+        if hardware:
+            self._guarded(self.sensor.zero_offsets)
+            self.zero_residual, self.zero_std_n, self.zero_time_s = np.zeros(6), None, self.time_s
         self.tares += 1
+        if self.press_guard is not None:  # free space reads 0 from now on
+            self.press_guard.note(self.pose.position_mm, 0.0)
         self.zero_taken_at(self.pose.quaternion)
         if self.on_tare is not None:
             self.on_tare(self.pose)
@@ -454,9 +443,12 @@ class Cell:
         return self.pose
 
     def _compensated(self, sample: WrenchSample) -> WrenchSample:
-        if self.compensation is None:
+        wrench = (sample.wrench if self.compensation is None
+                  else self.compensation(sample.wrench, self.reached_pose()))
+        if self.zero_residual.any():
+            wrench = np.asarray(wrench, dtype=float) - self.zero_residual
+        elif self.compensation is None:
             return sample
-        wrench = self.compensation(sample.wrench, self.reached_pose())
         return dataclasses.replace(sample, wrench=wrench)  # keeps its time, counter, flags
 
     def check_tool_fit(self, samples: int | None = None) -> bool:
@@ -488,6 +480,13 @@ class Cell:
         except ForcelearnError:
             self.stop()
             raise
+
+
+def _towards(start: Pose, target: Pose, f: float) -> Pose:
+    """The pose ``f`` of the straight way from ``start`` to ``target`` (target's orientation)."""
+    return Pose(start.x_mm + f * (target.x_mm - start.x_mm),
+                start.y_mm + f * (target.y_mm - start.y_mm),
+                start.z_mm + f * (target.z_mm - start.z_mm), target.quaternion)
 
 
 def _xyz(pose: Pose) -> tuple[float, float, float]:

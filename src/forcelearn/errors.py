@@ -153,8 +153,10 @@ class GuidanceStopped(LinkError):
     Motors off, EGM stopped or in error, RAPID stopped, or a new session
     (controller restart) dropped the target.
 
-    Its own class because the link itself may be fine (datagrams still flow); the
-    operator must restart the RAPID program (``ForcelearnEGM``) before moving again.
+    Its own class because the link itself may be fine (datagrams still flow). After a
+    comm timeout the shipped RAPID module (``rapid/ForcelearnEGM.modx``) opens a new session
+    by itself and the run waits for it; motors off or a stopped RAPID program need the
+    operator (the message says which).
     """
 
 

@@ -74,6 +74,9 @@ class ForceFilterConfig:
             normal force, in place of one axis: ``sign * (Fx, Fy, Fz) . direction``
             (a sensor mounted at an angle to the tool's force axis; ``axis`` then names
             the nearest sensor axis, whose noise stands for it). None: ``axis``.
+        bias_drift_n_per_sqrt_s: the sensor bias's random walk on the axis, N/sqrt(s)
+            (thermal drift: the zero check allows what it drifts since the last zero).
+            Default 0.02, the emulated JR3's (a long free-space recording gives a real one's).
     """
 
     model: str = "moves"
@@ -86,6 +89,7 @@ class ForceFilterConfig:
     noise_cutoff_hz: float = 0.0
     move_change_std_n: float = 30.0
     direction: tuple[float, float, float] | None = None
+    bias_drift_n_per_sqrt_s: float = 0.02
 
     def __post_init__(self) -> None:
         if self.model not in ("moves", "stream"):
@@ -95,6 +99,9 @@ class ForceFilterConfig:
             value = getattr(self, key)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"filter.{key}={value!r}: must be a finite number > 0")
+        drift = self.bias_drift_n_per_sqrt_s
+        if not (isinstance(drift, int | float) and math.isfinite(drift) and drift >= 0):
+            raise ConfigError(f"filter.bias_drift_n_per_sqrt_s={drift!r}: must be >= 0")
         cutoff = self.noise_cutoff_hz
         if not (isinstance(cutoff, int | float) and math.isfinite(cutoff) and cutoff >= 0):
             raise ConfigError(f"filter.noise_cutoff_hz={cutoff!r}: must be >= 0 (0: white)")

@@ -31,6 +31,7 @@ output map chosen from them, :mod:`forcelearn.tasks.surface_map`'s
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 import numpy as np
 
@@ -83,7 +84,12 @@ class SurfaceProbe:
         spec: ProbeSpec,
         max_step_mm: float,
         workspace_min_y_mm: float,
+        zero_check: Callable[[], None] | None = None,
     ):
+        self.zero_check = zero_check
+        """Called at each point's start, in free space at the retract plane: the zero check,
+        which zeroes there (so the bias's drift over the probe never reaches its readings) or
+        raises (the probe is void)."""
         self.cell = cell
         self.task = task
         self.spec = spec
@@ -102,9 +108,16 @@ class SurfaceProbe:
             z = z0 + fraction * self.task.steps_per_trial * self.task.z_step_mm
             try:
                 self._probe_point(self._next_index, x, z)
-            finally:
+            except ForcelearnError as exc:  # leave the part; the first error is the one to tell
                 self._next_index += 1
-                self._retract()
+                try:
+                    self._retract()
+                except ForcelearnError as failed:
+                    exc.add_note(f"the retract after it failed too: {failed}")
+                raise
+            # Ctrl-C (or a dying process) retracts nothing here: the run's exit does, once
+            self._next_index += 1
+            self._retract()
         return self.result
 
     def _pose(self, x: float, y: float, z: float) -> Pose:
@@ -154,6 +167,8 @@ class SurfaceProbe:
         floor = max(self.floor_y_mm, top - spec.max_depth_mm - 60.0)
         self._retract()
         cell.move_in_steps(self._pose(x, top, z), self.max_step_mm)
+        if self.zero_check is not None:
+            self.zero_check()
         _, baseline = self._read(0.0)
         self.result.baselines_n.append(baseline)
         self._record(index, z, top, "baseline", baseline, 0.0)

@@ -80,13 +80,18 @@ class SurfaceTaskSpec:
     the paper's setup, zeroed once when the sensor opens)."""
     tare_max_reading_n: float = 2.0
     """A tare is refused (warned) when the free-space normal force reads more than this, N."""
-    zero_check: bool = False
+    zero_check: bool = True
     """Read free space at every trial's end (the retract plane) before the trial counts: off
-    zero by more than 3 sigma of the sensor's noise (the filter's R; at least 0.5 N), the zero
-    moved during the trial, which is then void and runs again after a zero in free space;
-    within it, the sensor is zeroed there (docs/on-site.md, "The zero check"). Costs a burst
-    and a zero per trial; off by default: the paper's setup, and the extra readings change an
-    emulated run."""
+    zero by more than 3 sigma of what a fault-free check reads (the burst's and the zero's
+    noise, the bias's drift since the zero), the zero moved during the trial, which is then void
+    and runs again after a zero in free space; within it, the burst's mean becomes the zero
+    (docs/on-site.md, "The zero check"). Costs a move to the retract plane (where a trial ends
+    anyway) and a burst per trial; false: the paper's setup (zeroed once)."""
+    press_stiffness_n_per_mm: float = 20.0
+    """The stiffest part the cell may meet before it knows the part's stiffness (no probe yet,
+    and no two readings in contact), N/mm (fast, unrelaxed): every move that presses in is cut
+    so that this stiffness could not push the force past ``safety.max_force_n`` from the last
+    reading (:mod:`forcelearn.press_guard`). After the probe its fits are used instead."""
     approach: str = "auto"
     """How each step reaches its Y (:data:`APPROACHES`): "loading" first stands a few branch
     depths shallower at the new Z, then presses in, so a hysteretic foam is read on its
@@ -118,7 +123,7 @@ class SurfaceTaskSpec:
         if not isinstance(self.zero_check, bool):
             raise ConfigError(f"task.zero_check = {self.zero_check!r}: true or false")
         positive = ("desired_force_n", "tolerance_n", "output_scale_mm", "max_offset_mm",
-                    "tare_max_reading_n")
+                    "tare_max_reading_n", "press_stiffness_n_per_mm")
         for name in positive:
             value = getattr(self, name)
             if value is not None and not (_is_number(value) and value > 0):

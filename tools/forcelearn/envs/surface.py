@@ -16,6 +16,7 @@ import numpy as np
 
 from forcelearn.envs.base import TaskEnv, box
 from forcelearn.envs.surface_learner import SurfaceLearnerAdapter
+from forcelearn.press_guard import PressGuard
 from forcelearn.tasks.surface import SurfaceTask
 from forcelearn.tasks.surface_map import OutputMapChoice, SurfaceYOutput, configured_map
 from forcelearn.tasks.surface_probe import ProbeResult, SurfaceProbe, probe_and_map
@@ -143,6 +144,9 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
         self.session = CellSession(config, seed=self.default_seed if seed is None else seed)
         cell = self.session.cell
         assert cell is not None  # opened, or CellSession raised
+        cell.press_guard = PressGuard(config.safety.max_force_n,
+                                      config.task.press_stiffness_n_per_mm,
+                                      cell.force_filter.measurement_variance_n2 ** 0.5)
         probe = SurfaceProbe(
             cell, config.task, config.probe, config.safety.max_step_mm,
             config.safety.workspace_min_mm[1],
@@ -150,6 +154,8 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
         self.probe, self.output_map = probe_and_map(
             probe, refine=config.learner_start == "probe"
         )
+        if self.probe is not None and self.probe.fits:  # the part's stiffness is known
+            cell.press_guard.know(max(f.stiffness_n_per_mm for f in self.probe.fits))
         self._output = self.output_map.output(abs(self.task_spec.z_step_mm))
         return SurfaceTask(cell, self.task_spec, config.safety.max_step_mm, self._output)
 

@@ -35,6 +35,8 @@ import logging
 from collections.abc import Mapping
 from typing import Any
 
+import numpy as np
+
 from forcelearn.calibration import Calibration, load_calibration
 from forcelearn.cell import Cell
 from forcelearn.emulators.physics.cell import CellPhysics
@@ -157,13 +159,36 @@ class CellSession:
         return self.emulated_cell is not None
 
     def emulator_state(self) -> dict[str, Any]:
-        """What the emulators must restore for a bit-identical resume (JSON-able)."""
-        return self.emulated_cell.state_dict() if self.emulated_cell is not None else {}
+        """What the emulators must restore for a bit-identical resume (JSON-able).
+
+        With them, the cell's own zero (the zero checks' software part) and its press
+        guard's last reading, which go with the emulated sensor's restored offsets.
+        """
+        if self.emulated_cell is None:
+            return {}
+        state: dict[str, Any] = self.emulated_cell.state_dict()
+        cell = self.cell
+        if cell is not None:
+            guard = cell.press_guard
+            state["cell"] = {
+                "zero_residual": [float(v) for v in cell.zero_residual],
+                "zero_std_n": cell.zero_std_n, "zero_time_s": cell.zero_time_s,
+                "guard": None if guard is None else guard.state_dict(),
+            }
+        return state
 
     def load_emulator_state(self, state: dict[str, Any]) -> None:
         """Restore :meth:`emulator_state` (after the drivers' initialisation)."""
-        if self.emulated_cell is not None:
-            self.emulated_cell.load_state_dict(state)
+        if self.emulated_cell is None:
+            return
+        own = state.get("cell")
+        self.emulated_cell.load_state_dict({k: v for k, v in state.items() if k != "cell"})
+        cell = self.cell
+        if own is not None and cell is not None:
+            cell.zero_residual = np.asarray(own["zero_residual"], dtype=float)
+            cell.zero_std_n, cell.zero_time_s = own["zero_std_n"], own["zero_time_s"]
+            if own["guard"] is not None and cell.press_guard is not None:
+                cell.press_guard.load_state_dict(own["guard"])
 
     def close(self) -> None:
         """Stop the robot, release the devices, stop the emulators; safe to call twice."""

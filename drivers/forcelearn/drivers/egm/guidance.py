@@ -465,8 +465,7 @@ class Guidance:
         ):
             raise GuidanceStopped(
                 f"the controller is not guided: motors {m.motor.name}, EGM {m.mci.name}, "
-                f"RAPID {m.rapid.name}; restart the ForcelearnEGM RAPID program "
-                "(after a comm timeout, check the PC address and firewall)"
+                f"RAPID {m.rapid.name}; {_what_to_do(m)}"
             )
 
     def in_position(self) -> bool:
@@ -487,3 +486,18 @@ class Guidance:
         )
         self._in_position = (asked, reached)
         return reached
+
+
+def _what_to_do(m: codec.RobotMessage) -> str:
+    """What the operator must do for the controller to guide again, by what stopped it."""
+    if m.motor is not codec.MotorState.ON:
+        return ("the motors are off (an emergency or protective stop?): clear the stop, switch "
+                "the motors on and start the ForcelearnEGM RAPID program (PP to Main), then "
+                "resume the run (it retracts first)")
+    if m.rapid is codec.RapidState.STOPPED:
+        return ("the RAPID program stopped (from the FlexPendant, or a RAPID error other than a "
+                "comm timeout: see the controller's event log): start ForcelearnEGM again "
+                "(PP to Main), then resume the run (it retracts first)")
+    return ("EGM is not running: after a comm timeout the shipped ForcelearnEGM module opens a "
+            "new session by itself within about 1 s and the run waits for it; if none comes, "
+            "check the controller's event log, the PC address and firewall of its UCdevice")

@@ -15,9 +15,11 @@ import json
 import time
 from pathlib import Path
 
+from forcelearn.press_guard import PressGuard
 from forcelearn.site.config import load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface_probe import SurfaceProbe, map_from_probe
+from forcelearn.tools.experiments.fault_recovery import RunRecovery
 from forcelearn.tools.experiments.surface_outputs import write_probe_files
 
 
@@ -35,12 +37,19 @@ def run(args: argparse.Namespace) -> int:
     seed = args.seed if args.seed is not None else config.seed
     with CellSession(config, seed=seed) as session:
         assert session.cell is not None
-        probe = SurfaceProbe(
-            session.cell,
+        cell = session.cell
+        cell.press_guard = PressGuard(config.safety.max_force_n,
+                                      config.task.press_stiffness_n_per_mm,
+                                      cell.force_filter.measurement_variance_n2 ** 0.5)
+        checks = RunRecovery(out, cell, config.task.retract_y_mm, config.safety.max_step_mm,
+                             zero_check=config.task.zero_check, watch=False)
+        probe = SurfaceProbe(  # as the run's: guarded, a zero check at each point
+            cell,
             config.task,
             config.probe,
             config.safety.max_step_mm,
             config.safety.workspace_min_mm[1],
+            checks.probe_zero_check,
         )
         try:  # the run's own probe, with its refinement where the map follows the surface
             result, choice = map_from_probe(probe)

@@ -32,6 +32,7 @@ from typing import Any
 
 from forcelearn.errors import ForcelearnError
 from forcelearn.learning import SRVLearner, load_learner
+from forcelearn.press_guard import PressGuard
 from forcelearn.records import TrialRecords
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface import SurfaceTask, TrialTrace
@@ -97,6 +98,9 @@ def execute(
     wall_before = run.wall_s
     with CellSession(config, seed=run.seed) as session, contextlib.ExitStack() as stack:
         assert session.cell is not None
+        guard = session.cell.press_guard = PressGuard(
+            config.safety.max_force_n, config.task.press_stiffness_n_per_mm,
+            session.cell.force_filter.measurement_variance_n2 ** 0.5)
         if checkpoint is not None:
             session.load_emulator_state(load_checkpoint(run, checkpoint))
         writer = records_writer(run, checkpoint is not None)
@@ -114,7 +118,7 @@ def execute(
         if checkpoint is None:
             session.cell.recorder = recorder
             try:
-                recovery.probe(lambda: probe_and_choose(run, session))
+                recovery.probe(lambda: probe_and_choose(run, session, recovery.probe_zero_check))
             except (KeyboardInterrupt, ForcelearnError) as exc:
                 recovery.on_exit(exc, -1)
                 raise
@@ -131,6 +135,8 @@ def execute(
         output.wear_reference_n = run.wear_reference_n
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
         fit_watch_to_probe(recovery, run)
+        if run.probe is not None and run.probe.fits:  # the part's stiffness is known
+            guard.know(max(f.stiffness_n_per_mm for f in run.probe.fits))
         if checkpoint is not None:
             learner = load_learner(checkpoint, output=output)[0]
         else:
@@ -372,13 +378,15 @@ def fit_watch_to_probe(recovery: RunRecovery, run: SurfaceRun) -> None:
     probe = run.probe
     if probe is None or not probe.fits:
         return
+    recovery.fit_watch_to_readings = False
     hysteresis = probe.hysteresis()
     loss = hysteresis.loss + 2.0 * hysteresis.loss_std if hysteresis.resolved else 0.0
     recovery.watch.fit_to_probe([f.stiffness_n_per_mm for f in probe.fits], loss,
                                 run.config.task.desired_force_n)
 
 
-def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:
+def probe_and_choose(run: SurfaceRun, session: CellSession,
+                     zero_check: Callable[[], None] | None = None) -> None:
     """Probe the surface (if enabled and needed) and set the run's output map; write probe files.
 
     Raises:
@@ -392,6 +400,7 @@ def probe_and_choose(run: SurfaceRun, session: CellSession) -> None:
         config.probe,
         config.safety.max_step_mm,
         config.safety.workspace_min_mm[1],
+        zero_check,
     )
     try:
         run.probe, run.output_map = probe_and_map(

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import shutil
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -199,6 +200,7 @@ def state_of(run: SurfaceRun, emulator_state: dict[str, Any]) -> dict[str, Any]:
     return {
         "run_state_version": RUN_STATE_VERSION,
         "task": "surface",
+        "zero_check": run.config.task.zero_check,
         "seed": run.seed,
         "trials_target": run.trials,
         "trials_done": len(result.records),
@@ -329,6 +331,7 @@ def prepare_run(
         copy = out / CONFIG_COPY
         config = load_cell_config(copy if copy.exists() else None)
         _, metadata = load_learner(out / CHECKPOINT)
+        config = _as_started(config, metadata, copy)
         run = SurfaceRun(
             config, trials or int(metadata["trials_target"]), int(metadata["seed"]), out
         )
@@ -349,3 +352,18 @@ def prepare_run(
     )
     return run, None
 
+
+def _as_started(config: CellConfig, metadata: dict[str, Any], copy: Path) -> CellConfig:
+    """The config a resumed run started with: its zero check as it ran.
+
+    A checkpoint from before the zero check was on by default holds no ``zero_check``:
+    unless its config copy set it, that run ran without one, and goes on so.
+    """
+    zero_check = metadata.get("zero_check")
+    if zero_check is None:
+        table = tomllib.loads(copy.read_text()) if copy.exists() else {}
+        zero_check = bool(table.get("task", {}).get("zero_check", False))
+    if zero_check == config.task.zero_check:
+        return config
+    return dataclasses.replace(config, task=dataclasses.replace(config.task,
+                                                                zero_check=zero_check))

@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
-import dataclasses
 import logging
 import pickle
 import random
@@ -39,7 +38,6 @@ import sys
 import tempfile
 import time
 import tomllib
-from collections import Counter, defaultdict
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -68,6 +66,7 @@ from forcelearn.tools.fuzz.fault_inject import (
     read_to_stop_s,
     stop_latency_s,
 )
+from forcelearn.tools.fuzz.fault_table import RunReport, table
 
 log = logging.getLogger(__name__)
 
@@ -111,44 +110,6 @@ READ_SLACK_S = 2.0
 """Wall time a loaded host may add to a read's watchdog (2 x ``stale_sensor_s``), s."""
 
 
-@dataclasses.dataclass
-class RunReport:
-    """What one run of the campaign found."""
-
-    cell: str
-    seed: int
-    fired: Counter[tuple[str, str]] = dataclasses.field(default_factory=Counter)
-    resumed_from: Counter[str] = dataclasses.field(default_factory=Counter)
-    typed_ends: Counter[str] = dataclasses.field(default_factory=Counter)
-    untyped_ends: int = 0
-    over_limit: int = 0
-    max_contact_n: float = 0.0
-    zeros: int = 0
-    zeros_in_contact: int = 0
-    readings: int = 0
-    """Readings the run used (booked with a kept trial or probe)."""
-    bad_readings: Counter[str] = dataclasses.field(default_factory=Counter)
-    voided: int = 0
-    """Readings of rolled-back trials (never used)."""
-    voided_bad: Counter[str] = dataclasses.field(default_factory=Counter)
-    voids: int = 0
-    """Trials the zero check voided."""
-    worst_used_n: float = 0.0
-    """The largest error of a used reading, N."""
-    late_stops: int = 0
-    worst_stop_s: float = 0.0
-    """Robot faults: cell time to the stop, s."""
-    worst_read_stop_s: float = 0.0
-    """Sensor faults: wall time from the first read after the fault to the stop, s."""
-    worst_unread_s: float = 0.0
-    """Sensor faults: cell time from the fault to the next read (moves under way), s."""
-    lost_or_duplicated: int = 0
-    finished: bool = False
-    sessions: int = 0
-    wall_s: float = 0.0
-    problems: list[str] = dataclasses.field(default_factory=list)
-
-
 def cell_config(cell: str, folder: Path, trials: int, steps: int, probe: bool,
                 settings: Sequence[str] = ()) -> Path:
     """The example cell's config with the campaign's watchdogs, trials and steps, as a file.
@@ -158,6 +119,28 @@ def cell_config(cell: str, folder: Path, trials: int, steps: int, probe: bool,
     ``settings``: ``table.key=value`` overrides (TOML values), e.g. another
     material: ``emulator.sponge.stiffness_n_per_mm=8``.
     """
+    table = _example_table(cell, trials, probe, settings)
+    table.setdefault("safety", {})["stale_sensor_s"] = STALE_SENSOR_S
+    table.setdefault("safety", {})["move_timeout_s"] = MOVE_TIMEOUT_S
+    if table.get("robot", {}).get("kind") == "egm":
+        table["robot"]["speed_mm_s"] = EGM_SPEED_MM_S
+    table.setdefault("task", {})["steps_per_trial"] = steps
+    path = folder / f"{cell.replace('+', '-')}{'-probe' if probe else ''}.toml"
+    path.write_text(tomli_w.dumps(table))
+    return path
+
+
+def examples_config(cell: str, folder: Path, trials: int, probe: bool,
+                    settings: Sequence[str] = ()) -> Path:
+    """The example cell's config as it is, but ``trials``, ``probe`` and ``settings``, as a file."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{cell.replace('+', '-')}{'-probe' if probe else ''}.toml"
+    path.write_text(tomli_w.dumps(_example_table(cell, trials, probe, settings)))
+    return path
+
+
+def _example_table(cell: str, trials: int, probe: bool, settings: Sequence[str]) -> dict[str, Any]:
+    """The example cell's config table with the overrides (see :func:`cell_config`)."""
     table = tomllib.loads((examples_folder() / CELLS[cell]).read_text())
     for setting in settings:
         name, _, value = setting.partition("=")
@@ -169,16 +152,8 @@ def cell_config(cell: str, folder: Path, trials: int, steps: int, probe: bool,
     table.setdefault("probe", {})["enabled"] = probe
     if not probe:
         table.setdefault("run", {})["learner_start"] = "cold"
-    table.setdefault("task", {})["zero_check"] = True
-    table.setdefault("safety", {})["stale_sensor_s"] = STALE_SENSOR_S
-    table.setdefault("safety", {})["move_timeout_s"] = MOVE_TIMEOUT_S
     table.setdefault("run", {})["trials"] = trials
-    if table.get("robot", {}).get("kind") == "egm":
-        table["robot"]["speed_mm_s"] = EGM_SPEED_MM_S
-    table.setdefault("task", {})["steps_per_trial"] = steps
-    path = folder / f"{cell.replace('+', '-')}{'-probe' if probe else ''}.toml"
-    path.write_text(tomli_w.dumps(table))
-    return path
+    return table
 
 
 @contextlib.contextmanager
@@ -189,7 +164,8 @@ def injecting(injector: Injector | None, tolerance_n: float,
     class Session(CellSession):
         def __init__(self, *args: Any, **kwargs: Any) -> None:
             super().__init__(*args, **kwargs)
-            truth = Truth(self, tolerance_n)
+            assert self.cell is not None
+            truth = Truth(self, tolerance_n, self.cell.force_filter.measurement_variance_n2 ** 0.5)
             truths.append(truth)
             if injector is not None:
                 injector.attach(self, truth)
@@ -296,6 +272,8 @@ def _judge(report: RunReport, injector: Injector, truths: list[Truth], folder: P
         report.zeros += truth.zeros
         report.zeros_in_contact += truth.zeros_in_contact
         report.readings += truth.readings
+        report.beyond_3sigma += truth.beyond_3sigma
+        report.sigma_n = truth.sigma_n
         report.bad_readings.update(truth.bad_readings)
     names = {"robot": KINDS[robot], "sensor": KINDS[sensor], "run": "run"}
     events = read_events(folder)
@@ -385,76 +363,13 @@ def campaign(cells: Sequence[str], runs: dict[str, int], trials: int, steps: int
                   f"{report.sessions} sessions, finished {report.finished}, max contact "
                   f"{report.max_contact_n:.1f} N, zeros in contact {report.zeros_in_contact}, "
                   f"bad readings {dict(report.bad_readings)} of {report.readings} used "
+                  f"({report.beyond_3sigma} beyond 3 sigma, worst {report.worst_used_n:.2f} N) "
                   f"(voided {report.voided}, {sum(report.voided_bad.values())} off; "
                   f"{report.voids} voids), late stops {report.late_stops}, "
                   f"records {report.lost_or_duplicated}, ends {dict(report.typed_ends)}, "
                   f"resumed from {dict(report.resumed_from)}, {report.wall_s:.0f} s"
                   + (f"; {report.problems}" if report.problems else ""), flush=True)
     return reports
-
-
-def table(reports: Sequence[RunReport]) -> str:
-    """The Markdown table of docs/fuzzing.md, one row per device kind (and the run's kills)."""
-    by_kind: dict[str, Counter[str]] = defaultdict(Counter)
-    runs: dict[str, set[tuple[str, int]]] = defaultdict(set)
-    resumed: dict[str, Counter[str]] = defaultdict(Counter)
-    for report in reports:
-        for (kind, fault), count in report.fired.items():
-            by_kind[kind][fault] += count
-            runs[kind].add((report.cell, report.seed))
-        for key, count in report.resumed_from.items():
-            kind, fault = key.split(":")
-            resumed[kind][fault] += count
-    lines = ["| device kind | runs | faults injected (by kind) | resumed from (by kind) |",
-             "|---|---|---|---|"]
-    for kind in ("computer_link", "egm", "jr3", "netft", "run"):
-        if kind not in by_kind:
-            continue
-        faults = by_kind[kind]
-        lines.append(
-            f"| {kind} | {len(runs[kind])} | {sum(faults.values())} ("
-            + ", ".join(f"{f} {n}" for f, n in sorted(faults.items())) + ") | "
-            + ", ".join(f"{f} {resumed[kind][f]}" for f in sorted(faults)) + " |"
-        )
-    totals = Counter[str]()
-    for report in reports:
-        totals["over_limit"] += report.over_limit
-        totals["zeros_in_contact"] += report.zeros_in_contact
-        totals["zeros"] += report.zeros
-        totals["readings"] += report.readings
-        totals["bad_readings"] += sum(report.bad_readings.values())
-        totals["voided"] += report.voided
-        totals["voided_bad"] += sum(report.voided_bad.values())
-        totals["voids"] += report.voids
-        totals["late_stops"] += report.late_stops
-        totals["records"] += report.lost_or_duplicated
-        totals["untyped"] += report.untyped_ends
-        totals["unfinished"] += not report.finished
-    bad = Counter[str]()
-    for report in reports:
-        bad.update(report.bad_readings)
-    worst = max((r.max_contact_n for r in reports), default=0.0)
-    slowest = max((r.worst_stop_s for r in reports), default=0.0)
-    read_stop = max((r.worst_read_stop_s for r in reports), default=0.0)
-    unread = max((r.worst_unread_s for r in reports), default=0.0)
-    worst_used = max((getattr(r, "worst_used_n", 0.0) for r in reports), default=0.0)
-    lines += [
-        "",
-        f"runs {len(reports)}; true contact force over the limit: {totals['over_limit']} "
-        f"(max {worst:.1f} N); zeros in contact: {totals['zeros_in_contact']} of "
-        f"{totals['zeros']}; used readings off the true force: {totals['bad_readings']} of "
-        f"{totals['readings']} (after: {dict(bad)}; the largest error of a used reading "
-        f"{worst_used:.2f} N); voided readings: {totals['voided']} "
-        f"({totals['voided_bad']} of them off), trials voided by the zero check: "
-        f"{totals['voids']}; stops later than the watchdog: "
-        f"{totals['late_stops']} (robot faults: slowest {slowest:.2f} s of cell time; sensor "
-        f"faults: slowest {read_stop:.2f} s of wall time from the next read, which came up to "
-        f"{unread:.2f} s of cell time after the fault); lost or duplicated "
-        f"records: {totals['records']}; "
-        f"ends without a typed reason: {totals['untyped']}; runs not finished: "
-        f"{totals['unfinished']}",
-    ]
-    return "\n".join(lines)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -95,12 +95,16 @@ class Truth:
     Args:
         session: an open emulated :class:`~forcelearn.site.session.CellSession`.
         tolerance_n: largest error of a reading still called good, N.
+        sigma_n: the sensor's noise sigma, N (used readings beyond 3 sigma are counted).
     """
 
-    def __init__(self, session: Any, tolerance_n: float) -> None:
+    def __init__(self, session: Any, tolerance_n: float, sigma_n: float = float("inf")) -> None:
         self.session = session
         self.physics = session.physics
         self.tolerance_n = tolerance_n
+        self.sigma_n = sigma_n
+        self.beyond_3sigma = 0
+        """Used readings more than 3 sigma of the sensor's noise from the true force."""
         self.max_contact_n = 0.0
         self.zeros = 0
         self.zeros_in_contact = 0
@@ -147,6 +151,7 @@ class Truth:
     def commit(self) -> None:
         """The run booked a trial (records written): the readings since are used."""
         self.readings += len(self._pending)
+        self.beyond_3sigma += sum(e > 3.0 * self.sigma_n for e, _ in self._pending)
         self.bad_readings.update(b for _, b in self._pending if b is not None)
         self.worst_used_n = max([self.worst_used_n, *(e for e, _ in self._pending)])
         self._pending = []
@@ -160,6 +165,13 @@ class Truth:
     def finish(self) -> None:
         """The session ended: what it read and never booked is void (a resume runs it again)."""
         self.void()
+
+    def zeroed_in_software(self) -> None:
+        """The cell took a zero of its own (the zero check's burst): judged as a sensor's zero."""
+        self.zeros += 1
+        self.jumped = False
+        if self.contact_n() > 0.0:
+            self.zeros_in_contact += 1
 
     def _hook_physics(self) -> None:
         physics, move = self.physics, self.physics._move_tool
@@ -228,12 +240,15 @@ class Injector:
             finally:
                 zeroing[0] = False
 
-        def checked_zero(max_change_n: float) -> float:
+        def checked_zero(bound_n: Any) -> tuple[float, float]:
             zeroing[0] = True  # the zero check's burst judges the zero, not a force
+            tares = cell.tares
             try:
-                return check_zero(max_change_n)
+                return check_zero(bound_n)
             finally:
                 zeroing[0] = False
+                if cell.tares > tares:  # accepted: its burst's mean is the zero (in software)
+                    truth.zeroed_in_software()
 
         def move_to(pose: Any, settle: bool = True) -> None:
             self._step()

@@ -1,0 +1,176 @@
+"""The force limit's guards: on the samples read, and on the moves to come (the press guard).
+
+No single move may push the force past the limit from the last good reading.
+
+The force limit (:meth:`forcelearn.cell.Cell.measure_force_n`) acts on readings,
+after a move: a step into a stiff part passes it by what the step's depth adds
+before anything is read. A force-control cell therefore bounds every step that
+presses in by the stiffness it knows. From the last reading ``F`` at position
+``p``, a move to ``q`` is predicted to meet at most
+
+    F + 3 sigma + k * max(0, (q - p) . d)
+
+(``d`` the press direction, ``k`` the stiffness in use, sigma one sample's noise). A
+move whose prediction passes ``max_force_n`` is cut: the cell moves as far as the
+prediction allows, reads one sample, and goes on from that reading, as the probe
+approaches; where not even :data:`MIN_STEP_MM` is allowed, the move is refused
+(:class:`~forcelearn.errors.ForceLimitExceeded`, nothing sent).
+
+The stiffness in use (N/mm, the fast, unrelaxed one):
+
+* the part's known stiffness (:meth:`PressGuard.know`: the probe's fits x
+  :data:`KNOWN_FACTOR`), raised by what the readings show
+  (:data:`OBSERVED_FACTOR` x the steepest rise seen between two readings in contact);
+* without a probe, what the readings show, once two readings in contact pressed in
+  :data:`MIN_PAIR_MM` or more apart;
+* before either, ``unknown_n_per_mm``: the stiffest part the site expects
+  (``[task] press_stiffness_n_per_mm``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from forcelearn.devices import AXES, WrenchSample
+from forcelearn.errors import ForceLimitExceeded
+from forcelearn.filtering import ForceFilterConfig
+
+KNOWN_FACTOR = 2.0
+"""The known stiffness's allowance: a fresh indentation of foam meets up to (1 + relaxation
+ratio) x its relaxed stiffness, and a foam stiffens with depth beyond the probed forces."""
+OBSERVED_FACTOR = 1.5
+"""The allowance on a stiffness seen between two readings (the part may stiffen deeper)."""
+CONTACT_N = 2.0
+"""A reading above this is in contact, N (a stiffness is measured only between two such)."""
+MIN_PAIR_MM = 0.5
+"""Least press-in between two readings to measure a stiffness from them, mm (noise)."""
+MIN_STEP_MM = 0.05
+"""A cut move shorter than this is refused instead, mm (the force is at the limit)."""
+NOISE_SIGMAS = 3.0
+"""One sample's noise allowance on the last reading, in the sensor's sigma."""
+
+
+@dataclass
+class PressGuard:
+    """Bounds each move's press-in by the stiffness the cell knows (the module docstring).
+
+    Args:
+        max_force_n: the force limit, N (``[safety] max_force_n``).
+        unknown_n_per_mm: the stiffness assumed before anything is known, N/mm.
+        noise_n: one sample's noise sigma, N.
+        direction: the press direction in the base frame (unit; the §5 task presses along −Y).
+    """
+
+    max_force_n: float
+    unknown_n_per_mm: float
+    noise_n: float
+    direction: tuple[float, float, float] = (0.0, -1.0, 0.0)
+    known_n_per_mm: float | None = None
+    """The part's known stiffness x :data:`KNOWN_FACTOR` (None: not known), N/mm."""
+    observed_n_per_mm: float | None = None
+    """The steepest rise seen between two readings in contact, N/mm (None: none yet)."""
+    cuts: int = 0
+    """Moves cut (or refused) so far."""
+    last: tuple[np.ndarray, float] | None = field(default=None, repr=False)
+    """The last reading: (position mm, its highest sample's normal force N)."""
+
+    def know(self, stiffness_n_per_mm: float) -> None:
+        """The part's stiffness is known (the probe's stiffest fit, N/mm, relaxed)."""
+        self.known_n_per_mm = KNOWN_FACTOR * stiffness_n_per_mm
+
+    @property
+    def stiffness_n_per_mm(self) -> float:
+        """The stiffness in use, N/mm (the module docstring)."""
+        seen = None if self.observed_n_per_mm is None else OBSERVED_FACTOR * self.observed_n_per_mm
+        if self.known_n_per_mm is None and seen is None:
+            return self.unknown_n_per_mm
+        return max(self.known_n_per_mm or 0.0, seen or 0.0)
+
+    def note(self, position_mm: np.ndarray, force_n: float) -> None:
+        """A reading at ``position_mm``: the reference of the next prediction."""
+        position = np.asarray(position_mm, dtype=float)
+        if self.last is not None and force_n > CONTACT_N and self.last[1] > CONTACT_N:
+            pressed = self._pressed_mm(self.last[0], position)
+            if pressed >= MIN_PAIR_MM:
+                rise = (force_n - self.last[1]) / pressed
+                if rise > (self.observed_n_per_mm or 0.0):  # a part never pulls: rises only
+                    self.observed_n_per_mm = rise
+        self.last = (position, max(float(force_n), 0.0))
+
+    def state_dict(self) -> dict[str, Any]:
+        """The last reading and the stiffness seen (JSON-able; a resumed run goes on from it)."""
+        last = None if self.last is None else ([float(v) for v in self.last[0]], self.last[1])
+        return {"last": last, "observed_n_per_mm": self.observed_n_per_mm}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore :meth:`state_dict`."""
+        last = state["last"]
+        self.last = None if last is None else (np.asarray(last[0], dtype=float), float(last[1]))
+        self.observed_n_per_mm = state["observed_n_per_mm"]
+
+    def allowed_mm(self) -> float:
+        """How far past the last reading's position a move may press in, mm (inf: no reading)."""
+        if self.last is None:
+            return math.inf
+        headroom = self.max_force_n - self.last[1] - NOISE_SIGMAS * self.noise_n
+        return max(headroom, 0.0) / self.stiffness_n_per_mm
+
+    def reach(self, start_mm: np.ndarray, target_mm: np.ndarray) -> float:
+        """The share of the straight move start -> target the prediction allows, in [0, 1]."""
+        allowed = self.allowed_mm()
+        if self.last is None or math.isinf(allowed):
+            return 1.0
+        origin = self.last[0]
+        at_target = self._pressed_mm(origin, target_mm)
+        at_start = self._pressed_mm(origin, start_mm)
+        if at_target <= max(allowed, at_start):  # within the allowance, or easing off
+            return 1.0
+        if at_start >= allowed:
+            return 0.0
+        return (allowed - at_start) / (at_target - at_start)
+
+    def _pressed_mm(self, origin: np.ndarray, position: np.ndarray) -> float:
+        """How far ``position`` is past ``origin`` along the press direction, mm."""
+        return float(np.dot(np.asarray(position, dtype=float) - origin, self.direction))
+
+
+def check_samples(samples: Sequence[WrenchSample], max_force_n: float,
+                  config: ForceFilterConfig) -> None:
+    """Raise on a sample whose force magnitude passes the limit, or that saturated.
+
+    The limit is on |(Fx, Fy, Fz)|, not on the signed normal force alone: a
+    wrong ``[filter] axis`` or ``sign`` must not let the robot press on unseen.
+    A saturated axis means the sensor cannot tell the force, so it stops too
+    (the caller stops the robot).
+
+    Raises:
+        ForceLimitExceeded: either.
+    """
+    forces = np.array([s.wrench[:3] for s in samples], dtype=float)
+    magnitudes = np.sqrt(np.einsum("ij,ij->i", forces, forces))
+    worst = int(np.argmax(magnitudes))
+    magnitude = float(magnitudes[worst])
+    any_saturated = any(any(s.saturated) for s in samples)
+    if magnitude <= max_force_n and not any_saturated:
+        return
+    saturated = [AXES[i] for i in range(6) if any(s.saturated[i] for s in samples)]
+    if saturated:
+        raise ForceLimitExceeded(
+            f"the sensor is near its full scale on {', '.join(saturated)} (force "
+            f"{magnitude:.2f} N): the force is not known; the robot was stopped"
+        )
+    normal = float(config.normal_force(samples[worst].wrench))
+    hint = (
+        f"; only {normal:.2f} N of it is along the normal ([filter] axis = {config.axis}, "
+        f"sign = {config.sign:g}): check that axis and sign"
+        if normal < 0.5 * magnitude else ""
+    )
+    raise ForceLimitExceeded(
+        f"contact force {magnitude:.2f} N passed safety.max_force_n = "
+        f"{max_force_n} N{hint}; the robot was stopped"
+    )
