@@ -124,8 +124,11 @@ class Truth:
         """Readings since the last booking: (error N, the fault to blame if off, else None)."""
         self.jumped = False
         """A bias jump happened and no zero followed yet."""
+        self._burst: list[float] = []
+        """The true normal force at each sensor sample since :meth:`begin_burst`, N."""
         self._hook_physics()
         self._hook_zero()
+        self._hook_samples()
 
     def contact_n(self) -> float:
         """Magnitude of the contact force the sponge exerts now, N."""
@@ -143,7 +146,8 @@ class Truth:
         It counts as used once the run books it (:meth:`commit`), as voided when
         the run rolls it back (:meth:`void`) or never books it (:meth:`finish`).
         """
-        error = abs(reading_n - self.normal_n())
+        truth = sum(self._burst) / len(self._burst) if self._burst else self.normal_n()
+        error = abs(reading_n - truth)  # against what the burst's samples met (a foam relaxes)
         self.worst_error_n = max(self.worst_error_n, error)
         bad = ("bias_jump" if self.jumped else last_fault) if error > self.tolerance_n else None
         self._pending.append((error, bad))
@@ -172,6 +176,20 @@ class Truth:
         self.jumped = False
         if self.contact_n() > 0.0:
             self.zeros_in_contact += 1
+
+    def begin_burst(self) -> None:
+        """A burst is read next: its samples' true forces are what its reading is judged by."""
+        self._burst = []
+
+    def _hook_samples(self) -> None:
+        physics, true_wrench = self.physics, self.physics.true_wrench
+
+        def sampled() -> np.ndarray:
+            self._burst.append(self.normal_n())
+            wrench: np.ndarray = true_wrench()
+            return wrench
+
+        physics.true_wrench = sampled
 
     def _hook_physics(self) -> None:
         physics, move = self.physics, self.physics._move_tool
@@ -262,6 +280,7 @@ class Injector:
         def measure_force_n(samples: int | None = None) -> float:
             self._step()
             self.reads.append(self._mark())
+            truth.begin_burst()
             force = measure(samples)
             if samples is None and not zeroing[0]:  # a whole burst: what a step is judged by
                 truth.judge_reading(force, self._last)
