@@ -6,6 +6,9 @@ import random
 from pathlib import Path
 from typing import Any
 
+import pytest
+
+from forcelearn.site.config import load_cell_config
 from forcelearn.tasks.bias_watch import MARGIN_N
 from forcelearn.tools.experiments import surface_run as engine
 from forcelearn.tools.experiments import surface_state as run_state
@@ -117,3 +120,20 @@ def test_bias_jumps_the_watch_cannot_see_void_the_trial_and_no_reading_is_used(
     sigma_n = truth.session.sensor_emulator.model.params.noise_std[axis]
     assert truth.worst_used_n <= 3 * sigma_n  # every used reading within 3 sigma of the truth
     assert truth.zeros_in_contact == 0
+
+
+def test_a_net_ft_bias_step_of_a_few_sigma_is_voided_not_kept(tmp_path: Path) -> None:
+    """6 sigma of Net F/T noise in free space before the first press: the zero check voids it.
+
+    Under the old bound's 0.5 N floor (10 sigma of this sensor) it was kept, and every
+    reading of that trial was off by it.
+    """
+    config = cell_config("link+netft", tmp_path, trials=1, steps=4, probe=False)
+    sigma_n = load_cell_config(config).filter.measurement_variance_n2 ** 0.5  # the box's R
+    injector = OnStage([(("approach", 0), -6.0 * sigma_n)], tmp_path / "small")
+    truth = run(config, tmp_path / "small", injector)
+    assert len(injector.fired) == 1
+    events = read_events(tmp_path / "small")
+    assert [(e["error"], e["action"]) for e in events] == [("ZeroMoved", "voided")]
+    assert truth.readings > 0 and truth.worst_used_n <= 3 * sigma_n
+    assert truth.sigma_n == pytest.approx(sigma_n) and truth.beyond_3sigma == 0

@@ -205,10 +205,11 @@ def fault_free_run(config: Path, folder: Path, seed: int) -> tuple[int, float, f
 
 def one_run(cell: str, config: Path, folder: Path, seed: int, ticks: int, faults: int,
             kills: int, tolerance_n: float, devices: Sequence[str] = ("robot", "sensor"),
-            ) -> RunReport:
+            injector: Injector | None = None) -> RunReport:
     """One run with its faults, resumed until it completes; judged from the physics.
 
-    ``faults`` faults on each of ``devices`` ("robot", "sensor"), kinds drawn at random.
+    ``faults`` faults on each of ``devices`` ("robot", "sensor"), kinds drawn at random;
+    or ``injector``'s own plan (then ``ticks``, ``faults`` and ``kills`` are not used).
     """
     report = RunReport(cell, seed)
     rng = random.Random(seed)
@@ -220,7 +221,8 @@ def one_run(cell: str, config: Path, folder: Path, seed: int, ticks: int, faults
         for device in devices:
             counts[(device, rng.choice(kinds[device]))] += 1
     counts[("run", "kill")] = kills
-    injector = Injector(plan_faults(rng, ticks, counts), rng)
+    if injector is None:
+        injector = Injector(plan_faults(rng, ticks, counts), rng)
     injector.events = lambda: len(read_events(folder))
     truths: list[Truth] = []
     started = time.perf_counter()
