@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from forcelearn.emulators.physics.sponge import stiffness_n_per_mm, surface_y_mm
-from forcelearn.errors import ForceLimitExceeded
+from forcelearn.errors import ForceLimitExceeded, NotInPosition
 from forcelearn.site.config import SafetyLimits, load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface import WEAR_GAIN, SurfaceTaskSpec, SurfaceYOutput
@@ -285,3 +285,28 @@ def test_wear_moves_the_map_only_as_far_as_its_range_stays_allowed(
         output.track_wear(start_force_n=0.0)
     assert output.shift_mm == pytest.approx(low)
     assert sum("held at the limit" in r.getMessage() for r in caplog.records) == 1
+
+
+def _failing_probe(first: BaseException) -> SurfaceProbe:
+    """A probe whose point raises ``first`` and whose retract then fails too (no cell moves)."""
+    config = load_cell_config(None)
+    probe = SurfaceProbe(None, config.task, config.probe, 10.0, -60.0)  # type: ignore[arg-type]
+
+    def point(index: int, x: float, z: float) -> None:
+        raise first
+
+    def retract() -> None:
+        raise NotInPosition("the retract stalled")
+
+    probe._probe_point = point  # type: ignore[method-assign]
+    probe._retract = retract  # type: ignore[method-assign]
+    return probe
+
+
+def test_a_failing_retract_never_hides_why_the_probe_stopped() -> None:
+    """A device error: its retract's failure is a note on it; Ctrl-C: no retract (the run's)."""
+    with pytest.raises(ProbeError, match="no contact") as caught:
+        _failing_probe(ProbeError("no contact")).run()
+    assert any("the retract after it failed too" in note for note in caught.value.__notes__)
+    with pytest.raises(KeyboardInterrupt):  # was replaced by the retract's NotInPosition
+        _failing_probe(KeyboardInterrupt()).run()
