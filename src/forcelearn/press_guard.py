@@ -22,7 +22,7 @@ The stiffness in use (N/mm, the fast, unrelaxed one):
   :data:`KNOWN_FACTOR`), raised by what the readings show
   (:data:`OBSERVED_FACTOR` x the steepest rise seen between two readings in contact);
 * without a probe, what the readings show, once two readings in contact pressed in
-  :data:`MIN_PAIR_MM` or more apart;
+  :data:`MIN_PAIR_MM` or more apart (or less, with a rise of :data:`PAIR_SIGMAS` x the noise);
 * before either, ``unknown_n_per_mm``: the stiffest part the site expects
   (``[task] press_stiffness_n_per_mm``).
 """
@@ -48,7 +48,10 @@ OBSERVED_FACTOR = 1.5
 CONTACT_N = 2.0
 """A reading above this is in contact, N (a stiffness is measured only between two such)."""
 MIN_PAIR_MM = 0.5
-"""Least press-in between two readings to measure a stiffness from them, mm (noise)."""
+"""Press-in between two readings that measures a stiffness from them whatever the rise, mm."""
+PAIR_SIGMAS = 10.0
+"""A shorter press-in (at least :data:`MIN_STEP_MM`) measures one if the force rose by this many
+sigma of the noise (a stiff part: 0.3 mm of 15 N/mm foam rises 5 N)."""
 MIN_STEP_MM = 0.05
 """A cut move shorter than this is refused instead, mm (the force is at the limit)."""
 NOISE_SIGMAS = 3.0
@@ -96,8 +99,10 @@ class PressGuard:
         position = np.asarray(position_mm, dtype=float)
         if self.last is not None and force_n > CONTACT_N and self.last[1] > CONTACT_N:
             pressed = self._pressed_mm(self.last[0], position)
-            if pressed >= MIN_PAIR_MM:
-                rise = (force_n - self.last[1]) / pressed
+            rise_n = force_n - self.last[1]
+            if pressed >= MIN_PAIR_MM or (pressed >= MIN_STEP_MM
+                                          and rise_n >= PAIR_SIGMAS * self.noise_n):
+                rise = rise_n / pressed
                 if rise > (self.observed_n_per_mm or 0.0):  # a part never pulls: rises only
                     self.observed_n_per_mm = rise
         self.last = (position, max(float(force_n), 0.0))

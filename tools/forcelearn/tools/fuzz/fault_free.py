@@ -30,12 +30,18 @@ from forcelearn.tools.experiments.fault_recovery import read_events
 from forcelearn.tools.fuzz.fault_campaign import CELLS, examples_config, injecting
 from forcelearn.tools.fuzz.fault_inject import Injector, Truth
 
+STIFF15_START = ("task.start_mm=[900.0, 0.0, 0.0]", "task.output_scale_mm=0.5",
+                 "task.max_offset_mm=3.0")
+"""A 15 N/mm foam's cold start as a site would set it (the default's y = -4 mm presses it to
+75 N: the press guard refuses that first press and the run ends on ForceLimitExceeded)."""
 MATERIALS: dict[str, tuple[str, ...]] = {
     "default": (),
     "stiff8": ("emulator.sponge.stiffness_n_per_mm=8.0", "task.desired_force_n=29.42"),
     "stiff8-small": ("emulator.sponge.stiffness_n_per_mm=8.0", "task.desired_force_n=5.0"),
-    "stiff15": ("emulator.sponge.stiffness_n_per_mm=15.0", "task.desired_force_n=29.42"),
-    "stiff15-small": ("emulator.sponge.stiffness_n_per_mm=15.0", "task.desired_force_n=5.0"),
+    "stiff15": ("emulator.sponge.stiffness_n_per_mm=15.0", "task.desired_force_n=29.42",
+                *STIFF15_START),
+    "stiff15-small": ("emulator.sponge.stiffness_n_per_mm=15.0", "task.desired_force_n=5.0",
+                      *STIFF15_START),
     "hyst0.3": ("emulator.sponge.hysteresis_loss=0.3", "emulator.sponge.stiffness_n_per_mm=1.2",
                 "task.desired_force_n=24.5"),
     "friction0.3": ("emulator.sponge.friction_coefficient=0.3",),
