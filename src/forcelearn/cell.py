@@ -295,7 +295,7 @@ class Cell:
         if self.press_guard is not None and self._pose is not None:
             wrenches = np.array([s.wrench for s in compensated])
             normal = self.force_filter.config.normal_force(wrenches)
-            self.press_guard.note(self._pose.position_mm, float(np.max(normal)))
+            self._guarded(self.press_guard.note, self._pose.position_mm, float(np.max(normal)))
         try:
             try:
                 check_samples(compensated, self.max_force_n, self.force_filter.config)
@@ -358,11 +358,7 @@ class Cell:
         since the last zero, :class:`~forcelearn.errors.ZeroMoved`). Recorded as a
         tare, accepted or not; the reading check is not consulted (this is the check).
         """
-        check, self.reading_check = self.reading_check, None
-        try:
-            force = self.measure_force_n()
-        finally:
-            self.reading_check = check
+        force = self._read_unjudged()
         std = getattr(self.force_filter, "force_std_n", math.nan)
         if not math.isfinite(std):
             std = math.sqrt(self.force_filter.measurement_variance_n2 / self.samples_per_step)
@@ -415,13 +411,22 @@ class Cell:
         if isinstance(self.sensor, RebootableSensor) and reinitialise is not None:
             self._guarded(reinitialise)
         self.reset_filter()
-        force = self.measure_force_n()
+        force = self._read_unjudged()
         if self.recorder is not None:
             here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
             self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, True))
         self._take_zero()
         self.reset_filter()
         return force
+
+    def _read_unjudged(self) -> float:
+        """A burst no reading check judges (a zero's: it reads the bias it is about to take)."""
+        check, guard, self.reading_check, self.press_guard = (
+            self.reading_check, self.press_guard, None, None)
+        try:
+            return self.measure_force_n()
+        finally:
+            self.reading_check, self.press_guard = check, guard
 
     def stop(self) -> None:
         """Stop the robot now (best effort: a failing link is logged, not raised)."""

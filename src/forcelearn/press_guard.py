@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from forcelearn.devices import AXES, WrenchSample
-from forcelearn.errors import ForceLimitExceeded
+from forcelearn.errors import ForceLimitExceeded, SensorSuspect
 from forcelearn.filtering import ForceFilterConfig
 
 KNOWN_FACTOR = 2.0
@@ -54,6 +54,9 @@ PAIR_SIGMAS = 10.0
 sigma of the noise (a stiff part: 0.3 mm of 15 N/mm foam rises 5 N)."""
 MIN_STEP_MM = 0.05
 """A cut move shorter than this is refused instead, mm (the force is at the limit)."""
+PULL_MARGIN_N = 0.5
+"""A reading further below 0 than one sample's noise allows by this much is a pull, N (the
+bias's drift between zero checks stays well under it)."""
 NOISE_SIGMAS = 3.0
 """One sample's noise allowance on the last reading, in the sensor's sigma."""
 
@@ -80,7 +83,9 @@ class PressGuard:
     cuts: int = 0
     """Moves cut (or refused) so far."""
     last: tuple[np.ndarray, float] | None = field(default=None, repr=False)
-    """The last reading: (position mm, its highest sample's normal force N)."""
+    """The reading predictions start from: (position mm, its highest sample's normal force N),
+    the last one unless it read less after pressing deeper (a bias step down in contact,
+    unseen yet, must not buy the next move more depth: the one before stays)."""
 
     def know(self, stiffness_n_per_mm: float) -> None:
         """The part's stiffness is known (the probe's stiffest fit, N/mm, relaxed)."""
@@ -95,7 +100,19 @@ class PressGuard:
         return max(self.known_n_per_mm or 0.0, seen or 0.0)
 
     def note(self, position_mm: np.ndarray, force_n: float) -> None:
-        """A reading at ``position_mm``: the reference of the next prediction."""
+        """A reading at ``position_mm``: the reference of the next prediction.
+
+        Raises:
+            SensorSuspect: it reads a pull (below -(3 sigma + :data:`PULL_MARGIN_N`)): a part
+                never pulls, so the zero moved, and every prediction from it would be short.
+        """
+        if force_n < -(NOISE_SIGMAS * self.noise_n + PULL_MARGIN_N):
+            self.last = None
+            raise SensorSuspect(
+                f"the force read {force_n:.2f} N: a part never pulls the tool, so the sensor's "
+                "zero moved (a bias step); the run retracts, zeroes in free space and runs the "
+                "trial again; if it repeats, check the sensor's cable and temperature"
+            )
         position = np.asarray(position_mm, dtype=float)
         if self.last is not None and force_n > CONTACT_N and self.last[1] > CONTACT_N:
             pressed = self._pressed_mm(self.last[0], position)
@@ -105,7 +122,11 @@ class PressGuard:
                 rise = rise_n / pressed
                 if rise > (self.observed_n_per_mm or 0.0):  # a part never pulls: rises only
                     self.observed_n_per_mm = rise
-        self.last = (position, max(float(force_n), 0.0))
+        force = max(float(force_n), 0.0)
+        if (self.last is not None and force < self.last[1] - 2 * NOISE_SIGMAS * self.noise_n
+                and self._pressed_mm(self.last[0], position) >= MIN_STEP_MM):
+            return  # pressed deeper, read less: not trusted to buy depth (a bias step down?)
+        self.last = (position, force)
 
     def state_dict(self) -> dict[str, Any]:
         """The last reading and the stiffness seen (JSON-able; a resumed run goes on from it)."""

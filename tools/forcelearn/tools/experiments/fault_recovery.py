@@ -148,6 +148,9 @@ class RunRecovery:
         """The faults of this session."""
         self.watch = BiasWatch(free_y_mm=retract_y_mm)
         """Judges the trials' readings by the moves (bias steps in contact)."""
+        self._checked_zeros = 0
+        """Zeros the zero check took (within its bound: they keep a first press comparable with
+        the last trial's, which a bias step at the first contact would not be)."""
         self.fit_watch_to_readings = True
         """Widen the watch to the stiffness the readings show (until a probe's fit is in)."""
         self._start_learner: SRVLearner | None = None
@@ -262,6 +265,7 @@ class RunRecovery:
             cell.move_in_steps(Pose(here.x_mm, self.retract_y_mm, here.z_mm, here.quaternion),
                                self.max_step_mm)
         force, bound = cell.check_zero(self.zero_check_bound)
+        self._checked_zeros += abs(force) <= bound
         if abs(force) > bound:
             cell.stop()
             what = "the probe (or the session's start)" if trial < 0 else f"trial {trial}"
@@ -309,7 +313,7 @@ class RunRecovery:
         guard = self.cell.press_guard
         if self.fit_watch_to_readings and guard is not None and guard.observed_n_per_mm:
             self.watch.fit_to_probe([guard.observed_n_per_mm], 0.0, 0.0)
-        self.watch(stage, pose, force_n, zeros=self.cell.tares)
+        self.watch(stage, pose, force_n, zeros=self.cell.tares - self._checked_zeros)
 
     def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> bool:
         """Leave the part and re-zero; True: a bias-step alarm the zero check proved false."""
