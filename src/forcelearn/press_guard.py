@@ -124,7 +124,7 @@ class PressGuard:
                     self.observed_n_per_mm = rise
         force = max(float(force_n), 0.0)
         if (self.last is not None and force < self.last[1] - 2 * NOISE_SIGMAS * self.noise_n
-                and self._pressed_mm(self.last[0], position) >= MIN_STEP_MM):
+                and self._pressed_mm(self.last[0], position) > 0.0):
             return  # pressed deeper, read less: not trusted to buy depth (a bias step down?)
         self.last = (position, force)
 
