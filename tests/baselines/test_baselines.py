@@ -22,6 +22,7 @@ from forcelearn.baselines.runner import TrialRecorder, run_controller, should_st
 from forcelearn.emulators.physics.two_link_arm import ContourGeometry, TwoLinkContourCell
 from forcelearn.envs import ContourEnv, SurfaceEnv
 from forcelearn.learning import SRVLearner, SRVParams
+from forcelearn.press_guard import PressGuard
 from forcelearn.site.config import load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
@@ -75,9 +76,14 @@ def test_srv_through_the_surface_env_gives_the_native_trainers_trials() -> None:
     config = load_cell_config(None)
     with CellSession(config, seed=seed) as session:  # as `forcelearn run` starts
         assert session.cell is not None
+        guard = session.cell.press_guard = PressGuard(  # the run's and the env's press guard
+            config.safety.max_force_n, config.task.press_stiffness_n_per_mm,
+            session.cell.force_filter.measurement_variance_n2 ** 0.5)
         probe = SurfaceProbe(session.cell, config.task, config.probe,
                              config.safety.max_step_mm, config.safety.workspace_min_mm[1])
         result, choice = probe_and_map(probe, refine=True)  # the default warm start's probe
+        assert result is not None
+        guard.know(max(f.stiffness_n_per_mm for f in result.fits))
         output = choice.output()
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
         learner = SRVLearner(task.grid, 1, config.learner, rng=seed, output=output)
