@@ -187,6 +187,7 @@ class NetFtEmulator(Emulator):
         self._stream_t0 = 0.0
         self._stream_sent = 0
         self._stream_batch = 1
+        self._local: dict[tuple[str, int], Callable[[bytes], None]] = {}  # .in_process clients
         force_code, torque_code = protocol.unit_codes(self.params.force_unit,
                                                       self.params.torque_unit)
         self.calinfo = protocol.CalInfo(force_code, torque_code, self.params.counts_per_force,
@@ -249,6 +250,27 @@ class NetFtEmulator(Emulator):
         """Reboot now: streaming stops, ``ft_sequence`` restarts, the software bias is lost."""
         with self._lock:
             self._reboot()
+
+    def attach(self, address: tuple[str, int], deliver: Callable[[bytes], None]) -> None:
+        """Hand the datagrams for ``address`` to ``deliver``, not UDP (an in-process client)."""
+        with self._lock:
+            self._local[address] = deliver
+
+    def detach(self, address: tuple[str, int]) -> None:
+        """Forget an in-process client (a stream to it stops)."""
+        with self._lock:
+            self._local.pop(address, None)
+            if self._stream_to == address:
+                self._stream_to = None
+
+    def take(self, data: bytes, address: tuple[str, int]) -> None:
+        """Handle one request datagram from ``address`` now, as the UDP thread would."""
+        self._handle(data, address)
+
+    def streaming_to(self, address: tuple[str, int]) -> bool:
+        """True while a stream (sample count 0) to ``address`` runs."""
+        with self._lock:
+            return self._stream_to == address
 
     def netftapi2_xml(self) -> bytes:
         """The body of ``/netftapi2.xml`` from :attr:`xml_fields`."""
@@ -440,7 +462,12 @@ class NetFtEmulator(Emulator):
                 for record in datagram:
                     self.on_send(record)
             try:
-                self._udp.sendto(protocol.encode_datagram(datagram), address)
+                data = protocol.encode_datagram(datagram)
+                local = self._local.get(address)
+                if local is None:
+                    self._udp.sendto(data, address)
+                else:
+                    local(data)
             except OSError:
                 log.debug("netft emulator: send to %s failed", address, exc_info=True)
                 continue
