@@ -269,8 +269,7 @@ class NetFtEmulator(Emulator):
 
     def streaming_to(self, address: tuple[str, int]) -> bool:
         """True while a stream (sample count 0) to ``address`` runs."""
-        with self._lock:
-            return self._stream_to == address
+        return self._stream_to == address
 
     def netftapi2_xml(self) -> bytes:
         """The body of ``/netftapi2.xml`` from :attr:`xml_fields`."""
@@ -410,29 +409,33 @@ class NetFtEmulator(Emulator):
         """Sample ``n`` records (sequence ``first_seq``...) from ``t0``; apply the faults."""
         period = 1.0 / self.rdt_rate_hz
         advance = getattr(self.physics, "advance_to", None)
-        records: list[Record] = []
         times: dict[int, float] = {}
-        for i in range(n):
+        wrenches, dts, ft_sequences, reboot = [], [], [], False
+        for i in range(n):  # the physics sample by sample; the sensor model after, in one pass
             if self.faults.silent:
                 break
             t = t0 + i * period
             if advance is not None:
                 advance(t)
-            dt = 0.0 if self.last_sample_s is None else t - self.last_sample_s
-            counts = self.model.measure(self.physics.true_wrench(), dt)
+            dts.append(0.0 if self.last_sample_s is None else t - self.last_sample_s)
+            wrenches.append(self.physics.true_wrench())
             self.last_sample_s = t
             # the box samples at its internal rate (7000/s) streaming or not, whatever the RDT rate
             ft = round((t - self.boot_s) * INTERNAL_SAMPLE_RATE_HZ)
             self.ft_sequence = ft % protocol.SEQUENCE_MODULUS
-            seq = first_seq + i
-            records.append(Record(seq, self.ft_sequence, self.faults.status, counts))
-            times[seq] = t
+            ft_sequences.append(self.ft_sequence)
+            times[first_seq + i] = t
             self.stats.records_generated += 1
             self._records_since_boot += 1
             limit = self.faults.reboot_after_records
             if limit is not None and self._records_since_boot >= limit:
-                self._reboot()
+                reboot = True
                 break
+        counts = self.model.measure_many(wrenches, dts)
+        records = [Record(first_seq + i, ft_sequences[i], self.faults.status, counts[i])
+                   for i in range(len(counts))]
+        if reboot:  # after the last record's measurement, as the box's counts came first
+            self._reboot()
         out = apply_faults(records, self.faults, self.rng, self.stats.faults)
         if self.records_hook is not None:
             out = self.records_hook(out)
