@@ -10,8 +10,9 @@ import pytest
 from netft_support import config_for, start
 
 from forcelearn.drivers.netft import NetFtSensor
-from forcelearn.emulators.netft import NetFtEmulator, NetFtFaults
+from forcelearn.emulators.netft import NetFtEmulator, NetFtFaults, NetFtModelParams
 from forcelearn.emulators.netft.in_process import InProcessRdtSocket
+from forcelearn.emulators.netft.sensor_model import NetFtSensorModel
 from forcelearn.errors import SensorBusError, SensorStale
 from forcelearn.protocols.netft import Record
 from forcelearn.site.config import load_cell_config
@@ -104,3 +105,18 @@ def test_the_emulated_cell_gives_the_same_state_on_both_routes() -> None:
             return forces, s.emulator_state()
 
     assert session("in_process") == session("udp")
+
+
+def test_a_requests_records_measured_at_once_equal_one_at_a_time() -> None:
+    """measure_many gives measure's counts, bias walk and generator state (clipping included)."""
+    rng = np.random.default_rng(1)
+    wrenches = [rng.normal(size=6) * 50.0 for _ in range(60)]
+    dts = [float(v) for v in rng.uniform(-1e-4, 1e-3, 60)]
+    params = NetFtModelParams(saturation_fraction=0.2)
+    one, many = (NetFtSensorModel(params, np.random.default_rng(3)) for _ in range(2))
+    one.software_bias = many.software_bias = np.arange(6.0) * 0.1
+    counts = [one.measure(w, dt) for w, dt in zip(wrenches, dts, strict=True)]
+    assert counts == many.measure_many(wrenches[:25], dts[:25]) + many.measure_many(
+        wrenches[25:], dts[25:])
+    assert np.array_equal(one.bias, many.bias)
+    assert one.rng.bit_generator.state == many.rng.bit_generator.state
