@@ -3,8 +3,9 @@
 Real: the driver reads the box's calibration and streams RDT records from
 ``[sensor] host``. Emulated (``host = "emulated"``): the box emulator serves
 RDT, READCALINFO and HTTP on loopback and samples the shared physics on the
-cell's clock: on free ports in this process (``run``), or on the box's usual
-ports where free for ``forcelearn emulate``.
+cell's clock: on free ports in this process (``run``, the RDT records handed
+to the driver in process by default: :class:`NetFtRoute`), or on the box's
+usual ports where free for ``forcelearn emulate``.
 """
 
 from __future__ import annotations
@@ -13,8 +14,8 @@ import contextlib
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import replace
-from typing import Any, cast
+from dataclasses import dataclass, replace
+from typing import Any, Literal, cast
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from forcelearn.calibration import SensorInfo
 from forcelearn.config import build
 from forcelearn.devices import AXES, ForceSensor
 from forcelearn.drivers.netft import NetFtConfig, NetFtSensor
+from forcelearn.emulators.netft.in_process import InProcessRdtSocket
 from forcelearn.emulators.netft.sensor_model import NetFtModelParams
 from forcelearn.emulators.netft.server import MAX_RDT_RATE_HZ, NetFtEmulator
 from forcelearn.emulators.physics.cell import CellPhysics
@@ -48,6 +50,24 @@ NETFT_SETTLE_TIMEOUT_S = 5.0
 UNITS = ("N", "N", "N", "N*m", "N*m", "N*m")
 BATCH = 64
 """Records per read_many call while checking (one burst request)."""
+NETFT_ROUTES = ("in_process", "udp")
+
+
+@dataclass(frozen=True)
+class NetFtRoute:
+    """How ``run``'s emulated box hands its RDT records to the driver (this kind's route option).
+
+    ``"in_process"``: the driver's socket-like end of the emulator
+    (:mod:`forcelearn.emulators.netft.in_process`: the same bytes, no thread
+    hand-over per datagram); ``"udp"``: loopback datagrams, as a real box's.
+    The calibration is read over loopback TCP/HTTP either way.
+    """
+
+    route: Literal["in_process", "udp"] = "in_process"
+
+    def __post_init__(self) -> None:
+        if self.route not in NETFT_ROUTES:
+            raise ValueError(f"Net F/T route must be one of {NETFT_ROUTES}, got {self.route!r}")
 
 
 def netft_of(config: CellView) -> NetFtConfig:
@@ -66,6 +86,11 @@ class NetFtFarEnd(FarEnd):
 
     def __init__(self, config: CellView, physics: CellPhysics, options: FarEndOptions) -> None:
         super().__init__()
+        route = options.routes.get(KIND.name, NetFtRoute())
+        if not isinstance(route, NetFtRoute):
+            raise TypeError(f"the Net F/T kind's route options are a NetFtRoute, not {route!r}")
+        self.in_process = options.in_process and route.route == "in_process"
+        """The driver takes the emulator's in-process RDT end (else loopback UDP)."""
         sensor = config.sensor if isinstance(config.sensor, NetFtConfig) else NetFtConfig()
         settings: dict[str, Any] = {"model": box_model(config)}
         if options.in_process:  # free ports; ``emulate`` takes the box's own where free
@@ -205,15 +230,18 @@ class NetFtKind(SensorKind):
         """The driver on the box (or its emulator's ports), initialised."""
         sensor = netft_of(config)
         clock: Callable[[], float] | None = None
+        rdt: InProcessRdtSocket | None = None
         if far_end is not None:
             assert isinstance(far_end, NetFtFarEnd)
             ports = far_end.emulator.ports
             sensor = replace(sensor, host=far_end.emulator.host, rdt_port=ports["rdt_port"],
                              tcp_port=ports["tcp_port"], http_port=ports["http_port"])
             clock = _clock_of(far_end.emulator)
+            if far_end.in_process:
+                rdt = InProcessRdtSocket(far_end.emulator)
         elif sensor.uptime_check:  # a real box counts its samples in wall time
             clock = time.monotonic
-        driver = NetFtSensor(sensor, clock=clock)
+        driver = NetFtSensor(sensor, clock=clock, sock=rdt)
         stack.callback(driver.close)
         try:
             driver.initialise()

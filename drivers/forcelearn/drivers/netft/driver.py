@@ -49,6 +49,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -84,6 +85,15 @@ RCVBUF_BYTES = 1 << 20
 _NOT_SATURATED = (False,) * 6
 
 
+class RdtSocket(Protocol):
+    """What the driver reads RDT through: a connected UDP socket or an in-process end."""
+
+    def send(self, data: bytes, /) -> int: ...  # noqa: D102
+    def recv(self, bufsize: int, /) -> bytes: ...  # noqa: D102
+    def settimeout(self, value: float | None, /) -> None: ...  # noqa: D102
+    def close(self) -> None: ...  # noqa: D102
+
+
 @dataclass
 class NetFtStats:
     """What the driver received and sent (a snapshot copy is handed out)."""
@@ -114,11 +124,14 @@ class NetFtSensor(Driver):
         clock: the time the box's samples follow, s (the host's monotonic clock for a
             real box, an emulated box's simulated clock): with one, the uptime check
             (:mod:`.uptime`) sees reboots the sequence does not; None: no uptime check.
+        sock: the RDT end to use instead of a UDP socket to ``config.host``
+            (an emulated box's in-process end); the driver closes it.
     """
 
     def __init__(self, config: NetFtConfig | None = None, *,
                  on_sample: SampleCallback | None = None,
-                 clock: Callable[[], float] | None = None) -> None:
+                 clock: Callable[[], float] | None = None,
+                 sock: RdtSocket | None = None) -> None:
         self.config = config or NetFtConfig()
         self.callbacks: list[SampleCallback] = [on_sample] if on_sample else []
         self._tracker = SequenceTracker()
@@ -133,6 +146,10 @@ class NetFtSensor(Driver):
         self._streaming = False
         self._rebooted = False
         self._log = TrafficLog(self.config.log_path) if self.config.log_path else None
+        self._sock = sock if sock is not None else self._open_udp()
+        self._acquired = True
+
+    def _open_udp(self) -> socket.socket:
         sock: socket.socket | None = None
         try:
             sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -150,8 +167,7 @@ class NetFtSensor(Driver):
                 f"cannot open UDP to the Net F/T at {self.config.host}:{self.config.rdt_port}: "
                 f"{exc}; check the host's network settings"
             ) from exc
-        self._sock = sock
-        self._acquired = True
+        return sock
 
     # ---- properties -----------------------------------------------------
     @property

@@ -109,6 +109,7 @@ class NetFtSensorModel:
         self._noise = np.asarray(params.noise_std, dtype=float)
         self._drift = np.asarray(params.bias_drift_per_sqrt_s, dtype=float)
         self._saturation = np.asarray(params.ranges, dtype=float) * params.saturation_fraction
+        self._floor = -self._saturation
         self.bias = np.asarray(params.initial_bias, dtype=float).copy()
         self.software_bias = np.zeros(6)
 
@@ -116,14 +117,39 @@ class NetFtSensorModel:
         draws = self.rng.standard_normal(12)
         self.bias += self._drift * math.sqrt(max(dt_s, 0.0)) * draws[6:]
         reading = true_wrench + self.bias + self._noise * draws[:6]
-        clipped: np.ndarray = np.clip(reading, -self._saturation, self._saturation)
+        # np.clip's values, without its Python-level dispatch (7000 records per s of cell time)
+        clipped: np.ndarray = np.minimum(np.maximum(reading, self._floor), self._saturation)
         return clipped
 
     def measure(self, true_wrench: np.ndarray, dt_s: float) -> tuple[int, ...]:
         """Return six int32 counts for one record, ``dt_s`` after the previous one."""
         reading = self._reading(true_wrench, dt_s)
         counts = ((reading - self.software_bias) * self._counts_per_si).round()
-        return tuple(int(c) for c in counts.clip(INT32_MIN, INT32_MAX))
+        return tuple(map(int, np.minimum(np.maximum(counts, INT32_MIN), INT32_MAX).tolist()))
+
+    def measure_many(self, true_wrenches: list[np.ndarray],
+                     dts_s: list[float]) -> list[tuple[int, ...]]:
+        """:meth:`measure` of each wrench in turn, in one numpy pass: the same draws and values.
+
+        The generator's normals are drawn 12 a record in order, and the bias
+        walks by ``np.add.accumulate`` (left to right, as one ``+=`` a record),
+        so the counts equal those of a :meth:`measure` per record.
+        """
+        n = len(true_wrenches)
+        if n == 0:
+            return []
+        draws = self.rng.standard_normal((n, 12))
+        scale = np.sqrt(np.maximum(np.asarray(dts_s, dtype=float), 0.0))[:, None]
+        walk = np.empty((n + 1, 6))
+        walk[0] = self.bias
+        walk[1:] = self._drift * scale * draws[:, 6:]
+        biases = np.add.accumulate(walk, axis=0)[1:]
+        self.bias = biases[-1].copy()
+        reading = np.vstack(true_wrenches) + biases + self._noise * draws[:, :6]
+        clipped = np.minimum(np.maximum(reading, self._floor), self._saturation)
+        counts = ((clipped - self.software_bias) * self._counts_per_si).round()
+        whole = np.minimum(np.maximum(counts, INT32_MIN), INT32_MAX).tolist()
+        return [tuple(map(int, row)) for row in whole]
 
     def set_software_bias(self, true_wrench: np.ndarray) -> None:
         """Store the present reading (noise averaged) as the software bias."""

@@ -187,6 +187,7 @@ class NetFtEmulator(Emulator):
         self._stream_t0 = 0.0
         self._stream_sent = 0
         self._stream_batch = 1
+        self._local: dict[tuple[str, int], Callable[[bytes], None]] = {}  # .in_process clients
         force_code, torque_code = protocol.unit_codes(self.params.force_unit,
                                                       self.params.torque_unit)
         self.calinfo = protocol.CalInfo(force_code, torque_code, self.params.counts_per_force,
@@ -249,6 +250,26 @@ class NetFtEmulator(Emulator):
         """Reboot now: streaming stops, ``ft_sequence`` restarts, the software bias is lost."""
         with self._lock:
             self._reboot()
+
+    def attach(self, address: tuple[str, int], deliver: Callable[[bytes], None]) -> None:
+        """Hand the datagrams for ``address`` to ``deliver``, not UDP (an in-process client)."""
+        with self._lock:
+            self._local[address] = deliver
+
+    def detach(self, address: tuple[str, int]) -> None:
+        """Forget an in-process client (a stream to it stops)."""
+        with self._lock:
+            self._local.pop(address, None)
+            if self._stream_to == address:
+                self._stream_to = None
+
+    def take(self, data: bytes, address: tuple[str, int]) -> None:
+        """Handle one request datagram from ``address`` now, as the UDP thread would."""
+        self._handle(data, address)
+
+    def streaming_to(self, address: tuple[str, int]) -> bool:
+        """True while a stream (sample count 0) to ``address`` runs."""
+        return self._stream_to == address
 
     def netftapi2_xml(self) -> bytes:
         """The body of ``/netftapi2.xml`` from :attr:`xml_fields`."""
@@ -388,29 +409,33 @@ class NetFtEmulator(Emulator):
         """Sample ``n`` records (sequence ``first_seq``...) from ``t0``; apply the faults."""
         period = 1.0 / self.rdt_rate_hz
         advance = getattr(self.physics, "advance_to", None)
-        records: list[Record] = []
         times: dict[int, float] = {}
-        for i in range(n):
+        wrenches, dts, ft_sequences, reboot = [], [], [], False
+        for i in range(n):  # the physics sample by sample; the sensor model after, in one pass
             if self.faults.silent:
                 break
             t = t0 + i * period
             if advance is not None:
                 advance(t)
-            dt = 0.0 if self.last_sample_s is None else t - self.last_sample_s
-            counts = self.model.measure(self.physics.true_wrench(), dt)
+            dts.append(0.0 if self.last_sample_s is None else t - self.last_sample_s)
+            wrenches.append(self.physics.true_wrench())
             self.last_sample_s = t
             # the box samples at its internal rate (7000/s) streaming or not, whatever the RDT rate
             ft = round((t - self.boot_s) * INTERNAL_SAMPLE_RATE_HZ)
             self.ft_sequence = ft % protocol.SEQUENCE_MODULUS
-            seq = first_seq + i
-            records.append(Record(seq, self.ft_sequence, self.faults.status, counts))
-            times[seq] = t
+            ft_sequences.append(self.ft_sequence)
+            times[first_seq + i] = t
             self.stats.records_generated += 1
             self._records_since_boot += 1
             limit = self.faults.reboot_after_records
             if limit is not None and self._records_since_boot >= limit:
-                self._reboot()
+                reboot = True
                 break
+        counts = self.model.measure_many(wrenches, dts)
+        records = [Record(first_seq + i, ft_sequences[i], self.faults.status, counts[i])
+                   for i in range(len(counts))]
+        if reboot:  # after the last record's measurement, as the box's counts came first
+            self._reboot()
         out = apply_faults(records, self.faults, self.rng, self.stats.faults)
         if self.records_hook is not None:
             out = self.records_hook(out)
@@ -440,7 +465,12 @@ class NetFtEmulator(Emulator):
                 for record in datagram:
                     self.on_send(record)
             try:
-                self._udp.sendto(protocol.encode_datagram(datagram), address)
+                data = protocol.encode_datagram(datagram)
+                local = self._local.get(address)
+                if local is None:
+                    self._udp.sendto(data, address)
+                else:
+                    local(data)
             except OSError:
                 log.debug("netft emulator: send to %s failed", address, exc_info=True)
                 continue

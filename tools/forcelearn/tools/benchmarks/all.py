@@ -30,7 +30,9 @@ shared machine disturbs the CPU figure far less. The trials are the same on
 every cell (4 trials of 20 steps after a probe), so steps per CPU second
 compare the cells' cost for the same work, whatever cell time their robots
 take (an EGM step takes about half a computer-link step's cell time, which
-halves its real-time factor for the same CPU).
+halves its real-time factor for the same CPU). Both are also given for the
+trials after the first alone (no probe, no first-use imports, which the
+first cell timed pays): what each further trial of a long run costs.
 
 The 1-minute load average is printed with every figure. ``--quick`` shortens
 every figure (a smoke run: the ratios are noisier). Results go to stdout as a
@@ -42,12 +44,14 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
+import math
 import os
 import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -160,12 +164,21 @@ def _vec(quick: bool) -> list[Figure]:
 
 @dataclass(frozen=True)
 class CellRun:
-    """One emulated cell's run: its trials' cell time, and the wall and CPU time it took."""
+    """One emulated cell's run: its trials' cell time, and the wall and CPU time it took.
+
+    ``steady_*``: the trials after the first only (from the first trial's end
+    to the last's): no probe, no first-use imports, what each further trial of
+    a long run costs.
+    """
 
     cell_s: float
     wall_s: float
     cpu_s: float
     steps: int
+    steady_cell_s: float = math.nan
+    steady_wall_s: float = math.nan
+    steady_cpu_s: float = math.nan
+    steady_steps: int = 0
 
 
 def _cell_run(config: Path | None, trials: int) -> CellRun:
@@ -173,13 +186,23 @@ def _cell_run(config: Path | None, trials: int) -> CellRun:
     from forcelearn.tools.experiments.surface_run import execute
     from forcelearn.tools.experiments.surface_state import prepare_run
 
-    ends: list[float] = []
+    ends: list[tuple[float, float, float, int]] = []  # CPU, wall, trial's cell time, steps
+
+    def trial_end(record: Any, _: object) -> None:
+        ends.append((time.process_time(), time.perf_counter(), record.cell_time_s, record.steps))
+
     with tempfile.TemporaryDirectory(prefix="forcelearn-bench-all-") as tmp:
         surface_run, _ = prepare_run(config, Path(tmp), trials, 0, False)
         cpu0 = time.process_time()
-        summary = execute(surface_run, None, on_trial=lambda *_: ends.append(time.process_time()))
-    return CellRun(float(summary["cell_time_s"]), float(summary["wall_s"]),
-                   (ends[-1] if ends else time.process_time()) - cpu0, int(summary["steps"]))
+        summary = execute(surface_run, None, on_trial=trial_end)
+    run = CellRun(float(summary["cell_time_s"]), float(summary["wall_s"]),
+                  (ends[-1][0] if ends else time.process_time()) - cpu0, int(summary["steps"]))
+    if len(ends) < 2:
+        return run
+    later = ends[1:]
+    return replace(run, steady_cell_s=sum(e[2] for e in later),
+                   steady_wall_s=ends[-1][1] - ends[0][1], steady_cpu_s=ends[-1][0] - ends[0][0],
+                   steady_steps=sum(e[3] for e in later))
 
 
 def _cells(trials: int, examples: Path) -> list[Figure]:
@@ -188,8 +211,10 @@ def _cells(trials: int, examples: Path) -> list[Figure]:
         config = None if name is None else examples / Path(name).name
         runs[label] = run = _cell_run(config, trials)
         print(f"    {label}: real-time factor {run.cell_s / run.wall_s:.2f} (wall), "
-              f"{run.cell_s / run.cpu_s:.2f} (CPU), {run.steps / run.cpu_s:.1f} steps per CPU s, "
-              f"load {_load():.2f}", flush=True)
+              f"{run.cell_s / run.cpu_s:.2f} (CPU), {run.steps / run.cpu_s:.1f} steps per CPU s; "
+              f"trials after the first: {run.steady_cell_s / run.steady_cpu_s:.2f} (CPU), "
+              f"{run.steady_steps / run.steady_cpu_s:.1f} steps per CPU s, load {_load():.2f}",
+              flush=True)
     base = runs["link + JR3"]
     floor = "the link + JR3 cell, same run"
     figures = []
@@ -205,6 +230,16 @@ def _cells(trials: int, examples: Path) -> list[Figure]:
             Figure(f"cell {label}: steps per CPU s", run.steps / run.cpu_s, "steps/s",
                    (run.steps / run.cpu_s) / (base.steps / base.cpu_s), "/ link + JR3", target,
                    floor),
+            Figure(f"cell {label}: trials after the first, real-time factor (CPU)",
+                   run.steady_cell_s / run.steady_cpu_s, "x real time",
+                   (run.steady_cell_s / run.steady_cpu_s) / (base.steady_cell_s
+                                                             / base.steady_cpu_s),
+                   "/ link + JR3", target, floor),
+            Figure(f"cell {label}: trials after the first, steps per CPU s",
+                   run.steady_steps / run.steady_cpu_s, "steps/s",
+                   (run.steady_steps / run.steady_cpu_s) / (base.steady_steps
+                                                            / base.steady_cpu_s),
+                   "/ link + JR3", target, floor),
         ]
     return figures
 
