@@ -283,7 +283,8 @@ def set_surface_y_mm(params: SpongeParams, set_mm: F, z_mm: F) -> F:
     """Return the surface Y (mm) at height ``z_mm`` once it has sunk ``set_mm`` (its set)."""
     travelled = params.z_top_mm - z_mm
     wave = params.waviness_mm * _sin(2 * math.pi * travelled / params.waviness_wavelength_mm)
-    return params.surface_y_mm + params.surface_slope * travelled + wave - set_mm
+    surface: F = params.surface_y_mm + params.surface_slope * travelled + wave - set_mm
+    return surface
 
 
 def surface_dy_dz(params: SpongeParams, z_mm: F) -> F:

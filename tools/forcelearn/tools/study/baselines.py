@@ -206,7 +206,10 @@ in docs/results/baselines.md: the runner starts the costliest first."""
 
 
 def _config_of(spec: RunSpec) -> BaselinesConfig:
-    return apply_overrides(BaselinesConfig(trials=spec.trials), dict(spec.overrides))
+    config: BaselinesConfig = apply_overrides(
+        BaselinesConfig(trials=spec.trials), dict(spec.overrides)
+    )
+    return config
 
 
 def run_cost(spec: RunSpec) -> float:
