@@ -243,25 +243,26 @@ class ArmMotion:
                 on_tick(tick)
 
     def _step(self, dt: float) -> None:
-        while self._pending and self._pending[0][0] <= self.tick_index:
-            self._start_segment(self._pending.popleft()[1])
-        p = self.params
-        if self._s < self._seg_end:
-            remaining = self._seg_end - self._s
-            v = min(self._v + p.accel_mm_s2 * dt, self.speed_mm_s,
-                    math.sqrt(2.0 * p.accel_mm_s2 * remaining))
-            self._s = min(self._seg_end, self._s + v * dt)
-            self._v = 0.0 if self._s >= self._seg_end else v
+        pending = self._pending
+        while pending and pending[0][0] <= self.tick_index:
+            self._start_segment(pending.popleft()[1])
+        s, end = self._s, self._seg_end
+        if s < end:
+            accel = self.params.accel_mm_s2
+            v = min(self._v + accel * dt, self.speed_mm_s, math.sqrt(2.0 * accel * (end - s)))
+            self._s = s = min(end, s + v * dt)
+            self._v = 0.0 if s >= end else v
         else:
             self._v = 0.0
-        if self._s != self._ref_s:  # the reference stands still while the tool catches up
-            self._ref, self._ref_q = self._reference_at(self._s)
-            self._ref_s = self._s
+        if s != self._ref_s:  # the reference stands still while the tool catches up
+            self._ref, self._ref_q = self._reference_at(s)
+            self._ref_s = s
         gain = 1.0 - self._lag_keep
-        (tx, ty, tz), (rx, ry, rz) = self._tool, self._ref
+        ref = self._ref
+        (tx, ty, tz), (rx, ry, rz) = self._tool, ref
         tool = [tx + gain * (rx - tx), ty + gain * (ry - ty), tz + gain * (rz - tz)]
-        if math.dist(tool, self._ref) < _SNAP_MM and self._s >= self._seg_end:
-            tool, self._tool_q = list(self._ref), self._ref_q
+        if math.dist(tool, ref) < _SNAP_MM and s >= end:
+            tool, self._tool_q = list(ref), self._ref_q
         elif self._tool_q is not self._unit_q or self._ref_q is not self._unit_ref:
             q = self._tool_q
             turned = _nlerp(q, self._ref_q, gain)
