@@ -38,3 +38,29 @@ def test_the_study_refuses_an_unknown_env() -> None:
     """The env key is wire or vec."""
     with pytest.raises(ConfigError, match="env"):
         BaselinesConfig(env="gpu")
+
+
+def test_the_study_starts_the_costliest_runs_first_and_keeps_a_probes_runs_together() -> None:
+    """Chunks in falling cost; CMA-ES and SAC on one numpy cell's probe share one chunk."""
+    from forcelearn.tools.study.grid import RunSpec
+    from forcelearn.tools.study.runner import make_chunks
+    from forcelearn.tools.study.tasks import get_task
+
+    def spec(method: str, seed: int, **more: str) -> RunSpec:
+        env = "vec" if method in ("cma", "sac") else "wire"
+        pairs = {"method": method, "env": env, "learner_start": "probe", **more}
+        return RunSpec("baselines", 300, seed, tuple(pairs.items()))
+
+    specs = [spec(m, s) for s in (0, 1) for m in ("pi", "cma", "sac", "ilc")]
+    specs.append(spec("srv", 0, learner_start="cold"))
+    task = get_task("baselines")
+    chunks = make_chunks(task, specs, slots=2, batch=32)
+    assert task.cost is not None
+    costs = [sum(task.cost(s) for s in chunk) for chunk in chunks]
+    assert costs == sorted(costs, reverse=True)
+    assert sorted(s.run_id for chunk in chunks for s in chunk) == sorted(s.run_id for s in specs)
+    shared = [chunk for chunk in chunks if len(chunk) > 1]
+    assert len(shared) == 2
+    for chunk in shared:
+        assert {dict(s.overrides)["method"] for s in chunk} == {"cma", "sac"}
+        assert len({s.seed for s in chunk}) == 1

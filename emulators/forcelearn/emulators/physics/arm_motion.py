@@ -52,6 +52,7 @@ before the robot reports in position.
 from __future__ import annotations
 
 import math
+import struct
 from collections import deque
 from dataclasses import dataclass
 from typing import Any, cast
@@ -133,6 +134,10 @@ class ArmMotion:
         self.stall_fraction: float | None = None
         """Fault: every segment stops at this fraction of its length (a robot that stops short)."""
         self._pending: deque[tuple[int, Pose]] = deque()
+        self._unit_q: Quaternion | None = None
+        self._unit_ref: Quaternion | None = None
+        """An orientation (object) that :func:`_nlerp` towards this reference (object) returns
+        unchanged to the bit: checked once, then not computed again while both stay."""
         self._set_rest(pose)
 
     def _set_rest(self, pose: Pose) -> None:
@@ -147,6 +152,8 @@ class ArmMotion:
         self._seg_end = 0.0
         self._s = 0.0
         self._v = 0.0
+        self._ref_s: float | None = None
+        """The path point ``_ref`` was computed at on this segment (None: compute it again)."""
 
     # ---- what the controller sees ------------------------------------------------------
     @property
@@ -236,25 +243,33 @@ class ArmMotion:
                 on_tick(tick)
 
     def _step(self, dt: float) -> None:
-        while self._pending and self._pending[0][0] <= self.tick_index:
-            self._start_segment(self._pending.popleft()[1])
-        p = self.params
-        if self._s < self._seg_end:
-            remaining = self._seg_end - self._s
-            v = min(self._v + p.accel_mm_s2 * dt, self.speed_mm_s,
-                    math.sqrt(2.0 * p.accel_mm_s2 * remaining))
-            self._s = min(self._seg_end, self._s + v * dt)
-            self._v = 0.0 if self._s >= self._seg_end else v
+        pending = self._pending
+        while pending and pending[0][0] <= self.tick_index:
+            self._start_segment(pending.popleft()[1])
+        s, end = self._s, self._seg_end
+        if s < end:
+            accel = self.params.accel_mm_s2
+            v = min(self._v + accel * dt, self.speed_mm_s, math.sqrt(2.0 * accel * (end - s)))
+            self._s = s = min(end, s + v * dt)
+            self._v = 0.0 if s >= end else v
         else:
             self._v = 0.0
-        self._ref, self._ref_q = self._reference_at(self._s)
+        if s != self._ref_s:  # the reference stands still while the tool catches up
+            self._ref, self._ref_q = self._reference_at(s)
+            self._ref_s = s
         gain = 1.0 - self._lag_keep
-        (tx, ty, tz), (rx, ry, rz) = self._tool, self._ref
+        ref = self._ref
+        (tx, ty, tz), (rx, ry, rz) = self._tool, ref
         tool = [tx + gain * (rx - tx), ty + gain * (ry - ty), tz + gain * (rz - tz)]
-        if math.dist(tool, self._ref) < _SNAP_MM and self._s >= self._seg_end:
-            tool, self._tool_q = list(self._ref), self._ref_q
-        else:
-            self._tool_q = _nlerp(self._tool_q, self._ref_q, gain)
+        if math.dist(tool, ref) < _SNAP_MM and s >= end:
+            tool, self._tool_q = list(ref), self._ref_q
+        elif self._tool_q is not self._unit_q or self._ref_q is not self._unit_ref:
+            q = self._tool_q
+            turned = _nlerp(q, self._ref_q, gain)
+            if turned == q and struct.pack("<4d", *turned) == struct.pack("<4d", *q):
+                # this reference leaves this orientation as it is, to the bit: skip it from now on
+                self._unit_q, self._unit_ref, turned = q, self._ref_q, q
+            self._tool_q = turned
         self._tool = tool
 
     def _start_segment(self, goal: Pose) -> None:
@@ -265,6 +280,7 @@ class ArmMotion:
         length = max(distance, turn * self.speed_mm_s / self.params.rotation_speed_deg_s)
         self._seg_start, self._seg_start_q, self._seg_goal = start, start_q, goal
         self._seg_length = length
+        self._ref_s = None
         self._s = 0.0
         self._seg_end = length if self.stall_fraction is None else length * self.stall_fraction
         new_dir = self._direction()
@@ -326,3 +342,4 @@ class ArmMotion:
         self._seg_start, self._seg_start_q = list(start[:3]), tuple(start[3:7])
         self._seg_goal = pose(state["seg_goal"])
         self._seg_length, self._seg_end, self._s, self._v = (float(x) for x in state["seg"])
+        self._ref_s = None

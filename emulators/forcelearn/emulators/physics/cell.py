@@ -26,7 +26,7 @@ Frames and units
 from __future__ import annotations
 
 import threading
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -110,7 +110,9 @@ class CellPhysics:
         """Where the tool is as (x, y, z, quaternion): what the hot path compares."""
         if self._oriented is not None:
             self._oriented.observe_orientation(first.quaternion)
-        self._position_mm = first.position_mm
+        self._position: tuple[float, float, float] = (first.x_mm, first.y_mm, first.z_mm)
+        """Where the tool is, mm (floats; the array :attr:`_position_mm` is built when asked)."""
+        self._position_array: np.ndarray | None = first.position_mm
         self._rotation, self._gravity = self._orientation_terms(first.quaternion)
         self._wrench_key: tuple[float, ...] | None = None
         """The contact force the cached wrench was computed for (None: recompute)."""
@@ -124,9 +126,21 @@ class CellPhysics:
                 self._oriented.observe_orientation(key[3])
         self._pose = None  # a motion tick moves the tool far more often than anyone reads it
         self._pose_key = key
-        self._position_mm = np.array(key[:3], dtype=float)
+        self._position = (key[0], key[1], key[2])
+        self._position_array = None
         if self._observer is not None:
-            self._observer.observe_pose(self._position_mm)
+            self._observer.observe_pose(self._point())
+
+    @property
+    def _position_mm(self) -> np.ndarray:
+        """Where the tool is, mm, as an array (built once per position)."""
+        if self._position_array is None:
+            self._position_array = np.array(self._position, dtype=float)
+        return self._position_array
+
+    def _point(self) -> Any:
+        """The position as the environment takes it: a tuple if it accepts one, else the array."""
+        return self._position if self._tuples else self._position_mm
 
     @property
     def environment(self) -> ContactEnvironment:
@@ -140,6 +154,7 @@ class CellPhysics:
         self._timed = environment if isinstance(environment, TimedEnvironment) else None
         self._observer = environment if isinstance(environment, PoseObserver) else None
         self._oriented = environment if isinstance(environment, OrientedEnvironment) else None
+        self._tuples = bool(getattr(environment, "accepts_point_tuple", False))
         if self._oriented is not None and hasattr(self, "_pose_key"):
             self._oriented.observe_orientation(self._pose_key[3])
 
@@ -166,7 +181,7 @@ class CellPhysics:
                 if key != self._pose_key:
                     self._move_tool(key)
                 if timed is not None:
-                    timed.evolve(self._position_mm, dt_s)
+                    timed.evolve(self._point(), dt_s)
 
             if motion.tick_index >= motion.tick_at(t) and motion.tool_key == self._pose_key:
                 return  # no tick to run (the sensor's samples are closer than a tick)

@@ -27,7 +27,9 @@ from forcelearn.emulators.physics.sponge_law import (
     hysteresis_step,
     normal_force_n,
     penetration_mm,
+    point_penetration_mm,
     relaxation_step,
+    set_depth_mm,
     slide_direction,
     slides,
     stiffness_n_per_mm,
@@ -63,13 +65,27 @@ class Sponge(FoamMemory):
         self._memo_force = np.zeros(3)
         self._depth_key: tuple[float, ...] | None = None
         self._depth_mm = 0.0
+        self._set_key: tuple[SpongeParams, int] | None = None
+        self._set_mm = 0.0
 
-    def _penetration_mm(self, position_mm: np.ndarray) -> float:
+    accepts_point_tuple = True
+    """:meth:`observe_pose` and :meth:`evolve` take the position as a tuple of floats too
+    (what :class:`~.cell.CellPhysics` hands over on every motion tick: no array built)."""
+
+    def _penetration_mm(self, position_mm: np.ndarray | tuple[float, float, float]) -> float:
         """:func:`penetration_mm` at the present pass count, remembered for the last position."""
-        key = (self.passes, float(position_mm[1]), float(position_mm[2]))
+        passes = self.passes
+        if type(position_mm) is tuple:
+            key = (passes, position_mm[1], position_mm[2])
+        else:
+            key = (passes, float(position_mm[1]), float(position_mm[2]))
         if key != self._depth_key:  # asked once per pose and once per motion tick
             self._depth_key = key
-            self._depth_mm = penetration_mm(self.params, self.passes, key[1], key[2])
+            p = self.params
+            if (p, passes) != self._set_key:  # the set changes once per pass
+                self._set_key = (p, passes)
+                self._set_mm = set_depth_mm(p, passes)
+            self._depth_mm = point_penetration_mm(p, self._set_mm, key[1], key[2])
         return self._depth_mm
 
     def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
@@ -85,7 +101,7 @@ class Sponge(FoamMemory):
             )
         return self._memo_force.copy()
 
-    def evolve(self, position_mm: np.ndarray, dt_s: float) -> None:
+    def evolve(self, position_mm: np.ndarray | tuple[float, float, float], dt_s: float) -> None:
         """Advance the relaxation over ``dt_s`` during which the tool moved to ``position_mm``.
 
         The elastic depth is taken to change linearly over the interval (exact
@@ -101,7 +117,7 @@ class Sponge(FoamMemory):
         if foam == 0.0 and self.relaxing_mm > 0.0:
             self.relaxing_mm = 0.0  # out of contact the foam recovers freely
 
-    def observe_pose(self, position_mm: np.ndarray) -> None:
+    def observe_pose(self, position_mm: np.ndarray | tuple[float, float, float]) -> None:
         """Note where the tool is; completes a pass when it leaves the sponge after contact."""
         depth = self._penetration_mm(position_mm)
         p = self.params
@@ -112,7 +128,9 @@ class Sponge(FoamMemory):
         elif self._touched:
             self.finish_pass()
 
-    def _follow_move(self, position_mm: np.ndarray, depth_mm: float) -> None:
+    def _follow_move(
+        self, position_mm: np.ndarray | tuple[float, float, float], depth_mm: float
+    ) -> None:
         """Bring the hysteresis state and the last slide to a reported pose."""
         p = self.params
         here = (float(position_mm[0]), float(position_mm[1]), float(position_mm[2]))

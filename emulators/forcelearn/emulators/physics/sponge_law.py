@@ -269,12 +269,22 @@ def _norm(vector: np.ndarray) -> np.ndarray:
     return np.asarray(np.linalg.norm(vector, axis=-1, keepdims=True))
 
 
+def set_depth_mm(params: SpongeParams, passes: F) -> F:
+    """Return how far (mm) the surface has sunk after ``passes`` passes (its set)."""
+    return params.set_mm * (1 - _exp(-passes / params.set_passes))
+
+
 def surface_y_mm(params: SpongeParams, passes: F, z_mm: F) -> F:
     """Return the surface Y (mm) at height ``z_mm`` after ``passes`` passes."""
+    return set_surface_y_mm(params, set_depth_mm(params, passes), z_mm)
+
+
+def set_surface_y_mm(params: SpongeParams, set_mm: F, z_mm: F) -> F:
+    """Return the surface Y (mm) at height ``z_mm`` once it has sunk ``set_mm`` (its set)."""
     travelled = params.z_top_mm - z_mm
     wave = params.waviness_mm * _sin(2 * math.pi * travelled / params.waviness_wavelength_mm)
-    sunk = params.set_mm * (1 - _exp(-passes / params.set_passes))
-    return params.surface_y_mm + params.surface_slope * travelled + wave - sunk
+    surface: F = params.surface_y_mm + params.surface_slope * travelled + wave - set_mm
+    return surface
 
 
 def surface_dy_dz(params: SpongeParams, z_mm: F) -> F:
@@ -301,9 +311,14 @@ def penetration_mm(params: SpongeParams, passes: F, y_mm: F, z_mm: F) -> F:
         depth: np.ndarray = np.where(
             inside, np.maximum(0.0, surface_y_mm(params, passes, z_mm) - y_mm), 0.0)
         return depth
+    return point_penetration_mm(params, set_depth_mm(params, passes), y_mm, z_mm)
+
+
+def point_penetration_mm(params: SpongeParams, set_mm: float, y_mm: float, z_mm: float) -> float:
+    """:func:`penetration_mm` of one point (floats) on the surface sunk ``set_mm`` (hot path)."""
     if not params.z_bottom_mm <= z_mm <= params.z_top_mm:
         return 0.0
-    return max(0.0, surface_y_mm(params, passes, z_mm) - y_mm)
+    return max(0.0, set_surface_y_mm(params, set_mm, z_mm) - y_mm)
 
 
 def elastic_depth_mm(params: SpongeParams, foam_mm: F) -> F:

@@ -142,13 +142,18 @@ def _jr3(quick: bool) -> Figure:
                   "/ CAN round trips/s", ">= 0.9", f"CAN {trips:,.0f} round trips/s")
 
 
-def _env(seconds: float) -> Figure:
+def _env(seconds: float) -> list[Figure]:
     from forcelearn.tools.benchmarks.surface_env import measure
 
     echo, floor = _echo()
-    rate = measure(seconds).steps_per_s
-    return Figure("Surface-v0 steps", rate, "steps/s", 1.0 / (rate * echo),
-                  "step / pty echo", "500 steps/s (a host of 255 us echo)", floor)
+    measured = measure(seconds)
+    rate, cpu_rate = measured.steps_per_s, measured.steps_per_cpu_s
+    return [
+        Figure("Surface-v0 steps", rate, "steps/s", 1.0 / (rate * echo),
+               "step / pty echo", "500 steps/s (a host of 255 us echo)", floor),
+        Figure("Surface-v0 steps per CPU s", cpu_rate, "steps/CPU s", 1.0 / (cpu_rate * echo),
+               "step CPU / pty echo", "500 steps/s", floor),
+    ]
 
 
 def _vec(quick: bool) -> list[Figure]:

@@ -8,6 +8,8 @@ figure::
         [--methods srv,pi,ilc,cma,sac] [--vec-methods cma,sac] [--srv-starts probe,cold]
         [--variants default,fast_wear,soft] [--trials 300] [--sac-wire-seeds 3] [--workers 2]
 
+Prints a progress bar per study (runs done, the time left), then the table and the
+study's wall and CPU time (this process and its worker processes) with the workers used.
 Every method runs with ``learner_start = "probe"`` (the probe's path is each
 method's prior); srv also from μ = 0 (``--srv-starts``). The ``--vec-methods``
 run on a numpy cell of ``SurfaceVec-v0`` from the same wire-level probe, the
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import sys
 import time
@@ -210,25 +213,26 @@ def main(argv: list[str] | None = None) -> int:
         f"--vec-methods {args.vec_methods} --srv-starts {args.srv_starts} "
         f"--variants {args.variants} --sac-wire-seeds {args.sac_wire_seeds}"
     )
+    workers = args.workers or os.cpu_count() or 1
     started, cpu_started = time.perf_counter(), _cpu_s()
     if args.report_only:
         rows = saved_rows(args.study_dir, args.trials)
         header = f"Tabulated from the runs saved in `{args.study_dir}` by `{command}`"
     else:
         outcome = run_study(get_task("baselines"), args.study_dir, args.trials,
-                            range(args.seeds), points, workers=args.workers, command=command)
+                            range(args.seeds), points, workers=workers, command=command)
         rows, ran, reused = outcome.rows, outcome.ran, outcome.reused
         if args.sac_wire_seeds and "sac" in methods:
             wire_sac = [{"method": "sac", "variant": "default", "env": "wire",
                          "learner_start": "probe"}]
             extra = run_study(get_task("baselines"), args.study_dir / "sac-wire", args.trials,
-                              range(args.sac_wire_seeds), wire_sac, workers=args.workers,
+                              range(args.sac_wire_seeds), wire_sac, workers=workers,
                               command=command)
             rows, ran, reused = rows + extra.rows, ran + extra.ran, reused + extra.reused
         header = (
             f"Made by `{command}` ({time.perf_counter() - started:.0f} s wall, "
             f"{_cpu_s() - cpu_started:.0f} s CPU of this process and its workers, "
-            f"{ran} runs run now, {reused} reused)"
+            f"{workers} workers, {ran} runs run now, {reused} reused)"
         )
     curves = {r["run_id"]: _curves(args.study_dir, r["run_id"]) for r in rows}
     args.out.mkdir(parents=True, exist_ok=True)
@@ -239,6 +243,7 @@ def main(argv: list[str] | None = None) -> int:
     print("\n".join(table))
     print(f"wrote {figure} and {args.out / 'baselines_table.md'}")
     print(f"budget rule: stop at converged + {CONVERGENCE_WINDOW} + {AFTER_CONVERGED} trials")
+    print(header)
     return 0
 
 

@@ -200,6 +200,37 @@ def curves_of(recorder: TrialRecorder) -> dict[str, list[float]]:
     }
 
 
+RUN_COST = {"srv-cold": 1.0, "srv": 0.65, "sac": 0.55, "ilc": 0.45, "pi": 0.35, "cma": 0.1}
+"""Relative cost of a run by method (srv by start), from the shares of the study's wall time
+in docs/results/baselines.md: the runner starts the costliest first."""
+
+
+def _config_of(spec: RunSpec) -> BaselinesConfig:
+    config: BaselinesConfig = apply_overrides(
+        BaselinesConfig(trials=spec.trials), dict(spec.overrides)
+    )
+    return config
+
+
+def run_cost(spec: RunSpec) -> float:
+    """A run's expected cost, relative (:data:`RUN_COST`)."""
+    config = _config_of(spec)
+    cold = config.method == "srv" and config.learner_start == "cold"
+    return RUN_COST["srv-cold" if cold else config.method]
+
+
+def probe_group(spec: RunSpec) -> tuple[str, ...]:
+    """A run's chunk key: one probe's numpy-cell runs share a chunk, every other run alone.
+
+    The numpy-cell runs of one (variant, start, seed) start from one wire-level probe,
+    which a process runs once (:func:`probed`).
+    """
+    config = _config_of(spec)
+    if config.env != "vec":
+        return (spec.run_id,)
+    return ("vec", config.variant, config.learner_start, str(spec.seed))
+
+
 def base_config() -> BaselinesConfig:
     """The study's base config (its dotted keys are the --set keys)."""
     return BaselinesConfig()
@@ -209,7 +240,7 @@ def run_chunk(specs: list[RunSpec]) -> list[dict[str, Any]]:
     """Run specs one after the other (each opens its own emulated cell); one row each."""
     rows = []
     for spec in specs:
-        config = apply_overrides(BaselinesConfig(trials=spec.trials), dict(spec.overrides))
+        config = _config_of(spec)
         for attempt in range(1 + DEVICE_RETRIES):
             try:
                 summary, curves = run_baseline(config, spec.seed)

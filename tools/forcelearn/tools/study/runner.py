@@ -101,6 +101,17 @@ def make_chunks(
     task: StudyTask, specs: Sequence[RunSpec], slots: int, batch: int
 ) -> list[list[RunSpec]]:
     """Cut the runs into chunks: per chunk key, at most ``batch`` runs, spread over ``slots``."""
+    chunks = _chunks(task, specs, slots, batch)
+    if task.cost is not None:  # costliest first: the last to end are short
+        cost = task.cost
+        chunks.sort(key=lambda chunk: -sum(cost(s) for s in chunk))
+    return chunks
+
+
+def _chunks(
+    task: StudyTask, specs: Sequence[RunSpec], slots: int, batch: int
+) -> list[list[RunSpec]]:
+    """:func:`make_chunks` in grid order."""
     if not task.batched:
         return [[s] for s in specs]
     groups: dict[Any, list[RunSpec]] = {}

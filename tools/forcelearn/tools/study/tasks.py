@@ -40,6 +40,9 @@ class StudyTask:
     """Runs with equal keys may share a chunk (a batch)."""
     batched: bool
     """True: a chunk of many runs costs little more than one (run them together)."""
+    cost: Callable[[RunSpec], float] | None = None
+    """A run's expected cost, relative (the runner starts the costliest chunks first, so the
+    last to finish are short ones); None: in grid order."""
 
 
 def _contour_config(spec: RunSpec) -> Any:
@@ -109,6 +112,18 @@ def run_baselines_chunk(specs: list[RunSpec]) -> list[dict[str, Any]]:
     return run_chunk(specs)
 
 
+def _baselines_group(spec: RunSpec) -> Hashable:
+    from forcelearn.tools.study.baselines import probe_group
+
+    return probe_group(spec)
+
+
+def _baselines_cost(spec: RunSpec) -> float:
+    from forcelearn.tools.study.baselines import run_cost
+
+    return run_cost(spec)
+
+
 TASKS: dict[str, StudyTask] = {
     "contour": StudyTask(
         "contour",
@@ -131,8 +146,9 @@ TASKS: dict[str, StudyTask] = {
         "paper §5 through the Gymnasium env: SRV vs force control, ILC, CMA-ES, SAC",
         _baselines_base,
         run_baselines_chunk,
-        lambda spec: spec.run_id,
-        batched=False,
+        _baselines_group,
+        batched=True,
+        cost=_baselines_cost,
     ),
 }
 
