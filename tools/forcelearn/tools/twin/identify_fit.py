@@ -96,18 +96,11 @@ def fit_timing(moves: list[TimedMove], band_mm: float = 0.1) -> TimingFit | None
 
     def model(x: np.ndarray) -> np.ndarray:
         p = dict(zip(names, x.tolist(), strict=True))
-        result = np.empty(length.size)
-        for is_own in (True, False):
-            pick = own == is_own
-            if not pick.any():
-                continue
-            v = (np.full(pick.sum(), p["default_speed_mm_s"]) if is_own
-                 else p["speed_scale"] * speed[pick])
-            for value in np.unique(v):  # the model takes one speed per call
-                sub = np.flatnonzero(pick)[v == value]
-                arm = {**p, "default_speed_mm_s": float(value)}
-                total = predict_in_position_s(length[sub], arm, band_mm)
-                result[sub] = np.where(events.kind[sub] == 0, p["start_delay_s"], total)
+        # every move at its own speed, all (length, speed) pairs in one tick-grid pass
+        own_speed = p.get("default_speed_mm_s", math.nan)
+        v = np.where(own, own_speed, p.get("speed_scale", 1.0) * speed)
+        total = predict_in_position_s(length, p, band_mm, v)
+        result: np.ndarray = np.where(events.kind == 0, p["start_delay_s"], total)
         return result
 
     def residuals(x: np.ndarray) -> np.ndarray:
