@@ -39,7 +39,6 @@ from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, Member
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
-from forcelearn.tools.twin.uncertainty import sigmas
 
 HOLD_OUT = 0.2
 """Share of the trials (the last ones) the fit does not use."""
@@ -221,7 +220,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
         if not names:
             return dict(start), {}, cost
         x, result = problem.solve(names, start)
-        one_sigma = sigmas(result.jac, result.fun, problem.groups)
+        one_sigma = problem.sigmas(result.jac, result.fun)
         return ({**start, **dict(zip(names, x.tolist(), strict=True))},
                 dict(zip(names, one_sigma.tolist(), strict=True)), float(result.cost))
 
