@@ -106,11 +106,30 @@ def profile(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
         error = new_error
         if keep_path:
             shares.append(np.where(d > 0, tool / np.maximum(d, 1e-12), 1.0))
-        if not np.isnan(ticks).any():
+        waiting = np.isnan(ticks)
+        if not waiting.any():
+            break
+        if not keep_path and keep > 0 and band_mm > _SNAP_MM and stopped[waiting].all():
+            ticks = np.where(waiting, _decay_ticks(i, error, band_mm, keep), ticks)
             break
     ticks = np.where(np.isnan(ticks), float(MAX_TICKS), ticks)
     share = np.stack(shares, axis=1) if keep_path else None
     return Profile(d, inverse.reshape(flat.shape), ticks, share)
+
+
+def _decay_ticks(i: int, error: np.ndarray, band_mm: float, keep: float) -> np.ndarray:
+    """Ticks to in position (with the crossing's fraction) of tools whose reference stopped.
+
+    After tick ``i`` the error only decays, ``error keep^k``: the loop's band crossing in
+    closed form, ``i + ln(error / band) / ln(1 / keep)`` (its tick ``i - 1 + k`` plus the
+    fraction ``ln(e_(k-1) / band) / ln(1 / keep)``), ``MAX_TICKS`` when that is later. The
+    tail of a long lag was most of the loop's ticks.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tail = np.log(np.maximum(error, band_mm) / band_mm) / -math.log(keep)
+    reach = i + np.ceil(tail - 1e-9)
+    result: np.ndarray = np.where(reach > MAX_TICKS, float(MAX_TICKS), i + tail)
+    return result
 
 
 def in_position_s(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
