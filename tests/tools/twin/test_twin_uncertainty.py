@@ -1,4 +1,5 @@
-"""The twin's stated uncertainty: the sandwich over groupings, the noise's own estimator."""
+"""The twin's stated uncertainty (the sandwich over groupings, the noise's own estimator) and the
+identification's kept timing fit."""
 
 from __future__ import annotations
 
@@ -70,3 +71,16 @@ def test_a_noise_the_bursts_disagree_on_is_not_known_better_than_their_gap() -> 
     steps = fit_sensor([], _bursts(0.0, 0.2, [(8, 3000)], rng), None, None, 0.0)
     assert fit.noise_n > 0.2 + 3 * steps.noise_sigma_n  # the ramp reads as noise
     assert abs(fit.noise_n - 0.2) < 3 * fit.noise_sigma_n
+
+
+def test_the_identification_keeps_its_timing_fit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The fit kept in identification.json is read back; another band's is fitted again."""
+    from forcelearn.tools.twin import identify_fit
+    from forcelearn.tools.twin.identify import Identification, IdentifyPlan
+
+    kept = identify_fit.TimingFit({"lag_s": 0.05}, {"lag_s": 0.001}, 0.002, 0)
+    document = identify_fit.timing_document(kept, identify_fit.BAND_MM)
+    found = Identification(IdentifyPlan(), [], [], document)
+    monkeypatch.setattr(identify_fit, "fit_timing", lambda moves, band: None)
+    assert identify_fit.timing_of(found) == kept
+    assert identify_fit.timing_of(found, 2 * identify_fit.BAND_MM) is None

@@ -54,4 +54,6 @@ def largest_sigmas(jacobian: np.ndarray, residuals: np.ndarray,
     place of the path, met again on every pass) are seen by clustering at that level only.
     Not knowing which holds, the fit states the largest.
     """
-    return np.max(np.stack([sigmas(jacobian, residuals, g) for g in groupings]), axis=0)
+    result: np.ndarray = np.max(np.stack([sigmas(jacobian, residuals, g) for g in groupings]),
+                                axis=0)
+    return result
