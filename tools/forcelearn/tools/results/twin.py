@@ -97,7 +97,8 @@ def site_and_twin(out: Path, cell: str, identify: bool = False, fit: bool = True
     if refit and (folder / "twin.done").exists():
         (folder / "twin.done").unlink()
     _step(folder / "twin.done",
-          _forcelearn("twin", str(site), *extra, "--out", str(folder / "twin" / "twin.toml")),
+          _forcelearn("twin", str(site), *extra, "--out", str(folder / "twin" / "twin.toml"),
+                      "--no-figure"),
           folder / "twin.log")
     print(f"{cell}: twin {(folder / 'twin.done').read_text().strip()}", flush=True)
 
