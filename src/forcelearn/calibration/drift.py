@@ -29,6 +29,7 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from forcelearn.calibration.model import MM_PER_M, Quaternion
 
@@ -102,7 +103,7 @@ def whitener(times_s: np.ndarray, knots_s: np.ndarray | None, model: DriftModel)
     for axis in range(6):
         cov = model.walk_var_per_s[axis] * walk + np.diag(model.mean_var[:, axis])
         chol = np.linalg.cholesky(cov + 1e-15 * np.trace(cov) / n * np.eye(n))
-        factors[axis] = np.linalg.solve(chol, np.eye(n))
+        factors[axis] = scipy.linalg.solve_triangular(chol, np.eye(n), lower=True)
     return Whitener(factors)
 
 
@@ -148,10 +149,29 @@ def com_std_mm(cov: np.ndarray, mass_kg: float, mc_kgm: np.ndarray) -> float:
     return float(np.sqrt(max(float(np.trace(jac @ cov[:4, :4] @ jac.T)), 0.0))) * MM_PER_M
 
 
+def leading_covariance(design: np.ndarray, white: Whitener, count: int) -> np.ndarray:
+    """The first ``count`` parameters' block of :func:`gls_covariance`, (count, count).
+
+    A Cholesky solve for those columns only (the normal matrix of a long plan has
+    hundreds of bias columns: its full pseudo-inverse is the prediction's cost);
+    a normal matrix that is not positive definite falls back to the pseudo-inverse.
+    """
+    aw = white @ design
+    normal = aw.T @ aw
+    try:
+        factor = scipy.linalg.cho_factor(normal)
+    except np.linalg.LinAlgError:
+        block: np.ndarray = np.linalg.pinv(normal)[:count, :count]
+        return block
+    unit = np.eye(normal.shape[0], count)
+    out: np.ndarray = scipy.linalg.cho_solve(factor, unit)[:count]
+    return out
+
+
 def predicted_com_std_mm(design: np.ndarray, white: Whitener, mass_kg: float,
                          mc_kgm: np.ndarray) -> float:
     """The RMS error norm of the centre of mass (mm) that a design would give (GLS)."""
-    return com_std_mm(gls_covariance(design, white), mass_kg, mc_kgm)
+    return com_std_mm(leading_covariance(design, white, 4), mass_kg, mc_kgm)
 
 
 __all__ = [
@@ -164,6 +184,7 @@ __all__ = [
     "com_tolerance_mm",
     "drift_variance",
     "gls_covariance",
+    "leading_covariance",
     "predicted_com_std_mm",
     "whitener",
 ]

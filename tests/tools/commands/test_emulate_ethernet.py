@@ -86,8 +86,10 @@ def test_check_then_run_reach_the_emulate_process(
         # a loaded CI host is no real sensor: allow it pauses (a real cell keeps 0.1 s), as
         # the in-process emulated cell does; a whole output map: the probe over EGM and
         # Net F/T is tested in-process (tests/site/test_cell_kinds.py)
+        # four steps: the trial crosses the processes' wires in real time; its length is
+        # not the point
         site.write_text(site.read_text() + "\n[safety]\nstale_sensor_s = 10.0\n\n"
-                        + configured_map_toml)
+                        + configured_map_toml + "steps_per_trial = 4\n")
         config = load_cell_config(site)
         assert not config.robot_emulated and not config.sensor_emulated
         if "egm" in options:
