@@ -88,8 +88,7 @@ def site_and_twin(out: Path, cell: str, identify: bool = False, fit: bool = True
                       "--out", str(site), "--no-progress"),
           folder / "site.log")
     extra: list[str] = []
-    if identify:
-        identification(out, cell)
+    if identify and identification(out, cell) == 0:  # a failed one: the run's records alone
         extra = ["--identification", str(folder / "identify")]
     if not fit:
         return
@@ -103,16 +102,16 @@ def site_and_twin(out: Path, cell: str, identify: bool = False, fit: bool = True
     print(f"{cell}: twin {(folder / 'twin.done').read_text().strip()}", flush=True)
 
 
-def identification(out: Path, cell: str) -> None:
-    """The cell's ``forcelearn identify`` run (skipped when done)."""
+def identification(out: Path, cell: str) -> int:
+    """The cell's ``forcelearn identify`` run (skipped when done); its exit code."""
     folder = out / cell
     folder.mkdir(parents=True, exist_ok=True)
-    _step(folder / "identify.done",
-          _forcelearn("identify", "--config", str(out / "cells" / f"{cell}.toml"), "--out",
-                      str(folder / "identify")),
-          folder / "identify.log")
-    print(f"{cell}: identification {(folder / 'identify.done').read_text().strip()}",
-          flush=True)
+    rc = _step(folder / "identify.done",
+               _forcelearn("identify", "--config", str(out / "cells" / f"{cell}.toml"), "--out",
+                           str(folder / "identify")),
+               folder / "identify.log")
+    print(f"{cell}: identification {rc}", flush=True)
+    return rc
 
 
 def learning_run(out: Path, cell: str, side: str, seed: int) -> None:
