@@ -1,5 +1,7 @@
-"""The twin's stated uncertainty (the sandwich over groupings, the noise's own estimator) and the
-identification's kept timing fit."""
+"""The twin's stated uncertainty and the identification's kept timing fit.
+
+The sandwich over groupings, the noise's own estimator, the members not ruled out.
+"""
 
 from __future__ import annotations
 
@@ -50,7 +52,7 @@ def _bursts(phi: float, sigma: float, lengths: list[tuple[int, int]], rng: np.ra
     count = np.array(counts, float)[None, :]
     return cast(RecordArrays, SimpleNamespace(
         has_burst=np.ones_like(count, bool), count=count, std_n=np.array(stds)[None, :],
-        is_step=np.array(steps)[None, :]))
+        is_step=np.array(steps)[None, :], mean_n=np.full_like(count, 10.0)))  # in contact
 
 
 def test_coloured_noise_of_short_and_long_bursts_is_measured() -> None:
@@ -84,3 +86,27 @@ def test_the_identification_keeps_its_timing_fit(monkeypatch: pytest.MonkeyPatch
     monkeypatch.setattr(identify_fit, "fit_timing", lambda moves, band: None)
     assert identify_fit.timing_of(found) == kept
     assert identify_fit.timing_of(found, 2 * identify_fit.BAND_MM) is None
+
+
+
+def test_a_member_the_records_do_not_rule_out_widens_the_chosen_ones_values() -> None:
+    """A richer member predicting as well (before the BIC's penalty) widens the sigma."""
+    from forcelearn.tools.twin.choice import BIC_MARGIN
+    from forcelearn.tools.twin.fit import MemberFit, member_spread
+    from forcelearn.tools.twin.params import LINEAR_MEMBERS, NONLINEAR_MEMBER, Member
+
+    bursts = 400
+
+    def fit(member: Member, contact: float, misfit: float) -> MemberFit:
+        free = len(member.free)
+        return MemberFit(member, {"surface_y_mm": contact, "stiffness_n_per_mm": 2.0},
+                         {"surface_y_mm": 0.01, "stiffness_n_per_mm": 0.001}, 0.1, 0.1,
+                         misfit + free * math.log(bursts), free, bursts)
+
+    chosen = fit(LINEAR_MEMBERS[0], -3.36, 100.0)
+    as_well = fit(NONLINEAR_MEMBER, -3.0, 100.0 + 0.5 * BIC_MARGIN)
+    assert as_well.bic > chosen.bic + BIC_MARGIN  # the penalty alone would have left it out
+    spread = member_spread([chosen, as_well], 0)
+    assert spread["surface_y_mm"] == pytest.approx(0.36)
+    assert spread["stiffness_n_per_mm"] == 0.0
+    assert member_spread([chosen, fit(NONLINEAR_MEMBER, -3.0, 100.0 + 2 * BIC_MARGIN)], 0) == {}

@@ -5,10 +5,11 @@
   ``1 - mean_share(phi, n)`` of the variance about their mean, about ``1 - g / n`` with
   ``g = (1 + phi) / (1 - phi)``; corrected at the bursts' mean length instead, the short
   control-step bursts beside the probe's long ones read 2.5 % low on a coloured cell). Its
-  1-sigma is the larger of the sampling one (chi-square over the samples' effective count)
+  1-sigma is the largest of the sampling one (chi-square over the samples' effective count)
   and half the gap between the control steps' bursts and the others (the probe's, the
-  approach reads): an estimate that depends on which bursts gave it (a force still
-  relaxing in a long probe burst reads as noise) is not known better than that;
+  approach reads), and between the free-space bursts and those in contact: an estimate
+  that depends on which bursts gave it (a force still relaxing within a burst reads as
+  noise; in free space nothing moves but the sensor) is not known better than that;
 * colour: the AR(1) coefficient ``phi`` per sample that makes the burst means
   scatter as much as the fit's residuals do (``var(mean) = g sigma^2 / n``): an
   upper bound, since the residuals also hold what the model misses;
@@ -98,10 +99,12 @@ def fit_sensor(records: list[TrialRecords], data: RecordArrays,
     noise = _pooled_noise(data, many, colour)
     effective = float(np.sum(counts - 1)) / max(gain, 1.0) if counts.size else 0.0
     noise_sigma = noise / math.sqrt(2 * effective) if effective > 0 else math.inf
-    steps, others = many & data.is_step, many & ~data.is_step
-    if steps.sum() >= SPLIT_MIN_BURSTS and others.sum() >= SPLIT_MIN_BURSTS:
-        gap = abs(_pooled_noise(data, steps, colour) - _pooled_noise(data, others, colour))
-        noise_sigma = max(noise_sigma, 0.5 * gap)
+    touching = many & (data.mean_n > max(0.5, 3.0 * noise))
+    for part in (many & data.is_step, many & ~touching):  # vs the rest: steps, free space
+        rest = many & ~part
+        if part.sum() >= SPLIT_MIN_BURSTS and rest.sum() >= SPLIT_MIN_BURSTS:
+            gap = abs(_pooled_noise(data, part, colour) - _pooled_noise(data, rest, colour))
+            noise_sigma = max(noise_sigma, 0.5 * gap)
     if calibration_noise_n is not None:
         noise, noise_sigma = calibration_noise_n, 0.0
     drift, drift_sigma, tares = _drift(records, noise, n_mean, gain)
