@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
         run_identification,
         write_identification,
     )
-    from forcelearn.tools.twin.identify_fit import fit_timing
+    from forcelearn.tools.twin.identify_fit import BAND_MM, fit_timing, timing_document
 
     plan = IdentifyPlan()
     if args.plan:
@@ -45,7 +45,10 @@ def run(args: argparse.Namespace) -> int:
     seed = args.seed if args.seed is not None else config.seed
     result = run_identification(config, plan, seed)
     path = write_identification(result, out)
-    timing = fit_timing(result.moves)
+    timing = fit_timing(result.moves, BAND_MM)
+    if timing is not None:  # kept in the file: the twin and the study read it, not refit it
+        path = write_identification(
+            dataclasses.replace(result, timing=timing_document(timing, BAND_MM)), out)
     steps = sum(len(t.steps) for t in result.records)
     print(f"identification: {len(result.moves)} timed moves, {steps} force steps; "
           f"wrote {path}")

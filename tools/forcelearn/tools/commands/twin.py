@@ -29,6 +29,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "press, hold and cycles join the fit")
     parser.add_argument("--out", type=Path, required=True,
                         help="the twin's config to write (twin.md, twin.json beside it)")
+    parser.add_argument("--no-figure", action="store_true",
+                        help="write no twin_heldout.png (a study's fits: twin.json is enough)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
                    arm.in_position_mm, arm.tick_s, noise,
                    configured_phi=configured_colour(config, source.records),
                    polling=polling_of(config.robot, arm), identification=identification)
-    document = write_report(fit, source, args.out)
+    document = write_report(fit, source, args.out, figure=not args.no_figure)
     folder = args.out.parent
     if not fit.represented:
         print(f"this cell is not represented by the twin: {fit.reason}")

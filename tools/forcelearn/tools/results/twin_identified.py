@@ -149,13 +149,13 @@ def three_sigma_offs(truth: dict[str, Any], twin: dict[str, Any]) -> list[str]:
 def identification_arm(truth: dict[str, Any], folder: Path) -> list[Identified]:
     """Lag and acceleration from a cell's identification run alone (``folder``), vs truth.
 
-    The values ``forcelearn twin --identification`` takes (:func:`fit_timing` of its polled
+    The values ``forcelearn twin --identification`` takes (:func:`timing_of` its polled
     moves); empty when the folder has none or too few moves.
     """
     from forcelearn.tools.twin.identify import read_identification
-    from forcelearn.tools.twin.identify_fit import fit_timing
+    from forcelearn.tools.twin.identify_fit import timing_of
 
-    timing = fit_timing(read_identification(folder).moves)
+    timing = timing_of(read_identification(folder))
     if timing is None:
         return []
     values = truth_values(truth)

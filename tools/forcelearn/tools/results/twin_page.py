@@ -197,7 +197,8 @@ def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
                generator_seed: int, seeds: int, trials: int, workers: int = 2,
                identify: bool = False) -> None:
     """Write the Markdown page of the study."""
-    twin_line = "#           forcelearn twin DIR/cell-XX/site --out DIR/cell-XX/twin/twin.toml"
+    twin_line = ("#           forcelearn twin DIR/cell-XX/site --out DIR/cell-XX/twin/twin.toml "
+                 "--no-figure")
     identify_lines = []
     if identify:
         identify_lines = ["#           forcelearn identify --config cell-XX.toml --out "

@@ -53,16 +53,28 @@ class Profile:
 
 
 def profile(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
-            keep_path: bool = False) -> Profile:
+            keep_path: bool = False, speed_mm_s: np.ndarray | None = None) -> Profile:
     """Run the emulator's motion for every distinct length of ``distance_mm`` (mm).
 
     ``arm`` holds ``default_speed_mm_s``, ``accel_mm_s2``, ``lag_s`` and optionally
     ``tick_s``. ``keep_path``: also return the tool's share of the path per tick.
+    ``speed_mm_s`` (``distance_mm``'s shape): each move's own speed, mm/s, instead of
+    ``default_speed_mm_s``; the model then runs once per distinct (length, speed) pair,
+    all pairs in one pass over the ticks.
     """
     tick = float(arm.get("tick_s", TICK_S))
-    speed, accel, lag = arm["default_speed_mm_s"], arm["accel_mm_s2"], arm["lag_s"]
+    accel, lag = arm["accel_mm_s2"], arm["lag_s"]
     flat = np.nan_to_num(np.asarray(distance_mm, dtype=float))
-    lengths, inverse = np.unique(np.round(np.maximum(flat, 0.0) / ROUND_MM), return_inverse=True)
+    rounded = np.round(np.maximum(flat, 0.0) / ROUND_MM)
+    speed: float | np.ndarray
+    if speed_mm_s is None:
+        lengths, inverse = np.unique(rounded, return_inverse=True)
+        speed = arm["default_speed_mm_s"]
+    else:
+        pairs = np.column_stack([rounded.ravel(),
+                                 np.broadcast_to(speed_mm_s, flat.shape).ravel()])
+        unique, inverse = np.unique(pairs, axis=0, return_inverse=True)
+        lengths, speed = unique[:, 0], unique[:, 1]
     d = lengths * ROUND_MM
     keep = math.exp(-tick / lag) if lag > 0 else 0.0
     gain = 1.0 - keep
@@ -94,22 +106,41 @@ def profile(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
         error = new_error
         if keep_path:
             shares.append(np.where(d > 0, tool / np.maximum(d, 1e-12), 1.0))
-        if not np.isnan(ticks).any():
+        waiting = np.isnan(ticks)
+        if not waiting.any():
+            break
+        if not keep_path and keep > 0 and band_mm > _SNAP_MM and stopped[waiting].all():
+            ticks = np.where(waiting, _decay_ticks(i, error, band_mm, keep), ticks)
             break
     ticks = np.where(np.isnan(ticks), float(MAX_TICKS), ticks)
     share = np.stack(shares, axis=1) if keep_path else None
     return Profile(d, inverse.reshape(flat.shape), ticks, share)
 
 
-def in_position_s(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float
-                  ) -> np.ndarray:
+def _decay_ticks(i: int, error: np.ndarray, band_mm: float, keep: float) -> np.ndarray:
+    """Ticks to in position (with the crossing's fraction) of tools whose reference stopped.
+
+    After tick ``i`` the error only decays, ``error keep^k``: the loop's band crossing in
+    closed form, ``i + ln(error / band) / ln(1 / keep)`` (its tick ``i - 1 + k`` plus the
+    fraction ``ln(e_(k-1) / band) / ln(1 / keep)``), ``MAX_TICKS`` when that is later. The
+    tail of a long lag was most of the loop's ticks.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tail = np.log(np.maximum(error, band_mm) / band_mm) / -math.log(keep)
+    reach = i + np.ceil(tail - 1e-9)
+    result: np.ndarray = np.where(reach > MAX_TICKS, float(MAX_TICKS), i + tail)
+    return result
+
+
+def in_position_s(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
+                  speed_mm_s: np.ndarray | None = None) -> np.ndarray:
     """Mean time (s) from a command to in position for moves of ``distance_mm``.
 
     ``start_delay + tick / 2 + (N - 1/2) tick`` (module doc); 0 motion for a move within
-    the band.
+    the band. ``speed_mm_s``: each move's own speed (:func:`profile`).
     """
     tick = float(arm.get("tick_s", TICK_S))
-    found = profile(distance_mm, arm, band_mm)
+    found = profile(distance_mm, arm, band_mm, speed_mm_s=speed_mm_s)
     ticks = found.ticks[found.inverse]
     motion = np.where(ticks > 0, ticks * tick, 0.0)
     result: np.ndarray = arm["start_delay_s"] + motion

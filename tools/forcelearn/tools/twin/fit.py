@@ -32,14 +32,13 @@ from forcelearn.tools.twin.arm import (
 )
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
-from forcelearn.tools.twin.choice import choose, diagnose, family_for
+from forcelearn.tools.twin.choice import BIC_MARGIN, choose, diagnose, family_for
 from forcelearn.tools.twin.forward import Reading, predict_means
 from forcelearn.tools.twin.identify import Identification
 from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, Member
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
-from forcelearn.tools.twin.uncertainty import sigmas
 
 HOLD_OUT = 0.2
 """Share of the trials (the last ones) the fit does not use."""
@@ -66,6 +65,8 @@ class MemberFit:
     """RMS of the control steps' burst means on the held-out trials, N."""
     bic: float
     free: int
+    heldout_bursts: int = 1
+    """Held-out bursts the BIC counts (its penalty is ``free * log`` of it)."""
     held: tuple[str, ...] = ()
     """Parameters the records did not determine, held at the base config's value."""
     train_cost: float = math.inf
@@ -77,6 +78,9 @@ class MemberFit:
     """The Jacobian's (cluster-robust) 1-sigma of the fitted parameters, before the jackknife."""
     jackknife_sigmas: dict[str, float] = field(default_factory=dict)
     """The trial-block jackknife's 1-sigma (chosen member only): ``sigmas`` is the larger."""
+    member_sigmas: dict[str, float] = field(default_factory=dict)
+    """How far the members the records do not rule out put each value (chosen member only;
+    :func:`member_spread`): ``sigmas`` is at least this."""
 
 
 @dataclass
@@ -221,7 +225,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
         if not names:
             return dict(start), {}, cost
         x, result = problem.solve(names, start)
-        one_sigma = sigmas(result.jac, result.fun, problem.groups)
+        one_sigma = problem.sigmas(result.jac, result.fun)
         return ({**start, **dict(zip(names, x.tolist(), strict=True))},
                 dict(zip(names, one_sigma.tolist(), strict=True)), float(result.cost))
 
@@ -267,8 +271,41 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     return MemberFit(
         member, values, {n: float(spread[n]) for n in member.free if n not in fixed},
         train_rms, _rms(held_pred - heldout.mean_n, heldout.is_step & heldout.has_burst), bic,
-        len(free), tuple(held), train_cost=cost,
+        len(free), n_held, tuple(held), train_cost=cost,
     )
+
+
+def member_spread(fits: list[MemberFit], index: int) -> dict[str, float]:
+    """The chosen member's values' spread over the members the records do not rule out.
+
+    A richer member containing the chosen one that the walk did not take, and that predicts
+    the held-out trials as well (their misfit, the BIC without its penalty for parameters,
+    within ``BIC_MARGIN`` of the chosen's, or better with its mechanism not determined),
+    explains the records as well: the penalty decides which member to report, not which
+    the records rule out. Where its
+    fitted value of a shared parameter differs, the records do not say which is right,
+    and a chosen member that lacks a mechanism the cell has moves its other values to
+    make up for it (a hysteretic cell's contact 0.36 mm off under a linear spring; hidden
+    cell 13 of seed 1). The model-selection part of the uncertainty (Burnham & Anderson
+    2002, 4.3): for each parameter fitted (not held) in both, the largest ``|difference|``.
+    """
+    chosen = fits[index]
+    spread: dict[str, float] = {}
+    for other in fits:
+        if (other is chosen or not other.eligible
+                or not set(chosen.member.free) <= set(other.member.free)
+                or not _misfit(other) <= _misfit(chosen) + BIC_MARGIN):
+            continue
+        for name in chosen.sigmas:
+            if name in other.values and name not in chosen.held and name not in other.held:
+                gap = abs(other.values[name] - chosen.values[name])
+                spread[name] = max(spread.get(name, 0.0), gap)
+    return spread
+
+
+def _misfit(fit: MemberFit) -> float:
+    """The held-out BIC without its penalty for the member's parameters."""
+    return fit.bic - fit.free * math.log(fit.heldout_bursts)
 
 
 def nested_parent(member: Member, fitted: list[MemberFit]) -> MemberFit | None:
@@ -375,6 +412,9 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     chosen.jackknife_sigmas = spread(choice.index)
     for name, resampled_sigma in chosen.jackknife_sigmas.items():
         chosen.sigmas[name] = max(chosen.sigmas[name], resampled_sigma)
+    chosen.member_sigmas = member_spread(fits, choice.index)
+    for name, member_sigma in chosen.member_sigmas.items():
+        chosen.sigmas[name] = max(chosen.sigmas[name], member_sigma)
     sponge = SpongeParams.unchecked(chosen.values)
     train_pred = predict_means(train, sponge, arm.values, reading)
     held_pred = predict_means(heldout, sponge, arm.values, reading)

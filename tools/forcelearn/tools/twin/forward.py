@@ -396,13 +396,13 @@ def predict_means(data: RecordArrays, p: SpongeParams, arm: dict[str, float],
 
 
 def predict_in_position_s(distance: np.ndarray, arm: dict[str, float],
-                          band_mm: float) -> np.ndarray:
+                          band_mm: float, speed_mm_s: np.ndarray | None = None) -> np.ndarray:
     """Predicted time from command to in position (s) for moves of ``distance`` mm.
 
     The emulated arm's tick-grid motion, its mean over the command's phase
-    (:func:`arm_model.in_position_s`).
+    (:func:`arm_model.in_position_s`); ``speed_mm_s``: each move's own speed, mm/s.
     """
-    return arm_model.in_position_s(distance, arm, band_mm)
+    return arm_model.in_position_s(distance, arm, band_mm, speed_mm_s)
 
 
 def mean_sample_period_s(data: RecordArrays) -> float:

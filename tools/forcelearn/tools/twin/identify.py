@@ -126,6 +126,9 @@ class Identification:
     plan: IdentifyPlan
     moves: list[TimedMove]
     records: list[TrialRecords]
+    timing: dict[str, Any] | None = None
+    """The arm's timing fitted to ``moves`` as the file keeps it (``band_mm``, ``values``,
+    ``sigmas``, ``rms_s``, ``moves``; :func:`~.identify_fit.timing_of`); None: not fitted."""
 
 
 def _poll(robot: Any) -> tuple[float, bool | None, bool]:
@@ -264,6 +267,8 @@ def write_identification(result: Identification, out: Path) -> Path:
         "records": [{"trial": t.trial, "steps": [step_to_json(s) for s in t.steps]}
                     for t in result.records],
     }
+    if result.timing is not None:
+        document["timing"] = result.timing
     path = out / FILE
     path.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
     return path
@@ -288,4 +293,4 @@ def read_identification(folder: Path) -> Identification:
     steps: list[StepRecord] = [s for t in records for s in t.steps]
     if not steps and not moves:
         raise ValueError(f"{path} holds no identification data")
-    return Identification(plan, moves, records)
+    return Identification(plan, moves, records, document.get("timing"))

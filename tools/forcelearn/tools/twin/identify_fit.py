@@ -29,12 +29,16 @@ import numpy as np
 from scipy.optimize import least_squares, minimize
 from scipy.special import ndtr
 
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.tools.twin.arm import TICK_SCATTER_S, ArmFit
 from forcelearn.tools.twin.forward import predict_in_position_s
 from forcelearn.tools.twin.identify import Identification, TimedMove
 from forcelearn.tools.twin.uncertainty import sigmas
 
 TICK_S = 0.004
+BAND_MM = ArmConfig().in_position_mm
+"""The in-position band (mm) the twin fits with (the controller's default): the fit
+``forcelearn identify`` keeps in its file is for this band."""
 """The controller's interpolation tick, s: added to each window's scatter."""
 NAMES = ("start_delay_s", "accel_mm_s2", "default_speed_mm_s", "lag_s")
 BOUNDS = {"start_delay_s": (0.0, 1.0), "accel_mm_s2": (10.0, 20000.0),
@@ -80,7 +84,7 @@ def _events(moves: list[TimedMove]) -> _Events:
                    np.sqrt(table[:, 3] ** 2 / 12 + TICK_S**2 / 12), table[:, 3])
 
 
-def fit_timing(moves: list[TimedMove], band_mm: float = 0.1) -> TimingFit | None:
+def fit_timing(moves: list[TimedMove], band_mm: float = BAND_MM) -> TimingFit | None:
     """Fit the arm's timing to polled moves (None when too few events to fit four values)."""
     if not moves:
         return None
@@ -96,18 +100,11 @@ def fit_timing(moves: list[TimedMove], band_mm: float = 0.1) -> TimingFit | None
 
     def model(x: np.ndarray) -> np.ndarray:
         p = dict(zip(names, x.tolist(), strict=True))
-        result = np.empty(length.size)
-        for is_own in (True, False):
-            pick = own == is_own
-            if not pick.any():
-                continue
-            v = (np.full(pick.sum(), p["default_speed_mm_s"]) if is_own
-                 else p["speed_scale"] * speed[pick])
-            for value in np.unique(v):  # the model takes one speed per call
-                sub = np.flatnonzero(pick)[v == value]
-                arm = {**p, "default_speed_mm_s": float(value)}
-                total = predict_in_position_s(length[sub], arm, band_mm)
-                result[sub] = np.where(events.kind[sub] == 0, p["start_delay_s"], total)
+        # every move at its own speed, all (length, speed) pairs in one tick-grid pass
+        own_speed = p.get("default_speed_mm_s", math.nan)
+        v = np.where(own, own_speed, p.get("speed_scale", 1.0) * speed)
+        total = predict_in_position_s(length, p, band_mm, v)
+        result: np.ndarray = np.where(events.kind == 0, p["start_delay_s"], total)
         return result
 
     def residuals(x: np.ndarray) -> np.ndarray:
@@ -140,9 +137,30 @@ def fit_timing(moves: list[TimedMove], band_mm: float = 0.1) -> TimingFit | None
     return TimingFit(values, spread, rms, len(moves))
 
 
+def timing_document(timing: TimingFit, band_mm: float) -> dict[str, object]:
+    """``timing`` as ``identification.json`` keeps it (:attr:`Identification.timing`)."""
+    return {"band_mm": band_mm, "values": timing.values, "sigmas": timing.sigmas,
+            "rms_s": timing.rms_s, "moves": timing.moves}
+
+
+def timing_of(identification: Identification, band_mm: float = BAND_MM) -> TimingFit | None:
+    """The arm's timing from the identification's polled moves (None: too few to fit).
+
+    Read from the file when ``forcelearn identify`` kept its fit for this in-position band
+    and these moves (the fit is seconds of CPU; a study reads it three times), else fitted.
+    """
+    kept = identification.timing
+    if (kept is not None and kept.get("band_mm") == band_mm
+            and kept.get("moves") == len(identification.moves)):
+        return TimingFit({k: float(v) for k, v in kept["values"].items()},
+                         {k: float(v) for k, v in kept["sigmas"].items()},
+                         float(kept["rms_s"]), int(kept["moves"]))
+    return fit_timing(identification.moves, band_mm)
+
+
 def identified_arm(arm: ArmFit, identification: Identification, band_mm: float) -> ArmFit:
     """``arm`` (the run's) with the timing of an identification's polled moves, when it fits."""
-    timing = fit_timing(identification.moves, band_mm)
+    timing = timing_of(identification, band_mm)
     if timing is None:
         return dataclasses.replace(arm, note=(arm.note + "; " if arm.note else "")
                                    + "the identification has too few polled moves")

@@ -342,14 +342,19 @@ def write_figure(fit: TwinFit, path: Path) -> None:
     plt.close(figure)
 
 
-def write_report(fit: TwinFit, source: RunSource, out: Path) -> dict[str, Any]:
-    """Write twin.json, twin.md and the figure beside ``out``; twin.toml only if represented."""
+def write_report(fit: TwinFit, source: RunSource, out: Path, figure: bool = True
+                 ) -> dict[str, Any]:
+    """Write twin.json, twin.md and the figure beside ``out``; twin.toml only if represented.
+
+    ``figure`` False: no twin_heldout.png (a study's many fits read only twin.json).
+    """
     folder = out.parent
     folder.mkdir(parents=True, exist_ok=True)
     document = twin_document(fit, source)
     (folder / "twin.json").write_text(json.dumps(document, indent=2, default=_plain))
     (folder / "twin.md").write_text(twin_markdown(document))
-    write_figure(fit, folder / "twin_heldout.png")
+    if figure:
+        write_figure(fit, folder / "twin_heldout.png")
     if fit.represented:
         header = "".join(
             f"# {p['table']}.{p['name']} is NOT determined by the records (±{_fmt(p['sigma'])}"

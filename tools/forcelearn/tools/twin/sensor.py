@@ -1,8 +1,15 @@
 """The sensor's part of the twin: noise, its colour, and bias drift, from bursts and tares.
 
-* noise: the pooled standard deviation of the bursts' samples (a burst of
-  ``n`` correlated samples underestimates it by ``g / n`` of the variance, with
-  ``g = (1 + phi) / (1 - phi)``; corrected);
+* noise: the pooled variance of the bursts' samples about their means, each burst's
+  share corrected for its own length (``n`` samples of an AR(1) noise ``phi`` keep
+  ``1 - mean_share(phi, n)`` of the variance about their mean, about ``1 - g / n`` with
+  ``g = (1 + phi) / (1 - phi)``; corrected at the bursts' mean length instead, the short
+  control-step bursts beside the probe's long ones read 2.5 % low on a coloured cell). Its
+  1-sigma is the largest of the sampling one (chi-square over the samples' effective count)
+  and half the gap between the control steps' bursts and the others (the probe's, the
+  approach reads), and between the free-space bursts and those in contact: an estimate
+  that depends on which bursts gave it (a force still relaxing within a burst reads as
+  noise; in free space nothing moves but the sensor) is not known better than that;
 * colour: the AR(1) coefficient ``phi`` per sample that makes the burst means
   scatter as much as the fit's residuals do (``var(mean) = g sigma^2 / n``): an
   upper bound, since the residuals also hold what the model misses;
@@ -49,6 +56,24 @@ def mean_share(phi: float, n: float) -> float:
     return float((count + 2 * np.sum((count - lags) * phi**lags)) / count**2)
 
 
+SPLIT_MIN_BURSTS = 10
+"""Bursts each side needs for the control steps' and the other bursts' noise to be compared."""
+
+
+def _pooled_noise(data: RecordArrays, mask: np.ndarray, phi: float) -> float:
+    """The noise (N per sample) from the bursts ``mask`` picks (NaN: none).
+
+    Each burst's ``n`` samples about their mean keep ``n (1 - mean_share(phi, n))`` of the
+    variance (``std_n`` is ddof 0): the summed squares over their expectation.
+    """
+    if not mask.any():
+        return math.nan
+    counts = data.count[mask].astype(float)
+    lengths, inverse = np.unique(np.round(counts), return_inverse=True)
+    kept = np.array([max(0.05, 1 - mean_share(phi, float(n))) for n in lengths])[inverse]
+    return math.sqrt(float(np.sum(counts * data.std_n[mask] ** 2) / np.sum(counts * kept)))
+
+
 def fit_sensor(records: list[TrialRecords], data: RecordArrays,
                residuals: np.ndarray | None, calibration_noise_n: float | None,
                configured_phi: float | None = None) -> SensorFit:
@@ -71,10 +96,15 @@ def fit_sensor(records: list[TrialRecords], data: RecordArrays,
     n_mean = float(np.mean(counts)) if counts.size else 1.0
     colour = configured_phi if configured_phi is not None else 0.0
     gain = _colour_gain(colour)
-    shrink = max(0.05, 1 - mean_share(colour, n_mean))
-    noise = math.sqrt(var_in_burst / shrink) if math.isfinite(var_in_burst) else math.nan
+    noise = _pooled_noise(data, many, colour)
     effective = float(np.sum(counts - 1)) / max(gain, 1.0) if counts.size else 0.0
     noise_sigma = noise / math.sqrt(2 * effective) if effective > 0 else math.inf
+    touching = many & (data.mean_n > max(0.5, 3.0 * noise))
+    for part in (many & data.is_step, many & ~touching):  # vs the rest: steps, free space
+        rest = many & ~part
+        if part.sum() >= SPLIT_MIN_BURSTS and rest.sum() >= SPLIT_MIN_BURSTS:
+            gap = abs(_pooled_noise(data, part, colour) - _pooled_noise(data, rest, colour))
+            noise_sigma = max(noise_sigma, 0.5 * gap)
     if calibration_noise_n is not None:
         noise, noise_sigma = calibration_noise_n, 0.0
     drift, drift_sigma, tares = _drift(records, noise, n_mean, gain)

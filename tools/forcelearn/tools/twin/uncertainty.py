@@ -41,3 +41,19 @@ def sigmas(jacobian: np.ndarray, residuals: np.ndarray,
     cov = bread @ meat @ bread
     result: np.ndarray = np.where(blind, np.inf, np.sqrt(np.maximum(np.diag(cov), 0.0)))
     return result
+
+
+def largest_sigmas(jacobian: np.ndarray, residuals: np.ndarray,
+                   groupings: list[np.ndarray | None]) -> np.ndarray:
+    """The largest 1-sigma of each parameter over several correlation structures.
+
+    Each grouping is one guess at which residuals are correlated (:func:`sigmas`; None: each
+    residual alone). Clustering by a level whose residuals are correlated negatively (errors
+    that cancel within a trial along the fitted direction) shrinks the sandwich below the
+    independent-residual one; residuals correlated along another level (a model error at one
+    place of the path, met again on every pass) are seen by clustering at that level only.
+    Not knowing which holds, the fit states the largest.
+    """
+    result: np.ndarray = np.max(np.stack([sigmas(jacobian, residuals, g) for g in groupings]),
+                                axis=0)
+    return result
