@@ -117,6 +117,30 @@ def test_surface_reset_with_a_seed_opens_a_fresh_cell_and_without_keeps_the_wear
         env.close()
 
 
+def test_a_zero_that_moved_between_episodes_is_taken_again_in_free_space() -> None:
+    """A sensor reading a 3 N pull on the way in: retract, zero in free space, press in again.
+
+    (Before, the press guard's SensorSuspect ended a long baselines run: the JR3's drift
+    over an untared run read -1.1 N above the sponge.)
+    """
+    env = SurfaceEnv()
+    try:
+        _, first = env.reset(seed=1)
+        session = env.session
+        model = session.emulated_cell.sensor.emulator.model
+        normal = session.cell.force_filter.config
+        state = model.state_dict()
+        bias = np.asarray(state["bias"], dtype=float)
+        bias[normal.axis] -= normal.sign * 3.0
+        state["bias"] = bias
+        model.load_state_dict(state)
+        _, again = env.reset()
+        assert env.sensor_rezeros == 1
+        assert abs(again["start_force_n"] - first["start_force_n"]) < 1.5  # half the step
+    finally:
+        env.close()
+
+
 def test_close_stops_the_robot_releases_the_cell_and_is_idempotent() -> None:
     """After close the env has no cell; stepping asks for a reset; a second close is harmless."""
     env = SurfaceEnv()

@@ -16,7 +16,9 @@ import numpy as np
 
 from forcelearn.envs.base import TaskEnv, box
 from forcelearn.envs.surface_learner import SurfaceLearnerAdapter
+from forcelearn.errors import SensorSuspect
 from forcelearn.press_guard import PressGuard
+from forcelearn.tasks.recovery import retract_and_retare
 from forcelearn.tasks.surface import SurfaceTask
 from forcelearn.tasks.surface_map import OutputMapChoice, SurfaceYOutput, configured_map
 from forcelearn.tasks.surface_probe import ProbeResult, SurfaceProbe, probe_and_map
@@ -122,6 +124,8 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
         self.probe: ProbeResult | None = None
         """What the latest probe read and fitted (``None``: no probe ran)."""
         self._y_offset_mm = 0.0
+        self.sensor_rezeros = 0
+        """Zeros taken again in free space after a pull on the way in (:meth:`reset`)."""
         spec, limit = self.task_spec, config.safety.max_force_n
         self.task_steps_per_trial = spec.steps_per_trial
         self.task_desired_force_n = spec.desired_force_n
@@ -175,9 +179,24 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Retract, return to the start pose, press in; see the class docstring."""
+        """Retract, return to the start pose, press in; see the class docstring.
+
+        A zero that moved on the way in (:class:`~forcelearn.errors.SensorSuspect`: the
+        press guard read a pull, e.g. the sensor's drift over a long run without a tare)
+        is handled as a cell does: the tool retracts to free space, the sensor is zeroed
+        there and the start press made again, once (``sensor_rezeros`` counts them).
+        """
         self._y_offset_mm = 0.0
-        return super().reset(seed=seed, options=options)
+        try:
+            return super().reset(seed=seed, options=options)
+        except SensorSuspect as exc:
+            cell = None if self.session is None else self.session.cell
+            if cell is None:
+                raise
+            log.warning("%s: retracting, zeroing in free space and pressing in again", exc)
+            retract_and_retare(cell, self.task_spec.retract_y_mm, self.config.safety.max_step_mm)
+            self.sensor_rezeros += 1
+            return super().reset(seed=None, options=options)
 
     def _command(self, action: np.ndarray) -> np.ndarray:
         self._y_offset_mm = float(action[0]) * self.output_map.max_offset_mm
