@@ -7,6 +7,13 @@ branch the same way when the tool leaves the foam, and checkpoint it under the s
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
+import numpy as np
+
+Position = tuple[float, float, float]
+"""A tool position (x, y, z), mm."""
+
 State = dict[str, int | bool | float]
 """A checkpointed state: plain numbers by key."""
 
@@ -35,6 +42,19 @@ class FoamMemory:
         self.hysteresis_state = 0.0
         self._hysteresis_foam_mm = 0.0
         self.slide_direction = (0.0, 0.0, 0.0)
+
+    def _arrive(self, position_mm: np.ndarray | Sequence[float], depth_mm: float
+                ) -> tuple[Position, Position | None] | None:
+        """Record a reported position; return (here, the last one), or None off the foam.
+
+        Off the foam (``depth_mm`` <= 0) the branch is forgotten (:meth:`_forget_branch`).
+        """
+        here = (float(position_mm[0]), float(position_mm[1]), float(position_mm[2]))
+        last, self._last_position = self._last_position, here
+        if depth_mm <= 0.0:
+            self._forget_branch()
+            return None
+        return here, last
 
     def _memory_state(self) -> State:
         """The remembered state as plain numbers (:meth:`_load_memory` restores it)."""

@@ -185,11 +185,10 @@ class PartFoam(FoamMemory):
     def _follow_move(self, position_mm: np.ndarray, depth_mm: float, normal: np.ndarray) -> None:
         """Bring the hysteresis state and the last slide to a reported pose (as the sponge's)."""
         p = self.params
-        here = (float(position_mm[0]), float(position_mm[1]), float(position_mm[2]))
-        last, self._last_position = self._last_position, here
-        if depth_mm <= 0.0:  # off the foam: it forgets its branch, nothing holds its skin
-            self._forget_branch()
+        arrived = self._arrive(position_mm, depth_mm)
+        if arrived is None:  # off the foam: it forgets its branch, nothing holds its skin
             return
+        here, last = arrived
         along_mm, direction = 0.0, None
         if last is not None and last != here:
             move = np.subtract(here, last)

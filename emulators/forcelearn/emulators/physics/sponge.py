@@ -133,11 +133,10 @@ class Sponge(FoamMemory):
     ) -> None:
         """Bring the hysteresis state and the last slide to a reported pose."""
         p = self.params
-        here = (float(position_mm[0]), float(position_mm[1]), float(position_mm[2]))
-        last, self._last_position = self._last_position, here
-        if depth_mm <= 0.0:  # off the foam: it forgets its branch, nothing holds its skin
-            self._forget_branch()
+        arrived = self._arrive(position_mm, depth_mm)
+        if arrived is None:  # off the foam: it forgets its branch, nothing holds its skin
             return
+        here, last = arrived
         move = np.subtract(here, last) if last is not None and last != here else None
         along_mm = 0.0  # travel along the surface; a press within ~6 degrees of the normal: none
         if move is not None:
