@@ -136,13 +136,6 @@ def drift_variance(quaternions: list[Quaternion], times_s: np.ndarray, means: np
     return rate
 
 
-def gls_covariance(design: np.ndarray, white: Whitener) -> np.ndarray:
-    """Covariance of the parameters, (A^T W^T W A)^-1, for a whitener W."""
-    aw = white @ design
-    cov: np.ndarray = np.linalg.pinv(aw.T @ aw)
-    return cov
-
-
 def com_std_mm(cov: np.ndarray, mass_kg: float, mc_kgm: np.ndarray) -> float:
     """RMS of the centre of mass's error norm (mm) from the covariance of (m, m c, ...)."""
     jac = np.hstack([-np.asarray(mc_kgm)[:, None] / mass_kg**2, np.eye(3) / mass_kg])
@@ -150,7 +143,7 @@ def com_std_mm(cov: np.ndarray, mass_kg: float, mc_kgm: np.ndarray) -> float:
 
 
 def leading_covariance(design: np.ndarray, white: Whitener, count: int) -> np.ndarray:
-    """The first ``count`` parameters' block of :func:`gls_covariance`, (count, count).
+    """The first ``count`` parameters' block of the GLS covariance (A^T W^T W A)^-1, (count, count).
 
     A Cholesky solve for those columns only (the normal matrix of a long plan has
     hundreds of bias columns: its full pseudo-inverse is the prediction's cost);
@@ -183,7 +176,6 @@ __all__ = [
     "com_std_mm",
     "com_tolerance_mm",
     "drift_variance",
-    "gls_covariance",
     "leading_covariance",
     "predicted_com_std_mm",
     "whitener",
