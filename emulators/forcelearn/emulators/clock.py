@@ -87,9 +87,8 @@ class SimClock:
 
     @property
     def now_s(self) -> float:
-        """The present simulated time, s."""
-        with self._lock:
-            return self._now_s
+        """The present simulated time, s (one attribute read: atomic, no lock needed)."""
+        return self._now_s
 
     def advance_to(self, t_s: float) -> float:
         """Move the clock forward to ``t_s`` (never back); return the new time."""

@@ -282,7 +282,7 @@ class Jr3CanSensor(Driver):
         for _attempt in range(SYNC_ATTEMPTS):
             with lst.cond:
                 seq, frames = lst.seq, lst.data_frames
-            self._send(codec.Sync())
+            self._send(codec.SYNC)
 
             def answered(before: int = seq) -> bool:
                 return lst.seq > before or lst.bootup_pending

@@ -23,7 +23,7 @@ from forcelearn.devices import WrenchSample
 from forcelearn.drivers.jr3_can.pairing import Pairer
 from forcelearn.protocols.jr3_can import codec
 from forcelearn.protocols.jr3_can.opcodes import CounterMeaning, OpcodeMap
-from forcelearn.protocols.jr3_can.scaling import counts_to_wrench
+from forcelearn.protocols.jr3_can.scaling import units_per_count
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +84,8 @@ class Jr3Listener(can.Listener):
         self.seq = 0
         self.bootup_pending = False
         self.bus_error: Exception | None = None
-        self._full_scales: np.ndarray | None = None
+        self._per_count: np.ndarray | None = None
+        """N and N*m per count of the full scales in use (every sample is scaled by it)."""
         self._pairer = Pairer(opcodes.counter)
         self._frame_period_s = (opcodes.sensor_frame_period_s
                                 if opcodes.counter is CounterMeaning.SENSOR_FRAMES else None)
@@ -98,8 +99,7 @@ class Jr3Listener(can.Listener):
     def set_full_scales(self, full_scales: np.ndarray | None) -> None:
         """Use these six full scales (N, N*m) from now on; None stops scaling."""
         with self.cond:
-            self._full_scales = (None if full_scales is None
-                                 else np.asarray(full_scales, dtype=float))
+            self._per_count = None if full_scales is None else units_per_count(full_scales)
 
     @property
     def dropped_samples(self) -> int:
@@ -186,7 +186,8 @@ class Jr3Listener(can.Listener):
         pair = self._pairer.push(frame)
         if pair is None:
             return None
-        if self._full_scales is None:
+        per_count = self._per_count
+        if per_count is None:
             self._stats.samples_before_full_scales += 1
             return None
         limit = self.near_saturation_counts
@@ -197,7 +198,7 @@ class Jr3Listener(can.Listener):
         if pair.elapsed is not None and self._frame_period_s is not None:
             sensor_dt_s = pair.elapsed * self._frame_period_s
         sample = WrenchSample(
-            wrench=counts_to_wrench(pair.raw, self._full_scales),
+            wrench=np.array(pair.raw, dtype=float) * per_count,  # scaling.counts_to_wrench
             timestamp_s=time.monotonic(),
             counter=pair.counter,
             saturated=saturated,

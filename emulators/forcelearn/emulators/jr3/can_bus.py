@@ -123,11 +123,11 @@ class Jr3EmulatorBus(can.BusABC):
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         deadline = None if timeout is None else time.monotonic() + timeout
+        node = self.node
         while True:
-            until_sample = self.node.emit_due()
-            with self._cond:
-                waiting = bool(self._rx)
-            if not waiting and self.node.serve_pending():  # the host waits: the loop turns
+            until_sample = node.emit_due()
+            # a deque's truth is one atomic read: frames already in need no turn of the loop
+            if not self._rx and node.serve_pending():  # the host waits: the loop turns
                 continue
             with self._cond:
                 if self._rx:
@@ -143,8 +143,7 @@ class Jr3EmulatorBus(can.BusABC):
     def _running_node(self) -> Jr3EmulatorNode:
         """The bus's node; CanOperationError once it has stopped."""
         node = self.node
-        registered: object = registry.lookup(REGISTRY_KIND, self.channel)
-        if registered is not node:
+        if node.closed:  # a node unregisters its channel when it closes, never before
             raise can.CanOperationError(
                 f"the JR3 emulator on {self.channel!r} has stopped: open the bus again"
             )

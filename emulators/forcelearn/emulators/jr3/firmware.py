@@ -217,6 +217,8 @@ class Jr3Firmware:
 
     def emit_due(self) -> float | None:
         """Stream what async mode owes by now; seconds to the next sample (None: not streaming)."""
+        if self.mode != "async":  # sync or idle: nothing streams (checked again under the lock)
+            return None
         with self._lock:
             if self.mode != "async":
                 return None
@@ -235,9 +237,11 @@ class Jr3Firmware:
 
     def _pending_since(self) -> float | None:
         """Arrival of the oldest SYNC or command waiting for a turn (None: nothing waits)."""
-        times = [t for t in (self._sync_flag_s, self._queue[0][0] if self._queue else None)
-                 if t is not None]
-        return min(times) if times else None
+        flag = self._sync_flag_s
+        if not self._queue:
+            return flag
+        first = self._queue[0][0]
+        return first if flag is None or first < flag else flag  # the earlier; the flag on a tie
 
     def _turn_after(self, t_s: float) -> float:
         """The first loop turn strictly after ``t_s`` (turns are ``loop_period_s`` apart)."""
@@ -423,7 +427,7 @@ class Jr3Firmware:
         if frame is None:
             self.stats.frames_lost += 1
             return
-        _, end = self.bus_wire.transmit(self._frame_time_s(len(frame.data)))
+        _, end = self.bus_wire.transmit(self._frame_times[len(frame.data)])
         self.clock.advance_to(end)
         msg = can.Message(arbitration_id=frame.arbitration_id, data=frame.data,
                           is_extended_id=False)

@@ -229,7 +229,7 @@ class CellPhysics:
         """
         with self._lock:
             rotation, gravity = self._rotation, self._gravity
-            force_world = self.environment.contact_force_world_n(self._position_mm)
+            force_world = self.environment.contact_force_world_n(self._point())
             # The force changes once per motion tick, the sensor samples many times per tick.
             key = tuple(force_world.tolist())
             if key != self._wrench_key:

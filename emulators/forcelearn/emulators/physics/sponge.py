@@ -69,8 +69,9 @@ class Sponge(FoamMemory):
         self._set_mm = 0.0
 
     accepts_point_tuple = True
-    """:meth:`observe_pose` and :meth:`evolve` take the position as a tuple of floats too
-    (what :class:`~.cell.CellPhysics` hands over on every motion tick: no array built)."""
+    """:meth:`observe_pose`, :meth:`evolve` and :meth:`contact_force_world_n` take the
+    position as a tuple of floats too (what :class:`~.cell.CellPhysics` hands over on every
+    motion tick and sensor sample: no array built)."""
 
     def _penetration_mm(self, position_mm: np.ndarray | tuple[float, float, float]) -> float:
         """:func:`penetration_mm` at the present pass count, remembered for the last position."""
@@ -88,16 +89,18 @@ class Sponge(FoamMemory):
             self._depth_mm = point_penetration_mm(p, self._set_mm, key[1], key[2])
         return self._depth_mm
 
-    def contact_force_world_n(self, position_mm: np.ndarray) -> np.ndarray:
+    def contact_force_world_n(
+        self, position_mm: np.ndarray | tuple[float, float, float]
+    ) -> np.ndarray:
         """Return the reaction force (3,) in N, world frame, at the present pass count."""
         coords = position_mm.tolist() if isinstance(position_mm, np.ndarray) else position_mm
         key = (self.passes, self.relaxing_mm, self.hysteresis_state, *self.slide_direction,
-               *(float(c) for c in coords))
+               *coords)  # tuples compare by value: 1 == 1.0, so no float() is needed
         if key != self._memo_key:  # the sensor asks thousands of times per pose
             self._memo_key = key
             self._memo_force = contact_force_n(
-                self.params, self.passes, position_mm, self.relaxing_mm,
-                self.hysteresis_state, self.slide_direction,
+                self.params, self.passes, np.asarray(position_mm, dtype=float),
+                self.relaxing_mm, self.hysteresis_state, self.slide_direction,
             )
         return self._memo_force.copy()
 

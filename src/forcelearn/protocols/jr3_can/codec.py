@@ -41,6 +41,10 @@ class Sync:
     kind: ClassVar[str] = "sync"
 
 
+SYNC = Sync()
+"""The one SYNC (it has no fields): what senders send, what the adapter hears."""
+
+
 @dataclass(frozen=True, slots=True)
 class Ack:
     """Sensor -> host: status (0 ready, 1 not initialised), optional 3 full scales.
@@ -156,7 +160,7 @@ Message = (
 )
 _EMPTY_KINDS: dict[str, Message] = {
     m.kind: m
-    for m in (Sync(), Stop(), ZeroOffsets(), GetState(), GetForceFullScales(),
+    for m in (SYNC, Stop(), ZeroOffsets(), GetState(), GetForceFullScales(),
               GetMomentFullScales(), Reset(), Bootup())
 }
 
@@ -344,7 +348,7 @@ def decode_as_adapter(
     if is_extended_id or not 0 <= arbitration_id <= MAX_STANDARD_ID:
         return None
     if arbitration_id == opcodes.sync:
-        return Sync()
+        return SYNC
     if arbitration_id & NODE_ID_BITS != node_id:
         return None
     kind = opcodes.kind_by_opcode.get(arbitration_id & ~NODE_ID_BITS & MAX_STANDARD_ID)

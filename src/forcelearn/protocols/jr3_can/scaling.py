@@ -56,8 +56,17 @@ def full_scales_to_wire(
 
 def counts_to_wrench(raw: Sequence[int] | np.ndarray, full_scales: np.ndarray) -> np.ndarray:
     """Return (Fx..Mz) in N and N*m from six raw counts and six full scales."""
-    scale = np.asarray(full_scales, dtype=float) / COUNTS_PER_FULL_SCALE
-    return np.asarray(raw, dtype=float) * scale
+    return np.asarray(raw, dtype=float) * units_per_count(full_scales)
+
+
+def units_per_count(full_scales: Sequence[float] | np.ndarray) -> np.ndarray:
+    """Return the N (forces) and N*m (moments) per count of six full scales, (6,).
+
+    ``counts * units_per_count(fs)`` is :func:`counts_to_wrench`; a receiver that
+    scales every sample keeps this array for as long as the full scales hold.
+    """
+    scale: np.ndarray = np.asarray(full_scales, dtype=float) / COUNTS_PER_FULL_SCALE
+    return scale
 
 
 def counts_per_unit(full_scales: Sequence[float] | np.ndarray) -> list[float]:
