@@ -14,6 +14,7 @@ from gymnasium.utils.env_checker import check_env
 
 import forcelearn.envs
 from forcelearn.envs import CONTOUR_ID, SURFACE_ID, ContourEnv, SurfaceEnv
+from forcelearn.site import CellConfig
 
 
 def test_check_env_passes_for_the_contour_env() -> None:
@@ -102,9 +103,11 @@ def test_surface_rollout_measures_force_spends_cell_time_and_renders() -> None:
         env.close()
 
 
-def test_surface_reset_with_a_seed_opens_a_fresh_cell_and_without_keeps_the_wear() -> None:
+def test_surface_reset_with_a_seed_opens_a_fresh_cell_and_without_keeps_the_wear(
+    no_probe_config: CellConfig,
+) -> None:
     """Same seed → same start; no seed → the same cell, one pass more worn."""
-    env = SurfaceEnv()
+    env = SurfaceEnv(no_probe_config)
     try:
         _, first = env.reset(seed=1)
         env.step(np.array([-0.4]))
@@ -141,9 +144,11 @@ def test_a_zero_that_moved_between_episodes_is_taken_again_in_free_space() -> No
         env.close()
 
 
-def test_close_stops_the_robot_releases_the_cell_and_is_idempotent() -> None:
+def test_close_stops_the_robot_releases_the_cell_and_is_idempotent(
+    no_probe_config: CellConfig,
+) -> None:
     """After close the env has no cell; stepping asks for a reset; a second close is harmless."""
-    env = SurfaceEnv()
+    env = SurfaceEnv(no_probe_config)
     env.reset(seed=0)
     env.step(np.array([-0.3]))
     env.close()

@@ -1,8 +1,10 @@
 """``forcelearn/Surface-v0``: paper §5, the roller on the sponge, through the real drivers.
 
-By default the cell is the emulated one (robot-controller emulator on a pty,
-JR3 emulator on a virtual CAN bus, reached through the real computer-link and
-JR3 drivers; one simulated clock). ``config="site.toml"`` drives a real cell.
+By default the cell is the emulated one (the robot-controller emulator and the
+JR3 emulator reached through the real computer-link and JR3 drivers, over the
+in-process routes: ``forcelearn-robot://`` and a ``forcelearn-jr3`` bus, the
+same bytes and frames as a pty and a CAN bus; one simulated clock).
+``config="site.toml"`` drives a real cell.
 """
 
 from __future__ import annotations
@@ -94,8 +96,12 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
     ``config``: a ``CellConfig``, or the path of a cell TOML (``None``: the
     emulated default, docs/surface.md); ``seed``: sensor-noise seed used when
     the first reset gives none; ``render_mode``: ``None`` or ``"rgb_array"``
-    (the force trace of the episode). ``close()`` stops the robot and closes
-    the devices.
+    (the force trace of the episode); ``routes``: how the emulated devices are
+    reached, kind name -> route option (``{"computer_link": LinkRoute("pty"),
+    "jr3": Jr3Route("virtual")}``, from ``forcelearn.site.computer_link_kind``
+    and ``forcelearn.site.jr3_kind``: a pty and a python-can ``virtual`` bus
+    served by the emulators' threads, as a real cell's ports are; default: in
+    process, the same bytes). ``close()`` stops the robot and closes the devices.
     """
 
     def __init__(
@@ -103,6 +109,7 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
         config: Any | str | Path | None = None,
         seed: int | None = None,
         render_mode: str | None = None,
+        routes: dict[str, object] | None = None,
     ):
         super().__init__(render_mode)
         # The devices live in the drivers/tools folders; imported here so the core
@@ -116,6 +123,8 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
         self.config = config
         self.task_spec = config.task
         self.default_seed = config.seed if seed is None else int(seed)
+        self.routes = dict(routes or {})
+        """Kind name -> route option of the emulated devices (empty: in process)."""
         self.session: Any | None = None
         self.output_map: OutputMapChoice = configured_map(config.task)
         """The output map of the open cell (before the first reset: the configured one)."""
@@ -145,7 +154,8 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
         from forcelearn.site import CellSession
 
         config = self.config
-        self.session = CellSession(config, seed=self.default_seed if seed is None else seed)
+        self.session = CellSession(config, seed=self.default_seed if seed is None else seed,
+                                   routes=self.routes)
         cell = self.session.cell
         assert cell is not None  # opened, or CellSession raised
         cell.press_guard = PressGuard(config.safety.max_force_n,

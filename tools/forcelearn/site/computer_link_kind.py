@@ -4,16 +4,17 @@ Real: pyserial opens ``[robot] url`` (a port name or a pyserial URL).
 Emulated (``url = "emulated"``, the default): the robot-controller emulator,
 in this process as ``forcelearn-robot://NAME`` (the same bytes as a pty,
 answered in the driver's thread) or, for ``forcelearn emulate``, on a
-pseudo-terminal another process opens.
+pseudo-terminal another process opens. ``LinkRoute("pty")`` puts ``run``'s
+emulator on a pty too (its own thread), as a real serial port is reached.
 """
 
 from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Literal, cast
 
 from forcelearn.config import build
 from forcelearn.devices import Robot
@@ -38,6 +39,27 @@ from forcelearn.site.kinds import (
     typed_part,
 )
 
+LINK_ROUTES = ("in_process", "pty")
+
+
+@dataclass(frozen=True)
+class LinkRoute:
+    """How ``run``'s emulated controller takes the driver's bytes (this kind's route option).
+
+    ``"in_process"``: ``forcelearn-robot://NAME``, a pyserial port whose writes the
+    emulator answers in the writer's thread; ``"pty"``: a pseudo-terminal served by
+    the emulator's thread, as a real port is. The same bytes and simulated times
+    either way (tests/envs/test_surface_routes.py).
+    """
+
+    route: Literal["in_process", "pty"] = "in_process"
+
+    def __post_init__(self) -> None:
+        if self.route not in LINK_ROUTES:
+            raise ValueError(f"computer-link route must be one of {LINK_ROUTES}, "
+                             f"got {self.route!r}")
+
+
 ROBOT_LINK = "robot"
 """Name of the stable symlink to the robot's pty (``forcelearn emulate --link-dir``)."""
 EMULATE_HINT = (" (for `forcelearn emulate`, name the stable links it prints, which survive "
@@ -60,8 +82,12 @@ def link_char_time_s(config: CellView) -> float:
 class ComputerLinkFarEnd(FarEnd):
     """The robot-controller emulator on a pty (``emulate``) or in process (``run``)."""
 
-    def __init__(self, config: CellView, physics: CellPhysics, in_process: bool) -> None:
+    def __init__(self, config: CellView, physics: CellPhysics, options: FarEndOptions) -> None:
         super().__init__()
+        route = options.routes.get(KIND.name, LinkRoute())
+        if not isinstance(route, LinkRoute):
+            raise TypeError(f"the computer link's route options are a LinkRoute, not {route!r}")
+        in_process = options.in_process and route.route == "in_process"
         self.emulator: ComputerLinkEmulator = ComputerLinkEmulator(
             "inproc" if in_process else "pty",
             config=config.emulator.effective().arm,
@@ -144,7 +170,7 @@ class ComputerLinkKind(RobotKind):
         self, config: CellView, physics: CellPhysics, options: FarEndOptions
     ) -> ComputerLinkFarEnd:
         """The robot-controller emulator (``start()`` serves it)."""
-        return ComputerLinkFarEnd(config, physics, options.in_process)
+        return ComputerLinkFarEnd(config, physics, options)
 
     def open(
         self, config: CellView, far_end: FarEnd | None, stack: contextlib.ExitStack

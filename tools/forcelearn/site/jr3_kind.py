@@ -7,6 +7,8 @@ default): the JR3 emulator, in this process under python-can as
 driver's thread) or, for ``forcelearn emulate``, on a private ``virtual``
 bus behind an emulated slcan (LAWICEL) USB-CAN adapter on a pseudo-terminal
 that python-can's ``slcan`` interface opens from another process.
+``Jr3Route("virtual")`` puts ``run``'s emulator on a python-can ``virtual`` bus
+(its own thread), as a real adapter is reached.
 """
 
 from __future__ import annotations
@@ -14,9 +16,9 @@ from __future__ import annotations
 import contextlib
 import logging
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Literal, cast
 
 import can
 import numpy as np
@@ -58,6 +60,25 @@ SLCAN_VERSION_TIMEOUT_S = 2.0
 UNITS = ("N", "N", "N", "N*m", "N*m", "N*m")
 BATCH = 20
 """Samples per read_many call while checking (a 20 ms slice at 1 kHz)."""
+JR3_ROUTES = ("in_process", "virtual")
+
+
+@dataclass(frozen=True)
+class Jr3Route:
+    """How ``run``'s emulated adapter is reached on its bus (this kind's route option).
+
+    ``"in_process"``: ``can.Bus(interface="forcelearn-jr3")``, whose ``send`` hands
+    the frame to the adapter and whose ``recv`` runs its next loop turn in the
+    caller's thread; ``"virtual"``: a python-can ``virtual`` bus with the adapter's
+    own thread on it, as a real bus is. The same frames and simulated times either
+    way (tests/envs/test_surface_routes.py).
+    """
+
+    route: Literal["in_process", "virtual"] = "in_process"
+
+    def __post_init__(self) -> None:
+        if self.route not in JR3_ROUTES:
+            raise ValueError(f"JR3 route must be one of {JR3_ROUTES}, got {self.route!r}")
 EMULATE_HINT = (" (for `forcelearn emulate`, name the stable links it prints, which survive "
                 "restarts, rather than the /dev/pts paths)")
 
@@ -84,6 +105,12 @@ class Jr3FarEnd(FarEnd):
 
     def __init__(self, config: CellView, physics: CellPhysics, options: FarEndOptions) -> None:
         super().__init__()
+        route = options.routes.get(KIND.name, Jr3Route())
+        if not isinstance(route, Jr3Route):
+            raise TypeError(f"the JR3 kind's route options are a Jr3Route, not {route!r}")
+        self.in_process = options.in_process and route.route == "in_process"
+        """The driver's bus is a ``forcelearn-jr3`` one (else ``virtual``, or slcan for
+        ``emulate``)."""
         self.channel = private_channel(config)
         sensor = config.sensor if isinstance(config.sensor, Jr3Config) else Jr3Config()
         self.node_id = sensor.node_id
@@ -95,7 +122,7 @@ class Jr3FarEnd(FarEnd):
             model=sensor_model(config),
             seed=options.seed,
             bitrate=None if config.emulator.ideal else config.bus.bitrate,
-            in_process=options.in_process,
+            in_process=self.in_process,
         )
         self.emulators = [self.emulator]
         self.adapter: SlcanAdapterEmulator | None = None
@@ -225,7 +252,8 @@ class Jr3Kind(SensorKind):
     def _open_bus(config: CellView, far_end: FarEnd | None) -> can.BusABC:
         if far_end is not None:
             assert isinstance(far_end, Jr3FarEnd)
-            return can.Bus(interface="forcelearn-jr3", channel=far_end.channel)
+            interface = "forcelearn-jr3" if far_end.in_process else "virtual"
+            return can.Bus(interface=interface, channel=far_end.channel)
         bus = config.bus
         try:
             return can.Bus(interface=bus.interface, channel=bus.channel, bitrate=bus.bitrate,

@@ -110,9 +110,16 @@ def _nlerp(q0: tuple[float, ...], q1: tuple[float, ...], f: float) -> Quaternion
 
 
 def _angle_deg(q0: tuple[float, ...], q1: tuple[float, ...]) -> float:
-    """Rotation angle between two unit quaternions, degrees."""
-    dot = abs(sum(a * b for a, b in zip(q0, q1, strict=True)))
-    norm = math.sqrt(sum(c * c for c in q0)) * math.sqrt(sum(c * c for c in q1))
+    """Rotation angle between two unit quaternions, degrees.
+
+    Written out per component (asked at every status poll); the sums run in the
+    order ``sum()`` would take them, so the result is the same to the bit.
+    """
+    a0, a1, a2, a3 = q0
+    b0, b1, b2, b3 = q1
+    dot = abs(a0 * b0 + a1 * b1 + a2 * b2 + a3 * b3)
+    norm = (math.sqrt(a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3)
+            * math.sqrt(b0 * b0 + b1 * b1 + b2 * b2 + b3 * b3))
     return math.degrees(2.0 * math.acos(min(1.0, dot / norm)))
 
 

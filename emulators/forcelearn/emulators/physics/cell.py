@@ -175,13 +175,14 @@ class CellPhysics:
             if motion is None:
                 return
             timed = self._timed
+            tuples = self._tuples
 
             def on_tick(dt_s: float) -> None:
                 key = motion.tool_key
                 if key != self._pose_key:
                     self._move_tool(key)
                 if timed is not None:
-                    timed.evolve(self._point(), dt_s)
+                    timed.evolve(self._position if tuples else self._position_mm, dt_s)
 
             if motion.tick_index >= motion.tick_at(t) and motion.tool_key == self._pose_key:
                 return  # no tick to run (the sensor's samples are closer than a tick)

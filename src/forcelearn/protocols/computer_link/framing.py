@@ -69,9 +69,15 @@ def crc16(data: bytes | bytearray | memoryview, crc: int = CRC_INIT) -> int:
     ``crc`` continues a previous computation, so ``crc16(b, crc16(a))`` equals
     ``crc16(a + b)``.
     """
+    table = _CRC_TABLE
     for byte in bytes(data):
-        crc = (crc >> 8) ^ _CRC_TABLE[(crc ^ byte) & 0xFF]
+        crc = (crc >> 8) ^ table[(crc ^ byte) & 0xFF]
     return crc
+
+
+def _frame_check(body: bytes) -> int:
+    """The check of a frame: the CRC over its unstuffed length byte, payload and ETX."""
+    return crc16(body + b"\x03")  # = crc16(bytes((ETX,)), crc16(body))
 
 
 class Control(enum.Enum):
@@ -120,7 +126,7 @@ def encode(payload: bytes) -> bytes:
     if not 0 < len(payload) <= MAX_PAYLOAD:
         raise ValueError(f"payload must be 1..{MAX_PAYLOAD} bytes, got {len(payload)}")
     body = bytes((len(payload),)) + payload
-    crc = crc16(bytes((ETX,)), crc16(body))
+    crc = _frame_check(body)
     stuffed = body.replace(b"\x10", b"\x10\x10")
     return b"\x10\x02" + stuffed + b"\x10\x03" + crc.to_bytes(2, "little")
 
@@ -150,10 +156,11 @@ def _decode_data(buffer: bytes | bytearray, start: int) -> Decoded:
     body = bytearray()
     i = start + 2
     while i < size:
-        byte = buffer[i]
-        if byte != DLE:
-            body.append(byte)
-            i += 1
+        dle = buffer.find(DLE, i)
+        if dle != i:  # the bytes up to the next DLE (or the end) are data, as they stand
+            end = size if dle < 0 else dle
+            body += buffer[i:end]
+            i = end
         elif i + 1 >= size:
             return Decoded(start, None)
         elif buffer[i + 1] == DLE:
@@ -178,7 +185,7 @@ def _check(buffer: bytes | bytearray, start: int, crc_at: int, body: bytes) -> D
     if len(body) < 2:
         return Decoded(end, BadFrame("empty frame"))
     received = int.from_bytes(buffer[crc_at:end], "little")
-    expected = crc16(bytes((ETX,)), crc16(body))
+    expected = _frame_check(body)
     if received != expected:
         return Decoded(end, BadFrame(f"CRC 0x{received:04X} != 0x{expected:04X}"))
     if body[0] != len(body) - 1:
