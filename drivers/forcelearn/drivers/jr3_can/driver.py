@@ -280,7 +280,7 @@ class Jr3CanSensor(Driver):
         lst = self._listener
         wait_s = self.config.stale_timeout_s / SYNC_ATTEMPTS
         for _attempt in range(SYNC_ATTEMPTS):
-            with lst.cond:
+            with lst.lock:
                 seq, frames = lst.seq, lst.data_frames
             self._send(codec.SYNC)
 
@@ -288,7 +288,7 @@ class Jr3CanSensor(Driver):
                 return lst.seq > before or lst.bootup_pending
 
             got = self._wait_for(answered, wait_s)
-            with lst.cond:
+            with lst.lock:
                 if lst.bootup_pending:
                     return None
                 if got:
@@ -407,7 +407,7 @@ class Jr3CanSensor(Driver):
         lst = self._listener
         deadline = time.monotonic() + timeout_s
         while True:
-            with lst.cond:
+            with lst.lock:
                 if predicate():
                     return True
                 failed = lst.bus_error is not None

@@ -77,7 +77,10 @@ class Jr3Listener(can.Listener):
         self.near_saturation_counts = near_saturation_counts
         self.writer = writer
         self.writer_lock = threading.Lock()
-        self.cond = threading.Condition()
+        self.lock = threading.RLock()
+        """The condition's lock: ``with lock`` where nothing waits or notifies (the hot
+        path: one C call where the condition's ``with`` adds a Python frame each way)."""
+        self.cond = threading.Condition(self.lock)
         self.callbacks: list[SampleCallback] = []
         self.acks: deque[codec.Ack] = deque()
         self.latest: WrenchSample | None = None
@@ -143,7 +146,7 @@ class Jr3Listener(can.Listener):
         """Handle one received frame; never raises for bad frames."""
         self.log_frame(msg)
         sample: WrenchSample | None = None
-        with self.cond:
+        with self.lock:
             self._stats.frames += 1
             if msg.is_error_frame:
                 self._stats.error_frames += 1
