@@ -51,6 +51,7 @@ before the robot reports in position.
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
 from collections import deque
@@ -99,6 +100,24 @@ def _nlerp(q0: tuple[float, ...], q1: tuple[float, ...], f: float) -> Quaternion
     Written out per component (the motion's hot path); the sums run in the
     order ``sum()`` would take them, so the result is the same to the bit.
     """
+    if q0 == q1 and f >= 0.0:
+        return _nlerp_to_itself(q0)
+    return _nlerp_formula(q0, q1, f)
+
+
+@functools.lru_cache(maxsize=16)
+def _nlerp_to_itself(q: tuple[float, ...]) -> Quaternion:
+    """:func:`_nlerp` of ``q`` towards itself, one object per orientation.
+
+    The same for every ``f >= 0``: ``q + f * (q - q)`` is ``q`` (a -0.0 made +0.0) to
+    the bit, then normalised as always; the arm's path asks it every tick it moves
+    without turning.
+    """
+    return _nlerp_formula(q, q, 0.0)
+
+
+def _nlerp_formula(q0: tuple[float, ...], q1: tuple[float, ...], f: float) -> Quaternion:
+    """:func:`_nlerp` computed."""
     a0, a1, a2, a3 = q0
     b0, b1, b2, b3 = q1
     if a0 * b0 + a1 * b1 + a2 * b2 + a3 * b3 < 0:

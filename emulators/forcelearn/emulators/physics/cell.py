@@ -129,7 +129,7 @@ class CellPhysics:
         self._position = (key[0], key[1], key[2])
         self._position_array = None
         if self._observer is not None:
-            self._observer.observe_pose(self._point())
+            self._observer.observe_pose(self._position if self._tuples else self._position_mm)
 
     @property
     def _position_mm(self) -> np.ndarray:

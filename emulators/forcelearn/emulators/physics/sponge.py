@@ -111,7 +111,9 @@ class Sponge(FoamMemory):
         for the standard linear solid under a ramp).
         """
         p = self.params
-        foam = elastic_depth_mm(p, min(self._penetration_mm(position_mm), p.thickness_mm))
+        depth = min(self._penetration_mm(position_mm), p.thickness_mm)
+        # elastic_depth_mm is the depth itself for a linear foam: not called on every tick
+        foam = depth if p.stiffening_exponent == 1.0 else elastic_depth_mm(p, depth)
         change, self._foam_mm = foam - self._foam_mm, foam
         if p.relaxation_ratio == 0.0 or dt_s <= 0.0:
             self.relaxing_mm = 0.0
