@@ -154,6 +154,8 @@ class ArmMotion:
         self.params = params
         self.speed_mm_s = params.speed_mm_s
         self._lag_keep = math.exp(-params.tick_s / params.lag_s) if params.lag_s > 0 else 0.0
+        self._gain = 1.0 - self._lag_keep
+        """The share of the way to the reference the lagging tool makes per tick."""
         self.tick_index = 0
         self.target = pose
         """The commanded target (what MOVE_BY adds to, what in-position compares with)."""
@@ -283,11 +285,11 @@ class ArmMotion:
         if s != self._ref_s:  # the reference stands still while the tool catches up
             self._ref, self._ref_q = self._reference_at(s)
             self._ref_s = s
-        gain = 1.0 - self._lag_keep
+        gain = self._gain
         ref = self._ref
         (tx, ty, tz), (rx, ry, rz) = self._tool, ref
         tool = [tx + gain * (rx - tx), ty + gain * (ry - ty), tz + gain * (rz - tz)]
-        if math.dist(tool, ref) < _SNAP_MM and s >= end:
+        if s >= end and math.dist(tool, ref) < _SNAP_MM:
             tool, self._tool_q = list(ref), self._ref_q
         elif self._tool_q is not self._unit_q or self._ref_q is not self._unit_ref:
             q = self._tool_q

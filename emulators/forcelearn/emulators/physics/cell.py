@@ -174,6 +174,8 @@ class CellPhysics:
             motion = self.motion
             if motion is None:
                 return
+            if motion.tick_index >= motion.tick_at(t) and motion.tool_key == self._pose_key:
+                return  # no tick to run (the sensor's samples are closer than a tick)
             timed = self._timed
             tuples = self._tuples
 
@@ -184,8 +186,6 @@ class CellPhysics:
                 if timed is not None:
                     timed.evolve(self._position if tuples else self._position_mm, dt_s)
 
-            if motion.tick_index >= motion.tick_at(t) and motion.tool_key == self._pose_key:
-                return  # no tick to run (the sensor's samples are closer than a tick)
             motion.advance_to(t, on_tick)
             key = motion.tool_key
             if key != self._pose_key:  # an instant arm moves between ticks

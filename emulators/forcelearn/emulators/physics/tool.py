@@ -82,8 +82,8 @@ def sensor_rotation(tool: ToolParams, flange_rotation: np.ndarray) -> np.ndarray
 
 def _wrench(point_mm: tuple[float, float, float], force: np.ndarray) -> np.ndarray:
     """Return (F, r x F) for a force (3,) in N acting at ``point_mm`` (written out: hot path)."""
-    rx, ry, rz = (c / MM_PER_M for c in point_mm)
-    fx, fy, fz = (float(v) for v in force)
+    rx, ry, rz = point_mm[0] / MM_PER_M, point_mm[1] / MM_PER_M, point_mm[2] / MM_PER_M
+    fx, fy, fz = force.tolist()
     return np.array([fx, fy, fz, ry * fz - rz * fy, rz * fx - rx * fz, rx * fy - ry * fx])
 
 
