@@ -129,7 +129,8 @@ class CellPhysics:
         self._position = (key[0], key[1], key[2])
         self._position_array = None
         if self._observer is not None:
-            self._observer.observe_pose(self._position if self._tuples else self._position_mm)
+            point: Any = self._position if self._tuples else self._position_mm  # as _point()
+            self._observer.observe_pose(point)
 
     @property
     def _position_mm(self) -> np.ndarray:
@@ -184,7 +185,8 @@ class CellPhysics:
                 if key != self._pose_key:
                     self._move_tool(key)
                 if timed is not None:
-                    timed.evolve(self._position if tuples else self._position_mm, dt_s)
+                    point: Any = self._position if tuples else self._position_mm  # as _point()
+                    timed.evolve(point, dt_s)
 
             motion.advance_to(t, on_tick)
             key = motion.tool_key

@@ -56,7 +56,8 @@ def full_scales_to_wire(
 
 def counts_to_wrench(raw: Sequence[int] | np.ndarray, full_scales: np.ndarray) -> np.ndarray:
     """Return (Fx..Mz) in N and N*m from six raw counts and six full scales."""
-    return np.asarray(raw, dtype=float) * units_per_count(full_scales)
+    wrench: np.ndarray = np.asarray(raw, dtype=float) * units_per_count(full_scales)
+    return wrench
 
 
 def units_per_count(full_scales: Sequence[float] | np.ndarray) -> np.ndarray:
