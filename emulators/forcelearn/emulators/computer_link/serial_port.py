@@ -38,7 +38,10 @@ class EmulatedRobotSerial(SerialBase):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self._rx = bytearray()
-        self._cond = threading.Condition()
+        self._rx_lock = threading.RLock()
+        self._cond = threading.Condition(self._rx_lock)
+        """Waits and notifies on ``_cond``; ``with self._rx_lock`` holds it (one C call, where
+        the condition's own ``with`` adds a Python frame each way: every frame passes here)."""
         self._hung_up = False
         self._emulator: Any = None
         self._owns_emulator = False
@@ -62,7 +65,7 @@ class EmulatedRobotSerial(SerialBase):
             if isinstance(exc, ConnectionError):
                 raise SerialException(str(exc)) from exc
             raise
-        with self._cond:
+        with self._rx_lock:
             self._rx.clear()
             self._hung_up = False
         self._emulator = emulator
@@ -125,7 +128,7 @@ class EmulatedRobotSerial(SerialBase):
     @property
     def in_waiting(self) -> int:
         """Bytes received and not read yet."""
-        with self._cond:
+        with self._rx_lock:
             return len(self._rx)
 
     def read(self, size: int = 1) -> bytes:
@@ -133,7 +136,7 @@ class EmulatedRobotSerial(SerialBase):
         if not self.is_open:
             raise PortNotOpenError()
         deadline = None if self.timeout is None else time.monotonic() + self.timeout
-        with self._cond:
+        with self._rx_lock:
             while len(self._rx) < size and not self._hung_up:
                 left = None if deadline is None else deadline - time.monotonic()
                 if left is not None and left <= 0:
@@ -166,7 +169,7 @@ class EmulatedRobotSerial(SerialBase):
 
     def reset_input_buffer(self) -> None:
         """Discard received bytes."""
-        with self._cond:
+        with self._rx_lock:
             self._rx.clear()
 
     def reset_output_buffer(self) -> None:
@@ -175,12 +178,12 @@ class EmulatedRobotSerial(SerialBase):
     # ---- the emulator's side --------------------------------------------------------
     def deliver(self, data: bytes) -> None:
         """Bytes from the controller (called by its endpoint)."""
-        with self._cond:
+        with self._rx_lock:
             self._rx += data
             self._cond.notify_all()
 
     def hang_up(self) -> None:
         """The controller dropped the connection."""
-        with self._cond:
+        with self._rx_lock:
             self._hung_up = True
             self._cond.notify_all()

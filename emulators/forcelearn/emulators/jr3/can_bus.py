@@ -74,7 +74,10 @@ class Jr3EmulatorBus(can.BusABC):
         self.channel_info = f"forcelearn JR3 emulator on {self.channel!r}"
         self.receive_own_messages = receive_own_messages
         self._rx: collections.deque[can.Message] = collections.deque()
-        self._cond = threading.Condition()
+        self._rx_lock = threading.RLock()
+        self._cond = threading.Condition(self._rx_lock)
+        """Waits and notifies on ``_cond``; ``with self._rx_lock`` holds it (one C call, where
+        the condition's own ``with`` adds a Python frame each way: every frame passes here)."""
         self._closed = False
         model = {k: kwargs.pop(k) for k in list(kwargs) if k in _MODEL_OPTIONS}
         try:
@@ -103,7 +106,7 @@ class Jr3EmulatorBus(can.BusABC):
         return self._node
 
     def _deliver(self, msg: can.Message) -> None:
-        with self._cond:
+        with self._rx_lock:
             self._rx.append(msg)
             self._cond.notify_all()
 
@@ -129,7 +132,7 @@ class Jr3EmulatorBus(can.BusABC):
             # a deque's truth is one atomic read: frames already in need no turn of the loop
             if not self._rx and node.serve_pending():  # the host waits: the loop turns
                 continue
-            with self._cond:
+            with self._rx_lock:
                 if self._rx:
                     return self._rx.popleft(), False
                 if self._closed:
@@ -153,7 +156,7 @@ class Jr3EmulatorBus(can.BusABC):
         """Leave the bus (a node this bus started stops with its last bus); idempotent."""
         if self._closed:
             return
-        with self._cond:
+        with self._rx_lock:
             self._closed = True
             self._cond.notify_all()
         node, self._node = self._node, None

@@ -281,8 +281,13 @@ def surface_y_mm(params: SpongeParams, passes: F, z_mm: F) -> F:
 
 def set_surface_y_mm(params: SpongeParams, set_mm: F, z_mm: F) -> F:
     """Return the surface Y (mm) at height ``z_mm`` once it has sunk ``set_mm`` (its set)."""
+    return _surface_y_mm(params, set_mm, z_mm, _sin)
+
+
+def _surface_y_mm(params: SpongeParams, set_mm: F, z_mm: F, sin: Callable[[F], F]) -> F:
+    """:func:`set_surface_y_mm` with ``sin`` (``math.sin`` for one point: the hot path)."""
     travelled = params.z_top_mm - z_mm
-    wave = params.waviness_mm * _sin(2 * math.pi * travelled / params.waviness_wavelength_mm)
+    wave = params.waviness_mm * sin(2 * math.pi * travelled / params.waviness_wavelength_mm)
     surface: F = params.surface_y_mm + params.surface_slope * travelled + wave - set_mm
     return surface
 
@@ -318,7 +323,7 @@ def point_penetration_mm(params: SpongeParams, set_mm: float, y_mm: float, z_mm:
     """:func:`penetration_mm` of one point (floats) on the surface sunk ``set_mm`` (hot path)."""
     if not params.z_bottom_mm <= z_mm <= params.z_top_mm:
         return 0.0
-    return max(0.0, set_surface_y_mm(params, set_mm, z_mm) - y_mm)
+    return max(0.0, _surface_y_mm(params, set_mm, z_mm, math.sin) - y_mm)
 
 
 def elastic_depth_mm(params: SpongeParams, foam_mm: F) -> F:
