@@ -29,6 +29,7 @@ import socket
 import threading
 import time
 import weakref
+from collections.abc import Callable
 from typing import Any, Protocol, cast
 
 from forcelearn.devices import Pose
@@ -69,6 +70,23 @@ class CarryingSocket(DatagramSocket, Protocol):
     def send_carried(self, data: carried.Datagram, address: Any, /) -> None: ...  # noqa: D102
 
 
+class RestingSocket(CarryingSocket, Protocol):
+    """A carrying end that also runs the controller's cycles at rest in one jump.
+
+    ``rest_carried(reply, address, done)`` is ``send_carried(reply, address)``
+    followed by the cycles in which neither side's message changes (the arm
+    rests and ``reply`` plans the pose in effect) up to the first whose
+    EgmRobot stamps (header.tm ms, feedBack.time µs) make ``done`` true;
+    it returns (cycles jumped, the last one's header.tm and feedBack.time).
+    Each jumped cycle is one the driver would have taken and answered with
+    the same planned pose: :meth:`.guidance.Guidance.rested` counts them.
+    """
+
+    def rest_carried(  # noqa: D102
+        self, data: carried.Datagram, address: Any, done: Callable[[int, int], bool], /
+    ) -> tuple[int, int, int]: ...
+
+
 class EgmChannel(Driver):
     """One EGM UDP channel to one controller: the datagrams of a driver, and its lifetime.
 
@@ -94,11 +112,14 @@ class EgmChannel(Driver):
         self._thread: threading.Thread | None = None
         self._sock: DatagramSocket | None
         self._carrier: CarryingSocket | None = None
+        self._rester: RestingSocket | None = None
         if sock is not None:
             if not config.lockstep:
                 raise ValueError("a given socket (an in-process controller) needs lockstep = True")
             self._sock = sock
             self._carrier = _carrying(sock)
+            if self._carrier is not None and callable(getattr(type(sock), "rest_carried", None)):
+                self._rester = cast(RestingSocket, sock)
         else:
             self._sock = _bind(config.host, config.port)
         self.port: int = self._sock.getsockname()[1]
@@ -221,6 +242,28 @@ class EgmChannel(Driver):
                 self._pending = address
                 return
 
+    def _rest(self, ends: Callable[[float], bool]) -> None:
+        """Lockstep in process, at rest: answer the held message and jump the cycles at rest.
+
+        The cycles jumped are those whose EgmRobot would repeat the latest one
+        but for its counters and stamps, before the first one at whose
+        controller time (:meth:`.guidance.Guidance.time_at`) ``ends`` is true,
+        which :meth:`_next_message` then reads as usual. Nothing to do
+        unless the reply repeats (:meth:`.guidance.Guidance.resting`).
+        """
+        rester, address, guidance = self._rester, self._pending, self._guidance
+        if rester is None or address is None or not guidance.resting():
+            return
+        reply = guidance.reply_carried()  # at rest: the planned pose is sent as it is, unchecked
+        self._pending = None
+        try:
+            jumped, tm_ms, time_us = rester.rest_carried(
+                reply, address, lambda tm, us: ends(guidance.time_at(tm, us)))
+        except OSError as exc:
+            raise LinkError(f"cannot send EgmSensor to {address}: {exc}") from exc
+        guidance.rested(jumped, tm_ms, time_us)
+        self._fresh_count += jumped
+
     def _silent(self, watchdog: float) -> ForcelearnError:
         """The error of a watchdog's silence: why the controller's stream was refused, if so."""
         refusal = self._guidance.refusal
@@ -342,7 +385,7 @@ class EgmChannel(Driver):
             if self._sock is not None:
                 self._sock.close()
                 self._sock = None
-                self._carrier = None
+                self._carrier = self._rester = None
 
     def _closed_error(self) -> LinkError:
         return LinkError(f"the EGM driver on port {self.port} is closed; open a new one")

@@ -46,6 +46,7 @@ from __future__ import annotations
 import contextlib
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -340,6 +341,8 @@ class EgmRobot(EgmChannel):
                 )
             if time.monotonic() > wall_deadline:
                 raise LinkTimeout(f"controller time did not advance {span_s} s in wall time")
+            if self._rester is not None:  # in process: the cycles at rest in one jump
+                self._rest(_wait_ends(start, span_s, settled_since, settle_s))
             self._next_message()
 
     # -- checkpoint (emulated cell only) ----------------------------------------------------
@@ -360,6 +363,20 @@ class EgmRobot(EgmChannel):
         with self._lock:
             self._check()
             self._guidance.load_state_dict(state)
+
+
+def _wait_ends(
+    start: float, span_s: float, settled_since: float | None, settle_s: float
+) -> Callable[[float], bool]:
+    """Whether a wait's loop ends at a message of controller time ``now`` (s), all else equal.
+
+    The wait's two ends in :meth:`EgmRobot._wait_cycles`: settled long enough
+    (while in position), or its span run out; the same float comparisons.
+    """
+    def ends(now: float) -> bool:
+        return ((settled_since is not None and now - settled_since >= settle_s - 1e-9)
+                or now - start >= span_s - 1e-9)
+    return ends
 
 
 def open_egm_robot(config: EgmConfig, timeout_s: float | None = None) -> EgmRobot:

@@ -66,6 +66,7 @@ import numpy as np
 from forcelearn.devices import Pose, multiply_quaternions
 from forcelearn.emulators.egm import joints as arm_joints
 from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
+from forcelearn.emulators.egm.target_checks import TargetChecks
 from forcelearn.emulators.physics.arm import ArmConfig, joint_angles_deg
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import ProtocolError
@@ -179,8 +180,7 @@ class EgmControllerModel:
         self._timed_out_s: float | None = None
         """When the last CommTimeout ended guidance, s (None: guided, or restarted since)."""
         self._last_pose_s = (t_s, physics.pose)
-        self._last_checked: tuple[Pose, str | None, tuple[float, ...] | None] | None = None
-        """The latest target checked, its refusal and its axes (a target is sent every cycle)."""
+        self._checks = TargetChecks(config.arm, config.workspace_min_mm, config.workspace_max_mm)
 
     @property
     def running(self) -> bool:
@@ -239,7 +239,7 @@ class EgmControllerModel:
             if message.planned_joints_deg:
                 self._count_wrong_mode(t_s, "planned.joints", "\\Pose")
             return  # no position data: the controller keeps the last planned pose
-        refusal, joints = self._checked(target)
+        refusal, joints = self._checks.checked(target)
         if refusal:
             self._motion_error(t_s, refusal)
             return
@@ -259,7 +259,7 @@ class EgmControllerModel:
         target = None
         if refusal is None:
             target = arm_joints.tool_pose(self.config.arm, joints)
-            refusal = self._refusal(target)
+            refusal = self._checks.refusal_and_joints(target)[0]
         if refusal or target is None:
             self._motion_error(t_s, refusal or "unreachable joints")
             return
@@ -304,39 +304,6 @@ class EgmControllerModel:
                 "controller keeps its latest reference (counted in wrong_mode)",
                 t_s, field_name, setup,
             )
-
-    def _checked(self, target: Pose) -> tuple[str | None, tuple[float, ...] | None]:
-        """``_refusal(target)`` and the arm's axes there (None: refused), kept for a repeat.
-
-        The checks depend on the target and the fixed configuration only, and the
-        PC sends the same target cycle after cycle while the arm rests or follows.
-        """
-        last = self._last_checked
-        if last is not None and (last[0] is target or last[0] == target):
-            return last[1], last[2]
-        refusal, joints = self._refusal_and_joints(target)
-        self._last_checked = (target, refusal, joints)
-        return refusal, joints
-
-    def _refusal(self, pose: Pose) -> str | None:
-        return self._refusal_and_joints(pose)[0]
-
-    def _refusal_and_joints(self, pose: Pose) -> tuple[str | None, tuple[float, ...] | None]:
-        """Why the controller refuses ``pose`` (None: it does not), and the arm's axes there."""
-        position = (pose.x_mm, pose.y_mm, pose.z_mm)
-        norm = math.sqrt(sum(c * c for c in pose.quaternion))
-        if not (all(math.isfinite(c) for c in position) and abs(norm - 1.0) <= 1e-3):
-            return f"planned pose {pose} is not finite or its quaternion not unit length", None
-        low, high = self.config.workspace_min_mm, self.config.workspace_max_mm
-        if any(c < lo or c > hi for c, lo, hi in zip(position, low, high, strict=True)):
-            return (f"planned position {np.round(position, 3).tolist()} mm is outside the "
-                    "workspace"), None
-        joints = joint_angles_deg(self.config.arm, pose)
-        if joints is None:
-            return (f"planned position {np.round(position, 3).tolist()} mm is out of the arm's "
-                    "reach"), None
-        refusal = arm_joints.limit_violation(self.config.arm, joints)
-        return refusal, None if refusal else joints
 
     def robot_datagram(self, t_s: float) -> bytes:
         """Advance to the cycle at ``t_s`` and return its EgmRobot datagram."""
@@ -401,10 +368,10 @@ class EgmControllerModel:
         if self.pose != self._feedback_joints_pose:  # at rest the axes stay
             self._feedback_joints = self._joints(self.pose, self._feedback_joints)
             self._feedback_joints_pose = self.pose
-        time_us = self.config.clock_epoch_us + round(t_s * 1e6)
+        tm_ms, time_us = self.stamps(t_s)
         message = codec.RobotMessage(
             seqno=self._seqno,
-            tm_ms=round(t_s * 1000),
+            tm_ms=tm_ms,
             feedback=self.pose,
             planned=self.planned,
             joints_deg=self._feedback_joints,
@@ -422,6 +389,52 @@ class EgmControllerModel:
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
         self._built += 1
         return message
+
+    def stamps(self, t_s: float) -> tuple[int, int]:
+        """The EgmRobot's header.tm (ms) and feedBack.time (µs since 1970) of a cycle at ``t_s``."""
+        return round(t_s * 1000), self.config.clock_epoch_us + round(t_s * 1e6)
+
+    # -- cycles at rest (the in-process route's jump: CycleLoop.rest) -----------------------
+
+    def can_rest(self, datagram: carried.Datagram) -> bool:
+        """Whether every cycle that reads the EgmSensor ``datagram`` changes only counters and time.
+
+        So when guidance runs in pose mode, ``datagram`` is carried and plans
+        the pose in effect with no speedRef (the same check passed, nothing
+        commanded), and the arm rests where the latest EgmRobot and the
+        physics have it: each such cycle's EgmRobot is the latest one with the
+        next seqno and this cycle's stamps (the sponge relaxes meanwhile).
+        """
+        message = carried.received_sensor(datagram, self.config.version)
+        if (message is None or message.planned is None or message.speed_ref is not None
+                or self.mci is not codec.MciState.RUNNING
+                or self.rapid is not codec.RapidState.RUNNING or self._timed_out_s is not None
+                or self.config.mode != "pose"
+                or not self.config.comm_timeout_s > self.config.sample_period_s):
+            return False
+        planned, published, resting = message.planned, self._published, getattr(
+            self.motion, "resting", None)
+        return (planned == self.planned and self._checks.passed(planned)
+                and resting is not None and resting(planned, self.pose)
+                and published is not None and self.physics.pose is published
+                and published == self.pose and self._feedback_joints_pose == self.pose)
+
+    def rest_at(self, t_s: float) -> bool:
+        """Run the cycle at ``t_s`` as :meth:`can_rest` allows: read the EgmSensor, build nothing.
+
+        Returns False, running nothing, when the cycle's seqno would be 0 (a wrap
+        looks like a new session: that cycle runs in full). The arm and the sponge
+        are advanced to ``t_s`` as building the EgmRobot does.
+        """
+        if self._seqno == 0:
+            return False
+        self._last_read_s = t_s  # the EgmSensor read: the planned pose in effect again
+        self.targets_read += 1
+        self.motion.advance_to(t_s)  # the ticks: the sponge relaxes
+        self._last_pose_s = (t_s, self.pose)
+        self._seqno = (self._seqno + 1) & 0xFFFFFFFF
+        self._built += 1
+        return True
 
     # -- checkpoint -------------------------------------------------------------------------
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from forcelearn.emulators.clock import SimClock
@@ -116,6 +116,10 @@ class CycleLoop:
                 if faults.fires("lose_reply"):
                     continue
                 (self._late if faults.fires("late_reply") else self._inbox).append(reply)
+        return self._next_cycle()
+
+    def _next_cycle(self) -> float:
+        """Move :attr:`t_s` and the clock to the next cycle instant; return it, s."""
         t = self.t_s  # a resume may have moved the grid meanwhile (load_state_dict)
         next_t = t + self.period_s
         now = self.clock.now_s
@@ -123,6 +127,36 @@ class CycleLoop:
             next_t = t + self.period_s * math.ceil((now - t) / self.period_s - 1e-9)
         self.t_s = self.clock.advance_to(next_t)
         return self.t_s
+
+    def rest(self, reply: Datagram, done: Callable[[int, int], bool]) -> tuple[int, int, int]:
+        """After ``end([reply])``: run the cycles at rest that follow silently; say how many.
+
+        A cycle at rest (:meth:`EgmControllerModel.can_rest`: the arm rests,
+        ``reply`` plans the pose in effect; no fault armed, no restart asked,
+        no pace set) changes nothing but the counters, the cycle time and the
+        physics' time, so it is run without building its EgmRobot (nor the
+        answer: ``reply`` is read again) by :meth:`EgmControllerModel.rest_at`:
+        the same state, to the bit, as :meth:`begin` and :meth:`end` give it.
+        Cycles run so until one is not at rest or its EgmRobot's stamps
+        (header.tm ms, feedBack.time µs) make ``done`` true: that cycle is left
+        for :meth:`begin`, in full. Returns (cycles run, and the stamps of the
+        last one run, (0, 0) if none).
+        """
+        model, stamps = self.model, (0, 0)
+        if not (self.carried and self.faults.none_armed and self._held is None
+                and not self._late and len(self._inbox) == 1 and self._inbox[0] is reply
+                and self.clock.time_scale == 0 and model.can_rest(reply)):
+            return 0, *stamps
+        skipped, restart = 0, self.restart_requested
+        while not restart.is_set():
+            t = self.t_s
+            at = model.stamps(t)
+            if done(*at) or not model.rest_at(t):
+                break
+            self.cycles += 1
+            skipped, stamps = skipped + 1, at
+            self._next_cycle()  # end([reply]): the inbox holds reply for the next cycle again
+        return skipped, *stamps
 
     def state_dict(self) -> dict[str, Any]:
         """The cycle time, count and the controller's state (JSON-able; the arm is the physics')."""

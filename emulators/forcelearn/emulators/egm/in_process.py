@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import logging
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 from forcelearn.emulators.egm.base import EgmEmulatorBase
@@ -47,6 +48,10 @@ class InProcessEgmController(EgmEmulatorBase):
     Takes the arguments of :class:`~forcelearn.emulators.egm.base.EgmEmulatorBase`.
     """
 
+    rests = True
+    """Run the cycles at rest in one jump when the client asks (``rest_carried``); False:
+    every cycle in full (what the tests compare the jump with)."""
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.loop.carried = True  # nothing here needs the bytes: they are made when asked
@@ -56,6 +61,8 @@ class InProcessEgmController(EgmEmulatorBase):
         self._client: InProcessDatagramSocket | None = None
         self.unanswered = 0
         """Cycles whose due answer never came (the client read on without answering)."""
+        self.rested = 0
+        """Cycles run silently at rest."""
         self._mark_started()
 
     @property
@@ -107,6 +114,17 @@ class InProcessEgmController(EgmEmulatorBase):
             self._early.append(datagram)
 
 
+    def _rest(self, datagram: Datagram, done: Callable[[int, int], bool]) -> tuple[int, int, int]:
+        """Answer the due cycle with ``datagram``, then jump the cycles at rest (CycleLoop.rest)."""
+        self._answer(datagram)
+        if not self.rests or self._outbox or self._early or self._awaiting:
+            return 0, 0, 0
+        rested = self.loop.rest(datagram, done)
+        self.replies += rested[0]
+        self.rested += rested[0]
+        return rested
+
+
 class InProcessDatagramSocket:
     """The client's end: what the EGM driver calls instead of a bound UDP socket."""
 
@@ -138,6 +156,23 @@ class InProcessDatagramSocket:
     def send_carried(self, data: Datagram, address: Any, /) -> None:
         """:meth:`sendto` of a datagram not encoded (the controller reads its message)."""
         self._require_open()._answer(data if type(data) is Carried else bytes(data))
+
+    def rest_carried(
+        self, data: Datagram, address: Any, done: Callable[[int, int], bool], /
+    ) -> tuple[int, int, int]:
+        """:meth:`send_carried`, then the cycles at rest that follow, in one jump.
+
+        While the arm rests and ``data`` plans the pose in effect, each further
+        cycle's EgmRobot would be the latest one with the next seqno and its
+        own stamps, and its answer ``data`` again with the next seqno: those
+        cycles are run without building either (the controller's state, the
+        physics and the clock as cycle by cycle, to the bit), up to the first
+        one whose stamps (header.tm ms, feedBack.time µs) make ``done`` true,
+        or that is not at rest: :meth:`recv_carried` then runs that one in
+        full. Returns (cycles jumped, and the last one's header.tm and
+        feedBack.time; 0 cycles: none, and the stamps are 0).
+        """
+        return self._require_open()._rest(data if type(data) is Carried else bytes(data), done)
 
     def settimeout(self, value: float | None, /) -> None:
         """Accepted and not needed: nothing here ever waits."""
