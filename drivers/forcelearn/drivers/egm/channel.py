@@ -70,20 +70,25 @@ class CarryingSocket(DatagramSocket, Protocol):
     def send_carried(self, data: carried.Datagram, address: Any, /) -> None: ...  # noqa: D102
 
 
+Done = Callable[[int, int, Pose], bool]
+"""Whether the PC answers an EgmRobot (header.tm ms, feedBack.time µs, feedBack.cartesian)
+otherwise than with its last reply again: a lockstep wait's loop ends at it."""
+
+
 class RestingSocket(CarryingSocket, Protocol):
-    """A carrying end that also runs the controller's cycles at rest in one jump.
+    """A carrying end that also runs in one jump the cycles the PC answers the same.
 
     ``rest_carried(reply, address, done)`` is ``send_carried(reply, address)``
-    followed by the cycles in which neither side's message changes (the arm
-    rests and ``reply`` plans the pose in effect) up to the first whose
-    EgmRobot stamps (header.tm ms, feedBack.time µs) make ``done`` true;
-    it returns (cycles jumped, the last one's header.tm and feedBack.time).
-    Each jumped cycle is one the driver would have taken and answered with
-    the same planned pose: :meth:`.guidance.Guidance.rested` counts them.
+    followed by the controller's cycles that ``reply`` (planning the pose in
+    effect) answers again: each whose EgmRobot makes ``done`` false, up to the
+    first that makes it true, which ``recv_carried`` gives next. It returns
+    (cycles jumped, the last one's header.tm and feedBack.time). Each jumped
+    cycle is one the driver would have taken and answered with the same
+    planned pose: :meth:`.guidance.Guidance.rested` counts them.
     """
 
     def rest_carried(  # noqa: D102
-        self, data: carried.Datagram, address: Any, done: Callable[[int, int], bool], /
+        self, data: carried.Datagram, address: Any, done: Done, /
     ) -> tuple[int, int, int]: ...
 
 
@@ -242,14 +247,14 @@ class EgmChannel(Driver):
                 self._pending = address
                 return
 
-    def _rest(self, ends: Callable[[float], bool]) -> None:
-        """Lockstep in process, at rest: answer the held message and jump the cycles at rest.
+    def _rest(self, ends: Callable[[float, Pose], bool]) -> None:
+        """Lockstep in process, at rest: answer the held message, jump what that answers again.
 
-        The cycles jumped are those whose EgmRobot would repeat the latest one
-        but for its counters and stamps, before the first one at whose
-        controller time (:meth:`.guidance.Guidance.time_at`) ``ends`` is true,
-        which :meth:`_next_message` then reads as usual. Nothing to do
-        unless the reply repeats (:meth:`.guidance.Guidance.resting`).
+        While the reply repeats (:meth:`.guidance.Guidance.resting`: the target
+        planned), the controller runs the cycles whose EgmRobot a wait would
+        only answer again, up to the first at whose controller time
+        (:meth:`.guidance.Guidance.time_at`) and feedback pose ``ends`` is true,
+        which :meth:`_next_message` then reads as usual.
         """
         rester, address, guidance = self._rester, self._pending, self._guidance
         if rester is None or address is None or not guidance.resting():
@@ -258,7 +263,7 @@ class EgmChannel(Driver):
         self._pending = None
         try:
             jumped, tm_ms, time_us = rester.rest_carried(
-                reply, address, lambda tm, us: ends(guidance.time_at(tm, us)))
+                reply, address, lambda tm, us, pose: ends(guidance.time_at(tm, us), pose))
         except OSError as exc:
             raise LinkError(f"cannot send EgmSensor to {address}: {exc}") from exc
         guidance.rested(jumped, tm_ms, time_us)

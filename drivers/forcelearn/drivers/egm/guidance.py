@@ -380,19 +380,14 @@ class Guidance:
         return planned is not None and planned is self.target and planned is self._sent
 
     def rested(self, cycles: int, tm_ms: int, time_us: int) -> None:
-        """Count ``cycles`` EgmRobots taken and answered unseen at rest (``rest_carried``).
+        """Count ``cycles`` fresh EgmRobots taken and answered at rest unseen (``rest_carried``).
 
-        Each was the latest with the next seqno and its own stamps (the last's:
-        ``tm_ms``, ``time_us``), answered as :meth:`reply` at rest: the counters
-        and seqnos move as if each had come, and :attr:`latest` takes the last
-        one's seqno and stamps, which the next datagram is judged by (and replaces).
+        The counters and seqnos move as if each had come; :attr:`latest` takes the last one's
+        seqno and stamps (``tm_ms``, ``time_us``): the next datagram is judged by them, replaces it.
         """
-        latest = self.latest
-        if cycles <= 0 or latest is None:
+        if cycles <= 0 or (latest := self.latest) is None:
             return
-        counts = self._counts
-        counts["received"] += cycles
-        counts["replies"] += cycles
+        self._count(received=cycles, replies=cycles)
         self._next_seqno = (self._next_seqno + cycles) % _SEQNO_MOD
         self._before_restart = self._chain = self.refusal = None  # as _fresh and on_datagram do
         self.latest = replace(latest, seqno=(latest.seqno + cycles) % _SEQNO_MOD, tm_ms=tm_ms,
@@ -482,14 +477,19 @@ class Guidance:
 
     def in_position(self) -> bool:
         """True when planned, the controller's planned and its feedback are all at the target."""
-        m, target = self.latest, self.target
-        if m is None or target is None or m.feedback is None or self.planned != target:
+        m = self.latest
+        return m is not None and self.in_position_at(m.feedback, m.planned)
+
+    def in_position_at(self, feedback: Pose | None, planned: Pose | None) -> bool:
+        """:meth:`in_position` of an EgmRobot with this feedback and planned pose."""
+        target = self.target  # (the PC's planned pose must be the target too)
+        if target is None or feedback is None or self.planned != target:
             return False
-        asked = (m.feedback, m.planned, target)
+        asked = (feedback, planned, target)
         known = self._in_position
         if known is not None and known[0] == asked:
             return known[1]  # the same poses as in the cycle before (at rest: most cycles)
-        poses = [m.feedback] + ([m.planned] if m.planned is not None else [])
+        poses = [feedback] + ([planned] if planned is not None else [])
         band_mm, band_deg = self.config.in_position_mm, self.config.in_position_deg
         reached = all(
             distance_mm(p, target) <= band_mm

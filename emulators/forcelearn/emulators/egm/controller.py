@@ -61,11 +61,9 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
-import numpy as np
-
-from forcelearn.devices import Pose, multiply_quaternions
+from forcelearn.devices import Pose
 from forcelearn.emulators.egm import joints as arm_joints
-from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
+from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams, feed_forward_pose
 from forcelearn.emulators.egm.target_checks import TargetChecks
 from forcelearn.emulators.physics.arm import ArmConfig, joint_angles_deg
 from forcelearn.emulators.physics.cell import CellPhysics
@@ -180,6 +178,7 @@ class EgmControllerModel:
         self._timed_out_s: float | None = None
         """When the last CommTimeout ended guidance, s (None: guided, or restarted since)."""
         self._last_pose_s = (t_s, physics.pose)
+        self._speed = 0.0  # the TCP speed over the latest cycle, mm/s (utilizationRate)
         self._checks = TargetChecks(config.arm, config.workspace_min_mm, config.workspace_max_mm)
 
     @property
@@ -245,7 +244,8 @@ class EgmControllerModel:
             return
         self.planned = target
         self.planned_joints = self.planned_joints if joints is None else joints
-        self.motion.command(self._feed_forward_pose(target, message.speed_ref), t_s)
+        tau = self.config.servo.time_constant_s
+        self.motion.command(feed_forward_pose(target, message.speed_ref, tau), t_s)
         self.targets_read += 1
 
     def _apply_joints(self, message: codec.SensorMessage, t_s: float) -> None:
@@ -275,22 +275,6 @@ class EgmControllerModel:
         self.motion.command(commanded, t_s)
         self.targets_read += 1
 
-    def _feed_forward_pose(self, target: Pose, speed_ref: tuple[float, ...] | None) -> Pose:
-        """``target`` led by speedRef x tau: the lag's fixed point under the speed feed-forward."""
-        if speed_ref is None or len(speed_ref) != 6 or not all(math.isfinite(v) for v in speed_ref):
-            return target
-        tau = self.config.servo.time_constant_s
-        x, y, z = (float(c) for c in target.position_mm + np.asarray(speed_ref[:3]) * tau)
-        turn = np.radians(np.asarray(speed_ref[3:])) * tau  # rotation vector, base frame
-        angle = float(np.linalg.norm(turn))
-        quaternion = target.quaternion
-        if angle > 0.0:
-            axis = turn / angle
-            w, s = math.cos(angle / 2.0), math.sin(angle / 2.0)
-            turn_q = (w, *(float(c) * s for c in axis))
-            quaternion = multiply_quaternions(turn_q, target.quaternion)
-        return Pose(x, y, z, quaternion)
-
     def _motion_error(self, t_s: float, reason: str) -> None:
         log.warning("EGM motion error at %.3f s: %s", t_s, reason)
         self._hold(t_s)
@@ -309,7 +293,9 @@ class EgmControllerModel:
         """Advance to the cycle at ``t_s`` and return its EgmRobot datagram."""
         return codec.encode_robot(self.robot_message(t_s), self.config.version)
 
-    def robot_carried(self, t_s: float, defer_force: bool = False) -> carried.Carried:
+    def robot_carried(
+        self, t_s: float, defer_force: bool = False, moved: bool = False
+    ) -> carried.Carried:
         """:meth:`robot_datagram` not encoded yet (the in-process route).
 
         ``defer_force``: the measured force is left out and filled in when the
@@ -319,11 +305,13 @@ class EgmControllerModel:
         wrench (a pure function of the cell's state at this cycle) is not
         computed for the hundreds of cycles no one reads it of. The
         finished message and its bytes are those of ``defer_force=False``.
+        ``moved``: the cell is at the cycle already (:meth:`follow_at` ran).
         """
         version = self.config.version
+        build = self._message if moved else self.robot_message
         if not (defer_force and self.config.send_measured_force):
-            return carried.carry_robot(self.robot_message(t_s), version)
-        message = self.robot_message(t_s, with_force=False)
+            return carried.carry_robot(build(t_s), version)
+        message = build(t_s, with_force=False)
         datagram = carried.carry_robot(message, version)
         clock = self.physics.clock
         now_s, built = clock.now_s, self._built
@@ -347,6 +335,11 @@ class EgmControllerModel:
 
         ``with_force=False`` leaves the measured force out (:meth:`robot_carried`).
         """
+        self._move_to(t_s)
+        return self._message(t_s, with_force)
+
+    def _move_to(self, t_s: float) -> None:
+        """The cycle at ``t_s`` up to its EgmRobot: timeout, the arm, the axes (what it sends)."""
         if self.running and t_s - self._last_read_s >= self.config.comm_timeout_s - 1e-9:
             log.warning("EGM comm timeout at %.3f s: no EgmSensor for %.3f s", t_s,
                         t_s - self._last_read_s)
@@ -359,15 +352,19 @@ class EgmControllerModel:
             self.physics.set_pose(pose)  # else at rest where it was published (and observed)
             self._published = pose
         t0, p0 = self._last_pose_s
-        speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
+        self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
         self._last_pose_s = (t_s, pose)
+        if pose != self._feedback_joints_pose:  # at rest the axes stay
+            self._feedback_joints = self._joints(pose, self._feedback_joints)
+            self._feedback_joints_pose = pose
+
+    def _message(self, t_s: float, with_force: bool = True) -> codec.RobotMessage:
+        """The EgmRobot of the cycle at ``t_s`` once :meth:`_move_to` ran (seqno +1)."""
         force = None
         if self.config.send_measured_force and with_force:
             force = self._measured_force()
-        gap = _distance_mm(pose, self.planned)
-        if self.pose != self._feedback_joints_pose:  # at rest the axes stay
-            self._feedback_joints = self._joints(self.pose, self._feedback_joints)
-            self._feedback_joints_pose = self.pose
+        gap = _distance_mm(self.pose, self.planned)
+        speed = self._speed
         tm_ms, time_us = self.stamps(t_s)
         message = codec.RobotMessage(
             seqno=self._seqno,
@@ -394,16 +391,15 @@ class EgmControllerModel:
         """The EgmRobot's header.tm (ms) and feedBack.time (µs since 1970) of a cycle at ``t_s``."""
         return round(t_s * 1000), self.config.clock_epoch_us + round(t_s * 1e6)
 
-    # -- cycles at rest (the in-process route's jump: CycleLoop.rest) -----------------------
+    # -- cycles that only follow (the in-process route's jump: CycleLoop.rest) --------------
 
-    def can_rest(self, datagram: carried.Datagram) -> bool:
-        """Whether every cycle that reads the EgmSensor ``datagram`` changes only counters and time.
+    def can_follow(self, datagram: carried.Datagram) -> bool:
+        """Whether each cycle that reads the EgmSensor ``datagram`` only follows the arm.
 
-        So when guidance runs in pose mode, ``datagram`` is carried and plans
-        the pose in effect with no speedRef (the same check passed, nothing
-        commanded), and the arm rests where the latest EgmRobot and the
-        physics have it: each such cycle's EgmRobot is the latest one with the
-        next seqno and this cycle's stamps (the sponge relaxes meanwhile).
+        So when guidance runs in pose mode and ``datagram`` is carried and
+        plans the pose in effect with no speedRef (the same check passed,
+        nothing commanded): reading it changes only the read time and count,
+        and the cycle is :meth:`follow_at`, then its EgmRobot.
         """
         message = carried.received_sensor(datagram, self.config.version)
         if (message is None or message.planned is None or message.speed_ref is not None
@@ -412,29 +408,30 @@ class EgmControllerModel:
                 or self.config.mode != "pose"
                 or not self.config.comm_timeout_s > self.config.sample_period_s):
             return False
-        planned, published, resting = message.planned, self._published, getattr(
-            self.motion, "resting", None)
+        planned, commands = message.planned, getattr(self.motion, "commands", None)
         return (planned == self.planned and self._checks.passed(planned)
-                and resting is not None and resting(planned, self.pose)
-                and published is not None and self.physics.pose is published
-                and published == self.pose and self._feedback_joints_pose == self.pose)
+                and commands is not None and not commands(planned))
 
-    def rest_at(self, t_s: float) -> bool:
-        """Run the cycle at ``t_s`` as :meth:`can_rest` allows: read the EgmSensor, build nothing.
+    def follow_at(self, t_s: float) -> Pose | None:
+        """The cycle at ``t_s`` as :meth:`can_follow` allows, up to its EgmRobot; its pose.
 
-        Returns False, running nothing, when the cycle's seqno would be 0 (a wrap
-        looks like a new session: that cycle runs in full). The arm and the sponge
-        are advanced to ``t_s`` as building the EgmRobot does.
+        Reads the EgmSensor again and moves the cell as :meth:`robot_message`
+        does; the EgmRobot is then :meth:`robot_carried` with ``moved`` (or
+        :meth:`skip` if it is not needed). None, running nothing, when the
+        cycle's seqno would be 0 (a wrap looks like a new session: that cycle
+        runs in full).
         """
         if self._seqno == 0:
-            return False
+            return None
         self._last_read_s = t_s  # the EgmSensor read: the planned pose in effect again
         self.targets_read += 1
-        self.motion.advance_to(t_s)  # the ticks: the sponge relaxes
-        self._last_pose_s = (t_s, self.pose)
+        self._move_to(t_s)
+        return self.pose
+
+    def skip(self) -> None:
+        """Count the EgmRobot of a cycle :meth:`follow_at` ran as built (no one reads it)."""
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
         self._built += 1
-        return True
 
     # -- checkpoint -------------------------------------------------------------------------
 

@@ -26,10 +26,15 @@ import threading
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from forcelearn.devices import Pose
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm.controller import EgmControllerModel
 from forcelearn.emulators.egm.faults import EgmFaultInjector
 from forcelearn.protocols.egm.carried import Datagram
+
+Done = Callable[[int, int, Pose], bool]
+"""Whether the PC's next answer may differ, from an EgmRobot's header.tm (ms), feedBack.time
+(µs) and feedBack.cartesian: :meth:`CycleLoop.rest` stops its jump at the first such cycle."""
 
 
 class CycleLoop:
@@ -128,35 +133,43 @@ class CycleLoop:
         self.t_s = self.clock.advance_to(next_t)
         return self.t_s
 
-    def rest(self, reply: Datagram, done: Callable[[int, int], bool]) -> tuple[int, int, int]:
-        """After ``end([reply])``: run the cycles at rest that follow silently; say how many.
+    def rest(self, reply: Datagram, done: Done) -> tuple[int, int, int, Datagram | None]:
+        """After ``end([reply])``: the cycles that follow in which the PC's answer repeats.
 
-        A cycle at rest (:meth:`EgmControllerModel.can_rest`: the arm rests,
-        ``reply`` plans the pose in effect; no fault armed, no restart asked,
-        no pace set) changes nothing but the counters, the cycle time and the
-        physics' time, so it is run without building its EgmRobot (nor the
-        answer: ``reply`` is read again) by :meth:`EgmControllerModel.rest_at`:
-        the same state, to the bit, as :meth:`begin` and :meth:`end` give it.
-        Cycles run so until one is not at rest or its EgmRobot's stamps
-        (header.tm ms, feedBack.time µs) make ``done`` true: that cycle is left
-        for :meth:`begin`, in full. Returns (cycles run, and the stamps of the
-        last one run, (0, 0) if none).
+        While ``reply`` plans the pose in effect (:meth:`EgmControllerModel.can_follow`;
+        no fault armed, no restart asked, no pace set), a cycle changes the
+        counters, the cycle time and the cell (the arm, the sponge), and its
+        EgmRobot is the one the PC reads to decide whether it answers again
+        the same: ``done(tm_ms, time_us, feedback)`` of that EgmRobot's
+        header.tm, feedBack.time and feedBack.cartesian says so (False: it
+        would answer ``reply`` again). Such cycles run here, one by one on the
+        model (the same state to the bit as :meth:`begin` and :meth:`end`),
+        without building an EgmRobot nor its answer; the first cycle for which
+        ``done`` is true is run up to its EgmRobot, which is returned to be
+        sent (the cycle then waits for its answer, as after :meth:`begin`).
+        Returns (cycles skipped, the last one's stamps or (0, 0), that
+        EgmRobot or None: no cycle was run for it, :meth:`begin` runs the next).
         """
         model, stamps = self.model, (0, 0)
         if not (self.carried and self.faults.none_armed and self._held is None
                 and not self._late and len(self._inbox) == 1 and self._inbox[0] is reply
-                and self.clock.time_scale == 0 and model.can_rest(reply)):
-            return 0, *stamps
+                and self.clock.time_scale == 0 and model.can_follow(reply)):
+            return 0, *stamps, None
         skipped, restart = 0, self.restart_requested
         while not restart.is_set():
             t = self.t_s
-            at = model.stamps(t)
-            if done(*at) or not model.rest_at(t):
+            feedback = model.follow_at(t)
+            if feedback is None:
                 break
             self.cycles += 1
+            at = model.stamps(t)
+            if done(*at, feedback):
+                self._inbox = []  # read: the cycle's answer is the PC's next
+                return skipped, *stamps, model.robot_carried(t, defer_force=True, moved=True)
+            model.skip()
             skipped, stamps = skipped + 1, at
             self._next_cycle()  # end([reply]): the inbox holds reply for the next cycle again
-        return skipped, *stamps
+        return skipped, *stamps, None
 
     def state_dict(self) -> dict[str, Any]:
         """The cycle time, count and the controller's state (JSON-able; the arm is the physics')."""

@@ -30,10 +30,10 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from collections.abc import Callable
 from typing import Any
 
 from forcelearn.emulators.egm.base import EgmEmulatorBase
+from forcelearn.emulators.egm.cycles import Done
 from forcelearn.protocols.egm.carried import Carried, Datagram
 
 log = logging.getLogger(__name__)
@@ -114,15 +114,18 @@ class InProcessEgmController(EgmEmulatorBase):
             self._early.append(datagram)
 
 
-    def _rest(self, datagram: Datagram, done: Callable[[int, int], bool]) -> tuple[int, int, int]:
-        """Answer the due cycle with ``datagram``, then jump the cycles at rest (CycleLoop.rest)."""
+    def _rest(self, datagram: Datagram, done: Done) -> tuple[int, int, int]:
+        """Answer the due cycle with ``datagram``, then jump what it answers (CycleLoop.rest)."""
         self._answer(datagram)
         if not self.rests or self._outbox or self._early or self._awaiting:
             return 0, 0, 0
-        rested = self.loop.rest(datagram, done)
-        self.replies += rested[0]
-        self.rested += rested[0]
-        return rested
+        skipped, tm_ms, time_us, robot = self.loop.rest(datagram, done)
+        self.replies += skipped
+        self.rested += skipped
+        if robot is not None:  # the cycle the jump ended on waits for its answer (as begin's)
+            self._outbox.append(robot)
+            self._awaiting = True
+        return skipped, tm_ms, time_us
 
 
 class InProcessDatagramSocket:
@@ -158,19 +161,18 @@ class InProcessDatagramSocket:
         self._require_open()._answer(data if type(data) is Carried else bytes(data))
 
     def rest_carried(
-        self, data: Datagram, address: Any, done: Callable[[int, int], bool], /
+        self, data: Datagram, address: Any, done: Done, /
     ) -> tuple[int, int, int]:
-        """:meth:`send_carried`, then the cycles at rest that follow, in one jump.
+        """:meth:`send_carried`, then the cycles it would answer again, in one jump.
 
-        While the arm rests and ``data`` plans the pose in effect, each further
-        cycle's EgmRobot would be the latest one with the next seqno and its
-        own stamps, and its answer ``data`` again with the next seqno: those
-        cycles are run without building either (the controller's state, the
-        physics and the clock as cycle by cycle, to the bit), up to the first
-        one whose stamps (header.tm ms, feedBack.time µs) make ``done`` true,
-        or that is not at rest: :meth:`recv_carried` then runs that one in
-        full. Returns (cycles jumped, and the last one's header.tm and
-        feedBack.time; 0 cycles: none, and the stamps are 0).
+        While ``data`` plans the pose in effect, the cycles whose EgmRobot
+        (header.tm ms, feedBack.time µs, feedBack.cartesian) makes ``done``
+        false would be answered with ``data`` again (the next seqno): those
+        are run without building either message (the controller's state, the
+        cell's physics and the clock as cycle by cycle, to the bit); the
+        first one ``done`` accepts is what :meth:`recv_carried` gives next.
+        Returns (cycles jumped, the last one's header.tm and feedBack.time; 0
+        cycles: none, and the stamps are 0).
         """
         return self._require_open()._rest(data if type(data) is Carried else bytes(data), done)
 

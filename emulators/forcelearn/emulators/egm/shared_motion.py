@@ -76,16 +76,9 @@ class PhysicsMotion:
         self.physics.advance_to(t_s)
         self.motion.command(target, t_s)
 
-    def resting(self, planned: Pose, pose: Pose) -> bool:
-        """Whether the arm rests at ``pose`` and ``planned`` commands nothing new.
-
-        Then a cycle that reads ``planned`` leaves the arm at ``pose`` (the
-        sponge may still relax): what the controller's cycles at rest ask
-        (``EgmControllerModel.can_rest``).
-        """
-        motion = self.motion
-        return (planned == self._last and motion.resting and self.physics.motion is motion
-                and motion.tool_key == (pose.x_mm, pose.y_mm, pose.z_mm, pose.quaternion))
+    def commands(self, target: Pose) -> bool:
+        """Whether :meth:`command` of ``target`` would command the arm (else it does nothing)."""
+        return target != self._last
 
     def advance_to(self, t_s: float) -> Pose:
         """Move the arm (and let the sponge relax) up to ``t_s``; return the tool pose."""

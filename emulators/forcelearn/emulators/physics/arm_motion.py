@@ -192,15 +192,6 @@ class ArmMotion:
             and _angle_deg(self._tool_q, t.quaternion) <= _ORIENTATION_BAND_DEG
         )
 
-    @property
-    def resting(self) -> bool:
-        """True when nothing is pending and the tool stands on its stopped reference.
-
-        Until the next command every later tick leaves the tool where it is
-        (:meth:`advance_to` skips them in one jump).
-        """
-        return not self._pending and self._at_rest()
-
     def _at_rest(self) -> bool:
         return self._v == 0.0 and self._s >= self._seg_end and self._tool == self._ref and (
             self._tool_q == self._ref_q
