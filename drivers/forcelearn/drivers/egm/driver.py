@@ -335,7 +335,7 @@ class EgmRobot(EgmChannel):
                 )
             if time.monotonic() > wall_deadline:
                 raise LinkTimeout(f"controller time did not advance {span_s} s in wall time")
-            if self._rester is not None:  # in process: the cycles answered alike in one jump
+            if self._rester is not None and guidance.resting():  # in process: in one jump
                 self._rest_during(wait, until_in_position)
             self._next_message()
 
