@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -193,3 +194,35 @@ def test_a_deferred_measured_force_is_asked_before_the_cell_moves_on() -> None:
     with pytest.raises(RuntimeError, match="moved on"):
         bytes(second)
     emu.close()
+
+
+def test_the_cycles_at_rest_in_one_jump_are_the_cycles_one_by_one(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A relaxing, hysteretic, rubbing sponge: every result as with every cycle run in full.
+
+    Presses in, slides, backs off, dwells and reads the force: every force,
+    status, checkpoint and emulator state equal.
+    """
+    config = load_cell_config(EXAMPLES / "egm-cell.toml")
+    sponge = replace(config.emulator.sponge, hysteresis_loss=0.3, friction_coefficient=0.3)
+    config = replace(config, emulator=replace(config.emulator, sponge=sponge))
+
+    def session(jump: bool) -> tuple[list[object], int]:
+        monkeypatch.setattr(InProcessEgmController, "rests", jump)
+        with CellSession(config, seed=4) as s:
+            assert s.cell is not None
+            robot, seen = s.cell.robot, []
+            s.cell.move_in_steps(Pose(900.0, 15.0, 0.0, s.cell.sync().quaternion), 9.5)
+            for dy, dz in ((-9.0, 0.0), (-9.0, 0.0), (-2.0, 0.0), (0.0, -1.5), (1.0, 0.0)):
+                s.cell.move_to(s.cell.sync().moved(0.0, dy, dz))
+                seen += [s.cell.measure_force_n(), robot.dwell(0.2), s.cell.measure_force_n()]
+            seen += [robot.read_status(), robot.state_dict(), s.emulator_state()]
+            return seen, s.robot_emulator.rested
+
+    jumped, rested = session(True)
+    one_by_one, none = session(False)
+    assert none == 0 and rested > 0
+    assert jumped == one_by_one
+    forces = jumped[0::3][:5]
+    assert max(forces) > 5.0 and forces[-1] < forces[-2]  # pressed in, then unloading

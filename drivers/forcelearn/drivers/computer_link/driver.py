@@ -241,14 +241,21 @@ class ComputerLinkRobot(Driver):
     def _check_target(self, target: Pose) -> None:
         """Raise SafetyStop if ``target`` breaks a client-side limit (nothing is sent)."""
         limits = self.config.limits
-        position = target.position_mm
-        low, high = np.asarray(limits.workspace_min_mm), np.asarray(limits.workspace_max_mm)
-        if not np.all(np.isfinite(position)) or np.any(position < low) or np.any(position > high):
+        # floats, not arrays (every move): the same comparisons, and the step by the float
+        # operations of numpy.linalg.norm of the difference (three squares in order, the root)
+        position = (float(target.x_mm), float(target.y_mm), float(target.z_mm))
+        low, high = limits.workspace_min_mm, limits.workspace_max_mm
+        if not all(math.isfinite(c) and lo <= c <= hi
+                   for c, lo, hi in zip(position, low, high, strict=True)):
             raise SafetyStop(
                 f"refused target {np.round(position, 3).tolist()} mm: outside the workspace box "
-                f"{low.tolist()}..{high.tolist()} (limits.workspace_*_mm); nothing was sent"
+                f"{np.asarray(low).tolist()}..{np.asarray(high).tolist()}"
+                " (limits.workspace_*_mm); nothing was sent"
             )
-        step = float(np.linalg.norm(position - self._reference_locked().position_mm))
+        reference = self._reference_locked()
+        dx, dy, dz = (position[0] - float(reference.x_mm), position[1] - float(reference.y_mm),
+                      position[2] - float(reference.z_mm))
+        step = math.sqrt(dx * dx + dy * dy + dz * dz)
         if not step <= limits.max_step_mm:  # NaN (a non-finite reported pose) is refused too
             raise SafetyStop(
                 f"refused a step of {step:.3f} mm: more than limits.max_step_mm = "

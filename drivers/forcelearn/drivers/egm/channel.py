@@ -29,6 +29,7 @@ import socket
 import threading
 import time
 import weakref
+from collections.abc import Callable
 from typing import Any, Protocol, cast
 
 from forcelearn.devices import Pose
@@ -69,6 +70,28 @@ class CarryingSocket(DatagramSocket, Protocol):
     def send_carried(self, data: carried.Datagram, address: Any, /) -> None: ...  # noqa: D102
 
 
+Done = Callable[[int, int, Pose], bool]
+"""Whether the PC answers an EgmRobot (header.tm ms, feedBack.time µs, feedBack.cartesian)
+otherwise than with its last reply again: a lockstep wait's loop ends at it."""
+
+
+class RestingSocket(CarryingSocket, Protocol):
+    """A carrying end that also runs in one jump the cycles the PC answers the same.
+
+    ``rest_carried(reply, address, done)`` is ``send_carried(reply, address)``
+    followed by the controller's cycles that ``reply`` (planning the pose in
+    effect) answers again: each whose EgmRobot makes ``done`` false, up to the
+    first that makes it true, which ``recv_carried`` gives next. It returns
+    (cycles jumped, the last one's header.tm and feedBack.time). Each jumped
+    cycle is one the driver would have taken and answered with the same
+    planned pose: :meth:`.guidance.Guidance.rested` counts them.
+    """
+
+    def rest_carried(  # noqa: D102
+        self, data: carried.Datagram, address: Any, done: Done, /
+    ) -> tuple[int, int, int]: ...
+
+
 class EgmChannel(Driver):
     """One EGM UDP channel to one controller: the datagrams of a driver, and its lifetime.
 
@@ -94,11 +117,14 @@ class EgmChannel(Driver):
         self._thread: threading.Thread | None = None
         self._sock: DatagramSocket | None
         self._carrier: CarryingSocket | None = None
+        self._rester: RestingSocket | None = None
         if sock is not None:
             if not config.lockstep:
                 raise ValueError("a given socket (an in-process controller) needs lockstep = True")
             self._sock = sock
             self._carrier = _carrying(sock)
+            if self._carrier is not None and callable(getattr(type(sock), "rest_carried", None)):
+                self._rester = cast(RestingSocket, sock)
         else:
             self._sock = _bind(config.host, config.port)
         self.port: int = self._sock.getsockname()[1]
@@ -221,6 +247,28 @@ class EgmChannel(Driver):
                 self._pending = address
                 return
 
+    def _rest(self, ends: Callable[[float, Pose], bool]) -> None:
+        """Lockstep in process, at rest: answer the held message, jump what that answers again.
+
+        While the reply repeats (:meth:`.guidance.Guidance.resting`: the target
+        planned), the controller runs the cycles whose EgmRobot a wait would
+        only answer again, up to the first at whose controller time
+        (:meth:`.guidance.Guidance.time_at`) and feedback pose ``ends`` is true,
+        which :meth:`_next_message` then reads as usual.
+        """
+        rester, address, guidance = self._rester, self._pending, self._guidance
+        if rester is None or address is None or not guidance.resting():
+            return
+        reply = guidance.reply_carried()  # at rest: the planned pose is sent as it is, unchecked
+        self._pending = None
+        try:
+            jumped, tm_ms, time_us = rester.rest_carried(
+                reply, address, lambda tm, us, pose: ends(guidance.time_at(tm, us), pose))
+        except OSError as exc:
+            raise LinkError(f"cannot send EgmSensor to {address}: {exc}") from exc
+        guidance.rested(jumped, tm_ms, time_us)
+        self._fresh_count += jumped
+
     def _silent(self, watchdog: float) -> ForcelearnError:
         """The error of a watchdog's silence: why the controller's stream was refused, if so."""
         refusal = self._guidance.refusal
@@ -342,7 +390,7 @@ class EgmChannel(Driver):
             if self._sock is not None:
                 self._sock.close()
                 self._sock = None
-                self._carrier = None
+                self._carrier = self._rester = None
 
     def _closed_error(self) -> LinkError:
         return LinkError(f"the EGM driver on port {self.port} is closed; open a new one")

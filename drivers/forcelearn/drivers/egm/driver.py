@@ -309,9 +309,8 @@ class EgmRobot(EgmChannel):
         guidance = self._guidance
         self._latest()
         session = guidance.session
-        start = guidance.controller_time_s()
+        wait = _Waiting(guidance.controller_time_s(), span_s, settle_s)
         wall_deadline = time.monotonic() + span_s + self.config.watchdog_s + 1.0
-        settled_since: float | None = None
         while True:
             self._check()
             if guidance.session != session:
@@ -321,16 +320,12 @@ class EgmRobot(EgmChannel):
                 )
             guidance.require_running()
             now = guidance.controller_time_s()
-            if until_in_position:
-                if guidance.in_position():
-                    settled_since = now if settled_since is None else settled_since
-                    if now - settled_since >= settle_s - 1e-9:
-                        reached = self.read_pose()
-                        self.last_wait = InPositionWait(settled_since, reached)
-                        return reached
-                else:
-                    settled_since = None
-            if now - start >= span_s - 1e-9:
+            if until_in_position and wait.settled(now, guidance.in_position()):
+                reached = self.read_pose()
+                assert wait.settled_since is not None
+                self.last_wait = InPositionWait(wait.settled_since, reached)
+                return reached
+            if wait.spent(now):
                 if not until_in_position:
                     return self.read_pose()
                 self._guidance.hold()
@@ -340,7 +335,22 @@ class EgmRobot(EgmChannel):
                 )
             if time.monotonic() > wall_deadline:
                 raise LinkTimeout(f"controller time did not advance {span_s} s in wall time")
+            if self._rester is not None and guidance.resting():  # in process: in one jump
+                self._rest_during(wait, until_in_position)
             self._next_message()
+
+    def _rest_during(self, wait: _Waiting, until_in_position: bool) -> None:
+        """Jump the cycles at which ``wait``'s loop would only answer again (:meth:`_rest`)."""
+        guidance = self._guidance
+        latest = guidance.latest
+        assert latest is not None
+        planned = latest.planned  # the controller's: it stays while the PC's reply repeats
+
+        def ends(now: float, feedback: Pose) -> bool:
+            in_position = until_in_position and guidance.in_position_at(feedback, planned)
+            return (until_in_position and wait.settled(now, in_position)) or wait.spent(now)
+
+        self._rest(ends)
 
     # -- checkpoint (emulated cell only) ----------------------------------------------------
 
@@ -360,6 +370,30 @@ class EgmRobot(EgmChannel):
         with self._lock:
             self._check()
             self._guidance.load_state_dict(state)
+
+
+@dataclass
+class _Waiting:
+    """A wait's progress in controller time (s): its start, span and settling."""
+
+    start: float
+    span_s: float
+    settle_s: float
+    settled_since: float | None = None
+    """Since when in position without a break (None: not in position)."""
+
+    def settled(self, now: float, in_position: bool) -> bool:
+        """Note whether a message of time ``now`` is in position; True once settled long enough."""
+        if not in_position:
+            self.settled_since = None
+            return False
+        if self.settled_since is None:
+            self.settled_since = now
+        return now - self.settled_since >= self.settle_s - 1e-9
+
+    def spent(self, now: float) -> bool:
+        """Whether the span has run out at a message of time ``now``."""
+        return now - self.start >= self.span_s - 1e-9
 
 
 def open_egm_robot(config: EgmConfig, timeout_s: float | None = None) -> EgmRobot:

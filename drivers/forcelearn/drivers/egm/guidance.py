@@ -44,18 +44,18 @@ they are applied:
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Any
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm.config import EgmConfig
 from forcelearn.drivers.egm.ramp import TURN_DEG_S, angle_deg, distance_mm, finite_pose, step_toward
 from forcelearn.drivers.egm.stats import EgmStats
+from forcelearn.drivers.egm.stopped import require_running
 from forcelearn.drivers.egm.targets import FEEDBACK_NORM_TOLERANCE, unsafe_reason
 from forcelearn.errors import (
     EgmVersionMismatch,
     ForcelearnError,
-    GuidanceStopped,
     ProtocolError,
     SafetyStop,
 )
@@ -374,6 +374,25 @@ class Guidance:
         self._counts["replies"] += 1
         return carried.carry_sensor(message, self.config.version)
 
+    def resting(self) -> bool:
+        """Whether every reply from now on repeats the last one's planned pose (the target's)."""
+        planned = self.planned
+        return planned is not None and planned is self.target and planned is self._sent
+
+    def rested(self, cycles: int, tm_ms: int, time_us: int) -> None:
+        """Count ``cycles`` fresh EgmRobots taken and answered at rest unseen (``rest_carried``).
+
+        The counters and seqnos move as if each had come; :attr:`latest` takes the last one's
+        seqno and stamps (``tm_ms``, ``time_us``): the next datagram is judged by them, replaces it.
+        """
+        if cycles <= 0 or (latest := self.latest) is None:
+            return
+        self._count(received=cycles, replies=cycles)
+        self._next_seqno = (self._next_seqno + cycles) % _SEQNO_MOD
+        self._before_restart = self._chain = self.refusal = None  # as _fresh and on_datagram do
+        self.latest = replace(latest, seqno=(latest.seqno + cycles) % _SEQNO_MOD, tm_ms=tm_ms,
+                              time_us=time_us)
+
     def hold(self) -> None:
         """Make the present feedback pose the target; the planned pose ramps to it.
 
@@ -435,49 +454,42 @@ class Guidance:
     def controller_time_s(self) -> float:
         """The controller's time of the latest message, s: feedBack.time, else header.tm.
 
-        feedBack.time is the controller's clock in µs since 1970 (manual
-        3HAC073318 p.38); it is counted from the first message the driver
-        read (:attr:`origin_us`) in whole µs, so differences keep full
-        resolution. The clock itself is :attr:`controller_clock_us`.
+        feedBack.time is the controller's clock in µs since 1970 (manual p.38), counted
+        from the first message read (:attr:`origin_us`) in whole µs: full resolution.
         """
-        if self.latest is None:
-            return 0.0
-        if self.latest.time_us is not None and self.origin_us is not None:
-            return (self.latest.time_us - self.origin_us) / 1e6
-        return self.latest.tm_ms / 1000.0
+        latest = self.latest
+        return 0.0 if latest is None else self.time_at(latest.tm_ms, latest.time_us)
+
+    def time_at(self, tm_ms: int, time_us: int | None) -> float:
+        """The controller's time of a message stamped ``tm_ms`` and ``time_us``, s (as above)."""
+        if time_us is not None and self.origin_us is not None:
+            return (time_us - self.origin_us) / 1e6
+        return tm_ms / 1000.0
 
     def controller_clock_us(self) -> int | None:
         """feedBack.time of the latest message: µs since 1970-01-01 UTC (None if not sent)."""
         return None if self.latest is None else self.latest.time_us
 
     def require_running(self) -> None:
-        """Raise ``GuidanceStopped`` unless motors are on, EGM runs and RAPID runs.
-
-        RAPID_UNDEFINED is accepted, as abb_libegm does (a controller-restart quirk).
-        """
-        m = self.latest
-        if m is None:
-            return
-        if (
-            m.motor is not codec.MotorState.ON
-            or m.mci is not codec.MciState.RUNNING
-            or m.rapid is codec.RapidState.STOPPED
-        ):
-            raise GuidanceStopped(
-                f"the controller is not guided: motors {m.motor.name}, EGM {m.mci.name}, "
-                f"RAPID {m.rapid.name}; {_what_to_do(m)}"
-            )
+        """Raise ``GuidanceStopped`` unless motors are on, EGM and RAPID run (:mod:`.stopped`)."""
+        if self.latest is not None:  # (before a session: nothing known, nothing refused)
+            require_running(self.latest)
 
     def in_position(self) -> bool:
         """True when planned, the controller's planned and its feedback are all at the target."""
-        m, target = self.latest, self.target
-        if m is None or target is None or m.feedback is None or self.planned != target:
+        m = self.latest
+        return m is not None and self.in_position_at(m.feedback, m.planned)
+
+    def in_position_at(self, feedback: Pose | None, planned: Pose | None) -> bool:
+        """:meth:`in_position` of an EgmRobot with this feedback and planned pose."""
+        target = self.target  # (the PC's planned pose must be the target too)
+        if target is None or feedback is None or self.planned != target:
             return False
-        asked = (m.feedback, m.planned, target)
+        asked = (feedback, planned, target)
         known = self._in_position
         if known is not None and known[0] == asked:
             return known[1]  # the same poses as in the cycle before (at rest: most cycles)
-        poses = [m.feedback] + ([m.planned] if m.planned is not None else [])
+        poses = [feedback] + ([planned] if planned is not None else [])
         band_mm, band_deg = self.config.in_position_mm, self.config.in_position_deg
         reached = all(
             distance_mm(p, target) <= band_mm
@@ -486,18 +498,3 @@ class Guidance:
         )
         self._in_position = (asked, reached)
         return reached
-
-
-def _what_to_do(m: codec.RobotMessage) -> str:
-    """What the operator must do for the controller to guide again, by what stopped it."""
-    if m.motor is not codec.MotorState.ON:
-        return ("the motors are off (an emergency or protective stop?): clear the stop, switch "
-                "the motors on and start the ForcelearnEGM RAPID program (PP to Main), then "
-                "resume the run (it retracts first)")
-    if m.rapid is codec.RapidState.STOPPED:
-        return ("the RAPID program stopped (from the FlexPendant, or a RAPID error other than a "
-                "comm timeout: see the controller's event log): start ForcelearnEGM again "
-                "(PP to Main), then resume the run (it retracts first)")
-    return ("EGM is not running: after a comm timeout the shipped ForcelearnEGM module opens a "
-            "new session by itself within about 1 s and the run waits for it; if none comes, "
-            "check the controller's event log, the PC address and firewall of its UCdevice")

@@ -61,11 +61,10 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
-import numpy as np
-
-from forcelearn.devices import Pose, multiply_quaternions
+from forcelearn.devices import Pose
 from forcelearn.emulators.egm import joints as arm_joints
-from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams
+from forcelearn.emulators.egm.servo import LagServo, MotionModel, ServoParams, feed_forward_pose
+from forcelearn.emulators.egm.target_checks import TargetChecks
 from forcelearn.emulators.physics.arm import ArmConfig, joint_angles_deg
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.errors import ProtocolError
@@ -179,8 +178,8 @@ class EgmControllerModel:
         self._timed_out_s: float | None = None
         """When the last CommTimeout ended guidance, s (None: guided, or restarted since)."""
         self._last_pose_s = (t_s, physics.pose)
-        self._last_checked: tuple[Pose, str | None, tuple[float, ...] | None] | None = None
-        """The latest target checked, its refusal and its axes (a target is sent every cycle)."""
+        self._speed = 0.0  # the TCP speed over the latest cycle, mm/s (utilizationRate)
+        self._checks = TargetChecks(config.arm, config.workspace_min_mm, config.workspace_max_mm)
 
     @property
     def running(self) -> bool:
@@ -239,13 +238,14 @@ class EgmControllerModel:
             if message.planned_joints_deg:
                 self._count_wrong_mode(t_s, "planned.joints", "\\Pose")
             return  # no position data: the controller keeps the last planned pose
-        refusal, joints = self._checked(target)
+        refusal, joints = self._checks.checked(target)
         if refusal:
             self._motion_error(t_s, refusal)
             return
         self.planned = target
         self.planned_joints = self.planned_joints if joints is None else joints
-        self.motion.command(self._feed_forward_pose(target, message.speed_ref), t_s)
+        tau = self.config.servo.time_constant_s
+        self.motion.command(feed_forward_pose(target, message.speed_ref, tau), t_s)
         self.targets_read += 1
 
     def _apply_joints(self, message: codec.SensorMessage, t_s: float) -> None:
@@ -259,7 +259,7 @@ class EgmControllerModel:
         target = None
         if refusal is None:
             target = arm_joints.tool_pose(self.config.arm, joints)
-            refusal = self._refusal(target)
+            refusal = self._checks.refusal_and_joints(target)[0]
         if refusal or target is None:
             self._motion_error(t_s, refusal or "unreachable joints")
             return
@@ -275,22 +275,6 @@ class EgmControllerModel:
         self.motion.command(commanded, t_s)
         self.targets_read += 1
 
-    def _feed_forward_pose(self, target: Pose, speed_ref: tuple[float, ...] | None) -> Pose:
-        """``target`` led by speedRef x tau: the lag's fixed point under the speed feed-forward."""
-        if speed_ref is None or len(speed_ref) != 6 or not all(math.isfinite(v) for v in speed_ref):
-            return target
-        tau = self.config.servo.time_constant_s
-        x, y, z = (float(c) for c in target.position_mm + np.asarray(speed_ref[:3]) * tau)
-        turn = np.radians(np.asarray(speed_ref[3:])) * tau  # rotation vector, base frame
-        angle = float(np.linalg.norm(turn))
-        quaternion = target.quaternion
-        if angle > 0.0:
-            axis = turn / angle
-            w, s = math.cos(angle / 2.0), math.sin(angle / 2.0)
-            turn_q = (w, *(float(c) * s for c in axis))
-            quaternion = multiply_quaternions(turn_q, target.quaternion)
-        return Pose(x, y, z, quaternion)
-
     def _motion_error(self, t_s: float, reason: str) -> None:
         log.warning("EGM motion error at %.3f s: %s", t_s, reason)
         self._hold(t_s)
@@ -305,44 +289,13 @@ class EgmControllerModel:
                 t_s, field_name, setup,
             )
 
-    def _checked(self, target: Pose) -> tuple[str | None, tuple[float, ...] | None]:
-        """``_refusal(target)`` and the arm's axes there (None: refused), kept for a repeat.
-
-        The checks depend on the target and the fixed configuration only, and the
-        PC sends the same target cycle after cycle while the arm rests or follows.
-        """
-        last = self._last_checked
-        if last is not None and (last[0] is target or last[0] == target):
-            return last[1], last[2]
-        refusal, joints = self._refusal_and_joints(target)
-        self._last_checked = (target, refusal, joints)
-        return refusal, joints
-
-    def _refusal(self, pose: Pose) -> str | None:
-        return self._refusal_and_joints(pose)[0]
-
-    def _refusal_and_joints(self, pose: Pose) -> tuple[str | None, tuple[float, ...] | None]:
-        """Why the controller refuses ``pose`` (None: it does not), and the arm's axes there."""
-        position = (pose.x_mm, pose.y_mm, pose.z_mm)
-        norm = math.sqrt(sum(c * c for c in pose.quaternion))
-        if not (all(math.isfinite(c) for c in position) and abs(norm - 1.0) <= 1e-3):
-            return f"planned pose {pose} is not finite or its quaternion not unit length", None
-        low, high = self.config.workspace_min_mm, self.config.workspace_max_mm
-        if any(c < lo or c > hi for c, lo, hi in zip(position, low, high, strict=True)):
-            return (f"planned position {np.round(position, 3).tolist()} mm is outside the "
-                    "workspace"), None
-        joints = joint_angles_deg(self.config.arm, pose)
-        if joints is None:
-            return (f"planned position {np.round(position, 3).tolist()} mm is out of the arm's "
-                    "reach"), None
-        refusal = arm_joints.limit_violation(self.config.arm, joints)
-        return refusal, None if refusal else joints
-
     def robot_datagram(self, t_s: float) -> bytes:
         """Advance to the cycle at ``t_s`` and return its EgmRobot datagram."""
         return codec.encode_robot(self.robot_message(t_s), self.config.version)
 
-    def robot_carried(self, t_s: float, defer_force: bool = False) -> carried.Carried:
+    def robot_carried(
+        self, t_s: float, defer_force: bool = False, moved: bool = False
+    ) -> carried.Carried:
         """:meth:`robot_datagram` not encoded yet (the in-process route).
 
         ``defer_force``: the measured force is left out and filled in when the
@@ -352,11 +305,13 @@ class EgmControllerModel:
         wrench (a pure function of the cell's state at this cycle) is not
         computed for the hundreds of cycles no one reads it of. The
         finished message and its bytes are those of ``defer_force=False``.
+        ``moved``: the cell is at the cycle already (:meth:`follow_at` ran).
         """
         version = self.config.version
+        build = self._message if moved else self.robot_message
         if not (defer_force and self.config.send_measured_force):
-            return carried.carry_robot(self.robot_message(t_s), version)
-        message = self.robot_message(t_s, with_force=False)
+            return carried.carry_robot(build(t_s), version)
+        message = build(t_s, with_force=False)
         datagram = carried.carry_robot(message, version)
         clock = self.physics.clock
         now_s, built = clock.now_s, self._built
@@ -380,6 +335,11 @@ class EgmControllerModel:
 
         ``with_force=False`` leaves the measured force out (:meth:`robot_carried`).
         """
+        self._move_to(t_s)
+        return self._message(t_s, with_force)
+
+    def _move_to(self, t_s: float) -> None:
+        """The cycle at ``t_s`` up to its EgmRobot: timeout, the arm, the axes (what it sends)."""
         if self.running and t_s - self._last_read_s >= self.config.comm_timeout_s - 1e-9:
             log.warning("EGM comm timeout at %.3f s: no EgmSensor for %.3f s", t_s,
                         t_s - self._last_read_s)
@@ -392,19 +352,23 @@ class EgmControllerModel:
             self.physics.set_pose(pose)  # else at rest where it was published (and observed)
             self._published = pose
         t0, p0 = self._last_pose_s
-        speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
+        self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
         self._last_pose_s = (t_s, pose)
+        if pose != self._feedback_joints_pose:  # at rest the axes stay
+            self._feedback_joints = self._joints(pose, self._feedback_joints)
+            self._feedback_joints_pose = pose
+
+    def _message(self, t_s: float, with_force: bool = True) -> codec.RobotMessage:
+        """The EgmRobot of the cycle at ``t_s`` once :meth:`_move_to` ran (seqno +1)."""
         force = None
         if self.config.send_measured_force and with_force:
             force = self._measured_force()
-        gap = _distance_mm(pose, self.planned)
-        if self.pose != self._feedback_joints_pose:  # at rest the axes stay
-            self._feedback_joints = self._joints(self.pose, self._feedback_joints)
-            self._feedback_joints_pose = self.pose
-        time_us = self.config.clock_epoch_us + round(t_s * 1e6)
+        gap = _distance_mm(self.pose, self.planned)
+        speed = self._speed
+        tm_ms, time_us = self.stamps(t_s)
         message = codec.RobotMessage(
             seqno=self._seqno,
-            tm_ms=round(t_s * 1000),
+            tm_ms=tm_ms,
             feedback=self.pose,
             planned=self.planned,
             joints_deg=self._feedback_joints,
@@ -422,6 +386,52 @@ class EgmControllerModel:
         self._seqno = (self._seqno + 1) & 0xFFFFFFFF
         self._built += 1
         return message
+
+    def stamps(self, t_s: float) -> tuple[int, int]:
+        """The EgmRobot's header.tm (ms) and feedBack.time (µs since 1970) of a cycle at ``t_s``."""
+        return round(t_s * 1000), self.config.clock_epoch_us + round(t_s * 1e6)
+
+    # -- cycles that only follow (the in-process route's jump: CycleLoop.rest) --------------
+
+    def can_follow(self, datagram: carried.Datagram) -> bool:
+        """Whether each cycle that reads the EgmSensor ``datagram`` only follows the arm.
+
+        So when guidance runs in pose mode and ``datagram`` is carried and
+        plans the pose in effect with no speedRef (the same check passed,
+        nothing commanded): reading it changes only the read time and count,
+        and the cycle is :meth:`follow_at`, then its EgmRobot.
+        """
+        message = carried.received_sensor(datagram, self.config.version)
+        if (message is None or message.planned is None or message.speed_ref is not None
+                or self.mci is not codec.MciState.RUNNING
+                or self.rapid is not codec.RapidState.RUNNING or self._timed_out_s is not None
+                or self.config.mode != "pose"
+                or not self.config.comm_timeout_s > self.config.sample_period_s):
+            return False
+        planned, commands = message.planned, getattr(self.motion, "commands", None)
+        return (planned == self.planned and self._checks.passed(planned)
+                and commands is not None and not commands(planned))
+
+    def follow_at(self, t_s: float) -> Pose | None:
+        """The cycle at ``t_s`` as :meth:`can_follow` allows, up to its EgmRobot; its pose.
+
+        Reads the EgmSensor again and moves the cell as :meth:`robot_message`
+        does; the EgmRobot is then :meth:`robot_carried` with ``moved`` (or
+        :meth:`skip` if it is not needed). None, running nothing, when the
+        cycle's seqno would be 0 (a wrap looks like a new session: that cycle
+        runs in full).
+        """
+        if self._seqno == 0:
+            return None
+        self._last_read_s = t_s  # the EgmSensor read: the planned pose in effect again
+        self.targets_read += 1
+        self._move_to(t_s)
+        return self.pose
+
+    def skip(self) -> None:
+        """Count the EgmRobot of a cycle :meth:`follow_at` ran as built (no one reads it)."""
+        self._seqno = (self._seqno + 1) & 0xFFFFFFFF
+        self._built += 1
 
     # -- checkpoint -------------------------------------------------------------------------
 

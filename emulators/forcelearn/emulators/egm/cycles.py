@@ -23,13 +23,18 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
+from forcelearn.devices import Pose
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm.controller import EgmControllerModel
 from forcelearn.emulators.egm.faults import EgmFaultInjector
 from forcelearn.protocols.egm.carried import Datagram
+
+Done = Callable[[int, int, Pose], bool]
+"""Whether the PC's next answer may differ, from an EgmRobot's header.tm (ms), feedBack.time
+(µs) and feedBack.cartesian: :meth:`CycleLoop.rest` stops its jump at the first such cycle."""
 
 
 class CycleLoop:
@@ -116,6 +121,10 @@ class CycleLoop:
                 if faults.fires("lose_reply"):
                     continue
                 (self._late if faults.fires("late_reply") else self._inbox).append(reply)
+        return self._next_cycle()
+
+    def _next_cycle(self) -> float:
+        """Move :attr:`t_s` and the clock to the next cycle instant; return it, s."""
         t = self.t_s  # a resume may have moved the grid meanwhile (load_state_dict)
         next_t = t + self.period_s
         now = self.clock.now_s
@@ -123,6 +132,44 @@ class CycleLoop:
             next_t = t + self.period_s * math.ceil((now - t) / self.period_s - 1e-9)
         self.t_s = self.clock.advance_to(next_t)
         return self.t_s
+
+    def rest(self, reply: Datagram, done: Done) -> tuple[int, int, int, Datagram | None]:
+        """After ``end([reply])``: the cycles that follow in which the PC's answer repeats.
+
+        While ``reply`` plans the pose in effect (:meth:`EgmControllerModel.can_follow`;
+        no fault armed, no restart asked, no pace set), a cycle changes the
+        counters, the cycle time and the cell (the arm, the sponge), and its
+        EgmRobot is the one the PC reads to decide whether it answers again
+        the same: ``done(tm_ms, time_us, feedback)`` of that EgmRobot's
+        header.tm, feedBack.time and feedBack.cartesian says so (False: it
+        would answer ``reply`` again). Such cycles run here, one by one on the
+        model (the same state to the bit as :meth:`begin` and :meth:`end`),
+        without building an EgmRobot nor its answer; the first cycle for which
+        ``done`` is true is run up to its EgmRobot, which is returned to be
+        sent (the cycle then waits for its answer, as after :meth:`begin`).
+        Returns (cycles skipped, the last one's stamps or (0, 0), that
+        EgmRobot or None: no cycle was run for it, :meth:`begin` runs the next).
+        """
+        model, stamps = self.model, (0, 0)
+        if not (self.carried and self.faults.none_armed and self._held is None
+                and not self._late and len(self._inbox) == 1 and self._inbox[0] is reply
+                and self.clock.time_scale == 0 and model.can_follow(reply)):
+            return 0, *stamps, None
+        skipped, restart = 0, self.restart_requested
+        while not restart.is_set():
+            t = self.t_s
+            feedback = model.follow_at(t)
+            if feedback is None:
+                break
+            self.cycles += 1
+            at = model.stamps(t)
+            if done(*at, feedback):
+                self._inbox = []  # read: the cycle's answer is the PC's next
+                return skipped, *stamps, model.robot_carried(t, defer_force=True, moved=True)
+            model.skip()
+            skipped, stamps = skipped + 1, at
+            self._next_cycle()  # end([reply]): the inbox holds reply for the next cycle again
+        return skipped, *stamps, None
 
     def state_dict(self) -> dict[str, Any]:
         """The cycle time, count and the controller's state (JSON-able; the arm is the physics')."""

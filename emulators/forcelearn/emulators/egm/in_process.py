@@ -33,6 +33,7 @@ from collections import deque
 from typing import Any
 
 from forcelearn.emulators.egm.base import EgmEmulatorBase
+from forcelearn.emulators.egm.cycles import Done
 from forcelearn.protocols.egm.carried import Carried, Datagram
 
 log = logging.getLogger(__name__)
@@ -47,6 +48,10 @@ class InProcessEgmController(EgmEmulatorBase):
     Takes the arguments of :class:`~forcelearn.emulators.egm.base.EgmEmulatorBase`.
     """
 
+    rests = True
+    """Run the cycles at rest in one jump when the client asks (``rest_carried``); False:
+    every cycle in full (what the tests compare the jump with)."""
+
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.loop.carried = True  # nothing here needs the bytes: they are made when asked
@@ -56,6 +61,8 @@ class InProcessEgmController(EgmEmulatorBase):
         self._client: InProcessDatagramSocket | None = None
         self.unanswered = 0
         """Cycles whose due answer never came (the client read on without answering)."""
+        self.rested = 0
+        """Cycles run silently at rest."""
         self._mark_started()
 
     @property
@@ -107,6 +114,20 @@ class InProcessEgmController(EgmEmulatorBase):
             self._early.append(datagram)
 
 
+    def _rest(self, datagram: Datagram, done: Done) -> tuple[int, int, int]:
+        """Answer the due cycle with ``datagram``, then jump what it answers (CycleLoop.rest)."""
+        self._answer(datagram)
+        if not self.rests or self._outbox or self._early or self._awaiting:
+            return 0, 0, 0
+        skipped, tm_ms, time_us, robot = self.loop.rest(datagram, done)
+        self.replies += skipped
+        self.rested += skipped
+        if robot is not None:  # the cycle the jump ended on waits for its answer (as begin's)
+            self._outbox.append(robot)
+            self._awaiting = True
+        return skipped, tm_ms, time_us
+
+
 class InProcessDatagramSocket:
     """The client's end: what the EGM driver calls instead of a bound UDP socket."""
 
@@ -138,6 +159,22 @@ class InProcessDatagramSocket:
     def send_carried(self, data: Datagram, address: Any, /) -> None:
         """:meth:`sendto` of a datagram not encoded (the controller reads its message)."""
         self._require_open()._answer(data if type(data) is Carried else bytes(data))
+
+    def rest_carried(
+        self, data: Datagram, address: Any, done: Done, /
+    ) -> tuple[int, int, int]:
+        """:meth:`send_carried`, then the cycles it would answer again, in one jump.
+
+        While ``data`` plans the pose in effect, the cycles whose EgmRobot
+        (header.tm ms, feedBack.time µs, feedBack.cartesian) makes ``done``
+        false would be answered with ``data`` again (the next seqno): those
+        are run without building either message (the controller's state, the
+        cell's physics and the clock as cycle by cycle, to the bit); the
+        first one ``done`` accepts is what :meth:`recv_carried` gives next.
+        Returns (cycles jumped, the last one's header.tm and feedBack.time; 0
+        cycles: none, and the stamps are 0).
+        """
+        return self._require_open()._rest(data if type(data) is Carried else bytes(data), done)
 
     def settimeout(self, value: float | None, /) -> None:
         """Accepted and not needed: nothing here ever waits."""

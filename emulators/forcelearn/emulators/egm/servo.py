@@ -29,7 +29,9 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Protocol
 
-from forcelearn.devices import Pose, blend_poses
+import numpy as np
+
+from forcelearn.devices import Pose, blend_poses, multiply_quaternions
 
 
 class MotionModel(Protocol):
@@ -101,3 +103,23 @@ class LagServo:
         fraction = 1.0 if tau == 0 else 1.0 - math.exp(-dt / tau)
         self.pose = blend_poses(self.pose, self.target, fraction)
 
+
+
+def feed_forward_pose(target: Pose, speed_ref: tuple[float, ...] | None, tau_s: float) -> Pose:
+    """``target`` led by speedRef x ``tau_s``: the lag's fixed point under the speed feed-forward.
+
+    speedRef is six numbers (mm/s, then deg/s about the base axes); without six
+    finite ones ``target`` is returned as it is.
+    """
+    if speed_ref is None or len(speed_ref) != 6 or not all(math.isfinite(v) for v in speed_ref):
+        return target
+    x, y, z = (float(c) for c in target.position_mm + np.asarray(speed_ref[:3]) * tau_s)
+    turn = np.radians(np.asarray(speed_ref[3:])) * tau_s  # rotation vector, base frame
+    angle = float(np.linalg.norm(turn))
+    quaternion = target.quaternion
+    if angle > 0.0:
+        axis = turn / angle
+        w, s = math.cos(angle / 2.0), math.sin(angle / 2.0)
+        turn_q = (w, *(float(c) * s for c in axis))
+        quaternion = multiply_quaternions(turn_q, target.quaternion)
+    return Pose(x, y, z, quaternion)

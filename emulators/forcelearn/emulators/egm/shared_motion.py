@@ -76,6 +76,10 @@ class PhysicsMotion:
         self.physics.advance_to(t_s)
         self.motion.command(target, t_s)
 
+    def commands(self, target: Pose) -> bool:
+        """Whether :meth:`command` of ``target`` would command the arm (else it does nothing)."""
+        return target != self._last
+
     def advance_to(self, t_s: float) -> Pose:
         """Move the arm (and let the sponge relax) up to ``t_s``; return the tool pose."""
         self.physics.advance_to(t_s)

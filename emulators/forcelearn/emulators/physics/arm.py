@@ -155,9 +155,9 @@ def check_target(config: ArmConfig, pose: Pose) -> tuple[str, str] | None:
         return "workspace", "target has a non-finite coordinate"
     if abs(norm - 1.0) > QUATERNION_TOLERANCE:
         return "orientation", f"quaternion norm {norm:.4f} is not 1"
-    position = pose.position_mm
-    low, high = np.asarray(config.workspace_min_mm), np.asarray(config.workspace_max_mm)
-    if np.any(position < low) or np.any(position > high):
+    position = (float(pose.x_mm), float(pose.y_mm), float(pose.z_mm))  # (no arrays: every move)
+    if not all(lo <= c <= hi for c, lo, hi in zip(
+            position, config.workspace_min_mm, config.workspace_max_mm, strict=True)):
         return "workspace", f"target {np.round(position, 3).tolist()} mm is outside the workspace"
     joints = joint_angles_deg(config, pose)
     if joints is None:

@@ -13,7 +13,11 @@ the link + JR3 cell of the same run:
 figure                     ratio                   target (docs/performance.md)
 =========================  ======================  ===============================
 link move round trip p50   / (2 x pty echo)        <= 1.3
+ ... and its protocol      / the bare exchange     - (protocol_floors: the move's own
+ floor                                             writes and reads, no protocol work)
 JR3 single read            reads/s / CAN trips/s   >= 0.9
+ ... and its protocol      / bare exchanges/s      - (SYNC out, two frames back; its
+ floor                                             ratio to the CAN trips caps the read's)
 Surface-v0 step            step time / pty echo    500 steps/s where the echo is 255 us
 SurfaceVec-v0, N = 64      env steps per foam      100,000 steps/s on one core
                            step (x foam step s)
@@ -122,24 +126,41 @@ def _foam() -> tuple[float, str]:
     return foam, f"foam step {foam * 1e6:.1f} us"
 
 
-def _link(quick: bool) -> Figure:
+def _link(quick: bool) -> list[Figure]:
     from forcelearn.tools.benchmarks.link import measure
+    from forcelearn.tools.benchmarks.protocol_floors import link_move_exchange_s
 
     echo, floor = _echo()
+    bare = link_move_exchange_s(500 if quick else 2000)
     p50 = float(np.percentile(measure(500 if quick else 2000, 100), 50))
-    return Figure("link move round trip p50", p50 * 1e6, "us", p50 / (2 * echo),
-                  "/ (2 x pty echo)", "<= 1.3", floor)
+    return [
+        Figure("link move exchange, bare (protocol floor)", bare * 1e6, "us", bare / (2 * echo),
+               "/ (2 x pty echo)", "-", floor),
+        Figure("link move round trip p50", p50 * 1e6, "us", p50 / (2 * echo),
+               "/ (2 x pty echo)", "<= 1.3", floor),
+        Figure("link move round trip p50 / its protocol floor", p50 * 1e6, "us", p50 / bare,
+               "/ bare exchange", "-", f"bare exchange {bare * 1e6:.1f} us"),
+    ]
 
 
-def _jr3(quick: bool) -> Figure:
+def _jr3(quick: bool) -> list[Figure]:
     import statistics
 
     from forcelearn.tools.benchmarks.jr3 import measure
+    from forcelearn.tools.benchmarks.protocol_floors import jr3_sync_exchanges_per_s
 
     trips = floor_module.can_round_trips_per_s()
+    bare = jr3_sync_exchanges_per_s()
     rate = statistics.median(measure(500 if quick else 2000, seed) for seed in range(3))
-    return Figure("JR3 single read (sync)", rate, "reads/s", rate / trips,
-                  "/ CAN round trips/s", ">= 0.9", f"CAN {trips:,.0f} round trips/s")
+    can = f"CAN {trips:,.0f} round trips/s"
+    return [
+        Figure("JR3 sync exchange, bare (protocol floor)", bare, "exchanges/s", bare / trips,
+               "/ CAN round trips/s", "-", can),
+        Figure("JR3 single read (sync)", rate, "reads/s", rate / trips,
+               "/ CAN round trips/s", ">= 0.9", can),
+        Figure("JR3 single read / its protocol floor", rate, "reads/s", rate / bare,
+               "/ bare exchanges/s", "-", f"bare exchange {bare:,.0f} /s"),
+    ]
 
 
 def _env(seconds: float) -> list[Figure]:

@@ -9,9 +9,9 @@ floor          what is timed
 =============  ================================================================
 pty echo       a 24-byte frame written by pyserial to a pty, echoed back by a
                thread on the emulators' pty endpoint, read whole: the round
-               trip, p50 (s). A computer-link move is two such exchanges
-               (request, reply; their one-byte ACKs ride along), so its
-               floor is twice this.
+               trip, p50 (s). The target for a computer-link move counts two
+               such exchanges; the move's own exchange is one round trip and
+               a write (:mod:`.protocol_floors` times it).
 CAN round      a frame sent on a python-can ``virtual`` bus, received by a
 trip           thread on a second bus of the channel and sent back: round
                trips per second. The floor of a JR3 sync read (SYNC out,
