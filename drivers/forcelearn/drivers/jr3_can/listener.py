@@ -163,27 +163,44 @@ class Jr3Listener(can.Listener):
                 log.debug("rejected frame id=%#x data=%s: %s", msg.arbitration_id,
                           bytes(msg.data).hex(), reason)
                 return
-            message = result.message
             if result.node_id != self.node_id:
                 self._stats.other_nodes += 1
                 return
-            if isinstance(message, codec.Forces | codec.Moments):
-                self.data_frames += 1
-                sample = self._pair(message)
-            elif isinstance(message, codec.Ack):
-                self.acks.append(message)
-                self.cond.notify_all()
-            elif isinstance(message, codec.Bootup):
-                log.warning(
-                    "JR3 adapter node %d sent bootup: its offsets are lost (the cell re-zeroes)",
-                            self.node_id)
-                self._stats.bootups += 1
-                self._pairer.restart()
-                self.bootup_pending = True
-                self.cond.notify_all()
+            sample = self._take(result.message)
         if sample is not None:
             for callback in self.callbacks:
                 callback(sample)
+
+    def on_carried(self, message: codec.Message) -> None:
+        """Handle one message of this node that an in-process bus handed over unframed.
+
+        As :meth:`on_message_received` of its frame after decoding (counted as a frame).
+        """
+        with self.lock:
+            self._stats.frames += 1
+            sample = self._take(message)
+        if sample is not None:
+            for callback in self.callbacks:
+                callback(sample)
+
+    def _take(self, message: codec.Message) -> WrenchSample | None:
+        """Act on one decoded message of this node (under the lock); the sample it completes."""
+        sample: WrenchSample | None = None
+        if isinstance(message, codec.Forces | codec.Moments):
+            self.data_frames += 1
+            sample = self._pair(message)
+        elif isinstance(message, codec.Ack):
+            self.acks.append(message)
+            self.cond.notify_all()
+        elif isinstance(message, codec.Bootup):
+            log.warning(
+                "JR3 adapter node %d sent bootup: its offsets are lost (the cell re-zeroes)",
+                self.node_id)
+            self._stats.bootups += 1
+            self._pairer.restart()
+            self.bootup_pending = True
+            self.cond.notify_all()
+        return sample
 
     def _pair(self, frame: codec.Forces | codec.Moments) -> WrenchSample | None:
         pair = self._pairer.push(frame)

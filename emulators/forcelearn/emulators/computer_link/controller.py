@@ -95,6 +95,9 @@ class ControllerEngine:
         self._lock = threading.RLock()
         self._last_request: bytes | None = None
         self._last_reply: bytes | None = None
+        """The last reply's frame (None: not built yet, or no reply yet: see ``_last_payload``)."""
+        self._last_payload: bytes | None = None
+        """The last reply's payload (None: no reply yet)."""
         self._last_error = 0
         self.never_in_position = False
         """Fault: READ_STATUS never reports in position (a robot that cannot settle)."""
@@ -123,6 +126,36 @@ class ControllerEngine:
             self._schedule(answers, arrived)
             return answers
 
+    def carry(self, payload: bytes) -> bytes:
+        """Answer one intact request payload as :meth:`handle` answers its frame; its reply payload.
+
+        For a client that hands over payloads, not frames (the in-process port): the
+        same clock, wires, execution and retransmission rule as the frame, and the
+        reply payload the frame would carry; no frame is encoded, checked or decoded
+        (the nominal sizes the wires are charged do not depend on the framing). The
+        DLE ACK and the PC's DLE ACK of the reply take their wire time as on the line.
+        """
+        with self._lock:
+            char = self.char_time_s
+            _, arrived = self.rx_wire.transmit((len(payload) + _FRAME_OVERHEAD) * char)
+            self.clock.advance_to(arrived)
+            if payload == self._last_request and self._last_payload is not None:
+                log.debug("duplicate request, reply repeated, not executed")
+                reply = self._last_payload
+            else:
+                answer, _ = self._execute(payload)
+                self._last_request = payload
+                reply = self._last_payload = m.encode_reply(answer)
+                self._last_reply = None  # built if a DLE ENQ or NAK asks for it again
+            # as _schedule for [ack, reply]
+            _, end = self.tx_wire.transmit(2 * char, arrived)
+            self.clock.advance_to(end)
+            ready = arrived + self.config.reply_latency_s
+            _, end = self.tx_wire.transmit((len(reply) + _FRAME_OVERHEAD) * char, ready)
+            self.clock.advance_to(end)
+            self.rx_wire.transmit(len(framing.Control.ACK.wire) * char, end)
+            return reply
+
     def _schedule(self, answers: list[Answer], arrived_s: float) -> None:
         """Put the answers on the controller-to-PC wire; move the clock to their end."""
         for answer in answers:
@@ -142,17 +175,20 @@ class ControllerEngine:
                 return []
             return [self._repeat()]
         ack = Answer("ack", framing.Control.ACK.wire)
-        if frame.payload == self._last_request and self._last_reply is not None:
+        if frame.payload == self._last_request and self._last_payload is not None:
             log.debug("duplicate request, reply repeated, not executed")
             return [ack, self._repeat()]
         reply, executed = self._execute(frame.payload)
         self._last_request = frame.payload
-        self._last_reply = framing.encode(m.encode_reply(reply))
+        self._last_payload = m.encode_reply(reply)
+        self._last_reply = framing.encode(self._last_payload)
         return [ack, Answer("reply", self._last_reply, executed)]
 
     def _repeat(self) -> Answer:
-        if self._last_reply is None:
+        if self._last_payload is None:
             return Answer("nak", framing.Control.NAK.wire)
+        if self._last_reply is None:  # the reply went as a payload (carry)
+            self._last_reply = framing.encode(self._last_payload)
         return Answer("reply", self._last_reply)
 
     def _execute(self, payload: bytes) -> tuple[m.Reply, bool]:

@@ -164,6 +164,23 @@ class EmulatedRobotSerial(SerialBase):
             raise SerialException(f"write failed: {exc}") from exc
         return len(payload)
 
+    def carry_payload(self, payload: bytes) -> bytes | None:
+        """The reply payload to a request payload, answered now; None: write its frame instead.
+
+        The in-process route's short cut for :class:`~forcelearn.drivers.computer_link.link.Link`:
+        what the controller would answer to the request's frame (and to the DLE ACK
+        of its reply), with no frame built, checked or parsed on either side.
+        """
+        if not self.is_open:
+            raise PortNotOpenError()
+        if self._hung_up:
+            raise SerialException("write failed: the emulated controller hung up; reopen the port")
+        try:
+            reply: bytes | None = self._emulator.carry(self, payload)
+        except ConnectionError as exc:
+            raise SerialException(f"write failed: {exc}") from exc
+        return reply
+
     def flush(self) -> None:
         """Nothing is buffered on the way out."""
 

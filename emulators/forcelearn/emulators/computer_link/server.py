@@ -38,6 +38,10 @@ from forcelearn.protocols.computer_link import framing
 
 log = logging.getLogger(__name__)
 
+_ACK = framing.Control.ACK.wire
+_WIRE_FAULTS = ("corrupt_byte", "drop_request", "drop_reply", "delay_ack", "drop_connection")
+"""The faults on the frames (the arm's stall and never-in-position act in the engine)."""
+
 POLL_S = 0.005
 """Longest wait of the server loop (s): bounds stop latency (motion runs on simulated time)."""
 
@@ -150,6 +154,38 @@ class ComputerLinkEmulator(Emulator):
                     f"{self.address}: the connection was lost; reopen the port"
                 )
             self._take(data)
+
+    carries = True
+    """Answer an in-process client's payloads without frames when it asks (:meth:`carry`);
+    False: every request goes as frames (a test compares the two)."""
+
+    def carry(self, client: object, payload: bytes) -> bytes | None:
+        """An in-process client's request payload answered now; None: send it as a frame.
+
+        What :meth:`receive` of the request's frame and of the client's DLE ACK of the
+        reply gives, without the frames (``ControllerEngine.carry``): taken only while
+        no fault is set, no real-time pace holds the clock and no partial frame waits.
+        """
+        with self._receive_lock:
+            endpoint = self._endpoint
+            if not isinstance(endpoint, InProcessEndpoint) or endpoint.client is not client:
+                raise ConnectionResetError(
+                    f"{self.address}: the connection was lost; reopen the port"
+                )
+            if not self.carries or self.engine.clock.time_scale > 0 or not self._quiet():
+                return None
+            if endpoint.generation != self._generation:  # as _take
+                self._generation = endpoint.generation
+                self._reader.clear()
+            if self._reader.pending:
+                return None
+            self.bytes_received += framing.encoded_size(payload) + len(_ACK)
+            return self.engine.carry(payload)
+
+    def _quiet(self) -> bool:
+        """No fault of the link can fire (each has probability 0)."""
+        config = self.faults.config
+        return not any(getattr(config, name).probability for name in _WIRE_FAULTS)
 
     def _serve(self) -> None:
         while not self._stop.is_set():

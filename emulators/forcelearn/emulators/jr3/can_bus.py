@@ -32,6 +32,7 @@ from can.typechecking import AutoDetectedConfig
 from forcelearn.emulators import registry
 from forcelearn.emulators.jr3.node import REGISTRY_KIND, Jr3EmulatorNode
 from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
+from forcelearn.protocols.jr3_can import codec
 
 INTERFACE = "forcelearn-jr3"
 _MODEL_OPTIONS = {f.name for f in fields(Jr3ModelParams)}
@@ -123,6 +124,24 @@ class Jr3EmulatorBus(can.BusABC):
                 channel=self.channel, is_rx=True,
             ))
         node.receive(msg)  # handled before this returns: the node keeps nothing of it
+
+    carries = True
+    """Carry a SYNC and its answer unframed when the driver asks (:meth:`carry_sync`); False:
+    frames only (a test compares the two)."""
+
+    def carry_sync(self, node_id: int) -> list[codec.Message] | None:
+        """Send a SYNC and take node ``node_id``'s answer now, as messages, not frames.
+
+        What :meth:`send` of the SYNC frame and :meth:`recv` of the answer's frames
+        give (``Jr3EmulatorNode.carry_sync``), with no frame encoded or decoded;
+        None (nothing sent) when the frames must go: frames already wait, this bus
+        receives its own frames, or the node cannot carry.
+        """
+        if self._closed:
+            raise can.CanOperationError(f"{INTERFACE} bus on {self.channel!r} is shut down")
+        if not self.carries or self.receive_own_messages or self._rx:
+            return None
+        return self._running_node().carry_sync(node_id)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         deadline = None if timeout is None else time.monotonic() + timeout

@@ -69,6 +69,9 @@ from forcelearn.protocols.jr3_can.scaling import cutoff_from_wire, full_scales_t
 
 NO_FAULTS = Jr3FaultConfig()
 
+_AXES_BYTES = len(codec.encode(codec.Forces((0, 0, 0), 0), 1).data)
+"""Data bytes of a forces or moments frame."""
+
 COMMAND_QUEUE_DEPTH = 32
 """The firmware's receive queue (``CircularBuffer<CANMessage, 32>``; a full one overwrites)."""
 EEPROM_BYTES = 256
@@ -160,6 +163,8 @@ class Jr3Firmware:
         self._queue: collections.deque[tuple[float, codec.Message]] = collections.deque()
         self._lock = threading.RLock()
         self._next_emit = 0.0
+        self._carried: list[codec.Message] | None = None
+        """While a turn is carried (:meth:`_carry_sync`): the messages it sends, not framed."""
 
     @property
     def counter(self) -> int:
@@ -275,13 +280,48 @@ class Jr3Firmware:
             self.stats.commands += 1
             self._answer(message)
 
+    def _arrive(self, data_bytes: int) -> float:
+        """A frame of ``data_bytes`` put on the bus now: the turns due before it run; its end, s."""
+        start = max(self.bus_wire.free_at_s, self.clock.now_s)
+        self._run_turns_before(start)
+        _, arrived = self.bus_wire.transmit(self._frame_time_s(min(data_bytes, 8)))
+        self.clock.advance_to(arrived)
+        return arrived
+
+    def _flag_sync(self, arrived_s: float) -> None:
+        """A SYNC arrived: set the loop's flag (SYNCs before the next turn share it)."""
+        self.stats.syncs += 1
+        if self._sync_flag_s is None:
+            self._sync_flag_s = arrived_s
+        else:
+            self.stats.syncs_merged += 1
+
+    def _carry_sync(self, node_id: int) -> list[codec.Message] | None:
+        """A host's SYNC and the turn that answers it, the answer's messages not framed.
+
+        What ``_handle`` of the SYNC frame and the next turn do, to the same clock,
+        bus times, draws and counts; the messages are returned instead of encoded.
+        None (nothing done: send the frame) unless the stream runs in sync mode for
+        ``node_id`` with no fault, no frame hook and nothing waiting for a turn.
+        """
+        if (node_id != self.node_id or self.mode != "sync" or not self.initialised
+                or self.faults is not NO_FAULTS or self.frame_hook is not None
+                or self._pending_since() is not None):
+            return None
+        carried: list[codec.Message] = []
+        self._carried = carried
+        try:
+            self._flag_sync(self._arrive(0))  # a SYNC has no data
+            assert self._sync_flag_s is not None
+            self._run_turn(self._turn_after(self._sync_flag_s))
+        finally:
+            self._carried = None
+        return carried
+
     def _handle(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
             return
-        start = max(self.bus_wire.free_at_s, self.clock.now_s)
-        self._run_turns_before(start)
-        _, arrived = self.bus_wire.transmit(self._frame_time_s(min(len(msg.data), 8)))
-        self.clock.advance_to(arrived)
+        arrived = self._arrive(len(msg.data))
         message = codec.decode_as_adapter(msg.arbitration_id, msg.data, self.node_id,
                                           is_extended_id=msg.is_extended_id,
                                           opcodes=self.opcodes)
@@ -291,11 +331,7 @@ class Jr3Firmware:
             self.stats.rejected_by_reason[reason] = self.stats.rejected_by_reason.get(reason, 0) + 1
             return
         if isinstance(message, codec.Sync):
-            self.stats.syncs += 1
-            if self._sync_flag_s is None:
-                self._sync_flag_s = arrived
-            else:
-                self.stats.syncs_merged += 1
+            self._flag_sync(arrived)
             return
         if len(self._queue) == COMMAND_QUEUE_DEPTH:
             self._queue.popleft()
@@ -418,6 +454,15 @@ class Jr3Firmware:
             self._power_cycle()
 
     def _send(self, message: codec.Message) -> None:
+        carried = self._carried
+        if carried is not None:  # as below with no fault, no hook: the bus time, no frame
+            kind = message.kind
+            size = (_AXES_BYTES if kind == "forces" or kind == "moments"
+                    else len(codec.encode(message, self.node_id, self.opcodes).data))
+            _, end = self.bus_wire.transmit(self._frame_times[size])
+            self.clock.advance_to(end)
+            carried.append(message)
+            return
         encoded = codec.encode(message, self.node_id, self.opcodes)
         frame: Frame | None = encoded
         if self.faults is not NO_FAULTS:  # the default: nothing to draw

@@ -155,6 +155,21 @@ class Jr3EmulatorNode(Jr3Firmware, Emulator):
             self.clock.hold()
             return True
 
+    def carry_sync(self, node_id: int) -> list[codec.Message] | None:
+        """An in-process host's SYNC answered now: the messages of its answer, not framed.
+
+        What :meth:`receive` of the SYNC frame and :meth:`serve_pending` do, without
+        the frames (``Jr3Firmware._carry_sync``); None when the frame must go instead
+        (another host listens, a fault or hook is set, the stream is not in sync mode).
+        """
+        with self._lock:
+            if self._closed or not self.in_process or len(self._hosts) != 1:
+                return None
+            carried = self._carry_sync(node_id)
+            if carried is not None:
+                self.clock.hold()
+            return carried
+
     def _release(self) -> None:
         """Stop the thread (joined) and shut down the bus if the node made it."""
         self._stop.set()

@@ -220,11 +220,6 @@ class ArmMotion:
             and _angle_deg(self._tool_q, t.quaternion) <= _ORIENTATION_BAND_DEG
         )
 
-    def _at_rest(self) -> bool:
-        return self._v == 0.0 and self._s >= self._seg_end and self._tool == self._ref and (
-            self._tool_q == self._ref_q
-        )
-
     # ---- commands ----------------------------------------------------------------------
     def command(self, target: Pose, t_s: float) -> None:
         """Take a new target at simulated time ``t_s`` (motion starts after the delay)."""
@@ -259,7 +254,10 @@ class ArmMotion:
         tick = self.params.tick_s
         last = self.tick_at(t_s)
         while self.tick_index < last:
-            if not self._pending and self._at_rest():
+            # at rest (no speed, the path done, the tool on the reference) with nothing pending
+            if not self._pending and self._v == 0.0 and self._s >= self._seg_end and (
+                self._tool == self._ref and self._tool_q == self._ref_q
+            ):
                 span = last - self.tick_index
                 self.tick_index = last
                 if on_tick is not None:

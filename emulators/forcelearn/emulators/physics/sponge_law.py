@@ -323,7 +323,11 @@ def point_penetration_mm(params: SpongeParams, set_mm: float, y_mm: float, z_mm:
     """:func:`penetration_mm` of one point (floats) on the surface sunk ``set_mm`` (hot path)."""
     if not params.z_bottom_mm <= z_mm <= params.z_top_mm:
         return 0.0
-    return max(0.0, _surface_y_mm(params, set_mm, z_mm, math.sin) - y_mm)
+    # _surface_y_mm(params, set_mm, z_mm, math.sin) written out (once per motion tick)
+    travelled = params.z_top_mm - z_mm
+    wave = params.waviness_mm * math.sin(2 * math.pi * travelled / params.waviness_wavelength_mm)
+    surface = params.surface_y_mm + params.surface_slope * travelled + wave - set_mm
+    return max(0.0, surface - y_mm)
 
 
 def elastic_depth_mm(params: SpongeParams, foam_mm: F) -> F:

@@ -131,6 +131,15 @@ def encode(payload: bytes) -> bytes:
     return b"\x10\x02" + stuffed + b"\x10\x03" + crc.to_bytes(2, "little")
 
 
+def encoded_size(payload: bytes) -> int:
+    """``len(encode(payload))`` without building the frame, bytes.
+
+    The overhead plus one byte per DLE in the length byte and the payload (the
+    check bytes after DLE ETX are not stuffed).
+    """
+    return len(payload) + 7 + payload.count(DLE) + (len(payload) == DLE)
+
+
 _CONTROLS = {c.value: c for c in Control}
 
 

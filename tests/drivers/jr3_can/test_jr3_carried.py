@@ -1,0 +1,75 @@
+"""A SYNC carried through the in-process bus unframed reads what its frames read, to the bit.
+
+``Jr3EmulatorBus.carry_sync`` hands the node's answer to the driver as messages
+(no CAN frame encoded, sent, received or decoded); the clock, the bus times, the
+sensor model's draws, the counters and every sample must be those of the frames.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from typing import Any
+
+import can
+import numpy as np
+import pytest
+
+from forcelearn.devices import Pose
+from forcelearn.drivers.jr3_can.config import Jr3Config
+from forcelearn.drivers.jr3_can.driver import Jr3CanSensor
+from forcelearn.emulators.jr3 import Jr3EmulatorNode
+from forcelearn.emulators.jr3.can_bus import Jr3EmulatorBus
+from forcelearn.emulators.jr3.firmware import Jr3Firmware
+from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.physics.sponge import Sponge
+
+_numbers = itertools.count()
+
+
+def _plain(value: Any) -> Any:
+    """A state dict with arrays as lists (comparable with ==)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value
+
+
+def _session(carries: bool, monkeypatch: pytest.MonkeyPatch) -> tuple[list[Any], int]:
+    """Reads in free space and pressed into a sponge; what was read and the carried SYNCs."""
+    monkeypatch.setattr(Jr3EmulatorBus, "carries", carries)
+    carried = 0
+    original = Jr3Firmware._carry_sync
+
+    def counting(self: Jr3Firmware, node_id: int) -> Any:
+        nonlocal carried
+        answer = original(self, node_id)
+        carried += answer is not None
+        return answer
+
+    monkeypatch.setattr(Jr3Firmware, "_carry_sync", counting)
+    physics = CellPhysics(Sponge(), pose=Pose(0.0, 0.0, 30.0))
+    channel = f"jr3-carried-{os.getpid()}-{next(_numbers)}"
+    seen: list[Any] = []
+    with Jr3EmulatorNode(physics, channel=channel, in_process=True, seed=4) as node, \
+            can.Bus(interface="forcelearn-jr3", channel=channel) as bus, \
+            Jr3CanSensor(bus, Jr3Config(zero_settle_s=0.01)) as sensor:
+        for z in (30.0, 15.0, 12.5, 8.0, 30.0):
+            physics.set_pose(Pose(0.0, 0.0, z))
+            samples = [sensor.read(), *sensor.read_many(7, window=2)]
+            seen += [(s.wrench.tobytes(), s.counter, s.saturated, s.sensor_dt_s)
+                     for s in samples]
+        sensor.zero_offsets()
+        seen += [sensor.read().wrench.tobytes(), physics.clock.now_s]
+        seen += [_plain(node.state_dict()), node.stats, sensor.stats]
+    return seen, carried
+
+
+def test_carried_syncs_read_what_framed_syncs_read(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Samples, counters, clock, node state and counts equal; the fast path was taken."""
+    carried, taken = _session(True, monkeypatch)
+    framed, none = _session(False, monkeypatch)
+    assert none == 0
+    assert taken == 5 * (1 + 7) + 1  # every SYNC went carried
+    assert carried == framed
