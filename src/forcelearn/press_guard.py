@@ -23,6 +23,8 @@ The stiffness in use (N/mm, the fast, unrelaxed one):
   (:data:`OBSERVED_FACTOR` x the steepest rise seen between two readings in contact);
 * without a probe, what the readings show, once two readings in contact pressed in
   :data:`MIN_PAIR_MM` or more apart (or less, with a rise of :data:`PAIR_SIGMAS` x the noise);
+  a rise under :data:`NOISE_SIGMAS` x the noise measures nothing (noise over a short press-in
+  would make a soft part look stiff, and the bias watch widens to that stiffness);
 * before either, ``unknown_n_per_mm``: the stiffest part the site expects
   (``[task] press_stiffness_n_per_mm``).
 """
@@ -117,8 +119,9 @@ class PressGuard:
         if self.last is not None and force_n > CONTACT_N and self.last[1] > CONTACT_N:
             pressed = self._pressed_mm(self.last[0], position)
             rise_n = force_n - self.last[1]
-            if pressed >= MIN_PAIR_MM or (pressed >= MIN_STEP_MM
-                                          and rise_n >= PAIR_SIGMAS * self.noise_n):
+            if rise_n >= NOISE_SIGMAS * self.noise_n and (
+                    pressed >= MIN_PAIR_MM
+                    or (pressed >= MIN_STEP_MM and rise_n >= PAIR_SIGMAS * self.noise_n)):
                 rise = rise_n / pressed
                 if rise > (self.observed_n_per_mm or 0.0):  # a part never pulls: rises only
                     self.observed_n_per_mm = rise

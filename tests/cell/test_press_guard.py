@@ -145,3 +145,15 @@ def test_the_stiffness_in_use_is_known_else_seen_else_the_sites_default() -> Non
     assert guard.stiffness_n_per_mm == max(KNOWN_FACTOR * 10.0, seen)
     headroom = LIMIT_N - 8.0 - NOISE_SIGMAS * 0.1
     assert guard.allowed_mm() == pytest.approx(headroom / guard.stiffness_n_per_mm)
+
+
+def test_a_rise_within_the_noise_measures_no_stiffness() -> None:
+    """A rise under 3 sigma over a press-in is noise: the site's default stays in use."""
+    guard = PressGuard(LIMIT_N, 20.0, noise_n=1.0)
+    guard.note(np.array([0.0, 0.0, 0.0]), 5.0)
+    guard.note(np.array([0.0, -0.5, 0.0]), 7.5)  # 2.5 N: under 3 sigma of a 1 N noise
+    assert guard.observed_n_per_mm is None
+    assert guard.stiffness_n_per_mm == 20.0
+    guard.note(np.array([0.0, -1.5, 0.0]), 17.5)  # 10 N over 1 mm: a stiffness
+    assert guard.observed_n_per_mm == pytest.approx(10.0)
+
