@@ -295,7 +295,10 @@ class Cell:
         if self.press_guard is not None and self._pose is not None:
             wrenches = np.array([s.wrench for s in compensated])
             normal = self.force_filter.config.normal_force(wrenches)
-            self._guarded(self.press_guard.note, self._pose.position_mm, float(np.max(normal)))
+            # where the arm is, not where it was sent: an EGM arm ends its in-position zone
+            # short of a press, and a reading booked deeper than it was taken buys depth
+            self._guarded(self.press_guard.note, self.reached_pose().position_mm,
+                          float(np.max(normal)))
         try:
             try:
                 check_samples(compensated, self.max_force_n, self.force_filter.config)
@@ -380,7 +383,7 @@ class Cell:
             self.zero_residual, self.zero_std_n, self.zero_time_s = np.zeros(6), None, self.time_s
         self.tares += 1
         if self.press_guard is not None:  # free space reads 0 from now on
-            self.press_guard.note(self.pose.position_mm, 0.0)
+            self.press_guard.note(self.reached_pose().position_mm, 0.0)
         self.zero_taken_at(self.pose.quaternion)
         if self.on_tare is not None:
             self.on_tare(self.pose)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from forcelearn.cell import Cell
-from forcelearn.devices import Pose, WrenchSample
+from forcelearn.devices import InPositionWait, Pose, WrenchSample
 from forcelearn.errors import ForceLimitExceeded
 from forcelearn.filtering import ForceFilter, ForceFilterConfig
 from forcelearn.press_guard import KNOWN_FACTOR, NOISE_SIGMAS, PressGuard
@@ -157,3 +157,36 @@ def test_a_rise_within_the_noise_measures_no_stiffness() -> None:
     guard.note(np.array([0.0, -1.5, 0.0]), 17.5)  # 10 N over 1 mm: a stiffness
     assert guard.observed_n_per_mm == pytest.approx(10.0)
 
+
+class ShortArm(Spring):
+    """An arm in position 0.4 mm short of each press (its zone), read there, then creeping on."""
+
+    SHORT_MM = 0.4
+
+    def __init__(self, k_n_per_mm: float) -> None:
+        super().__init__(k_n_per_mm)
+        self.last_wait: InPositionWait | None = None
+        self.commanded = self.pose
+
+    def move_to(self, pose: Pose) -> None:
+        """In position short of ``pose`` when pressing in; the force where it creeps to is noted."""
+        short = max(0.0, self.pose.y_mm - pose.y_mm) and self.SHORT_MM
+        self.pose = pose
+        self.moves.append(pose)
+        self.true_forces.append(self.force_n())  # the arm ends at the target
+        self.pose = Pose(pose.x_mm, pose.y_mm + short, pose.z_mm)  # read in the zone
+        self.last_wait = InPositionWait(self.time_s, self.pose)
+
+
+def test_the_guard_takes_a_reading_where_the_arm_was_not_where_it_was_sent() -> None:
+    """An arm short of its target when read: predictions start where it was (never over)."""
+    arm = ShortArm(15.0)
+    cell = Cell(arm, arm, ForceFilter(ForceFilterConfig(axis=1, sign=1.0)), LIMIT_N,
+                samples_per_step=3)
+    cell.press_guard = unknown_guard(FRESH * arm.k)
+    cell.read_pose()
+    cell.measure_force_n()
+    with pytest.raises(ForceLimitExceeded, match="would press past"):
+        cell.move_in_steps(Pose(0.0, SURFACE_Y_MM - 10.0, 0.0), max_step_mm=1.0,
+                           guard_force=True)
+    assert max(arm.true_forces) <= LIMIT_N
