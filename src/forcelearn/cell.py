@@ -418,6 +418,8 @@ class Cell:
         if self.recorder is not None:
             here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
             self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, True))
+        if self.press_guard is not None:  # a zero after a fault: no press to compare with yet
+            self.press_guard.referenced = False
         self._take_zero()
         self.reset_filter()
         return force

@@ -84,6 +84,13 @@ class PressGuard:
     """The steepest rise seen between two readings in contact, N/mm (None: none yet)."""
     cuts: int = 0
     """Moves cut (or refused) so far."""
+    drift_n: float = 0.0
+    """What the bias may have drifted since the zero, N (:func:`drift_allowance_n`; the cell
+    sets it before each guarded move): kept as headroom besides the noise's."""
+    referenced: bool = False
+    """A trusted first press since the sensor's last zero after a fault (or the session's start)
+    is there to compare the next one with (set by the run, cleared by
+    :meth:`~forcelearn.cell.Cell.zero_in_free_space`)."""
     last: tuple[np.ndarray, float] | None = field(default=None, repr=False)
     """The reading predictions start from: (position mm, its highest sample's normal force N),
     the last one unless it read less after pressing deeper (a bias step down in contact,
@@ -134,19 +141,21 @@ class PressGuard:
     def state_dict(self) -> dict[str, Any]:
         """The last reading and the stiffness seen (JSON-able; a resumed run goes on from it)."""
         last = None if self.last is None else ([float(v) for v in self.last[0]], self.last[1])
-        return {"last": last, "observed_n_per_mm": self.observed_n_per_mm}
+        return {"last": last, "observed_n_per_mm": self.observed_n_per_mm,
+                "referenced": self.referenced}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`."""
         last = state["last"]
         self.last = None if last is None else (np.asarray(last[0], dtype=float), float(last[1]))
         self.observed_n_per_mm = state["observed_n_per_mm"]
+        self.referenced = bool(state.get("referenced", False))  # older checkpoints: none
 
     def allowed_mm(self) -> float:
         """How far past the last reading's position a move may press in, mm (inf: no reading)."""
         if self.last is None:
             return math.inf
-        headroom = self.max_force_n - self.last[1] - NOISE_SIGMAS * self.noise_n
+        headroom = self.max_force_n - self.last[1] - NOISE_SIGMAS * self.noise_n - self.drift_n
         return max(headroom, 0.0) / self.stiffness_n_per_mm
 
     def reach(self, start_mm: np.ndarray, target_mm: np.ndarray) -> float:

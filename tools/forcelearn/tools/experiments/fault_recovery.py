@@ -84,6 +84,12 @@ FALSE_ALARM_WIDENING = 1.5
 this and does not count as one of the trial's tries (a noisy or relaxing foam moves more between
 steps than the margins measured on the example sponge; about ten such alarms make the watch
 silent, so this ends)."""
+PRESS_AGREE_N = 1.0
+"""A first press made twice (:meth:`RunRecovery.press_in`) must read the same within this plus
+:data:`PRESS_AGREE_SHARE` of the first reading, N."""
+PRESS_AGREE_SHARE = 0.06
+"""The share of the first reading the second may differ by besides :data:`PRESS_AGREE_N` (the
+foam relaxes and wears a little between the two presses)."""
 MAX_TRIES_PER_TRIAL = 4
 """Faults one trial may meet before the run ends (each is recovered from before the next)."""
 
@@ -152,6 +158,10 @@ class RunRecovery:
         self._checked_zeros = 0
         """Zeros the zero check took (within its bound: they keep a first press comparable with
         the last trial's, which a bias step at the first contact would not be)."""
+        self._referenced = False
+        """The first press's reference when the cell has no press guard to keep it."""
+        self.trial = -1
+        """The trial running (for the messages), -1: none yet."""
         self.fit_watch_to_readings = True
         """Widen the watch to the stiffness the readings show (until a probe's fit is in)."""
         self._start_learner: SRVLearner | None = None
@@ -169,6 +179,7 @@ class RunRecovery:
         tries: dict[int, int] = {}
         with self._watching():
             while (remaining := run.trials - len(run.result.records)) > 0:
+                self.trial = run.saved.trials
                 try:
                     train_remaining(learner, remaining)
                     break
@@ -199,6 +210,60 @@ class RunRecovery:
                 self._void(-1, exc)
                 self._recover(exc, -1, attempt)
         raise AssertionError("unreachable")  # pragma: no cover - _recover raises at the last try
+
+    @property
+    def referenced(self) -> bool:
+        """A trial's first press has an earlier trusted one to be compared with.
+
+        None at a session's start nor after a re-zero in free space (:meth:`press_in` makes
+        it twice). Kept by the cell's press guard (checkpointed with it: an emulated resume,
+        whose sensor keeps its zero, goes on as the uninterrupted run did; a real one starts
+        afresh).
+        """
+        guard = self.cell.press_guard
+        return self._referenced if guard is None else guard.referenced
+
+    @referenced.setter
+    def referenced(self, value: bool) -> None:
+        guard = self.cell.press_guard
+        if guard is None:
+            self._referenced = value
+        else:
+            guard.referenced = value
+
+    def press_in(self, press: Callable[[], float]) -> float:
+        """A trial's first press (``press``: move in from free space, read; N): the force, N.
+
+        With the zero check on, a first press that has no earlier trusted one to be
+        compared with (the session's first, the first after a re-zero) is made twice,
+        each from a zero checked in free space right before it: check, press, back out to
+        free space, check, press again. A bias step during the first press is then seen
+        by the second check, one during the second by the two presses' disagreement
+        (beyond :data:`PRESS_AGREE_N` + :data:`PRESS_AGREE_SHARE` of the first), before
+        any step of the trial presses deeper on a wrong reading; a drift since the
+        session's zero is zeroed away before the first contact.
+
+        Raises:
+            ZeroMoved: a check found the zero moved.
+            SensorSuspect: the two presses disagree.
+        """
+        if self.referenced or not self.zero_check:
+            return press()
+        self.check_zero(self.trial)
+        first = press()
+        self.check_zero(self.trial)  # backs out to the retract plane first
+        second = press()
+        if abs(second - first) > PRESS_AGREE_N + PRESS_AGREE_SHARE * abs(first):
+            self.cell.stop()
+            raise SensorSuspect(
+                f"trial {self.trial}'s first press read {first:.2f} N, then {second:.2f} N "
+                f"pressed again at the same place from a zero checked in free space (more "
+                f"than {PRESS_AGREE_N:g} N + {100 * PRESS_AGREE_SHARE:g} % apart): the "
+                "sensor's zero moved during the second press (a bias step at the first "
+                "contact); the run retracts, zeroes in free space and runs the trial again"
+            )
+        self.referenced = True
+        return second
 
     def on_exit(self, exc: BaseException, trial: int) -> None:
         """The run stops (an error it does not recover from, or Ctrl-C): leave the part first.
@@ -336,6 +401,7 @@ class RunRecovery:
             raise
         finally:
             self.cell.reading_check = check
+        self.referenced = False  # re-zeroed: the next first press has nothing to compare with
         message = one_line(exc)
         false_alarm = False
         action = "resumed"
