@@ -10,7 +10,9 @@ presses in by the stiffness it knows. From the last reading ``F`` at position
 
     F + 3 sigma + k * max(0, (q - p) . d)
 
-(``d`` the press direction, ``k`` the stiffness in use, sigma one sample's noise). A
+(``d`` the press direction, ``k`` the stiffness in use, sigma one sample's noise), plus what
+the bias may have drifted since the zero (:func:`drift_allowance_n`: a reading drifted low
+hides that much force). A
 move whose prediction passes ``max_force_n`` is cut: the cell moves as far as the
 prediction allows, reads one sample, and goes on from that reading, as the probe
 approaches; where not even :data:`MIN_STEP_MM` is allowed, the move is refused
@@ -61,6 +63,24 @@ PULL_MARGIN_N = 0.5
 bias's drift between zero checks stays well under it)."""
 NOISE_SIGMAS = 3.0
 """One sample's noise allowance on the last reading, in the sensor's sigma."""
+DRIFT_FACTOR = 1.5
+"""The allowance on the bias's drift since the zero: this x the rate the last zero check
+measured (a steady drift is measured again at every check; 1.5 covers one that speeds up)."""
+DRIFT_SIGMAS = 3.0
+"""The allowance on the sensor's modelled random-walk drift since the zero, in its sigma."""
+
+
+def drift_allowance_n(rate_n_per_s: float, model_n_per_sqrt_s: float, elapsed_s: float) -> float:
+    """What the bias may have drifted since the zero, ``elapsed_s`` ago, N.
+
+    ``rate_n_per_s``: the drift the last zero check measured (its reading beyond its noise
+    over the time since the zero before it); ``model_n_per_sqrt_s``: the sensor's random walk
+    (``[filter] bias_drift_n_per_sqrt_s``). A reading that drifted low by ``d`` hides ``d``
+    of force: the press guard keeps that much more headroom.
+    """
+    elapsed = max(elapsed_s, 0.0)
+    return DRIFT_FACTOR * max(rate_n_per_s, 0.0) * elapsed + (
+        DRIFT_SIGMAS * model_n_per_sqrt_s * math.sqrt(elapsed))
 
 
 @dataclass

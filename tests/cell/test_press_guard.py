@@ -190,3 +190,35 @@ def test_the_guard_takes_a_reading_where_the_arm_was_not_where_it_was_sent() -> 
         cell.move_in_steps(Pose(0.0, SURFACE_Y_MM - 10.0, 0.0), max_step_mm=1.0,
                            guard_force=True)
     assert max(arm.true_forces) <= LIMIT_N
+
+
+class DriftingSpring(Spring):
+    """A spring whose sensor's zero drifts steadily, reading less force as time goes on."""
+
+    def __init__(self, k_n_per_mm: float, drift_n_per_s: float) -> None:
+        super().__init__(k_n_per_mm)
+        self.drift_n_per_s = drift_n_per_s
+
+    def read(self) -> WrenchSample:
+        """The part's force less the drift so far."""
+        self.counter += 1
+        reading = self.force_n() - self.drift_n_per_s * self.time_s
+        return WrenchSample(np.array([0.0, reading, 0, 0, 0, 0]), 0.0, self.counter)
+
+
+def test_a_steady_drift_the_zero_checks_measured_never_hides_force_past_the_limit() -> None:
+    """Zero checks in free space measure the drift; the guard keeps headroom for it."""
+    spring = DriftingSpring(8.0, drift_n_per_s=1.0)
+    spring.pose = Pose(0.0, 1.0, 0.0)
+    cell = Cell(spring, spring, ForceFilter(ForceFilterConfig(axis=1, sign=1.0)), LIMIT_N,
+                samples_per_step=3)
+    cell.press_guard = unknown_guard(FRESH * spring.k)
+    cell.read_pose()
+    cell.check_zero(lambda std: 1e9)  # zeroed in free space
+    for i in range(40):  # 4 s in free space: the zero drifts by 4 N
+        cell.move_to(Pose(0.0, 1.0 + i % 2, 0.0))
+    cell.check_zero(lambda std: 1e9)  # reads the drift since, and zeroes again
+    with contextlib.suppress(ForceLimitExceeded):
+        cell.move_in_steps(Pose(0.0, SURFACE_Y_MM - 10.0, 0.0), max_step_mm=1.0,
+                           guard_force=True)
+    assert max(spring.true_forces) <= LIMIT_N
