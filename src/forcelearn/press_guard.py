@@ -113,8 +113,9 @@ class PressGuard:
     :meth:`~forcelearn.cell.Cell.zero_in_free_space`)."""
     last: tuple[np.ndarray, float] | None = field(default=None, repr=False)
     """The reading predictions start from: (position mm, its highest sample's normal force N),
-    the last one unless it read less after pressing deeper (a bias step down in contact,
-    unseen yet, must not buy the next move more depth: the one before stays)."""
+    the last one unless it read less after pressing deeper, or dropped easing off by more than
+    the stiffness in use explains (a bias step down in contact, unseen yet, must not buy the
+    next move more depth: the one before stays)."""
 
     def know(self, stiffness_n_per_mm: float) -> None:
         """The part's stiffness is known (the probe's stiffest fit, N/mm, relaxed)."""
@@ -153,9 +154,14 @@ class PressGuard:
                 if rise > (self.observed_n_per_mm or 0.0):  # a part never pulls: rises only
                     self.observed_n_per_mm = rise
         force = max(float(force_n), 0.0)
-        if (self.last is not None and force < self.last[1] - 2 * NOISE_SIGMAS * self.noise_n
-                and self._pressed_mm(self.last[0], position) > 0.0):
-            return  # pressed deeper, read less: not trusted to buy depth (a bias step down?)
+        if self.last is not None:
+            pressed = self._pressed_mm(self.last[0], position)
+            explained = self.last[1] - self.stiffness_n_per_mm * max(-pressed, 0.0)
+            if force < explained - 2 * NOISE_SIGMAS * self.noise_n:
+                # pressed deeper and read less, or eased off and dropped faster than the stiffness
+                # in use explains (an unloading branch, or a bias step down): not trusted to buy
+                # depth; predictions go on from the reading before, whose force was true
+                return
         self.last = (position, force)
 
     def state_dict(self) -> dict[str, Any]:

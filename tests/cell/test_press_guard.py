@@ -222,3 +222,16 @@ def test_a_steady_drift_the_zero_checks_measured_never_hides_force_past_the_limi
         cell.move_in_steps(Pose(0.0, SURFACE_Y_MM - 10.0, 0.0), max_step_mm=1.0,
                            guard_force=True)
     assert max(spring.true_forces) <= LIMIT_N
+
+
+def test_a_drop_easing_off_faster_than_the_stiffness_buys_no_depth() -> None:
+    """Eased off 0.5 mm, read 10 N less on a 2 N/mm part: predictions stay on the deeper one.
+
+    An unloading branch or a bias step down: either way the reading before was true.
+    """
+    guard = PressGuard(LIMIT_N, 2.0, noise_n=0.1)
+    guard.note(np.array([0.0, -6.0, 0.0]), 40.0)
+    guard.note(np.array([0.0, -5.5, 0.0]), 30.0)
+    assert guard.last is not None and guard.last[1] == 40.0
+    guard.note(np.array([0.0, -5.0, 0.0]), 39.2)  # 1 mm up, 0.8 N less: the part's own
+    assert guard.last[1] == pytest.approx(39.2)

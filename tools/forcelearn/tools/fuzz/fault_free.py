@@ -44,6 +44,7 @@ MATERIALS: dict[str, tuple[str, ...]] = {
                       *STIFF15_START),
     "hyst0.3": ("emulator.sponge.hysteresis_loss=0.3", "emulator.sponge.stiffness_n_per_mm=1.2",
                 "task.desired_force_n=24.5"),
+    "hyst0.3-k2": ("emulator.sponge.hysteresis_loss=0.3",),
     "friction0.3": ("emulator.sponge.friction_coefficient=0.3",),
 }
 """Materials by name: ``table.key=value`` overrides of the example cells."""
