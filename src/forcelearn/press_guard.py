@@ -102,6 +102,11 @@ class PressGuard:
     """The part's known stiffness x :data:`KNOWN_FACTOR` (None: not known), N/mm."""
     observed_n_per_mm: float | None = None
     """The steepest rise seen between two readings in contact, N/mm (None: none yet)."""
+    first_contact_n_per_mm: float | None = None
+    """The steepest first contact seen: a reading in contact over the press-in from a reading in
+    free space, N/mm (None: none yet). The surface lies somewhere between the two, so it is at
+    most the part's stiffness: the bias watch widens to it (a stiff part met in one move shows
+    no pair in contact), the guard does not use it (not an upper bound)."""
     cuts: int = 0
     """Moves cut (or refused) so far."""
     drift_n: float = 0.0
@@ -144,6 +149,11 @@ class PressGuard:
                 "trial again; if it repeats, check the sensor's cable and temperature"
             )
         position = np.asarray(position_mm, dtype=float)
+        if self.last is not None and force_n > CONTACT_N >= self.last[1]:
+            pressed = self._pressed_mm(self.last[0], position)
+            if pressed >= MIN_STEP_MM:
+                met = (force_n - self.last[1]) / pressed
+                self.first_contact_n_per_mm = max(self.first_contact_n_per_mm or 0.0, met)
         if self.last is not None and force_n > CONTACT_N and self.last[1] > CONTACT_N:
             pressed = self._pressed_mm(self.last[0], position)
             rise_n = force_n - self.last[1]
@@ -168,6 +178,7 @@ class PressGuard:
         """The last reading and the stiffness seen (JSON-able; a resumed run goes on from it)."""
         last = None if self.last is None else ([float(v) for v in self.last[0]], self.last[1])
         return {"last": last, "observed_n_per_mm": self.observed_n_per_mm,
+                "first_contact_n_per_mm": self.first_contact_n_per_mm,
                 "referenced": self.referenced}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -176,6 +187,7 @@ class PressGuard:
         self.last = None if last is None else (np.asarray(last[0], dtype=float), float(last[1]))
         self.observed_n_per_mm = state["observed_n_per_mm"]
         self.referenced = bool(state.get("referenced", False))  # older checkpoints: none
+        self.first_contact_n_per_mm = state.get("first_contact_n_per_mm")
 
     def allowed_mm(self) -> float:
         """How far past the last reading's position a move may press in, mm (inf: no reading)."""

@@ -235,3 +235,15 @@ def test_a_drop_easing_off_faster_than_the_stiffness_buys_no_depth() -> None:
     assert guard.last is not None and guard.last[1] == 40.0
     guard.note(np.array([0.0, -5.0, 0.0]), 39.2)  # 1 mm up, 0.8 N less: the part's own
     assert guard.last[1] == pytest.approx(39.2)
+
+
+def test_a_first_contact_from_free_space_is_kept_as_a_stiffness_seen_not_used() -> None:
+    """30 N over 3 mm from a free-space reading: at least 10 N/mm (the watch widens to it)."""
+    guard = PressGuard(LIMIT_N, 20.0, noise_n=0.1)
+    guard.note(np.array([0.0, 3.0, 0.0]), 0.0)
+    guard.note(np.array([0.0, 0.0, 0.0]), 30.0)
+    assert guard.first_contact_n_per_mm == pytest.approx(10.0)
+    assert guard.observed_n_per_mm is None and guard.stiffness_n_per_mm == 20.0  # not an upper
+    restored = PressGuard(LIMIT_N, 20.0, noise_n=0.1)
+    restored.load_state_dict(guard.state_dict())
+    assert restored.first_contact_n_per_mm == pytest.approx(10.0)

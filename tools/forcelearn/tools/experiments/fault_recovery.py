@@ -377,11 +377,14 @@ class RunRecovery:
         """The cell's reading check: the bias watch, told how many zeros the sensor took.
 
         Without a probe's fit the watch widens to the stiffest rise the cell's press guard
-        has seen (a stiff part met cold: its ease-offs drop faster than the default band).
+        has seen, or its first contact's (a stiff part met cold: its ease-offs drop faster
+        than the default band).
         """
         guard = self.cell.press_guard
-        if self.fit_watch_to_readings and guard is not None and guard.observed_n_per_mm:
-            self.watch.fit_to_probe([guard.observed_n_per_mm], 0.0, 0.0)
+        if self.fit_watch_to_readings and guard is not None:
+            seen = max(guard.observed_n_per_mm or 0.0, guard.first_contact_n_per_mm or 0.0)
+            if seen > 0.0:  # the steepest rise in contact, or the first contact's (a stiff part
+                self.watch.fit_to_probe([seen], 0.0, 0.0)  # met in one move shows no pair)
         self.watch(stage, pose, force_n, zeros=self.cell.tares - self._checked_zeros)
 
     def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> bool:
