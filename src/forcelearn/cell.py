@@ -161,6 +161,9 @@ class Cell:
         """The zero's own standard deviation on the normal axis, N (None: the sensor's zero)."""
         self.zero_time_s = 0.0
         """The cell time of the last zero, s."""
+        self.burst_frozen = False
+        """The last burst's samples (three or more) all read the very same wrench: a live
+        sensor's noise never repeats exactly, so the sensor or its link repeats one frame."""
         self.drift_rate_n_per_s = 0.0
         """The bias's drift the last zero check measured: its reading beyond its noise over the
         time since the zero before it, N/s (the press guard keeps headroom for it)."""
@@ -300,6 +303,9 @@ class Cell:
             batch = self._guarded(self.sensor.read_many, count, min(count, SYNC_WINDOW))
         else:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
+        first = np.asarray(batch[0].wrench) if batch else None
+        self.burst_frozen = len(batch) > 2 and all(
+            np.array_equal(first, sample.wrench) for sample in batch[1:])
         compensated = [self._compensated(raw) for raw in batch]
         self._last_mean_wrench = np.mean([s.wrench for s in compensated], axis=0)
         force = math.nan

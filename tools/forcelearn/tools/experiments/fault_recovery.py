@@ -374,12 +374,19 @@ class RunRecovery:
             self.cell.reading_check = None
 
     def _check(self, stage: tuple[str, int], pose: Pose | None, force_n: float) -> None:
-        """The cell's reading check: the bias watch, told how many zeros the sensor took.
+        """The cell's reading check: a frozen burst, then the bias watch (told the zeros).
 
         Without a probe's fit the watch widens to the stiffest rise the cell's press guard
         has seen, or its first contact's (a stiff part met cold: its ease-offs drop faster
         than the default band).
         """
+        if self.cell.burst_frozen:
+            raise SensorSuspect(
+                f"every sample of the burst at {stage[0]} {stage[1]} read the very same wrench: "
+                "a live sensor's noise never repeats exactly, so the sensor (or its link) "
+                "repeats one reading; the run retracts, restarts and zeroes the sensor in free "
+                "space and runs the trial again; if it repeats, check the sensor and its cable"
+            )
         guard = self.cell.press_guard
         if self.fit_watch_to_readings and guard is not None:
             seen = max(guard.observed_n_per_mm or 0.0, guard.first_contact_n_per_mm or 0.0)
