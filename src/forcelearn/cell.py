@@ -303,9 +303,8 @@ class Cell:
             batch = self._guarded(self.sensor.read_many, count, min(count, SYNC_WINDOW))
         else:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
-        first = np.asarray(batch[0].wrench) if batch else None
         self.burst_frozen = len(batch) > 2 and all(
-            np.array_equal(first, sample.wrench) for sample in batch[1:])
+            np.array_equal(batch[0].wrench, sample.wrench) for sample in batch[1:])
         compensated = [self._compensated(raw) for raw in batch]
         self._last_mean_wrench = np.mean([s.wrench for s in compensated], axis=0)
         force = math.nan
