@@ -54,7 +54,13 @@ from forcelearn.errors import (
 )
 from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
 from forcelearn.filtering.burst_record import burst_record
-from forcelearn.press_guard import MIN_STEP_MM, PressGuard, check_samples
+from forcelearn.press_guard import (
+    MIN_STEP_MM,
+    NOISE_SIGMAS,
+    PressGuard,
+    check_samples,
+    drift_allowance_n,
+)
 from forcelearn.records import CellRecorder, MoveRecord, TareRecord
 
 log = logging.getLogger(__name__)
@@ -155,6 +161,12 @@ class Cell:
         """The zero's own standard deviation on the normal axis, N (None: the sensor's zero)."""
         self.zero_time_s = 0.0
         """The cell time of the last zero, s."""
+        self.burst_frozen = False
+        """The last burst's samples (three or more) all read the very same wrench: a live
+        sensor's noise never repeats exactly, so the sensor or its link repeats one frame."""
+        self.drift_rate_n_per_s = 0.0
+        """The bias's drift the last zero check measured: its reading beyond its noise over the
+        time since the zero before it, N/s (the press guard keeps headroom for it)."""
         self._last_mean_wrench = np.zeros(6)
         self.press_guard: PressGuard | None = None
         """Bounds each guarded move's press-in by the known stiffness (None: no bound)."""
@@ -244,6 +256,8 @@ class Cell:
         moves, i = 0, 1
         while i <= count:
             step = _towards(start, target, i / count)
+            if guard is not None:
+                guard.drift_n = self.drift_allowance_n()
             if guard is not None and (share := guard.reach(self.pose.position_mm,
                                                            step.position_mm)) < 1.0:
                 self._guarded_part(guard, step, share)
@@ -289,13 +303,18 @@ class Cell:
             batch = self._guarded(self.sensor.read_many, count, min(count, SYNC_WINDOW))
         else:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
+        self.burst_frozen = len(batch) > 2 and all(
+            np.array_equal(batch[0].wrench, sample.wrench) for sample in batch[1:])
         compensated = [self._compensated(raw) for raw in batch]
         self._last_mean_wrench = np.mean([s.wrench for s in compensated], axis=0)
         force = math.nan
         if self.press_guard is not None and self._pose is not None:
             wrenches = np.array([s.wrench for s in compensated])
             normal = self.force_filter.config.normal_force(wrenches)
-            self._guarded(self.press_guard.note, self._pose.position_mm, float(np.max(normal)))
+            # where the arm is, not where it was sent: an EGM arm ends its in-position zone
+            # short of a press, and a reading booked deeper than it was taken buys depth
+            self._guarded(self.press_guard.note, self.reached_pose().position_mm,
+                          float(np.max(normal)))
         try:
             try:
                 check_samples(compensated, self.max_force_n, self.force_filter.config)
@@ -364,6 +383,12 @@ class Cell:
             std = math.sqrt(self.force_filter.measurement_variance_n2 / self.samples_per_step)
         bound = bound_n(std)
         accepted = abs(force) <= bound
+        zero_std = (math.sqrt(self.force_filter.measurement_variance_n2)
+                    if self.zero_std_n is None else self.zero_std_n)
+        noise = NOISE_SIGMAS * math.hypot(std, zero_std)
+        elapsed = self.time_s - self.zero_time_s
+        if elapsed > 0.0:  # what the zero moved by beyond the noise, over the time it had
+            self.drift_rate_n_per_s = max(abs(force) - noise, 0.0) / elapsed
         if self.recorder is not None:
             here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
             self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, accepted))
@@ -373,6 +398,12 @@ class Cell:
             self._take_zero(hardware=False)
         return force, bound
 
+    def drift_allowance_n(self) -> float:
+        """What the bias may have drifted since the zero, N (the press guard's headroom)."""
+        return drift_allowance_n(self.drift_rate_n_per_s,
+                                 self.force_filter.config.bias_drift_n_per_sqrt_s,
+                                 self.time_s - self.zero_time_s)
+
     def _take_zero(self, hardware: bool = True) -> None:
         """Zero the sensor here (else the caller zeroed in software); the calibration follows."""
         if hardware:
@@ -380,7 +411,7 @@ class Cell:
             self.zero_residual, self.zero_std_n, self.zero_time_s = np.zeros(6), None, self.time_s
         self.tares += 1
         if self.press_guard is not None:  # free space reads 0 from now on
-            self.press_guard.note(self.pose.position_mm, 0.0)
+            self.press_guard.note(self.reached_pose().position_mm, 0.0)
         self.zero_taken_at(self.pose.quaternion)
         if self.on_tare is not None:
             self.on_tare(self.pose)
@@ -415,6 +446,8 @@ class Cell:
         if self.recorder is not None:
             here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
             self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, True))
+        if self.press_guard is not None:  # a zero after a fault: no press to compare with yet
+            self.press_guard.referenced = False
         self._take_zero()
         self.reset_filter()
         return force

@@ -10,7 +10,9 @@ presses in by the stiffness it knows. From the last reading ``F`` at position
 
     F + 3 sigma + k * max(0, (q - p) . d)
 
-(``d`` the press direction, ``k`` the stiffness in use, sigma one sample's noise). A
+(``d`` the press direction, ``k`` the stiffness in use, sigma one sample's noise), plus what
+the bias may have drifted since the zero (:func:`drift_allowance_n`: a reading drifted low
+hides that much force). A
 move whose prediction passes ``max_force_n`` is cut: the cell moves as far as the
 prediction allows, reads one sample, and goes on from that reading, as the probe
 approaches; where not even :data:`MIN_STEP_MM` is allowed, the move is refused
@@ -23,6 +25,8 @@ The stiffness in use (N/mm, the fast, unrelaxed one):
   (:data:`OBSERVED_FACTOR` x the steepest rise seen between two readings in contact);
 * without a probe, what the readings show, once two readings in contact pressed in
   :data:`MIN_PAIR_MM` or more apart (or less, with a rise of :data:`PAIR_SIGMAS` x the noise);
+  a rise under :data:`NOISE_SIGMAS` x the noise measures nothing (noise over a short press-in
+  would make a soft part look stiff, and the bias watch widens to that stiffness);
 * before either, ``unknown_n_per_mm``: the stiffest part the site expects
   (``[task] press_stiffness_n_per_mm``).
 """
@@ -59,6 +63,24 @@ PULL_MARGIN_N = 0.5
 bias's drift between zero checks stays well under it)."""
 NOISE_SIGMAS = 3.0
 """One sample's noise allowance on the last reading, in the sensor's sigma."""
+DRIFT_FACTOR = 1.5
+"""The allowance on the bias's drift since the zero: this x the rate the last zero check
+measured (a steady drift is measured again at every check; 1.5 covers one that speeds up)."""
+DRIFT_SIGMAS = 3.0
+"""The allowance on the sensor's modelled random-walk drift since the zero, in its sigma."""
+
+
+def drift_allowance_n(rate_n_per_s: float, model_n_per_sqrt_s: float, elapsed_s: float) -> float:
+    """What the bias may have drifted since the zero, ``elapsed_s`` ago, N.
+
+    ``rate_n_per_s``: the drift the last zero check measured (its reading beyond its noise
+    over the time since the zero before it); ``model_n_per_sqrt_s``: the sensor's random walk
+    (``[filter] bias_drift_n_per_sqrt_s``). A reading that drifted low by ``d`` hides ``d``
+    of force: the press guard keeps that much more headroom.
+    """
+    elapsed = max(elapsed_s, 0.0)
+    return DRIFT_FACTOR * max(rate_n_per_s, 0.0) * elapsed + (
+        DRIFT_SIGMAS * model_n_per_sqrt_s * math.sqrt(elapsed))
 
 
 @dataclass
@@ -80,12 +102,25 @@ class PressGuard:
     """The part's known stiffness x :data:`KNOWN_FACTOR` (None: not known), N/mm."""
     observed_n_per_mm: float | None = None
     """The steepest rise seen between two readings in contact, N/mm (None: none yet)."""
+    first_contact_n_per_mm: float | None = None
+    """The steepest first contact seen: a reading in contact over the press-in from a reading in
+    free space, N/mm (None: none yet). The surface lies somewhere between the two, so it is at
+    most the part's stiffness: the bias watch widens to it (a stiff part met in one move shows
+    no pair in contact), the guard does not use it (not an upper bound)."""
     cuts: int = 0
     """Moves cut (or refused) so far."""
+    drift_n: float = 0.0
+    """What the bias may have drifted since the zero, N (:func:`drift_allowance_n`; the cell
+    sets it before each guarded move): kept as headroom besides the noise's."""
+    referenced: bool = False
+    """A trusted first press since the sensor's last zero after a fault (or the session's start)
+    is there to compare the next one with (set by the run, cleared by
+    :meth:`~forcelearn.cell.Cell.zero_in_free_space`)."""
     last: tuple[np.ndarray, float] | None = field(default=None, repr=False)
     """The reading predictions start from: (position mm, its highest sample's normal force N),
-    the last one unless it read less after pressing deeper (a bias step down in contact,
-    unseen yet, must not buy the next move more depth: the one before stays)."""
+    the last one unless it read less after pressing deeper, or dropped easing off by more than
+    the stiffness in use explains (a bias step down in contact, unseen yet, must not buy the
+    next move more depth: the one before stays)."""
 
     def know(self, stiffness_n_per_mm: float) -> None:
         """The part's stiffness is known (the probe's stiffest fit, N/mm, relaxed)."""
@@ -114,36 +149,51 @@ class PressGuard:
                 "trial again; if it repeats, check the sensor's cable and temperature"
             )
         position = np.asarray(position_mm, dtype=float)
+        if self.last is not None and force_n > CONTACT_N >= self.last[1]:
+            pressed = self._pressed_mm(self.last[0], position)
+            if pressed >= MIN_STEP_MM:
+                met = (force_n - self.last[1]) / pressed
+                self.first_contact_n_per_mm = max(self.first_contact_n_per_mm or 0.0, met)
         if self.last is not None and force_n > CONTACT_N and self.last[1] > CONTACT_N:
             pressed = self._pressed_mm(self.last[0], position)
             rise_n = force_n - self.last[1]
-            if pressed >= MIN_PAIR_MM or (pressed >= MIN_STEP_MM
-                                          and rise_n >= PAIR_SIGMAS * self.noise_n):
+            if rise_n >= NOISE_SIGMAS * self.noise_n and (
+                    pressed >= MIN_PAIR_MM
+                    or (pressed >= MIN_STEP_MM and rise_n >= PAIR_SIGMAS * self.noise_n)):
                 rise = rise_n / pressed
                 if rise > (self.observed_n_per_mm or 0.0):  # a part never pulls: rises only
                     self.observed_n_per_mm = rise
         force = max(float(force_n), 0.0)
-        if (self.last is not None and force < self.last[1] - 2 * NOISE_SIGMAS * self.noise_n
-                and self._pressed_mm(self.last[0], position) > 0.0):
-            return  # pressed deeper, read less: not trusted to buy depth (a bias step down?)
+        if self.last is not None:
+            pressed = self._pressed_mm(self.last[0], position)
+            explained = self.last[1] - self.stiffness_n_per_mm * max(-pressed, 0.0)
+            if force < explained - 2 * NOISE_SIGMAS * self.noise_n:
+                # pressed deeper and read less, or eased off and dropped faster than the stiffness
+                # in use explains (an unloading branch, or a bias step down): not trusted to buy
+                # depth; predictions go on from the reading before, whose force was true
+                return
         self.last = (position, force)
 
     def state_dict(self) -> dict[str, Any]:
         """The last reading and the stiffness seen (JSON-able; a resumed run goes on from it)."""
         last = None if self.last is None else ([float(v) for v in self.last[0]], self.last[1])
-        return {"last": last, "observed_n_per_mm": self.observed_n_per_mm}
+        return {"last": last, "observed_n_per_mm": self.observed_n_per_mm,
+                "first_contact_n_per_mm": self.first_contact_n_per_mm,
+                "referenced": self.referenced}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore :meth:`state_dict`."""
         last = state["last"]
         self.last = None if last is None else (np.asarray(last[0], dtype=float), float(last[1]))
         self.observed_n_per_mm = state["observed_n_per_mm"]
+        self.referenced = bool(state.get("referenced", False))  # older checkpoints: none
+        self.first_contact_n_per_mm = state.get("first_contact_n_per_mm")
 
     def allowed_mm(self) -> float:
         """How far past the last reading's position a move may press in, mm (inf: no reading)."""
         if self.last is None:
             return math.inf
-        headroom = self.max_force_n - self.last[1] - NOISE_SIGMAS * self.noise_n
+        headroom = self.max_force_n - self.last[1] - NOISE_SIGMAS * self.noise_n - self.drift_n
         return max(headroom, 0.0) / self.stiffness_n_per_mm
 
     def reach(self, start_mm: np.ndarray, target_mm: np.ndarray) -> float:

@@ -144,3 +144,19 @@ def test_a_false_alarm_widens_the_margins_it_tripped() -> None:
     assert (watch.false_alarms, watch.margin_n) == (1, 1.5 * MARGIN_N)
     with pytest.raises(ValueError):
         watch.widen(1.0)
+
+
+def test_a_drop_easing_off_is_judged_when_the_tool_presses_back_to_its_depth() -> None:
+    """A hysteretic foam's unloading drop passes; a bias step down is caught pressing back."""
+    gap_n = 3.0 * MARGIN_N  # an unloading branch's drop after a reversal (2 h F)
+    watch = BiasWatch()
+    pressed(watch, force_n=20.0, y_mm=-6.0)
+    watch(("step", 1), at(-5.5), 20.0 - 0.5 * K_HIGH - gap_n)  # eased off: dropped to its branch
+    watch(("step", 2), at(-6.0), 20.0)  # pressed back: on the loading branch again
+    assert watch.suspects == 0 and watch.deferred == 1
+
+    stepped = BiasWatch()
+    pressed(stepped, force_n=20.0, y_mm=-6.0)
+    stepped(("step", 1), at(-5.5), 20.0 - 0.5 * K_HIGH - gap_n)  # a step down, easing off
+    with pytest.raises(SensorSuspect, match="bias step"):
+        stepped(("step", 2), at(-6.0), 20.0 - gap_n)  # pressed back: still off by the step

@@ -8,7 +8,12 @@ changes its force by about ``−k·Δy``, ``k`` its stiffness, and it never
 pulls. :class:`BiasWatch` takes the force a stiffness in
 ``stiffness_band_n_per_mm`` allows after the last reading (clamped at 0: the
 tool may leave the foam) and calls a reading more than ``margin_n`` outside
-it suspect. A trial's first press is also compared with the last trial's at
+it suspect. A reading that drops past the band as the tool eases off is not
+called suspect at once: a hysteretic foam unloads along a lower branch (by up to 2 h F
+after a reversal, h its loss, unknown without a probe), which a bias step read as less force
+looks like; the reading before the ease-off is kept as an anchor and the next reading
+pressed back to its depth or deeper is judged against it (the foam is back on its loading
+branch there, a bias step is not). A trial's first press is also compared with the last trial's at
 the same X and Z (within ``PRESS_DY_MM`` in Y) when no zero came between,
 within ``press_margin_n``: that catches a step that came in free space. And
 with ``free_y_mm`` (the retract plane, free space by the cell's
@@ -113,6 +118,11 @@ class BiasWatch:
         self._last: tuple[tuple[str, int], float, float] | None = None  # stage, y mm, force N
         self._press: tuple[tuple[int, float, float], float, float] | None = None
         """The last trial's first press: ((zeros, x mm, z mm), y mm, force N)."""
+        self._anchor: tuple[float, float] | None = None
+        """The reading before an ease-off that dropped past the band: (y mm, force N), judged
+        again when the tool presses back to its depth (:meth:`__call__`)."""
+        self.deferred = 0
+        """Ease-off drops past the band left to the press back (a foam's unloading branch)."""
 
     def fit_to_probe(self, stiffness_n_per_mm: Sequence[float], hysteresis_loss: float,
                      force_n: float) -> None:
@@ -136,7 +146,7 @@ class BiasWatch:
 
     def forget(self) -> None:
         """Drop the reference readings (the last one, the last trial's first press): rolled back."""
-        self._last = self._press = None
+        self._last = self._press = self._anchor = None
 
     def widen(self, factor: float) -> None:
         """Widen both in-contact margins by ``factor`` (> 1): a zero check proved an alarm false."""
@@ -175,6 +185,9 @@ class BiasWatch:
             return
         margin = self.margin_n
         reference: tuple[float, float] | None = None  # (y mm, force N)
+        anchor, eased = self._anchor, False
+        if stage[0] != "step":
+            self._anchor = anchor = None
         if stage == ("approach", 0):  # a trial's first press: the last trial's, same X and Z
             press, place = self._press, (zeros, float(pose.x_mm), float(pose.z_mm))
             if (press is not None and press[0] == place
@@ -184,8 +197,21 @@ class BiasWatch:
                 self._press = (place, here[1], here[2])
         elif last is not None and follows(last[0], stage):
             reference = (last[1], last[2])
+            eased = here[1] > last[1]
+        if anchor is not None and here[1] <= anchor[0]:  # pressed back to the anchor's depth
+            self._anchor = None
+            self._judge(stage, here[1], force_n, anchor, margin)
+            return
         if reference is None or reference[1] < self.contact_n:
             return
+        low = self.expected_n(reference[1], here[1] - reference[0])[0]
+        if eased and force_n < low - margin:  # dropped easing off: an unloading branch, or a
+            self.deferred += 1  # step down; pressing back to that depth tells them apart
+            if self._anchor is None:
+                self._anchor = reference
+            return
+        if anchor is not None and force_n >= low - margin:  # between the branches: a rise
+            return  # back towards the loading branch is the foam's (judged at the anchor)
         self._judge(stage, here[1], force_n, reference, margin)
 
     def _judge(self, stage: tuple[str, int], y_mm: float, force_n: float,
@@ -205,7 +231,7 @@ class BiasWatch:
 
     def _suspect(self, what: str) -> None:
         self.suspects += 1
-        self._last = self._press = None  # the trial starts afresh after the zero check
+        self._last = self._press = self._anchor = None  # the trial starts afresh after the check
         raise SensorSuspect(
             f"{what} The run retracts, checks the zero in free space and runs the trial "
             "again; if it repeats, check the sensor's cable and temperature"

@@ -178,6 +178,11 @@ class SurfaceTask:
         """r = |F − F_d| / tolerance, failure above 1 (:mod:`forcelearn.tasks.evaluation`)."""
         self.grid = spec.grid()
         self.start_force_n = math.nan
+        self.press_in: Callable[[Callable[[], float]], float] | None = None
+        """Makes each trial's first press from free space above the start, given the press
+        (move in, read; returns the force, N); None: the press alone. The run's
+        :meth:`~forcelearn.tools.experiments.fault_recovery.RunRecovery.press_in` checks
+        the zero around a press that has nothing to be compared with."""
         self._step = 0
         self._last_y_mm = math.nan
         self._trial_start_s = 0.0
@@ -239,9 +244,13 @@ class SurfaceTask:
         )
         if self.spec.tare_each_trial:
             self.cell.tare(self.spec.tare_max_reading_n)
-        self.cell.move_in_steps(start, self.max_step_mm, guard_force=True)
-        self.cell.reset_filter()
-        self.start_force_n = self.cell.measure_force_n()
+
+        def press() -> float:
+            self.cell.move_in_steps(start, self.max_step_mm, guard_force=True)
+            self.cell.reset_filter()
+            return self.cell.measure_force_n()
+
+        self.start_force_n = press() if self.press_in is None else self.press_in(press)
         if self._output is not None:
             self._output.track_wear(self.start_force_n)
         self._step = 0

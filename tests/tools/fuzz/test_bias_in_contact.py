@@ -54,7 +54,7 @@ def run(config: Path, folder: Path, injector: Injector) -> Truth:
 
 
 def test_a_bias_jump_in_contact_is_detected_retracted_from_and_retared(tmp_path: Path) -> None:
-    """Clean: no alarm. Jump 8 N just before step 3's move: suspect, zero moved, trial again."""
+    """Clean: no alarm. Jump 8 N just before step 3's move: found, zero moved, trial again."""
     config = cell_config("link+jr3", tmp_path, trials=2, steps=4, probe=False)
     tracer = Tracer()
     clean = run(config, tmp_path / "clean", tracer)
@@ -66,9 +66,14 @@ def test_a_bias_jump_in_contact_is_detected_retracted_from_and_retared(tmp_path:
     truth = run(config, tmp_path / "jump", injector)
     assert injector.fired and injector.fired[0].in_contact
     events = read_events(tmp_path / "jump")
-    assert [(e["error"], e["action"]) for e in events] == [("SensorSuspect", "resumed")]
-    assert abs(events[0]["free_reading_n"]) > MARGIN_N and "had moved" in events[0]["message"]
-    assert truth.zeros_in_contact == 0 and truth.zeros == clean.zeros + 1  # + the recovery's
+    # step 3 eases off: a drop there may be a foam's unloading branch, so it is judged when
+    # the tool presses back to that depth (then SensorSuspect), else at the trial's zero check
+    assert [(e["error"], e["action"]) for e in events] in ([("SensorSuspect", "resumed")],
+                                                           [("ZeroMoved", "voided")])
+    assert abs(events[0]["free_reading_n"]) > MARGIN_N
+    assert truth.max_contact_n <= clean.max_contact_n + 1.0  # pressed no deeper on it
+    # + the recovery's, and the two checks of the first press made twice after it
+    assert truth.zeros_in_contact == 0 and truth.zeros == clean.zeros + 3
     assert not truth.bad_readings  # no reading after the jump was taken for force
 
 

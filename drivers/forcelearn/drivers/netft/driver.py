@@ -79,6 +79,8 @@ log = logging.getLogger(__name__)
 SampleCallback = Callable[[WrenchSample], None]
 COUNTER_MODULUS = 1 << 16
 RECV_SIZE = 2048
+SEQUENCE_BEYOND_REQUEST = "RDT_SEQUENCE_BEYOND_REQUEST"
+"""``stats.rejected``'s reason for a record numbered past its request's count (damage)."""
 """Receive buffer per datagram: larger than a record, so an oversized datagram is seen whole."""
 RCVBUF_BYTES = 1 << 20
 """Requested socket receive buffer; the kernel may cap it (net.core.rmem_max)."""
@@ -145,6 +147,8 @@ class NetFtSensor(Driver):
         self._position = 0  # host stream position: records asked for so far
         self._streaming = False
         self._rebooted = False
+        self._requested = 0
+        """Records the last finite request asked for (its records are numbered 1..this)."""
         self._log = TrafficLog(self.config.log_path) if self.config.log_path else None
         self._sock = sock if sock is not None else self._open_udp()
         self._acquired = True
@@ -319,6 +323,13 @@ class NetFtSensor(Driver):
                 self._stats.rejected[record.reason] += 1
                 log.debug("rejected datagram (%s): %s", record.reason, data.hex())
                 continue
+            if base is not None and record.rdt_sequence > self._requested:
+                # a request of n records numbers them 1..n: no record of the box's (nor a
+                # late one of the last request, numbered within it), so damage; not a sample
+                self._stats.rejected[SEQUENCE_BEYOND_REQUEST] += 1
+                log.debug("rejected record %d of a request of %d: %s", record.rdt_sequence,
+                          self._requested, data.hex())
+                continue
             acc = self._tracker.push(record.rdt_sequence, record.ft_sequence)
             if acc.verdict is not Verdict.NEW:
                 log.debug("Net F/T record %d: %s", record.rdt_sequence, acc.verdict.value)
@@ -401,6 +412,7 @@ class NetFtSensor(Driver):
         self._uptime.note_bias(self._clock())
 
     def _start(self, sample_count: int) -> None:
+        self._requested = sample_count
         self._tracker.new_request()
         self._request_s = self._clock()
         self._send(protocol.Request(protocol.Command.START_REALTIME, sample_count))

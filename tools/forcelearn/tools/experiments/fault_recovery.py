@@ -70,10 +70,11 @@ log = logging.getLogger(__name__)
 
 EVENTS_FILE = "faults.jsonl"
 VOIDED_FILE = "voided.jsonl"
-ZERO_CHECK_SIGMAS = 4.0
-"""The zero check's bound, in sigma of what a fault-free check reads (4: a false void in about
-16,000 checks if that noise is Gaussian; fault-free checks measured about 1.2x the model's
-sigma, docs/fuzzing.md): the check burst's own
+ZERO_CHECK_SIGMAS = 5.0
+"""The zero check's bound, in sigma of what a fault-free check reads (5, and a check beyond it
+reads once more before it voids anything: fault-free checks measured about 1.2x the model's
+sigma, and at 4 sigma without a second read fault-free runs voided good trials,
+docs/fuzzing.md): the check burst's own
 noise (the filter's standard deviation of its mean), the zero's (the last check's burst, or one
 sensor sample after a zero of the sensor's own) and the bias's drift since the zero
 (``[filter] bias_drift_n_per_sqrt_s``)."""
@@ -83,6 +84,12 @@ FALSE_ALARM_WIDENING = 1.5
 this and does not count as one of the trial's tries (a noisy or relaxing foam moves more between
 steps than the margins measured on the example sponge; about ten such alarms make the watch
 silent, so this ends)."""
+PRESS_AGREE_N = 1.0
+"""A first press made twice (:meth:`RunRecovery.press_in`) must read the same within this plus
+:data:`PRESS_AGREE_SHARE` of the first reading, N."""
+PRESS_AGREE_SHARE = 0.06
+"""The share of the first reading the second may differ by besides :data:`PRESS_AGREE_N` (the
+foam relaxes and wears a little between the two presses)."""
 MAX_TRIES_PER_TRIAL = 4
 """Faults one trial may meet before the run ends (each is recovered from before the next)."""
 
@@ -151,6 +158,10 @@ class RunRecovery:
         self._checked_zeros = 0
         """Zeros the zero check took (within its bound: they keep a first press comparable with
         the last trial's, which a bias step at the first contact would not be)."""
+        self._referenced = False
+        """The first press's reference when the cell has no press guard to keep it."""
+        self.trial = -1
+        """The trial running (for the messages), -1: none yet."""
         self.fit_watch_to_readings = True
         """Widen the watch to the stiffness the readings show (until a probe's fit is in)."""
         self._start_learner: SRVLearner | None = None
@@ -168,6 +179,7 @@ class RunRecovery:
         tries: dict[int, int] = {}
         with self._watching():
             while (remaining := run.trials - len(run.result.records)) > 0:
+                self.trial = run.saved.trials
                 try:
                     train_remaining(learner, remaining)
                     break
@@ -198,6 +210,60 @@ class RunRecovery:
                 self._void(-1, exc)
                 self._recover(exc, -1, attempt)
         raise AssertionError("unreachable")  # pragma: no cover - _recover raises at the last try
+
+    @property
+    def referenced(self) -> bool:
+        """A trial's first press has an earlier trusted one to be compared with.
+
+        None at a session's start nor after a re-zero in free space (:meth:`press_in` makes
+        it twice). Kept by the cell's press guard (checkpointed with it: an emulated resume,
+        whose sensor keeps its zero, goes on as the uninterrupted run did; a real one starts
+        afresh).
+        """
+        guard = self.cell.press_guard
+        return self._referenced if guard is None else guard.referenced
+
+    @referenced.setter
+    def referenced(self, value: bool) -> None:
+        guard = self.cell.press_guard
+        if guard is None:
+            self._referenced = value
+        else:
+            guard.referenced = value
+
+    def press_in(self, press: Callable[[], float]) -> float:
+        """A trial's first press (``press``: move in from free space, read; N): the force, N.
+
+        With the zero check on, a first press that has no earlier trusted one to be
+        compared with (the session's first, the first after a re-zero) is made twice,
+        each from a zero checked in free space right before it: check, press, back out to
+        free space, check, press again. A bias step during the first press is then seen
+        by the second check, one during the second by the two presses' disagreement
+        (beyond :data:`PRESS_AGREE_N` + :data:`PRESS_AGREE_SHARE` of the first), before
+        any step of the trial presses deeper on a wrong reading; a drift since the
+        session's zero is zeroed away before the first contact.
+
+        Raises:
+            ZeroMoved: a check found the zero moved.
+            SensorSuspect: the two presses disagree.
+        """
+        if self.referenced or not self.zero_check:
+            return press()
+        self.check_zero(self.trial)
+        first = press()
+        self.check_zero(self.trial)  # backs out to the retract plane first
+        second = press()
+        if abs(second - first) > PRESS_AGREE_N + PRESS_AGREE_SHARE * abs(first):
+            self.cell.stop()
+            raise SensorSuspect(
+                f"trial {self.trial}'s first press read {first:.2f} N, then {second:.2f} N "
+                f"pressed again at the same place from a zero checked in free space (more "
+                f"than {PRESS_AGREE_N:g} N + {100 * PRESS_AGREE_SHARE:g} % apart): the "
+                "sensor's zero moved during the second press (a bias step at the first "
+                "contact); the run retracts, zeroes in free space and runs the trial again"
+            )
+        self.referenced = True
+        return second
 
     def on_exit(self, exc: BaseException, trial: int) -> None:
         """The run stops (an error it does not recover from, or Ctrl-C): leave the part first.
@@ -265,6 +331,9 @@ class RunRecovery:
             cell.move_in_steps(Pose(here.x_mm, self.retract_y_mm, here.z_mm, here.quaternion),
                                self.max_step_mm)
         force, bound = cell.check_zero(self.zero_check_bound)
+        if abs(force) > bound:  # a moved zero reads so again; an outlier of the noise does not
+            log.info("zero check read %.2f N (bound %.2f N): reading once more", force, bound)
+            force, bound = cell.check_zero(self.zero_check_bound)
         self._checked_zeros += abs(force) <= bound
         if abs(force) > bound:
             cell.stop()
@@ -305,14 +374,24 @@ class RunRecovery:
             self.cell.reading_check = None
 
     def _check(self, stage: tuple[str, int], pose: Pose | None, force_n: float) -> None:
-        """The cell's reading check: the bias watch, told how many zeros the sensor took.
+        """The cell's reading check: a frozen burst, then the bias watch (told the zeros).
 
         Without a probe's fit the watch widens to the stiffest rise the cell's press guard
-        has seen (a stiff part met cold: its ease-offs drop faster than the default band).
+        has seen, or its first contact's (a stiff part met cold: its ease-offs drop faster
+        than the default band).
         """
+        if self.cell.burst_frozen:
+            raise SensorSuspect(
+                f"every sample of the burst at {stage[0]} {stage[1]} read the very same wrench: "
+                "a live sensor's noise never repeats exactly, so the sensor (or its link) "
+                "repeats one reading; the run retracts, restarts and zeroes the sensor in free "
+                "space and runs the trial again; if it repeats, check the sensor and its cable"
+            )
         guard = self.cell.press_guard
-        if self.fit_watch_to_readings and guard is not None and guard.observed_n_per_mm:
-            self.watch.fit_to_probe([guard.observed_n_per_mm], 0.0, 0.0)
+        if self.fit_watch_to_readings and guard is not None:
+            seen = max(guard.observed_n_per_mm or 0.0, guard.first_contact_n_per_mm or 0.0)
+            if seen > 0.0:  # the steepest rise in contact, or the first contact's (a stiff part
+                self.watch.fit_to_probe([seen], 0.0, 0.0)  # met in one move shows no pair)
         self.watch(stage, pose, force_n, zeros=self.cell.tares - self._checked_zeros)
 
     def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> bool:
@@ -332,6 +411,7 @@ class RunRecovery:
             raise
         finally:
             self.cell.reading_check = check
+        self.referenced = False  # re-zeroed: the next first press has nothing to compare with
         message = one_line(exc)
         false_alarm = False
         action = "resumed"

@@ -134,6 +134,7 @@ def execute(
         output.recentre_mm = run.map_recentre_mm  # and its re-centring on the learner
         output.wear_reference_n = run.wear_reference_n
         task = SurfaceTask(session.cell, config.task, config.safety.max_step_mm, output)
+        task.press_in = recovery.press_in  # a first press with no reference is made twice
         fit_watch_to_probe(recovery, run)
         if run.probe is not None and run.probe.fits:  # the part's stiffness is known
             guard.know(max(f.stiffness_n_per_mm for f in run.probe.fits))

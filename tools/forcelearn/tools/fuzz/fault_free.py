@@ -26,7 +26,12 @@ from unittest import mock
 from forcelearn.cell import Cell
 from forcelearn.tools.experiments import surface_run as engine
 from forcelearn.tools.experiments import surface_state as run_state
-from forcelearn.tools.experiments.fault_recovery import read_events
+from forcelearn.tools.experiments.fault_recovery import (
+    PRESS_AGREE_N,
+    PRESS_AGREE_SHARE,
+    RunRecovery,
+    read_events,
+)
 from forcelearn.tools.fuzz.fault_campaign import CELLS, examples_config, injecting
 from forcelearn.tools.fuzz.fault_inject import Injector, Truth
 
@@ -37,19 +42,22 @@ STIFF15_START = ("task.start_mm=[900.0, 0.0, 0.0]", "task.output_scale_mm=0.5",
 MATERIALS: dict[str, tuple[str, ...]] = {
     "default": (),
     "stiff8": ("emulator.sponge.stiffness_n_per_mm=8.0", "task.desired_force_n=29.42"),
-    "stiff8-small": ("emulator.sponge.stiffness_n_per_mm=8.0", "task.desired_force_n=5.0"),
+    "stiff8-small": ("emulator.sponge.stiffness_n_per_mm=8.0", "task.desired_force_n=5.0",
+                     "probe.approach_step_mm=0.25"),  # 1 mm steps pass 5 N at the first contact
     "stiff15": ("emulator.sponge.stiffness_n_per_mm=15.0", "task.desired_force_n=29.42",
                 *STIFF15_START),
     "stiff15-small": ("emulator.sponge.stiffness_n_per_mm=15.0", "task.desired_force_n=5.0",
                       *STIFF15_START),
     "hyst0.3": ("emulator.sponge.hysteresis_loss=0.3", "emulator.sponge.stiffness_n_per_mm=1.2",
                 "task.desired_force_n=24.5"),
+    "hyst0.3-k2": ("emulator.sponge.hysteresis_loss=0.3",),
     "friction0.3": ("emulator.sponge.friction_coefficient=0.3",),
 }
 """Materials by name: ``table.key=value`` overrides of the example cells."""
 
 FIELDS = ("cell", "material", "probe", "seed", "trials", "checks", "voids", "events",
-          "worst_check_ratio", "worst_check_n", "max_contact_n", "max_force_n", "guard_cuts",
+          "worst_check_ratio", "first_presses_twice", "worst_press_ratio", "worst_check_n",
+          "max_contact_n", "max_force_n", "guard_cuts",
           "worst_used_n", "sigma_n", "beyond_3sigma", "converged_trial", "cell_time_s",
           "wall_s")
 
@@ -66,9 +74,23 @@ def one_run(cell: str, material: str, probe: bool, seed: int, trials: int,
         checks.append((force, bound))
         return force, bound
 
+    presses: list[list[float]] = []
+    press_in = RunRecovery.press_in
+
+    def pressed_in(recovery: RunRecovery, press: Any) -> float:
+        made: list[float] = []
+        presses.append(made)
+
+        def noted() -> float:
+            made.append(press())
+            return made[-1]
+
+        return press_in(recovery, noted)
+
     truths: list[Truth] = []
     started = time.perf_counter()
     with mock.patch.object(Cell, "check_zero", recorded), \
+            mock.patch.object(RunRecovery, "press_in", pressed_in), \
             injecting(Injector({}, random.Random(0)), 1e9, truths):
         run, checkpoint = run_state.prepare_run(config, folder / "run", None, seed, resume=False)
         engine.execute(run, checkpoint)
@@ -82,6 +104,10 @@ def one_run(cell: str, material: str, probe: bool, seed: int, trials: int,
         "checks": len(checks), "voids": sum(e["action"] == "voided" for e in events),
         "events": len(events),
         "worst_check_ratio": round(max((abs(f) / b for f, b in checks), default=0.0), 3),
+        "first_presses_twice": sum(len(p) == 2 for p in presses),
+        "worst_press_ratio": round(max((abs(p[1] - p[0]) / (PRESS_AGREE_N + PRESS_AGREE_SHARE
+                                                             * abs(p[0]))
+                                        for p in presses if len(p) == 2), default=0.0), 3),
         "worst_check_n": round(max((abs(f) for f, _ in checks), default=0.0), 3),
         "max_contact_n": round(truth.max_contact_n, 2),
         "max_force_n": run.config.safety.max_force_n,

@@ -13,8 +13,9 @@ fault              what the emulator does
                    (``ft_sequence`` restarts, software bias lost)
 ``silence``        the sensor sends nothing for the next 1 to 3 bursts
 ``corrupt``        JR3: the next 2 to 12 frames with a wrong length; Net F/T:
-                   2 to 12 datagrams of garbage to the driver (wrong sizes, or a
-                   record's 36 bytes: random sequences, status and counts)
+                   the next 2 to 12 datagrams the box sends arrive damaged (cut
+                   short, run long, the error bit in a record's status, or 36
+                   bytes of garbage: :meth:`Injector._netft_corrupt`)
 ``bias_jump``      the sensor's bias on the normal axis jumps by ±1 to 8 N
 ``restart``        computer link: the arm halts where it is and the link drops;
                    EGM: the controller restarts guidance (a new session)
@@ -47,8 +48,13 @@ from forcelearn.emulators.computer_link.faults import ComputerLinkFaultConfig, F
 from forcelearn.emulators.egm.faults import EgmFaultConfig, EgmFaultInjector
 from forcelearn.emulators.faults import Fault
 from forcelearn.protocols.jr3_can.codec import Frame
+from forcelearn.protocols.netft import RECORD
 
 SENSOR_FAULTS = ("reboot", "silence", "corrupt", "bias_jump")
+RDT_RECORD_SIZE = RECORD.size
+"""Bytes of one Net F/T RDT record (36)."""
+RDT_ERROR_STATUS = 0x80000000
+"""A status word with the box's error bit (bit 31: "system error") set."""
 EGM_LOST_MAX = 250
 """Most controller datagrams a short EGM ``link_drop`` loses (4 ms cycles: 1 s)."""
 EGM_LONG_LOST_MAX = 2000
@@ -352,10 +358,59 @@ class Injector:
 
             emulator.frame_hook = garble
             return
-        address = self.session.sensor._sock.getsockname()  # Net F/T: garbage datagrams
-        for _ in range(count):
-            size = self.rng.choice([0, 1, 35, 36, 37, 100])  # 36: a record's own size
-            emulator._udp.sendto(self.rng.randbytes(size), address)
+        self._netft_corrupt(emulator, count)
+
+    def _netft_corrupt(self, emulator: Any, count: int) -> None:
+        """Net F/T: the next ``count`` datagrams the box sends the driver arrive damaged.
+
+        What an RDT client can receive (UDP's checksum drops a datagram damaged on the
+        wire, so damage that arrives is the box's or a stack's): a datagram cut short
+        or run long (not a whole number of 36-byte records), a record whose status
+        word has the box's error bit set (its counts then mean nothing), or 36 bytes
+        of garbage (random sequences, status and counts). They replace the box's own
+        datagrams in the driver's stream, as they would on the wire; without the
+        in-process route (UDP), the records carry the error status instead.
+        """
+        address = getattr(self.session.sensor._sock, "address", None)
+        deliver = emulator._local.get(address) if address is not None else None
+        left = [count]
+        if deliver is None:  # over UDP: the box flags its records
+
+            def flagged(records: list[Any]) -> list[Any]:
+                out = []
+                for record in records:
+                    if left[0] > 0:
+                        left[0] -= 1
+                        record = dataclasses.replace(record, status=RDT_ERROR_STATUS)
+                    out.append(record)
+                if left[0] <= 0:
+                    emulator.records_hook = None
+                return out
+
+            emulator.records_hook = flagged
+            return
+
+        def damaged(data: bytes) -> None:
+            if left[0] > 0:
+                left[0] -= 1
+                data = self._damage_rdt(data)
+                if left[0] == 0:
+                    emulator._local[address] = deliver
+            deliver(data)
+
+        emulator._local[address] = damaged
+
+    def _damage_rdt(self, data: bytes) -> bytes:
+        """One RDT datagram as it may arrive damaged (:meth:`_netft_corrupt`)."""
+        kind = self.rng.choice(("short", "long", "status", "garbage"))
+        if kind == "short":
+            return data[:self.rng.randint(0, RDT_RECORD_SIZE - 1)]
+        if kind == "long":
+            return data + self.rng.randbytes(self.rng.randint(1, RDT_RECORD_SIZE - 1))
+        if kind == "status":  # the first record's status word (offset 8, u32) with the error bit
+            status = RDT_ERROR_STATUS | self.rng.randrange(1 << 16)
+            return data[:8] + status.to_bytes(4, "big") + data[12:]
+        return self.rng.randbytes(RDT_RECORD_SIZE)
 
     def _sensor_bias_jump(self) -> None:
         model = self.session.sensor_emulator.model

@@ -24,17 +24,21 @@ from forcelearn.tools.fuzz.fault_campaign import CELLS, cell_config, fault_free_
 from forcelearn.tools.fuzz.fault_free import MATERIALS
 from forcelearn.tools.fuzz.fault_inject import SENSOR_FAULTS, Injector
 
-FIELDS = ("cell", "material", "probe", "fault", "tick", "of_ticks", "max_contact_n",
+FIELDS = ("cell", "material", "probe", "fault", "size", "tick", "of_ticks", "max_contact_n",
           "free_max_contact_n", "over_limit", "beyond_3sigma", "worst_used_n", "zeros_in_contact",
           "sessions", "finished", "ends", "resumed_from")
 
 
 class Largest(random.Random):
-    """Draws every fault size at its largest, a bias jump upwards on the sensor's axis."""
+    """Draws every fault size at its largest (or ``size``), a bias jump upwards on the axis."""
+
+    def __init__(self, size: float | None = None) -> None:
+        super().__init__(0)
+        self.size = size
 
     def uniform(self, a: float, b: float) -> float:
-        """The upper end."""
-        return b
+        """The upper end (or the size asked for)."""
+        return b if self.size is None else self.size
 
     def choice(self, seq: Any) -> Any:
         """The last one (+1: a bias up on Fy reads as less normal force, sign -1)."""
@@ -42,17 +46,18 @@ class Largest(random.Random):
 
 
 def sweep(cell: str, material: str, probe: bool, fault: str, every: int, seed: int,
-          folder: Path) -> list[dict[str, Any]]:
+          folder: Path, size: float | None = None) -> list[dict[str, Any]]:
     """The rows of one cell, material and fault, one per instant."""
     config = cell_config(cell, folder, 2, 8, probe, MATERIALS[material])
     ticks, _, free_max = fault_free_run(config, folder / "free", seed)
     rows = []
     for tick in range(1, ticks + 1, every):
-        injector = Injector({tick: [("sensor", fault)]}, Largest())
+        injector = Injector({tick: [("sensor", fault)]}, Largest(size))
         report = one_run(cell, config, folder / f"t{tick}", seed, ticks, 0, 0, 1e9,
                          injector=injector)
         rows.append({
-            "cell": cell, "material": material, "probe": probe, "fault": fault, "tick": tick,
+            "cell": cell, "material": material, "probe": probe, "fault": fault, "size": size,
+            "tick": tick,
             "of_ticks": ticks, "max_contact_n": round(report.max_contact_n, 2),
             "free_max_contact_n": round(free_max, 2), "over_limit": report.over_limit,
             "beyond_3sigma": report.beyond_3sigma, "worst_used_n": round(report.worst_used_n, 3),
@@ -72,6 +77,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         choices=list(SENSOR_FAULTS))
     parser.add_argument("--every", type=int, default=3, help="a run per this many device calls")
     parser.add_argument("--probe", action="store_true", help="runs start with the probe")
+    parser.add_argument("--sizes", type=float, nargs="+", default=[None],
+                        help="bias jumps of these sizes, N (default: the largest, 8 N)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, required=True, help="CSV, a row per run")
     args = parser.parse_args(argv)
@@ -81,17 +88,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         writer.writeheader()
         for material in args.materials:
             for cell in args.cells:
-                for fault in args.faults:
+                for fault, size in [(f, z) for f in args.faults for z in args.sizes]:
                     with tempfile.TemporaryDirectory() as tmp:
                         rows = sweep(cell, material, args.probe, fault, args.every, args.seed,
-                                     Path(tmp))
+                                     Path(tmp), size)
                     writer.writerows(rows)
                     handle.flush()
                     over += sum(r["over_limit"] for r in rows)
                     worst = max(rows, key=lambda r: r["max_contact_n"])
-                    print(f"{cell} {material} {fault}: {len(rows)} instants, max true force "
-                          f"{worst['max_contact_n']} N (tick {worst['tick']}; fault-free "
-                          f"{worst['free_max_contact_n']} N), over the limit {over}, beyond "
+                    print(f"{cell} {material} {fault} {size or ''}: {len(rows)} instants, "
+                          f"max true force {worst['max_contact_n']} N (tick {worst['tick']}; "
+                          f"fault-free {worst['free_max_contact_n']} N), over the limit {over}, "
+                          "beyond "
                           f"3 sigma {sum(r['beyond_3sigma'] for r in rows)}", flush=True)
     return 1 if over else 0
 
