@@ -37,7 +37,10 @@ surface beyond ``max_deviation_mm``.
 Safety on every move, as the §5 task: the driver refuses a step above
 ``safety.max_step_mm`` or a target outside the workspace before sending
 anything; every move towards the part is guarded (one sample per step against
-``safety.max_force_n``); the sensor's watchdog raises on stale samples.
+``safety.max_force_n``), and, with a press guard on the cell
+(:mod:`forcelearn.press_guard`), bounded from the last trusted reading along the
+point's force axis (the guard's press direction follows the tool); the sensor's
+watchdog raises on stale samples.
 """
 
 from __future__ import annotations
@@ -52,6 +55,7 @@ from forcelearn.devices import Pose
 from forcelearn.learning import BoxGrid, Dimension
 from forcelearn.paths import TaughtPath
 from forcelearn.paths.taught import rotation_from_wxyz
+from forcelearn.press_guard import MIN_STEP_MM
 from forcelearn.tasks.evaluation import FAILURE_R
 from forcelearn.tasks.path_spec import PathTaskSpec
 from forcelearn.tasks.surface import SurfaceCell, read_after
@@ -227,6 +231,10 @@ class PathTask:
         self._step, self._offset = k, offset_mm
         if pressing:
             self.largest_offset_mm = max(self.largest_offset_mm, abs(offset_mm))
+        press_guard = getattr(self.cell, "press_guard", None)
+        if press_guard is not None:  # the guard presses along this point's force axis
+            x, y, z = (float(v) for v in self.points.axes[k])
+            press_guard.direction = (x, y, z)
         self.cell.move_in_steps(self.points.pose(k, offset_mm), self.max_step_mm,
                                 guard_force=guard)
 
@@ -273,11 +281,25 @@ class PathTask:
             self.move_to_point(0, min(hint - CONTACT_MARGIN_MM, deepest))
         self.cell.reset_filter()
         readings = [(self._offset, self.cell.measure_force_n())]
-        while readings[-1][1] < limit_n and self._offset < deepest:
-            self._offset = min(self._offset + CONTACT_STEP_MM, deepest)
+        while True:
+            step = self._contact_step_mm()
+            if readings[-1][1] >= limit_n or self._offset >= deepest or step < MIN_STEP_MM:
+                return readings
+            self._offset = min(self._offset + step, deepest)
             self.move_to_point(0, self._offset, pressing=self._offset > 0)
             readings.append((self._offset, self.cell.measure_force_n()))
-        return readings
+
+    def _contact_step_mm(self) -> float:
+        """The contact search's next step, mm: ``CONTACT_STEP_MM``, or less.
+
+        Less where the press guard allows less past the last reading (a stiff part near the
+        limit): the step ends where its reading can stop the search, not in a cut move that
+        goes on until the guard refuses it.
+        """
+        press_guard = getattr(self.cell, "press_guard", None)
+        if press_guard is None:
+            return CONTACT_STEP_MM
+        return float(min(CONTACT_STEP_MM, press_guard.allowed_mm()))
 
     def _ramp_to(self, offset_mm: float) -> float:
         """Press from the contact to ``offset_mm`` at point 0 under the force ramp; the peak, N.

@@ -54,6 +54,7 @@ def write_outputs(run: PathRun, path: TaughtPath, cell_time_s: float,
                          cell_time_s)
     summary["moves_outside_workspace"] = outside_workspace(config, spec, path, logs)
     summary["faults"] = fault_summary(out)
+    summary["safety_this_session"] = safety_counts(task)
     write_trials(out, records)
     write_table(out / "passes.csv", rows)
     write_table(out / "steps.csv", [{"pass": float(i), **row} for i, trial_log in enumerate(logs)
@@ -66,6 +67,12 @@ def write_outputs(run: PathRun, path: TaughtPath, cell_time_s: float,
         plot_forces(logs, spec.desired_force_n, out / "path_forces.png")
         plot_path_3d(np.asarray(path.positions_mm), logs[-1], out / "path_3d.png")
     return summary
+
+
+def safety_counts(task: PathTask) -> dict[str, Any]:
+    """This session's press-guard cuts (not checkpointed: a resumed run counts from 0)."""
+    guard = getattr(task.cell, "press_guard", None)
+    return {"press_guard_cuts": None if guard is None else int(guard.cuts)}
 
 
 def write_probe(out: Path, probe: PathProbe) -> None:

@@ -23,6 +23,10 @@ axis (:meth:`~forcelearn.tasks.path.PathTask.away`), the sensor is re-zeroed in
 free space and the pass runs again; a run that stopped in contact starts its
 resume with that retract. ``on_step`` (``--live``, the journal) sees every
 step's row.
+
+Faults in contact, as the §5 run: every pressing move is bounded by the cell's
+press guard (:mod:`forcelearn.press_guard`, along each point's force axis; the
+probe's stiffness known once it ran; its state in the checkpoint).
 """
 
 from __future__ import annotations
@@ -41,6 +45,7 @@ from forcelearn.cell import Cell
 from forcelearn.errors import ConfigError, ForcelearnError, PathRefused
 from forcelearn.learning import SRVLearner, load_learner
 from forcelearn.paths import TaughtPath
+from forcelearn.press_guard import PressGuard
 from forcelearn.records import TrialRecords
 from forcelearn.site import CellConfig, CellSession
 from forcelearn.tasks.path import PathGeometry, PathTask, offset_output
@@ -144,7 +149,10 @@ def execute(run: PathRun, state: dict[str, Any] | None, on_pass: PassHook | None
     with CellSession(config, seed=run.seed) as session, contextlib.ExitStack() as stack:
         cell = session.cell
         assert cell is not None
-        if state is not None:
+        cell.press_guard = PressGuard(config.safety.max_force_n,
+                                      config.task.press_stiffness_n_per_mm,
+                                      cell.force_filter.measurement_variance_n2 ** 0.5)
+        if state is not None:  # the emulators, the cell's software zero and its guard
             session.load_emulator_state(restore(run, state))
             if run.zero_quaternion is not None:  # the restored sensor's zero, not this open's
                 cell.zero_taken_at(run.zero_quaternion)
@@ -198,6 +206,7 @@ def start(run: PathRun, task: PathTask, cell: Cell, recovery: RunRecovery,
     done = len(run.result.records)
     if run.probe is not None:  # resumed: the probe, the task and the learner as saved
         task.output = offset_output(run.probe.scale_mm, spec.max_deviation_mm)
+        know_stiffness(cell, run.probe.stiffness_n_per_mm)
         assert run.saved.task_state is not None
         task.load_state_dict(run.saved.task_state)
         try:
@@ -218,11 +227,18 @@ def start(run: PathRun, task: PathTask, cell: Cell, recovery: RunRecovery,
     if probed.steps:
         writer.write_trial(probed)
     write_probe(run.out, probe)
+    know_stiffness(cell, probe.stiffness_n_per_mm)
     task.output = offset_output(probe.scale_mm, spec.max_deviation_mm)
     learner = SRVLearner(task.grid, 1, run.config.learner, rng=run.seed, output=task.output)
     warm_start(learner, probe)
     run.start_task_state = task.state_dict()
     return learner
+
+
+def know_stiffness(cell: Cell, stiffness_n_per_mm: float) -> None:
+    """The press guard knows the part's stiffness along the force axis (the probe's), N/mm."""
+    if cell.press_guard is not None and stiffness_n_per_mm > 0:
+        cell.press_guard.know(stiffness_n_per_mm)
 
 
 def kept_records(out: Path, done: int, resumed: bool) -> list[TrialRecords]:

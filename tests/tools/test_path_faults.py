@@ -1,0 +1,127 @@
+"""Faults in contact on the path task: judged from the emulator's physics, not the readings.
+
+The cylinder example (the tool turning 50 deg over the arc), shortened to a few points a
+pass. The truth is the part's contact force at the tool (``Truth`` of the fault campaign:
+its largest magnitude over every physics tick, its zeros taken in contact).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+from unittest import mock
+
+import numpy as np
+
+from forcelearn.paths.taught import rotation_from_wxyz
+from forcelearn.site import CellSession
+from forcelearn.tools.experiments import path_run
+from forcelearn.tools.experiments.path_state import prepare_path_run
+from forcelearn.tools.fuzz.fault_inject import Truth
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "paths" / "cylinder-cell.toml"
+
+
+def cylinder_config(tmp_path: Path, points: int = 0, extra: str = "", task: str = "",
+                    netft: bool = False) -> Path:
+    """The cylinder example as a config file (realistic cell); ``points`` resamples the path.
+
+    The example's 27 points (5 mm apart) by default: a straight move between two points of
+    the convex arc dips L^2 / 8R = 0.02 mm into the foam, which no guard predicts (6 points,
+    26 mm apart, dip 0.6 mm: 8 N more on a 15 N/mm foam, mid-move).
+    """
+    text = EXAMPLE.read_text()
+    for name in ("cylinder-arc.csv", "emulated-jr3-cal.toml"):
+        text = text.replace(f'"{name}"', f'"{EXAMPLE.parent / name}"')
+    if netft:
+        text = text.replace("emulated-jr3-cal.toml", "emulated-netft-cal.toml")
+        extra = '[sensor]\nkind = "netft"\n' + extra
+    text = text.replace('kind = "path"', f'kind = "path"\npoints_per_pass = {points}\n'
+                        f'max_turn_deg = 12.0\n{task}')
+    if points:
+        text = text.replace("max_step_mm = 10.0", "max_step_mm = 30.0")
+    file = tmp_path / "cell.toml"
+    file.write_text(text + "\n" + extra)
+    return file
+
+
+class Watched:
+    """The sessions a run opens, each with its :class:`Truth` and a hook on every reading."""
+
+    def __init__(self) -> None:
+        self.truths: list[Truth] = []
+        self.sessions: list[CellSession] = []
+        self.before_reading: Callable[[CellSession], None] | None = None
+
+    def session_class(self) -> type[CellSession]:
+        """A CellSession that registers itself here as it opens."""
+        watched = self
+
+        class Session(CellSession):
+            def __init__(self, *args: Any, **kwargs: Any) -> None:
+                super().__init__(*args, **kwargs)
+                watched.sessions.append(self)
+                watched.truths.append(Truth(self, tolerance_n=1.0))
+                cell = self.cell
+                assert cell is not None
+                measure = cell.measure_force_n
+
+                def measured(samples: int | None = None) -> float:
+                    if watched.before_reading is not None:
+                        watched.before_reading(self)
+                    return measure(samples)
+
+                cell.measure_force_n = measured  # type: ignore[method-assign]
+
+        return Session
+
+    @property
+    def max_contact_n(self) -> float:
+        """The largest true contact force of every session, N."""
+        return max(t.max_contact_n for t in self.truths)
+
+
+def run_watched(config: Path, out: Path, passes: int, watched: Watched) -> dict[str, Any]:
+    """A new path run of ``passes`` passes on the watched sessions; its summary."""
+    run, _ = prepare_path_run(config, None, out, passes, 0, 25, resume=False)
+    with mock.patch.object(path_run, "CellSession", watched.session_class()):
+        return path_run.execute(run, None, figures=False)
+
+
+def true_along_axis_n(session: CellSession) -> float:
+    """The part's force on the tool along the tool's force axis (into the part), N."""
+    physics = session.physics
+    assert physics is not None
+    force = physics.environment.contact_force_world_n(physics._position_mm)
+    quaternion = session.cell.pose.quaternion  # type: ignore[union-attr]
+    axis = rotation_from_wxyz(np.array([quaternion])).apply(np.array([0.0, 0.0, 1.0]))[0]
+    return float(-force @ axis)
+
+
+def shift_bias(session: CellSession, reading_change_n: float) -> None:
+    """Move the emulated sensor's bias so the normal force reads ``reading_change_n`` more."""
+    model = session.sensor_emulator.model
+    normal = session.cell.force_filter.config  # type: ignore[union-attr]
+    state = model.state_dict()
+    bias = np.asarray(state["bias"], dtype=float)
+    bias[normal.axis] += normal.sign * reading_change_n
+    state["bias"] = bias
+    model.load_state_dict(state)
+
+
+def test_the_press_guard_keeps_a_stiff_part_under_the_limit(tmp_path: Path) -> None:
+    """15 N/mm of foam (the guard's 20 N/mm unknown part), 25 N limit, 1 mm contact steps.
+
+    Without the guard a contact step from ~10 N presses ~17 N more before anything is read;
+    the guard (along each point's force axis) cuts it where the limit would be passed.
+    """
+    config = cylinder_config(
+        tmp_path, task="tolerance_n = 2.0\n",
+        extra="[emulator.sponge]\nstiffness_n_per_mm = 15.0\nstiffness_variation = 0.0\n")
+    config.write_text(config.read_text().replace("max_force_n = 60.0", "max_force_n = 25.0"))
+    watched = Watched()
+    summary = run_watched(config, tmp_path / "run", 2, watched)
+    assert summary["passes"] == 2
+    assert summary["safety_this_session"]["press_guard_cuts"] > 0
+    assert 20.0 < watched.max_contact_n <= 25.0
