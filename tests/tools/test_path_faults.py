@@ -7,6 +7,7 @@ its largest magnitude over every physics tick, its zeros taken in contact).
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ import numpy as np
 from forcelearn.paths.taught import rotation_from_wxyz
 from forcelearn.site import CellSession
 from forcelearn.tools.experiments import path_run
+from forcelearn.tools.experiments.fault_recovery import read_events
 from forcelearn.tools.experiments.path_state import prepare_path_run
 from forcelearn.tools.fuzz.fault_inject import Truth
 
@@ -125,3 +127,48 @@ def test_the_press_guard_keeps_a_stiff_part_under_the_limit(tmp_path: Path) -> N
     assert summary["passes"] == 2
     assert summary["safety_this_session"]["press_guard_cuts"] > 0
     assert 20.0 < watched.max_contact_n <= 25.0
+
+
+def test_every_pass_ends_with_a_zero_check_in_free_space_the_calibration_kept(
+        tmp_path: Path) -> None:
+    """The check at the turned end of a pass keeps the zero's calibration (no ToolMismatch).
+
+    A software zero there used to re-derive the tool's weight for the end's orientation: the
+    next pass's tare, back at the start, read the weight of a 50 deg turn (7.6 N on Fx) and
+    raised ToolMismatch.
+    """
+    from forcelearn.tools.experiments.records import read_records
+
+    watched = Watched()
+    summary = run_watched(cylinder_config(tmp_path, points=6), tmp_path / "run", 3, watched)
+    assert summary["passes"] == 3 and summary["faults"]["count"] == 0
+    truth = watched.truths[0]
+    assert truth.zeros_in_contact == 0
+    for trial in read_records(tmp_path / "run"):
+        last = trial.tares[-1]  # the pass's zero check, after its retreat
+        assert last.accepted and last.time_s >= trial.steps[-1].move.settled_s
+        assert trial.steps[-1].stage == "retreat" and abs(last.reading_n) < 0.5
+
+
+def test_a_zero_that_moved_during_a_pass_voids_it(tmp_path: Path) -> None:
+    """A 1.5 N bias step in contact at pass 1's fourth point: the end's zero check voids it."""
+    from forcelearn.tools.experiments.fault_recovery import VOIDED_FILE
+
+    out = tmp_path / "run"
+    watched = Watched()
+    fired: list[int] = []
+
+    def step_at_point_4(session: CellSession) -> None:
+        if not fired and session.cell.stage == ("step", 4) and (  # type: ignore[union-attr]
+                out / "checkpoint.npz").exists():
+            fired.append(1)
+            shift_bias(session, -1.5)  # reads less than it presses: not seen by the limit
+
+    watched.before_reading = step_at_point_4
+    summary = run_watched(cylinder_config(tmp_path, points=6), out, 2, watched)
+    events = [(e["error"], e["action"], e["trial"]) for e in read_events(out)]
+    assert fired and events == [("ZeroMoved", "voided", 1)]
+    assert summary["passes"] == 2 and summary["faults"]["voided"] == 1
+    voided = [json.loads(line) for line in (out / VOIDED_FILE).read_text().splitlines()]
+    assert [(v["trial"], v["error"]) for v in voided] == [(1, "ZeroMoved")]
+    assert not voided[0]["tares"][-1]["accepted"]  # the check that found it, kept with it

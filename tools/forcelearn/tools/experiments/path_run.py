@@ -26,7 +26,10 @@ step's row.
 
 Faults in contact, as the §5 run: every pressing move is bounded by the cell's
 press guard (:mod:`forcelearn.press_guard`, along each point's force axis; the
-probe's stiffness known once it ran; its state in the checkpoint).
+probe's stiffness known once it ran; its state in the checkpoint), and with
+``[task] zero_check`` (on by default) every pass and the probe end with a zero check
+in free space, after the retreat (:class:`PathRecovery`): a zero that moved voids
+the pass (rolled back, re-zeroed, run again; ``voided`` in ``faults.jsonl``).
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ from forcelearn.site import CellConfig, CellSession
 from forcelearn.tasks.path import PathGeometry, PathTask, offset_output
 from forcelearn.tasks.path_probe import probe_pass, warm_start
 from forcelearn.tasks.path_spec import PathTaskSpec, load_task_path
+from forcelearn.tasks.zero_check import keep_calibration
 from forcelearn.tools.experiments.fault_recovery import RunRecovery
 from forcelearn.tools.experiments.path_outputs import (
     END_WINDOW,
@@ -122,6 +126,28 @@ def check_deviation(path: TaughtPath, spec: PathTaskSpec, low: tuple[float, floa
                     "(safety.workspace_min_mm/_max_mm)")
 
 
+class PathRecovery(RunRecovery):
+    """The §5 run's recovery, for a tool that turns.
+
+    Its zero check keeps the calibration of the sensor's zero (a software zero at a turned
+    pose would re-derive the tool's weight for the wrong orientation:
+    :mod:`forcelearn.tasks.zero_check`). Every fault counts as one of a pass's tries: the
+    path run has no bias watch whose margins a false alarm could widen.
+    """
+
+    def check_zero(self, trial: int) -> None:
+        """:meth:`RunRecovery.check_zero` here (the tool is in free space after its retreat)."""
+        calibration = self.cell.calibration
+        try:
+            super().check_zero(trial)
+        finally:
+            keep_calibration(self.cell, calibration)
+
+    def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> bool:
+        super()._recover(exc, trial, attempt)
+        return False
+
+
 def run_path(config: CellConfig, out: Path, passes: int, seed: int,
              on_pass: PassHook | None = None, figures: bool = True) -> dict[str, Any]:
     """Probe, learn ``passes`` passes, write the run directory; return the summary.
@@ -162,11 +188,13 @@ def execute(run: PathRun, state: dict[str, Any] | None, on_pass: PassHook | None
         recorder = TrialRecorder(cell)
         task = run.task = PathTask(cell, spec, path, config.safety.max_step_mm,
                                    stiffness_n_per_mm=1.0)
-        recovery = RunRecovery(out, cell, math.nan, config.safety.max_step_mm,
-                               checkpoint=out / CHECKPOINT, away=task.away, watch=False)
+        recovery = PathRecovery(out, cell, math.nan, config.safety.max_step_mm,
+                                checkpoint=out / CHECKPOINT, zero_check=config.task.zero_check,
+                                away=task.away, watch=False)
         learner = start(run, task, cell, recovery, recorder, writer)
 
         def after(record: TrialRecord, trial_log: TrialLog, learner: SRVLearner) -> None:
+            recovery.check_zero(record.index)  # free space after the retreat: void if it moved
             records = recorder.take(record.index)
             writer.write_trial(records)  # durable before the checkpoint that counts the pass
             add_tangential(trial_log, records, config.filter)
