@@ -14,6 +14,7 @@ from typing import Any
 from unittest import mock
 
 import numpy as np
+import pytest
 
 from forcelearn.paths.taught import rotation_from_wxyz
 from forcelearn.site import CellSession
@@ -172,3 +173,57 @@ def test_a_zero_that_moved_during_a_pass_voids_it(tmp_path: Path) -> None:
     voided = [json.loads(line) for line in (out / VOIDED_FILE).read_text().splitlines()]
     assert [(v["trial"], v["error"]) for v in voided] == [(1, "ZeroMoved")]
     assert not voided[0]["tares"][-1]["accepted"]  # the check that found it, kept with it
+
+
+@pytest.mark.parametrize("when", ["first press", "second press"])
+def test_a_bias_step_at_a_passes_first_contact_is_caught_by_pressing_it_twice(
+        tmp_path: Path, when: str) -> None:
+    """A 6 N step down exactly at pass 1's first contact, or between its two presses.
+
+    At the first press nothing in contact came before it; backing out to free space, the zero
+    check reads the step (ZeroMoved). A step after that check makes the second press read
+    6 N less than the first (SensorSuspect). Either way the pass is run again from a zero
+    taken in free space, and the true force never passes the limit.
+    """
+    out = tmp_path / "run"
+    watched = Watched()
+    fired: list[int] = []
+
+    def armed() -> bool:
+        return not fired and (out / "checkpoint.npz").exists()
+
+    def at_first_contact(session: CellSession) -> None:
+        if (armed() and session.cell.stage == ("contact", 0)  # type: ignore[union-attr]
+                and true_along_axis_n(session) > 0.25 * 19.6133):
+            fired.append(1)
+            shift_bias(session, -6.0)
+
+    original = path_run.PathTask
+
+    def stepping_after_the_check(*args: Any, **kwargs: Any) -> Any:
+        task = original(*args, **kwargs)
+        check = task.zero_check
+
+        def checked() -> None:
+            check()
+            if armed():
+                fired.append(1)
+                shift_bias(watched.sessions[-1], -6.0)
+
+        task.zero_check = checked
+        return task
+
+    if when == "first press":
+        watched.before_reading = at_first_contact
+    run, _ = prepare_path_run(cylinder_config(tmp_path, points=6), None, out, 2, 0, 25,
+                              resume=False)
+    task_class = original if when == "first press" else stepping_after_the_check
+    with mock.patch.object(path_run, "PathTask", task_class), \
+            mock.patch.object(path_run, "CellSession", watched.session_class()):
+        summary = path_run.execute(run, None, figures=False)
+    expected = "ZeroMoved" if when == "first press" else "SensorSuspect"
+    events = [(e["error"], e["trial"]) for e in read_events(out)]
+    assert fired and events == [(expected, 1)]
+    assert summary["passes"] == 2
+    assert watched.max_contact_n <= 60.0
+    assert all(truth.zeros_in_contact == 0 for truth in watched.truths)

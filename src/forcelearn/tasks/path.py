@@ -41,17 +41,27 @@ anything; every move towards the part is guarded (one sample per step against
 (:mod:`forcelearn.press_guard`), bounded from the last trusted reading along the
 point's force axis (the guard's press direction follows the tool); the sensor's
 watchdog raises on stale samples.
+
+**First contact, pressed twice** (``verify_contact``): a bias step exactly at a
+pass's first contact (the first after its tare) has no earlier reading in contact
+to be compared with. At the first reading above the contact threshold the tool
+backs out to the approach pose (free space), the zero is checked there
+(``zero_check``: it raises when the zero moved) and the tool presses to the same
+offset again: the second reading must be within ``AGREE_N`` + ``AGREE_SHARE`` of
+the first, else :class:`~forcelearn.errors.SensorSuspect` (the run retracts,
+re-zeroes in free space and runs the pass again).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
 from forcelearn.devices import Pose
+from forcelearn.errors import SensorSuspect
 from forcelearn.learning import BoxGrid, Dimension
 from forcelearn.paths import TaughtPath
 from forcelearn.paths.taught import rotation_from_wxyz
@@ -75,6 +85,11 @@ WEAR_GAIN = 0.5
 moves every point alike; half a correction a pass follows it without chasing noise)."""
 MIN_RAMP_STEP_MM = 0.1
 """Smallest step of the force ramp, mm (a smaller one costs moves and changes nothing)."""
+AGREE_N = 1.0
+"""The second press of a first contact reads within this (plus :data:`AGREE_SHARE` of the
+first reading) of the first, N; else the sensor is suspect."""
+AGREE_SHARE = 0.06
+"""The share of the first reading the second press may differ by, beside :data:`AGREE_N`."""
 
 
 PathCell = SurfaceCell
@@ -143,8 +158,16 @@ class PathTask:
     name = "path"
 
     def __init__(self, cell: PathCell, spec: PathTaskSpec, path: TaughtPath, max_step_mm: float,
-                 stiffness_n_per_mm: float, output: PathOffsetOutput | None = None) -> None:
+                 stiffness_n_per_mm: float, output: PathOffsetOutput | None = None,
+                 verify_contact: bool = False,
+                 zero_check: Callable[[], None] | None = None) -> None:
         self.cell = cell
+        self.verify_contact = verify_contact
+        """Press each pass's first contact twice (the module docstring)."""
+        self.zero_check = zero_check
+        """Called in free space between the two presses: raises when the zero moved."""
+        self.contact_checks: list[tuple[float, float]] = []
+        """(first, second) reading of every first contact pressed twice in this session, N."""
         self.output = output
         """The learner's output map, whose shift follows the wear after each pass (None: none)."""
         self._errors: list[float] = []
@@ -280,8 +303,12 @@ class PathTask:
         if hint is not None and hint - CONTACT_MARGIN_MM > self._offset:  # known: go near it
             self.move_to_point(0, min(hint - CONTACT_MARGIN_MM, deepest))
         self.cell.reset_filter()
+        verify = self.verify_contact
         readings = [(self._offset, self.cell.measure_force_n())]
         while True:
+            if verify and readings[-1][1] >= self.spec.contact_force_n:
+                verify = False
+                readings[-1] = (self._offset, self.press_again(readings[-1][1]))
             step = self._contact_step_mm()
             if readings[-1][1] >= limit_n or self._offset >= deepest or step < MIN_STEP_MM:
                 return readings
@@ -300,6 +327,36 @@ class PathTask:
         if press_guard is None:
             return CONTACT_STEP_MM
         return float(min(CONTACT_STEP_MM, press_guard.allowed_mm()))
+
+    def press_again(self, first_n: float) -> float:
+        """Back out to free space, check the zero, press point 0 again; the second reading, N.
+
+        Raises:
+            ZeroMoved: (from ``zero_check``) free space does not read the zero.
+            SensorSuspect: the second reading differs from ``first_n`` by more than
+                ``AGREE_N`` + ``AGREE_SHARE`` of it (the robot is stopped).
+        """
+        offset = self._offset
+        self.move_to_point(0, -self.spec.approach_mm, guard=False)
+        if self.zero_check is not None:
+            self.zero_check()
+        self.cell.stage = ("contact", 0)
+        self.move_to_point(0, offset, pressing=offset > 0)
+        self.cell.reset_filter()
+        second = self.cell.measure_force_n()
+        self.contact_checks.append((first_n, second))
+        allowed = AGREE_N + AGREE_SHARE * abs(first_n)
+        if abs(second - first_n) > allowed:
+            stop = getattr(self.cell, "stop", None)
+            if stop is not None:
+                stop()
+            raise SensorSuspect(
+                f"the first contact read {first_n:.2f} N, pressed again at the same offset "
+                f"{second:.2f} N (more than {allowed:.2f} N apart): the sensor's zero moved at "
+                "the contact, or the part moved; the run retracts, zeroes in free space and "
+                "runs the pass again (if it repeats, check the sensor's cable and the part's "
+                "fixture)")
+        return second
 
     def _ramp_to(self, offset_mm: float) -> float:
         """Press from the contact to ``offset_mm`` at point 0 under the force ramp; the peak, N.

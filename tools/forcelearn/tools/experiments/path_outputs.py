@@ -27,7 +27,7 @@ from forcelearn.paths import TaughtPath
 from forcelearn.records import TrialRecords
 from forcelearn.run_output import _csv_bytes, write_summary, write_trials
 from forcelearn.site import CellConfig
-from forcelearn.tasks.path import PathGeometry, PathTask
+from forcelearn.tasks.path import AGREE_N, AGREE_SHARE, PathGeometry, PathTask
 from forcelearn.tasks.path_probe import PathProbe
 from forcelearn.tasks.path_spec import PathTaskSpec
 from forcelearn.tools.experiments.fault_recovery import fault_summary
@@ -70,9 +70,15 @@ def write_outputs(run: PathRun, path: TaughtPath, cell_time_s: float,
 
 
 def safety_counts(task: PathTask) -> dict[str, Any]:
-    """This session's press-guard cuts (not checkpointed: a resumed run counts from 0)."""
+    """This session's first contacts pressed twice and press-guard cuts (not checkpointed).
+
+    ``worst_contact_share``: the largest |second - first| over its allowance (< 1 passed).
+    """
+    shares = [abs(b - a) / (AGREE_N + AGREE_SHARE * abs(a)) for a, b in task.contact_checks]
     guard = getattr(task.cell, "press_guard", None)
-    return {"press_guard_cuts": None if guard is None else int(guard.cuts)}
+    return {"contacts_pressed_twice": len(shares),
+            "worst_contact_share": max(shares) if shares else None,
+            "press_guard_cuts": None if guard is None else int(guard.cuts)}
 
 
 def write_probe(out: Path, probe: PathProbe) -> None:

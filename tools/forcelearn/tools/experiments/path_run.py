@@ -26,7 +26,9 @@ step's row.
 
 Faults in contact, as the §5 run: every pressing move is bounded by the cell's
 press guard (:mod:`forcelearn.press_guard`, along each point's force axis; the
-probe's stiffness known once it ran; its state in the checkpoint), and with
+probe's stiffness known once it ran; its state in the checkpoint), each pass's
+first contact (and the probe's) is pressed twice with a zero check between
+(:meth:`~forcelearn.tasks.path.PathTask.press_again`), and with
 ``[task] zero_check`` (on by default) every pass and the probe end with a zero check
 in free space, after the retreat (:class:`PathRecovery`): a zero that moved voids
 the pass (rolled back, re-zeroed, run again; ``voided`` in ``faults.jsonl``).
@@ -186,11 +188,14 @@ def execute(run: PathRun, state: dict[str, Any] | None, on_pass: PassHook | None
         writer = RecordsWriter(out / RECORDS_FILE, kept_records(out, done, state is not None))
         stack.callback(writer.close)
         recorder = TrialRecorder(cell)
-        task = run.task = PathTask(cell, spec, path, config.safety.max_step_mm,
-                                   stiffness_n_per_mm=1.0)
         recovery = PathRecovery(out, cell, math.nan, config.safety.max_step_mm,
                                 checkpoint=out / CHECKPOINT, zero_check=config.task.zero_check,
-                                away=task.away, watch=False)
+                                watch=False)
+        task = run.task = PathTask(
+            cell, spec, path, config.safety.max_step_mm, stiffness_n_per_mm=1.0,
+            verify_contact=True,
+            zero_check=lambda: recovery.check_zero(len(run.result.records) if run.probe else -1))
+        recovery.away = task.away
         learner = start(run, task, cell, recovery, recorder, writer)
 
         def after(record: TrialRecord, trial_log: TrialLog, learner: SRVLearner) -> None:
