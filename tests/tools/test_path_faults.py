@@ -227,3 +227,70 @@ def test_a_bias_step_at_a_passes_first_contact_is_caught_by_pressing_it_twice(
     assert summary["passes"] == 2
     assert watched.max_contact_n <= 60.0
     assert all(truth.zeros_in_contact == 0 for truth in watched.truths)
+
+
+@pytest.mark.parametrize(("sensor", "stage"), [("jr3", ("step", 3)), ("netft", ("step", 3)),
+                                               ("jr3", ("contact", 0))])
+def test_a_sensor_reboot_mid_pass_never_presses_past_the_limit_nor_reads_off_after(
+        tmp_path: Path, sensor: str, stage: tuple[str, int]) -> None:
+    """A JR3 bootup or a Net F/T reboot in pass 1, the tool pressing the cylinder.
+
+    At its third point, or at its first contact (between the two presses' readings).
+
+    The truth (the emulator's physics): the contact force never passes [safety] max_force_n,
+    no zero is taken in contact (the retract goes back along the tool's axis first), and every
+    reading in contact after the reboot is within 3 sigma of one sample's noise of the true
+    force along the tool's axis (nothing from before the reboot is used: the pass runs again).
+    """
+    out = tmp_path / "run"
+    extra = ("" if sensor == "jr3" else
+             '[sensor]\nkind = "netft"\nhost = "emulated"\ncalibration_source = "http"\n'
+             'zero_on_init = true\n[filter]\nmeasurement_variance_n2 = 0.0025\n')
+    config = cylinder_config(tmp_path, points=6, extra=extra)
+    if sensor == "netft":
+        config.write_text(config.read_text().replace("emulated-jr3-cal.toml",
+                                                     "emulated-netft-cal.toml"))
+    watched = Watched()
+    fired: list[int] = []
+    errors: list[float] = []
+
+    def reboot_then_judge(session: CellSession) -> None:
+        cell, emulator = session.cell, session.sensor_emulator
+        assert cell is not None
+        if fired and true_along_axis_n(session) > 0.25 * 19.6133:
+            pending.append(true_along_axis_n(session))
+        elif (not fired and cell.stage == stage and (out / "checkpoint.npz").exists()
+              and true_along_axis_n(session) > 0.25 * 19.6133):  # pressing
+            fired.append(1)
+            (emulator.inject_bootup if sensor == "jr3" else emulator.inject_reboot)()
+
+    pending: list[float] = []
+    watched.before_reading = reboot_then_judge
+    session_class = watched.session_class()
+
+    class Judged(session_class):  # type: ignore[misc,valid-type]
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            measure = self.cell.measure_force_n  # type: ignore[union-attr]
+
+            def judged(samples: int | None = None) -> float:
+                pending.clear()
+                reading = measure(samples)
+                if pending:
+                    errors.append(abs(reading - true_along_axis_n(self)))
+                return reading
+
+            self.cell.measure_force_n = judged  # type: ignore[method-assign,union-attr]
+
+    run, _ = prepare_path_run(config, None, out, 2, 0, 25, resume=False)
+    with mock.patch.object(path_run, "CellSession", Judged):
+        summary = path_run.execute(run, None, figures=False)
+    events = [(e["error"], e["action"], e["trial"]) for e in read_events(out)]
+    assert fired and events == [("SensorRebooted", "resumed", 1)]
+    assert summary["passes"] == 2
+    session = watched.sessions[0]
+    axis = session.cell.force_filter.config.axis  # type: ignore[union-attr]
+    sigma_n = float(session.sensor_emulator.model.params.noise_std[axis])
+    assert watched.max_contact_n <= 60.0
+    assert watched.truths[0].zeros_in_contact == 0
+    assert len(errors) >= 6 and max(errors) <= 3 * sigma_n
