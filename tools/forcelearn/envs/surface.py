@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from forcelearn.devices import Pose
 from forcelearn.envs.base import TaskEnv, box
 from forcelearn.envs.surface_learner import SurfaceLearnerAdapter
 from forcelearn.errors import SensorSuspect
@@ -92,6 +93,15 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
       robot (r = 2), the paper's failure; the tool retracts;
     * truncated: 20 steps done without failure (the path's end).
 
+    ## Faults in contact (docs/on-site.md)
+    A zero that moved shows as a pull (the press guard's
+    :class:`~forcelearn.errors.SensorSuspect`: a part never pulls the tool, e.g. the
+    sensor's drift read with the tool lifted off the sponge). In ``reset`` or in a
+    ``step`` the env does what the cell does: the tool retracts to the retract plane,
+    the sensor is zeroed in free space, the tool presses in again (to where the step
+    began) and the reset or step is made again, once; ``info["sensor_rezeros"]``
+    (every step's) counts them since the env was made.
+
     ## Arguments
     ``config``: a ``CellConfig``, or the path of a cell TOML (``None``: the
     emulated default, docs/surface.md); ``seed``: sensor-noise seed used when
@@ -134,7 +144,7 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
         """What the latest probe read and fitted (``None``: no probe ran)."""
         self._y_offset_mm = 0.0
         self.sensor_rezeros = 0
-        """Zeros taken again in free space after a pull on the way in (:meth:`reset`)."""
+        """Zeros taken again in free space after a pull (:meth:`reset`, :meth:`step`)."""
         spec, limit = self.task_spec, config.safety.max_force_n
         self.task_steps_per_trial = spec.steps_per_trial
         self.task_desired_force_n = spec.desired_force_n
@@ -207,6 +217,37 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
             retract_and_retare(cell, self.task_spec.retract_y_mm, self.config.safety.max_step_mm)
             self.sensor_rezeros += 1
             return super().reset(seed=None, options=options)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One control step (:class:`TaskEnv`); a pull read on the way is recovered from once."""
+        task = self.task
+        cell = None if self.session is None else self.session.cell
+        before = None if cell is None else cell.known_pose
+        counters = None if not isinstance(task, SurfaceTask) else (task._step, task._last_y_mm)
+        try:
+            obs, reward, terminated, truncated, info = super().step(action)
+        except SensorSuspect as exc:
+            if cell is None or before is None or counters is None:
+                raise
+            self._rezero_and_press_in(exc, before)
+            assert isinstance(task, SurfaceTask)
+            task._step, task._last_y_mm = counters  # the step is made again from its start
+            obs, reward, terminated, truncated, info = super().step(action)
+        info["sensor_rezeros"] = self.sensor_rezeros
+        return obs, reward, terminated, truncated, info
+
+    def _rezero_and_press_in(self, exc: SensorSuspect, where: Pose) -> None:
+        """Retract, zero in free space, press in again to ``where`` (the step's start)."""
+        assert self.session is not None and self.session.cell is not None
+        cell, spec = self.session.cell, self.task_spec
+        max_step = self.config.safety.max_step_mm
+        log.warning("%s: retracting, zeroing in free space and pressing in again", exc)
+        retract_and_retare(cell, spec.retract_y_mm, max_step)
+        self.sensor_rezeros += 1
+        above = Pose(where.x_mm, spec.retract_y_mm, where.z_mm, where.quaternion)
+        cell.move_in_steps(above, max_step)
+        cell.move_in_steps(where, max_step, guard_force=True)
+        cell.reset_filter()
 
     def _command(self, action: np.ndarray) -> np.ndarray:
         self._y_offset_mm = float(action[0]) * self.output_map.max_offset_mm
