@@ -21,6 +21,7 @@ from forcelearn.site import CellSession
 from forcelearn.tools.experiments import path_run
 from forcelearn.tools.experiments.fault_recovery import read_events
 from forcelearn.tools.experiments.path_state import prepare_path_run
+from forcelearn.tools.experiments.records import read_records
 from forcelearn.tools.fuzz.fault_inject import Truth
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "paths" / "cylinder-cell.toml"
@@ -138,8 +139,6 @@ def test_every_pass_ends_with_a_zero_check_in_free_space_the_calibration_kept(
     next pass's tare, back at the start, read the weight of a 50 deg turn (7.6 N on Fx) and
     raised ToolMismatch.
     """
-    from forcelearn.tools.experiments.records import read_records
-
     watched = Watched()
     summary = run_watched(cylinder_config(tmp_path, points=6), tmp_path / "run", 3, watched)
     assert summary["passes"] == 3 and summary["faults"]["count"] == 0
@@ -175,22 +174,30 @@ def test_a_zero_that_moved_during_a_pass_voids_it(tmp_path: Path) -> None:
     assert not voided[0]["tares"][-1]["accepted"]  # the check that found it, kept with it
 
 
-@pytest.mark.parametrize("when", ["first press", "second press"])
-def test_a_bias_step_at_a_passes_first_contact_is_caught_by_pressing_it_twice(
-        tmp_path: Path, when: str) -> None:
-    """A 6 N step down exactly at pass 1's first contact, or between its two presses.
+@pytest.mark.parametrize(("when", "expected"), [
+    ("pass 0, first press", ("ZeroMoved", 0)),
+    ("pass 0, second press", ("SensorSuspect", 0)),
+    ("pass 1, first contact", ("SensorSuspect", 1)),
+])
+def test_a_bias_step_at_a_passes_first_contact_is_caught(
+        tmp_path: Path, when: str, expected: tuple[str, int]) -> None:
+    """A 6 N step down exactly at a pass's first contact, or between its two presses.
 
-    At the first press nothing in contact came before it; backing out to free space, the zero
-    check reads the step (ZeroMoved). A step after that check makes the second press read
-    6 N less than the first (SensorSuspect). Either way the pass is run again from a zero
-    taken in free space, and the true force never passes the limit.
+    Pass 0 (no earlier pass searched from its start) presses its first contact twice: a
+    step at the first press shows in the zero check between the two (ZeroMoved), a step
+    after that check makes the second press read 6 N less than the first (SensorSuspect).
+    Pass 1 compares its first contact with pass 0's reading at the same offset
+    (SensorSuspect). Either way the pass runs again from a zero taken in free space, and
+    the true force never passes the limit.
     """
     out = tmp_path / "run"
     watched = Watched()
     fired: list[int] = []
+    in_pass = 1 if when.startswith("pass 1") else 0
 
     def armed() -> bool:
-        return not fired and (out / "checkpoint.npz").exists()
+        passes_done = (len(read_records(out)) if (out / "checkpoint.npz").exists() else 0)
+        return not fired and (out / "probe.csv").exists() and passes_done == in_pass
 
     def at_first_contact(session: CellSession) -> None:
         if (armed() and session.cell.stage == ("contact", 0)  # type: ignore[union-attr]
@@ -213,17 +220,17 @@ def test_a_bias_step_at_a_passes_first_contact_is_caught_by_pressing_it_twice(
         task.zero_check = checked
         return task
 
-    if when == "first press":
+    second = when.endswith("second press")
+    if not second:
         watched.before_reading = at_first_contact
     run, _ = prepare_path_run(cylinder_config(tmp_path, points=6), None, out, 2, 0, 25,
                               resume=False)
-    task_class = original if when == "first press" else stepping_after_the_check
+    task_class = stepping_after_the_check if second else original
     with mock.patch.object(path_run, "PathTask", task_class), \
             mock.patch.object(path_run, "CellSession", watched.session_class()):
         summary = path_run.execute(run, None, figures=False)
-    expected = "ZeroMoved" if when == "first press" else "SensorSuspect"
     events = [(e["error"], e["trial"]) for e in read_events(out)]
-    assert fired and events == [(expected, 1)]
+    assert fired and events == [expected]
     assert summary["passes"] == 2
     assert watched.max_contact_n <= 60.0
     assert all(truth.zeros_in_contact == 0 for truth in watched.truths)

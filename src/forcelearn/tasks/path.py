@@ -42,14 +42,24 @@ anything; every move towards the part is guarded (one sample per step against
 point's force axis (the guard's press direction follows the tool); the sensor's
 watchdog raises on stale samples.
 
-**First contact, pressed twice** (``verify_contact``): a bias step exactly at a
-pass's first contact (the first after its tare) has no earlier reading in contact
-to be compared with. At the first reading above the contact threshold the tool
-backs out to the approach pose (free space), the zero is checked there
-(``zero_check``: it raises when the zero moved) and the tool presses to the same
-offset again: the second reading must be within ``AGREE_N`` + ``AGREE_SHARE`` of
-the first, else :class:`~forcelearn.errors.SensorSuspect` (the run retracts,
-re-zeroes in free space and runs the pass again).
+**First contact, checked** (``verify_contact``): a bias step exactly at a
+pass's first contact (the first reading above the contact threshold after the
+pass's tare) has no earlier reading of this zero to be compared with. It is
+compared with the last pass's reading at the same offset, as is every reading of
+the search before it (the contact search steps from the same place every pass, so
+the offsets repeat): none may be lower by more than ``AGREE_N`` +
+``AGREE_SHARE`` of it (a step down is what would let the press guard trust a low
+reading; a step up reads high, which the
+guard takes as more force, and the pass's end zero check finds it). Where the last
+pass has no reading there (the probe, the first pass, a search that moved) the
+contact is **pressed twice**: the tool backs out to the approach pose (free
+space), the zero is checked there (``zero_check``: it raises when the zero moved)
+and it presses to the same offset again: the second reading must be within
+``AGREE_N`` + ``AGREE_SHARE`` of the first. Else
+:class:`~forcelearn.errors.SensorSuspect` (the run retracts, re-zeroes in free
+space and runs the pass again). Leaving the foam between the two presses costs
+the foam a load cycle (the emulated foam wears a pass's worth each time the
+tool leaves it), which is why a pass with a reading to compare with does not.
 """
 
 from __future__ import annotations
@@ -168,6 +178,11 @@ class PathTask:
         """Called in free space between the two presses: raises when the zero moved."""
         self.contact_checks: list[tuple[float, float]] = []
         """(first, second) reading of every first contact pressed twice in this session, N."""
+        self.contact_compared: list[tuple[float, float]] = []
+        """(last pass's, this pass's) reading of every first contact compared with the last
+        pass's at its offset in this session, N."""
+        self.last_contact_readings: list[tuple[float, float]] = []
+        """The last contact search's (offset mm, force N) readings (in the task's state)."""
         self.output = output
         """The learner's output map, whose shift follows the wear after each pass (None: none)."""
         self._errors: list[float] = []
@@ -207,6 +222,7 @@ class PathTask:
             "stiffness_n_per_mm": self.stiffness_n_per_mm,
             "start_force_n": self.start_force_n,
             "shift_mm": self.output.shift_mm if self.output is not None else 0.0,
+            "contact_readings": [list(r) for r in self.last_contact_readings],
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -222,6 +238,8 @@ class PathTask:
         self.start_force_n = float(state["start_force_n"])
         if self.output is not None:
             self.output.shift_mm = float(state["shift_mm"])
+        self.last_contact_readings = [(float(o), float(f))
+                                      for o, f in state.get("contact_readings", [])]
 
     def away(self, here: Pose) -> Pose:
         """Free space from ``here``: back along its force axis to ``approach_mm`` off the path.
@@ -306,11 +324,12 @@ class PathTask:
         verify = self.verify_contact
         readings = [(self._offset, self.cell.measure_force_n())]
         while True:
-            if verify and readings[-1][1] >= self.spec.contact_force_n:
-                verify = False
-                readings[-1] = (self._offset, self.press_again(readings[-1][1]))
+            if verify:
+                readings[-1] = (self._offset, self.check_contact(readings[-1][1]))
+                verify = readings[-1][1] < self.spec.contact_force_n
             step = self._contact_step_mm()
             if readings[-1][1] >= limit_n or self._offset >= deepest or step < MIN_STEP_MM:
+                self.last_contact_readings = list(readings)
                 return readings
             self._offset = min(self._offset + step, deepest)
             self.move_to_point(0, self._offset, pressing=self._offset > 0)
@@ -327,6 +346,39 @@ class PathTask:
         if press_guard is None:
             return CONTACT_STEP_MM
         return float(min(CONTACT_STEP_MM, press_guard.allowed_mm()))
+
+    def check_contact(self, force_n: float) -> float:
+        """A contact search's reading up to its first contact, checked; the reading to use, N.
+
+        Compared with the last pass's reading at this offset (the module docstring); at the
+        first contact, where the last pass has none, pressed twice (:meth:`press_again`).
+
+        Raises:
+            SensorSuspect: it reads lower than the last pass did here, or its two presses
+                disagree, by more than ``AGREE_N`` + ``AGREE_SHARE`` (the robot is stopped).
+        """
+        before = [f for o, f in self.last_contact_readings if abs(o - self._offset) < 1e-9]
+        if before:
+            self.contact_compared.append((before[0], force_n))
+            allowed = AGREE_N + AGREE_SHARE * abs(before[0])
+            if force_n < before[0] - allowed:
+                self._suspect(f"the contact search read {force_n:.2f} N at offset "
+                              f"{self._offset:.2f} mm, where the last pass read "
+                              f"{before[0]:.2f} N (more than {allowed:.2f} N less)")
+            return force_n
+        if force_n < self.spec.contact_force_n:
+            return force_n
+        return self.press_again(force_n)
+
+    def _suspect(self, what: str) -> None:
+        """Stop the robot and raise SensorSuspect about ``what``."""
+        stop = getattr(self.cell, "stop", None)
+        if stop is not None:
+            stop()
+        raise SensorSuspect(
+            f"{what}: the sensor's zero moved at the contact, or the part moved; the run "
+            "retracts, zeroes in free space and runs the pass again (if it repeats, check the "
+            "sensor's cable and the part's fixture)")
 
     def press_again(self, first_n: float) -> float:
         """Back out to free space, check the zero, press point 0 again; the second reading, N.
@@ -347,15 +399,8 @@ class PathTask:
         self.contact_checks.append((first_n, second))
         allowed = AGREE_N + AGREE_SHARE * abs(first_n)
         if abs(second - first_n) > allowed:
-            stop = getattr(self.cell, "stop", None)
-            if stop is not None:
-                stop()
-            raise SensorSuspect(
-                f"the first contact read {first_n:.2f} N, pressed again at the same offset "
-                f"{second:.2f} N (more than {allowed:.2f} N apart): the sensor's zero moved at "
-                "the contact, or the part moved; the run retracts, zeroes in free space and "
-                "runs the pass again (if it repeats, check the sensor's cable and the part's "
-                "fixture)")
+            self._suspect(f"the first contact read {first_n:.2f} N, pressed again at the same "
+                          f"offset {second:.2f} N (more than {allowed:.2f} N apart)")
         return second
 
     def _ramp_to(self, offset_mm: float) -> float:

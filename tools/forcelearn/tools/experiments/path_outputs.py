@@ -70,14 +70,21 @@ def write_outputs(run: PathRun, path: TaughtPath, cell_time_s: float,
 
 
 def safety_counts(task: PathTask) -> dict[str, Any]:
-    """This session's first contacts pressed twice and press-guard cuts (not checkpointed).
+    """This session's first-contact checks and press-guard cuts (not checkpointed).
 
-    ``worst_contact_share``: the largest |second - first| over its allowance (< 1 passed).
+    ``worst_*_share``: the largest difference over its allowance (< 1 passed): |second -
+    first| of a contact pressed twice; (last pass's - this pass's) of one compared.
     """
-    shares = [abs(b - a) / (AGREE_N + AGREE_SHARE * abs(a)) for a, b in task.contact_checks]
+    def allowance(force_n: float) -> float:
+        return AGREE_N + AGREE_SHARE * abs(force_n)
+
+    twice = [abs(b - a) / allowance(a) for a, b in task.contact_checks]
+    compared = [(a - b) / allowance(a) for a, b in task.contact_compared]
     guard = getattr(task.cell, "press_guard", None)
-    return {"contacts_pressed_twice": len(shares),
-            "worst_contact_share": max(shares) if shares else None,
+    return {"contacts_pressed_twice": len(twice),
+            "worst_twice_share": max(twice) if twice else None,
+            "contacts_compared": len(compared),
+            "worst_compared_share": max(compared) if compared else None,
             "press_guard_cuts": None if guard is None else int(guard.cuts)}
 
 
