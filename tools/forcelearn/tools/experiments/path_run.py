@@ -177,8 +177,7 @@ def execute(run: PathRun, state: dict[str, Any] | None, on_pass: PassHook | None
     with CellSession(config, seed=run.seed) as session, contextlib.ExitStack() as stack:
         cell = session.cell
         assert cell is not None
-        cell.press_guard = PressGuard(config.safety.max_force_n,
-                                      config.task.press_stiffness_n_per_mm,
+        cell.press_guard = PressGuard(config.safety.max_force_n, spec.press_stiffness_n_per_mm,
                                       cell.force_filter.measurement_variance_n2 ** 0.5)
         if state is not None:  # the emulators, the cell's software zero and its guard
             session.load_emulator_state(restore(run, state))
@@ -189,7 +188,7 @@ def execute(run: PathRun, state: dict[str, Any] | None, on_pass: PassHook | None
         stack.callback(writer.close)
         recorder = TrialRecorder(cell)
         recovery = PathRecovery(out, cell, math.nan, config.safety.max_step_mm,
-                                checkpoint=out / CHECKPOINT, zero_check=config.task.zero_check,
+                                checkpoint=out / CHECKPOINT, zero_check=spec.zero_check,
                                 watch=False)
         task = run.task = PathTask(
             cell, spec, path, config.safety.max_step_mm, stiffness_n_per_mm=1.0,
