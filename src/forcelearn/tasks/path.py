@@ -49,8 +49,8 @@ compared with the last pass's reading at the same offset, as is every reading of
 the search before it (the contact search steps from the same place every pass, so
 the offsets repeat): none may be lower by more than ``AGREE_N`` +
 ``AGREE_SHARE`` of it (a step down is what would let the press guard trust a low
-reading; a step up reads high, which the
-guard takes as more force, and the pass's end zero check finds it). Where the last
+reading; a step up reads high, which the guard takes as more force, and the
+pass's end zero check finds it). Where the last
 pass has no reading there (the probe, the first pass, a search that moved) the
 contact is **pressed twice**: the tool backs out to the approach pose (free
 space), the zero is checked there (``zero_check``: it raises when the zero moved)
@@ -173,14 +173,14 @@ class PathTask:
                  zero_check: Callable[[], None] | None = None) -> None:
         self.cell = cell
         self.verify_contact = verify_contact
-        """Press each pass's first contact twice (the module docstring)."""
+        """Check each pass's contact search up to its first contact (the module docstring)."""
         self.zero_check = zero_check
         """Called in free space between the two presses: raises when the zero moved."""
         self.contact_checks: list[tuple[float, float]] = []
         """(first, second) reading of every first contact pressed twice in this session, N."""
         self.contact_compared: list[tuple[float, float]] = []
-        """(last pass's, this pass's) reading of every first contact compared with the last
-        pass's at its offset in this session, N."""
+        """(last pass's, this pass's) reading of every contact-search reading compared with the
+        last pass's at its offset in this session, N."""
         self.last_contact_readings: list[tuple[float, float]] = []
         """The last contact search's (offset mm, force N) readings (in the task's state)."""
         self.output = output
