@@ -175,62 +175,63 @@ def test_a_zero_that_moved_during_a_pass_voids_it(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("when", "expected"), [
-    ("pass 0, first press", ("ZeroMoved", 0)),
-    ("pass 0, second press", ("SensorSuspect", 0)),
-    ("pass 1, first contact", ("SensorSuspect", 1)),
+    ("pass 0, first press", ("ZeroMoved", 0, "zero check")),
+    ("pass 0, second press", ("SensorSuspect", 0, "pressed again at the same offset")),
+    ("pass 1, first contact", ("SensorSuspect", 1, "where the last pass read")),
 ])
 def test_a_bias_step_at_a_passes_first_contact_is_caught(
-        tmp_path: Path, when: str, expected: tuple[str, int]) -> None:
-    """A 6 N step down exactly at a pass's first contact, or between its two presses.
+        tmp_path: Path, when: str, expected: tuple[str, int, str]) -> None:
+    """A 6 N step down exactly at a pass's first contact (the first after its tare).
 
     Pass 0 (no earlier pass searched from its start) presses its first contact twice: a
-    step at the first press shows in the zero check between the two (ZeroMoved), a step
-    after that check makes the second press read 6 N less than the first (SensorSuspect).
-    Pass 1 compares its first contact with pass 0's reading at the same offset
-    (SensorSuspect). Either way the pass runs again from a zero taken in free space, and
-    the true force never passes the limit.
+    step at the first press shows in the zero check between the two (ZeroMoved); a step
+    after that check, at the second press, makes it read 6 N less than the first
+    (SensorSuspect). Pass 1 compares its first contact with pass 0's reading at the same
+    offset (SensorSuspect). Either way the pass runs again from a zero taken in free space,
+    and the true force never passes the limit.
     """
     out = tmp_path / "run"
     watched = Watched()
     fired: list[int] = []
+    checks: list[int] = []
     in_pass = 1 if when.startswith("pass 1") else 0
+    second = when.endswith("second press")
 
     def armed() -> bool:
         passes_done = (len(read_records(out)) if (out / "checkpoint.npz").exists() else 0)
         return not fired and (out / "probe.csv").exists() and passes_done == in_pass
 
     def at_first_contact(session: CellSession) -> None:
-        if (armed() and session.cell.stage == ("contact", 0)  # type: ignore[union-attr]
+        if (armed() and (not second or len(checks) >= 2)
+                and session.cell.stage == ("contact", 0)  # type: ignore[union-attr]
                 and true_along_axis_n(session) > 0.25 * 19.6133):
             fired.append(1)
             shift_bias(session, -6.0)
 
     original = path_run.PathTask
 
-    def stepping_after_the_check(*args: Any, **kwargs: Any) -> Any:
+    def counting_the_checks(*args: Any, **kwargs: Any) -> Any:
         task = original(*args, **kwargs)
         check = task.zero_check
 
-        def checked() -> None:
+        def checked() -> None:  # a pass's checks: after its tare, then between the presses
             check()
             if armed():
-                fired.append(1)
-                shift_bias(watched.sessions[-1], -6.0)
+                checks.append(1)
 
         task.zero_check = checked
         return task
 
-    second = when.endswith("second press")
-    if not second:
-        watched.before_reading = at_first_contact
+    watched.before_reading = at_first_contact
     run, _ = prepare_path_run(cylinder_config(tmp_path, points=6), None, out, 2, 0, 25,
                               resume=False)
-    task_class = stepping_after_the_check if second else original
-    with mock.patch.object(path_run, "PathTask", task_class), \
+    with mock.patch.object(path_run, "PathTask", counting_the_checks), \
             mock.patch.object(path_run, "CellSession", watched.session_class()):
         summary = path_run.execute(run, None, figures=False)
-    events = [(e["error"], e["trial"]) for e in read_events(out)]
-    assert fired and events == [expected]
+    events = [(e["error"], e["trial"], e["message"]) for e in read_events(out)]
+    error, trial, says = expected
+    assert fired and [(e, t) for e, t, _ in events] == [(error, trial)]
+    assert says in events[0][2]
     assert summary["passes"] == 2
     assert watched.max_contact_n <= 60.0
     assert all(truth.zeros_in_contact == 0 for truth in watched.truths)
