@@ -310,7 +310,7 @@ class PathTask:
 
         The sensor's own zero is of its few samples (one sample's noise on the JR3); the
         check's burst mean becomes the zero (in software), which narrows every later zero
-        check's bound (the pass's end: from about 0.9 N to 0.6 N on the emulated JR3).
+        check's bound (the pass's end: from about 0.9 N to 0.45-0.49 N on the emulated JR3).
         """
         self.cell.tare(self.spec.contact_force_n)
         if self.zero_check is not None:
