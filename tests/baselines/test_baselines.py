@@ -29,6 +29,7 @@ from forcelearn.tasks.contour import ContourTask, ContourTaskSpec
 from forcelearn.tasks.surface import SurfaceTask, SurfaceTaskSpec
 from forcelearn.tasks.surface_probe import SurfaceProbe, probe_and_map
 from forcelearn.tasks.surface_warm_start import warm_start
+from forcelearn.tasks.zero_check import check_zero
 from forcelearn.trainer import TrialRecord, train
 
 SPEC = SurfaceTaskSpec()
@@ -66,6 +67,9 @@ def test_srv_through_the_contour_env_gives_the_native_trainers_trials() -> None:
 def test_srv_through_the_surface_env_gives_the_native_trainers_trials() -> None:
     """§5 on the emulated cell (real drivers): the probe, its map and 4 trials agree to 1e-9.
 
+    Each trial ends with the zero check in free space, as the env's episodes and the run's
+    trials do.
+
     Since every emulated device answers in the driver's thread (no wall-clock
     dependence left on the path), the native run and the env's are the same
     computation; this held with three CPU hogs on the two cores. (It was
@@ -89,7 +93,9 @@ def test_srv_through_the_surface_env_gives_the_native_trainers_trials() -> None:
         learner = SRVLearner(task.grid, 1, config.learner, rng=seed, output=output)
         assert result is not None
         warm_start(learner, result, config.task, output)
-        native = train(learner, task, trials).records
+        cell = session.cell
+        native = train(learner, task, trials,  # the env's (and the run's) zero check a trial
+                       on_trial=lambda record, log, learner: check_zero(cell)).records
     assert result is not None and choice.source == "probe"
     env = SurfaceEnv(config)
     try:

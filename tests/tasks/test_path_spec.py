@@ -58,6 +58,8 @@ BAD: dict[str, tuple[dict[str, Any], str]] = {
     "points as text": ({"points_per_pass": "40"}, "task.points_per_pass"),
     "contact loss": ({"on_contact_loss": "chase"}, "task.on_contact_loss = 'chase': one of"),
     "turn": ({"max_turn_deg": 0}, "task.max_turn_deg = 0"),
+    "press stiffness": ({"press_stiffness_n_per_mm": 0}, "task.press_stiffness_n_per_mm = 0"),
+    "zero check": ({"zero_check": "yes"}, "task.zero_check = 'yes'"),
 }
 
 

@@ -37,21 +37,45 @@ surface beyond ``max_deviation_mm``.
 Safety on every move, as the §5 task: the driver refuses a step above
 ``safety.max_step_mm`` or a target outside the workspace before sending
 anything; every move towards the part is guarded (one sample per step against
-``safety.max_force_n``); the sensor's watchdog raises on stale samples.
+``safety.max_force_n``), and, with a press guard on the cell
+(:mod:`forcelearn.press_guard`), bounded from the last trusted reading along the
+point's force axis (the guard's press direction follows the tool); the sensor's
+watchdog raises on stale samples.
+
+**First contact, checked** (``verify_contact``): a bias step exactly at a
+pass's first contact (the first reading above the contact threshold after the
+pass's tare) has no earlier reading of this zero to be compared with. It is
+compared with the last pass's reading at the same offset, as is every reading of
+the search before it (the contact search steps from the same place every pass, so
+the offsets repeat): none may be lower by more than ``AGREE_N`` +
+``AGREE_SHARE`` of it (a step down is what would let the press guard trust a low
+reading; a step up reads high, which the guard takes as more force, and the
+pass's end zero check finds it). Where the last
+pass has no reading there (the probe, the first pass, a search that moved) the
+contact is **pressed twice**: the tool backs out to the approach pose (free
+space), the zero is checked there (``zero_check``: it raises when the zero moved)
+and it presses to the same offset again: the second reading must be within
+``AGREE_N`` + ``AGREE_SHARE`` of the first. Else
+:class:`~forcelearn.errors.SensorSuspect` (the run retracts, re-zeroes in free
+space and runs the pass again). Leaving the foam between the two presses costs
+the foam a load cycle (the emulated foam wears a pass's worth each time the
+tool leaves it), which is why a pass with a reading to compare with does not.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
 from forcelearn.devices import Pose
+from forcelearn.errors import SensorSuspect
 from forcelearn.learning import BoxGrid, Dimension
 from forcelearn.paths import TaughtPath
 from forcelearn.paths.taught import rotation_from_wxyz
+from forcelearn.press_guard import MIN_STEP_MM
 from forcelearn.tasks.evaluation import FAILURE_R
 from forcelearn.tasks.path_spec import PathTaskSpec
 from forcelearn.tasks.surface import SurfaceCell, read_after
@@ -71,6 +95,11 @@ WEAR_GAIN = 0.5
 moves every point alike; half a correction a pass follows it without chasing noise)."""
 MIN_RAMP_STEP_MM = 0.1
 """Smallest step of the force ramp, mm (a smaller one costs moves and changes nothing)."""
+AGREE_N = 1.0
+"""The second press of a first contact reads within this (plus :data:`AGREE_SHARE` of the
+first reading) of the first, N; else the sensor is suspect."""
+AGREE_SHARE = 0.06
+"""The share of the first reading the second press may differ by, beside :data:`AGREE_N`."""
 
 
 PathCell = SurfaceCell
@@ -139,8 +168,21 @@ class PathTask:
     name = "path"
 
     def __init__(self, cell: PathCell, spec: PathTaskSpec, path: TaughtPath, max_step_mm: float,
-                 stiffness_n_per_mm: float, output: PathOffsetOutput | None = None) -> None:
+                 stiffness_n_per_mm: float, output: PathOffsetOutput | None = None,
+                 verify_contact: bool = False,
+                 zero_check: Callable[[], None] | None = None) -> None:
         self.cell = cell
+        self.verify_contact = verify_contact
+        """Check each pass's contact search up to its first contact (the module docstring)."""
+        self.zero_check = zero_check
+        """Called in free space between the two presses: raises when the zero moved."""
+        self.contact_checks: list[tuple[float, float]] = []
+        """(first, second) reading of every first contact pressed twice in this session, N."""
+        self.contact_compared: list[tuple[float, float]] = []
+        """(last pass's, this pass's) reading of every contact-search reading compared with the
+        last pass's at its offset in this session, N."""
+        self.last_contact_readings: list[tuple[float, float]] = []
+        """The last contact search's (offset mm, force N) readings (in the task's state)."""
         self.output = output
         """The learner's output map, whose shift follows the wear after each pass (None: none)."""
         self._errors: list[float] = []
@@ -180,6 +222,7 @@ class PathTask:
             "stiffness_n_per_mm": self.stiffness_n_per_mm,
             "start_force_n": self.start_force_n,
             "shift_mm": self.output.shift_mm if self.output is not None else 0.0,
+            "contact_readings": [list(r) for r in self.last_contact_readings],
         }
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
@@ -195,6 +238,8 @@ class PathTask:
         self.start_force_n = float(state["start_force_n"])
         if self.output is not None:
             self.output.shift_mm = float(state["shift_mm"])
+        self.last_contact_readings = [(float(o), float(f))
+                                      for o, f in state.get("contact_readings", [])]
 
     def away(self, here: Pose) -> Pose:
         """Free space from ``here``: back along its force axis to ``approach_mm`` off the path.
@@ -227,6 +272,10 @@ class PathTask:
         self._step, self._offset = k, offset_mm
         if pressing:
             self.largest_offset_mm = max(self.largest_offset_mm, abs(offset_mm))
+        press_guard = getattr(self.cell, "press_guard", None)
+        if press_guard is not None:  # the guard presses along this point's force axis
+            x, y, z = (float(v) for v in self.points.axes[k])
+            press_guard.direction = (x, y, z)
         self.cell.move_in_steps(self.points.pose(k, offset_mm), self.max_step_mm,
                                 guard_force=guard)
 
@@ -249,12 +298,23 @@ class PathTask:
         self.cell.sync()
         self._trial_start_s = self.cell.time_s
         self.return_to_start()  # from the point where the last pass ended
-        self.cell.tare(self.spec.contact_force_n)
+        self.tare()
         self._errors = []
         readings = self.find_contact()
         self.start_force_n = readings[-1][1]
         self.first_contact_peak_n = max(force for _, force in readings)
         return np.array([0.0])
+
+    def tare(self) -> None:
+        """Zero the sensor here (free space), then check it with a burst (``zero_check``).
+
+        The sensor's own zero is of its few samples (one sample's noise on the JR3); the
+        check's burst mean becomes the zero (in software), which narrows every later zero
+        check's bound (the pass's end: from about 0.9 N to 0.45-0.49 N on the emulated JR3).
+        """
+        self.cell.tare(self.spec.contact_force_n)
+        if self.zero_check is not None:
+            self.zero_check()
 
     def find_contact(self, until_n: float | None = None) -> list[tuple[float, float]]:
         """Step in along point 0's force axis; (offset mm, force N) of every step.
@@ -272,12 +332,87 @@ class PathTask:
         if hint is not None and hint - CONTACT_MARGIN_MM > self._offset:  # known: go near it
             self.move_to_point(0, min(hint - CONTACT_MARGIN_MM, deepest))
         self.cell.reset_filter()
+        verify = self.verify_contact
         readings = [(self._offset, self.cell.measure_force_n())]
-        while readings[-1][1] < limit_n and self._offset < deepest:
-            self._offset = min(self._offset + CONTACT_STEP_MM, deepest)
+        while True:
+            if verify:
+                readings[-1] = (self._offset, self.check_contact(readings[-1][1]))
+                verify = readings[-1][1] < self.spec.contact_force_n
+            step = self._contact_step_mm()
+            if readings[-1][1] >= limit_n or self._offset >= deepest or step < MIN_STEP_MM:
+                self.last_contact_readings = list(readings)
+                return readings
+            self._offset = min(self._offset + step, deepest)
             self.move_to_point(0, self._offset, pressing=self._offset > 0)
             readings.append((self._offset, self.cell.measure_force_n()))
-        return readings
+
+    def _contact_step_mm(self) -> float:
+        """The contact search's next step, mm: ``CONTACT_STEP_MM``, or less.
+
+        Less where the press guard allows less past the last reading (a stiff part near the
+        limit): the step ends where its reading can stop the search, not in a cut move that
+        goes on until the guard refuses it.
+        """
+        press_guard = getattr(self.cell, "press_guard", None)
+        if press_guard is None:
+            return CONTACT_STEP_MM
+        return float(min(CONTACT_STEP_MM, press_guard.allowed_mm()))
+
+    def check_contact(self, force_n: float) -> float:
+        """A contact search's reading up to its first contact, checked; the reading to use, N.
+
+        Compared with the last pass's reading at this offset (the module docstring); at the
+        first contact, where the last pass has none, pressed twice (:meth:`press_again`).
+
+        Raises:
+            SensorSuspect: it reads lower than the last pass did here, or its two presses
+                disagree, by more than ``AGREE_N`` + ``AGREE_SHARE`` (the robot is stopped).
+        """
+        before = [f for o, f in self.last_contact_readings if abs(o - self._offset) < 1e-9]
+        if before:
+            self.contact_compared.append((before[0], force_n))
+            allowed = AGREE_N + AGREE_SHARE * abs(before[0])
+            if force_n < before[0] - allowed:
+                self._suspect(f"the contact search read {force_n:.2f} N at offset "
+                              f"{self._offset:.2f} mm, where the last pass read "
+                              f"{before[0]:.2f} N (more than {allowed:.2f} N less)")
+            return force_n
+        if force_n < self.spec.contact_force_n:
+            return force_n
+        return self.press_again(force_n)
+
+    def _suspect(self, what: str) -> None:
+        """Stop the robot and raise SensorSuspect about ``what``."""
+        stop = getattr(self.cell, "stop", None)
+        if stop is not None:
+            stop()
+        raise SensorSuspect(
+            f"{what}: the sensor's zero moved at the contact, or the part moved; the run "
+            "retracts, zeroes in free space and runs the pass again (if it repeats, check the "
+            "sensor's cable and the part's fixture)")
+
+    def press_again(self, first_n: float) -> float:
+        """Back out to free space, check the zero, press point 0 again; the second reading, N.
+
+        Raises:
+            ZeroMoved: (from ``zero_check``) free space does not read the zero.
+            SensorSuspect: the second reading differs from ``first_n`` by more than
+                ``AGREE_N`` + ``AGREE_SHARE`` of it (the robot is stopped).
+        """
+        offset = self._offset
+        self.move_to_point(0, -self.spec.approach_mm, guard=False)
+        if self.zero_check is not None:
+            self.zero_check()
+        self.cell.stage = ("contact", 0)
+        self.move_to_point(0, offset, pressing=offset > 0)
+        self.cell.reset_filter()
+        second = self.cell.measure_force_n()
+        self.contact_checks.append((first_n, second))
+        allowed = AGREE_N + AGREE_SHARE * abs(first_n)
+        if abs(second - first_n) > allowed:
+            self._suspect(f"the first contact read {first_n:.2f} N, pressed again at the same "
+                          f"offset {second:.2f} N (more than {allowed:.2f} N apart)")
+        return second
 
     def _ramp_to(self, offset_mm: float) -> float:
         """Press from the contact to ``offset_mm`` at point 0 under the force ramp; the peak, N.

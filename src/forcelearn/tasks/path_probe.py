@@ -118,7 +118,7 @@ def probe_pass(task: PathTask) -> PathProbe:
     desired, limit = spec.desired_force_n, spec.max_deviation_mm
     cell.sync()
     task.return_to_start()
-    cell.tare(spec.contact_force_n)
+    task.tare()
     readings = task.find_contact(until_n=desired)
     k, contact = fit_stiffness(readings, spec.contact_force_n, desired)
     task.stiffness_n_per_mm = k

@@ -22,6 +22,9 @@ key                        meaning                                    FC Pressur
 ``points_per_pass``        resample to this many (0: as taught)       (none)
 ``max_turn_deg``           largest turn between two points, deg       ``FCSupvReoriSpeed``
 ``on_contact_loss``        ``"retreat"`` or ``"continue"``            (none)
+``press_stiffness_n_per_mm``  the stiffest part expected, N/mm (press   (none)
+                           guard before the probe)
+``zero_check``             a zero check in free space after each pass (none)
 =========================  =========================================  =====================
 """
 
@@ -97,6 +100,11 @@ class PathTaskSpec:
     """Largest turn of the tool between two consecutive points, deg."""
     on_contact_loss: str = "retreat"
     """Where contact is expected and lost: ``retreat`` (end the pass) or ``continue``."""
+    press_stiffness_n_per_mm: float = 20.0
+    """The stiffest part the site expects, N/mm: the press guard's stiffness before the probe
+    pass measured the part's (as the §5 task's key; docs/on-site.md)."""
+    zero_check: bool = True
+    """Read free space after each pass's retreat (and the probe's): a moved zero voids it."""
 
     def __post_init__(self) -> None:
         if self.kind != "path":
@@ -111,7 +119,7 @@ class PathTaskSpec:
             raise ConfigError(f"task.force_axis = {axis!r}: a unit vector in the tool frame, "
                               "e.g. [0, 0, 1] for tool z")
         for name in ("desired_force_n", "tolerance_n", "force_ramp_n_s", "max_deviation_mm",
-                     "max_turn_deg"):
+                     "max_turn_deg", "press_stiffness_n_per_mm"):
             value = getattr(self, name)
             if value is not None and not (_finite(value) and value > 0):
                 raise ConfigError(f"task.{name} = {value!r}: must be a finite number > 0")
@@ -127,6 +135,8 @@ class PathTaskSpec:
         if isinstance(points, bool) or not isinstance(points, int) or points == 1 or points < 0:
             raise ConfigError(f"task.points_per_pass = {points!r}: 0 (as taught) or a whole "
                               "number >= 2")
+        if not isinstance(self.zero_check, bool):
+            raise ConfigError(f"task.zero_check = {self.zero_check!r}: true or false")
         if self.on_contact_loss not in CONTACT_LOSS:
             raise ConfigError(f"task.on_contact_loss = {self.on_contact_loss!r}: one of "
                               f"{', '.join(CONTACT_LOSS)}")

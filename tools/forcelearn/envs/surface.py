@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from forcelearn.devices import Pose
 from forcelearn.envs.base import TaskEnv, box
 from forcelearn.envs.surface_learner import SurfaceLearnerAdapter
 from forcelearn.errors import SensorSuspect
@@ -24,6 +25,7 @@ from forcelearn.tasks.recovery import retract_and_retare
 from forcelearn.tasks.surface import SurfaceTask
 from forcelearn.tasks.surface_map import OutputMapChoice, SurfaceYOutput, configured_map
 from forcelearn.tasks.surface_probe import ProbeResult, SurfaceProbe, probe_and_map
+from forcelearn.tasks.zero_check import check_zero
 
 log = logging.getLogger(__name__)
 
@@ -92,6 +94,21 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
       robot (r = 2), the paper's failure; the tool retracts;
     * truncated: 20 steps done without failure (the path's end).
 
+    ## Faults in contact (docs/on-site.md)
+    A zero that moved shows as a pull (the press guard's
+    :class:`~forcelearn.errors.SensorSuspect`: a part never pulls the tool, e.g. the
+    sensor's drift read with the tool lifted off the sponge). In ``reset`` or in a
+    ``step`` the env does what the cell does: the tool retracts to the retract plane,
+    the sensor is zeroed in free space, the tool presses in again (to where the step
+    began) and the reset or step is made again, once; ``info["sensor_rezeros"]``
+    (every step's) counts them since the env was made. With ``[task] zero_check`` (on
+    by default) every episode ends, the tool retracted, with a zero check in free space
+    (:mod:`forcelearn.tasks.zero_check`): the last step's info holds ``zero_check_n``
+    (the reading, N), ``zero_moved`` (beyond 4 sigma of a fault-free check: the
+    episode's readings were off; the sensor is then zeroed there) and ``zero_voids``
+    (episodes ended with a moved zero since the env was made). Within the bound the
+    check's mean is the zero (the drift is taken away every episode).
+
     ## Arguments
     ``config``: a ``CellConfig``, or the path of a cell TOML (``None``: the
     emulated default, docs/surface.md); ``seed``: sensor-noise seed used when
@@ -134,7 +151,9 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
         """What the latest probe read and fitted (``None``: no probe ran)."""
         self._y_offset_mm = 0.0
         self.sensor_rezeros = 0
-        """Zeros taken again in free space after a pull on the way in (:meth:`reset`)."""
+        """Zeros taken again in free space after a pull (:meth:`reset`, :meth:`step`)."""
+        self.zero_voids = 0
+        """Episodes whose end's zero check found the zero moved."""
         spec, limit = self.task_spec, config.safety.max_force_n
         self.task_steps_per_trial = spec.steps_per_trial
         self.task_desired_force_n = spec.desired_force_n
@@ -207,6 +226,56 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
             retract_and_retare(cell, self.task_spec.retract_y_mm, self.config.safety.max_step_mm)
             self.sensor_rezeros += 1
             return super().reset(seed=None, options=options)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One control step (:class:`TaskEnv`); a pull read on the way is recovered from once.
+
+        The episode's last step ends with the zero check (the class docstring).
+        """
+        task = self.task
+        cell = None if self.session is None else self.session.cell
+        before = None if cell is None else cell.known_pose
+        counters = None if not isinstance(task, SurfaceTask) else (task._step, task._last_y_mm)
+        try:
+            obs, reward, terminated, truncated, info = super().step(action)
+        except SensorSuspect as exc:
+            if cell is None or before is None or counters is None:
+                raise
+            self._rezero_and_press_in(exc, before)
+            assert isinstance(task, SurfaceTask)
+            task._step, task._last_y_mm = counters  # the step is made again from its start
+            obs, reward, terminated, truncated, info = super().step(action)
+        info["sensor_rezeros"] = self.sensor_rezeros
+        if (terminated or truncated) and self.task_spec.zero_check:
+            info.update(self._check_zero())
+        return obs, reward, terminated, truncated, info
+
+    def _rezero_and_press_in(self, exc: SensorSuspect, where: Pose) -> None:
+        """Retract, zero in free space, press in again to ``where`` (the step's start)."""
+        assert self.session is not None and self.session.cell is not None
+        cell, spec = self.session.cell, self.task_spec
+        max_step = self.config.safety.max_step_mm
+        log.warning("%s: retracting, zeroing in free space and pressing in again", exc)
+        retract_and_retare(cell, spec.retract_y_mm, max_step)
+        self.sensor_rezeros += 1
+        above = Pose(where.x_mm, spec.retract_y_mm, where.z_mm, where.quaternion)
+        cell.move_in_steps(above, max_step)
+        cell.move_in_steps(where, max_step, guard_force=True)
+        cell.reset_filter()
+
+    def _check_zero(self) -> dict[str, Any]:
+        """The episode's zero check (the tool retracted: free space); its info entries."""
+        assert self.session is not None and self.session.cell is not None
+        cell = self.session.cell
+        force, bound = check_zero(cell)
+        moved = abs(force) > bound
+        if moved:  # the episode read through a moved zero: zero here for the next one
+            log.warning("the zero check after the episode read %.2f N in free space (bound "
+                        "%.2f N): the zero moved during the episode; zeroing here", force, bound)
+            self.zero_voids += 1
+            cell.zero_in_free_space()
+        return {"zero_check_n": float(force), "zero_moved": bool(moved),
+                "zero_voids": self.zero_voids}
 
     def _command(self, action: np.ndarray) -> np.ndarray:
         self._y_offset_mm = float(action[0]) * self.output_map.max_offset_mm

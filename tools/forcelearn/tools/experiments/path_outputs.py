@@ -27,7 +27,7 @@ from forcelearn.paths import TaughtPath
 from forcelearn.records import TrialRecords
 from forcelearn.run_output import _csv_bytes, write_summary, write_trials
 from forcelearn.site import CellConfig
-from forcelearn.tasks.path import PathGeometry, PathTask
+from forcelearn.tasks.path import AGREE_N, AGREE_SHARE, PathGeometry, PathTask
 from forcelearn.tasks.path_probe import PathProbe
 from forcelearn.tasks.path_spec import PathTaskSpec
 from forcelearn.tools.experiments.fault_recovery import fault_summary
@@ -54,6 +54,7 @@ def write_outputs(run: PathRun, path: TaughtPath, cell_time_s: float,
                          cell_time_s)
     summary["moves_outside_workspace"] = outside_workspace(config, spec, path, logs)
     summary["faults"] = fault_summary(out)
+    summary["safety_this_session"] = safety_counts(task)
     write_trials(out, records)
     write_table(out / "passes.csv", rows)
     write_table(out / "steps.csv", [{"pass": float(i), **row} for i, trial_log in enumerate(logs)
@@ -66,6 +67,25 @@ def write_outputs(run: PathRun, path: TaughtPath, cell_time_s: float,
         plot_forces(logs, spec.desired_force_n, out / "path_forces.png")
         plot_path_3d(np.asarray(path.positions_mm), logs[-1], out / "path_3d.png")
     return summary
+
+
+def safety_counts(task: PathTask) -> dict[str, Any]:
+    """This session's first-contact checks and press-guard cuts (not checkpointed).
+
+    ``worst_*_share``: the largest difference over its allowance (< 1 passed): |second -
+    first| of a contact pressed twice; (last pass's - this pass's) of one compared.
+    """
+    def allowance(force_n: float) -> float:
+        return AGREE_N + AGREE_SHARE * abs(force_n)
+
+    twice = [abs(b - a) / allowance(a) for a, b in task.contact_checks]
+    compared = [(a - b) / allowance(a) for a, b in task.contact_compared]
+    guard = getattr(task.cell, "press_guard", None)
+    return {"contacts_pressed_twice": len(twice),
+            "worst_twice_share": max(twice) if twice else None,
+            "contacts_compared": len(compared),
+            "worst_compared_share": max(compared) if compared else None,
+            "press_guard_cuts": None if guard is None else int(guard.cuts)}
 
 
 def write_probe(out: Path, probe: PathProbe) -> None:

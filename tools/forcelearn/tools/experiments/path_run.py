@@ -23,6 +23,15 @@ axis (:meth:`~forcelearn.tasks.path.PathTask.away`), the sensor is re-zeroed in
 free space and the pass runs again; a run that stopped in contact starts its
 resume with that retract. ``on_step`` (``--live``, the journal) sees every
 step's row.
+
+Faults in contact, as the §5 run: every pressing move is bounded by the cell's
+press guard (:mod:`forcelearn.press_guard`, along each point's force axis; the
+probe's stiffness known once it ran; its state in the checkpoint), each pass's
+first contact (and the probe's) is pressed twice with a zero check between
+(:meth:`~forcelearn.tasks.path.PathTask.press_again`), and with
+``[task] zero_check`` (on by default) every pass and the probe end with a zero check
+in free space, after the retreat (:class:`PathRecovery`): a zero that moved voids
+the pass (rolled back, re-zeroed, run again; ``voided`` in ``faults.jsonl``).
 """
 
 from __future__ import annotations
@@ -41,11 +50,13 @@ from forcelearn.cell import Cell
 from forcelearn.errors import ConfigError, ForcelearnError, PathRefused
 from forcelearn.learning import SRVLearner, load_learner
 from forcelearn.paths import TaughtPath
+from forcelearn.press_guard import PressGuard
 from forcelearn.records import TrialRecords
 from forcelearn.site import CellConfig, CellSession
 from forcelearn.tasks.path import PathGeometry, PathTask, offset_output
 from forcelearn.tasks.path_probe import probe_pass, warm_start
 from forcelearn.tasks.path_spec import PathTaskSpec, load_task_path
+from forcelearn.tasks.zero_check import keep_calibration
 from forcelearn.tools.experiments.fault_recovery import RunRecovery
 from forcelearn.tools.experiments.path_outputs import (
     END_WINDOW,
@@ -117,6 +128,28 @@ def check_deviation(path: TaughtPath, spec: PathTaskSpec, low: tuple[float, floa
                     "(safety.workspace_min_mm/_max_mm)")
 
 
+class PathRecovery(RunRecovery):
+    """The §5 run's recovery, for a tool that turns.
+
+    Its zero check keeps the calibration of the sensor's zero (a software zero at a turned
+    pose would re-derive the tool's weight for the wrong orientation:
+    :mod:`forcelearn.tasks.zero_check`). Every fault counts as one of a pass's tries: the
+    path run has no bias watch whose margins a false alarm could widen.
+    """
+
+    def check_zero(self, trial: int) -> None:
+        """:meth:`RunRecovery.check_zero` here (the tool is in free space after its retreat)."""
+        calibration = self.cell.calibration
+        try:
+            super().check_zero(trial)
+        finally:
+            keep_calibration(self.cell, calibration)
+
+    def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> bool:
+        super()._recover(exc, trial, attempt)
+        return False
+
+
 def run_path(config: CellConfig, out: Path, passes: int, seed: int,
              on_pass: PassHook | None = None, figures: bool = True) -> dict[str, Any]:
     """Probe, learn ``passes`` passes, write the run directory; return the summary.
@@ -144,7 +177,9 @@ def execute(run: PathRun, state: dict[str, Any] | None, on_pass: PassHook | None
     with CellSession(config, seed=run.seed) as session, contextlib.ExitStack() as stack:
         cell = session.cell
         assert cell is not None
-        if state is not None:
+        cell.press_guard = PressGuard(config.safety.max_force_n, spec.press_stiffness_n_per_mm,
+                                      cell.force_filter.measurement_variance_n2 ** 0.5)
+        if state is not None:  # the emulators, the cell's software zero and its guard
             session.load_emulator_state(restore(run, state))
             if run.zero_quaternion is not None:  # the restored sensor's zero, not this open's
                 cell.zero_taken_at(run.zero_quaternion)
@@ -152,13 +187,18 @@ def execute(run: PathRun, state: dict[str, Any] | None, on_pass: PassHook | None
         writer = RecordsWriter(out / RECORDS_FILE, kept_records(out, done, state is not None))
         stack.callback(writer.close)
         recorder = TrialRecorder(cell)
-        task = run.task = PathTask(cell, spec, path, config.safety.max_step_mm,
-                                   stiffness_n_per_mm=1.0)
-        recovery = RunRecovery(out, cell, math.nan, config.safety.max_step_mm,
-                               checkpoint=out / CHECKPOINT, away=task.away, watch=False)
+        recovery = PathRecovery(out, cell, math.nan, config.safety.max_step_mm,
+                                checkpoint=out / CHECKPOINT, zero_check=spec.zero_check,
+                                watch=False)
+        task = run.task = PathTask(
+            cell, spec, path, config.safety.max_step_mm, stiffness_n_per_mm=1.0,
+            verify_contact=True,
+            zero_check=lambda: recovery.check_zero(len(run.result.records) if run.probe else -1))
+        recovery.away = task.away
         learner = start(run, task, cell, recovery, recorder, writer)
 
         def after(record: TrialRecord, trial_log: TrialLog, learner: SRVLearner) -> None:
+            recovery.check_zero(record.index)  # free space after the retreat: void if it moved
             records = recorder.take(record.index)
             writer.write_trial(records)  # durable before the checkpoint that counts the pass
             add_tangential(trial_log, records, config.filter)
@@ -198,6 +238,7 @@ def start(run: PathRun, task: PathTask, cell: Cell, recovery: RunRecovery,
     done = len(run.result.records)
     if run.probe is not None:  # resumed: the probe, the task and the learner as saved
         task.output = offset_output(run.probe.scale_mm, spec.max_deviation_mm)
+        know_stiffness(cell, run.probe.stiffness_n_per_mm)
         assert run.saved.task_state is not None
         task.load_state_dict(run.saved.task_state)
         try:
@@ -218,11 +259,18 @@ def start(run: PathRun, task: PathTask, cell: Cell, recovery: RunRecovery,
     if probed.steps:
         writer.write_trial(probed)
     write_probe(run.out, probe)
+    know_stiffness(cell, probe.stiffness_n_per_mm)
     task.output = offset_output(probe.scale_mm, spec.max_deviation_mm)
     learner = SRVLearner(task.grid, 1, run.config.learner, rng=run.seed, output=task.output)
     warm_start(learner, probe)
     run.start_task_state = task.state_dict()
     return learner
+
+
+def know_stiffness(cell: Cell, stiffness_n_per_mm: float) -> None:
+    """The press guard knows the part's stiffness along the force axis (the probe's), N/mm."""
+    if cell.press_guard is not None and stiffness_n_per_mm > 0:
+        cell.press_guard.know(stiffness_n_per_mm)
 
 
 def kept_records(out: Path, done: int, resumed: bool) -> list[TrialRecords]:
