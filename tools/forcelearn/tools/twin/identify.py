@@ -61,6 +61,8 @@ IDENTIFY_TRIAL = -2
 """Trial number of the identification's force records (the probe's is -1)."""
 POLL_LIMIT = 2000
 """Most polls of one timed move (a move that never reports in position is an error)."""
+FAST_WAIT_S = 0.1
+"""A hold's wait shorter than this (s) is one status poll, not a dwell (:func:`_hold`)."""
 UNSEEN_S = 1.0
 """A move whose motion no poll saw within this time (s) ends there (too short to see)."""
 
@@ -86,11 +88,12 @@ class IdentifyPlan:
     free_hold_s: float = 20.0
     press_force_ratio: float = 0.5
     """The press goes on until the force passes this share of the task's desired force."""
-    hold_s: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0,
-                                 4.0, 5.0, 6.0)
-    """Times after each step-and-hold step at which the held press is read, s (to 6 time
-    constants of the slowest foam the study draws, 1 s)."""
-    hold_samples: int = 8
+    hold_s: tuple[float, ...] = (0.04, 0.08, 0.12, 0.16, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.8,
+                                 1.0, 1.25, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0)
+    """Times after each step-and-hold step at which the held press is read (and at once), s:
+    to 6 time constants of the slowest foam the study draws (1 s), dense where a fast one
+    (0.2 s) relaxes; waits under ``FAST_WAIT_S`` are single polls."""
+    hold_samples: int = 16
     hold_steps: int = 6
     """Step-and-hold steps: each steps in and holds (the first holds at the press's end)."""
     hold_force_ratio: float = 0.3
@@ -213,13 +216,22 @@ def _press_to(cell: Any, config: CellConfig, pose: Pose) -> None:
 
 
 def _hold(cell: Any, plan: IdentifyPlan, stage: str, index: int) -> None:
-    """Bursts at ``plan.hold_s`` after the last move (fast-polled: nothing moves between)."""
+    """A burst at once and at ``plan.hold_s`` after the last move (fast-polled: nothing moves).
+
+    A wait shorter than ``FAST_WAIT_S`` is one status poll (the link's exchange, 44 ms on a
+    9600-baud computer link): a wait with a dwell polls until the dwell passed, at least two
+    polls, and bursts meant for 0.02, 0.05 and 0.1 s all read at 0.09 s.
+    """
     held = cell.time_s
-    for k, after in enumerate(plan.hold_s):
-        cell.stage = (stage, index * len(plan.hold_s) + k)
+    cell.stage = (stage, index * (len(plan.hold_s) + 1))
+    cell.measure_force_n(plan.hold_samples)
+    for k, after in enumerate(plan.hold_s, start=1):
         wait = held + after - cell.time_s
-        if wait > 0:
-            cell.time_s = cell.robot.wait_in_position(cell.move_timeout_s, wait)
+        if wait <= 0:
+            continue  # the poll before already passed it
+        cell.time_s = cell.robot.wait_in_position(cell.move_timeout_s,
+                                                  0.0 if wait < FAST_WAIT_S else wait)
+        cell.stage = (stage, index * (len(plan.hold_s) + 1) + k)
         cell.measure_force_n(plan.hold_samples)
 
 
