@@ -34,7 +34,7 @@ from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_a
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
 from forcelearn.tools.twin.choice import BIC_MARGIN, choose, diagnose, family_for
 from forcelearn.tools.twin.forward import Reading, predict_means
-from forcelearn.tools.twin.identify import Identification
+from forcelearn.tools.twin.identify import IDENTIFY_TRIAL, Identification
 from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, Member
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
@@ -81,6 +81,8 @@ class MemberFit:
     member_sigmas: dict[str, float] = field(default_factory=dict)
     """How far the members the records do not rule out put each value (chosen member only;
     :func:`member_spread`): ``sigmas`` is at least this."""
+    evidence_bursts: int = 1
+    """The identification's bursts the BIC also counts (:func:`evidence_bic`; 1: none)."""
 
 
 @dataclass
@@ -268,11 +270,32 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     n_held = max(1, held_res.size)
     mse = max(float(np.mean(held_res**2)), BIC_RESOLUTION**2)
     bic = n_held * math.log(mse) + len(free) * math.log(n_held)
+    evidence, n_evidence = evidence_bic(train, train_pred, noise_n, len(free))
     return MemberFit(
         member, values, {n: float(spread[n]) for n in member.free if n not in fixed},
-        train_rms, _rms(held_pred - heldout.mean_n, heldout.is_step & heldout.has_burst), bic,
-        len(free), n_held, tuple(held), train_cost=cost,
+        train_rms, _rms(held_pred - heldout.mean_n, heldout.is_step & heldout.has_burst),
+        bic + evidence, len(free), n_held, tuple(held), train_cost=cost,
+        evidence_bursts=n_evidence,
     )
+
+
+def evidence_bic(train: RecordArrays, predicted: np.ndarray, noise_n: float, free: int
+                 ) -> tuple[float, int]:
+    """The BIC of the identification's bursts in ``train`` (0 and 1 burst when none).
+
+    An identification (``forcelearn identify``) is an experiment made to show what a run's
+    records cannot, a relaxation in its step-and-hold above all: its bursts count in the
+    member's score beside the held-out trials', so a member with relaxation is chosen
+    when the holds show relaxation, though the run's held-out trials alone cannot tell.
+    Fitted bursts, so the BIC proper: ``n log(mse) + free log(n)`` of the weighted
+    residuals (Schwarz 1978), each richer member paying for its parameters.
+    """
+    rows = (train.trial == IDENTIFY_TRIAL)[:, None] & train.has_burst & np.isfinite(predicted)
+    if not rows.any():
+        return 0.0, 1
+    res = ((predicted - train.mean_n) * burst_weights(train, noise_n))[rows]
+    mse = max(float(np.mean(res**2)), BIC_RESOLUTION**2)
+    return res.size * math.log(mse) + free * math.log(res.size), int(res.size)
 
 
 def member_spread(fits: list[MemberFit], index: int) -> dict[str, float]:
@@ -304,8 +327,8 @@ def member_spread(fits: list[MemberFit], index: int) -> dict[str, float]:
 
 
 def _misfit(fit: MemberFit) -> float:
-    """The held-out BIC without its penalty for the member's parameters."""
-    return fit.bic - fit.free * math.log(fit.heldout_bursts)
+    """The held-out (and identification's) BIC without its penalty for the parameters."""
+    return fit.bic - fit.free * (math.log(fit.heldout_bursts) + math.log(fit.evidence_bursts))
 
 
 def nested_parent(member: Member, fitted: list[MemberFit]) -> MemberFit | None:
