@@ -278,7 +278,8 @@ def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
     assert contact is not None  # the press ended above target_n > contact_force_n
     rise = max((force - contact[1]) / max(contact[0] - y, 1e-3), 1e-3)  # N/mm, unrelaxed
     hold_mm = min(plan.hold_force_ratio * config.task.desired_force_n / rise, plan.cycle_mm)
-    _hold(cell, plan, "identify-hold", 0)
+    if plan.hold_steps:
+        _hold(cell, plan, "identify-hold", 0)
     taken = 0
     for k in range(1, plan.hold_steps):
         depth = y - hold_mm
