@@ -34,6 +34,7 @@ from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_a
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
 from forcelearn.tools.twin.choice import BIC_MARGIN, choose, diagnose, family_for
 from forcelearn.tools.twin.forward import Reading, predict_means
+from forcelearn.tools.twin.held import held_spread
 from forcelearn.tools.twin.identify import IDENTIFY_TRIAL, Identification
 from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, Member
@@ -83,6 +84,9 @@ class MemberFit:
     :func:`member_spread`): ``sigmas`` is at least this."""
     evidence_bursts: int = 1
     """The identification's bursts the BIC also counts (:func:`evidence_bic`; 1: none)."""
+    held_sigmas: dict[str, float] = field(default_factory=dict)
+    """The held parameters' share of each fitted 1-sigma (chosen member only;
+    :func:`~forcelearn.tools.twin.held.held_spread`): added in quadrature."""
 
 
 @dataclass
@@ -435,6 +439,9 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     chosen.jackknife_sigmas = spread(choice.index)
     for name, resampled_sigma in chosen.jackknife_sigmas.items():
         chosen.sigmas[name] = max(chosen.sigmas[name], resampled_sigma)
+    chosen.held_sigmas = held_spread(chosen, train, arm.values, reading, first.noise_n, walk)
+    for name, held_sigma in chosen.held_sigmas.items():
+        chosen.sigmas[name] = math.hypot(chosen.sigmas[name], held_sigma)
     chosen.member_sigmas = member_spread(fits, choice.index)
     for name, member_sigma in chosen.member_sigmas.items():
         chosen.sigmas[name] = max(chosen.sigmas[name], member_sigma)
