@@ -55,3 +55,20 @@ def test_identified_values_and_three_sigma_offs() -> None:
     assert not found["lag_s"].within and found["relaxation_ratio"].within
     offs = three_sigma_offs(_truth(), twin)
     assert len(offs) == 1 and offs[0].startswith("lag_s")
+
+
+def test_a_cell_whose_member_lacks_relaxation_counts_as_not_identified(tmp_path: Any) -> None:
+    """The relaxation's share is over every fitted cell, not only those whose member fits it."""
+    import json
+
+    from forcelearn.tools.results.twin_identified import page_lines
+
+    (tmp_path / "cells").mkdir()
+    good = [{"name": "relaxation_ratio", "value": 0.3, "sigma": 0.01, "determined": True}]
+    for cell, member, rows in (("cell-01", "linear", good), ("cell-02", "linear-elastic", [])):
+        (tmp_path / "cells" / f"{cell}.truth.json").write_text(json.dumps(_truth()))
+        (tmp_path / cell / "twin").mkdir(parents=True)
+        (tmp_path / cell / "twin" / "twin.json").write_text(json.dumps(_twin(member, [], rows)))
+    lines = page_lines(tmp_path, ["cell-01", "cell-02"])
+    ratio = next(line for line in lines if line.startswith("- relaxation_ratio"))
+    assert "within 15% on 1/2 cells" in ratio

@@ -77,3 +77,24 @@ def test_identify_plan_prints_without_moving(capsys: pytest.CaptureFixture[str])
     """--plan: the plan and its cell time, nothing opened."""
     assert cli.main(["identify", "--plan"]) == 0
     assert "cell_time_s" in capsys.readouterr().out
+
+
+def test_identify_stays_under_the_force_limit_on_a_stiff_part(tmp_path: Path) -> None:
+    """Hidden cell 17 of seed 1: every press through the press guard, under the 20.9 N limit.
+
+    Unguarded, the press-in cycles read 22.4 N and the force limit stopped the robot.
+    """
+    import tomli_w
+
+    from forcelearn.tools.twin.hidden_cells import HiddenCellRanges, cell_config, draw_hidden_cell
+
+    path = tmp_path / "cell.toml"
+    path.write_text(tomli_w.dumps(cell_config(draw_hidden_cell(1, 17, HiddenCellRanges()))),
+                    encoding="utf-8")
+    config = load_cell_config(path)
+    plan = IdentifyPlan(lengths_mm=(1.0,), speeds_mm_s=(20.0,), free_reads=2, free_hold_s=1.0)
+    result = run_identification(config, plan, seed=0)
+    bursts = [s.burst for t in result.records for s in t.steps if s.burst is not None]
+    assert max(b.mean_n for b in bursts) < config.safety.max_force_n
+    stages = {s.stage for t in result.records for s in t.steps}
+    assert {"identify-hold", "identify-cycle1"} <= stages  # the whole plan ran

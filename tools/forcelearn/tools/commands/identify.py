@@ -4,7 +4,9 @@ Runs the short, force-guarded plan of :mod:`forcelearn.tools.twin.identify` on t
 (emulated by default): polled free-space moves of several lengths and speeds, a
 free-space hold, a press held over time, press in and ease off. Writes
 ``DIR/identification.json``; ``forcelearn twin RUN_DIR --identification DIR`` uses it.
-``--plan`` prints the plan and its cell time without moving anything.
+``--plan`` prints the plan and its cell time without moving anything; ``--design TWIN_JSON``
+runs (or with ``--plan`` prints) a plan designed from a twin's uncertainties
+(:mod:`forcelearn.tools.twin.designed`).
 """
 
 from __future__ import annotations
@@ -23,6 +25,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, help="output folder (default runs/identify-<time>)")
     parser.add_argument("--plan", action="store_true",
                         help="print the plan and its cell time; move nothing")
+    parser.add_argument("--design", type=Path, metavar="TWIN_JSON",
+                        help="design the plan from a twin's uncertainties (forcelearn twin's "
+                             "twin.json, or its folder): only the parts that determine what "
+                             "it left undetermined; prints why, the cell time and the 1-sigma "
+                             "it expects")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -36,11 +43,21 @@ def run(args: argparse.Namespace) -> int:
     from forcelearn.tools.twin.identify_fit import BAND_MM, fit_timing, timing_document
 
     plan = IdentifyPlan()
-    if args.plan:
+    config = load_cell_config(args.config) if args.design or not args.plan else None
+    if args.design is not None:
+        from forcelearn.tools.twin.designed import design_from_file
+
+        assert config is not None
+        designed = design_from_file(args.design, config.task.desired_force_n)
+        plan = designed.plan
+        print(json.dumps(designed.document(), indent=2))
+        if args.plan:
+            return 0
+    elif args.plan:
         print(json.dumps({"plan": dataclasses.asdict(plan),
                           "cell_time_s": round(plan.cell_time_s(), 1)}, indent=2))
         return 0
-    config = load_cell_config(args.config)
+    assert config is not None
     out = args.out or Path("runs") / time.strftime("identify-%Y%m%d-%H%M%S")
     seed = args.seed if args.seed is not None else config.seed
     result = run_identification(config, plan, seed)

@@ -195,9 +195,13 @@ def page_lines(out: Path, cells: Sequence[str]) -> list[str]:
         rows = [i for _, values in found for i in values if i.name == name]
         share = f"{IDENTIFIED_TOLERANCE:.0%}"
         floor = BY_NAME[name].absolute or 0.0
-        lines.append(f"- {name}: within {share} on {_count([i.within for i in rows])} cells; "
-                     f"within {share} or {floor:g} on {_count([i.within_floor for i in rows])}; "
-                     f"reported determined on {_count([i.determined for i in rows])}")
+        lacking = len(found) - len(rows)  # the chosen member does not fit it: not identified
+        pad = [False] * lacking
+        lines.append(f"- {name}: within {share} on {_count([i.within for i in rows] + pad)} "
+                     f"cells; within {share} or {floor:g} on "
+                     f"{_count([i.within_floor for i in rows] + pad)}; reported determined on "
+                     f"{_count([i.determined for i in rows] + pad)}"
+                     + (f" (on {lacking} the chosen member does not fit it)" if lacking else ""))
     lines += ["", f"- Parameters reported determined more than {OFF_SIGMAS:g} sigma from the "
               f"truth: {len(offs)}" + (":" if offs else "."), *[f"  - {o}" for o in offs], ""]
     arm_rows: list[tuple[str, list[Identified]]] = []

@@ -84,11 +84,20 @@ def passes_before(records: list[TrialRecords], noise_n: float) -> list[list[int]
     and ``CONTACT_SIGMAS`` of its noise above the trial's zero (its first burst, read
     in free space as a trial or a probe point starts from the retract plane, when that
     reads under ``ZERO_LIMIT_N``; else 0); it ends at the next retreat move or at the
-    next burst that reads free space. Without the trial's zero a sensor zero that had
-    wandered +0.5 N took a one-sample approach read of 1.05 N for contact and counted
-    passes the sponge did not (2 extra by trial 200 of a default run).
+    next burst that reads free space with the tool above (in Y; the press is along -Y) where
+    it last read contact: a pass ends only after the tool rose (a burst reading ~0 N as
+    deep or deeper, a zero's step or drift, ends none). Against the emulator's own count
+    at the end of hidden cells 1, 2, 4, 5, 7, 9, 11, 13, 14 of seed 1 (60 trials): equal
+    or 1 off on all but cell 4 (+5, as before); every free-space burst counted before put
+    cells 2 and 11 one over and cell 14 two over; rising above the pass's first contact
+    instead put cell 14 four under (the wavy surface fell away under a tool that had not
+    risen: the sponge counts that). Without
+    the trial's zero a sensor zero that had wandered +0.5 N took a one-sample approach read
+    of 1.05 N for contact and counted passes the sponge did not (2 extra by trial 200 of a
+    default run).
     """
     passes, touched, out = 0, False, []
+    touch_y = math.inf  # the commanded Y of the pass's last contact burst, mm
     for trial in records:
         row = []
         bursts = [s.burst for s in trial.steps if s.burst is not None]
@@ -98,13 +107,14 @@ def passes_before(records: list[TrialRecords], noise_n: float) -> list[list[int]
         for step in trial.steps:
             row.append(passes)
             burst = step.burst
+            y = step.move.commanded_mm[1]
             if burst is not None:
                 spread = math.sqrt(noise_n**2 / burst.count + zero_var)
                 floor = max(CONTACT_FLOOR_N, CONTACT_SIGMAS * spread)
                 if burst.mean_n - zero > floor:
-                    touched = True
+                    touched, touch_y = True, y
                     continue
-                if abs(burst.mean_n - zero) <= floor and touched:
+                if abs(burst.mean_n - zero) <= floor and touched and y > touch_y:
                     passes, touched = passes + 1, False
                     continue
             if step.stage == "retreat" and touched:

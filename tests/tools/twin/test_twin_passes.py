@@ -1,0 +1,33 @@
+"""The pass count from the records: a pass ends only after the tool rose."""
+
+from __future__ import annotations
+
+from forcelearn.records import BurstRecord, MoveRecord, StepRecord, TrialRecords
+from forcelearn.tools.twin.arrays import passes_before
+
+
+def _step(trial: int, stage: str, y_mm: float, force_n: float | None) -> StepRecord:
+    move = MoveRecord((0.0, y_mm, 0.0), (0.0, y_mm, 0.0), 0.0, 0.1, 0.2)
+    burst = None if force_n is None else BurstRecord(force_n, 0.05, force_n, force_n, 16,
+                                                     0.2, 0.01, force_n)
+    return StepRecord(trial, 0, stage, move, burst)
+
+
+def test_a_free_reading_no_higher_than_the_last_contact_ends_no_pass() -> None:
+    """Pressed as deep or deeper, a burst reading ~0 N (a zero's step): the same pass."""
+    first = TrialRecords(0, [
+        _step(0, "approach", 10.0, 0.0),  # the trial's zero, in free space
+        _step(0, "step", 5.0, 5.0),  # contact
+        _step(0, "step", 3.0, 9.0),  # deeper
+        _step(0, "step", 3.0, 0.05),  # as deep, reads ~0: the zero stepped, still in the foam
+        _step(0, "step", 2.5, 6.0),  # deeper still
+        _step(0, "retreat", 10.0, None),
+    ])
+    second = TrialRecords(1, [_step(1, "approach", 10.0, 0.0), _step(1, "step", 5.0, 5.0),
+                              _step(1, "step", 6.0, 0.0),  # rose, reads free space: left
+                              _step(1, "retreat", 10.0, None)])
+    third = TrialRecords(2, [_step(2, "approach", 10.0, 0.0)])
+    passes = passes_before([first, second, third], noise_n=0.05)
+    assert passes[0] == [0] * 6
+    assert passes[1] == [1, 1, 1, 2]  # left at the free-space burst above the touch
+    assert passes[2] == [2]

@@ -1,0 +1,214 @@
+"""An identification plan designed from a twin's uncertainties: run what the records lack.
+
+``forcelearn identify --design TWIN_JSON`` reads a twin's report (``forcelearn twin``'s
+``twin.json``) and keeps only the parts of the identification (:mod:`.identify`) that
+determine what the twin left undetermined, each sized so that its expected 1-sigma is at
+most ``TARGET_SHARE`` of the value (a 15 % error then three sigma off):
+
+=============================  ============================================  ==============
+undetermined (or not fitted)   part kept                                     sized by
+=============================  ============================================  ==============
+lag, acceleration, start       polled free-space moves of each length x      passes over
+delay                          speed                                         them
+relaxation ratio or time (or   step-and-hold, held to 6 time constants of    holds
+a member without relaxation)   the twin's relaxation time (1 s: unknown)
+hysteresis (a member with it   ease off and press in again                   cycles
+undetermined)
+noise, drift                   free-space hold                               its reads
+=============================  ============================================  ==============
+
+The expected 1-sigma is the Fisher information's (Gauss-Newton ``(J^T J)^-1``) at the
+twin's values: for the arm the twin's own in-position model
+(:func:`~forcelearn.tools.twin.forward.predict_in_position_s`) over the plan's moves, each
+event timed to a poll window's ``width / sqrt(12)``; for the relaxation a relaxing step
+``F(t) = F_inf + A exp(-t / tau)`` per hold, each burst's mean with the noise over its
+samples; for the noise ``1 / sqrt(2 n)``. A designed plan's figures are the fit's best
+case: model error (that the records show as a misfit) comes on top.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from forcelearn.tools.twin.forward import predict_in_position_s
+from forcelearn.tools.twin.identify import IdentifyPlan
+
+TARGET_SHARE = 0.05
+"""The designed 1-sigma, as a share of the value (a 15 % error is then 3 sigma)."""
+POLL_S = 0.044
+"""The status poll's period on a 9600-baud computer link, s (EGM's 4 ms is finer)."""
+BAND_MM = 0.1
+"""The in-position band, mm (the controller's default)."""
+ARM_NAMES = ("start_delay_s", "accel_mm_s2", "lag_s")
+RELAXATION = ("relaxation_ratio", "relaxation_time_s")
+HYSTERESIS = ("hysteresis_loss", "hysteresis_depth_mm")
+SENSOR = ("noise_std", "bias_drift_per_sqrt_s")
+MAX_REPEATS = 4
+MAX_HOLDS = 10
+UNKNOWN_TIME_S = 1.0
+"""The relaxation time assumed when the twin has none (the slowest foam the study draws)."""
+HOLD_TIMES = 6.0
+"""Holds last this many relaxation time constants."""
+
+
+@dataclass(frozen=True)
+class Design:
+    """A designed plan, why each part is in it, and the 1-sigma it expects by parameter."""
+
+    plan: IdentifyPlan
+    reasons: list[str]
+    expected: dict[str, tuple[float, float]]
+    """Parameter -> (the twin's value, the 1-sigma the plan is expected to leave)."""
+
+    def document(self) -> dict[str, Any]:
+        """JSON-able: the plan, its cell time, why, and the expected uncertainties."""
+        return {"plan": dataclasses.asdict(self.plan),
+                "cell_time_s": round(self.plan.cell_time_s(), 1), "why": self.reasons,
+                "expected": {n: {"value": v, "sigma": s, "share": s / abs(v) if v else None}
+                             for n, (v, s) in self.expected.items()}}
+
+
+def _rows(twin: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {row["name"]: row for row in twin["parameters"]}
+
+
+def _loose(rows: dict[str, dict[str, Any]], names: tuple[str, ...]) -> list[str]:
+    """Of ``names``, those the twin does not report determined (or does not fit at all)."""
+    return [n for n in names if n not in rows or not rows[n].get("determined")]
+
+
+def arm_sigmas(arm: dict[str, float], plan: IdentifyPlan, poll_s: float = POLL_S
+               ) -> dict[str, float]:
+    """Expected 1-sigma of ``ARM_NAMES`` from the plan's polled moves (Fisher information)."""
+    lengths = np.array([length for _ in range(plan.repeats) for _ in plan.speeds_mm_s
+                        for length in plan.lengths_mm for _ in range(2)])
+    speeds = np.array([speed for _ in range(plan.repeats) for speed in plan.speeds_mm_s
+                       for _ in plan.lengths_mm for _ in range(2)])
+    base = np.array([arm[n] for n in ARM_NAMES])
+
+    def model(x: np.ndarray) -> np.ndarray:
+        p = {**arm, **dict(zip(ARM_NAMES, x.tolist(), strict=True))}
+        result: np.ndarray = predict_in_position_s(lengths, p, BAND_MM, speeds)
+        return result
+
+    steps = np.maximum(np.abs(base) * 1e-3, 1e-6)
+    jacobian = np.stack([(model(base + np.eye(3)[i] * steps[i])
+                          - model(base - np.eye(3)[i] * steps[i])) / (2 * steps[i])
+                         for i in range(3)], axis=1)
+    scatter = math.sqrt(poll_s**2 / 12 + 0.004**2 / 12)
+    return dict(zip(ARM_NAMES, _fisher_sigmas(jacobian, scatter).tolist(), strict=True))
+
+
+def relaxation_sigmas(ratio: float, time_s: float, step_n: float, noise_n: float,
+                      plan: IdentifyPlan, poll_s: float = POLL_S) -> dict[str, float]:
+    """Expected 1-sigma of the relaxation's ratio and time from the plan's holds.
+
+    Each hold: ``F_inf + A exp(-t / tau)`` with ``A = ratio / (1 + ratio) * step_n`` (a
+    step that meets ``step_n`` at once relaxes to ``step_n / (1 + ratio)``), its own
+    ``F_inf``; bursts at once, at each ``hold_s`` (waits under 0.1 s one poll).
+    """
+    times = [0.0]
+    for after in plan.hold_s:
+        times.append(times[-1] + poll_s if after - times[-1] < 0.1 else after)
+    t = np.array(times)
+    holds = max(1, plan.hold_steps)
+    size = max(ratio, 1e-3) / (1 + max(ratio, 1e-3)) * step_n
+    decay = np.exp(-t / time_s)
+    columns = np.zeros((holds * t.size, 2 + holds))
+    for k in range(holds):
+        rows = slice(k * t.size, (k + 1) * t.size)
+        columns[rows, 0] = decay  # dF/dA
+        columns[rows, 1] = size * t / time_s**2 * decay  # dF/dtau
+        columns[rows, 2 + k] = 1.0  # each hold's own relaxed force
+    sigma_a, sigma_tau = _fisher_sigmas(columns, noise_n / math.sqrt(plan.hold_samples))[:2]
+    # ratio = A / (step_n - A): d ratio / dA = step_n / (step_n - A)^2
+    sigma_ratio = sigma_a * step_n / max(step_n - size, 1e-9) ** 2
+    return {"relaxation_ratio": float(sigma_ratio), "relaxation_time_s": float(sigma_tau)}
+
+
+def _fisher_sigmas(jacobian: np.ndarray, scatter: float) -> np.ndarray:
+    """``scatter * sqrt(diag((J^T J)^-1))`` (inf where J does not see a direction)."""
+    information = jacobian.T @ jacobian
+    try:
+        covariance = np.linalg.inv(information)
+    except np.linalg.LinAlgError:
+        return np.full(jacobian.shape[1], math.inf)
+    result: np.ndarray = scatter * np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    return result
+
+
+def design(twin: dict[str, Any], desired_force_n: float) -> Design:
+    """The plan for what ``twin`` (a ``twin.json``) leaves undetermined; see the module."""
+    rows = _rows(twin)
+    value = {n: float(r["value"]) for n, r in rows.items() if r.get("value") is not None}
+    reasons: list[str] = []
+    expected: dict[str, tuple[float, float]] = {}
+    noise = value.get("noise_std", 0.2)
+    base = IdentifyPlan()
+    plan = dataclasses.replace(base, lengths_mm=(base.lengths_mm[0],),
+                               speeds_mm_s=(base.speeds_mm_s[0],), free_reads=2,
+                               free_hold_s=1.0, hold_steps=0, cycles=0)
+    arm_loose = _loose(rows, ARM_NAMES)
+    if arm_loose:
+        arm = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
+               "lag_s": 0.03, **{n: value[n] for n in ARM_NAMES if n in value}}
+        for repeats in range(1, MAX_REPEATS + 1):
+            plan = dataclasses.replace(plan, lengths_mm=base.lengths_mm,
+                                       speeds_mm_s=base.speeds_mm_s, repeats=repeats)
+            sigmas = arm_sigmas(arm, plan)
+            if all(sigmas[n] <= TARGET_SHARE * abs(arm[n]) for n in arm_loose):
+                break
+        expected.update({n: (arm[n], sigmas[n]) for n in ARM_NAMES})
+        reasons.append(f"{', '.join(arm_loose)} not determined: polled moves, "
+                       f"{plan.repeats} pass(es) over {len(plan.lengths_mm)} lengths x "
+                       f"{len(plan.speeds_mm_s)} speeds")
+    relax_loose = _loose(rows, RELAXATION)
+    if relax_loose:
+        ratio = value.get("relaxation_ratio", 0.25) or 0.25
+        time_s = value.get("relaxation_time_s", UNKNOWN_TIME_S) if (
+            "relaxation_time_s" in rows and rows["relaxation_time_s"].get("determined")
+        ) else UNKNOWN_TIME_S
+        longest = HOLD_TIMES * time_s
+        hold_s = (*(t for t in base.hold_s if t < longest), longest)
+        step_n = base.hold_force_ratio * desired_force_n * (1 + ratio)
+        for holds in range(2, MAX_HOLDS + 1):
+            plan = dataclasses.replace(plan, hold_s=hold_s, hold_steps=holds)
+            sigmas = relaxation_sigmas(ratio, time_s, step_n, noise, plan)
+            if (sigmas["relaxation_ratio"] <= TARGET_SHARE * ratio
+                    and sigmas["relaxation_time_s"] <= TARGET_SHARE * time_s):
+                break
+        expected.update({"relaxation_ratio": (ratio, sigmas["relaxation_ratio"]),
+                         "relaxation_time_s": (time_s, sigmas["relaxation_time_s"])})
+        reasons.append(f"{', '.join(relax_loose)} not determined (member {twin['member']}): "
+                       f"step-and-hold, {plan.hold_steps} holds of {longest:.2g} s "
+                       f"(6 time constants of {time_s:.2g} s)")
+    if "hysteresis_loss" in rows and _loose(rows, HYSTERESIS):
+        plan = dataclasses.replace(plan, cycles=base.cycles,
+                                   hold_steps=max(plan.hold_steps, 2))
+        reasons.append(f"hysteresis not determined: {plan.cycles} cycles of easing off "
+                       "and pressing in")
+    sensor_loose = _loose(rows, SENSOR)
+    if sensor_loose:
+        plan = dataclasses.replace(plan, free_reads=base.free_reads,
+                                   free_hold_s=base.free_hold_s)
+        samples = plan.free_reads * plan.free_samples
+        expected["noise_std"] = (noise, noise / math.sqrt(2 * samples))
+        reasons.append(f"{', '.join(sensor_loose)} not determined: a free-space hold of "
+                       f"{plan.free_hold_s:g} s")
+    if not reasons:
+        reasons.append("the twin determines every parameter this plan could: a minimal "
+                       "plan (one move, one press) checks the cell is the twin's")
+    return Design(plan, reasons, expected)
+
+
+def design_from_file(path: Path, desired_force_n: float) -> Design:
+    """:func:`design` of a ``twin.json`` file (or of the folder holding it)."""
+    file = path / "twin.json" if path.is_dir() else path
+    return design(json.loads(file.read_text(encoding="utf-8")), desired_force_n)
