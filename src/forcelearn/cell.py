@@ -412,7 +412,8 @@ class Cell:
         self.tares += 1
         if self.press_guard is not None:  # free space reads 0 from now on
             self.press_guard.note(self.reached_pose().position_mm, 0.0)
-        self.zero_taken_at(self.pose.quaternion)
+        if hardware:  # a software zero leaves the sensor's own zero and its calibrated bias
+            self.zero_taken_at(self.pose.quaternion)
         if self.on_tare is not None:
             self.on_tare(self.pose)
 

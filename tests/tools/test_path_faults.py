@@ -302,3 +302,25 @@ def test_a_sensor_reboot_mid_pass_never_presses_past_the_limit_nor_reads_off_aft
     assert watched.max_contact_n <= 60.0
     assert watched.truths[0].zeros_in_contact == 0
     assert len(errors) >= 6 and max(errors) <= 3 * sigma_n
+
+
+def test_a_software_zero_at_a_turned_pose_leaves_the_calibrated_bias(tmp_path: Path) -> None:
+    """A software zero with the tool turned 40 deg keeps the calibration of the sensor's zero.
+
+    ``Cell.check_zero`` used to re-derive it for the turned pose: off by the tool's weight.
+    """
+    from forcelearn.devices import Pose
+    from forcelearn.site.config import load_cell_config
+
+    config = load_cell_config(cylinder_config(tmp_path))
+    with CellSession(config, seed=0) as session:
+        cell = session.cell
+        assert cell is not None and cell.calibration is not None
+        cell.zero_in_free_space()
+        here = cell.pose
+        half = np.radians(40.0) / 2
+        cell.move_to(Pose(here.x_mm, here.y_mm, here.z_mm,
+                          (float(np.cos(half)), float(np.sin(half)), 0.0, 0.0)))
+        calibration, compensation = cell.calibration, cell.compensation
+        cell.check_zero(lambda std: 1e9)
+        assert cell.calibration is calibration and cell.compensation is compensation

@@ -21,14 +21,19 @@ from __future__ import annotations
 from forcelearn.calibration.model import Calibration
 from forcelearn.cell import Cell
 
-ZERO_CHECK_SIGMAS = 4.0
-"""The check's bound in sigma of a fault-free check's noise (the §5 run's value)."""
+ZERO_CHECK_SIGMAS = 5.0
+"""The zero check's bound, in sigma of what a fault-free check reads (5, and a check beyond it
+reads once more before it voids anything: fault-free checks measured about 1.2x the model's
+sigma, and at 4 sigma without a second read fault-free runs voided good trials,
+docs/fuzzing.md): the check burst's own noise (the filter's standard deviation of its mean),
+the zero's (the last check's burst, or one sensor sample after a zero of the sensor's own) and
+the bias's drift since the zero (``[filter] bias_drift_n_per_sqrt_s``)."""
 
 
 def zero_check_bound(cell: Cell, burst_std_n: float) -> float:
     """The bound of a check burst of this standard deviation (N) on ``cell``, N.
 
-    4 sigma of sqrt(burst variance + the zero's variance + drift^2 x time since the zero).
+    ZERO_CHECK_SIGMAS x sqrt(burst variance + the zero's variance + drift^2 x time since the zero).
     """
     sensor_sigma = cell.force_filter.measurement_variance_n2 ** 0.5
     zero_std = sensor_sigma if cell.zero_std_n is None else cell.zero_std_n
@@ -48,11 +53,15 @@ def keep_calibration(cell: Cell, calibration: Calibration | None) -> None:
 def check_zero(cell: Cell) -> tuple[float, float]:
     """The zero check here, in free space: (reading N, bound N); the calibration kept.
 
-    Within the bound the burst's mean becomes the software zero (as ``Cell.check_zero``);
+    A check beyond the bound reads once more (a noise outlier does not repeat). Within the
+    bound the burst's mean becomes the software zero (as ``Cell.check_zero``);
     beyond it nothing is zeroed and the caller voids what was read since the last zero.
     """
     calibration = cell.calibration
     try:
-        return cell.check_zero(lambda std: zero_check_bound(cell, std))
+        force, bound = cell.check_zero(lambda std: zero_check_bound(cell, std))
+        if abs(force) > bound:  # a moved zero reads so again; an outlier of the noise does not
+            force, bound = cell.check_zero(lambda std: zero_check_bound(cell, std))
+        return force, bound
     finally:
         keep_calibration(cell, calibration)

@@ -64,20 +64,13 @@ from forcelearn.tasks.bias_watch import CONTACT_N, BiasWatch
 from forcelearn.tasks.recovery import AwayFrom, RecoveryFailed, recoverable, retract
 from forcelearn.tasks.recovery import retract_and_retare as leave_and_rezero
 from forcelearn.tasks.surface import SurfaceYOutput
+from forcelearn.tasks.zero_check import ZERO_CHECK_SIGMAS, zero_check_bound
 from forcelearn.tools.experiments.records import step_to_json, tare_to_json
 
 log = logging.getLogger(__name__)
 
 EVENTS_FILE = "faults.jsonl"
 VOIDED_FILE = "voided.jsonl"
-ZERO_CHECK_SIGMAS = 5.0
-"""The zero check's bound, in sigma of what a fault-free check reads (5, and a check beyond it
-reads once more before it voids anything: fault-free checks measured about 1.2x the model's
-sigma, and at 4 sigma without a second read fault-free runs voided good trials,
-docs/fuzzing.md): the check burst's own
-noise (the filter's standard deviation of its mean), the zero's (the last check's burst, or one
-sensor sample after a zero of the sensor's own) and the bias's drift since the zero
-(``[filter] bias_drift_n_per_sqrt_s``)."""
 IN_CONTACT_FILE = "IN_CONTACT"
 FALSE_ALARM_WIDENING = 1.5
 """A bias-step alarm whose zero check finds the zero in place widens the watch's margins by
@@ -352,13 +345,7 @@ class RunRecovery:
 
     def zero_check_bound(self, burst_std_n: float) -> float:
         """The zero check's bound for a check burst of this standard deviation, N."""
-        cell = self.cell
-        sensor_sigma = cell.force_filter.measurement_variance_n2 ** 0.5
-        zero_std = sensor_sigma if cell.zero_std_n is None else cell.zero_std_n
-        drift = cell.force_filter.config.bias_drift_n_per_sqrt_s
-        elapsed = max(cell.time_s - cell.zero_time_s, 0.0)
-        variance = burst_std_n ** 2 + zero_std ** 2 + drift ** 2 * elapsed
-        return float(ZERO_CHECK_SIGMAS * variance ** 0.5)
+        return zero_check_bound(self.cell, burst_std_n)
 
     # ---- inside ------------------------------------------------------------------------------
     @contextlib.contextmanager
