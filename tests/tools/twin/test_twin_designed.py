@@ -47,3 +47,13 @@ def test_more_holds_expect_a_smaller_sigma() -> None:
     designed = design(_twin({"relaxation_ratio", "relaxation_time_s"}), desired_force_n=7.0)
     ratio, sigma = designed.expected["relaxation_ratio"]
     assert sigma <= TARGET_SHARE * ratio
+
+
+def test_the_holds_last_six_of_the_twins_time_constants_when_it_has_one() -> None:
+    """A time known to half its size sets the holds; an unknown one, the slowest foam's 1 s."""
+    twin = _twin({"relaxation_ratio", "relaxation_time_s"})
+    for row in twin["parameters"]:
+        if row["name"] == "relaxation_time_s":
+            row["sigma"] = 0.05  # 0.5 +- 0.05 s: loose to 3 %, known to 10 %
+    assert max(design(twin, 7.0).plan.hold_s) == 6 * 0.5
+    assert max(design(_twin({"relaxation_time_s"}), 7.0).plan.hold_s) == 6 * 1.0

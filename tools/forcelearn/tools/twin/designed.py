@@ -84,6 +84,16 @@ def _loose(rows: dict[str, dict[str, Any]], names: tuple[str, ...]) -> list[str]
     return [n for n in names if n not in rows or not rows[n].get("determined")]
 
 
+def _known(rows: dict[str, dict[str, Any]], name: str, otherwise: float) -> float:
+    """The twin's value of ``name`` if known to half its size, else ``otherwise``."""
+    row = rows.get(name)
+    if row is None or row.get("value") is None:
+        return otherwise
+    value, sigma = float(row["value"]), row.get("sigma")
+    known = sigma is not None and math.isfinite(float(sigma)) and float(sigma) < 0.5 * value
+    return value if known and value > 0 else otherwise
+
+
 def arm_sigmas(arm: dict[str, float], plan: IdentifyPlan, poll_s: float = POLL_S
                ) -> dict[str, float]:
     """Expected 1-sigma of ``ARM_NAMES`` from the plan's polled moves (Fisher information)."""
@@ -172,9 +182,7 @@ def design(twin: dict[str, Any], desired_force_n: float) -> Design:
     relax_loose = _loose(rows, RELAXATION)
     if relax_loose:
         ratio = value.get("relaxation_ratio", 0.25) or 0.25
-        time_s = value.get("relaxation_time_s", UNKNOWN_TIME_S) if (
-            "relaxation_time_s" in rows and rows["relaxation_time_s"].get("determined")
-        ) else UNKNOWN_TIME_S
+        time_s = _known(rows, "relaxation_time_s", UNKNOWN_TIME_S)
         longest = HOLD_TIMES * time_s
         hold_s = (*(t for t in base.hold_s if t < longest), longest)
         step_n = base.hold_force_ratio * desired_force_n * (1 + ratio)
@@ -188,7 +196,9 @@ def design(twin: dict[str, Any], desired_force_n: float) -> Design:
                          "relaxation_time_s": (time_s, sigmas["relaxation_time_s"])})
         reasons.append(f"{', '.join(relax_loose)} not determined (member {twin['member']}): "
                        f"step-and-hold, {plan.hold_steps} holds of {longest:.2g} s "
-                       f"(6 time constants of {time_s:.2g} s)")
+                       f"(6 time constants of {time_s:.2g} s"
+                       + (", the slowest foam expected: the twin has no time)"
+                          if time_s == UNKNOWN_TIME_S else ", the twin's time)"))
     if "hysteresis_loss" in rows and _loose(rows, HYSTERESIS):
         plan = dataclasses.replace(plan, cycles=base.cycles,
                                    hold_steps=max(plan.hold_steps, 2))
