@@ -23,8 +23,10 @@ The stiffness in use (N/mm, the fast, unrelaxed one):
 * the part's known stiffness (:meth:`PressGuard.know`: the probe's fits x
   :data:`KNOWN_FACTOR`), raised by what the readings show
   (:data:`OBSERVED_FACTOR` x the steepest rise seen between two readings in contact);
-* without a probe, what the readings show, once two readings in contact pressed in
-  :data:`MIN_PAIR_MM` or more apart (or less, with a rise of :data:`PAIR_SIGMAS` x the noise);
+* without a probe, what the readings show, once :data:`PAIRS_TO_TRUST` pairs of readings in
+  contact (each pair
+  pressed in :data:`MIN_PAIR_MM` or more apart, or less with a rise of :data:`PAIR_SIGMAS` x
+  the noise) have measured a rise: the steepest (one pair across a fault can read far softer);
   a rise under :data:`NOISE_SIGMAS` x the noise measures nothing (noise over a short press-in
   would make a soft part look stiff, and the bias watch widens to that stiffness);
 * before either, ``unknown_n_per_mm``: the stiffest part the site expects
@@ -47,6 +49,11 @@ from forcelearn.filtering import ForceFilterConfig
 KNOWN_FACTOR = 2.0
 """The known stiffness's allowance: a fresh indentation of foam meets up to (1 + relaxation
 ratio) x its relaxed stiffness, and a foam stiffens with depth beyond the probed forces."""
+PAIRS_TO_TRUST = 2
+"""Rises (pairs of readings in contact) seen before the steepest replaces the site's default: one
+pair straddling a bias step read as less force, or a move that stopped short, measures a part
+far softer than it is (a probe on 8 N/mm with EGM faults measured 0.49 N/mm from one pair and
+pressed to 77 N); the steepest of two needs two faults to be low."""
 OBSERVED_FACTOR = 1.5
 """The allowance on a stiffness seen between two readings (the part may stiffen deeper)."""
 CONTACT_N = 2.0
@@ -102,6 +109,8 @@ class PressGuard:
     """The part's known stiffness x :data:`KNOWN_FACTOR` (None: not known), N/mm."""
     observed_n_per_mm: float | None = None
     """The steepest rise seen between two readings in contact, N/mm (None: none yet)."""
+    pairs: int = 0
+    """Rises measured so far (the steepest is used from :data:`PAIRS_TO_TRUST` on)."""
     first_contact_n_per_mm: float | None = None
     """The steepest first contact seen: a reading in contact over the press-in from a reading in
     free space, N/mm (None: none yet). The surface lies somewhere between the two, so it is at
@@ -129,7 +138,8 @@ class PressGuard:
     @property
     def stiffness_n_per_mm(self) -> float:
         """The stiffness in use, N/mm (the module docstring)."""
-        seen = None if self.observed_n_per_mm is None else OBSERVED_FACTOR * self.observed_n_per_mm
+        seen = (None if self.observed_n_per_mm is None or self.pairs < PAIRS_TO_TRUST
+                else OBSERVED_FACTOR * self.observed_n_per_mm)
         if self.known_n_per_mm is None and seen is None:
             return self.unknown_n_per_mm
         return max(self.known_n_per_mm or 0.0, seen or 0.0)
@@ -161,6 +171,7 @@ class PressGuard:
                     pressed >= MIN_PAIR_MM
                     or (pressed >= MIN_STEP_MM and rise_n >= PAIR_SIGMAS * self.noise_n)):
                 rise = rise_n / pressed
+                self.pairs += 1
                 if rise > (self.observed_n_per_mm or 0.0):  # a part never pulls: rises only
                     self.observed_n_per_mm = rise
         force = max(float(force_n), 0.0)
@@ -177,7 +188,7 @@ class PressGuard:
     def state_dict(self) -> dict[str, Any]:
         """The last reading and the stiffness seen (JSON-able; a resumed run goes on from it)."""
         last = None if self.last is None else ([float(v) for v in self.last[0]], self.last[1])
-        return {"last": last, "observed_n_per_mm": self.observed_n_per_mm,
+        return {"last": last, "observed_n_per_mm": self.observed_n_per_mm, "pairs": self.pairs,
                 "first_contact_n_per_mm": self.first_contact_n_per_mm,
                 "referenced": self.referenced}
 
@@ -186,6 +197,8 @@ class PressGuard:
         last = state["last"]
         self.last = None if last is None else (np.asarray(last[0], dtype=float), float(last[1]))
         self.observed_n_per_mm = state["observed_n_per_mm"]
+        # older states: a stiffness seen was in use
+        self.pairs = int(state.get("pairs", PAIRS_TO_TRUST if self.observed_n_per_mm else 0))
         self.referenced = bool(state.get("referenced", False))  # older checkpoints: none
         self.first_contact_n_per_mm = state.get("first_contact_n_per_mm")
 

@@ -139,11 +139,13 @@ def test_the_stiffness_in_use_is_known_else_seen_else_the_sites_default() -> Non
     assert guard.stiffness_n_per_mm == 20.0
     guard.note(np.array([0.0, 0.0, 0.0]), 5.0)
     guard.note(np.array([0.0, -1.0, 0.0]), 8.0)  # 3 N over 1 mm pressed in
+    assert guard.stiffness_n_per_mm == 20.0  # one pair may straddle a fault: not yet
+    guard.note(np.array([0.0, -2.0, 0.0]), 11.5)  # 3.5 N over the next 1 mm
     seen = guard.stiffness_n_per_mm
     assert 3.0 < seen < 20.0
     guard.know(10.0)
     assert guard.stiffness_n_per_mm == max(KNOWN_FACTOR * 10.0, seen)
-    headroom = LIMIT_N - 8.0 - NOISE_SIGMAS * 0.1
+    headroom = LIMIT_N - 11.5 - NOISE_SIGMAS * 0.1
     assert guard.allowed_mm() == pytest.approx(headroom / guard.stiffness_n_per_mm)
 
 
@@ -155,7 +157,7 @@ def test_a_rise_within_the_noise_measures_no_stiffness() -> None:
     assert guard.observed_n_per_mm is None
     assert guard.stiffness_n_per_mm == 20.0
     guard.note(np.array([0.0, -1.5, 0.0]), 17.5)  # 10 N over 1 mm: a stiffness
-    assert guard.observed_n_per_mm == pytest.approx(10.0)
+    assert guard.observed_n_per_mm == pytest.approx(10.0) and guard.pairs == 1
 
 
 class ShortArm(Spring):
@@ -247,3 +249,17 @@ def test_a_first_contact_from_free_space_is_kept_as_a_stiffness_seen_not_used() 
     restored = PressGuard(LIMIT_N, 20.0, noise_n=0.1)
     restored.load_state_dict(guard.state_dict())
     assert restored.first_contact_n_per_mm == pytest.approx(10.0)
+
+
+def test_one_pair_across_a_bias_step_does_not_make_a_stiff_part_look_soft() -> None:
+    """A step read as less force between two readings: 0.5 N over 1 mm of an 8 N/mm part.
+
+    Alone it would let the next move press 70 mm; the site's default stays until a second
+    pair, and the steepest of the two is used.
+    """
+    guard = PressGuard(LIMIT_N, 20.0, noise_n=0.05)
+    guard.note(np.array([0.0, 0.0, 0.0]), 6.0)
+    guard.note(np.array([0.0, -1.0, 0.0]), 6.5)  # 8 N true rise, 7.5 N of it a bias step
+    assert guard.stiffness_n_per_mm == 20.0
+    guard.note(np.array([0.0, -1.5, 0.0]), 10.5)  # the next pair: 8 N/mm
+    assert guard.stiffness_n_per_mm == pytest.approx(1.5 * 8.0)
