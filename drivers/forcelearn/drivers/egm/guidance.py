@@ -502,7 +502,8 @@ class Guidance:
     def in_position_at(self, feedback: Pose | None, planned: Pose | None) -> bool:
         """:meth:`in_position` of an EgmRobot with this feedback and planned pose."""
         target = self.target  # (the PC's planned pose must be the target too)
-        if target is None or feedback is None or self.planned != target:
+        sent = self.planned
+        if target is None or feedback is None or (sent is not target and sent != target):
             return False
         asked = (feedback, planned, target)
         known = self._in_position

@@ -352,13 +352,14 @@ class EgmControllerModel:
             self._timed_out_s = t_s
         self.pose = pose = self.motion.advance_to(t_s)
         published = self._published
-        if pose != published or self.physics.pose is not published:
+        if (pose is not published and pose != published) or self.physics.pose is not published:
             self.physics.set_pose(pose)  # else at rest where it was published (and observed)
             self._published = pose
         t0, p0 = self._last_pose_s
         self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
         self._last_pose_s = (t_s, pose)
-        if pose != self._feedback_joints_pose:  # at rest the axes stay
+        joints_pose = self._feedback_joints_pose
+        if pose is not joints_pose and pose != joints_pose:  # at rest the axes stay
             self._feedback_joints = self._joints(pose, self._feedback_joints)
             self._feedback_joints_pose = pose
 
@@ -421,8 +422,8 @@ class EgmControllerModel:
         """
         self._last_read_s = t_s
         commands = getattr(self.motion, "commands", None)
-        if (target == self.planned and self._checks.passed(target) and commands is not None
-                and not commands(target)):
+        if ((target is self.planned or target == self.planned) and self._checks.passed(target)
+                and commands is not None and not commands(target)):
             self.targets_read += 1
         else:
             self._plan(target, None, t_s)
