@@ -70,25 +70,25 @@ class CarryingSocket(DatagramSocket, Protocol):
     def send_carried(self, data: carried.Datagram, address: Any, /) -> None: ...  # noqa: D102
 
 
-Done = Callable[[int, int, Pose], bool]
-"""Whether the PC answers an EgmRobot (header.tm ms, feedBack.time µs, feedBack.cartesian)
-otherwise than with its last reply again: a lockstep wait's loop ends at it."""
+Answer = Callable[[int, int, Pose, Pose], Pose | None]
+"""The planned pose the PC answers an EgmRobot with, from its header.tm (ms), feedBack.time
+(µs), feedBack.cartesian and planned.cartesian; None: a lockstep wait reads that EgmRobot."""
 
 
 class RestingSocket(CarryingSocket, Protocol):
-    """A carrying end that also runs in one jump the cycles the PC answers the same.
+    """A carrying end that also runs in one jump the cycles whose answers the PC computes unseen.
 
-    ``rest_carried(reply, address, done)`` is ``send_carried(reply, address)``
-    followed by the controller's cycles that ``reply`` (planning the pose in
-    effect) answers again: each whose EgmRobot makes ``done`` false, up to the
-    first that makes it true, which ``recv_carried`` gives next. It returns
-    (cycles jumped, the last one's header.tm and feedBack.time). Each jumped
-    cycle is one the driver would have taken and answered with the same
-    planned pose: :meth:`.guidance.Guidance.rested` counts them.
+    ``rest_carried(reply, address, answer)`` is ``send_carried(reply, address)``
+    followed by the controller's cycles whose EgmRobot ``answer`` answers with
+    a planned pose (the PC's next reply, taken), up to the first it answers
+    None, which ``recv_carried`` gives next. It returns (cycles jumped, the
+    last one's header.tm and feedBack.time). Each jumped cycle is one the
+    driver would have taken and answered: :meth:`.guidance.Guidance.rested`
+    counts them.
     """
 
     def rest_carried(  # noqa: D102
-        self, data: carried.Datagram, address: Any, done: Done, /
+        self, data: carried.Datagram, address: Any, answer: Answer, /
     ) -> tuple[int, int, int]: ...
 
 
@@ -247,23 +247,33 @@ class EgmChannel(Driver):
                 self._pending = address
                 return
 
-    def _rest(self, ends: Callable[[float, Pose], bool]) -> None:
-        """Lockstep in process, at rest: answer the held message, jump what that answers again.
+    def _rest(self, ends: Callable[[float, Pose, Pose], bool]) -> None:
+        """Lockstep in process: answer the held message, jump the cycles answered unseen.
 
-        While the reply repeats (:meth:`.guidance.Guidance.resting`: the target
-        planned), the controller runs the cycles whose EgmRobot a wait would
-        only answer again, up to the first at whose controller time
-        (:meth:`.guidance.Guidance.time_at`) and feedback pose ``ends`` is true,
+        The controller runs the cycles whose EgmRobot a wait would only
+        answer: at whose controller time (:meth:`.guidance.Guidance.time_at`),
+        feedback and planned pose ``ends`` is false, each answered with the
+        ramp's next planned pose (:meth:`.guidance.Guidance.next_planned`), up
+        to the first at which ``ends`` is true or the answer would be withheld,
         which :meth:`_next_message` then reads as usual.
         """
         rester, address, guidance = self._rester, self._pending, self._guidance
-        if rester is None or address is None or not guidance.resting():
+        if rester is None or address is None:
             return
-        reply = guidance.reply_carried()  # at rest: the planned pose is sent as it is, unchecked
-        self._pending = None
         try:
-            jumped, tm_ms, time_us = rester.rest_carried(
-                reply, address, lambda tm, us, pose: ends(guidance.time_at(tm, us), pose))
+            reply = guidance.reply_carried()
+        except SafetyStop as exc:  # as _next_message: logged, nothing sent
+            log.error("EGM answer withheld: %s", exc)
+            self._pending = None
+            return
+        self._pending = None
+        time_at, next_planned = guidance.time_at, guidance.next_planned
+
+        def answer(tm_ms: int, time_us: int, feedback: Pose, planned: Pose) -> Pose | None:
+            return None if ends(time_at(tm_ms, time_us), feedback, planned) else next_planned()
+
+        try:
+            jumped, tm_ms, time_us = rester.rest_carried(reply, address, answer)
         except OSError as exc:
             raise LinkError(f"cannot send EgmSensor to {address}: {exc}") from exc
         guidance.rested(jumped, tm_ms, time_us)

@@ -335,20 +335,19 @@ class EgmRobot(EgmChannel):
                 )
             if time.monotonic() > wall_deadline:
                 raise LinkTimeout(f"controller time did not advance {span_s} s in wall time")
-            if self._rester is not None and guidance.resting():  # in process: in one jump
+            if self._rester is not None:  # in process: the cycles it only answers, in one jump
                 self._rest_during(wait, until_in_position)
             self._next_message()
 
     def _rest_during(self, wait: _Waiting, until_in_position: bool) -> None:
         """Jump the cycles at which ``wait``'s loop would only answer again (:meth:`_rest`)."""
         guidance = self._guidance
-        latest = guidance.latest
-        assert latest is not None
-        planned = latest.planned  # the controller's: it stays while the PC's reply repeats
+        in_position_at, settled, spent = guidance.in_position_at, wait.settled, wait.spent
 
-        def ends(now: float, feedback: Pose) -> bool:
-            in_position = until_in_position and guidance.in_position_at(feedback, planned)
-            return (until_in_position and wait.settled(now, in_position)) or wait.spent(now)
+        def ends(now: float, feedback: Pose, planned: Pose) -> bool:
+            if until_in_position and settled(now, in_position_at(feedback, planned)):
+                return True
+            return spent(now)
 
         self._rest(ends)
 

@@ -374,13 +374,32 @@ class Guidance:
         self._counts["replies"] += 1
         return carried.carry_sensor(message, self.config.version)
 
+    def next_planned(self) -> Pose | None:
+        """Take the planned pose :meth:`reply_carried` would send next, not building the reply.
+
+        The ramp's step and its check, as there; the reply is counted later
+        (:meth:`rested`). None, nothing changed, if the reply would be withheld.
+        """
+        planned = self.planned
+        if planned is None or self.target is None:
+            return None
+        if not (planned is self.target and planned is self._sent):  # else at rest: sent as is
+            period = self.config.sample_period_s
+            planned = step_toward(
+                planned, self.target, self.speed_mm_s * period, TURN_DEG_S * period
+            )
+            if unsafe_reason(planned, self.config.limits, FEEDBACK_NORM_TOLERANCE) is not None:
+                return None
+            self.planned = self._sent = planned
+        return planned
+
     def resting(self) -> bool:
         """Whether every reply from now on repeats the last one's planned pose (the target's)."""
         planned = self.planned
         return planned is not None and planned is self.target and planned is self._sent
 
     def rested(self, cycles: int, tm_ms: int, time_us: int) -> None:
-        """Count ``cycles`` fresh EgmRobots taken and answered at rest unseen (``rest_carried``).
+        """Count ``cycles`` fresh EgmRobots taken and answered unseen (``rest_carried``).
 
         The counters and seqnos move as if each had come; :attr:`latest` takes the last one's
         seqno and stamps (``tm_ms``, ``time_us``): the next datagram is judged by them, replaces it.
@@ -483,7 +502,8 @@ class Guidance:
     def in_position_at(self, feedback: Pose | None, planned: Pose | None) -> bool:
         """:meth:`in_position` of an EgmRobot with this feedback and planned pose."""
         target = self.target  # (the PC's planned pose must be the target too)
-        if target is None or feedback is None or self.planned != target:
+        sent = self.planned
+        if target is None or feedback is None or (sent is not target and sent != target):
             return False
         asked = (feedback, planned, target)
         known = self._in_position

@@ -9,6 +9,7 @@ fraction so the two arrive together. Distances in mm, angles in degrees.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -25,12 +26,29 @@ def finite_pose(pose: Pose | None) -> bool:
     )
 
 
+_last_angle: tuple[Any, Any, float] = (None, None, 0.0)  # angle_deg's latest (q0, q1, angle)
+
+
 def angle_deg(q0: tuple[float, ...], q1: tuple[float, ...]) -> float:
     """Rotation angle between two quaternions, degrees (inf if either is not finite or zero).
 
     Unit quaternions are used as they are; others are normalised first (a
-    controller's datagram may carry any four numbers).
+    controller's datagram may carry any four numbers). The latest answer is
+    kept: a ramp asks for the same two orientations cycle after cycle (equal
+    values give the same angle to the bit: a zero's sign cannot change it,
+    and NaN is never equal).
     """
+    global _last_angle
+    last = _last_angle  # one tuple, replaced whole: drivers in other threads may share it
+    if q0 == last[0] and q1 == last[1]:
+        return last[2]
+    angle = _angle_deg(q0, q1)
+    _last_angle = (q0, q1, angle)
+    return angle
+
+
+def _angle_deg(q0: tuple[float, ...], q1: tuple[float, ...]) -> float:
+    """:func:`angle_deg` computed."""
     n0, n1 = math.hypot(*q0), math.hypot(*q1)
     if not (math.isfinite(n0) and math.isfinite(n1) and n0 > 0 and n1 > 0):
         return math.inf
@@ -49,12 +67,40 @@ def step_toward(pose: Pose, target: Pose, max_mm: float, max_deg: float) -> Pose
     """Return ``pose`` moved toward ``target`` by at most ``max_mm`` and ``max_deg``."""
     if pose == target and max_mm >= 0.0 and max_deg >= 1e-3 and finite_pose(pose):
         return target  # at rest (most cycles): no distance nor angle to compute
-    error = target.position_mm - pose.position_mm
-    distance = float(np.linalg.norm(error))
+    error = np.array([target.x_mm - pose.x_mm, target.y_mm - pose.y_mm, target.z_mm - pose.z_mm],
+                     dtype=float)  # the arrays' subtraction, component by component
+    distance = math.sqrt(float(error.dot(error)))  # numpy.linalg.norm's own operations
     turn = angle_deg(pose.quaternion, target.quaternion)
     if distance <= max_mm and turn <= max_deg:
         return target
     fraction = min(
         max_mm / distance if distance > 0 else 1.0, max_deg / turn if turn > 0 else 1.0
     )
-    return blend_poses(pose, target, fraction)
+    return blend(pose, target, fraction)
+
+
+_last_unit: tuple[Any, Any] = (None, None)  # blend's latest (quaternion, normalised)
+
+
+def blend(a: Pose, b: Pose, fraction: float) -> Pose:
+    """:func:`~forcelearn.devices.blend_poses` to the bit, cheaper when the orientation stays.
+
+    The position's three components are the same float operations as the
+    array's. When both orientations hold equal values (a ramp that only
+    translates) the nlerp is ``q0 + fraction * 0``: ``q0`` with any zero made
+    +0.0, which is then normalised as ``blend_poses`` does (the latest kept).
+    """
+    qa = a.quaternion
+    if fraction >= 1.0 or qa != b.quaternion or not math.isfinite(fraction):
+        return blend_poses(a, b, fraction)
+    global _last_unit
+    q = tuple(c + 0.0 for c in qa)
+    last = _last_unit  # (one tuple, replaced whole, as angle_deg's)
+    if q != last[0]:  # (NaN is never equal: a kept q is finite)
+        if not all(math.isfinite(c) for c in q):
+            return blend_poses(a, b, fraction)  # inf - inf: not q0 + 0
+        unit = np.asarray(q)
+        unit = unit / np.linalg.norm(unit)
+        last = _last_unit = (q, tuple(float(c) for c in unit))
+    return Pose(a.x_mm + fraction * (b.x_mm - a.x_mm), a.y_mm + fraction * (b.y_mm - a.y_mm),
+                a.z_mm + fraction * (b.z_mm - a.z_mm), last[1])

@@ -238,6 +238,10 @@ class EgmControllerModel:
             if message.planned_joints_deg:
                 self._count_wrong_mode(t_s, "planned.joints", "\\Pose")
             return  # no position data: the controller keeps the last planned pose
+        self._plan(target, message.speed_ref, t_s)
+
+    def _plan(self, target: Pose, speed_ref: tuple[float, ...] | None, t_s: float) -> None:
+        """Pose mode: check ``target`` and command it (a motion error if refused)."""
         refusal, joints = self._checks.checked(target)
         if refusal:
             self._motion_error(t_s, refusal)
@@ -245,7 +249,7 @@ class EgmControllerModel:
         self.planned = target
         self.planned_joints = self.planned_joints if joints is None else joints
         tau = self.config.servo.time_constant_s
-        self.motion.command(feed_forward_pose(target, message.speed_ref, tau), t_s)
+        self.motion.command(feed_forward_pose(target, speed_ref, tau), t_s)
         self.targets_read += 1
 
     def _apply_joints(self, message: codec.SensorMessage, t_s: float) -> None:
@@ -348,13 +352,14 @@ class EgmControllerModel:
             self._timed_out_s = t_s
         self.pose = pose = self.motion.advance_to(t_s)
         published = self._published
-        if pose != published or self.physics.pose is not published:
+        if (pose is not published and pose != published) or self.physics.pose is not published:
             self.physics.set_pose(pose)  # else at rest where it was published (and observed)
             self._published = pose
         t0, p0 = self._last_pose_s
         self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
         self._last_pose_s = (t_s, pose)
-        if pose != self._feedback_joints_pose:  # at rest the axes stay
+        joints_pose = self._feedback_joints_pose
+        if pose is not joints_pose and pose != joints_pose:  # at rest the axes stay
             self._feedback_joints = self._joints(pose, self._feedback_joints)
             self._feedback_joints_pose = pose
 
@@ -392,6 +397,52 @@ class EgmControllerModel:
         return round(t_s * 1000), self.config.clock_epoch_us + round(t_s * 1e6)
 
     # -- cycles that only follow (the in-process route's jump: CycleLoop.rest) --------------
+
+    def readable(self, datagram: carried.Datagram) -> Pose | None:
+        """The planned pose of ``datagram`` if a jump may read it (:meth:`read_planned`), else None.
+
+        So when guidance runs in pose mode and ``datagram`` is carried and
+        plans a pose with no speedRef: reading it is :meth:`read_planned`.
+        """
+        message = carried.received_sensor(datagram, self.config.version)
+        if (message is None or message.planned is None or message.speed_ref is not None
+                or self.mci is not codec.MciState.RUNNING
+                or self.rapid is not codec.RapidState.RUNNING or self._timed_out_s is not None
+                or self.config.mode != "pose"
+                or not self.config.comm_timeout_s > self.config.sample_period_s):
+            return None
+        return message.planned
+
+    def read_planned(self, target: Pose, t_s: float) -> None:
+        """The cycle at ``t_s`` reads an EgmSensor planning ``target`` (:meth:`readable`).
+
+        :meth:`apply_sensor` of it: the pose in effect, checked and commanded
+        already, is only read again (:meth:`follow_at`'s read); the cycle then
+        goes on with :meth:`move_to` (or :meth:`restart`, then :meth:`robot_carried`).
+        """
+        self._last_read_s = t_s
+        commands = getattr(self.motion, "commands", None)
+        if ((target is self.planned or target == self.planned) and self._checks.passed(target)
+                and commands is not None and not commands(target)):
+            self.targets_read += 1
+        else:
+            self._plan(target, None, t_s)
+
+    def move_to(self, t_s: float) -> Pose:
+        """The cell moved to the cycle at ``t_s`` as :meth:`robot_message` does; the pose reached.
+
+        The EgmRobot is then :meth:`robot_carried` with ``moved``, or :meth:`skip`.
+        """
+        self._move_to(t_s)
+        return self.pose
+
+    def wraps(self) -> bool:
+        """Whether the next EgmRobot's seqno is 0 (a wrap: it looks like a new session)."""
+        return self._seqno == 0
+
+    def wraps_next(self) -> bool:
+        """Whether the EgmRobot after the next has seqno 0."""
+        return self._seqno == 0xFFFFFFFF
 
     def can_follow(self, datagram: carried.Datagram) -> bool:
         """Whether each cycle that reads the EgmSensor ``datagram`` only follows the arm.

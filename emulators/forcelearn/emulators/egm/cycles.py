@@ -32,9 +32,10 @@ from forcelearn.emulators.egm.controller import EgmControllerModel
 from forcelearn.emulators.egm.faults import EgmFaultInjector
 from forcelearn.protocols.egm.carried import Datagram
 
-Done = Callable[[int, int, Pose], bool]
-"""Whether the PC's next answer may differ, from an EgmRobot's header.tm (ms), feedBack.time
-(µs) and feedBack.cartesian: :meth:`CycleLoop.rest` stops its jump at the first such cycle."""
+Answer = Callable[[int, int, Pose, Pose], Pose | None]
+"""The planned pose of the PC's answer to an EgmRobot, from its header.tm (ms), feedBack.time
+(µs), feedBack.cartesian and planned.cartesian; None: the PC reads that EgmRobot itself
+(:meth:`CycleLoop.rest` stops its jump there)."""
 
 
 class CycleLoop:
@@ -133,43 +134,59 @@ class CycleLoop:
         self.t_s = self.clock.advance_to(next_t)
         return self.t_s
 
-    def rest(self, reply: Datagram, done: Done) -> tuple[int, int, int, Datagram | None]:
-        """After ``end([reply])``: the cycles that follow in which the PC's answer repeats.
+    def rest(self, reply: Datagram, answer: Answer) -> tuple[int, int, int, Datagram | None]:
+        """After ``end([reply])``: the cycles that follow whose answer the PC computes unseen.
 
-        While ``reply`` plans the pose in effect (:meth:`EgmControllerModel.can_follow`;
-        no fault armed, no restart asked, no pace set), a cycle changes the
-        counters, the cycle time and the cell (the arm, the sponge), and its
-        EgmRobot is the one the PC reads to decide whether it answers again
-        the same: ``done(tm_ms, time_us, feedback)`` of that EgmRobot's
-        header.tm, feedBack.time and feedBack.cartesian says so (False: it
-        would answer ``reply`` again). Such cycles run here, one by one on the
-        model (the same state to the bit as :meth:`begin` and :meth:`end`),
-        without building an EgmRobot nor its answer; the first cycle for which
-        ``done`` is true is run up to its EgmRobot, which is returned to be
-        sent (the cycle then waits for its answer, as after :meth:`begin`).
-        Returns (cycles skipped, the last one's stamps or (0, 0), that
-        EgmRobot or None: no cycle was run for it, :meth:`begin` runs the next).
+        While no fault is armed, no restart asked, no pace set and ``reply``
+        plans a pose with no speedRef (:meth:`EgmControllerModel.readable`),
+        a cycle reads the planned pose (:meth:`EgmControllerModel.read_planned`:
+        the checks, the arm's new segment, or the pose in effect again), moves
+        the cell and builds the EgmRobot the PC reads to decide its answer:
+        ``answer(tm_ms, time_us, feedback, planned)`` of that EgmRobot's
+        header.tm, feedBack.time, feedBack.cartesian and planned.cartesian
+        gives the planned pose of the PC's next EgmSensor, or None when the
+        PC must read this EgmRobot itself (its wait ends, or it would withhold
+        its answer). Such cycles run here, one by one on the model (the same
+        state to the bit as :meth:`begin` and :meth:`end`), without building
+        an EgmRobot nor its answer; the first one ``answer`` refuses (or one
+        that stops guidance, a restart, or the seqno wrapping next) is run up
+        to its EgmRobot, returned to be sent (the cycle then waits for its
+        answer, as after :meth:`begin`). Returns (cycles skipped, the last
+        one's stamps or (0, 0), that EgmRobot or None: no cycle was run for
+        it, :meth:`begin` runs the next).
         """
         model, stamps = self.model, (0, 0)
         if not (self.carried and self.faults.none_armed and self._held is None
                 and not self._late and len(self._inbox) == 1 and self._inbox[0] is reply
-                and self.clock.time_scale == 0 and model.can_follow(reply)):
+                and self.clock.time_scale == 0):
             return 0, *stamps, None
-        skipped, restart = 0, self.restart_requested
-        while not restart.is_set():
+        planned = model.readable(reply)
+        restart = self.restart_requested
+        if planned is None or model.wraps() or restart.is_set():
+            return 0, *stamps, None
+        skipped = 0
+        while True:
             t = self.t_s
-            feedback = model.follow_at(t)
-            if feedback is None:
-                break
+            model.read_planned(planned, t)
             self.cycles += 1
+            self._inbox = []  # read
+            if restart.is_set():  # an operator restart meanwhile: as begin
+                restart.clear()
+                model.restart(t)
+                self.guidance_stopped.clear()
+                return skipped, *stamps, model.robot_carried(t, defer_force=True)
+            feedback = model.move_to(t)
             at = model.stamps(t)
-            if done(*at, feedback):
-                self._inbox = []  # read: the cycle's answer is the PC's next
+            step = None
+            if model.running and not model.wraps_next():
+                step = answer(*at, feedback, model.planned)
+            if step is None:
+                if not model.running:
+                    self.guidance_stopped.set()
                 return skipped, *stamps, model.robot_carried(t, defer_force=True, moved=True)
             model.skip()
-            skipped, stamps = skipped + 1, at
-            self._next_cycle()  # end([reply]): the inbox holds reply for the next cycle again
-        return skipped, *stamps, None
+            skipped, stamps, planned = skipped + 1, at, step
+            self._next_cycle()  # end([the answer]): read at the next cycle
 
     def state_dict(self) -> dict[str, Any]:
         """The cycle time, count and the controller's state (JSON-able; the arm is the physics')."""

@@ -33,7 +33,7 @@ from collections import deque
 from typing import Any
 
 from forcelearn.emulators.egm.base import EgmEmulatorBase
-from forcelearn.emulators.egm.cycles import Done
+from forcelearn.emulators.egm.cycles import Answer
 from forcelearn.protocols.egm.carried import Carried, Datagram
 
 log = logging.getLogger(__name__)
@@ -49,8 +49,8 @@ class InProcessEgmController(EgmEmulatorBase):
     """
 
     rests = True
-    """Run the cycles at rest in one jump when the client asks (``rest_carried``); False:
-    every cycle in full (what the tests compare the jump with)."""
+    """Run the cycles whose answers the client computes in one jump when it asks
+    (``rest_carried``); False: every cycle in full (what the tests compare the jump with)."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(**kwargs)
@@ -62,7 +62,7 @@ class InProcessEgmController(EgmEmulatorBase):
         self.unanswered = 0
         """Cycles whose due answer never came (the client read on without answering)."""
         self.rested = 0
-        """Cycles run silently at rest."""
+        """Cycles run silently (their answers computed by the client, unseen)."""
         self._mark_started()
 
     @property
@@ -114,12 +114,12 @@ class InProcessEgmController(EgmEmulatorBase):
             self._early.append(datagram)
 
 
-    def _rest(self, datagram: Datagram, done: Done) -> tuple[int, int, int]:
-        """Answer the due cycle with ``datagram``, then jump what it answers (CycleLoop.rest)."""
+    def _rest(self, datagram: Datagram, answer: Answer) -> tuple[int, int, int]:
+        """Answer the due cycle with ``datagram``, then jump what ``answer`` answers (loop.rest)."""
         self._answer(datagram)
         if not self.rests or self._outbox or self._early or self._awaiting:
             return 0, 0, 0
-        skipped, tm_ms, time_us, robot = self.loop.rest(datagram, done)
+        skipped, tm_ms, time_us, robot = self.loop.rest(datagram, answer)
         self.replies += skipped
         self.rested += skipped
         if robot is not None:  # the cycle the jump ended on waits for its answer (as begin's)
@@ -161,20 +161,22 @@ class InProcessDatagramSocket:
         self._require_open()._answer(data if type(data) is Carried else bytes(data))
 
     def rest_carried(
-        self, data: Datagram, address: Any, done: Done, /
+        self, data: Datagram, address: Any, answer: Answer, /
     ) -> tuple[int, int, int]:
-        """:meth:`send_carried`, then the cycles it would answer again, in one jump.
+        """:meth:`send_carried`, then the cycles whose answers ``answer`` gives, in one jump.
 
-        While ``data`` plans the pose in effect, the cycles whose EgmRobot
-        (header.tm ms, feedBack.time µs, feedBack.cartesian) makes ``done``
-        false would be answered with ``data`` again (the next seqno): those
-        are run without building either message (the controller's state, the
-        cell's physics and the clock as cycle by cycle, to the bit); the
-        first one ``done`` accepts is what :meth:`recv_carried` gives next.
-        Returns (cycles jumped, the last one's header.tm and feedBack.time; 0
+        While the answers plan poses the controller may read unseen (no
+        speedRef, guidance running, :meth:`CycleLoop.rest
+        <forcelearn.emulators.egm.cycles.CycleLoop.rest>`), each cycle whose
+        EgmRobot (header.tm ms, feedBack.time µs, feedBack.cartesian,
+        planned.cartesian) ``answer`` answers with a planned pose is run
+        without building either message (the controller's state, the cell's
+        physics and the clock as cycle by cycle, to the bit); the first one
+        it answers None is what :meth:`recv_carried` gives next. Returns
+        (cycles jumped, the last one's header.tm and feedBack.time; 0
         cycles: none, and the stamps are 0).
         """
-        return self._require_open()._rest(data if type(data) is Carried else bytes(data), done)
+        return self._require_open()._rest(data if type(data) is Carried else bytes(data), answer)
 
     def settimeout(self, value: float | None, /) -> None:
         """Accepted and not needed: nothing here ever waits."""
