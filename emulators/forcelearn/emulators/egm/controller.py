@@ -452,14 +452,10 @@ class EgmControllerModel:
         nothing commanded): reading it changes only the read time and count,
         and the cycle is :meth:`follow_at`, then its EgmRobot.
         """
-        message = carried.received_sensor(datagram, self.config.version)
-        if (message is None or message.planned is None or message.speed_ref is not None
-                or self.mci is not codec.MciState.RUNNING
-                or self.rapid is not codec.RapidState.RUNNING or self._timed_out_s is not None
-                or self.config.mode != "pose"
-                or not self.config.comm_timeout_s > self.config.sample_period_s):
+        planned = self.readable(datagram)
+        if planned is None:
             return False
-        planned, commands = message.planned, getattr(self.motion, "commands", None)
+        commands = getattr(self.motion, "commands", None)
         return (planned == self.planned and self._checks.passed(planned)
                 and commands is not None and not commands(planned))
 
