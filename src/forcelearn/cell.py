@@ -55,11 +55,14 @@ from forcelearn.errors import (
 from forcelearn.filtering import ForceFilter, MoveAwareForceFilter
 from forcelearn.filtering.burst_record import burst_record
 from forcelearn.press_guard import (
+    DRIFT_CHECKS,
     MIN_STEP_MM,
     NOISE_SIGMAS,
+    DriftCheck,
     PressGuard,
     check_samples,
     drift_allowance_n,
+    drift_rate_bound_n_per_s,
 )
 from forcelearn.records import CellRecorder, MoveRecord, TareRecord
 
@@ -165,8 +168,11 @@ class Cell:
         """The last burst's samples (three or more) all read the very same wrench: a live
         sensor's noise never repeats exactly, so the sensor or its link repeats one frame."""
         self.drift_rate_n_per_s = 0.0
-        """The bias's drift the last zero check measured: its reading beyond its noise over the
-        time since the zero before it, N/s (the press guard keeps headroom for it)."""
+        """The fastest drift of the bias the recent zero checks cannot rule out, N/s
+        (:func:`~forcelearn.press_guard.drift_rate_bound_n_per_s`; the press guard keeps
+        headroom for it)."""
+        self.drift_checks: list[DriftCheck] = []
+        """The recent zero checks' drift measurements (the last :data:`DRIFT_CHECKS`)."""
         self._last_mean_wrench = np.zeros(6)
         self.press_guard: PressGuard | None = None
         """Bounds each guarded move's press-in by the known stiffness (None: no bound)."""
@@ -387,8 +393,13 @@ class Cell:
                     if self.zero_std_n is None else self.zero_std_n)
         noise = NOISE_SIGMAS * math.hypot(std, zero_std)
         elapsed = self.time_s - self.zero_time_s
-        if elapsed > 0.0:  # what the zero moved by beyond the noise, over the time it had
-            self.drift_rate_n_per_s = max(abs(force) - noise, 0.0) / elapsed
+        if elapsed > 0.0:  # what the zero moved by, and what the noise may hide, over its time
+            check = DriftCheck(force, noise, elapsed, self.zero_time_s)
+            if self.drift_checks and self.drift_checks[-1].zero_time_s == self.zero_time_s:
+                self.drift_checks[-1] = check  # read again over the same time: the latest
+            else:
+                self.drift_checks = [*self.drift_checks, check][-DRIFT_CHECKS:]
+            self.drift_rate_n_per_s = drift_rate_bound_n_per_s(self.drift_checks)
         if self.recorder is not None:
             here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
             self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, accepted))

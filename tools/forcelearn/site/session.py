@@ -31,6 +31,7 @@ Example::
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 from collections.abc import Mapping
 from typing import Any
@@ -43,6 +44,7 @@ from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.part_foam import PartFoam
 from forcelearn.emulators.physics.sponge import Sponge
 from forcelearn.filtering import make_force_filter
+from forcelearn.press_guard import DriftCheck, drift_rate_bound_n_per_s
 from forcelearn.site.calibration_identity import check_identity
 from forcelearn.site.config import CellConfig
 from forcelearn.site.emulated_cell import EmulatedCell
@@ -174,6 +176,7 @@ class CellSession:
                 "zero_residual": [float(v) for v in cell.zero_residual],
                 "zero_std_n": cell.zero_std_n, "zero_time_s": cell.zero_time_s,
                 "guard": None if guard is None else guard.state_dict(),
+                "drift_checks": [dataclasses.asdict(c) for c in cell.drift_checks],
             }
         return state
 
@@ -187,6 +190,9 @@ class CellSession:
         if own is not None and cell is not None:
             cell.zero_residual = np.asarray(own["zero_residual"], dtype=float)
             cell.zero_std_n, cell.zero_time_s = own["zero_std_n"], own["zero_time_s"]
+            # the drift the run measured goes on (older checkpoints: none measured)
+            cell.drift_checks = [DriftCheck(**c) for c in own.get("drift_checks", [])]
+            cell.drift_rate_n_per_s = drift_rate_bound_n_per_s(cell.drift_checks)
             if own["guard"] is not None and cell.press_guard is not None:
                 cell.press_guard.load_state_dict(own["guard"])
 
