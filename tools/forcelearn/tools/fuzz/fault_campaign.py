@@ -203,6 +203,18 @@ def fault_free_run(config: Path, folder: Path, seed: int) -> tuple[int, float, f
     return counter.tick, truth.worst_error_n, truth.max_contact_n
 
 
+def report_row(report: RunReport, ticks: int, free_max_n: float) -> dict[str, Any]:
+    """The judged figures of one run as a CSV row's columns (the sweeps' shared part); N."""
+    return {
+        "of_ticks": ticks, "max_contact_n": round(report.max_contact_n, 2),
+        "free_max_contact_n": round(free_max_n, 2), "over_limit": report.over_limit,
+        "beyond_3sigma": report.beyond_3sigma, "worst_used_n": round(report.worst_used_n, 3),
+        "zeros_in_contact": report.zeros_in_contact, "sessions": report.sessions,
+        "finished": report.finished, "ends": dict(report.typed_ends),
+        "resumed_from": dict(report.resumed_from),
+    }
+
+
 def one_run(cell: str, config: Path, folder: Path, seed: int, ticks: int, faults: int,
             kills: int, tolerance_n: float, devices: Sequence[str] = ("robot", "sensor"),
             injector: Injector | None = None) -> RunReport:

@@ -37,7 +37,13 @@ from typing import Any
 import numpy as np
 
 from forcelearn.protocols.jr3_can.codec import Frame
-from forcelearn.tools.fuzz.fault_campaign import CELLS, cell_config, fault_free_run, one_run
+from forcelearn.tools.fuzz.fault_campaign import (
+    CELLS,
+    cell_config,
+    fault_free_run,
+    one_run,
+    report_row,
+)
 from forcelearn.tools.fuzz.fault_free import MATERIALS
 from forcelearn.tools.fuzz.fault_inject import Injector, Truth
 
@@ -167,12 +173,7 @@ def runs(cell: str, material: str, fault: str, count: int, seed: int, folder: Pa
                          injector=injector)
         rows.append({
             "cell": cell, "material": material, "fault": fault, "seed": seed, "tick": tick,
-            "of_ticks": ticks, "max_contact_n": round(report.max_contact_n, 2),
-            "free_max_contact_n": round(free_max, 2), "over_limit": report.over_limit,
-            "beyond_3sigma": report.beyond_3sigma, "worst_used_n": round(report.worst_used_n, 3),
-            "zeros_in_contact": report.zeros_in_contact, "sessions": report.sessions,
-            "finished": report.finished, "ends": dict(report.typed_ends),
-            "resumed_from": dict(report.resumed_from),
+            **report_row(report, ticks, free_max),
         })
     return rows
 

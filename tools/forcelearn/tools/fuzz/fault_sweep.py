@@ -20,7 +20,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from forcelearn.tools.fuzz.fault_campaign import CELLS, cell_config, fault_free_run, one_run
+from forcelearn.tools.fuzz.fault_campaign import (
+    CELLS,
+    cell_config,
+    fault_free_run,
+    one_run,
+    report_row,
+)
 from forcelearn.tools.fuzz.fault_free import MATERIALS
 from forcelearn.tools.fuzz.fault_inject import SENSOR_FAULTS, Injector
 
@@ -58,12 +64,7 @@ def sweep(cell: str, material: str, probe: bool, fault: str, every: int, seed: i
         rows.append({
             "cell": cell, "material": material, "probe": probe, "fault": fault, "size": size,
             "tick": tick,
-            "of_ticks": ticks, "max_contact_n": round(report.max_contact_n, 2),
-            "free_max_contact_n": round(free_max, 2), "over_limit": report.over_limit,
-            "beyond_3sigma": report.beyond_3sigma, "worst_used_n": round(report.worst_used_n, 3),
-            "zeros_in_contact": report.zeros_in_contact, "sessions": report.sessions,
-            "finished": report.finished, "ends": dict(report.typed_ends),
-            "resumed_from": dict(report.resumed_from),
+            **report_row(report, ticks, free_max),
         })
     return rows
 
