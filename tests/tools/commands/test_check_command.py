@@ -36,10 +36,18 @@ def cell() -> Iterator[EmulatedCell]:
         yield emulated
 
 
-def _site(tmp_path: Path, cell: EmulatedCell, **replace_text: str) -> Path:
+def _site(tmp_path: Path, cell: EmulatedCell, *, patient: bool = False,
+          **replace_text: str) -> Path:
+    """The emulated cell's site config, edited; ``patient``: a loaded host's pauses allowed.
+
+    slcan over a pty on a loaded host is no real sensor: the real cell's 0.1 s watchdog failed
+    a check that should pass in a clean-clone CI at load 3.9 (the failure tests keep it).
+    """
     text = cell.site_config()
     for old, new in replace_text.items():
         text = text.replace(old, new)
+    if patient:
+        text += "\n[safety]\nstale_sensor_s = 10.0\n"
     path = tmp_path / "site.toml"
     path.write_text(text)
     return path
@@ -55,7 +63,8 @@ def test_check_through_slcan_reports_the_devices_and_never_moves_the_robot(
     tmp_path: Path, cell: EmulatedCell, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Identity, pose, six means and noises, a rate; zero moves and real slcan traffic."""
-    assert main(["check", "--config", str(_site(tmp_path, cell)), "--seconds", "0.3"]) == 0
+    site = _site(tmp_path, cell, patient=True)
+    assert main(["check", "--config", str(site), "--seconds", "0.3"]) == 0
     out = capsys.readouterr().out
     assert "controller 'forcelearn S3 controller emulator'" in out
     assert "pose x 900.00  y 0.00  z 600.00 mm" in out
@@ -84,7 +93,8 @@ def test_check_honours_the_emulated_cells_node_id_and_noise(
     )
     with EmulatedCell(config, seed=1) as cell:
         assert "node_id = 7" in cell.site_config()
-        assert main(["check", "--config", str(_site(tmp_path, cell)), "--seconds", "0.3"]) == 0
+        site = _site(tmp_path, cell, patient=True)
+    assert main(["check", "--config", str(site), "--seconds", "0.3"]) == 0
     out = capsys.readouterr().out
     assert "JR3 node 7 initialised" in out
     assert _axis(out, "Fy")[1] == pytest.approx(1.0, rel=0.2)
