@@ -94,7 +94,7 @@ def test_check_honours_the_emulated_cells_node_id_and_noise(
     with EmulatedCell(config, seed=1) as cell:
         assert "node_id = 7" in cell.site_config()
         site = _site(tmp_path, cell, patient=True)
-    assert main(["check", "--config", str(site), "--seconds", "0.3"]) == 0
+        assert main(["check", "--config", str(site), "--seconds", "0.3"]) == 0
     out = capsys.readouterr().out
     assert "JR3 node 7 initialised" in out
     assert _axis(out, "Fy")[1] == pytest.approx(1.0, rel=0.2)
