@@ -1,25 +1,23 @@
-"""The zero check in free space, for a tool that turns (the path task) and for the Gym env.
+"""The zero check in free space: one rule for the §5 run, the path task and the Gym env.
 
 :meth:`forcelearn.cell.Cell.check_zero` reads a burst in free space and, within
-its bound, takes the burst's mean as a zero *in software* (the sensor's own zero
-is left as it is). The calibration's bias belongs to the sensor's zero, taken at
-the orientation of the last tare: a software zero must leave it there. The cell
-re-derives it for the check's orientation (``zero_taken_at``), which is the same
-on the §5 task (the tool never turns) but wrong by the tool's weight turned
-between the two orientations on a path: every reading after it is off by that
-difference, and the next tare's tool check raises ``ToolMismatch`` (measured on
-the cylinder example: the tool turned 50 deg, see docs/path.md).
-:func:`check_zero` keeps the calibration the sensor's zero was taken with.
+its bound, takes the burst's mean as a zero *in software* (the sensor's own zero,
+and the calibration's bias taken with it at the last tare's orientation, are left
+as they are: a tool turned since then reads right, see docs/path.md).
+:func:`check_zero` reads once more before it reports a moved zero.
 
 The bound is :data:`ZERO_CHECK_SIGMAS` sigma of what a fault-free check reads
 (:func:`zero_check_bound`: the burst's own noise, the zero's, the bias's drift
-since the zero), as the §5 run's (:mod:`forcelearn.tools.experiments.fault_recovery`).
+since the zero).
 """
 
 from __future__ import annotations
 
-from forcelearn.calibration.model import Calibration
+import logging
+
 from forcelearn.cell import Cell
+
+log = logging.getLogger(__name__)
 
 ZERO_CHECK_SIGMAS = 5.0
 """The zero check's bound, in sigma of what a fault-free check reads (5, and a check beyond it
@@ -43,25 +41,15 @@ def zero_check_bound(cell: Cell, burst_std_n: float) -> float:
     return float(ZERO_CHECK_SIGMAS * variance ** 0.5)
 
 
-def keep_calibration(cell: Cell, calibration: Calibration | None) -> None:
-    """Put back the calibration of the sensor's zero after a software zero re-derived it."""
-    if calibration is not None and cell.calibration is not calibration:
-        cell.calibration = calibration
-        cell.compensation = calibration.compensation
-
-
 def check_zero(cell: Cell) -> tuple[float, float]:
-    """The zero check here, in free space: (reading N, bound N); the calibration kept.
+    """The zero check here, in free space: (reading N, bound N).
 
     A check beyond the bound reads once more (a noise outlier does not repeat). Within the
     bound the burst's mean becomes the software zero (as ``Cell.check_zero``);
     beyond it nothing is zeroed and the caller voids what was read since the last zero.
     """
-    calibration = cell.calibration
-    try:
+    force, bound = cell.check_zero(lambda std: zero_check_bound(cell, std))
+    if abs(force) > bound:  # a moved zero reads so again; an outlier of the noise does not
+        log.info("zero check read %.2f N (bound %.2f N): reading once more", force, bound)
         force, bound = cell.check_zero(lambda std: zero_check_bound(cell, std))
-        if abs(force) > bound:  # a moved zero reads so again; an outlier of the noise does not
-            force, bound = cell.check_zero(lambda std: zero_check_bound(cell, std))
-        return force, bound
-    finally:
-        keep_calibration(cell, calibration)
+    return force, bound

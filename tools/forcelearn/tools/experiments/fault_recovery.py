@@ -29,8 +29,8 @@ before a trial's first press) would leave the trial's readings off by the step.
 With ``[task] zero_check`` every trial is a transaction: at its end, before
 its checkpoint, the tool reads free space at the retract plane
 (:meth:`~forcelearn.cell.Cell.check_zero`); off zero by more than
-:data:`ZERO_CHECK_SIGMAS` x what a fault-free check reads (:meth:`RunRecovery.zero_check_bound`:
-the burst's and the zero's noise, the bias's drift since the zero), the zero moved
+:data:`ZERO_CHECK_SIGMAS` x what a fault-free check reads
+(:func:`~forcelearn.tasks.zero_check.zero_check_bound`: the burst's and the zero's noise, the bias's drift since the zero), the zero moved
 during the trial, which is void (:class:`~forcelearn.errors.ZeroMoved`):
 rolled back as after a fault, re-zeroed in free space and run again. The same
 check closes the surface probe (which then starts over). What a rolled-back
@@ -64,7 +64,7 @@ from forcelearn.tasks.bias_watch import CONTACT_N, BiasWatch
 from forcelearn.tasks.recovery import AwayFrom, RecoveryFailed, recoverable, retract
 from forcelearn.tasks.recovery import retract_and_retare as leave_and_rezero
 from forcelearn.tasks.surface import SurfaceYOutput
-from forcelearn.tasks.zero_check import ZERO_CHECK_SIGMAS, zero_check_bound
+from forcelearn.tasks.zero_check import ZERO_CHECK_SIGMAS, check_zero
 from forcelearn.tools.experiments.records import step_to_json, tare_to_json
 
 log = logging.getLogger(__name__)
@@ -311,7 +311,8 @@ class RunRecovery:
 
         Called before the trial's checkpoint. The tool goes up to the retract plane
         if it is not there (a trial ends there), reads one burst and, within
-        :meth:`zero_check_bound`, zeroes there (the next trial's baseline).
+        :func:`~forcelearn.tasks.zero_check.check_zero`'s bound (read twice before it
+        fails), zeroes there (the next trial's baseline).
 
         Raises:
             ZeroMoved: the reading is beyond the bound: the trial's readings are void.
@@ -323,10 +324,7 @@ class RunRecovery:
         if here.y_mm < self.retract_y_mm:
             cell.move_in_steps(Pose(here.x_mm, self.retract_y_mm, here.z_mm, here.quaternion),
                                self.max_step_mm)
-        force, bound = cell.check_zero(self.zero_check_bound)
-        if abs(force) > bound:  # a moved zero reads so again; an outlier of the noise does not
-            log.info("zero check read %.2f N (bound %.2f N): reading once more", force, bound)
-            force, bound = cell.check_zero(self.zero_check_bound)
+        force, bound = check_zero(cell)
         self._checked_zeros += abs(force) <= bound
         if abs(force) > bound:
             cell.stop()
@@ -342,10 +340,6 @@ class RunRecovery:
     def probe_zero_check(self) -> None:
         """The zero check at each probe point's start (in free space; the probe's, -1)."""
         self.check_zero(-1)
-
-    def zero_check_bound(self, burst_std_n: float) -> float:
-        """The zero check's bound for a check burst of this standard deviation, N."""
-        return zero_check_bound(self.cell, burst_std_n)
 
     # ---- inside ------------------------------------------------------------------------------
     @contextlib.contextmanager

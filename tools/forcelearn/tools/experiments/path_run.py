@@ -56,7 +56,6 @@ from forcelearn.site import CellConfig, CellSession
 from forcelearn.tasks.path import PathGeometry, PathTask, offset_output
 from forcelearn.tasks.path_probe import probe_pass, warm_start
 from forcelearn.tasks.path_spec import PathTaskSpec, load_task_path
-from forcelearn.tasks.zero_check import keep_calibration
 from forcelearn.tools.experiments.fault_recovery import RunRecovery
 from forcelearn.tools.experiments.path_outputs import (
     END_WINDOW,
@@ -131,19 +130,11 @@ def check_deviation(path: TaughtPath, spec: PathTaskSpec, low: tuple[float, floa
 class PathRecovery(RunRecovery):
     """The §5 run's recovery, for a tool that turns.
 
-    Its zero check keeps the calibration of the sensor's zero (a software zero at a turned
-    pose would re-derive the tool's weight for the wrong orientation:
-    :mod:`forcelearn.tasks.zero_check`). Every fault counts as one of a pass's tries: the
-    path run has no bias watch whose margins a false alarm could widen.
+    Its zero check is the §5 run's (a software zero keeps the calibration of the sensor's
+    zero at any orientation: :meth:`~forcelearn.cell.Cell.check_zero`). Every fault counts
+    as one of a pass's tries: the path run has no bias watch whose margins a false alarm
+    could widen.
     """
-
-    def check_zero(self, trial: int) -> None:
-        """:meth:`RunRecovery.check_zero` here (the tool is in free space after its retreat)."""
-        calibration = self.cell.calibration
-        try:
-            super().check_zero(trial)
-        finally:
-            keep_calibration(self.cell, calibration)
 
     def _recover(self, exc: ForcelearnError, trial: int, attempt: int) -> bool:
         super()._recover(exc, trial, attempt)
