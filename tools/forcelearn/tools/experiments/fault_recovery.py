@@ -30,11 +30,11 @@ With ``[task] zero_check`` every trial is a transaction: at its end, before
 its checkpoint, the tool reads free space at the retract plane
 (:meth:`~forcelearn.cell.Cell.check_zero`); off zero by more than
 :data:`ZERO_CHECK_SIGMAS` x what a fault-free check reads
-(:func:`~forcelearn.tasks.zero_check.zero_check_bound`: the burst's and the zero's noise, the bias's drift since the zero), the zero moved
-during the trial, which is void (:class:`~forcelearn.errors.ZeroMoved`):
-rolled back as after a fault, re-zeroed in free space and run again. The same
-check closes the surface probe (which then starts over). What a rolled-back
-trial or probe had recorded is kept in ``voided.jsonl``, never in
+(:func:`~forcelearn.tasks.zero_check.zero_check_bound`: the burst's and the zero's noise,
+the bias's drift since the zero), the zero moved during the trial, which is void
+(:class:`~forcelearn.errors.ZeroMoved`): rolled back as after a fault, re-zeroed in free
+space and run again. The same check closes the surface probe (which then starts over).
+What a rolled-back trial or probe had recorded is kept in ``voided.jsonl``, never in
 ``records.mcap`` or ``trials.csv``: nothing is lost and nothing counted twice.
 
 Every fault is one line of ``faults.jsonl`` in the run directory (what, when,
