@@ -104,7 +104,7 @@ class SurfaceEnv(SurfaceLearnerAdapter, TaskEnv):
     (every step's) counts them since the env was made. With ``[task] zero_check`` (on
     by default) every episode ends, the tool retracted, with a zero check in free space
     (:mod:`forcelearn.tasks.zero_check`): the last step's info holds ``zero_check_n``
-    (the reading, N), ``zero_moved`` (beyond 4 sigma of a fault-free check: the
+    (the reading, N), ``zero_moved`` (beyond 5 sigma of a fault-free check, twice: the
     episode's readings were off; the sensor is then zeroed there) and ``zero_voids``
     (episodes ended with a moved zero since the env was made). Within the bound the
     check's mean is the zero (the drift is taken away every episode).
