@@ -70,6 +70,12 @@ PULL_MARGIN_N = 0.5
 bias's drift between zero checks stays well under it)."""
 NOISE_SIGMAS = 3.0
 """One sample's noise allowance on the last reading, in the sensor's sigma."""
+PRESS_AGREE_N = 1.0
+"""A first contact pressed twice (the §5 run's first press, the path task's first contact) must
+read the same within this plus :data:`PRESS_AGREE_SHARE` of the first reading, N."""
+PRESS_AGREE_SHARE = 0.06
+"""The share of the first reading the second may differ by besides :data:`PRESS_AGREE_N` (the
+foam relaxes and wears a little between the two presses)."""
 DRIFT_FACTOR = 1.5
 """The allowance on the bias's drift since the zero: this x the rate the recent zero checks
 bound (a steady drift is measured again at every check; 1.5 covers one that speeds up)."""
@@ -129,6 +135,14 @@ def drift_allowance_n(rate_n_per_s: float, model_n_per_sqrt_s: float, elapsed_s:
     return DRIFT_FACTOR * max(rate_n_per_s, 0.0) * elapsed + (
         DRIFT_SIGMAS * model_n_per_sqrt_s * math.sqrt(elapsed))
 
+
+def press_agreement_n(first_n: float) -> float:
+    """How far a second press of a first contact may read from the first one's ``first_n``, N.
+
+    :data:`PRESS_AGREE_N` + :data:`PRESS_AGREE_SHARE` x ``first_n``: further apart, the sensor's
+    zero moved between them (a bias step at the contact) or the part moved.
+    """
+    return PRESS_AGREE_N + PRESS_AGREE_SHARE * abs(first_n)
 
 @dataclass
 class PressGuard:

@@ -47,15 +47,15 @@ pass's first contact (the first reading above the contact threshold after the
 pass's tare) has no earlier reading of this zero to be compared with. It is
 compared with the last pass's reading at the same offset, as is every reading of
 the search before it (the contact search steps from the same place every pass, so
-the offsets repeat): none may be lower by more than ``AGREE_N`` +
-``AGREE_SHARE`` of it (a step down is what would let the press guard trust a low
-reading; a step up reads high, which the guard takes as more force, and the
-pass's end zero check finds it). Where the last
+the offsets repeat): none may be lower by more than
+:func:`~forcelearn.press_guard.press_agreement_n` of it (a step down is what would
+let the press guard trust a low reading; a step up reads high, which the guard takes
+as more force, and the pass's end zero check finds it). Where the last
 pass has no reading there (the probe, the first pass, a search that moved) the
 contact is **pressed twice**: the tool backs out to the approach pose (free
 space), the zero is checked there (``zero_check``: it raises when the zero moved)
 and it presses to the same offset again: the second reading must be within
-``AGREE_N`` + ``AGREE_SHARE`` of the first. Else
+:func:`~forcelearn.press_guard.press_agreement_n` of the first. Else
 :class:`~forcelearn.errors.SensorSuspect` (the run retracts, re-zeroes in free
 space and runs the pass again). Leaving the foam between the two presses costs
 the foam a load cycle (the emulated foam wears a pass's worth each time the
@@ -75,7 +75,7 @@ from forcelearn.errors import SensorSuspect
 from forcelearn.learning import BoxGrid, Dimension
 from forcelearn.paths import TaughtPath
 from forcelearn.paths.taught import rotation_from_wxyz
-from forcelearn.press_guard import MIN_STEP_MM
+from forcelearn.press_guard import MIN_STEP_MM, press_agreement_n
 from forcelearn.tasks.evaluation import FAILURE_R
 from forcelearn.tasks.path_spec import PathTaskSpec
 from forcelearn.tasks.surface import SurfaceCell, read_after
@@ -95,11 +95,6 @@ WEAR_GAIN = 0.5
 moves every point alike; half a correction a pass follows it without chasing noise)."""
 MIN_RAMP_STEP_MM = 0.1
 """Smallest step of the force ramp, mm (a smaller one costs moves and changes nothing)."""
-AGREE_N = 1.0
-"""The second press of a first contact reads within this (plus :data:`AGREE_SHARE` of the
-first reading) of the first, N; else the sensor is suspect."""
-AGREE_SHARE = 0.06
-"""The share of the first reading the second press may differ by, beside :data:`AGREE_N`."""
 
 
 PathCell = SurfaceCell
@@ -366,12 +361,13 @@ class PathTask:
 
         Raises:
             SensorSuspect: it reads lower than the last pass did here, or its two presses
-                disagree, by more than ``AGREE_N`` + ``AGREE_SHARE`` (the robot is stopped).
+                disagree, by more than :func:`~forcelearn.press_guard.press_agreement_n`
+                (the robot is stopped).
         """
         before = [f for o, f in self.last_contact_readings if abs(o - self._offset) < 1e-9]
         if before:
             self.contact_compared.append((before[0], force_n))
-            allowed = AGREE_N + AGREE_SHARE * abs(before[0])
+            allowed = press_agreement_n(before[0])
             if force_n < before[0] - allowed:
                 self._suspect(f"the contact search read {force_n:.2f} N at offset "
                               f"{self._offset:.2f} mm, where the last pass read "
@@ -397,7 +393,7 @@ class PathTask:
         Raises:
             ZeroMoved: (from ``zero_check``) free space does not read the zero.
             SensorSuspect: the second reading differs from ``first_n`` by more than
-                ``AGREE_N`` + ``AGREE_SHARE`` of it (the robot is stopped).
+                :func:`~forcelearn.press_guard.press_agreement_n` of it (the robot is stopped).
         """
         offset = self._offset
         self.move_to_point(0, -self.spec.approach_mm, guard=False)
@@ -408,7 +404,7 @@ class PathTask:
         self.cell.reset_filter()
         second = self.cell.measure_force_n()
         self.contact_checks.append((first_n, second))
-        allowed = AGREE_N + AGREE_SHARE * abs(first_n)
+        allowed = press_agreement_n(first_n)
         if abs(second - first_n) > allowed:
             self._suspect(f"the first contact read {first_n:.2f} N, pressed again at the same "
                           f"offset {second:.2f} N (more than {allowed:.2f} N apart)")

@@ -60,6 +60,7 @@ from forcelearn.cell import Cell
 from forcelearn.devices import Pose
 from forcelearn.errors import ForcelearnError, SensorSuspect, ZeroMoved, one_line
 from forcelearn.learning import SRVLearner, load_learner
+from forcelearn.press_guard import PRESS_AGREE_N, PRESS_AGREE_SHARE, press_agreement_n
 from forcelearn.tasks.bias_watch import CONTACT_N, BiasWatch
 from forcelearn.tasks.recovery import AwayFrom, RecoveryFailed, recoverable, retract
 from forcelearn.tasks.recovery import retract_and_retare as leave_and_rezero
@@ -77,12 +78,6 @@ FALSE_ALARM_WIDENING = 1.5
 this and does not count as one of the trial's tries (a noisy or relaxing foam moves more between
 steps than the margins measured on the example sponge; about ten such alarms make the watch
 silent, so this ends)."""
-PRESS_AGREE_N = 1.0
-"""A first press made twice (:meth:`RunRecovery.press_in`) must read the same within this plus
-:data:`PRESS_AGREE_SHARE` of the first reading, N."""
-PRESS_AGREE_SHARE = 0.06
-"""The share of the first reading the second may differ by besides :data:`PRESS_AGREE_N` (the
-foam relaxes and wears a little between the two presses)."""
 MAX_TRIES_PER_TRIAL = 4
 """Faults one trial may meet before the run ends (each is recovered from before the next)."""
 
@@ -232,7 +227,7 @@ class RunRecovery:
         each from a zero checked in free space right before it: check, press, back out to
         free space, check, press again. A bias step during the first press is then seen
         by the second check, one during the second by the two presses' disagreement
-        (beyond :data:`PRESS_AGREE_N` + :data:`PRESS_AGREE_SHARE` of the first), before
+        (beyond :func:`~forcelearn.press_guard.press_agreement_n` of the first), before
         any step of the trial presses deeper on a wrong reading; a drift since the
         session's zero is zeroed away before the first contact.
 
@@ -246,7 +241,7 @@ class RunRecovery:
         first = press()
         self.check_zero(self.trial)  # backs out to the retract plane first
         second = press()
-        if abs(second - first) > PRESS_AGREE_N + PRESS_AGREE_SHARE * abs(first):
+        if abs(second - first) > press_agreement_n(first):
             self.cell.stop()
             raise SensorSuspect(
                 f"trial {self.trial}'s first press read {first:.2f} N, then {second:.2f} N "

@@ -24,10 +24,11 @@ import numpy as np
 from forcelearn.atomic import atomic_write_bytes
 from forcelearn.filtering import ForceFilterConfig
 from forcelearn.paths import TaughtPath
+from forcelearn.press_guard import press_agreement_n
 from forcelearn.records import TrialRecords
 from forcelearn.run_output import _csv_bytes, write_summary, write_trials
 from forcelearn.site import CellConfig
-from forcelearn.tasks.path import AGREE_N, AGREE_SHARE, PathGeometry, PathTask
+from forcelearn.tasks.path import PathGeometry, PathTask
 from forcelearn.tasks.path_probe import PathProbe
 from forcelearn.tasks.path_spec import PathTaskSpec
 from forcelearn.tools.experiments.fault_recovery import fault_summary
@@ -75,11 +76,8 @@ def safety_counts(task: PathTask) -> dict[str, Any]:
     ``worst_*_share``: the largest difference over its allowance (< 1 passed): |second -
     first| of a contact pressed twice; (last pass's - this pass's) of one compared.
     """
-    def allowance(force_n: float) -> float:
-        return AGREE_N + AGREE_SHARE * abs(force_n)
-
-    twice = [abs(b - a) / allowance(a) for a, b in task.contact_checks]
-    compared = [(a - b) / allowance(a) for a, b in task.contact_compared]
+    twice = [abs(b - a) / press_agreement_n(a) for a, b in task.contact_checks]
+    compared = [(a - b) / press_agreement_n(a) for a, b in task.contact_compared]
     guard = getattr(task.cell, "press_guard", None)
     return {"contacts_pressed_twice": len(twice),
             "worst_twice_share": max(twice) if twice else None,

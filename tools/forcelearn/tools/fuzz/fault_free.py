@@ -24,14 +24,10 @@ from typing import Any
 from unittest import mock
 
 from forcelearn.cell import Cell
+from forcelearn.press_guard import press_agreement_n
 from forcelearn.tools.experiments import surface_run as engine
 from forcelearn.tools.experiments import surface_state as run_state
-from forcelearn.tools.experiments.fault_recovery import (
-    PRESS_AGREE_N,
-    PRESS_AGREE_SHARE,
-    RunRecovery,
-    read_events,
-)
+from forcelearn.tools.experiments.fault_recovery import RunRecovery, read_events
 from forcelearn.tools.fuzz.fault_campaign import CELLS, examples_config, injecting
 from forcelearn.tools.fuzz.fault_inject import Injector, Truth
 
@@ -105,8 +101,7 @@ def one_run(cell: str, material: str, probe: bool, seed: int, trials: int,
         "events": len(events),
         "worst_check_ratio": round(max((abs(f) / b for f, b in checks), default=0.0), 3),
         "first_presses_twice": sum(len(p) == 2 for p in presses),
-        "worst_press_ratio": round(max((abs(p[1] - p[0]) / (PRESS_AGREE_N + PRESS_AGREE_SHARE
-                                                             * abs(p[0]))
+        "worst_press_ratio": round(max((abs(p[1] - p[0]) / press_agreement_n(p[0])
                                         for p in presses if len(p) == 2), default=0.0), 3),
         "worst_check_n": round(max((abs(f) for f, _ in checks), default=0.0), 3),
         "max_contact_n": round(truth.max_contact_n, 2),
