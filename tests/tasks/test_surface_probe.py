@@ -41,6 +41,12 @@ def test_fit_refuses_a_force_that_does_not_rise_with_depth() -> None:
         fit_contact(np.array([0.0, -1.0, -2.0]), np.array([3.0, 2.0, 1.0]))
 
 
+def test_one_reading_in_contact_says_which_probe_setting_to_change() -> None:
+    """A stiff part met in one approach step: the error names approach_step_mm."""
+    with pytest.raises(ProbeError, match=r"need 2: .*\[probe\] approach_step_mm below"):
+        fit_contact(np.array([-1.0]), np.array([6.0]), z_mm=-87.5)
+
+
 def _result(k: float, y_c: float = 1.0) -> ProbeResult:
     fit = ContactFit(0.0, k, 0.01, y_c, 0.05, 0.1, 6)
     return ProbeResult(rows=[], fits=[fit], baselines_n=[0.0])

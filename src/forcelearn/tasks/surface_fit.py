@@ -148,7 +148,11 @@ def fit_contact(y_mm: np.ndarray, force_n: np.ndarray, z_mm: float = math.nan) -
     y = np.asarray(y_mm, float)
     f = np.asarray(force_n, float)
     if len(y) < 2:
-        raise ProbeError(f"the probe at z = {z_mm:g} mm got {len(y)} readings in contact; need 2")
+        raise ProbeError(
+            f"the probe at z = {z_mm:g} mm got {len(y)} readings in contact; need 2: on a stiff "
+            "part with a small force one approach step already reaches the deepest press; set "
+            "[probe] approach_step_mm below press_force_ratio x [task] desired_force_n / the "
+            "part's stiffness (e.g. 0.25 mm for 8 N/mm at 5 N)")
     design = np.column_stack([np.ones_like(y), y])
     coef, *_ = np.linalg.lstsq(design, f, rcond=None)
     intercept, slope = float(coef[0]), float(coef[1])
