@@ -107,19 +107,6 @@ class Problem:
         with a forward-difference Jacobian; the first step's predictions (one per parameter,
         at the solution) serve every mask, only the walk's profile is redone per mask.
         """
-        return self.refits_with_sigmas(names, values, masks, steps)[0]
-
-    def refits_with_sigmas(self, names: list[str], values: dict[str, float],
-                           masks: list[np.ndarray], steps: list[int]
-                           ) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`refits` and each refit's own 1-sigma (len(masks), len(names)).
-
-        The sigma is the Gauss-Newton one of the mask's last step, ``sqrt(diag((J'J)^-1)
-        * r'r / (n - p))``: how well that mask's bursts alone determine the parameters
-        (infinite for a mask with no step). A subset alone can be ill-conditioned (the high
-        force half alone trades the contact against the stiffness), and refits of two
-        subsets then differ by that much with the model right.
-        """
         low, high = _bounds(names)
         x0 = np.array([values[n] for n in names])
         cache: dict[bytes, np.ndarray] = {}
@@ -131,7 +118,6 @@ class Problem:
             return cache[key]
 
         points = np.repeat(x0[None, :], len(masks), axis=0)
-        own = np.full(points.shape, math.inf)
         for step in range(max(steps, default=0)):
             for k, keep in enumerate(masks):
                 if steps[k] <= step:
@@ -145,17 +131,7 @@ class Problem:
                     for i in range(x.size)])
                 delta, *_ = np.linalg.lstsq(jac, -r0, rcond=None)
                 points[k] = np.clip(x + delta, low, high)
-                own[k] = _gauss_newton_sigmas(jac, r0 + jac @ delta)
-        return points, own
-
-
-def _gauss_newton_sigmas(jac: np.ndarray, residuals: np.ndarray) -> np.ndarray:
-    """1-sigma of a linearised least-squares solution, scaled by its residuals' variance."""
-    dof = max(residuals.size - jac.shape[1], 1)
-    scale = float(residuals @ residuals) / dof
-    cov = np.linalg.pinv(jac.T @ jac)
-    sigmas: np.ndarray = np.sqrt(np.maximum(np.diag(cov), 0.0) * scale)
-    return sigmas
+        return points
 
 
 def _bounds(names: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -208,30 +184,11 @@ def jackknife(fit: Fitted, train: RecordArrays, arm: dict[str, float], reading: 
     if halves:
         median = float(np.median(force[contact]))
         masks += [~(contact & (force > median)), ~(contact & (force <= median))]
-    theta, own = problem.refits_with_sigmas(
-        names, fit.values, masks, [BLOCK_STEPS] * blocks + [HALF_STEPS] * (len(masks) - blocks))
+    theta = problem.refits(names, fit.values, masks,
+                           [BLOCK_STEPS] * blocks + [HALF_STEPS] * (len(masks) - blocks))
     blocked = theta[:blocks]
     spread = np.sqrt((blocks - 1) / blocks * np.sum((blocked - blocked.mean(axis=0)) ** 2,
                                                     axis=0))
     if halves:
-        spread = np.maximum(spread, halves_excess(theta[blocks], theta[blocks + 1],
-                                                  own[blocks], own[blocks + 1]))
+        spread = np.maximum(spread, np.abs(theta[blocks] - theta[blocks + 1]) / 2)
     return dict(zip(names, spread.tolist(), strict=True))
-
-
-def halves_excess(low: np.ndarray, high: np.ndarray, sigma_low: np.ndarray,
-                  sigma_high: np.ndarray) -> np.ndarray:
-    """The force halves' disagreement beyond what each half's own sigma explains.
-
-    With the model right the two refits differ by ``N(0, sigma_low^2 + sigma_high^2)``:
-    a half alone can be ill-conditioned (on the default run, seed 0, the high half alone
-    trades the contact against the stiffness), so its gap measures the half's own
-    conditioning, not the model's error. ``sqrt(max(0, (gap/2)^2 - (sigma_low^2 +
-    sigma_high^2)/4))``, the estimate of a model error's share of half the gap; ``gap/2``
-    where a half's sigma is unknown (infinite).
-    """
-    gap2 = ((low - high) / 2) ** 2
-    own2 = (np.square(sigma_low) + np.square(sigma_high)) / 4
-    own2 = np.where(np.isfinite(own2), own2, 0.0)
-    excess: np.ndarray = np.sqrt(np.maximum(gap2 - own2, 0.0))
-    return excess
