@@ -157,17 +157,10 @@ def jackknife(fit: Fitted, train: RecordArrays, arm: dict[str, float], reading: 
       the surface probe's, stay in every refit: without them stiffness and contact trade
       off); ``sqrt((B-1)/B * sum (theta_b - mean)^2)``. Early exploring trials and later
       worn ones pull the parameters apart where the model misses how the cell changes.
-    * Split by force: the trials' contact bursts below and above their median force
-      refitted apart (free-space bursts and the probe's rows in both);
-      ``|theta_low - theta_high| / 2``, about the full fit's sigma when the force law holds
-      over the depths, far more when it does not (a linear law on a stiffening foam: its
-      stiffness and contact depend on the depths). The probe presses from first touch to
-      past the task's force: split with the rest, its shallow presses all fell in the low
-      half, and the high half (deep presses and control steps only) extrapolated the
-      contact ~10 mm from its depths, a small miss there magnified: on the default run,
-      seed 0, the halves' contacts were 0.05 and 0.38 mm (each half's own Gauss-Newton
-      sigma 0.013 and 0.024 mm), the contact's sigma 0.166 mm; the probe in both, 0.059
-      and 0.049 mm.
+    * Split by force: the contact bursts below and above their median force refitted
+      apart (free-space bursts in both); ``|theta_low - theta_high| / 2``, about the full
+      fit's sigma when the force law holds over the depths, far more when it does not
+      (a linear law on a stiffening foam: its stiffness and contact depend on the depths).
 
     Each refit is Gauss-Newton from the member's solution (:meth:`Problem.refits`): one
     step for a block, three for a force half (it was up to 15 iterations of least squares
@@ -185,10 +178,8 @@ def jackknife(fit: Fitted, train: RecordArrays, arm: dict[str, float], reading: 
         rows[part] = False
         masks.append(np.broadcast_to(rows[:, None], problem.use.shape))
     force = np.where(train.has_burst, train.mean_n, np.nan)  # the reading: + pressing
-    stepped = np.zeros(train.trials, bool)
-    stepped[control] = True  # the probe's rows stay in both halves, as in every block
-    contact = (train.has_burst & stepped[:, None]
-               & (force > max(0.5, 3.0 * (noise_n if math.isfinite(noise_n) else 0.0))))
+    contact = train.has_burst & (force > max(0.5, 3.0 * (noise_n if math.isfinite(noise_n)
+                                                              else 0.0)))
     halves = contact.sum() >= 2 * len(names)
     if halves:
         median = float(np.median(force[contact]))
