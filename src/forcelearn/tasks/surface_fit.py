@@ -199,8 +199,9 @@ class ProbeResult:
     """What the probe read and fitted (JSON-able through :meth:`to_json`)."""
 
     rows: list[ProbeRow] = field(default_factory=list)
-    """Every reading: point, z_mm, y_mm, phase ("baseline", "approach", "press", "ease":
-    eased off after the deepest press), force_n (relaxed, baseline removed),
+    """Every reading: point, z_mm, y_mm, phase ("baseline", "approach", "refine": a first
+    contact met in too coarse a step, approached again finer (:mod:`forcelearn.tasks.approach`),
+    "press", "ease": eased off after the deepest press), force_n (relaxed, baseline removed),
     early_force_n, cell_time_s."""
     fits: list[ContactFit] = field(default_factory=list)
     baselines_n: list[float] = field(default_factory=list)
