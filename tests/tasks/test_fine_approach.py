@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from forcelearn.emulators.physics.sponge import stiffness_n_per_mm
+from forcelearn.press_guard import MIN_STEP_MM
 from forcelearn.site.config import CellConfig, load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.approach import (
@@ -31,12 +32,21 @@ def test_a_first_contact_that_passes_a_third_of_the_press_asks_for_a_finer_step(
 
 
 def test_fresh_approaches_are_bounded_then_say_what_to_set() -> None:
-    """Each contact steeper than the last: REFINES fresh approaches, then the typed error."""
+    """REFINES fresh approaches; then a contact past the deepest press's force is the error."""
     approach = FineApproach(1.0, 1.0, 5.25, PROBE_APPROACH_ADVICE)
-    for _ in range(REFINES):
-        assert approach.again(3.0, 0.0, approach.step_mm)
+    for _ in range(REFINES):  # each contact 2.92 N: a step 0.6 x the last
+        assert approach.again(2.92, 0.0, approach.step_mm)
+    assert not approach.again(2.92, 0.0, approach.step_mm)  # under 6.25 N: it presses on
     with pytest.raises(ApproachTooCoarse, match=r"set \[probe\] approach_step_mm to [0-9.]+ mm"):
-        approach.again(3.0, 0.0, approach.step_mm)
+        approach.again(7.0, 0.0, approach.step_mm)
+
+
+def test_with_no_finer_step_left_a_contact_under_the_deepest_force_presses_on() -> None:
+    """At the finest step a noisy pair (0.9 N, then 2.3 N 0.05 mm on) is no error: it presses."""
+    approach = FineApproach(1.0, 1.0, 2.75, PROBE_APPROACH_ADVICE)
+    approach.step_mm = MIN_STEP_MM
+    assert not approach.again(2.3, 0.9, MIN_STEP_MM)
+    assert approach.fine_step_mm() == MIN_STEP_MM
 
 
 def _part(stiffness: float, desired: float, limit: float = 60.0) -> CellConfig:
@@ -72,12 +82,14 @@ def test_the_surface_probe_reads_a_stiff_part_three_times_with_its_default_step(
     With the approach's own step the first contact passed the deepest press ("need 2"). With
     a refined one, on 8 N/mm at 2 N, two press readings 0.0125 mm apart read 0.12 N less (the
     noise), the press measured 1e-3 N/mm and stepped 9.9 mm in, to the force limit (here, on
-    a session without the run's press guard, to 80 N). The stiffness within ``rel``: 8 N/mm
+    a session without the run's press guard, to 80 N). On 15 N/mm at 3 N a contact met in a
+    1 mm step at z = -20 mm (no refine needed) then pressed in the 0.25 mm floor of that step:
+    3.5 N in one step, two readings. The stiffness within ``rel``: 8 N/mm
     at 2 N spans 1.5 N over 0.2 mm, and its fits scatter 0.84-1.30x the truth with any step
     (0.91-1.13x with a configured 0.1 mm).
     """
     config = _part(stiffness, desired)
-    spec = ProbeSpec(points=(0.0, 0.25, 0.5, 0.75, 0.875, 1.0))
+    spec = ProbeSpec(points=(0.0, 0.1, 0.2, 0.25, 0.5, 0.75, 0.875, 1.0))
     with CellSession(config, seed=seed) as session:
         assert session.cell is not None
         peak = _peak_recorded(session)

@@ -31,6 +31,9 @@ READINGS = 3
 REFINES = 4
 """Fresh approaches one contact may take (each bound on the stiffness is a lower one: a surface
 met just before the reading looks soft, and the next approach meets it steeper)."""
+SHRINK = 0.8
+"""A fresh approach is taken only with a step at most this share of the last (a finer one
+that is not finer by much would meet the same; the press then goes on from the contact)."""
 
 PROBE_APPROACH_ADVICE = ("set [probe] approach_step_mm to {step} mm or less (a run then starts "
                          "finer), or raise [task] desired_force_n")
@@ -63,8 +66,12 @@ class FineApproach:
     refines: int = 0
     """Fresh approaches taken towards this contact."""
     stiffness_n_per_mm: float = 0.0
-    """The steepest first contact that asked for a fresh approach (a lower bound of the part's
-    stiffness), N/mm; 0 while none did. Kept over the approaches of one part."""
+    """The steepest first contact that asked for a fresh approach (about the part's stiffness,
+    at least: the surface lies below the free reading), N/mm; 0 while none did. Kept over the
+    approaches of one part (the press's steps use it, :meth:`fine_step_mm`)."""
+    _point_n_per_mm: float = 0.0
+    """The same over this approach's contacts: its steps come from it (one noisy fine pair at
+    another point must not shrink every later step)."""
 
     def __post_init__(self) -> None:
         self.start()
@@ -73,28 +80,48 @@ class FineApproach:
         """A new approach (another point of the same part): the configured step, no refines."""
         self.step_mm = self.configured_mm
         self.refines = 0
+        self._point_n_per_mm = 0.0
+
+    def fine_step_mm(self) -> float:
+        """The step the rule gives for the stiffness seen (:attr:`step_mm` if finer), mm.
+
+        A press that met its contact in a coarse step on a part known stiff (an earlier
+        point's approach) steps no coarser than this (else a 0.25 mm floor on 15 N/mm at
+        3 N passed the whole press in one step).
+        """
+        if self.stiffness_n_per_mm <= 0.0 or self.span_n <= 0.0:
+            return self.step_mm
+        fine = max(self.span_n / (READINGS * self.stiffness_n_per_mm), MIN_STEP_MM)
+        return min(self.step_mm, fine)
 
     def again(self, force_n: float, free_n: float, pressed_mm: float, where: str = "") -> bool:
         """A first contact: ``force_n`` read ``pressed_mm`` mm past a free reading of ``free_n``.
 
         True: back out to that free reading and approach again in :attr:`step_mm` (now finer).
+        False: go on pressing from here: it passed the contact's force by at most a third of the
+        span, or no finer step is left to take and it is still under the deepest press's force
+        (the press then steps from the stiffness seen).
 
         Raises:
-            ApproachTooCoarse: still too coarse after :data:`REFINES` fresh approaches, or even
-                :data:`~forcelearn.press_guard.MIN_STEP_MM` would read the span fewer than twice.
+            ApproachTooCoarse: it reached the deepest press's force in one step and no finer
+                step is left (:data:`REFINES` fresh approaches taken, or the step is at
+                :data:`~forcelearn.press_guard.MIN_STEP_MM`).
         """
         over_n = force_n - self.contact_n
         if pressed_mm <= 0.0 or self.span_n <= 0.0 or READINGS * over_n <= self.span_n:
             return False
-        self.stiffness_n_per_mm = max(self.stiffness_n_per_mm, (force_n - free_n) / pressed_mm)
-        step = max(self.span_n / (READINGS * self.stiffness_n_per_mm), MIN_STEP_MM)
-        if self.refines >= REFINES or 2.0 * self.stiffness_n_per_mm * step > self.span_n:
-            raise ApproachTooCoarse(
-                f"the approach{where} met {force_n:.2f} N {pressed_mm:.3g} mm past a free "
-                f"reading (at least {self.stiffness_n_per_mm:.3g} N/mm) after {self.refines} "
-                f"finer approaches: its press from the contact ({self.contact_n:g} N) to "
-                f"{self.contact_n + self.span_n:.2f} N would read fewer than {READINGS} times "
-                "(a stiff part with a small force): " + self.advice.format(step=f"{step:.3g}"))
-        self.refines += 1
-        self.step_mm = min(step, self.step_mm)
-        return True
+        seen = (force_n - free_n) / pressed_mm
+        self._point_n_per_mm = max(self._point_n_per_mm, seen)
+        self.stiffness_n_per_mm = max(self.stiffness_n_per_mm, seen)
+        step = max(self.span_n / (READINGS * self._point_n_per_mm), MIN_STEP_MM)
+        if self.refines < REFINES and step < SHRINK * self.step_mm:
+            self.refines += 1
+            self.step_mm = step
+            return True
+        if over_n < self.span_n:
+            return False
+        raise ApproachTooCoarse(
+            f"the approach{where} met {force_n:.2f} N {pressed_mm:.3g} mm past a free reading "
+            f"({seen:.3g} N/mm) after {self.refines} finer approaches: its press from the "
+            f"contact ({self.contact_n:g} N) to {self.contact_n + self.span_n:.2f} N has one "
+            "reading (a stiff part with a small force): " + self.advice.format(step=f"{step:.3g}"))

@@ -43,7 +43,8 @@ class ProbeSpec:
     points: tuple[float, ...] = (0.0, 0.5, 1.0)
     """Where along the path to probe, as fractions of it (0: start Z, 1: end Z)."""
     approach_step_mm: float = 1.0
-    """Step of the approach from the retract plane towards the surface, mm."""
+    """Step of the approach from the retract plane towards the surface, mm; finer on a stiff
+    part where one step passes a third of the press (:mod:`forcelearn.tasks.approach`)."""
     contact_force_n: float = 1.0
     """Rise of the force above the free-space baseline that marks contact, N."""
     press_points: int = 6

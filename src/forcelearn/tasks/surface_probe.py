@@ -98,11 +98,9 @@ class SurfaceProbe:
         self.floor_y_mm = workspace_min_y_mm
         self.result = ProbeResult()
         self._next_index = 0
-        aim_n = min(spec.press_force_ratio * task.desired_force_n,
-                    spec.max_force_ratio * cell.max_force_n / 1.4)  # the press's (_probe_point)
-        self.approach = FineApproach(spec.approach_step_mm, spec.contact_force_n,
-                                     aim_n - spec.contact_force_n, PROBE_APPROACH_ADVICE)
-        """The approach's step, refined on a stiff part (:mod:`forcelearn.tasks.approach`)."""
+        self.approach: FineApproach | None = None
+        """The approach's step, refined on a stiff part (:mod:`forcelearn.tasks.approach`);
+        made at the first point, kept over the points (the stiffness it saw)."""
 
     def run(self, points: tuple[float, ...] | None = None) -> ProbeResult:
         """Probe ``points`` (default ``spec.points``); the robot ends at the retract plane.
@@ -185,6 +183,9 @@ class SurfaceProbe:
                 "If nothing touches it, the sensor reads a bias: zero it in free space "
                 "(sensor.zero_on_init = true, or a calibration file)"
             )
+        if self.approach is None:
+            self.approach = FineApproach(spec.approach_step_mm, spec.contact_force_n,
+                                         aim_n - spec.contact_force_n, PROBE_APPROACH_ADVICE)
         approach = self.approach
         approach.start()
         y, free_y, free_n = top, top, 0.0
@@ -231,7 +232,7 @@ class SurfaceProbe:
             else:  # a lower bound: the surface lies below the last free reading
                 k = max(relaxed / max(contact_guess - y, 0.5 * step_mm), known, 1e-3)
             remaining = spec.press_points - len(ys)
-            step = max((aim_n - relaxed) / k / remaining, 0.25 * step_mm)
+            step = max((aim_n - relaxed) / k / remaining, 0.25 * approach.fine_step_mm())
             step = min(step, 0.99 * self.max_step_mm)
             seen = [(e - f) / f for e, f in zip(self._early(index), forces, strict=True) if f > 0.5]
             ratio = max(1.3, 1.0 + max(seen, default=0.0))  # unrelaxed / relaxed force
