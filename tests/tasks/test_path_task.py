@@ -223,3 +223,16 @@ def test_a_probe_that_alternates_between_branches_is_smoothed_and_scaled() -> No
     assert probe.pass_stiffness_n_per_mm is not None
     assert probe.pass_stiffness_n_per_mm > probe.stiffness_n_per_mm
     assert probe.scale_mm < 0.25 * probe.tolerance_n / probe.stiffness_n_per_mm
+
+
+def test_the_path_probe_fits_a_stiff_foam_it_meets_in_one_step() -> None:
+    """12 N/mm at 5 N, the contact exactly on a 1 mm step: the stiffness fitted, not assumed.
+
+    With the search's own step one reading passed the desired force and the probe fell back
+    to 5 N over 10 mm (0.5 N/mm).
+    """
+    task = make_task(FoamPlaneCell(stiffness_n_per_mm=12.0), desired_force_n=5.0)
+    probe = probe_pass(task)
+    along_axis = 12.0 * math.cos(math.radians(TILT_DEG))  # the first point's tool is tilted
+    assert probe.stiffness_n_per_mm == pytest.approx(along_axis, rel=0.01)
+    assert max(probe.forces_n) < 2 * 5.0

@@ -76,6 +76,7 @@ from forcelearn.learning import BoxGrid, Dimension
 from forcelearn.paths import TaughtPath
 from forcelearn.paths.taught import rotation_from_wxyz
 from forcelearn.press_guard import MIN_STEP_MM, press_agreement_n
+from forcelearn.tasks.approach import FineApproach
 from forcelearn.tasks.evaluation import FAILURE_R
 from forcelearn.tasks.path_spec import PathTaskSpec
 from forcelearn.tasks.surface import SurfaceCell, read_after
@@ -84,6 +85,10 @@ from forcelearn.trainer import StepOutcome
 CONTACT_STEP_MM = 1.0
 """Step along the force axis while looking for the first contact, mm (assumption: a tenth
 of the foam a site presses; FC Pressure approaches at v5-v30)."""
+PATH_APPROACH_ADVICE = (
+    "lower [task] contact_threshold_pct or raise desired_force_n (the probe pass reads from the "
+    "contact threshold to the desired force; its contact search steps no finer than that)")
+"""What :class:`~forcelearn.tasks.approach.ApproachTooCoarse` tells a path run to set."""
 CONTACT_MARGIN_MM = 3.0
 """Once the contact's offset is known, the search starts this far short of it, mm."""
 RETURN_POINTS = 8
@@ -316,7 +321,10 @@ class PathTask:
 
         From the approach pose (or ``CONTACT_MARGIN_MM`` short of a known contact) until
         the force passes ``until_n`` (default: the contact threshold) or the offset
-        reaches ``max_deviation_mm``.
+        reaches ``max_deviation_mm``. With ``until_n`` (the probe pass, whose readings fit
+        the stiffness) a first contact met in too coarse a step is approached again finer
+        (:mod:`forcelearn.tasks.approach`); a pass's search is not (measured on 8 N/mm at
+        5 N: its passes then start at the threshold and never came in band).
         """
         self.cell.stage = ("contact", 0)
         self._step = 0
@@ -329,20 +337,40 @@ class PathTask:
         self.cell.reset_filter()
         verify = self.verify_contact
         readings = [(self._offset, self.cell.measure_force_n())]
+        contact_n = self.spec.contact_force_n
+        approach = None if until_n is None else FineApproach(  # the probe pass's search
+            CONTACT_STEP_MM, contact_n, until_n - contact_n, PATH_APPROACH_ADVICE)
         while True:
             if verify:
                 readings[-1] = (self._offset, self.check_contact(readings[-1][1]))
                 verify = readings[-1][1] < self.spec.contact_force_n
-            step = self._contact_step_mm()
+            step = self._contact_step_mm(CONTACT_STEP_MM if approach is None
+                                         else approach.step_mm)
             if readings[-1][1] >= limit_n or self._offset >= deepest or step < MIN_STEP_MM:
                 self.last_contact_readings = list(readings)
                 return readings
             self._offset = min(self._offset + step, deepest)
             self.move_to_point(0, self._offset, pressing=self._offset > 0)
             readings.append((self._offset, self.cell.measure_force_n()))
+            if approach is not None:
+                self._refine(approach, readings)
 
-    def _contact_step_mm(self) -> float:
-        """The contact search's next step, mm: ``CONTACT_STEP_MM``, or less.
+    def _refine(self, approach: FineApproach, readings: list[tuple[float, float]]) -> None:
+        """A first contact met in too coarse a step: back out to the free reading before it.
+
+        The contact's reading is dropped; the search steps in again from there in
+        ``approach.step_mm`` (:mod:`forcelearn.tasks.approach`).
+        """
+        (free_mm, free_n), (offset, force) = readings[-2], readings[-1]
+        contact_n = self.spec.contact_force_n
+        if not (free_n < contact_n <= force) or not approach.again(
+                force, free_n, offset - free_mm, " at the path's first point"):
+            return
+        readings.pop()
+        self.move_to_point(0, free_mm, pressing=free_mm > 0)
+
+    def _contact_step_mm(self, step_mm: float = CONTACT_STEP_MM) -> float:
+        """The contact search's next step, mm: ``step_mm``, or less.
 
         Less where the press guard allows less past the last reading (a stiff part near the
         limit): the step ends where its reading can stop the search, not in a cut move that
@@ -350,8 +378,8 @@ class PathTask:
         """
         press_guard = getattr(self.cell, "press_guard", None)
         if press_guard is None:
-            return CONTACT_STEP_MM
-        return float(min(CONTACT_STEP_MM, press_guard.allowed_mm()))
+            return step_mm
+        return float(min(step_mm, press_guard.allowed_mm()))
 
     def check_contact(self, force_n: float) -> float:
         """A contact search's reading up to its first contact, checked; the reading to use, N.

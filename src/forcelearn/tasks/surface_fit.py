@@ -43,7 +43,8 @@ class ProbeSpec:
     points: tuple[float, ...] = (0.0, 0.5, 1.0)
     """Where along the path to probe, as fractions of it (0: start Z, 1: end Z)."""
     approach_step_mm: float = 1.0
-    """Step of the approach from the retract plane towards the surface, mm."""
+    """Step of the approach from the retract plane towards the surface, mm; finer on a stiff
+    part where one step passes a third of the press (:mod:`forcelearn.tasks.approach`)."""
     contact_force_n: float = 1.0
     """Rise of the force above the free-space baseline that marks contact, N."""
     press_points: int = 6
@@ -199,8 +200,9 @@ class ProbeResult:
     """What the probe read and fitted (JSON-able through :meth:`to_json`)."""
 
     rows: list[ProbeRow] = field(default_factory=list)
-    """Every reading: point, z_mm, y_mm, phase ("baseline", "approach", "press", "ease":
-    eased off after the deepest press), force_n (relaxed, baseline removed),
+    """Every reading: point, z_mm, y_mm, phase ("baseline", "approach", "refine": a first
+    contact met in too coarse a step, approached again finer (:mod:`forcelearn.tasks.approach`),
+    "press", "ease": eased off after the deepest press), force_n (relaxed, baseline removed),
     early_force_n, cell_time_s."""
     fits: list[ContactFit] = field(default_factory=list)
     baselines_n: list[float] = field(default_factory=list)

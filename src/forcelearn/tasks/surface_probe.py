@@ -38,6 +38,7 @@ import numpy as np
 from forcelearn.cell import Cell
 from forcelearn.devices import Pose
 from forcelearn.errors import ForcelearnError
+from forcelearn.tasks.approach import PROBE_APPROACH_ADVICE, FineApproach
 from forcelearn.tasks.surface_fit import (
     ContactFit,
     ProbeError,
@@ -97,6 +98,9 @@ class SurfaceProbe:
         self.floor_y_mm = workspace_min_y_mm
         self.result = ProbeResult()
         self._next_index = 0
+        self.approach: FineApproach | None = None
+        """The approach's step, refined on a stiff part (:mod:`forcelearn.tasks.approach`);
+        made at the first point, kept over the points (the stiffness it saw)."""
 
     def run(self, points: tuple[float, ...] | None = None) -> ProbeResult:
         """Probe ``points`` (default ``spec.points``); the robot ends at the retract plane.
@@ -179,9 +183,14 @@ class SurfaceProbe:
                 "If nothing touches it, the sensor reads a bias: zero it in free space "
                 "(sensor.zero_on_init = true, or a calibration file)"
             )
-        y = top
+        if self.approach is None:
+            self.approach = FineApproach(spec.approach_step_mm, spec.contact_force_n,
+                                         aim_n - spec.contact_force_n, PROBE_APPROACH_ADVICE)
+        approach = self.approach
+        approach.start()
+        y, free_y, free_n = top, top, 0.0
         while True:  # approach
-            y -= spec.approach_step_mm
+            y -= approach.step_mm
             if y < floor:
                 raise ProbeError(
                     f"no contact between y = {top:g} and {floor:g} mm at z = {z:g} mm "
@@ -193,11 +202,18 @@ class SurfaceProbe:
             cell.move_in_steps(self._pose(x, y, z), self.max_step_mm, guard_force=True)
             early = cell.measure_force_n() - baseline
             if early > spec.contact_force_n:
-                break
+                if not approach.again(early, free_n, free_y - y, f" at z = {z:g} mm"):
+                    break
+                self._record(index, z, y, "refine", early, early)
+                y = free_y  # back out to the last free reading; step in again, finer
+                cell.move_in_steps(self._pose(x, y, z), self.max_step_mm, guard_force=True)
+                continue
             self._record(index, z, y, "approach", early, early)
+            free_y, free_n = y, early
+        step_mm = approach.step_mm
         ys: list[float] = []
         forces: list[float] = []
-        contact_guess = y + spec.approach_step_mm
+        contact_guess = y + step_mm
         depth_floor = max(floor, contact_guess - spec.max_depth_mm)
         while True:  # press
             early, relaxed = self._read(spec.dwell_s)
@@ -207,12 +223,16 @@ class SurfaceProbe:
             forces.append(relaxed)
             if len(ys) >= spec.press_points or relaxed >= aim_n:
                 break
+            # at least what a refined approach showed (0 if none): on a stiff part two readings
+            # close together differ by the noise (8 N/mm at 2 N: 0.0125 mm apart read -0.12 N,
+            # and 1e-3 N/mm sent the next step 9.9 mm in, to the force limit)
+            known = approach.stiffness_n_per_mm
             if len(ys) >= 2:
-                k = max((forces[0] - forces[-1]) / (ys[-1] - ys[0]), 1e-3)
-            else:
-                k = max(relaxed / max(contact_guess - y, 0.5 * spec.approach_step_mm), 1e-3)
+                k = max((forces[0] - forces[-1]) / (ys[-1] - ys[0]), known, 1e-3)
+            else:  # a lower bound: the surface lies below the last free reading
+                k = max(relaxed / max(contact_guess - y, 0.5 * step_mm), known, 1e-3)
             remaining = spec.press_points - len(ys)
-            step = max((aim_n - relaxed) / k / remaining, 0.25 * spec.approach_step_mm)
+            step = max((aim_n - relaxed) / k / remaining, 0.25 * approach.fine_step_mm())
             step = min(step, 0.99 * self.max_step_mm)
             seen = [(e - f) / f for e, f in zip(self._early(index), forces, strict=True) if f > 0.5]
             ratio = max(1.3, 1.0 + max(seen, default=0.0))  # unrelaxed / relaxed force

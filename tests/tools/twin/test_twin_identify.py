@@ -102,3 +102,28 @@ def test_identify_stays_under_the_force_limit_on_a_stiff_part(tmp_path: Path) ->
     assert max(b.mean_n for b in bursts) < config.safety.max_force_n
     stages = {s.stage for t in result.records for s in t.steps}
     assert {"identify-hold", "identify-cycle1"} <= stages  # the whole plan ran
+
+
+def test_identify_reads_a_stiff_part_with_a_small_force_more_than_once() -> None:
+    """8 N/mm at 5 N with the default 1 mm step: the press reads the part several times.
+
+    Its one reading in contact before measured a rise of 0 (1e-3 N/mm), the step-and-hold's
+    3 mm step was cut by the press guard and neither the holds' steps nor the cycles ran.
+    """
+    from dataclasses import replace
+
+    from forcelearn.tasks.approach import READINGS
+
+    config = load_cell_config(None)
+    sponge = replace(config.emulator.sponge, stiffness_n_per_mm=8.0)
+    config = replace(config, emulator=replace(config.emulator, sponge=sponge),
+                     task=replace(config.task, desired_force_n=5.0))
+    plan = IdentifyPlan(lengths_mm=(1.0,), speeds_mm_s=(20.0,), free_reads=2, free_hold_s=1.0,
+                        hold_s=(0.1, 0.4))
+    result = run_identification(config, plan, seed=0)
+    steps = [s for t in result.records for s in t.steps if s.burst is not None]
+    press = [s.burst.mean_n for s in steps if s.stage == "identify-press"]
+    assert sum(f > config.probe.contact_force_n for f in press) >= READINGS - 1
+    stages = {s.stage for s in steps}
+    assert {"identify-step", "identify-cycle1"} <= stages
+    assert max(s.burst.mean_n for s in steps) < config.safety.max_force_n

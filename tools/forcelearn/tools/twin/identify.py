@@ -53,6 +53,7 @@ from forcelearn.errors import ForcelearnError
 from forcelearn.press_guard import PressGuard
 from forcelearn.records import StepRecord, TrialRecords
 from forcelearn.site.config import CellConfig
+from forcelearn.tasks.approach import PROBE_APPROACH_ADVICE, FineApproach
 from forcelearn.tools.experiments.records import step_from_json, step_to_json
 from forcelearn.tools.experiments.run_recorder import TrialRecorder
 
@@ -239,6 +240,9 @@ def _hold(cell: Any, plan: IdentifyPlan, stage: str, index: int) -> None:
 def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
     """Free-space hold, press, step-and-hold, press in and ease off (records via the cell).
 
+    The press steps down in ``[probe] approach_step_mm``, refined at its first contact on a
+    stiff part (:mod:`forcelearn.tasks.approach`: on 8 N/mm at 5 N one 1 mm step passed the
+    whole press, which then measured a rise of 0 and the step-and-hold took no step).
     Every move that may press in goes through the press guard
     (:mod:`forcelearn.press_guard`): on a stiff part a step is cut where the force it is
     predicted to meet would pass ``[safety] max_force_n`` (hidden cell 17 of seed 1 read
@@ -254,12 +258,14 @@ def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
         cell.measure_force_n(plan.free_samples)
     probe = config.probe
     target_n = plan.press_force_ratio * config.task.desired_force_n
-    step = probe.approach_step_mm
+    approach = FineApproach(probe.approach_step_mm, probe.contact_force_n,  # refined on a
+                            target_n - probe.contact_force_n, PROBE_APPROACH_ADVICE)  # stiff part
     y, index, force = home.y_mm, 0, 0.0
+    free = (y, force)  # the last reading in free space (y mm, N)
     bottom = config.task.start_mm[1] - probe.max_depth_mm  # until contact is found
     contact: tuple[float, float] | None = None  # the first reading in contact (y mm, N)
     while force < target_n:
-        y -= step
+        y -= approach.step_mm
         if y < bottom:
             raise IdentificationError(
                 f"the press read {force:.2f} N at most, under {target_n:.2f} N, within "
@@ -271,8 +277,14 @@ def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
         y = cell.pose.y_mm  # where the guard let it go
         force = cell.measure_force_n(plan.step_samples)
         if force > probe.contact_force_n and contact is None:
+            if approach.again(force, free[1], free[0] - y, " of the identification's press"):
+                y, force = free  # back out to the free reading; step in again, finer
+                _press_to(cell, config, Pose(home.x_mm, y, home.z_mm, home.quaternion))
+                continue
             contact = (y, force)
             bottom = max(bottom, y - probe.max_depth_mm)  # at most max_depth_mm deeper
+        elif contact is None:
+            free = (y, force)
     # step-and-hold: step in ``hold_steps`` times, each by the depth the press took from
     # contact to ``target_n`` scaled to ``hold_force_ratio`` of the desired force, and hold
     # (relaxation: the force falls towards its relaxed value with the foam's time constant)
