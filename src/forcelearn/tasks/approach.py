@@ -8,15 +8,17 @@ one step passes it (8 N/mm at 5 N: a 1 mm step rises 8-10 N, the §5 probe aims 
 its contact), and the fit of the press has one reading in contact.
 
 The first reading in contact shows it. Its rise over the last reading in free space, over the
-press-in between them, is at least the part's stiffness ``k`` (the surface lies somewhere
-between the two); and where it passes the contact's force by more than ``span_n /``
+press-in between them, is about the part's stiffness ``k``, at least (the surface lies below
+the free reading); and where it passes the contact's force by more than ``span_n /``
 :data:`READINGS`, fewer than that many readings are left before the deepest press. Then the
 approach backs out to that free reading and steps in again in steps of
-``span_n / (READINGS x k)`` (``k`` the steepest such bound seen), so the next first contact
-passes the contact's force by at most ``span_n / READINGS`` if ``k`` was the part's: at most
-:data:`REFINES` times (each bound is a lower one), then :class:`ApproachTooCoarse` says what
-to set. The default cell never refines (its 2 N/mm sponge rises at most 2.5 N in a 1 mm step,
-its §5 probe's threshold is 7.8 N above the contact).
+``span_n / (READINGS x k)`` (``k`` the steepest of this approach's contacts; floor
+:data:`~forcelearn.press_guard.MIN_STEP_MM`), at most :data:`REFINES` times and only while the
+step shrinks to :data:`SHRINK` of the last or less. A contact that then still reaches the
+deepest press's force is :class:`ApproachTooCoarse` (what to set); one under it presses on,
+and the press steps no coarser than a quarter of the fine step (:meth:`FineApproach.fine_step_mm`).
+The default cell never refines (its 2 N/mm sponge passes 1 N by at most 1.5 N in a 1 mm step;
+its §5 probe's threshold is 7.8 N).
 """
 
 from __future__ import annotations
