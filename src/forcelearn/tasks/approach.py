@@ -39,6 +39,9 @@ that is not finer by much would meet the same; the press then goes on from the c
 
 PROBE_APPROACH_ADVICE = ("set [probe] approach_step_mm to {step} mm or less (a run then starts "
                          "finer), or raise [task] desired_force_n")
+PROBE_FLOOR_ADVICE = ("raise [task] desired_force_n or [probe] press_force_ratio, or lower "
+                      "[probe] contact_force_n (the press's span)")
+"""What :class:`ApproachTooCoarse` tells such a run when the finest step met it too."""
 """What :class:`ApproachTooCoarse` tells a run whose step is ``[probe] approach_step_mm``."""
 
 
@@ -57,12 +60,15 @@ class FineApproach:
         span_n: the force the press rises from ``contact_n`` to its deepest reading, N.
         advice: what to set, told by :class:`ApproachTooCoarse` (``{step}``: the step it
             would take, mm).
+        floor_advice: what to set when even :data:`~forcelearn.press_guard.MIN_STEP_MM` met
+            it (no step reads the press twice): a wider span.
     """
 
     configured_mm: float
     contact_n: float
     span_n: float
     advice: str
+    floor_advice: str = PROBE_FLOOR_ADVICE
     step_mm: float = 0.0
     """The step in use, mm (:meth:`start` sets the configured one)."""
     refines: int = 0
@@ -122,8 +128,11 @@ class FineApproach:
             return True
         if over_n < self.span_n:
             return False
+        at_floor = self.step_mm <= MIN_STEP_MM
+        what = (f"even the finest step, {MIN_STEP_MM:g} mm, passes it: " + self.floor_advice
+                if at_floor else self.advice.format(step=f"{step:.3g}"))
         raise ApproachTooCoarse(
             f"the approach{where} met {force_n:.2f} N {pressed_mm:.3g} mm past a free reading "
             f"({seen:.3g} N/mm) after {self.refines} finer approaches: its press from the "
             f"contact ({self.contact_n:g} N) to {self.contact_n + self.span_n:.2f} N has one "
-            "reading (a stiff part with a small force): " + self.advice.format(step=f"{step:.3g}"))
+            f"reading (a stiff part with a small force); {what}")
