@@ -105,14 +105,14 @@ def test_the_surface_probe_reads_a_stiff_part_three_times_with_its_default_step(
 
 
 def test_a_part_too_stiff_for_the_finest_step_ends_in_the_typed_error_off_the_part() -> None:
-    """30 N/mm at 1 N (a 0.25 N press): no step reads it; the error says what to set."""
+    """30 N/mm at 1 N (a 0.25 N press): not even 0.05 mm reads it; the error says what to set."""
     config = _part(30.0, 1.0)
     with CellSession(config, seed=0) as session:
         assert session.cell is not None and session.physics is not None
         peak = _peak_recorded(session)
         probe = SurfaceProbe(session.cell, config.task, ProbeSpec(points=(0.0,)),
                              config.safety.max_step_mm, -60.0)
-        with pytest.raises(ApproachTooCoarse, match=r"\[probe\] approach_step_mm"):
+        with pytest.raises(ApproachTooCoarse, match=r"finest step.*raise \[task\] desired_force_n"):
             probe.run()
         assert session.cell.pose.y_mm == pytest.approx(config.task.retract_y_mm)
         peak_before = peak[0]

@@ -8,15 +8,17 @@ one step passes it (8 N/mm at 5 N: a 1 mm step rises 8-10 N, the §5 probe aims 
 its contact), and the fit of the press has one reading in contact.
 
 The first reading in contact shows it. Its rise over the last reading in free space, over the
-press-in between them, is at least the part's stiffness ``k`` (the surface lies somewhere
-between the two); and where it passes the contact's force by more than ``span_n /``
+press-in between them, is about the part's stiffness ``k``, at least (the surface lies below
+the free reading); and where it passes the contact's force by more than ``span_n /``
 :data:`READINGS`, fewer than that many readings are left before the deepest press. Then the
 approach backs out to that free reading and steps in again in steps of
-``span_n / (READINGS x k)`` (``k`` the steepest such bound seen), so the next first contact
-passes the contact's force by at most ``span_n / READINGS`` if ``k`` was the part's: at most
-:data:`REFINES` times (each bound is a lower one), then :class:`ApproachTooCoarse` says what
-to set. The default cell never refines (its 2 N/mm sponge rises at most 2.5 N in a 1 mm step,
-its §5 probe's threshold is 7.8 N above the contact).
+``span_n / (READINGS x k)`` (``k`` the steepest of this approach's contacts; floor
+:data:`~forcelearn.press_guard.MIN_STEP_MM`), at most :data:`REFINES` times and only while the
+step shrinks to :data:`SHRINK` of the last or less. A contact that then still reaches the
+deepest press's force is :class:`ApproachTooCoarse` (what to set); one under it presses on,
+and the press steps no coarser than a quarter of the fine step (:meth:`FineApproach.fine_step_mm`).
+The default cell never refines (its 2 N/mm sponge passes 1 N by at most 1.5 N in a 1 mm step;
+its §5 probe's threshold is 7.8 N).
 """
 
 from __future__ import annotations
@@ -37,6 +39,9 @@ that is not finer by much would meet the same; the press then goes on from the c
 
 PROBE_APPROACH_ADVICE = ("set [probe] approach_step_mm to {step} mm or less (a run then starts "
                          "finer), or raise [task] desired_force_n")
+PROBE_FLOOR_ADVICE = ("raise [task] desired_force_n or [probe] press_force_ratio, or lower "
+                      "[probe] contact_force_n (the press's span)")
+"""What :class:`ApproachTooCoarse` tells such a run when the finest step met it too."""
 """What :class:`ApproachTooCoarse` tells a run whose step is ``[probe] approach_step_mm``."""
 
 
@@ -55,12 +60,15 @@ class FineApproach:
         span_n: the force the press rises from ``contact_n`` to its deepest reading, N.
         advice: what to set, told by :class:`ApproachTooCoarse` (``{step}``: the step it
             would take, mm).
+        floor_advice: what to set when even :data:`~forcelearn.press_guard.MIN_STEP_MM` met
+            it (no step reads the press twice): a wider span.
     """
 
     configured_mm: float
     contact_n: float
     span_n: float
     advice: str
+    floor_advice: str = PROBE_FLOOR_ADVICE
     step_mm: float = 0.0
     """The step in use, mm (:meth:`start` sets the configured one)."""
     refines: int = 0
@@ -120,8 +128,11 @@ class FineApproach:
             return True
         if over_n < self.span_n:
             return False
+        at_floor = self.step_mm <= MIN_STEP_MM
+        what = (f"even the finest step, {MIN_STEP_MM:g} mm, passes it: " + self.floor_advice
+                if at_floor else self.advice.format(step=f"{step:.3g}"))
         raise ApproachTooCoarse(
             f"the approach{where} met {force_n:.2f} N {pressed_mm:.3g} mm past a free reading "
             f"({seen:.3g} N/mm) after {self.refines} finer approaches: its press from the "
             f"contact ({self.contact_n:g} N) to {self.contact_n + self.span_n:.2f} N has one "
-            "reading (a stiff part with a small force): " + self.advice.format(step=f"{step:.3g}"))
+            f"reading (a stiff part with a small force); {what}")

@@ -339,7 +339,8 @@ class PathTask:
         readings = [(self._offset, self.cell.measure_force_n())]
         contact_n = self.spec.contact_force_n
         approach = None if until_n is None else FineApproach(  # the probe pass's search
-            CONTACT_STEP_MM, contact_n, until_n - contact_n, PATH_APPROACH_ADVICE)
+            CONTACT_STEP_MM, contact_n, until_n - contact_n, PATH_APPROACH_ADVICE,
+            PATH_APPROACH_ADVICE)
         while True:
             if verify:
                 readings[-1] = (self._offset, self.check_contact(readings[-1][1]))

@@ -258,8 +258,10 @@ def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
         cell.measure_force_n(plan.free_samples)
     probe = config.probe
     target_n = plan.press_force_ratio * config.task.desired_force_n
-    approach = FineApproach(probe.approach_step_mm, probe.contact_force_n,  # refined on a
-                            target_n - probe.contact_force_n, PROBE_APPROACH_ADVICE)  # stiff part
+    approach = FineApproach(  # refined on a stiff part
+        probe.approach_step_mm, probe.contact_force_n, target_n - probe.contact_force_n,
+        PROBE_APPROACH_ADVICE, "raise [task] desired_force_n or the plan's press_force_ratio, "
+        "or lower [probe] contact_force_n")
     y, index, force = home.y_mm, 0, 0.0
     free = (y, force)  # the last reading in free space (y mm, N)
     bottom = config.task.start_mm[1] - probe.max_depth_mm  # until contact is found
