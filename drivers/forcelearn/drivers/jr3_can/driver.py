@@ -282,7 +282,14 @@ class Jr3CanSensor(Driver):
         for _attempt in range(SYNC_ATTEMPTS):
             with lst.lock:
                 seq, frames = lst.seq, lst.data_frames
-            if not self._carry_sync():
+            if self._carry_sync():
+                with lst.lock:  # the answer is taken: what the wait below finds at once
+                    if lst.bootup_pending:
+                        return None
+                    if lst.seq > seq:
+                        self._last_seq = lst.seq
+                        return lst.latest
+            else:
                 self._send(codec.SYNC)
 
             def answered(before: int = seq) -> bool:
@@ -389,8 +396,7 @@ class Jr3CanSensor(Driver):
             ) from exc
         if carried is None:
             return False
-        for message in carried:
-            lst.on_carried(message)
+        lst.on_carried_all(carried)
         return True
 
     def _send(self, message: codec.Message) -> None:

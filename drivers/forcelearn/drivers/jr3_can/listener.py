@@ -183,6 +183,17 @@ class Jr3Listener(can.Listener):
             for callback in self.callbacks:
                 callback(sample)
 
+    def on_carried_all(self, messages: list[codec.Message]) -> None:
+        """:meth:`on_carried` of each message (the lock taken once when no callback waits)."""
+        if self.callbacks:  # each callback outside the lock, as on_carried calls it
+            for message in messages:
+                self.on_carried(message)
+            return
+        with self.lock:
+            for message in messages:
+                self._stats.frames += 1
+                self._take(message)
+
     def _take(self, message: codec.Message) -> WrenchSample | None:
         """Act on one decoded message of this node (under the lock); the sample it completes."""
         sample: WrenchSample | None = None
