@@ -445,7 +445,11 @@ class Jr3CanSensor(Driver):
                 failed = lst.bus_error is not None
                 remaining = deadline - time.monotonic()
                 if not failed and remaining > 0 and self._notifier is not None:
-                    lst.cond.wait(remaining)
+                    lst.sample_waiters += 1
+                    try:
+                        lst.cond.wait(remaining)
+                    finally:
+                        lst.sample_waiters -= 1
                     continue
             if failed:
                 self._check_open()  # raises SensorBusError (outside the lock)

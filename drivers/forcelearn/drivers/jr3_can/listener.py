@@ -81,6 +81,9 @@ class Jr3Listener(can.Listener):
         """The condition's lock: ``with lock`` where nothing waits or notifies (the hot
         path: one C call where the condition's ``with`` adds a Python frame each way)."""
         self.cond = threading.Condition(self.lock)
+        self.sample_waiters = 0
+        """Threads in ``cond.wait`` (counted by the waiter): a sample notifies only if one
+        waits (notify_all with none waiting does nothing, at a cost on every sample)."""
         self.callbacks: list[SampleCallback] = []
         self.acks: deque[codec.Ack] = deque()
         self.latest: WrenchSample | None = None
@@ -238,7 +241,8 @@ class Jr3Listener(can.Listener):
         self._stats.samples += 1
         self.latest = sample
         self.seq += 1
-        self.cond.notify_all()
+        if self.sample_waiters:
+            self.cond.notify_all()
         return sample
 
     def on_error(self, exc: Exception) -> None:
