@@ -26,7 +26,6 @@ directory's ``records.mcap``); without one nothing is computed.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 from collections.abc import Callable
@@ -495,11 +494,11 @@ class Cell:
     def _compensated(self, sample: WrenchSample) -> WrenchSample:
         wrench = (sample.wrench if self.compensation is None
                   else self.compensation(sample.wrench, self.reached_pose()))
-        if self.zero_residual.any():
+        if any(self.zero_residual.tolist()):  # .any() of six numbers, without a ufunc (hot)
             wrench = np.asarray(wrench, dtype=float) - self.zero_residual
         elif self.compensation is None:
             return sample
-        return dataclasses.replace(sample, wrench=wrench)  # keeps its time, counter, flags
+        return sample.with_wrench(wrench)  # keeps its time, counter, flags
 
     def check_tool_fit(self, samples: int | None = None) -> bool:
         """In free space: raise ToolMismatch if the calibrated tool no longer fits here.

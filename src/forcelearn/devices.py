@@ -152,6 +152,15 @@ class WrenchSample:
     saturated: tuple[bool, ...] = field(default=(False,) * 6)
     sensor_dt_s: float | None = None
 
+    def with_wrench(self, wrench: np.ndarray) -> WrenchSample:
+        """This sample with another wrench (time, counter and flags kept).
+
+        ``dataclasses.replace(self, wrench=wrench)`` without its field lookup (a hot
+        path: every sample of a burst is compensated); a test holds it to ``replace``.
+        """
+        return WrenchSample(wrench, self.timestamp_s, self.counter, self.saturated,
+                            self.sensor_dt_s)
+
     @property
     def force_n(self) -> np.ndarray:
         """The force part (Fx, Fy, Fz) in N."""

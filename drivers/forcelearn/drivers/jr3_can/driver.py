@@ -282,7 +282,14 @@ class Jr3CanSensor(Driver):
         for _attempt in range(SYNC_ATTEMPTS):
             with lst.lock:
                 seq, frames = lst.seq, lst.data_frames
-            if not self._carry_sync():
+            if self._carry_sync():
+                with lst.lock:  # the answer is taken: what the wait below finds at once
+                    if lst.bootup_pending:
+                        return None
+                    if lst.seq > seq:
+                        self._last_seq = lst.seq
+                        return lst.latest
+            else:
                 self._send(codec.SYNC)
 
             def answered(before: int = seq) -> bool:
@@ -389,8 +396,7 @@ class Jr3CanSensor(Driver):
             ) from exc
         if carried is None:
             return False
-        for message in carried:
-            lst.on_carried(message)
+        lst.on_carried_all(carried)
         return True
 
     def _send(self, message: codec.Message) -> None:
@@ -439,7 +445,11 @@ class Jr3CanSensor(Driver):
                 failed = lst.bus_error is not None
                 remaining = deadline - time.monotonic()
                 if not failed and remaining > 0 and self._notifier is not None:
-                    lst.cond.wait(remaining)
+                    lst.sample_waiters += 1
+                    try:
+                        lst.cond.wait(remaining)
+                    finally:
+                        lst.sample_waiters -= 1
                     continue
             if failed:
                 self._check_open()  # raises SensorBusError (outside the lock)

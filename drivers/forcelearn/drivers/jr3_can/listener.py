@@ -81,6 +81,9 @@ class Jr3Listener(can.Listener):
         """The condition's lock: ``with lock`` where nothing waits or notifies (the hot
         path: one C call where the condition's ``with`` adds a Python frame each way)."""
         self.cond = threading.Condition(self.lock)
+        self.sample_waiters = 0
+        """Threads in ``cond.wait`` (counted by the waiter): a sample notifies only if one
+        waits (notify_all with none waiting does nothing, at a cost on every sample)."""
         self.callbacks: list[SampleCallback] = []
         self.acks: deque[codec.Ack] = deque()
         self.latest: WrenchSample | None = None
@@ -183,6 +186,17 @@ class Jr3Listener(can.Listener):
             for callback in self.callbacks:
                 callback(sample)
 
+    def on_carried_all(self, messages: list[codec.Message]) -> None:
+        """:meth:`on_carried` of each message (the lock taken once when no callback waits)."""
+        if self.callbacks:  # each callback outside the lock, as on_carried calls it
+            for message in messages:
+                self.on_carried(message)
+            return
+        with self.lock:
+            for message in messages:
+                self._stats.frames += 1
+                self._take(message)
+
     def _take(self, message: codec.Message) -> WrenchSample | None:
         """Act on one decoded message of this node (under the lock); the sample it completes."""
         sample: WrenchSample | None = None
@@ -227,7 +241,8 @@ class Jr3Listener(can.Listener):
         self._stats.samples += 1
         self.latest = sample
         self.seq += 1
-        self.cond.notify_all()
+        if self.sample_waiters:
+            self.cond.notify_all()
         return sample
 
     def on_error(self, exc: Exception) -> None:

@@ -78,6 +78,8 @@ class ComputerLinkEmulator(Emulator):
             raise ValueError(f"transport must be 'pty', 'tcp' or 'inproc', got {transport!r}")
         self.engine = ControllerEngine(config, physics, char_time_s)
         self.faults = FaultInjector(faults)
+        self._quiet_seen: tuple[object, bool] | None = None
+        """(the fault config looked at, whether it is quiet): :meth:`_quiet`."""
         self.engine.motion.stall_fraction = self.faults.config.stall_fraction
         self.engine.never_in_position = self.faults.config.never_in_position
         self._endpoint: PtyEndpoint | TcpEndpoint | InProcessEndpoint
@@ -183,9 +185,17 @@ class ComputerLinkEmulator(Emulator):
             return self.engine.carry(payload)
 
     def _quiet(self) -> bool:
-        """No fault of the link can fire (each has probability 0)."""
+        """No fault of the link can fire (each has probability 0).
+
+        Kept per config object (frozen, its faults frozen too: a new config is a new
+        object), so each carried request does not look at the five faults again.
+        """
         config = self.faults.config
-        return not any(getattr(config, name).probability for name in _WIRE_FAULTS)
+        seen = self._quiet_seen
+        if seen is None or seen[0] is not config:
+            seen = self._quiet_seen = (
+                config, not any(getattr(config, name).probability for name in _WIRE_FAULTS))
+        return seen[1]
 
     def _serve(self) -> None:
         while not self._stop.is_set():

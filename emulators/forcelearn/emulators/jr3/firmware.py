@@ -311,9 +311,15 @@ class Jr3Firmware:
         carried: list[codec.Message] = []
         self._carried = carried
         try:
-            self._flag_sync(self._arrive(0))  # a SYNC has no data
-            assert self._sync_flag_s is not None
-            self._run_turn(self._turn_after(self._sync_flag_s))
+            # _flag_sync(_arrive(0)) then _run_turn(_turn_after(flag)) written out for this
+            # case (nothing waits for a turn, no flag set, the stream in sync mode): the same
+            # bus time, clock moves and counts (tests/drivers/jr3_can/test_jr3_carried.py)
+            _, arrived = self.bus_wire.transmit(self._frame_times[0])  # a SYNC has no data
+            self.clock.advance_to(arrived)
+            self.stats.syncs += 1
+            self.stats.loop_turns += 1
+            self.clock.advance_to(self._turn_after(arrived))
+            self._emit_sample()
         finally:
             self._carried = None
         return carried

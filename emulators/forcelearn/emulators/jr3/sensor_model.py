@@ -58,7 +58,7 @@ import numpy as np
 
 from forcelearn.deprecation import renamed
 from forcelearn.protocols.jr3_can.opcodes import SENSOR_FRAME_PERIOD_S
-from forcelearn.protocols.jr3_can.scaling import counts_per_unit, to_count
+from forcelearn.protocols.jr3_can.scaling import INT16_MAX, INT16_MIN, counts_per_unit
 
 Six = tuple[float, float, float, float, float, float]
 
@@ -115,6 +115,8 @@ class Jr3SensorModel:
         self._offset = [0.0] * 6
         self._lowpass: list[float] | None = None
         self._filtered_noise = [0.0] * 6
+        self._filter_terms = (-1.0, -1.0, 0.0, 0.0, 0.0)
+        """(cut-off Hz, dt s, keep, 1 - keep, sqrt(1 - keep^2)) of the last filtered sample."""
 
     @property
     def bias(self) -> np.ndarray:
@@ -147,25 +149,32 @@ class Jr3SensorModel:
         root_dt = dt_s**0.5
         filtering = self._filter and cutoff_hz > 0 and self._lowpass is not None
         if filtering:
-            keep = math.exp(-2.0 * math.pi * cutoff_hz * dt_s)
-            rest = 1.0 - keep
-            spread = math.sqrt(1.0 - keep * keep)
+            terms = self._filter_terms
+            if terms[0] != cutoff_hz or terms[1] != dt_s:  # the same dt nearly every sample
+                keep = math.exp(-2.0 * math.pi * cutoff_hz * dt_s)
+                self._filter_terms = terms = (cutoff_hz, dt_s, keep, 1.0 - keep,
+                                              math.sqrt(1.0 - keep * keep))
+            _, _, keep, rest, spread = terms
         lowpass = self._lowpass if filtering and self._lowpass is not None else true
         bias, noise, counts = [], [], []
+        biases, drifts, noises = self._bias, self._drift, self._noise
+        filtered = self._filtered_noise
+        offsets, per_unit = self._offset, self._counts_per_unit
         for axis in range(6):
-            b = self._bias[axis] + self._drift[axis] * root_dt * draws[6 + axis]
+            b = biases[axis] + drifts[axis] * root_dt * draws[6 + axis]
             if filtering:
                 low = keep * lowpass[axis] + rest * true[axis]
-                n = keep * self._filtered_noise[axis] + self._noise[axis] * spread * draws[axis]
+                n = keep * filtered[axis] + noises[axis] * spread * draws[axis]
                 lowpass[axis] = low
             else:
                 low = float(lowpass[axis])
                 lowpass[axis] = low
-                n = self._noise[axis] * draws[axis]
+                n = noises[axis] * draws[axis]
             bias.append(b)
             noise.append(n)
-            counts.append(to_count((low + b - self._offset[axis] + n)
-                                   * self._counts_per_unit[axis]))
+            value = (low + b - offsets[axis] + n) * per_unit[axis]  # to_count(value) written out
+            counts.append(INT16_MAX if value >= INT16_MAX else
+                          INT16_MIN if value <= INT16_MIN else round(value))
         self._bias, self._filtered_noise, self._lowpass = bias, noise, lowpass
         return counts
 

@@ -171,6 +171,9 @@ class ArmMotion:
     def _set_rest(self, pose: Pose) -> None:
         self._tool = [pose.x_mm, pose.y_mm, pose.z_mm]
         self._tool_q = cast(Quaternion, tuple(pose.quaternion))  # a Pose's four components
+        self.tool_key: PoseKey = (pose.x_mm, pose.y_mm, pose.z_mm, self._tool_q)
+        """Where the tool is, as (x, y, z, quaternion) without building a Pose (hot path: a
+        plain attribute, set wherever the tool moves)."""
         self._ref = list(self._tool)
         self._ref_q = self._tool_q
         self._seg_start = list(self._tool)
@@ -194,12 +197,6 @@ class ArmMotion:
         """Where the tool is (mm, quaternion w x y z)."""
         x, y, z = self._tool
         return Pose(x, y, z, self._tool_q)
-
-    @property
-    def tool_key(self) -> PoseKey:
-        """Where the tool is, as (x, y, z, quaternion) without building a Pose (hot path)."""
-        x, y, z = self._tool
-        return (x, y, z, self._tool_q)
 
     @property
     def moving(self) -> bool:
@@ -297,6 +294,7 @@ class ArmMotion:
                 self._unit_q, self._unit_ref, turned = q, self._ref_q, q
             self._tool_q = turned
         self._tool = tool
+        self.tool_key = (tool[0], tool[1], tool[2], self._tool_q)
 
     def _start_segment(self, goal: Pose) -> None:
         start, start_q = list(self._ref), self._ref_q
@@ -364,6 +362,7 @@ class ArmMotion:
         self._pending = deque((int(t), pose(p)) for t, p in state["pending"])
         tool, ref, start = state["tool"], state["ref"], state["seg_start"]
         self._tool, self._tool_q = list(tool[:3]), tuple(tool[3:7])
+        self.tool_key = (self._tool[0], self._tool[1], self._tool[2], self._tool_q)
         self._ref, self._ref_q = list(ref[:3]), tuple(ref[3:7])
         self._seg_start, self._seg_start_q = list(start[:3]), tuple(start[3:7])
         self._seg_goal = pose(state["seg_goal"])

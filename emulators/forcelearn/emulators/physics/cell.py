@@ -63,6 +63,15 @@ class TimedEnvironment(Protocol):
 
 
 @runtime_checkable
+class TickedEnvironment(Protocol):
+    """A timed pose observer that takes one motion tick in one call (the hot path)."""
+
+    def tick(self, position_mm: tuple[float, float, float], dt_s: float, moved: bool) -> None:
+        """``observe_pose(position_mm)`` if the tool ``moved``, then ``evolve(...)``."""
+        ...
+
+
+@runtime_checkable
 class OrientedEnvironment(Protocol):
     """An environment whose contact depends on the tool's orientation (a part, a tilted tool)."""
 
@@ -120,6 +129,7 @@ class CellPhysics:
 
     def _move_tool(self, key: PoseKey) -> None:
         """Record the tool at (x, y, z, quaternion); the Pose is built when :attr:`pose` is read."""
+        # _record_tool written out (the route of every environment without a tick())
         if key[3] != self._pose_key[3]:
             self._rotation, self._gravity = self._orientation_terms(key[3])
             if self._oriented is not None:
@@ -131,6 +141,17 @@ class CellPhysics:
         if self._observer is not None:
             point: Any = self._position if self._tuples else self._position_mm  # as _point()
             self._observer.observe_pose(point)
+
+    def _record_tool(self, key: PoseKey) -> None:
+        """:meth:`_move_tool` without reporting the pose to the environment."""
+        if key[3] != self._pose_key[3]:
+            self._rotation, self._gravity = self._orientation_terms(key[3])
+            if self._oriented is not None:
+                self._oriented.observe_orientation(key[3])
+        self._pose = None
+        self._pose_key = key
+        self._position = (key[0], key[1], key[2])
+        self._position_array = None
 
     @property
     def _position_mm(self) -> np.ndarray:
@@ -156,6 +177,8 @@ class CellPhysics:
         self._observer = environment if isinstance(environment, PoseObserver) else None
         self._oriented = environment if isinstance(environment, OrientedEnvironment) else None
         self._tuples = bool(getattr(environment, "accepts_point_tuple", False))
+        self._ticked = (environment if self._tuples and isinstance(environment, TickedEnvironment)
+                        and self._timed is not None and self._observer is not None else None)
         if self._oriented is not None and hasattr(self, "_pose_key"):
             self._oriented.observe_orientation(self._pose_key[3])
 
@@ -179,6 +202,23 @@ class CellPhysics:
                 return  # no tick to run (the sensor's samples are closer than a tick)
             timed = self._timed
             tuples = self._tuples
+            ticked = self._ticked
+            if ticked is not None and "_move_tool" not in self.__dict__:
+                # what on_tick below does, in one call to the environment (a hook that wraps
+                # this object's _move_tool to see every tick takes the route below)
+                def on_tick_ticked(dt_s: float) -> None:
+                    key = motion.tool_key
+                    if key != self._pose_key:
+                        self._record_tool(key)
+                        ticked.tick(self._position, dt_s, True)
+                    else:
+                        ticked.tick(self._position, dt_s, False)
+
+                motion.advance_to(t, on_tick_ticked)
+                key = motion.tool_key
+                if key != self._pose_key:  # an instant arm moves between ticks
+                    self._move_tool(key)
+                return
 
             def on_tick(dt_s: float) -> None:
                 key = motion.tool_key

@@ -14,6 +14,8 @@ tests' one place for the sponge).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from forcelearn.emulators.physics.foam_memory import FoamMemory, State
@@ -67,6 +69,8 @@ class Sponge(FoamMemory):
         self._depth_mm = 0.0
         self._set_key: tuple[SpongeParams, int] | None = None
         self._set_mm = 0.0
+        self._relax_terms = (-1.0, -1.0, 0.0, 0.0, 0.0)
+        """(relaxation time s, dt s, keep, time / dt, 1 - keep) of :func:`relaxation_step`."""
 
     accepts_point_tuple = True
     """:meth:`observe_pose`, :meth:`evolve` and :meth:`contact_force_world_n` take the
@@ -110,15 +114,44 @@ class Sponge(FoamMemory):
         The elastic depth is taken to change linearly over the interval (exact
         for the standard linear solid under a ramp).
         """
+        self._evolve_at(self._penetration_mm(position_mm), dt_s)
+
+    def tick(self, position_mm: tuple[float, float, float], dt_s: float, moved: bool) -> None:
+        """One motion tick: :meth:`observe_pose` if the tool ``moved``, then :meth:`evolve`.
+
+        The same state changes in the same order, the depth found once (the cell's hot
+        path: about 200 ticks per Surface-v0 step).
+        """
+        depth = self._penetration_mm(position_mm)
+        if moved:
+            p = self.params
+            if p.hysteresis_loss != 0.0 or p.friction_coefficient != 0.0:
+                self._follow_move(position_mm, depth)
+            if depth > 0.0:
+                self._touched = True
+            elif self._touched:
+                self.finish_pass()
+                depth = self._penetration_mm(position_mm)  # at the new pass count
+        self._evolve_at(depth, dt_s)
+
+    def _evolve_at(self, depth_mm: float, dt_s: float) -> None:
+        """:meth:`evolve` with the tool ``depth_mm`` deep (mm, at the present pass count)."""
         p = self.params
-        depth = min(self._penetration_mm(position_mm), p.thickness_mm)
+        depth = min(depth_mm, p.thickness_mm)
         # elastic_depth_mm is the depth itself for a linear foam: not called on every tick
         foam = depth if p.stiffening_exponent == 1.0 else elastic_depth_mm(p, depth)
         change, self._foam_mm = foam - self._foam_mm, foam
         if p.relaxation_ratio == 0.0 or dt_s <= 0.0:
             self.relaxing_mm = 0.0
             return
-        self.relaxing_mm = relaxation_step(p, self.relaxing_mm, change, dt_s)
+        # relaxation_step(p, q, change, dt_s) with its terms kept per (time, dt): the same
+        # operations in the same order, to the bit (tests/emulators/physics/test_sponge_law.py)
+        terms = self._relax_terms
+        if terms[0] != p.relaxation_time_s or terms[1] != dt_s:
+            keep = math.exp(-dt_s / p.relaxation_time_s)
+            self._relax_terms = terms = (p.relaxation_time_s, dt_s, keep,
+                                         p.relaxation_time_s / dt_s, 1.0 - keep)
+        self.relaxing_mm = self.relaxing_mm * terms[2] + change * terms[3] * terms[4]
         if foam == 0.0 and self.relaxing_mm > 0.0:
             self.relaxing_mm = 0.0  # out of contact the foam recovers freely
 
