@@ -57,11 +57,14 @@ from forcelearn.press_guard import (
     DRIFT_CHECKS,
     MIN_STEP_MM,
     NOISE_SIGMAS,
+    REFRESH_GAIN_N,
+    REFRESH_SHARE,
     DriftCheck,
     PressGuard,
     check_samples,
     drift_allowance_n,
     drift_rate_bound_n_per_s,
+    unseen_drift_n,
 )
 from forcelearn.records import CellRecorder, MoveRecord, TareRecord
 
@@ -175,6 +178,19 @@ class Cell:
         self._last_mean_wrench = np.zeros(6)
         self.press_guard: PressGuard | None = None
         """Bounds each guarded move's press-in by the known stiffness (None: no bound)."""
+        self.refresh_zero: Callable[[], None] | None = None
+        """Retracts to free space, checks the zero there and presses back to where the tool
+        was (set by a run that checks its zero, ``[task] zero_check``; may raise
+        :class:`~forcelearn.errors.ZeroMoved`). With it the press guard keeps headroom for a
+        drift no check has seen (:meth:`unseen_drift_n`) when it presses on from contact, and
+        a guarded move cut there calls it first when that headroom passes the measured one by
+        :data:`~forcelearn.press_guard.REFRESH_GAIN_N` and by
+        :data:`~forcelearn.press_guard.REFRESH_SHARE` of the force left to the limit.
+        None: no zero is checked between presses, so that headroom would only grow: the
+        measured drift alone is kept."""
+        self.zero_refreshes = 0
+        """Presses made again from a fresh zero (:attr:`refresh_zero`)."""
+        self._refreshing = False
 
     @property
     def pose(self) -> Pose:
@@ -258,13 +274,17 @@ class Cell:
                 f"{MAX_STEPS_PER_MOVE}: raise safety.max_step_mm; nothing was sent"
             )
         guard = self.press_guard if guard_force else None
-        moves, i = 0, 1
+        moves, i, refreshed = 0, 1, False
         while i <= count:
             step = _towards(start, target, i / count)
             if guard is not None:
-                guard.drift_n = self.drift_allowance_n()
+                guard.drift_n = self.drift_allowance_n(in_contact=guard.in_contact)
             if guard is not None and (share := guard.reach(self.pose.position_mm,
                                                            step.position_mm)) < 1.0:
+                if not refreshed and self._refresh_pays(guard):
+                    refreshed = True  # once per move: the drift since is then bounded
+                    self._refresh()
+                    continue
                 self._guarded_part(guard, step, share)
                 moves += 1
                 if moves > MAX_STEPS_PER_MOVE:
@@ -276,6 +296,26 @@ class Cell:
                 self.measure_force_n(1)
             i += 1
         return moves
+
+    def _refresh_pays(self, guard: PressGuard) -> bool:
+        """A cut from contact whose unseen-drift headroom is worth a fresh zero."""
+        if self.refresh_zero is None or self._refreshing or not guard.in_contact:
+            return False
+        measured = self.drift_allowance_n()
+        extra = self.unseen_drift_n() - measured
+        return extra > max(REFRESH_GAIN_N, REFRESH_SHARE * guard.force_left_n(measured))
+
+    def _refresh(self) -> None:
+        """Retract, check the zero in free space and press back (:attr:`refresh_zero`)."""
+        assert self.refresh_zero is not None
+        log.info("the zero is %.1f s old at a press near the limit: retracting to check it",
+                 self.time_s - self.zero_time_s)
+        self._refreshing = True  # none inside its own moves
+        try:
+            self.refresh_zero()
+        finally:
+            self._refreshing = False
+        self.zero_refreshes += 1
 
     def _guarded_part(self, guard: PressGuard, step: Pose, share: float) -> None:
         """Move ``share`` of the way to ``step`` (as far as the press guard allows) and read."""
@@ -408,11 +448,24 @@ class Cell:
             self._take_zero(hardware=False)
         return force, bound
 
-    def drift_allowance_n(self) -> float:
-        """What the bias may have drifted since the zero, N (the press guard's headroom)."""
-        return drift_allowance_n(self.drift_rate_n_per_s,
-                                 self.force_filter.config.bias_drift_n_per_sqrt_s,
-                                 self.time_s - self.zero_time_s)
+    def drift_allowance_n(self, in_contact: bool = False) -> float:
+        """What the bias may have drifted since the zero, N (the press guard's headroom).
+
+        ``in_contact``: from a reading in contact, at least :meth:`unseen_drift_n` where the
+        zero is checked between presses (:attr:`refresh_zero`; a drift in contact hides
+        force, from free space the prediction starts from no force).
+        """
+        measured = drift_allowance_n(self.drift_rate_n_per_s,
+                                     self.force_filter.config.bias_drift_n_per_sqrt_s,
+                                     self.time_s - self.zero_time_s)
+        if in_contact and self.refresh_zero is not None:
+            return max(measured, self.unseen_drift_n())
+        return measured
+
+    def unseen_drift_n(self) -> float:
+        """What a drift started since the last zero, which no check saw, may hide, N."""
+        return unseen_drift_n(self.force_filter.config.bias_drift_max_n_per_s,
+                              self.time_s - self.zero_time_s)
 
     def _take_zero(self, hardware: bool = True) -> None:
         """Zero the sensor here (else the caller zeroed in software); the calibration follows."""
@@ -422,6 +475,8 @@ class Cell:
         self.tares += 1
         if self.press_guard is not None:  # free space reads 0 from now on
             self.press_guard.note(self.reached_pose().position_mm, 0.0)
+            if hardware:  # a new zero (a tare, after a fault): no press to compare with yet
+                self.press_guard.referenced = False
         if hardware:  # a software zero leaves the sensor's own zero and its calibrated bias
             self.zero_taken_at(self.pose.quaternion)
         if self.on_tare is not None:
@@ -457,8 +512,6 @@ class Cell:
         if self.recorder is not None:
             here = _xyz(self._pose) if self._pose is not None else (math.nan,) * 3
             self.recorder.on_tare(TareRecord(-1, self.time_s, here, force, True))
-        if self.press_guard is not None:  # a zero after a fault: no press to compare with yet
-            self.press_guard.referenced = False
         self._take_zero()
         self.reset_filter()
         return force

@@ -77,6 +77,11 @@ class ForceFilterConfig:
         bias_drift_n_per_sqrt_s: the sensor bias's random walk on the axis, N/sqrt(s)
             (thermal drift: the zero check allows what it drifts since the last zero).
             Default 0.02, the emulated JR3's (a long free-space recording gives a real one's).
+        bias_drift_max_n_per_s: the fastest steady drift of the bias the sensor may start
+            between two zero checks, N/s (a warming sensor): no check has seen it yet, so the
+            press guard keeps this x the time since the zero as headroom when it presses on
+            from a reading in contact (:mod:`forcelearn.press_guard`). Default 0.2 (a sensor
+            drifting faster fails its zero checks: the run voids and ends on ``ZeroMoved``).
     """
 
     model: str = "moves"
@@ -90,6 +95,7 @@ class ForceFilterConfig:
     move_change_std_n: float = 30.0
     direction: tuple[float, float, float] | None = None
     bias_drift_n_per_sqrt_s: float = 0.02
+    bias_drift_max_n_per_s: float = 0.2
 
     def __post_init__(self) -> None:
         if self.model not in ("moves", "stream"):
@@ -102,6 +108,9 @@ class ForceFilterConfig:
         drift = self.bias_drift_n_per_sqrt_s
         if not (isinstance(drift, int | float) and math.isfinite(drift) and drift >= 0):
             raise ConfigError(f"filter.bias_drift_n_per_sqrt_s={drift!r}: must be >= 0")
+        fastest = self.bias_drift_max_n_per_s
+        if not (isinstance(fastest, int | float) and math.isfinite(fastest) and fastest >= 0):
+            raise ConfigError(f"filter.bias_drift_max_n_per_s={fastest!r}: must be >= 0")
         cutoff = self.noise_cutoff_hz
         if not (isinstance(cutoff, int | float) and math.isfinite(cutoff) and cutoff >= 0):
             raise ConfigError(f"filter.noise_cutoff_hz={cutoff!r}: must be >= 0 (0: white)")

@@ -139,9 +139,9 @@ def test_a_runs_records_agree_with_its_trials_csv(short_run: Path) -> None:
             elif burst is not None:
                 assert burst.std_n > 0 and burst.span_s > 0
         # the tare before its press, then the zero check at its end (the default), in free space;
-        # the session's first press, with nothing to compare with, is made twice from a zero
-        # checked before each (two more)
-        assert len(trial.tares) == (4 if trial.trial == 0 else 2)
+        # the first press on that new zero, with nothing to compare with, is made twice from a
+        # zero checked before each (two more)
+        assert len(trial.tares) == 4
         assert {t.trial for t in trial.tares} == {trial.trial}
         assert all(t.accepted and abs(t.reading_n) <= 2.0 for t in trial.tares)
         assert trial.tares[-1].time_s >= trial.steps[-1].move.settled_s

@@ -253,6 +253,22 @@ class RunRecovery:
         self.referenced = True
         return second
 
+    def refresh_zero(self) -> None:
+        """Before a press near the limit on a stale zero: retract, check the zero, press back.
+
+        The cell's :attr:`~forcelearn.cell.Cell.refresh_zero` (the §5 task presses along -Y):
+        up to the retract plane, the zero check (:meth:`check_zero`: within its bound the
+        zero there; beyond it :class:`~forcelearn.errors.ZeroMoved`, the trial void), down
+        again to where the tool was, guarded, and one reading there. The cut press then goes
+        on from a zero a moment old: a drift no check had seen is measured or bounded.
+        """
+        cell = self.cell
+        here, stage = cell.pose, cell.stage
+        self.check_zero(self.trial)
+        cell.stage = stage
+        cell.move_in_steps(here, self.max_step_mm, guard_force=True)
+        cell.measure_force_n(1)
+
     def on_exit(self, exc: BaseException, trial: int) -> None:
         """The run stops (an error it does not recover from, or Ctrl-C): leave the part first.
 

@@ -109,6 +109,8 @@ def execute(
         recovery = RunRecovery(run.out, session.cell, config.task.retract_y_mm,
                                config.safety.max_step_mm, checkpoint=run.out / CHECKPOINT,
                                zero_check=config.task.zero_check)
+        if config.task.zero_check:  # a press near the limit on a stale zero: check it first
+            session.cell.refresh_zero = recovery.refresh_zero
         if checkpoint is not None:
             try:  # a session that stopped in contact: retract and re-zero first
                 recovery.on_resume()

@@ -6,8 +6,9 @@ stiff8 --seeds 0 1 --trials 10 --out F.csv`` runs each example cell (the default
 row per run as it ends (a partial study still says something): the zero checks made, the
 voids (a fault-free run should have none), the largest check against its bound, the
 largest true contact force against ``[safety] max_force_n``, the moves the press guard cut,
-the largest error of a used reading in the sensor's noise sigma, convergence and the run's
-cell time. Materials are ``--set`` overrides of :data:`MATERIALS`.
+the presses made again from a fresh zero (``Cell.refresh_zero``), the largest error of a
+used reading in the sensor's noise sigma, convergence and the run's cell time. Materials
+are ``--set`` overrides of :data:`MATERIALS`.
 """
 
 from __future__ import annotations
@@ -53,7 +54,7 @@ MATERIALS: dict[str, tuple[str, ...]] = {
 
 FIELDS = ("cell", "material", "probe", "seed", "trials", "checks", "voids", "events",
           "worst_check_ratio", "first_presses_twice", "worst_press_ratio", "worst_check_n",
-          "max_contact_n", "max_force_n", "guard_cuts",
+          "max_contact_n", "max_force_n", "guard_cuts", "zero_refreshes",
           "worst_used_n", "sigma_n", "beyond_3sigma", "converged_trial", "cell_time_s",
           "wall_s")
 
@@ -91,6 +92,7 @@ def one_run(cell: str, material: str, probe: bool, seed: int, trials: int,
         run, checkpoint = run_state.prepare_run(config, folder / "run", None, seed, resume=False)
         engine.execute(run, checkpoint)
         guard = truths[0].session.cell.press_guard
+        refreshes = truths[0].session.cell.zero_refreshes
     truth = truths[0]
     truth.finish()
     summary = json.loads((folder / "run" / "summary.json").read_text())
@@ -107,6 +109,7 @@ def one_run(cell: str, material: str, probe: bool, seed: int, trials: int,
         "max_contact_n": round(truth.max_contact_n, 2),
         "max_force_n": run.config.safety.max_force_n,
         "guard_cuts": 0 if guard is None else guard.cuts,
+        "zero_refreshes": refreshes,
         "worst_used_n": round(truth.worst_used_n, 3), "sigma_n": round(truth.sigma_n, 4),
         "beyond_3sigma": truth.beyond_3sigma, "converged_trial": summary.get("converged_trial"),
         "cell_time_s": summary.get("cell_time_s"),
