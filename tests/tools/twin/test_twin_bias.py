@@ -20,7 +20,7 @@ from forcelearn.tools.twin.arrays import to_arrays
 from forcelearn.tools.twin.bias import Chain, build_chain, solve_biases, tare_zeros, walk_terms
 from forcelearn.tools.twin.fit import TwinFit, fit_twin
 from forcelearn.tools.twin.replay import replay
-from forcelearn.tools.twin.sensor import fit_sensor, mean_share
+from forcelearn.tools.twin.sensor import fit_sensor, mean_share, tare_reads
 from forcelearn.tools.twin.setup import base_arm, base_sponge, configured_colour, reading_of
 from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
 from forcelearn.tools.twin.source import read_runs
@@ -279,3 +279,34 @@ def test_zero_checks_measure_the_drift_within_its_sigma() -> None:
     assert np.all(np.abs(scores_arr) < 3.0), scores_arr
     assert abs(scores_arr.mean()) < 3.0 / math.sqrt(len(scores))  # no bias
     assert 0.5 < float(np.sqrt(np.mean(scores_arr**2))) < 1.6  # the sigma is the scatter's
+
+
+def test_reads_recorded_after_a_zero_check_at_its_time_are_read_against_it() -> None:
+    """A probe point's zero check, then its free-space reads: one settled time, three bursts.
+
+    The cell's clock does not run during a read, so the check's burst and the reads after
+    the zero carry the same time: the tare's burst is the one whose filtered force it
+    recorded, and only the bursts recorded after it start the new walk (taking every burst
+    at the tare's time as read before it put the two free reads on the old zero).
+    """
+    def burst(mean: float, count: int, filtered: float, start_s: float = 30.0) -> BurstRecord:
+        return BurstRecord(mean, 0.2, mean, mean, count, start_s, 0.02, filtered)
+
+    here = (900.0, 15.0, 0.0)
+    before = MoveRecord(here, here, 10.0, 10.4, 10.5)
+    moved = MoveRecord(here, here, 29.5, 29.9, 30.0)
+    held = MoveRecord(here, (math.nan,) * 3, 30.0, 30.0, 30.0)
+    steps = [StepRecord(-1, 0, "probe", before, burst(0.05, 16, 0.05, 10.5)),
+             StepRecord(-1, 1, "probe", moved, burst(0.41, 25, 0.40)),  # the zero check
+             StepRecord(-1, 1, "probe", held, burst(-0.02, 16, -0.02)),
+             StepRecord(-1, 1, "probe", held, burst(0.03, 16, 0.03))]
+    records = [TrialRecords(-1, steps, [TareRecord(-1, 30.0, here, 0.40, True)])]
+    data = to_arrays(records)
+    reads = tare_reads(records)
+    assert [(r.mean_n, r.count, r.rank) for r in reads] == [(0.41, 25, 0)]
+    chain = build_chain(data, tare_zeros(records, 0.2, COLOUR))
+    # a row per probe point (arrays.by_probe_point): point 0's read; point 1's check and reads
+    assert chain.segment[data.has_burst].tolist() == [0, 1, 2, 2]
+    assert chain.linked.tolist() == [False, True, False]
+    assert chain.time_s[2] - chain.gap_s[2] == 30.0
+    assert chain.anchor_var_n2[2] == pytest.approx(0.04 * mean_share(COLOUR, 25))

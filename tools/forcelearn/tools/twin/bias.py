@@ -123,6 +123,9 @@ class Zeros:
     """(Z,) cell time, s: the zero holds for the bursts of moves that settled after it."""
     var_n2: np.ndarray
     """(Z,) variance of the zero's own error (its burst mean's), N^2."""
+    rank: np.ndarray
+    """(Z,) which of the trial's bursts at ``time_s`` the zero was taken on (-1: none): the
+    bursts recorded after it at that time are read against it."""
 
 
 @dataclass(frozen=True)
@@ -150,15 +153,28 @@ def tare_zeros(records: list[TrialRecords], noise_n: float = math.nan,
     reads = tare_reads(records)
     return Zeros(np.array([r.trial for r in reads], int),
                  np.array([r.time_s for r in reads], float),
-                 np.array([zero_variance(noise_n, phi, r.count) for r in reads], float))
+                 np.array([zero_variance(noise_n, phi, r.count) for r in reads], float),
+                 np.array([r.rank for r in reads], int))
+
+
+def _ranks(data: RecordArrays, settled: np.ndarray) -> np.ndarray:
+    """(T, M) each burst's place among its trial's bursts recorded at its settled time."""
+    ranks = np.full(settled.shape, -1)
+    seen: dict[tuple[int, float], int] = {}
+    for row, col in zip(*np.nonzero(data.has_burst), strict=True):
+        key = (int(data.trial[row]), float(settled[row, col]))
+        ranks[row, col] = seen.get(key, 0)
+        seen[key] = ranks[row, col] + 1
+    return ranks
 
 
 def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None) -> Chain:
     """Segments of ``data`` and their links.
 
-    A zero (a tare) holds for the bursts read after moves that settled after it (the
-    cell's clock does not run during a read: a tare's own burst settled at the tare's
-    time); a trial's zeros taken after its last burst hold for the next trial. A segment
+    A zero (a tare) holds for the bursts read after the one it was taken on: of later
+    moves, or recorded after it at the same time (the cell's clock does not run during a
+    read: a tare's own burst settled at the tare's time, and so may the reads after it);
+    a trial's zeros taken after its last burst hold for the next trial. A segment
     read against another zero than the segment before restarts the walk from 0 at that
     zero. (Taking each trial's tare as its start pinned every trial's bias to 0, over a
     1 ms gap, where the tare is the zero check at the trial's end.) ``after`` is the last
@@ -168,6 +184,7 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None) ->
     """
     burst_s = np.where(data.has_burst, data.burst_start_s + 0.5 * data.burst_span_s, np.nan)
     settled = np.where(np.isfinite(data.settled_s), data.settled_s, data.burst_start_s)
+    ranks = _ranks(data, settled)
     segment = np.full(data.has_burst.shape, -1)
     trial_of: list[int] = []
     members: list[list[float]] = []
@@ -185,13 +202,16 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None) ->
         trial = int(data.trial[row])
         ids = ids_of.get(trial, [])
         columns = np.flatnonzero(data.has_burst[row])
-        columns = columns[np.argsort(burst_s[row, columns], kind="stable")]
+        columns = columns[np.argsort(settled[row, columns], kind="stable")]  # as recorded
         starts = data.start_s[row][data.valid[row]]
         row_start = (float(np.nanmin(starts)) if np.isfinite(starts).any() else
                      float(burst_s[row, columns[0]]) if columns.size else math.nan)
         for k, col in enumerate(columns):
             done = passed.get(trial, 0)
-            while done < len(ids) and zeros.time_s[ids[done]] < settled[row, col]:
+            while done < len(ids) and (
+                    zeros.time_s[ids[done]] < settled[row, col]
+                    or (zeros.time_s[ids[done]] == settled[row, col]
+                        and zeros.rank[ids[done]] < ranks[row, col])):
                 current, done = ids[done], done + 1
             passed[trial] = done
             moment = float(burst_s[row, col])

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forcelearn.records import TrialRecords
+from forcelearn.records import BurstRecord, TrialRecords
 from forcelearn.tools.twin.arrays import RecordArrays
 
 
@@ -128,29 +128,39 @@ class TareRead:
     """The mean of the burst it zeroed on (else its recorded reading), N."""
     count: int
     """That burst's samples (0: not in the records)."""
+    rank: int
+    """Which of the trial's bursts recorded at ``time_s`` it read (0: the first; -1: none)."""
 
 
 def tare_reads(records: list[TrialRecords]) -> list[TareRead]:
     """The accepted tares in record order (trial, then time).
 
-    A tare reads a burst and then zeroes (a zero check in software on that burst's mean):
-    the burst is the step whose move settled at the tare's time (the cell's clock does not
-    run during a read). Its mean is the reading (the tare's own ``reading_n`` is the force
-    filter's estimate, not what was zeroed); a tare without its burst in the records keeps
-    ``reading_n`` and a count of 0.
+    A tare reads a burst and then zeroes (a zero check in software on that burst's mean).
+    The cell's clock does not run during a read, so several bursts of a trial may carry
+    the tare's time (a probe point's zero check, then its two free-space reads, all at the
+    time the move there settled): the tare's is the one whose filtered force is the tare's
+    reading (the same number), else the first. Its mean is the reading (the tare's own
+    ``reading_n`` is the force filter's estimate, not what was zeroed); a tare without a
+    burst at its time keeps ``reading_n``, a count of 0 and rank -1.
     """
-    bursts: dict[float, tuple[float, int]] = {}
-    for trial in records:
-        for step in trial.steps:
-            if step.burst is not None:
-                bursts[step.move.settled_s] = (step.burst.mean_n, step.burst.count)
     out = []
     for trial in records:
+        at: dict[float, list[BurstRecord]] = {}
+        for step in trial.steps:
+            if step.burst is not None:
+                at.setdefault(step.move.settled_s, []).append(step.burst)
         for tare in trial.tares:
-            if tare.accepted and math.isfinite(tare.time_s):
-                mean, count = bursts.get(tare.time_s, (tare.reading_n, 0))
-                out.append(TareRead(trial.trial, tare.time_s, mean, count))
-    return sorted(out, key=lambda r: (r.trial, r.time_s))
+            if not (tare.accepted and math.isfinite(tare.time_s)):
+                continue
+            bursts = at.get(tare.time_s, [])
+            rank = next((k for k, b in enumerate(bursts) if b.filtered_n == tare.reading_n),
+                        0 if bursts else -1)
+            if rank < 0:
+                out.append(TareRead(trial.trial, tare.time_s, tare.reading_n, 0, -1))
+            else:
+                burst = bursts[rank]
+                out.append(TareRead(trial.trial, tare.time_s, burst.mean_n, burst.count, rank))
+    return sorted(out, key=lambda r: (r.trial, r.time_s, r.rank))
 
 
 def zero_variance(noise_n: float, phi: float, count: float) -> float:
