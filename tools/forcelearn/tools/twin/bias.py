@@ -51,7 +51,7 @@ from forcelearn.emulators.physics.sponge_law import SpongeParams, penetration_mm
 from forcelearn.records import TrialRecords
 from forcelearn.tools.twin.arrays import RecordArrays
 from forcelearn.tools.twin.forward import Reading
-from forcelearn.tools.twin.sensor import SensorFit, mean_share
+from forcelearn.tools.twin.sensor import SensorFit, mean_share, tare_reads, zero_variance
 
 SEGMENT_S = 20.0
 """Longest stretch of cell time (s) over which the bias is taken as constant: a trial is
@@ -77,7 +77,8 @@ class Chain:
 
     Segment ``s`` either follows segment ``s - 1`` after ``gap_s[s]`` seconds
     (``linked[s]``) or starts from the known value ``anchor_n[s]`` that long
-    after a tare (or the previous data set's last segment).
+    after a tare (or the previous data set's last segment), known to ``anchor_var_n2[s]``
+    (a zero taken on a burst's mean is off by that mean's error).
     """
 
     segment: np.ndarray
@@ -92,73 +93,160 @@ class Chain:
     """(S,) True: follows the previous segment; False: starts from ``anchor_n``."""
     anchor_n: np.ndarray
     """(S,) the bias the walk starts from where not linked, N."""
+    anchor_var_n2: np.ndarray
+    """(S,) the variance of that start where not linked (the zero's own error), N^2."""
+    zero_of: np.ndarray
+    """(S,) index into :class:`Zeros` of the zero each segment's bursts were read against
+    (-1: none recorded)."""
+    final_zero: int
+    """The last zero taken by the data set's end (a zero check after its last burst)."""
 
     @property
     def size(self) -> int:
         """Number of segments."""
         return int(self.time_s.size)
 
-
-def tare_times(records: list[TrialRecords]) -> dict[int, float]:
-    """Trial number -> cell time of the last accepted tare that preceded it, s."""
-    out: dict[int, float] = {}
-    for trial in records:
-        times = [t.time_s for t in trial.tares if t.accepted and math.isfinite(t.time_s)]
-        if times:
-            out[trial.trial] = max(times)
-    return out
+    def variance(self, rate: float) -> np.ndarray:
+        """(S,) the walk's variance from each segment's start (previous segment or anchor), N^2."""
+        result: np.ndarray = rate**2 * self.gap_s + np.where(self.linked, 0.0,
+                                                              self.anchor_var_n2)
+        return result
 
 
-def build_chain(data: RecordArrays, tares: dict[int, float],
-                after: tuple[float, float] | None = None) -> Chain:
+@dataclass(frozen=True)
+class Zeros:
+    """The run's accepted tares in record order (trial, then time): where the walk restarts."""
+
+    trial: np.ndarray
+    """(Z,) trial each was recorded in."""
+    time_s: np.ndarray
+    """(Z,) cell time, s: the zero holds for the bursts of moves that settled after it."""
+    var_n2: np.ndarray
+    """(Z,) variance of the zero's own error (its burst mean's), N^2."""
+    rank: np.ndarray
+    """(Z,) which of the trial's bursts at ``time_s`` the zero was taken on (-1: none): the
+    bursts recorded after it at that time are read against it."""
+
+
+@dataclass(frozen=True)
+class After:
+    """Where a data set's walk goes on from: the last segment of the data set before it."""
+
+    time_s: float
+    bias_n: float
+    zero: int
+    """The zero that segment was read against."""
+    final_zero: int
+    """The last zero taken by the end of that data set."""
+
+
+def tare_zeros(records: list[TrialRecords], noise_n: float = math.nan,
+               phi: float = 0.0) -> Zeros:
+    """The accepted tares of ``records`` as :class:`Zeros`.
+
+    A tare reads a burst and zeroes on it (the §5 run's zero check at every trial's END
+    is a tare in software on that burst's mean): that mean's error, from ``noise_n`` and
+    ``phi`` over the burst's samples (:func:`~forcelearn.tools.twin.sensor.zero_variance`),
+    is where the walk after it starts; 0 without a noise or where the burst is not in the
+    records.
+    """
+    reads = tare_reads(records)
+    return Zeros(np.array([r.trial for r in reads], int),
+                 np.array([r.time_s for r in reads], float),
+                 np.array([zero_variance(noise_n, phi, r.count) for r in reads], float),
+                 np.array([r.rank for r in reads], int))
+
+
+def _ranks(data: RecordArrays, settled: np.ndarray) -> np.ndarray:
+    """(T, M) each burst's place among its trial's bursts recorded at its settled time."""
+    ranks = np.full(settled.shape, -1)
+    seen: dict[tuple[int, float], int] = {}
+    for row, col in zip(*np.nonzero(data.has_burst), strict=True):
+        key = (int(data.trial[row]), float(settled[row, col]))
+        ranks[row, col] = seen.get(key, 0)
+        seen[key] = ranks[row, col] + 1
+    return ranks
+
+
+def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None) -> Chain:
     """Segments of ``data`` and their links.
 
-    ``after`` is ``(time_s, bias_n)`` of the segment before ``data`` (the last
-    fitted one, for held-out trials); without it the first segment starts from 0
-    at the run's tare (taken as the first move's start when no tare is recorded).
-    A tare before a trial, or cell time running backwards (the next run directory),
-    restarts the walk from 0.
+    A zero (a tare) holds for the bursts read after the one it was taken on: of later
+    moves, or recorded after it at the same time (the cell's clock does not run during a
+    read: a tare's own burst settled at the tare's time, and so may the reads after it);
+    a trial's zeros taken after its last burst hold for the next trial. A segment
+    read against another zero than the segment before restarts the walk from 0 at that
+    zero. (Taking each trial's tare as its start pinned every trial's bias to 0, over a
+    1 ms gap, where the tare is the zero check at the trial's end.) ``after`` is the last
+    fitted segment, for held-out trials; without it and without a zero the first segment
+    starts from 0 at the first move (the run's tare at its start). Cell time running
+    backwards at a trial's start (the next run directory) restarts the walk from 0.
     """
     burst_s = np.where(data.has_burst, data.burst_start_s + 0.5 * data.burst_span_s, np.nan)
+    settled = np.where(np.isfinite(data.settled_s), data.settled_s, data.burst_start_s)
+    ranks = _ranks(data, settled)
     segment = np.full(data.has_burst.shape, -1)
     trial_of: list[int] = []
     members: list[list[float]] = []
     zero_s: list[float] = []  # per segment: when its walk starts (NaN: the previous segment)
     anchors: list[float] = []
-    previous_end = after[0] if after is not None else -math.inf
+    anchor_vars: list[float] = []
+    zero_of: list[int] = []
+    ids_of: dict[int, list[int]] = {}
+    for index, number in enumerate(zeros.trial.tolist()):
+        ids_of.setdefault(int(number), []).append(index)
+    passed: dict[int, int] = {}  # trial -> how many of its zeros the chain has passed
+    current = after.final_zero if after is not None else -1
+    previous_end = after.time_s if after is not None else -math.inf
     for row in range(data.trials):
+        trial = int(data.trial[row])
+        ids = ids_of.get(trial, [])
         columns = np.flatnonzero(data.has_burst[row])
-        if columns.size == 0:
-            continue
-        columns = columns[np.argsort(burst_s[row, columns], kind="stable")]
+        columns = columns[np.argsort(settled[row, columns], kind="stable")]  # as recorded
         starts = data.start_s[row][data.valid[row]]
-        row_start = float(np.nanmin(starts)) if np.isfinite(starts).any() else float(
-            burst_s[row, columns[0]])
-        tare = tares.get(int(data.trial[row]))
+        row_start = (float(np.nanmin(starts)) if np.isfinite(starts).any() else
+                     float(burst_s[row, columns[0]]) if columns.size else math.nan)
         for k, col in enumerate(columns):
+            done = passed.get(trial, 0)
+            while done < len(ids) and (
+                    zeros.time_s[ids[done]] < settled[row, col]
+                    or (zeros.time_s[ids[done]] == settled[row, col]
+                        and zeros.rank[ids[done]] < ranks[row, col])):
+                current, done = ids[done], done + 1
+            passed[trial] = done
             moment = float(burst_s[row, col])
-            if k == 0 or moment - members[-1][0] > SEGMENT_S:
-                if k == 0 and tare is not None:
-                    zero, anchor = tare, 0.0
-                elif not members and after is not None:
-                    zero, anchor = after
+            if (k == 0 or moment - members[-1][0] > SEGMENT_S
+                    or (members and current != zero_of[-1])):
+                var = 0.0
+                if not members and after is not None and current == after.zero:
+                    zero, anchor = after.time_s, after.bias_n
+                elif current >= 0 and (not members or current != zero_of[-1]):
+                    zero, anchor = float(zeros.time_s[current]), 0.0
+                    var = float(zeros.var_n2[current])
                 elif not members or (k == 0 and row_start < previous_end):
                     zero, anchor = row_start, 0.0  # the run's tare at its start
                 else:
                     zero, anchor = math.nan, 0.0
-                trial_of.append(int(data.trial[row]))
+                trial_of.append(trial)
                 members.append([])
                 zero_s.append(zero)
                 anchors.append(anchor)
+                anchor_vars.append(var)
+                zero_of.append(current)
             members[-1].append(moment)
             segment[row, col] = len(members) - 1
             previous_end = moment
+        last_of_trial = row + 1 == data.trials or int(data.trial[row + 1]) != trial
+        if last_of_trial and passed.get(trial, 0) < len(ids):  # taken after its last burst
+            current = ids[-1]
+            passed[trial] = len(ids)
     times = np.array([float(np.mean(m)) for m in members])
-    zeros = np.array(zero_s)
-    linked = np.isnan(zeros)
+    zeros_at = np.array(zero_s)
+    linked = np.isnan(zeros_at)
     before = np.concatenate([[math.nan], times[:-1]])
-    gaps = np.maximum(MIN_GAP_S, times - np.where(linked, before, zeros))
-    return Chain(segment, np.array(trial_of, int), times, gaps, linked, np.array(anchors))
+    gaps = np.maximum(MIN_GAP_S, times - np.where(linked, before, zeros_at))
+    return Chain(segment, np.array(trial_of, int), times, gaps, linked, np.array(anchors),
+                 np.array(anchor_vars), np.array(zero_of, int), current)
 
 
 def solve_biases(chain: Chain, residual_n: np.ndarray, weights: np.ndarray,
@@ -187,7 +275,7 @@ def solve_biases(chain: Chain, residual_n: np.ndarray, weights: np.ndarray,
     w2 = weights[use] ** 2
     sum_w2 = np.bincount(index, w2, minlength=s_count)
     sum_w2r = np.bincount(index, w2 * residual_n[use], minlength=s_count)
-    precision = 1.0 / (rate**2 * chain.gap_s)
+    precision = 1.0 / chain.variance(rate)
     diagonal = sum_w2 + precision
     following = np.where(chain.linked, precision, 0.0)
     diagonal[:-1] += following[1:]
@@ -201,12 +289,15 @@ def solve_biases(chain: Chain, residual_n: np.ndarray, weights: np.ndarray,
 
 
 def walk_terms(chain: Chain, biases: np.ndarray, rate: float) -> np.ndarray:
-    """The walk's residuals ``(b_s - b_(s-1)) / (q sqrt(dt_s))`` (S,); empty at q = 0."""
+    """The walk's residuals ``(b_s - b_(s-1)) / sqrt(q^2 dt_s (+ the zero's variance))`` (S,).
+
+    Empty at q = 0.
+    """
     if not rate > 0 or chain.size == 0:
         return np.zeros(0)
     before = np.concatenate([[0.0], biases[:-1]])
     start = np.where(chain.linked, before, chain.anchor_n)
-    result: np.ndarray = (biases - start) / (rate * np.sqrt(chain.gap_s))
+    result: np.ndarray = (biases - start) / np.sqrt(chain.variance(rate))
     return result
 
 
@@ -274,6 +365,7 @@ def drift_from_reads(chain: Chain, free: np.ndarray, data: RecordArrays, noise_n
         time_s=np.bincount(index, moment / variance, minlength=chain.size) / safe,
         restart_s=np.where(chain.linked, np.nan, chain.time_s - chain.gap_s),
         anchor_n=chain.anchor_n,
+        anchor_var_n2=chain.anchor_var_n2,
     )
     count = int(measured.sum())
     if count < 3:
@@ -309,6 +401,8 @@ class ReadSeries:
     """Where the walk restarts before the segment (a tare), s; NaN: it goes on."""
     anchor_n: np.ndarray
     """The bias the walk restarts from, N."""
+    anchor_var_n2: np.ndarray
+    """Its variance (the zero's own error), N^2."""
 
 
 def walk_log_likelihood(reads: ReadSeries, rate: float) -> float:
@@ -317,7 +411,8 @@ def walk_log_likelihood(reads: ReadSeries, rate: float) -> float:
     level, spread, last = 0.0, 0.0, math.nan
     for s in range(reads.value.size):
         if not math.isnan(reads.restart_s[s]):
-            level, spread, last = float(reads.anchor_n[s]), 0.0, float(reads.restart_s[s])
+            level, spread = float(reads.anchor_n[s]), float(reads.anchor_var_n2[s])
+            last = float(reads.restart_s[s])
         value = reads.value[s]
         if math.isnan(value):
             continue
@@ -393,7 +488,7 @@ class BiasWalk:
 
     train: Chain
     heldout_data: RecordArrays
-    tares: dict[int, float]
+    zeros: Zeros
     train_weights: np.ndarray
     heldout_weights: np.ndarray
     drift: DriftEstimate
@@ -435,8 +530,10 @@ class BiasWalk:
         """
         train_b = solve_biases(self.train, self.train_mean_n - train_pred,
                                self.train_weights, self.rate)
-        last = (float(self.train.time_s[-1]), float(train_b[-1])) if self.train.size else None
-        chain = build_chain(self.heldout_data, self.tares, last)
+        last = (After(float(self.train.time_s[-1]), float(train_b[-1]),
+                      int(self.train.zero_of[-1]), self.train.final_zero)
+                if self.train.size else None)
+        chain = build_chain(self.heldout_data, self.zeros, last)
         free = self.heldout_data.has_burst & (np.nan_to_num(heldout_pred, nan=1.0) == 0.0)
         weights = np.where(free, self.heldout_weights, 0.0)
         residual = self.heldout_data.mean_n - heldout_pred
@@ -461,8 +558,8 @@ def bias_walk(records: list[TrialRecords], train: RecordArrays, heldout: RecordA
     ``base`` is the fit's base sponge (its strip's ends, a start for
     :func:`free_reads`).
     """
-    tares = tare_times(records)
-    chain = build_chain(train, tares)
+    zeros = tare_zeros(records, sensor.noise_n, phi if phi is not None else 0.0)
+    chain = build_chain(train, zeros)
     if sensor.tares >= 3 and math.isfinite(sensor.drift_n_per_sqrt_s):
         drift = DriftEstimate(sensor.drift_n_per_sqrt_s, sensor.drift_sigma, "tares",
                               sensor.tares)
@@ -471,5 +568,5 @@ def bias_walk(records: list[TrialRecords], train: RecordArrays, heldout: RecordA
         drift = drift_from_reads(chain, free, train, sensor.noise_n,
                                  phi if phi is not None else 0.0)
     labels = np.broadcast_to(train.trial[:, None], train.has_burst.shape)
-    return BiasWalk(chain, heldout, tares, weights_of(train), weights_of(heldout), drift,
+    return BiasWalk(chain, heldout, zeros, weights_of(train), weights_of(heldout), drift,
                     labels, train.mean_n)

@@ -177,7 +177,11 @@ def jackknife(fit: Fitted, train: RecordArrays, arm: dict[str, float], reading: 
         rows = np.ones(train.trials, bool)
         rows[part] = False
         masks.append(np.broadcast_to(rows[:, None], problem.use.shape))
-    force = np.where(train.has_burst, train.mean_n, np.nan)  # the reading: + pressing
+    # split by the force the fit predicts, not the force read: most bursts are control steps
+    # within a few tenths of a newton of the task's force, where a split on the reading
+    # sorts them by their noise, and each half's refit follows its half's noise
+    solution = np.array([fit.values[n] for n in names])
+    force = np.where(train.has_burst, problem.predicted(names, fit.values, solution), np.nan)
     contact = train.has_burst & (force > max(0.5, 3.0 * (noise_n if math.isfinite(noise_n)
                                                               else 0.0)))
     halves = contact.sum() >= 2 * len(names)

@@ -35,7 +35,7 @@ from forcelearn.tools.twin.arm import (
     with_true_in_position,
 )
 from forcelearn.tools.twin.arrays import RecordArrays, to_arrays
-from forcelearn.tools.twin.bias import build_chain, offsets, solve_biases, tare_times
+from forcelearn.tools.twin.bias import build_chain, offsets, solve_biases, tare_zeros
 from forcelearn.tools.twin.forward import predict_means
 from forcelearn.tools.twin.problem import burst_weights
 from forcelearn.tools.twin.replay_cell import replay_trials
@@ -123,7 +123,7 @@ def sensor_zeros(records: list[TrialRecords], data: RecordArrays, predicted: np.
     spread = data.std_n[data.has_burst & (data.count > 1)]
     noise = float(np.nanmedian(spread)) if spread.size else 0.0
     weights = np.where(free, burst_weights(data, noise), 0.0)
-    chain = build_chain(data, tare_times(records))
+    chain = build_chain(data, tare_zeros(records))
     gap = np.where(free, data.mean_n - np.where(free, predicted, 0.0), 0.0)
     return offsets(chain, solve_biases(chain, gap, weights, drift))
 

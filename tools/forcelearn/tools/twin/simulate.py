@@ -63,6 +63,9 @@ class SimulatedRun:
     exploration_mm: float = 0.8
     """Std of the random part of each Y command, mm."""
     tare_each_trial: bool = False
+    zero_check_each_trial: bool = False
+    """End each trial as the §5 run's zero check does: a burst read at the retract plane after
+    the retreat, recorded on its last move, and a tare in software on its mean."""
     probe_points: tuple[float, ...] = ()
     """The surface probe before the trials, as fractions of the path (0: start Z, 1: end Z),
     in the order probed (empty: no probe); its records come first, as trial -1."""
@@ -100,6 +103,8 @@ class _Recorder:
         self._last_sample_s = 0.0
         self._wait_end_s = 0.0
         """The end of the last wait: what the engine records as the next move's start."""
+        self.zero_n = 0.0
+        """The software zero taken by the last zero check, N."""
 
     def _normal_n(self) -> float:
         self.physics.advance_to(self.now_s)
@@ -108,7 +113,7 @@ class _Recorder:
         )
         self._last_sample_s = self.now_s
         full_scale = self.run.sensor.full_scales[1]
-        return -counts[1] * full_scale / 16384.0  # [filter] axis 1, sign -1
+        return -counts[1] * full_scale / 16384.0 - self.zero_n  # [filter] axis 1, sign -1
 
     def move(self, trial: int, index: int, kind: str, target: Pose, samples: int) -> None:
         """Command ``target``, wait in position (+ settle), read ``samples`` (0: none).
@@ -218,6 +223,16 @@ class _Recorder:
             self.move_in_steps(trial, "probe", Pose(x0, run.retract_y_mm, z, DOWN), False, 0,
                                index)
 
+    def zero_check(self, trial: int) -> None:
+        """A tare in software on the last step's burst (read in free space, recorded)."""
+        step = self.steps[-1]
+        assert step.burst is not None  # the retreat's last move read one
+        reading = step.burst.mean_n
+        self.zero_n += reading
+        pose = self.target
+        self.tares.append(TareRecord(trial, step.move.settled_s,
+                                     (pose.x_mm, pose.y_mm, pose.z_mm), reading, True))
+
     def tare(self, trial: int) -> None:
         """Zero the sensor in free space (the reading before is recorded)."""
         reading = self._burst(self.run.burst_samples).mean_n
@@ -264,6 +279,8 @@ def simulate_run(run: SimulatedRun, seed: int = 0,
             rec.move(trial, step, "step", Pose(x0, y, z, DOWN), run.burst_samples)
         here = rec.target
         rec.move_in_steps(trial, "retreat", Pose(x0, run.retract_y_mm, here.z_mm, DOWN),
-                          False, 0)
+                          False, run.burst_samples if run.zero_check_each_trial else 0)
+        if run.zero_check_each_trial:
+            rec.zero_check(trial)
         trials.append(TrialRecords(trial, rec.steps[first_step:], rec.tares[first_tare:]))
     return trials
