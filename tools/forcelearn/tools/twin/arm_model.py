@@ -145,3 +145,28 @@ def in_position_s(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float
     motion = np.where(ticks > 0, ticks * tick, 0.0)
     result: np.ndarray = arm["start_delay_s"] + motion
     return result
+
+
+def share_at_in_position(distance_mm: np.ndarray, arm: dict[str, float],
+                         band_mm: float) -> np.ndarray:
+    """Share (0..1) of each move's straight path the tool has done when it is in position.
+
+    The lagging tool enters the in-position band short of the target: the emulated
+    controller reports in position at the first tick within ``band_mm``, and the tool goes
+    on toward the target with the servo lag. The share at the crossing (with its
+    fraction, as :func:`profile` times it); 1 for a move of no length.
+    """
+    flat = np.nan_to_num(np.asarray(distance_mm, dtype=float))
+    found = profile(flat, arm, band_mm, keep_path=True)
+    assert found.share is not None  # asked for
+    last = found.share.shape[1] - 1
+    x = np.clip(found.ticks, 0.0, last)
+    low = np.floor(x).astype(int)
+    high = np.minimum(low + 1, last)
+    rows = np.arange(found.lengths_mm.size)
+    part = x - low
+    share = found.share[rows, low] * (1.0 - part) + found.share[rows, high] * part
+    share = np.where(found.lengths_mm > 0, np.clip(share, 0.0, 1.0), 1.0)
+    result: np.ndarray = share[found.inverse]
+    return result
+

@@ -11,7 +11,9 @@ undetermined (or not fitted)   part kept                                     siz
 lag, acceleration, start       polled free-space moves of each length x      passes over
 delay                          speed                                         them
 relaxation ratio or time (or   step-and-hold, held to 6 time constants of    holds
-a member without relaxation)   the twin's relaxation time (1 s: unknown)
+a member without relaxation)   the twin's relaxation time (1 s: unknown),
+                               and the cycles' short holds (each step in
+                               and out a relaxation of its own)
 hysteresis (a member with it   ease off and press in again                   cycles
 undetermined)
 noise, drift                   free-space hold                               its reads
@@ -21,9 +23,11 @@ The expected 1-sigma is the Fisher information's (Gauss-Newton ``(J^T J)^-1``) a
 twin's values: for the arm the twin's own in-position model
 (:func:`~forcelearn.tools.twin.forward.predict_in_position_s`) over the plan's moves, each
 event timed to a poll window's ``width / sqrt(12)``; for the relaxation a relaxing step
-``F(t) = F_inf + A exp(-t / tau)`` per hold, each burst's mean with the noise over its
-samples; for the noise ``1 / sqrt(2 n)``. A designed plan's figures are the fit's best
-case: model error (that the records show as a misfit) comes on top.
+``F(t) = F_inf + A exp(-(delay + t) / tau)`` per hold, each burst's mean with the noise
+over its samples, the first burst ``delay`` after the step's middle (half the arm's motion
+and the settle: what relaxed during the move is not seen); for the noise ``1 / sqrt(2 n)``.
+A designed plan's figures are the fit's best case: model error (that the records show as
+a misfit) comes on top.
 """
 
 from __future__ import annotations
@@ -44,6 +48,8 @@ TARGET_SHARE = 0.05
 """The designed 1-sigma, as a share of the value (a 15 % error is then 3 sigma)."""
 POLL_S = 0.044
 """The status poll's period on a 9600-baud computer link, s (EGM's 4 ms is finer)."""
+SAMPLE_S = 0.001
+"""A force sample's period, s (the emulated JR3 adapter's 1 kHz)."""
 BAND_MM = 0.1
 """The in-position band, mm (the controller's default)."""
 ARM_NAMES = ("start_delay_s", "accel_mm_s2", "lag_s")
@@ -116,31 +122,58 @@ def arm_sigmas(arm: dict[str, float], plan: IdentifyPlan, poll_s: float = POLL_S
     return dict(zip(ARM_NAMES, _fisher_sigmas(jacobian, scatter).tolist(), strict=True))
 
 
+def _read_times(after: tuple[float, ...], poll_s: float, burst_s: float) -> list[float]:
+    """When a hold's bursts are read (s after its first): each wait at least a poll and a burst."""
+    times = [0.0]
+    for t in after:
+        times.append(max(t, times[-1] + poll_s + burst_s))
+    return times
+
+
 def relaxation_sigmas(ratio: float, time_s: float, step_n: float, noise_n: float,
-                      plan: IdentifyPlan, poll_s: float = POLL_S) -> dict[str, float]:
+                      plan: IdentifyPlan, poll_s: float = POLL_S, delay_s: float = 0.0,
+                      sample_s: float = SAMPLE_S) -> dict[str, float]:
     """Expected 1-sigma of the relaxation's ratio and time from the plan's holds.
 
-    Each hold: ``F_inf + A exp(-t / tau)`` with ``A = ratio / (1 + ratio) * step_n`` (a
-    step that meets ``step_n`` at once relaxes to ``step_n / (1 + ratio)``), its own
-    ``F_inf``; bursts at once, at each ``hold_s`` (waits under 0.1 s one poll).
+    Each hold (the step-and-hold's ``hold_steps``, and each of the cycles' steps in and out,
+    read at ``cycle_hold_s``): ``F_inf + A exp(-(delay + t) / tau)`` with ``A = ratio /
+    (1 + ratio) * step_n`` (a step that meets ``step_n`` at once relaxes to ``step_n / (1 +
+    ratio)``), its own ``F_inf``; its first burst ``delay_s`` after the step (the move's
+    time to in position: the relaxation that happened during it is not seen), then one at
+    each time of its schedule (each wait at least a poll and a burst).
     """
-    times = [0.0]
-    for after in plan.hold_s:
-        times.append(times[-1] + poll_s if after - times[-1] < 0.1 else after)
-    t = np.array(times)
-    holds = max(1, plan.hold_steps)
+    burst_s = plan.hold_samples * sample_s
+    schedules = [np.array(_read_times(plan.hold_s, poll_s, burst_s))] * max(1, plan.hold_steps)
+    if plan.hold_steps >= 2 and plan.cycle_hold_s:
+        schedules += ([np.array(_read_times(plan.cycle_hold_s, poll_s, burst_s))]
+                      * (plan.cycles * 2 * (plan.hold_steps - 1)))
     size = max(ratio, 1e-3) / (1 + max(ratio, 1e-3)) * step_n
-    decay = np.exp(-t / time_s)
-    columns = np.zeros((holds * t.size, 2 + holds))
-    for k in range(holds):
-        rows = slice(k * t.size, (k + 1) * t.size)
-        columns[rows, 0] = decay  # dF/dA
-        columns[rows, 1] = size * t / time_s**2 * decay  # dF/dtau
-        columns[rows, 2 + k] = 1.0  # each hold's own relaxed force
+    rows = sum(t.size for t in schedules)
+    columns = np.zeros((rows, 2 + len(schedules)))
+    start = 0
+    for k, t in enumerate(schedules):
+        seen = t + delay_s
+        decay = np.exp(-seen / time_s)
+        part = slice(start, start + t.size)
+        columns[part, 0] = decay  # dF/dA
+        columns[part, 1] = size * seen / time_s**2 * decay  # dF/dtau
+        columns[part, 2 + k] = 1.0  # each hold's own relaxed force
+        start += t.size
     sigma_a, sigma_tau = _fisher_sigmas(columns, noise_n / math.sqrt(plan.hold_samples))[:2]
     # ratio = A / (step_n - A): d ratio / dA = step_n / (step_n - A)^2
     sigma_ratio = sigma_a * step_n / max(step_n - size, 1e-9) ** 2
     return {"relaxation_ratio": float(sigma_ratio), "relaxation_time_s": float(sigma_tau)}
+
+
+def step_delay_s(arm: dict[str, float], plan: IdentifyPlan, poll_s: float = POLL_S) -> float:
+    """From a step's depth change (its motion's middle) to its first burst, s.
+
+    Half the arm's modelled motion of a ``cycle_mm`` step (start delay excluded) and the
+    settle of two polls before the burst.
+    """
+    motion = float(predict_in_position_s(np.array([plan.cycle_mm]), arm, BAND_MM)[0]
+                   - arm["start_delay_s"])
+    return 0.5 * max(motion, 0.0) + 2 * poll_s
 
 
 def _fisher_sigmas(jacobian: np.ndarray, scatter: float) -> np.ndarray:
@@ -166,9 +199,9 @@ def design(twin: dict[str, Any], desired_force_n: float) -> Design:
                                speeds_mm_s=(base.speeds_mm_s[0],), free_reads=2,
                                free_hold_s=1.0, hold_steps=0, cycles=0)
     arm_loose = _loose(rows, ARM_NAMES)
+    arm = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
+           "lag_s": 0.03, **{n: value[n] for n in ARM_NAMES if n in value}}
     if arm_loose:
-        arm = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
-               "lag_s": 0.03, **{n: value[n] for n in ARM_NAMES if n in value}}
         for repeats in range(1, MAX_REPEATS + 1):
             plan = dataclasses.replace(plan, lengths_mm=base.lengths_mm,
                                        speeds_mm_s=base.speeds_mm_s, repeats=repeats)
@@ -186,16 +219,20 @@ def design(twin: dict[str, Any], desired_force_n: float) -> Design:
         longest = HOLD_TIMES * time_s
         hold_s = (*(t for t in base.hold_s if t < longest), longest)
         step_n = base.hold_force_ratio * desired_force_n * (1 + ratio)
+        delay = step_delay_s(arm, base)
         for holds in range(2, MAX_HOLDS + 1):
-            plan = dataclasses.replace(plan, hold_s=hold_s, hold_steps=holds)
-            sigmas = relaxation_sigmas(ratio, time_s, step_n, noise, plan)
+            # the cycles' steps are holds too (short ones: a fast foam's whole relaxation)
+            plan = dataclasses.replace(plan, hold_s=hold_s, hold_steps=holds,
+                                       cycles=base.cycles)
+            sigmas = relaxation_sigmas(ratio, time_s, step_n, noise, plan, delay_s=delay)
             if (sigmas["relaxation_ratio"] <= TARGET_SHARE * ratio
                     and sigmas["relaxation_time_s"] <= TARGET_SHARE * time_s):
                 break
         expected.update({"relaxation_ratio": (ratio, sigmas["relaxation_ratio"]),
                          "relaxation_time_s": (time_s, sigmas["relaxation_time_s"])})
         reasons.append(f"{', '.join(relax_loose)} not determined (member {twin['member']}): "
-                       f"step-and-hold, {plan.hold_steps} holds of {longest:.2g} s "
+                       f"step-and-hold, {plan.hold_steps} holds of {longest:.2g} s and "
+                       f"{plan.cycles} cycles of short holds easing off and pressing in "
                        f"(6 time constants of {time_s:.2g} s"
                        + (", the slowest foam expected: the twin has no time)"
                           if time_s == UNKNOWN_TIME_S else ", the twin's time)"))

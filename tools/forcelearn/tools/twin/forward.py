@@ -137,7 +137,8 @@ def motion_shape(data: RecordArrays, arm: dict[str, float]) -> MotionShape:
 
 
 def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, p: SpongeParams,
-                       shape: MotionShape) -> np.ndarray:
+                       shape: MotionShape, start_signed: np.ndarray | None = None,
+                       carried: np.ndarray | None = None) -> np.ndarray:
     """The relaxing part q (mm) averaged over each burst, (T, M).
 
     Over each move the signed depth (surface minus tool Y) goes from the previous
@@ -145,10 +146,15 @@ def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, p: SpongePa
     (:func:`motion_shape`); the standard linear solid's q integrates the foam
     depth's changes, decaying with ``tau``, as the emulated sponge does tick by
     tick. Between moves q decays; it is 0 once the tool is out of the foam; trials
-    start relaxed (the tool comes from free space).
+    start relaxed (the tool comes from free space). ``start_signed``: the signed depth
+    where each move's motion began (the last move's lag still closing in on its target;
+    default: the last reached pose's), ``carried``: q that closing added by this move's
+    in position (:func:`predict_means`).
     """
     thick, tau = p.thickness_mm, p.relaxation_time_s
     previous = np.concatenate([depth_signed[:, :1], depth_signed[:, :-1]], axis=1)
+    if start_signed is not None:
+        previous[:, 1:] = start_signed[:, 1:]
     path = previous[..., None] + shape.share * (depth_signed - previous)[..., None]
     foam_path = law.elastic_depth_mm(p, np.clip(path, 0.0, thick))
     start = law.elastic_depth_mm(p, np.clip(previous, 0.0, thick))[..., None]
@@ -164,6 +170,8 @@ def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, p: SpongePa
     released = foam == 0.0
     q = np.zeros(data.trials)
     after = np.zeros_like(foam)
+    if carried is not None:
+        pushed = pushed + np.where(data.valid, carried, 0.0)
     for j in range(foam.shape[1]):
         q = q * keep[:, j] + pushed[:, j]
         q = np.where(released[:, j] & (q > 0.0), 0.0, q)
@@ -195,6 +203,46 @@ def _settling_push_mm(p: SpongeParams, passes: np.ndarray, y: np.ndarray, z: np.
         response = tau / (tau - lag_s) * (np.exp(-since_s / tau) - np.exp(-since_s / lag_s))
     result: np.ndarray = change * response
     return result
+
+
+def _signed_depth_mm(p: SpongeParams, passes: np.ndarray, y: np.ndarray, z: np.ndarray
+                     ) -> np.ndarray:
+    """Surface minus tool Y (mm; -1 beyond the strip's ends)."""
+    inside = (z >= p.z_bottom_mm) & (z <= p.z_top_mm)
+    result: np.ndarray = np.where(inside, law.surface_y_mm(p, passes, z) - y, -1.0)
+    return result
+
+
+def _closing(data: RecordArrays, p: SpongeParams, shape: MotionShape, y: np.ndarray,
+             z: np.ndarray, yc: np.ndarray, zc: np.ndarray, lag_s: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Each move's start depth and the q the last move's closing lag added, (T, M) each.
+
+    After in position the tool goes on from the reached pose toward the target with the
+    servo lag, until the next move's motion begins (its in-position time less its
+    modelled motion): it starts there, and the relaxing part that closing pushed
+    (:func:`_settling_push_mm` at the next motion's start) decays to its in position.
+    """
+    total = shape.before_end_s[..., 0] / (1.0 - 0.5 / PATH_POINTS)
+    end = data.in_position_s
+    begin = end - total
+
+    def before(a: np.ndarray) -> np.ndarray:
+        return np.concatenate([a[:, :1], a[:, :-1]], axis=1)
+
+    since = np.nan_to_num(np.maximum(0.0, begin - before(end)))
+    since[:, 0] = 0.0
+    shrink = np.exp(-since / lag_s) if lag_s > 0 else np.zeros_like(since)
+    y0, z0, yc0, zc0 = before(y), before(z), before(yc), before(zc)
+    ys = yc0 + (y0 - yc0) * shrink
+    zs = zc0 + (z0 - zc0) * shrink
+    start = _signed_depth_mm(p, data.passes, ys, zs)
+    if lag_s <= 0:
+        return start, np.zeros_like(start)
+    push = _settling_push_mm(p, data.passes, y0, z0, yc0, zc0, np.maximum(since, 1e-12), lag_s)
+    push = push * np.exp(-np.nan_to_num(total) / p.relaxation_time_s)
+    push[:, 0] = 0.0
+    return start, np.where(np.isfinite(push), push, 0.0)
 
 
 HYSTERESIS_POINTS = 4
@@ -238,7 +286,9 @@ def tool_path_mm(data: RecordArrays, arm: dict[str, float]) -> np.ndarray:
     mid = np.nan_to_num(data.burst_start_s + 0.5 * data.burst_span_s)
     at_burst = _lagging(commanded, reached, mid - end_in_position, lag)
     chain_end = np.where(data.has_burst[..., None], at_burst, reached)
-    began = np.nan_to_num(data.start_s) + arm.get("start_delay_s", 0.0)
+    # never after in position (a still step, a hold, has no motion and no start delay)
+    began = np.minimum(np.nan_to_num(data.start_s) + arm.get("start_delay_s", 0.0),
+                       end_in_position)
     start = reached.copy()
     start[:, 1:] = _lagging(commanded[:, :-1], reached[:, :-1],
                             began[:, 1:] - end_in_position[:, :-1], lag)
@@ -371,23 +421,25 @@ def predict_means(data: RecordArrays, p: SpongeParams, arm: dict[str, float],
     lag_s = arm["lag_s"]
     y = np.where(data.valid, data.reached[..., 1], 1e9)
     z = np.where(data.valid, data.reached[..., 2], 0.0)
+    commanded = data.commanded
+    yc = np.where(data.valid, commanded[..., 1], 1e9)
+    zc = np.where(data.valid, commanded[..., 2], 0.0)
     if p.relaxation_ratio > 0.0:
-        inside = (z >= p.z_bottom_mm) & (z <= p.z_top_mm)
-        signed = np.where(inside, law.surface_y_mm(p, passes, z) - y, -1.0)
         shape = shape if shape is not None else motion_shape(data, arm)
-        relaxing = relaxing_at_bursts(data, signed, p, shape)
+        start_signed, carried = _closing(data, p, shape, y, z, yc, zc, lag_s)
+        relaxing = relaxing_at_bursts(data, _signed_depth_mm(p, passes, y, z), p, shape,
+                                      start_signed, carried)
     else:
         relaxing = np.zeros_like(y)
     burst = data.has_burst
     mid = np.nan_to_num(data.burst_start_s + 0.5 * data.burst_span_s)
     since = np.maximum(0.0, mid - np.nan_to_num(data.in_position_s))
     shrink = np.exp(-since / lag_s) if lag_s > 0 else np.zeros_like(since)
-    commanded = data.commanded
     yb = commanded[..., 1] + (data.reached[..., 1] - commanded[..., 1]) * shrink
     zb = commanded[..., 2] + (data.reached[..., 2] - commanded[..., 2]) * shrink
     yb, zb = np.where(burst, yb, 1e9), np.where(burst, zb, 0.0)
     if p.relaxation_ratio > 0.0 and lag_s > 0:
-        relaxing = relaxing + _settling_push_mm(p, passes, y, z, yb, zb, since, lag_s)
+        relaxing = relaxing + _settling_push_mm(p, passes, y, z, yc, zc, since, lag_s)
     contact = None
     if path_dependent(p):
         contact = (path if path is not None else ToolPath(data, arm)).contact(p)

@@ -23,8 +23,9 @@ step-and-hold                ``hold_steps`` steps in, each raising the force   r
                              by ``hold_force_ratio`` of the desired force,     (ratio and
                              held with bursts at ``hold_s`` (to 6 s: six       time)
                              time constants of a slow foam)
-ease off, press in           ``cycles`` of easing off by those steps to the    hysteresis
-                             press's end and in again, a burst after each
+ease off, press in           ``cycles`` of easing off by those steps to the    hysteresis,
+                             press's end and in again, each step read at       relaxation
+                             ``cycle_hold_s`` (to 1 s) after its own burst     (many steps)
 ===========================  ================================================  ============
 
 Safe on a real cell: every move goes through the same drivers, limits (step, speed,
@@ -67,6 +68,8 @@ FAST_WAIT_S = 0.1
 """A hold's wait shorter than this (s) is one status poll, not a dwell (:func:`_hold`)."""
 UNSEEN_S = 1.0
 """A move whose motion no poll saw within this time (s) ends there (too short to see)."""
+MIN_REACH = 0.25
+"""A step-and-hold step the press guard would cut to less than this share is not made."""
 
 
 class IdentificationError(ForcelearnError):
@@ -95,7 +98,9 @@ class IdentifyPlan:
     """Times after each step-and-hold step at which the held press is read (and at once), s:
     to 6 time constants of the slowest foam the study draws (1 s), dense where a fast one
     (0.2 s) relaxes; waits under ``FAST_WAIT_S`` are single polls."""
-    hold_samples: int = 16
+    hold_samples: int = 48
+    """Samples of each hold's burst (48 ms at the JR3 adapter's 1 kHz: the holds are timed,
+    so a longer burst reads more of the relaxation and waits less on polls)."""
     hold_steps: int = 6
     """Step-and-hold steps: each steps in and holds (the first holds at the press's end)."""
     hold_force_ratio: float = 0.3
@@ -103,6 +108,14 @@ class IdentifyPlan:
     cycles: int = 2
     cycle_mm: float = 3.0
     """The longest step-and-hold step, mm (the cycles ease off by those steps and back)."""
+    cycle_hold_s: tuple[float, ...] = (0.04, 0.08, 0.12, 0.16, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6,
+                                       0.8, 1.0)
+    """Times after each cycle's step at which it is read (after its own burst), s: each
+    step in or out is a relaxation of its own (a fast foam's whole, a slow one's start).
+    A step takes 0.2-0.6 s to come in position on the hidden cells (the lag), so a foam
+    of 0.2-0.35 s has relaxed most of the way when the first burst comes: each step shows
+    only the tail, and the six holds alone left the ratio of hidden cells 18, 25, 30 of
+    seed 1 (0.08-0.22) 27-42 % off; the cycles' 20 steps are many more tails."""
     step_samples: int = 16
     restore_speed_mm_s: float = 100.0
     """The speed the arm is left at when the robot config names none (the emulator's)."""
@@ -120,8 +133,9 @@ class IdentifyPlan:
         """A rough cell time of the plan (moves at their speeds, dwells, holds), s."""
         moves = sum(2 * (length / speed + 0.3) for length in self.lengths_mm
                     for speed in self.speeds_mm_s) * self.repeats
+        cycle_hold = max(self.cycle_hold_s, default=0.0)
         return (self.free_hold_s + moves + self.hold_steps * (max(self.hold_s) + 0.5) + 30.0
-                + self.cycles * 2 * self.hold_steps * 0.5)
+                + self.cycles * 2 * self.hold_steps * (0.5 + cycle_hold))
 
 
 @dataclass(frozen=True)
@@ -217,23 +231,29 @@ def _press_to(cell: Any, config: CellConfig, pose: Pose) -> None:
     cell.move_in_steps(pose, config.safety.max_step_mm, guard_force=True)
 
 
-def _hold(cell: Any, plan: IdentifyPlan, stage: str, index: int) -> None:
-    """A burst at once and at ``plan.hold_s`` after the last move (fast-polled: nothing moves).
+def _hold(cell: Any, plan: IdentifyPlan, stage: str, index: int, at_once: bool = True,
+          times: tuple[float, ...] | None = None) -> None:
+    """A burst at once and at ``times`` (``plan.hold_s``) after the last move (fast-polled).
+
+    ``at_once`` False: the move's burst was read already (a second burst read at once
+    would carry the same time stamp, the last wait's end, as the one before it).
 
     A wait shorter than ``FAST_WAIT_S`` is one status poll (the link's exchange, 44 ms on a
     9600-baud computer link): a wait with a dwell polls until the dwell passed, at least two
     polls, and bursts meant for 0.02, 0.05 and 0.1 s all read at 0.09 s.
     """
+    times = plan.hold_s if times is None else times
     held = cell.time_s
-    cell.stage = (stage, index * (len(plan.hold_s) + 1))
-    cell.measure_force_n(plan.hold_samples)
-    for k, after in enumerate(plan.hold_s, start=1):
+    if at_once:
+        cell.stage = (stage, index * (len(times) + 1))
+        cell.measure_force_n(plan.hold_samples)
+    for k, after in enumerate(times, start=1):
         wait = held + after - cell.time_s
         if wait <= 0:
             continue  # the poll before already passed it
         cell.time_s = cell.robot.wait_in_position(cell.move_timeout_s,
                                                   0.0 if wait < FAST_WAIT_S else wait)
-        cell.stage = (stage, index * (len(plan.hold_s) + 1) + k)
+        cell.stage = (stage, index * (len(times) + 1) + k)
         cell.measure_force_n(plan.hold_samples)
 
 
@@ -293,29 +313,35 @@ def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
     assert contact is not None  # the press ended above target_n > contact_force_n
     rise = max((force - contact[1]) / max(contact[0] - y, 1e-3), 1e-3)  # N/mm, unrelaxed
     hold_mm = min(plan.hold_force_ratio * config.task.desired_force_n / rise, plan.cycle_mm)
-    if plan.hold_steps:
-        _hold(cell, plan, "identify-hold", 0)
-    taken = 0
+    if plan.hold_steps:  # the press's last burst is the hold's first
+        _hold(cell, plan, "identify-hold", 0, at_once=False)
+    depths = [y]  # where each hold was
     for k in range(1, plan.hold_steps):
         depth = y - hold_mm
         if depth < bottom:
             break
         target = Pose(home.x_mm, depth, home.z_mm, home.quaternion)
-        if guard.reach(cell.pose.position_mm, target.position_mm) < 1.0:
-            break  # the press guard would cut the step: the force limit is near, no deeper
-        taken = k
+        reach = guard.reach(cell.pose.position_mm, target.position_mm)
+        if reach < MIN_REACH:
+            break  # the press guard allows too little of the step: the force limit is near
+        if reach < 1.0:  # as far as the guard allows: it takes the site's stiffness until
+            # two readings rise by 3 sigma (a soft, noisy part's 1 mm approach steps never
+            # do, and the whole step-and-hold was cut on hidden cells 2, 3, 18 of seed 1)
+            target = Pose(home.x_mm, y - reach * hold_mm, home.z_mm, home.quaternion)
         cell.stage = ("identify-step", k)
         _press_to(cell, config, target)
         y = cell.pose.y_mm
+        depths.append(y)
         _hold(cell, plan, "identify-hold", k)
-    base_y = y
-    ups = [*range(1, taken + 1), *range(taken - 1, -1, -1)]  # ease off to the press's end, back
-    for cycle in range(plan.cycles):  # ease off, then press in again (hysteresis)
-        for j, up in enumerate(ups):
+    # ease off through the holds' depths to the press's end and back in (hysteresis)
+    visits = [*depths[-2::-1], *depths[1:]] if len(depths) > 1 else []
+    for cycle in range(plan.cycles):
+        for j, depth in enumerate(visits):
             cell.stage = (f"identify-cycle{cycle}", j)
-            _press_to(cell, config, Pose(home.x_mm, base_y + up * hold_mm, home.z_mm,
-                                         home.quaternion))
+            _press_to(cell, config, Pose(home.x_mm, depth, home.z_mm, home.quaternion))
             cell.measure_force_n(plan.step_samples)
+            _hold(cell, plan, f"identify-cycle{cycle}-hold", j, at_once=False,
+                  times=plan.cycle_hold_s)
     cell.stage = ("retreat", 0)
     cell.move_in_steps(home, config.safety.max_step_mm, guard_force=True)
 
