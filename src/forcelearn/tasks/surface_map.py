@@ -58,7 +58,7 @@ from forcelearn.trainer import CONVERGENCE_TOLERANCE
 log = logging.getLogger(__name__)
 
 DENSE_ABOVE = 2.0
-"""The probe measures every step of an interval whose own interpolation error, in force,
+"""The probe measures every step's Z once an interval's own interpolation error, in force,
 passes this many bands (:func:`dense_points`). The estimate is pessimistic (the default
 cell's largest is 0.6 N, 0.6 band, and its warm start is in band from trial 0): 2 bands
 leave the default cell and a 3 N/mm foam at 2 kgf at 7 points and densify a 6 N/mm foam
