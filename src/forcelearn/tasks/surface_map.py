@@ -58,7 +58,7 @@ from forcelearn.trainer import CONVERGENCE_TOLERANCE
 log = logging.getLogger(__name__)
 
 DENSE_ABOVE = 2.0
-"""The probe measures every step of an interval whose own interpolation error, in force,
+"""The probe measures every step's Z once an interval's own interpolation error, in force,
 passes this many bands (:func:`dense_points`). The estimate is pessimistic (the default
 cell's largest is 0.6 N, 0.6 band, and its warm start is in band from trial 0): 2 bands
 leave the default cell and a 3 N/mm foam at 2 kgf at 7 points and densify a 6 N/mm foam
@@ -312,10 +312,15 @@ def dense_points(result: ProbeResult, task: SurfaceTaskSpec) -> tuple[float, ...
     quarter of the miss is what the probed grid itself misses between its
     points (an interpolation error falls with the square of the spacing). Where
     that, times the stiffness, passes ``DENSE_ABOVE`` bands (5 % of the
-    desired force), every step's Z between those neighbours not yet probed is
-    returned: a stiff part at a small force, whose position band (band / k) is
-    a fraction of the surface's waves, gets its surface measured where the
-    task steps, not interpolated.
+    desired force) at any point, every step's Z not yet probed is returned: a
+    stiff part at a small force, whose position band (band / k) is a fraction
+    of the surface's waves, gets its surface measured where the task steps,
+    not interpolated. Every step's, not only those between the flagged
+    point's neighbours: a three-point check sees a wave's crest near the
+    path's ends (or between unevenly spaced points) at a fraction of its
+    curvature (the emulated sponge at 8 N/mm, 5 N: 0.4 N estimated at -12.5 mm
+    where steps 1-2 missed by 0.8 and 0.5 N), so a grid found too coarse for
+    the band at one point is taken as too coarse along the whole path.
     """
     by_z: dict[float, list[tuple[float, float]]] = {}
     for f in result.fits:
@@ -333,8 +338,8 @@ def dense_points(result: ProbeResult, task: SurfaceTaskSpec) -> tuple[float, ...
     for i in range(1, len(z) - 1):
         between = np.interp(z[i], [z[i - 1], z[i + 1]], [target[i - 1], target[i + 1]])
         if k[i] * abs(float(target[i] - between)) / 4.0 > DENSE_ABOVE * band:
-            inside = (step_z >= z[i - 1]) & (step_z <= z[i + 1])
-            wanted.update(int(s) for s in steps[inside])
+            wanted.update(int(s) for s in steps)
+            break
     probed = {round(float(v), 6) for v in z}
     return tuple(s / task.steps_per_trial for s in sorted(wanted)
                  if round(float(step_z[s - 1]), 6) not in probed)
