@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from forcelearn.calibration import fit_tool_load
 from forcelearn.calibration.drift import DriftModel, drift_variance
@@ -85,6 +86,7 @@ def test_the_walk_rate_is_recovered_from_the_revisits() -> None:
                                      np.zeros((len(quaternions) - 1, 6)), mean_var[1:], COS))
 
 
+@pytest.mark.timeout(300)  # ~16 s of CPU (Monte Carlo of passes): minutes on a loaded host
 def test_the_predicted_sigma_of_more_passes_is_what_they_give() -> None:
     """One pass predicts the sigma of three, which three passes give; the fewest passes asked.
 
