@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -19,6 +20,8 @@ from forcelearn.tasks.approach import (
     FineApproach,
 )
 from forcelearn.tasks.surface_probe import ProbeSpec, SurfaceProbe
+
+TruePeak = Callable[[CellSession], list[float]]  # the true_force_peak fixture (conftest)
 
 
 def test_a_first_contact_that_passes_a_third_of_the_press_asks_for_a_finer_step() -> None:
@@ -57,26 +60,11 @@ def _part(stiffness: float, desired: float, limit: float = 60.0) -> CellConfig:
                    safety=replace(config.safety, max_force_n=limit))
 
 
-def _peak_recorded(session: CellSession) -> list[float]:
-    """The largest true contact force the sponge exerts from now on, N (a one-item list)."""
-    sponge = session.sponge
-    assert sponge is not None
-    peak = [0.0]
-    original = sponge.contact_force_world_n
-
-    def recorded(position_mm: np.ndarray) -> np.ndarray:
-        force = original(position_mm)
-        peak[0] = max(peak[0], float(np.linalg.norm(force)))
-        return force
-
-    sponge.contact_force_world_n = recorded  # type: ignore[method-assign]
-    return peak
-
-
 @pytest.mark.parametrize(("stiffness", "desired", "seed", "rel"),
                          [(15.0, 3.0, 0, 0.15), (8.0, 5.0, 0, 0.15), (8.0, 2.0, 1, 0.35)])
 def test_the_surface_probe_reads_a_stiff_part_three_times_with_its_default_step(
-        stiffness: float, desired: float, seed: int, rel: float) -> None:
+        stiffness: float, desired: float, seed: int, rel: float,
+        true_force_peak: TruePeak) -> None:
     """1 mm steps on stiff parts with small forces: each point fits READINGS readings or more.
 
     With the approach's own step the first contact passed the deepest press ("need 2"). With
@@ -92,7 +80,7 @@ def test_the_surface_probe_reads_a_stiff_part_three_times_with_its_default_step(
     spec = ProbeSpec(points=(0.0, 0.1, 0.2, 0.25, 0.5, 0.75, 0.875, 1.0))
     with CellSession(config, seed=seed) as session:
         assert session.cell is not None
-        peak = _peak_recorded(session)
+        peak = true_force_peak(session)
         probe = SurfaceProbe(session.cell, config.task, spec, config.safety.max_step_mm, -60.0)
         result = probe.run()
     assert any(r["phase"] == "refine" for r in result.rows)
@@ -104,12 +92,13 @@ def test_the_surface_probe_reads_a_stiff_part_three_times_with_its_default_step(
     assert peak[0] < spec.max_force_ratio * config.safety.max_force_n
 
 
-def test_a_part_too_stiff_for_the_finest_step_ends_in_the_typed_error_off_the_part() -> None:
+def test_a_part_too_stiff_for_the_finest_step_ends_in_the_typed_error_off_the_part(
+        true_force_peak: TruePeak) -> None:
     """30 N/mm at 1 N (a 0.25 N press): not even 0.05 mm reads it; the error says what to set."""
     config = _part(30.0, 1.0)
     with CellSession(config, seed=0) as session:
         assert session.cell is not None and session.physics is not None
-        peak = _peak_recorded(session)
+        peak = true_force_peak(session)
         probe = SurfaceProbe(session.cell, config.task, ProbeSpec(points=(0.0,)),
                              config.safety.max_step_mm, -60.0)
         with pytest.raises(ApproachTooCoarse, match=r"finest step.*raise \[task\] desired_force_n"):

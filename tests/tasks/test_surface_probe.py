@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -22,6 +23,8 @@ from forcelearn.tasks.surface_probe import (
     fit_contact,
     probe_and_map,
 )
+
+TruePeak = Callable[[CellSession], list[float]]  # the true_force_peak fixture (conftest)
 
 
 def test_fit_recovers_a_known_line_with_its_uncertainty() -> None:
@@ -86,7 +89,8 @@ def test_an_unreachable_force_is_refused_with_the_figures() -> None:
 
 
 @pytest.mark.parametrize("seed", range(5))
-def test_the_probe_finds_the_emulators_surface_and_never_passes_the_limit(seed: int) -> None:
+def test_the_probe_finds_the_emulators_surface_and_never_passes_the_limit(
+        seed: int, true_force_peak: TruePeak) -> None:
     """The fit matches the emulator's truth (k 10 %, contact 1 mm) under a tight 25 N limit.
 
     The sponge (the emulator's own force) never pushes harder than the limit.
@@ -96,15 +100,7 @@ def test_the_probe_finds_the_emulators_surface_and_never_passes_the_limit(seed: 
     with CellSession(config, seed=seed) as session:
         assert session.cell is not None and session.sponge is not None
         sponge = session.sponge
-        peak = [0.0]
-        original = sponge.contact_force_world_n
-
-        def recorded(position_mm: np.ndarray) -> np.ndarray:
-            force = original(position_mm)
-            peak[0] = max(peak[0], float(np.linalg.norm(force)))
-            return force
-
-        sponge.contact_force_world_n = recorded  # type: ignore[method-assign]
+        peak = true_force_peak(session)
         passes: list[int] = []
         probe = SurfaceProbe(
             session.cell, config.task, ProbeSpec(), config.safety.max_step_mm, -60.0

@@ -123,15 +123,8 @@ class Sponge(FoamMemory):
         path: about 200 ticks per Surface-v0 step).
         """
         depth = self._penetration_mm(position_mm)
-        if moved:
-            p = self.params
-            if p.hysteresis_loss != 0.0 or p.friction_coefficient != 0.0:
-                self._follow_move(position_mm, depth)
-            if depth > 0.0:
-                self._touched = True
-            elif self._touched:
-                self.finish_pass()
-                depth = self._penetration_mm(position_mm)  # at the new pass count
+        if moved and self._observe_at(position_mm, depth):
+            depth = self._penetration_mm(position_mm)  # at the new pass count
         self._evolve_at(depth, dt_s)
 
     def _evolve_at(self, depth_mm: float, dt_s: float) -> None:
@@ -157,14 +150,22 @@ class Sponge(FoamMemory):
 
     def observe_pose(self, position_mm: np.ndarray | tuple[float, float, float]) -> None:
         """Note where the tool is; completes a pass when it leaves the sponge after contact."""
-        depth = self._penetration_mm(position_mm)
+        self._observe_at(position_mm, self._penetration_mm(position_mm))
+
+    def _observe_at(
+        self, position_mm: np.ndarray | tuple[float, float, float], depth_mm: float
+    ) -> bool:
+        """:meth:`observe_pose` with the tool ``depth_mm`` deep; True when it finished a pass."""
         p = self.params
         if p.hysteresis_loss != 0.0 or p.friction_coefficient != 0.0:
-            self._follow_move(position_mm, depth)
-        if depth > 0.0:
+            self._follow_move(position_mm, depth_mm)
+        if depth_mm > 0.0:
             self._touched = True
-        elif self._touched:
+            return False
+        if self._touched:
             self.finish_pass()
+            return True
+        return False
 
     def _follow_move(
         self, position_mm: np.ndarray | tuple[float, float, float], depth_mm: float
