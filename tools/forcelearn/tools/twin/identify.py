@@ -32,8 +32,8 @@ Safe on a real cell: every move goes through the same drivers, limits (step, spe
 workspace) and force guard as a run's; the press stops at the probe's contact rules and
 depth limit (``[probe] max_depth_mm``) and the safety force limit, and every move that may
 press in goes through the press guard (:mod:`forcelearn.press_guard`), as a run's. The
-emulated cell's cell time of the default plan is about three minutes (165-195 s on the
-hidden cells).
+emulated cell's cell time of the default plan is three to five minutes (185-304 s
+on hidden cells of seed 1).
 
 Writes ``DIR/identification.json``: the plan, the polled timing of each move, and the
 force records (the run's record format, :mod:`forcelearn.tools.experiments.records`).
