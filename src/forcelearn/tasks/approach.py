@@ -39,10 +39,10 @@ that is not finer by much would meet the same; the press then goes on from the c
 
 PROBE_APPROACH_ADVICE = ("set [probe] approach_step_mm to {step} mm or less (a run then starts "
                          "finer), or raise [task] desired_force_n")
+"""What :class:`ApproachTooCoarse` tells a run whose step is ``[probe] approach_step_mm``."""
 PROBE_FLOOR_ADVICE = ("raise [task] desired_force_n or [probe] press_force_ratio, or lower "
                       "[probe] contact_force_n (the press's span)")
 """What :class:`ApproachTooCoarse` tells such a run when the finest step met it too."""
-"""What :class:`ApproachTooCoarse` tells a run whose step is ``[probe] approach_step_mm``."""
 
 
 class ApproachTooCoarse(ForcelearnError):
