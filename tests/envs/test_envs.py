@@ -15,6 +15,7 @@ from gymnasium.utils.env_checker import check_env
 import forcelearn.envs
 from forcelearn.envs import CONTOUR_ID, SURFACE_ID, ContourEnv, SurfaceEnv
 from forcelearn.site import CellConfig
+from forcelearn.tools.fuzz.fault_inject import shift_sensor_bias
 
 
 def test_check_env_passes_for_the_contour_env() -> None:
@@ -129,14 +130,7 @@ def test_a_zero_that_moved_between_episodes_is_taken_again_in_free_space() -> No
     env = SurfaceEnv()
     try:
         _, first = env.reset(seed=1)
-        session = env.session
-        model = session.emulated_cell.sensor.emulator.model
-        normal = session.cell.force_filter.config
-        state = model.state_dict()
-        bias = np.asarray(state["bias"], dtype=float)
-        bias[normal.axis] -= normal.sign * 3.0
-        state["bias"] = bias
-        model.load_state_dict(state)
+        shift_sensor_bias(env.session, -3.0)
         _, again = env.reset()
         assert env.sensor_rezeros == 1
         assert abs(again["start_force_n"] - first["start_force_n"]) < 1.5  # half the step

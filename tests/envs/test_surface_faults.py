@@ -9,19 +9,13 @@ import numpy as np
 
 from forcelearn.envs import SurfaceEnv
 from forcelearn.site import CellConfig
+from forcelearn.tools.fuzz.fault_inject import shift_sensor_bias
 
 
 def shift_bias(env: SurfaceEnv, reading_change_n: float) -> None:
     """Move the emulated JR3's bias so the normal force reads ``reading_change_n`` more."""
-    session = env.session
-    assert session is not None and session.cell is not None
-    model = session.emulated_cell.sensor.emulator.model
-    normal = session.cell.force_filter.config
-    state = model.state_dict()
-    bias = np.asarray(state["bias"], dtype=float)
-    bias[normal.axis] += normal.sign * reading_change_n
-    state["bias"] = bias
-    model.load_state_dict(state)
+    assert env.session is not None and env.session.cell is not None
+    shift_sensor_bias(env.session, reading_change_n)
 
 
 def true_normal_n(env: SurfaceEnv) -> float:

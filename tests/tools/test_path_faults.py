@@ -23,6 +23,7 @@ from forcelearn.tools.experiments.fault_recovery import read_events
 from forcelearn.tools.experiments.path_state import prepare_path_run
 from forcelearn.tools.experiments.records import read_records
 from forcelearn.tools.fuzz.fault_inject import Truth
+from forcelearn.tools.fuzz.fault_inject import shift_sensor_bias as shift_bias
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "paths" / "cylinder-cell.toml"
 
@@ -101,17 +102,6 @@ def true_along_axis_n(session: CellSession) -> float:
     quaternion = session.cell.pose.quaternion  # type: ignore[union-attr]
     axis = rotation_from_wxyz(np.array([quaternion])).apply(np.array([0.0, 0.0, 1.0]))[0]
     return float(-force @ axis)
-
-
-def shift_bias(session: CellSession, reading_change_n: float) -> None:
-    """Move the emulated sensor's bias so the normal force reads ``reading_change_n`` more."""
-    model = session.sensor_emulator.model
-    normal = session.cell.force_filter.config  # type: ignore[union-attr]
-    state = model.state_dict()
-    bias = np.asarray(state["bias"], dtype=float)
-    bias[normal.axis] += normal.sign * reading_change_n
-    state["bias"] = bias
-    model.load_state_dict(state)
 
 
 def test_the_press_guard_keeps_a_stiff_part_under_the_limit(tmp_path: Path) -> None:

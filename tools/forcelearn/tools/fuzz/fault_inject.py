@@ -65,6 +65,21 @@ ROBOT_FAULTS = ("restart", "stall", "link_drop")
 RUN_FAULTS = ("kill",)
 
 
+
+def shift_sensor_bias(session: Any, reading_change_n: float) -> None:
+    """Move the emulated sensor's bias so the normal force reads ``reading_change_n`` more, N.
+
+    ``session``: a :class:`~forcelearn.site.CellSession` with an emulated sensor (JR3 or
+    Net F/T: their models keep the bias in ``state_dict()["bias"]``).
+    """
+    model = session.sensor_emulator.model
+    normal = session.cell.force_filter.config
+    state = model.state_dict()
+    bias = np.array(state["bias"], dtype=float)
+    bias[normal.axis] += normal.sign * reading_change_n
+    state["bias"] = bias
+    model.load_state_dict(state)
+
 class Killed(BaseException):
     """The process "died" (a kill at this instant): nothing below may catch it."""
 
@@ -413,13 +428,8 @@ class Injector:
         return self.rng.randbytes(RDT_RECORD_SIZE)
 
     def _sensor_bias_jump(self) -> None:
-        model = self.session.sensor_emulator.model
-        state = model.state_dict()
-        axis = self.session.cell.force_filter.config.axis
-        jump = np.zeros(6)
-        jump[axis] = self.rng.choice((-1.0, 1.0)) * self.rng.uniform(1.0, 8.0)
-        state["bias"] = np.asarray(state["bias"], dtype=float) + jump
-        model.load_state_dict(state)
+        jump = self.rng.choice((-1.0, 1.0)) * self.rng.uniform(1.0, 8.0)  # on the bias's axis
+        shift_sensor_bias(self.session, self.session.cell.force_filter.config.sign * jump)
         assert self.truth is not None
         self.truth.jumped = True
 
