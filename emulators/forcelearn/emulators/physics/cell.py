@@ -129,15 +129,7 @@ class CellPhysics:
 
     def _move_tool(self, key: PoseKey) -> None:
         """Record the tool at (x, y, z, quaternion); the Pose is built when :attr:`pose` is read."""
-        # _record_tool written out (the route of every environment without a tick())
-        if key[3] != self._pose_key[3]:
-            self._rotation, self._gravity = self._orientation_terms(key[3])
-            if self._oriented is not None:
-                self._oriented.observe_orientation(key[3])
-        self._pose = None  # a motion tick moves the tool far more often than anyone reads it
-        self._pose_key = key
-        self._position = (key[0], key[1], key[2])
-        self._position_array = None
+        self._record_tool(key)
         if self._observer is not None:
             point: Any = self._position if self._tuples else self._position_mm  # as _point()
             self._observer.observe_pose(point)
@@ -148,7 +140,7 @@ class CellPhysics:
             self._rotation, self._gravity = self._orientation_terms(key[3])
             if self._oriented is not None:
                 self._oriented.observe_orientation(key[3])
-        self._pose = None
+        self._pose = None  # a motion tick moves the tool far more often than anyone reads it
         self._pose_key = key
         self._position = (key[0], key[1], key[2])
         self._position_array = None
