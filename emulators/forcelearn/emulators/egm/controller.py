@@ -58,6 +58,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -180,6 +181,9 @@ class EgmControllerModel:
         self._last_pose_s = (t_s, physics.pose)
         self._speed = 0.0  # the TCP speed over the latest cycle, mm/s (utilizationRate)
         self._checks = TargetChecks(config.arm, config.workspace_min_mm, config.workspace_max_mm)
+        self._follow: Callable[[Pose, float], Pose | None] | None = getattr(
+            self.motion, "follow", None)
+        """The motion model's ``follow(target, t_s)`` (:meth:`follow_cycle`), if it has one."""
 
     @property
     def running(self) -> bool:
@@ -350,7 +354,11 @@ class EgmControllerModel:
             self._hold(t_s)
             self.mci, self.rapid = codec.MciState.STOPPED, codec.RapidState.STOPPED
             self._timed_out_s = t_s
-        self.pose = pose = self.motion.advance_to(t_s)
+        self._moved(t_s, self.motion.advance_to(t_s))
+
+    def _moved(self, t_s: float, pose: Pose) -> None:
+        """The rest of :meth:`_move_to` once the arm reached ``pose`` at ``t_s``."""
+        self.pose = pose
         published = self._published
         if (pose is not published and pose != published) or self.physics.pose is not published:
             self.physics.set_pose(pose)  # else at rest where it was published (and observed)
@@ -433,6 +441,28 @@ class EgmControllerModel:
 
         The EgmRobot is then :meth:`robot_carried` with ``moved``, or :meth:`skip`.
         """
+        self._move_to(t_s)
+        return self.pose
+
+    def follow_cycle(self, target: Pose, t_s: float) -> Pose:
+        """:meth:`read_planned` of ``target`` then :meth:`move_to` ``t_s``, in one call.
+
+        Where ``target`` is the pose in effect, checked, passed and commanded (the
+        same objects: a wait at rest reads the ramp's last pose every cycle), the
+        read is the read time and the count, and the motion model follows
+        (``follow``) without the checks' and the command's look-ups; the
+        CommTimeout check of :meth:`_move_to` cannot fire (the read is at ``t_s``).
+        """
+        follow, last = self._follow, self._checks.last
+        if (follow is not None and target is self.planned and last is not None
+                and last[0] is target and last[1] is None):
+            pose = follow(target, t_s)
+            if pose is not None:
+                self._last_read_s = t_s
+                self.targets_read += 1
+                self._moved(t_s, pose)
+                return pose
+        self.read_planned(target, t_s)
         self._move_to(t_s)
         return self.pose
 

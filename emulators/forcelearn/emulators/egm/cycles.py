@@ -167,15 +167,17 @@ class CycleLoop:
         skipped = 0
         while True:
             t = self.t_s
-            model.read_planned(planned, t)
-            self.cycles += 1
-            self._inbox = []  # read
-            if restart.is_set():  # an operator restart meanwhile: as begin
+            if restart.is_set():  # an operator restart meanwhile: read, then as begin
+                model.read_planned(planned, t)
+                self.cycles += 1
+                self._inbox = []
                 restart.clear()
                 model.restart(t)
                 self.guidance_stopped.clear()
                 return skipped, *stamps, model.robot_carried(t, defer_force=True)
-            feedback = model.move_to(t)
+            feedback = model.follow_cycle(planned, t)  # read_planned, then move_to
+            self.cycles += 1
+            self._inbox = []  # read
             at = model.stamps(t)
             step = None
             if model.running and not model.wraps_next():

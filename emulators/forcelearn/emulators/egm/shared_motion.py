@@ -85,6 +85,20 @@ class PhysicsMotion:
         self.physics.advance_to(t_s)
         return self.motion.pose
 
+    def follow(self, target: Pose, t_s: float) -> Pose | None:
+        """:meth:`advance_to` ``t_s`` if ``target`` is the pose last commanded (the object).
+
+        So when a cycle reads the planned pose in effect again (:meth:`command`
+        of it does nothing); None, nothing done, for any other ``target``. An
+        arm at rest is jumped without its tick callback (``CellPhysics.rest_to``).
+        """
+        if target is not self._last:
+            return None
+        physics = self.physics
+        if not physics.rest_to(t_s):
+            physics.advance_to(t_s)
+        return self.motion.pose
+
     def hold(self, t_s: float) -> None:
         """Stop where the arm is at ``t_s`` (brake along the present path, drop planned poses)."""
         self.physics.advance_to(t_s)

@@ -166,6 +166,8 @@ class ArmMotion:
         self._unit_ref: Quaternion | None = None
         """An orientation (object) that :func:`_nlerp` towards this reference (object) returns
         unchanged to the bit: checked once, then not computed again while both stay."""
+        self._pose_of: tuple[PoseKey | None, Pose] = (None, pose)
+        """(:attr:`tool_key`, the :attr:`pose` built for it)."""
         self._set_rest(pose)
 
     def _set_rest(self, pose: Pose) -> None:
@@ -194,9 +196,20 @@ class ArmMotion:
 
     @property
     def pose(self) -> Pose:
-        """Where the tool is (mm, quaternion w x y z)."""
+        """Where the tool is (mm, quaternion w x y z).
+
+        One object while the tool stays (:attr:`tool_key` not set again): an arm at
+        rest is asked every 4 ms EGM cycle, and its callers compare poses by
+        identity before value.
+        """
+        key = self.tool_key
+        known = self._pose_of
+        if known[0] is key:
+            return known[1]
         x, y, z = self._tool
-        return Pose(x, y, z, self._tool_q)
+        pose = Pose(x, y, z, self._tool_q)
+        self._pose_of = (key, pose)
+        return pose
 
     @property
     def moving(self) -> bool:
@@ -264,6 +277,24 @@ class ArmMotion:
             self._step(tick)
             if on_tick is not None:
                 on_tick(tick)
+
+    def rest_span(self, t_s: float) -> int:
+        """:meth:`advance_to` ``t_s`` if the arm is at rest with nothing pending: the ticks jumped.
+
+        0: no tick to run; -1: the arm moves (nothing done, :meth:`advance_to` runs
+        its ticks). The at-rest jump of :meth:`advance_to`, whose single ``on_tick``
+        of ``span * tick_s`` the caller makes.
+        """
+        last = math.floor(t_s / self.params.tick_s + 1e-9)  # tick_at
+        if self.tick_index >= last:
+            return 0
+        if self._pending or self._v != 0.0 or self._s < self._seg_end or not (
+            self._tool == self._ref and self._tool_q == self._ref_q
+        ):
+            return -1
+        span = last - self.tick_index
+        self.tick_index = last
+        return span
 
     def _step(self, dt: float) -> None:
         pending = self._pending

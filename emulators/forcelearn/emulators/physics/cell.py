@@ -225,6 +225,27 @@ class CellPhysics:
             if key != self._pose_key:  # an instant arm moves between ticks
                 self._move_tool(key)
 
+    def rest_to(self, t_s: float) -> bool:
+        """:meth:`advance_to` ``t_s`` if the arm stays at rest there; False: it moves, nothing done.
+
+        The at-rest jump of the fused tick route (:meth:`ArmMotion.rest_span`, then the
+        environment's one tick over the span, the tool not moved) without building
+        the route's tick callback: what an EGM cycle at rest runs every 4 ms. False
+        also where :meth:`advance_to` takes another route (no ticked environment, a
+        hooked ``_move_tool``, the tool not where the arm is).
+        """
+        with self._lock:
+            motion, ticked = self.motion, self._ticked
+            if (motion is None or ticked is None or "_move_tool" in self.__dict__
+                    or motion.tool_key != self._pose_key):
+                return False
+            span = motion.rest_span(t_s)
+            if span < 0:
+                return False
+            if span:
+                ticked.tick(self._position, span * motion.params.tick_s, False)
+            return True
+
     @property
     def tool(self) -> ToolParams:
         """The tool on the sensor (mass, centre of mass, contact point)."""

@@ -1,0 +1,80 @@
+"""The arm's at-rest jump without its tick callback (``CellPhysics.rest_to``) is ``advance_to``."""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+
+from forcelearn.devices import Pose
+from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams
+from forcelearn.emulators.physics.cell import CellPhysics
+from forcelearn.emulators.physics.sponge import Sponge, SpongeParams, surface_y_mm
+
+DOWN = (0.0, 1.0, 0.0, 0.0)
+
+MATERIALS = {
+    "default": SpongeParams(),
+    "hysteretic, stiffening, sliding": SpongeParams(hysteresis_loss=0.3, stiffening_exponent=1.3,
+                                                    friction_coefficient=0.4),
+}
+
+
+def _run(params: SpongeParams, resting: bool) -> tuple[list[str], int, int]:
+    """Presses and dwells read at EGM-like steps; every state, and how often rest_to did it."""
+    sponge = Sponge(params)
+    surface = surface_y_mm(params, 0, -40.0)
+    start = Pose(0.0, surface + 20.0, -40.0, DOWN)
+    cell = CellPhysics(sponge, start)
+    motion = ArmMotion(MotionParams(), start)
+    cell.attach_motion(motion)
+    rng = random.Random(11)
+    t, states, rested, moved = 0.0, [], 0, 0
+    for move in range(25):
+        depth = rng.uniform(-3.0, 6.0) if move % 5 else 20.0
+        motion.command(Pose(0.0, surface - depth, -40.0 - 2.5 * move, DOWN), t)
+        for _ in range(rng.randint(40, 160)):  # the move, then a dwell at rest
+            t += rng.choice((0.004, 0.004, 0.004, 0.001, 0.012))
+            if resting and cell.rest_to(t):
+                rested += 1
+            else:
+                moved += 1
+                cell.advance_to(t)
+            states.append(repr((motion.tick_index, motion.state_dict(), sponge.passes,
+                                sponge.relaxing_mm, sponge._foam_mm, sponge.hysteresis_state,
+                                tuple(cell.true_wrench().tolist()), cell.pose)))
+    return states, rested, moved
+
+
+@pytest.mark.parametrize("name", sorted(MATERIALS))
+def test_rest_to_is_advance_to_where_it_jumps(name: str) -> None:
+    """The arm, the sponge (relaxing part, passes, hysteresis) and the wrench after every read."""
+    jumped, rested, moved = _run(MATERIALS[name], True)
+    plain, _, _ = _run(MATERIALS[name], False)
+    assert rested > 500 and moved > 300  # both routes were taken
+    assert jumped == plain
+
+
+def test_rest_to_declines_other_routes() -> None:
+    """No motion, a hooked ``_move_tool`` or an environment without ``tick``: nothing done."""
+    cell = CellPhysics(Sponge(), Pose(0.0, 50.0, -40.0, DOWN))
+    assert not cell.rest_to(1.0)
+    cell.attach_motion(ArmMotion(MotionParams(), cell.pose))
+    assert cell.rest_to(1.0) and cell.motion is not None and cell.motion.tick_index == 250
+    cell._move_tool = cell._move_tool  # type: ignore[method-assign]  # a hook's wrapper
+    assert not cell.rest_to(2.0) and cell.motion.tick_index == 250
+
+
+def test_the_arm_pose_is_one_object_while_the_tool_stays() -> None:
+    """:attr:`ArmMotion.pose`: the same object at rest, a new one (of the new values) once moved."""
+    start = Pose(0.0, 50.0, -40.0, DOWN)
+    motion = ArmMotion(MotionParams(), start)
+    first = motion.pose
+    assert first == start and motion.pose is first
+    motion.advance_to(1.0)
+    assert motion.pose is first  # at rest: the ticks jumped, the tool not moved
+    motion.command(start.moved(dz_mm=5.0), 1.0)
+    motion.advance_to(1.2)
+    moved = motion.pose
+    x, y, z = motion._tool
+    assert moved is not first and moved == Pose(x, y, z, motion._tool_q) != first
