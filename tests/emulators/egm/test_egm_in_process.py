@@ -19,6 +19,7 @@ from forcelearn.emulators.egm import (
     Fault,
     InProcessEgmController,
 )
+from forcelearn.emulators.egm.controller import EgmControllerModel
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.tool import ToolParams
 from forcelearn.errors import GuidanceStopped, LinkError
@@ -221,10 +222,20 @@ def test_the_cycles_at_rest_in_one_jump_are_the_cycles_one_by_one(
             seen += [robot.read_status(), robot.state_dict(), s.emulator_state()]
             return seen, s.robot_emulator.rested, s.robot_emulator.loop.cycles
 
+    batched: list[int] = []
+    rest_through = EgmControllerModel.rest_through
+
+    def counted(model: EgmControllerModel, times: list[float]) -> None:
+        batched.append(len(times))
+        rest_through(model, times)
+
+    monkeypatch.setattr(EgmControllerModel, "rest_through", counted)
     jumped, rested, cycles = session(True)
+    in_batches = sum(batched)
     one_by_one, none, _ = session(False)
     assert none == 0
     assert cycles - rested < 0.1 * cycles  # the ramps' cycles are jumped too, not only the rests
+    assert in_batches > 100  # the cycles at rest (the dwells' ends) run in batches (_rest_batch)
     assert jumped == one_by_one
     forces = jumped[0::3][:5]
     assert max(forces) > 5.0 and forces[-1] < forces[-2]  # pressed in, then unloading

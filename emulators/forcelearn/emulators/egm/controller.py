@@ -58,7 +58,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -161,7 +161,9 @@ class EgmControllerModel:
         """The planned pose in effect (the latest EgmSensor read)."""
         self.planned_joints = self._joints(physics.pose, ())
         """The planned axes in effect, degrees."""
-        self._feedback_joints: tuple[float, ...] = self.planned_joints
+        self._joints_known: tuple[float, ...] = self.planned_joints
+        self._joints_to_find: list[Pose] = []
+        """Reached poses whose axes are not found yet, in order (:attr:`_feedback_joints`)."""
         self._feedback_joints_pose = physics.pose
         self.mci = codec.MciState.RUNNING
         self.rapid = codec.RapidState.RUNNING
@@ -183,6 +185,11 @@ class EgmControllerModel:
         self._checks = TargetChecks(config.arm, config.workspace_min_mm, config.workspace_max_mm)
         self._follow: Callable[[Pose, float], Pose | None] | None = getattr(
             self.motion, "follow", None)
+        self._resting: Callable[[Pose], Pose | None] | None = getattr(
+            self.motion, "resting", None)
+        """The motion model's ``resting`` and ``rest_through`` (:meth:`rest_pose`), if any."""
+        self._rest_through: Callable[[Sequence[float]], None] | None = getattr(
+            self.motion, "rest_through", None)
         """The motion model's ``follow(target, t_s)`` (:meth:`follow_cycle`), if it has one."""
 
     @property
@@ -368,8 +375,32 @@ class EgmControllerModel:
         self._last_pose_s = (t_s, pose)
         joints_pose = self._feedback_joints_pose
         if pose is not joints_pose and pose != joints_pose:  # at rest the axes stay
-            self._feedback_joints = self._joints(pose, self._feedback_joints)
+            self._joints_to_find.append(pose)  # found when an EgmRobot reports them
             self._feedback_joints_pose = pose
+
+    @property
+    def _feedback_joints(self) -> tuple[float, ...]:
+        """The reported axes (deg): the arm's at the latest reached pose it can reach.
+
+        Each reached pose's axes replace the last ones unless the arm cannot
+        reach it (:meth:`_joints`); found only when asked, from the latest pose
+        back: the first reachable one is what the cycles one by one would hold.
+        """
+        poses = self._joints_to_find
+        if poses:
+            arm = self.config.arm
+            for pose in reversed(poses):
+                joints = joint_angles_deg(arm, pose)
+                if joints is not None:
+                    self._joints_known = joints
+                    break
+            poses.clear()
+        return self._joints_known
+
+    @_feedback_joints.setter
+    def _feedback_joints(self, joints: tuple[float, ...]) -> None:
+        self._joints_known = joints
+        self._joints_to_find.clear()
 
     def _message(self, t_s: float, with_force: bool = True) -> codec.RobotMessage:
         """The EgmRobot of the cycle at ``t_s`` once :meth:`_move_to` ran (seqno +1)."""
@@ -466,6 +497,47 @@ class EgmControllerModel:
         self._move_to(t_s)
         return self.pose
 
+    def rest_pose(self, target: Pose) -> Pose | None:
+        """The feedback pose of every cycle that reads ``target`` from now on, if they only rest.
+
+        So when :meth:`follow_cycle` of ``target`` takes its short route, the
+        arm rests (``resting``: nothing pending, no speed, on its reference)
+        and its pose is the one published, with its axes: each such cycle then
+        changes only the read time and count, the speed and the sponge's
+        relaxation (:meth:`rest_through`), whatever the PC answers meanwhile.
+        None: not so (each cycle runs :meth:`follow_cycle`).
+        """
+        resting, last = self._resting, self._checks.last
+        if (resting is None or self._rest_through is None or target is not self.planned
+                or last is None or last[0] is not target or last[1] is not None
+                or self.mci is not codec.MciState.RUNNING):
+            return None
+        pose = resting(target)
+        if (pose is None or pose is not self.pose or pose is not self._published
+                or pose is not self._feedback_joints_pose or self.physics.pose is not pose):
+            return None
+        return pose
+
+    def rest_through(self, times_s: Sequence[float]) -> None:
+        """:meth:`follow_cycle` of the planned pose at each of ``times_s``, ascending (one or more).
+
+        :meth:`rest_pose` of it must have held: the arm rests, so the cycles are
+        the sponge's ticks and the model's read time, count and speed.
+        """
+        if self._rest_through is None or not times_s:
+            raise RuntimeError("rest_through needs a resting motion model and a cycle")
+        self._rest_through(times_s)
+        pose, t_s = self.pose, times_s[-1]
+        self._last_read_s = t_s
+        self.targets_read += len(times_s)
+        t0, p0 = self._last_pose_s if len(times_s) == 1 else (times_s[-2], pose)
+        self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)  # as _moved: the last cycle's
+        self._last_pose_s = (t_s, pose)
+
+    def cycles_to_wrap(self) -> int:
+        """How many EgmRobots may be built before :meth:`wraps_next` holds (0: it holds now)."""
+        return 0xFFFFFFFF - self._seqno
+
     def wraps(self) -> bool:
         """Whether the next EgmRobot's seqno is 0 (a wrap: it looks like a new session)."""
         return self._seqno == 0
@@ -505,10 +577,10 @@ class EgmControllerModel:
         self._move_to(t_s)
         return self.pose
 
-    def skip(self) -> None:
-        """Count the EgmRobot of a cycle :meth:`follow_at` ran as built (no one reads it)."""
-        self._seqno = (self._seqno + 1) & 0xFFFFFFFF
-        self._built += 1
+    def skip(self, cycles: int = 1) -> None:
+        """Count the EgmRobots of ``cycles`` cycles run up to them as built (no one reads them)."""
+        self._seqno = (self._seqno + cycles) & 0xFFFFFFFF
+        self._built += cycles
 
     # -- checkpoint -------------------------------------------------------------------------
 

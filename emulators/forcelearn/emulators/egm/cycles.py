@@ -175,6 +175,13 @@ class CycleLoop:
                 model.restart(t)
                 self.guidance_stopped.clear()
                 return skipped, *stamps, model.robot_carried(t, defer_force=True)
+            pose = model.rest_pose(planned) if self.clock.now_s == t else None
+            if pose is not None:  # cycles at rest, in a batch (_rest_batch)
+                skipped, stamps, planned, robot = self._rest_batch(
+                    planned, pose, answer, skipped, stamps)
+                if robot is not None:
+                    return skipped, *stamps, robot
+                continue
             feedback = model.follow_cycle(planned, t)  # read_planned, then move_to
             self.cycles += 1
             self._inbox = []  # read
@@ -189,6 +196,61 @@ class CycleLoop:
             model.skip()
             skipped, stamps, planned = skipped + 1, at, step
             self._next_cycle()  # end([the answer]): read at the next cycle
+
+    def _rest_batch(
+        self, planned: Pose, pose: Pose, answer: Answer, skipped: int, stamps: tuple[int, int]
+    ) -> tuple[int, tuple[int, int], Pose, Datagram | None]:
+        """:meth:`rest`'s cycles while they read ``planned`` and the arm rests at ``pose``.
+
+        Such a cycle (:meth:`EgmControllerModel.rest_pose`) changes nothing the
+        PC's answer reads but its stamps (the feedback and planned pose stay), and
+        the answer changes nothing the cycle does: so the answers are taken first,
+        cycle by cycle at the cycles' times (``t + period`` each, as
+        :meth:`_next_cycle` when nothing else moved the clock), then the model and
+        the arm run those cycles in one call (:meth:`EgmControllerModel.rest_through`:
+        the sponge's ticks, the read time and count, the speed) and the clock moves
+        to the last. The batch ends before a cycle at which a restart is asked,
+        after the first whose answer plans another pose (returned, read next),
+        or at the first the PC reads itself (its EgmRobot returned, as in
+        :meth:`rest`). Returns (cycles skipped, their last stamps, the planned
+        pose of the next cycle, the EgmRobot to send or None).
+        """
+        model, restart, period = self.model, self.restart_requested, self.period_s
+        t = self.t_s
+        times: list[float] = []
+        left = model.cycles_to_wrap()  # the cycle after which the seqno wraps is read by the PC
+        step: Pose | None = planned
+        last_at = stamps
+        at = stamps
+        while True:
+            if restart.is_set():  # the next cycle (at t) runs as rest() runs it
+                break
+            at = model.stamps(t)
+            step = answer(*at, pose, planned) if len(times) < left else None
+            times.append(t)
+            if step is not planned:
+                break
+            last_at = at
+            t = t + period
+        if not times:
+            self.t_s = self.clock.advance_to(t)
+            return skipped, stamps, planned, None
+        model.rest_through(times)
+        self.cycles += len(times)
+        self._inbox = []  # read
+        if step is None:  # the PC reads this cycle's EgmRobot (the wait ends, or the seqno wraps)
+            done = len(times) - 1
+            model.skip(done)
+            self.t_s = self.clock.advance_to(times[-1])
+            robot = model.robot_carried(times[-1], defer_force=True, moved=True)
+            return skipped + done, last_at if done else stamps, planned, robot
+        model.skip(len(times))
+        self.t_s = self.clock.advance_to(times[-1])
+        if step is planned:  # stopped before a restart: the next cycle is due at t
+            self.t_s = self.clock.advance_to(t)
+            return skipped + len(times), last_at, planned, None
+        self._next_cycle()  # end([the answer]): read at the next cycle
+        return skipped + len(times), at, step, None
 
     def state_dict(self) -> dict[str, Any]:
         """The cycle time, count and the controller's state (JSON-able; the arm is the physics')."""

@@ -36,6 +36,7 @@ lockstep no other device moves the arm while a cycle runs.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 
 from forcelearn.devices import Pose
@@ -98,6 +99,20 @@ class PhysicsMotion:
         if not physics.rest_to(t_s):
             physics.advance_to(t_s)
         return self.motion.pose
+
+    def resting(self, target: Pose) -> Pose | None:
+        """The arm's pose if it rests and ``target`` is the pose last commanded (the object).
+
+        Then every :meth:`follow` of ``target`` from now on is a rest of the arm
+        (``CellPhysics.rest_to``) and returns this pose; None: not so.
+        """
+        if target is not self._last or not self.physics.at_rest():
+            return None
+        return self.motion.pose
+
+    def rest_through(self, times_s: Sequence[float]) -> None:
+        """:meth:`follow` of the pose last commanded at each of ``times_s`` (``resting``)."""
+        self.physics.rest_through(times_s)
 
     def hold(self, t_s: float) -> None:
         """Stop where the arm is at ``t_s`` (brake along the present path, drop planned poses)."""

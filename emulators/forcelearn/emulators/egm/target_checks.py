@@ -38,6 +38,11 @@ class TargetChecks:
         self.low, self.high = workspace_min_mm, workspace_max_mm
         self.last: tuple[Pose, str | None, tuple[float, ...] | None] | None = None
         """The latest pose checked, its refusal and its axes."""
+        self._unit_q: tuple[float, ...] | None = None  # the latest quaternion found unit length
+        limits = tuple((low - 1e-9, high + 1e-9) for low, high in arm.joint_limits_deg)
+        self._limits = limits if len(limits) == 6 and all(
+            math.isfinite(v) for pair in limits for v in pair) else None
+        """The axis ranges as :func:`~.joints.limit_violation` widens them (finite), or None."""
 
     def checked(self, target: Pose) -> Checked:
         """:meth:`refusal_and_joints` of ``target``, kept for a repeat."""
@@ -54,7 +59,32 @@ class TargetChecks:
         return last is not None and last[1] is None and (last[0] is target or last[0] == target)
 
     def refusal_and_joints(self, pose: Pose) -> Checked:
-        """Why the controller refuses ``pose`` (None: it does not), and the arm's axes there."""
+        """Why the controller refuses ``pose`` (None: it does not), and the arm's axes there.
+
+        A pose that passes is found so by the same comparisons written out (a
+        ramp checks one every 4 ms cycle; a quaternion found unit length is kept);
+        a refusal is worded by :meth:`_refusal_and_joints`.
+        """
+        x, y, z, q = pose.x_mm, pose.y_mm, pose.z_mm, pose.quaternion
+        (x0, y0, z0), (x1, y1, z1), limits = self.low, self.high, self._limits
+        if (limits is not None and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
+                and x0 <= x <= x1 and y0 <= y <= y1 and z0 <= z <= z1
+                and (q is self._unit_q or self._unit(q))):
+            joints = joint_angles_deg(self.arm, pose)
+            if joints is not None and all(
+                    low <= j <= high for j, (low, high) in zip(joints, limits, strict=True)):
+                return None, joints
+        return self._refusal_and_joints(pose)
+
+    def _unit(self, q: tuple[float, ...]) -> bool:
+        """Whether ``q`` has unit length as the check asks (kept as the latest if so)."""
+        if abs(math.sqrt(sum(c * c for c in q)) - 1.0) <= 1e-3:
+            self._unit_q = q
+            return True
+        return False
+
+    def _refusal_and_joints(self, pose: Pose) -> Checked:
+        """:meth:`refusal_and_joints` step by step, each refusal worded."""
         position = (pose.x_mm, pose.y_mm, pose.z_mm)
         norm = math.sqrt(sum(c * c for c in pose.quaternion))
         if not (all(math.isfinite(c) for c in position) and abs(norm - 1.0) <= 1e-3):

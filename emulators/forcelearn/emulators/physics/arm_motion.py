@@ -278,6 +278,16 @@ class ArmMotion:
             if on_tick is not None:
                 on_tick(tick)
 
+    @property
+    def resting(self) -> bool:
+        """At rest with nothing pending (no speed, the path done, the tool on the reference).
+
+        :meth:`advance_to` then jumps its ticks, and the tool stays until a command.
+        """
+        return not (self._pending or self._v != 0.0 or self._s < self._seg_end) and (
+            self._tool == self._ref and self._tool_q == self._ref_q
+        )
+
     def rest_span(self, t_s: float) -> int:
         """:meth:`advance_to` ``t_s`` if the arm is at rest with nothing pending: the ticks jumped.
 

@@ -26,6 +26,7 @@ Frames and units
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -245,6 +246,30 @@ class CellPhysics:
             if span:
                 ticked.tick(self._position, span * motion.params.tick_s, False)
             return True
+
+    def at_rest(self) -> bool:
+        """Whether :meth:`rest_to` does every advance from now until the arm is commanded."""
+        with self._lock:
+            motion = self.motion
+            return (motion is not None and self._ticked is not None
+                    and "_move_tool" not in self.__dict__ and motion.tool_key == self._pose_key
+                    and motion.resting)
+
+    def rest_through(self, times_s: Sequence[float]) -> None:
+        """:meth:`rest_to` each of ``times_s`` in turn (:meth:`at_rest` must hold), one lock.
+
+        Raises ``RuntimeError`` (nothing done) if the arm is not at rest.
+        """
+        with self._lock:
+            if not self.at_rest():
+                raise RuntimeError("rest_through needs the arm at rest (at_rest())")
+            motion, ticked = self.motion, self._ticked
+            assert motion is not None and ticked is not None
+            rest_span, tick, position = motion.rest_span, motion.params.tick_s, self._position
+            for t_s in times_s:
+                span = rest_span(t_s)  # >= 0: at rest it stays (only the tick index moves)
+                if span:
+                    ticked.tick(position, span * tick, False)
 
     @property
     def tool(self) -> ToolParams:
