@@ -509,12 +509,13 @@ class Guidance:
         known = self._in_position
         if known is not None and known[0] == asked:
             return known[1]  # the same poses as in the cycle before (at rest: most cycles)
-        poses = [feedback] + ([planned] if planned is not None else [])
         band_mm, band_deg = self.config.in_position_mm, self.config.in_position_deg
-        reached = all(
-            distance_mm(p, target) <= band_mm
-            and angle_deg(p.quaternion, target.quaternion) <= band_deg
-            for p in poses
+        turn = target.quaternion
+        reached = (  # the feedback, then the controller's planned pose (if sent), in the band
+            distance_mm(feedback, target) <= band_mm
+            and angle_deg(feedback.quaternion, turn) <= band_deg
+            and (planned is None or (distance_mm(planned, target) <= band_mm
+                                     and angle_deg(planned.quaternion, turn) <= band_deg))
         )
         self._in_position = (asked, reached)
         return reached

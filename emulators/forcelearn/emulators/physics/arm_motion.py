@@ -168,6 +168,10 @@ class ArmMotion:
         unchanged to the bit: checked once, then not computed again while both stay."""
         self._pose_of: tuple[PoseKey | None, Pose] = (None, pose)
         """(:attr:`tool_key`, the :attr:`pose` built for it)."""
+        self._segment_direction: tuple[list[float] | None, Pose | None, tuple[float, ...]] = (
+            None, None, (0.0, 0.0, 0.0))
+        """(segment start, goal, :meth:`_direction`) of the latest segment started: the next
+        segment's old direction while that segment runs (its start and goal the same objects)."""
         self._set_rest(pose)
 
     def _set_rest(self, pose: Pose) -> None:
@@ -339,7 +343,11 @@ class ArmMotion:
 
     def _start_segment(self, goal: Pose) -> None:
         start, start_q = list(self._ref), self._ref_q
-        old_dir = self._direction()
+        known = self._segment_direction  # the present segment's, if found at its start
+        if known[0] is self._seg_start and known[1] is self._seg_goal:
+            old_dir = known[2]
+        else:
+            old_dir = self._direction()
         distance = math.dist(start, (goal.x_mm, goal.y_mm, goal.z_mm))
         turn = _angle_deg(start_q, goal.quaternion)
         length = max(distance, turn * self.speed_mm_s / self.params.rotation_speed_deg_s)
@@ -349,6 +357,7 @@ class ArmMotion:
         self._s = 0.0
         self._seg_end = length if self.stall_fraction is None else length * self.stall_fraction
         new_dir = self._direction()
+        self._segment_direction = (start, goal, new_dir)
         carry = sum(a * b for a, b in zip(old_dir, new_dir, strict=True))
         self._v = self._v * carry if carry > 0 else 0.0
 
