@@ -343,7 +343,7 @@ class EgmControllerModel:
 
     def _measured_force(self) -> tuple[float, ...]:
         """The physics' true wrench as the controller's sensor force (N, N·m)."""
-        return tuple(float(v) for v in self.physics.true_wrench())
+        return tuple(self.physics.true_wrench().tolist())  # the six float64 as Python floats
 
     def robot_message(self, t_s: float, with_force: bool = True) -> codec.RobotMessage:
         """Advance to the cycle at ``t_s`` and return its EgmRobot as sent.

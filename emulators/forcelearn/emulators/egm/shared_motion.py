@@ -96,7 +96,7 @@ class PhysicsMotion:
         if target is not self._last:
             return None
         physics = self.physics
-        if not physics.rest_to(t_s):
+        if not (self.motion.resting and physics.rest_to(t_s)):  # (a moving arm: not tried)
             physics.advance_to(t_s)
         return self.motion.pose
 
@@ -106,7 +106,7 @@ class PhysicsMotion:
         Then every :meth:`follow` of ``target`` from now on is a rest of the arm
         (``CellPhysics.rest_to``) and returns this pose; None: not so.
         """
-        if target is not self._last or not self.physics.at_rest():
+        if target is not self._last or not self.motion.resting or not self.physics.at_rest():
             return None
         return self.motion.pose
 
