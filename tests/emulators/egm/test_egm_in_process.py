@@ -239,3 +239,40 @@ def test_the_cycles_at_rest_in_one_jump_are_the_cycles_one_by_one(
     assert jumped == one_by_one
     forces = jumped[0::3][:5]
     assert max(forces) > 5.0 and forces[-1] < forces[-2]  # pressed in, then unloading
+
+
+def test_a_batch_at_rest_stops_where_the_seqno_wraps(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A dwell at rest across the seqno's wrap: what the driver sees is the cycles one by one's."""
+    config = load_cell_config(EXAMPLES / "egm-cell.toml")
+
+    def session(jump: bool) -> tuple[list[object], list[int]]:
+        monkeypatch.setattr(InProcessEgmController, "rests", jump)
+        batched: list[int] = []
+        rest_through = EgmControllerModel.rest_through
+
+        def counted(model: EgmControllerModel, times: list[float]) -> None:
+            batched.append(len(times))
+            rest_through(model, times)
+
+        monkeypatch.setattr(EgmControllerModel, "rest_through", counted)
+        with CellSession(config, seed=4) as s:
+            assert s.cell is not None
+            robot, emu, seen = s.cell.robot, s.robot_emulator, []
+            s.cell.move_to(s.cell.sync().moved(0.0, 0.0, -2.0))
+            seen.append(robot.dwell(0.5))  # at rest: batches
+            wrap = 0xFFFFFFFF - 40  # the controller's seqno 40 cycles before it wraps
+            emu.loop.model._seqno = wrap  # (its next EgmRobot's), and the driver's latest one
+            guidance = robot._guidance
+            assert guidance.latest is not None
+            guidance.latest = replace(guidance.latest, seqno=wrap - 1)
+            try:
+                seen.append(robot.dwell(0.5))
+            except GuidanceStopped as exc:  # seqno 0 looks like a restart to the driver
+                seen.append(repr(exc))
+            seen += [robot.read_status(), robot.state_dict(), s.emulator_state()]
+        return seen, batched
+
+    jumped, batched = session(True)
+    one_by_one, none = session(False)
+    assert none == [] and len(batched) >= 2 and max(batched) > 40
+    assert jumped == one_by_one
