@@ -265,6 +265,59 @@ class ArmMotion:
             if on_tick is not None:
                 on_tick(tick)
 
+    def advance_keys(self, t_s: float) -> tuple[list[PoseKey], int]:
+        """:meth:`advance_to` ``t_s`` without a callback, for a caller that takes the ticks at once.
+
+        Returns the tool key (:attr:`tool_key`) after each tick stepped, in order, and the
+        ticks jumped at rest at the end (0: none; :meth:`advance_to` would call
+        ``on_tick`` once with that span). The same motion to the bit: :meth:`_step`'s
+        operations in the same order, the call written out (the cell's hot path: about 200
+        ticks per Surface-v0 step).
+        """
+        keys: list[PoseKey] = []
+        tick = self.params.tick_s
+        last = self.tick_at(t_s)
+        pending = self._pending
+        gain = self._gain
+        accel = self.params.accel_mm_s2
+        sqrt, dist = math.sqrt, math.dist
+        while self.tick_index < last:
+            if not pending and self._v == 0.0 and self._s >= self._seg_end and (
+                self._tool == self._ref and self._tool_q == self._ref_q
+            ):
+                span = last - self.tick_index
+                self.tick_index = last
+                return keys, span
+            self.tick_index += 1
+            # _step(tick), written out
+            while pending and pending[0][0] <= self.tick_index:
+                self._start_segment(pending.popleft()[1])
+            s, end = self._s, self._seg_end
+            if s < end:
+                v = min(self._v + accel * tick, self.speed_mm_s, sqrt(2.0 * accel * (end - s)))
+                self._s = s = min(end, s + v * tick)
+                self._v = 0.0 if s >= end else v
+            else:
+                self._v = 0.0
+            if s != self._ref_s:
+                self._ref, self._ref_q = self._reference_at(s)
+                self._ref_s = s
+            ref = self._ref
+            (tx, ty, tz), (rx, ry, rz) = self._tool, ref
+            tool = [tx + gain * (rx - tx), ty + gain * (ry - ty), tz + gain * (rz - tz)]
+            if s >= end and dist(tool, ref) < _SNAP_MM:
+                tool, self._tool_q = list(ref), self._ref_q
+            elif self._tool_q is not self._unit_q or self._ref_q is not self._unit_ref:
+                q = self._tool_q
+                turned = _nlerp(q, self._ref_q, gain)
+                if turned == q and struct.pack("<4d", *turned) == struct.pack("<4d", *q):
+                    self._unit_q, self._unit_ref, turned = q, self._ref_q, q
+                self._tool_q = turned
+            self._tool = tool
+            key = self.tool_key = (tool[0], tool[1], tool[2], self._tool_q)
+            keys.append(key)
+        return keys, 0
+
     def _step(self, dt: float) -> None:
         pending = self._pending
         while pending and pending[0][0] <= self.tick_index:

@@ -15,9 +15,11 @@ tests' one place for the sponge).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
+from forcelearn.emulators.physics.arm_motion import PoseKey
 from forcelearn.emulators.physics.foam_memory import FoamMemory, State
 from forcelearn.emulators.physics.sponge_law import (
     SLIDE_MIN_FRACTION,
@@ -126,6 +128,90 @@ class Sponge(FoamMemory):
         if moved and self._observe_at(position_mm, depth):
             depth = self._penetration_mm(position_mm)  # at the new pass count
         self._evolve_at(depth, dt_s)
+
+    def ticks(self, keys: Sequence[PoseKey], dt_s: float, before: PoseKey) -> PoseKey:
+        """:meth:`tick` for each tool key in turn, ``dt_s`` each; returns the last key recorded.
+
+        A key that differs from the last one recorded (at first ``before``) is a tick
+        the tool moved on (it is then recorded); an equal one evolves at the recorded
+        position, as :class:`~.cell.CellPhysics` hands positions to :meth:`tick`. For a
+        linear foam without hysteresis or friction (the default) the loop is written out
+        in one function: the same operations in the same order, to the bit
+        (tests/emulators/physics/test_cell_tick.py); otherwise :meth:`tick` per key.
+        """
+        p = self.params
+        if (type(self) is not Sponge or p.hysteresis_loss != 0.0 or p.friction_coefficient != 0.0
+                or p.stiffening_exponent != 1.0 or p.relaxation_ratio == 0.0 or dt_s <= 0.0):
+            tick = self.tick
+            for key in keys:
+                if key != before:
+                    before = key
+                    tick((key[0], key[1], key[2]), dt_s, True)
+                else:
+                    tick((before[0], before[1], before[2]), dt_s, False)
+            return before
+        # the terms of _evolve_at at this (relaxation time, dt)
+        terms = self._relax_terms
+        if terms[0] != p.relaxation_time_s or terms[1] != dt_s:
+            keep = math.exp(-dt_s / p.relaxation_time_s)
+            self._relax_terms = terms = (p.relaxation_time_s, dt_s, keep,
+                                         p.relaxation_time_s / dt_s, 1.0 - keep)
+        keep, ratio, gain = terms[2], terms[3], terms[4]
+        # point_penetration_mm's constants (params are frozen)
+        bottom, top, thickness = p.z_bottom_mm, p.z_top_mm, p.thickness_mm
+        waviness, wavelength = p.waviness_mm, p.waviness_wavelength_mm
+        surface_y, slope = p.surface_y_mm, p.surface_slope
+        sin, two_pi = math.sin, 2 * math.pi
+        passes = self.passes
+        if (p, passes) != self._set_key:
+            self._set_key = (p, passes)
+            self._set_mm = set_depth_mm(p, passes)
+        set_mm = self._set_mm
+        depth_key, depth = self._depth_key, self._depth_mm
+        foam_mm, relaxing = self._foam_mm, self.relaxing_mm
+        touched = self._touched
+        y, z = before[1], before[2]
+        for key in keys:
+            moved = key != before
+            if moved:
+                before = key
+                y, z = key[1], key[2]
+            # _penetration_mm((x, y, z))
+            if (passes, y, z) != depth_key:
+                depth_key = (passes, y, z)
+                if not bottom <= z <= top:
+                    depth = 0.0
+                else:
+                    travelled = top - z
+                    wave = waviness * sin(two_pi * travelled / wavelength)
+                    surface = surface_y + slope * travelled + wave - set_mm
+                    depth = max(0.0, surface - y)
+            if moved:  # _observe_at
+                if depth > 0.0:
+                    touched = True
+                elif touched:
+                    passes += 1  # finish_pass
+                    touched = False
+                    self._set_key = (p, passes)
+                    self._set_mm = set_mm = set_depth_mm(p, passes)
+                    depth_key = (passes, y, z)
+                    if not bottom <= z <= top:
+                        depth = 0.0
+                    else:
+                        travelled = top - z
+                        wave = waviness * sin(two_pi * travelled / wavelength)
+                        surface = surface_y + slope * travelled + wave - set_mm
+                        depth = max(0.0, surface - y)
+            # _evolve_at(depth, dt_s)
+            foam = min(depth, thickness)
+            change, foam_mm = foam - foam_mm, foam
+            relaxing = relaxing * keep + change * ratio * gain
+            if foam == 0.0 and relaxing > 0.0:
+                relaxing = 0.0
+        self.passes, self._touched = passes, touched
+        self._depth_key, self._depth_mm = depth_key, depth
+        self._foam_mm, self.relaxing_mm = foam_mm, relaxing
+        return before
 
     def _evolve_at(self, depth_mm: float, dt_s: float) -> None:
         """:meth:`evolve` with the tool ``depth_mm`` deep (mm, at the present pass count)."""
