@@ -1,6 +1,6 @@
 """A SYNC carried through the in-process bus unframed reads what its frames read, to the bit.
 
-``Jr3EmulatorBus.carry_sync`` hands the node's answer to the driver as messages
+``Jr3EmulatorBus.carry_sync`` hands the node's answer to the driver as its six counts
 (no CAN frame encoded, sent, received or decoded); the clock, the bus times, the
 sensor model's draws, the counters and every sample must be those of the frames.
 """
@@ -73,3 +73,37 @@ def test_carried_syncs_read_what_framed_syncs_read(monkeypatch: pytest.MonkeyPat
     assert none == 0
     assert taken == 5 * (1 + 7) + 1  # every SYNC went carried
     assert carried == framed
+
+
+@pytest.mark.parametrize("route", ["callback", "pending frame", "plain"])
+def test_a_carried_sample_is_its_two_messages(route: str) -> None:
+    """``on_carried_sample`` leaves the listener as ``on_carried_all`` of Forces, Moments."""
+    from forcelearn.drivers.jr3_can.listener import Jr3Listener
+    from forcelearn.protocols.jr3_can import codec
+    from forcelearn.protocols.jr3_can.opcodes import DEFAULT_OPCODES
+
+    def listener() -> tuple[Jr3Listener, list[Any]]:
+        lst = Jr3Listener(1, DEFAULT_OPCODES, 16000)
+        lst.set_full_scales(np.array([100.0, 100.0, 200.0, 10.0, 10.0, 10.0]))
+        got: list[Any] = []
+        if route == "callback":
+            lst.callbacks.append(got.append)
+        if route == "pending frame":
+            lst.on_carried(codec.Moments((1, 2, 3), 9))
+        return lst, got
+
+    def state(lst: Jr3Listener, got: list[Any]) -> Any:
+        latest = lst.latest
+        sample = None if latest is None else (latest.wrench.tobytes(), latest.counter,
+                                              latest.saturated, latest.sensor_dt_s)
+        return (lst.seq, lst.data_frames, lst.stats(), lst._pairer.__dict__, sample, len(got))
+
+    counts = [((10, -20, 16001, 4, 5, -6), 7), ((1, 2, 3, 4, 5, 6), 9), ((0,) * 6, 9),
+              ((7, 7, 7, 7, 7, 7), 12)]
+    one, seen_one = listener()
+    two, seen_two = listener()
+    for raw, counter in counts:
+        one.on_carried_sample(raw, counter)
+        two.on_carried_all([codec.Forces(raw[:3], counter), codec.Moments(raw[3:], counter)])
+        assert state(one, seen_one) == state(two, seen_two)
+    assert one.seq >= 2

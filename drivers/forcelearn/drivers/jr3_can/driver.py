@@ -378,9 +378,9 @@ class Jr3CanSensor(Driver):
     def _carry_sync(self) -> bool:
         """SYNC through an in-process bus's short cut, its answer taken; False: send the frame.
 
-        The bus (``Jr3EmulatorBus.carry_sync``) hands the answer's messages over
-        unframed, each taken as its frame would be after decoding
-        (``Jr3Listener.on_carried``); used in sync mode without a traffic log only.
+        The bus (``Jr3EmulatorBus.carry_sync``) hands the answer over unframed, as
+        its six counts and counter, taken as its two frames would be after decoding
+        (``Jr3Listener.on_carried_sample``); used in sync mode without a traffic log only.
         """
         carry = getattr(self.bus, "carry_sync", None)
         lst = self._listener
@@ -396,7 +396,7 @@ class Jr3CanSensor(Driver):
             ) from exc
         if carried is None:
             return False
-        lst.on_carried_all(carried)
+        lst.on_carried_sample(*carried)
         return True
 
     def _send(self, message: codec.Message) -> None:

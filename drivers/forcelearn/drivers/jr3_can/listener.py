@@ -20,7 +20,7 @@ import can
 import numpy as np
 
 from forcelearn.devices import WrenchSample
-from forcelearn.drivers.jr3_can.pairing import Pairer
+from forcelearn.drivers.jr3_can.pairing import Pair, Pairer
 from forcelearn.protocols.jr3_can import codec
 from forcelearn.protocols.jr3_can.opcodes import CounterMeaning, OpcodeMap
 from forcelearn.protocols.jr3_can.scaling import units_per_count
@@ -197,6 +197,23 @@ class Jr3Listener(can.Listener):
                 self._stats.frames += 1
                 self._take(message)
 
+    def on_carried_sample(self, raw: tuple[int, int, int, int, int, int], counter: int) -> None:
+        """A sample an in-process bus handed over as its six counts and counter.
+
+        :meth:`on_carried_all` of its Forces and Moments messages (two frames counted),
+        without building them when no callback waits and no frame is pending.
+        """
+        if self.callbacks or self._pairer.pending:
+            self.on_carried_all([codec.Forces((raw[0], raw[1], raw[2]), counter),
+                                 codec.Moments((raw[3], raw[4], raw[5]), counter)])
+            return
+        with self.lock:
+            self._stats.frames += 2
+            self.data_frames += 2
+            pair = self._pairer.push_both(raw, counter)
+            if pair is not None:
+                self._sample(pair)
+
     def _take(self, message: codec.Message) -> WrenchSample | None:
         """Act on one decoded message of this node (under the lock); the sample it completes."""
         sample: WrenchSample | None = None
@@ -220,6 +237,10 @@ class Jr3Listener(can.Listener):
         pair = self._pairer.push(frame)
         if pair is None:
             return None
+        return self._sample(pair)
+
+    def _sample(self, pair: Pair) -> WrenchSample | None:
+        """The sample of a completed pair (None before the full scales are known)."""
         per_count = self._per_count
         if per_count is None:
             self._stats.samples_before_full_scales += 1

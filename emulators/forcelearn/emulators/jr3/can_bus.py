@@ -30,9 +30,9 @@ import can
 from can.typechecking import AutoDetectedConfig
 
 from forcelearn.emulators import registry
+from forcelearn.emulators.jr3.firmware import CarriedSample
 from forcelearn.emulators.jr3.node import REGISTRY_KIND, Jr3EmulatorNode
 from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
-from forcelearn.protocols.jr3_can import codec
 
 INTERFACE = "forcelearn-jr3"
 _MODEL_OPTIONS = {f.name for f in fields(Jr3ModelParams)}
@@ -129,8 +129,8 @@ class Jr3EmulatorBus(can.BusABC):
     """Carry a SYNC and its answer unframed when the driver asks (:meth:`carry_sync`); False:
     frames only (a test compares the two)."""
 
-    def carry_sync(self, node_id: int) -> list[codec.Message] | None:
-        """Send a SYNC and take node ``node_id``'s answer now, as messages, not frames.
+    def carry_sync(self, node_id: int) -> CarriedSample | None:
+        """Send a SYNC and take node ``node_id``'s answer now: its six counts and counter.
 
         What :meth:`send` of the SYNC frame and :meth:`recv` of the answer's frames
         give (``Jr3EmulatorNode.carry_sync``), with no frame encoded or decoded;

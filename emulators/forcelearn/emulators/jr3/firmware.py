@@ -69,6 +69,10 @@ from forcelearn.protocols.jr3_can.scaling import cutoff_from_wire, full_scales_t
 
 NO_FAULTS = Jr3FaultConfig()
 
+CarriedSample = tuple[tuple[int, int, int, int, int, int], int]
+"""A sample handed over unframed (``Jr3Firmware._carry_sync``): the six raw counts
+(Fx Fy Fz Mx My Mz, as the Forces and Moments messages carry them) and their counter."""
+
 _AXES_BYTES = len(codec.encode(codec.Forces((0, 0, 0), 0), 1).data)
 """Data bytes of a forces or moments frame."""
 
@@ -163,7 +167,7 @@ class Jr3Firmware:
         self._queue: collections.deque[tuple[float, codec.Message]] = collections.deque()
         self._lock = threading.RLock()
         self._next_emit = 0.0
-        self._carried: list[codec.Message] | None = None
+        self._carried: list[CarriedSample] | None = None
         """While a turn is carried (:meth:`_carry_sync`): the messages it sends, not framed."""
 
     @property
@@ -296,11 +300,12 @@ class Jr3Firmware:
         else:
             self.stats.syncs_merged += 1
 
-    def _carry_sync(self, node_id: int) -> list[codec.Message] | None:
-        """A host's SYNC and the turn that answers it, the answer's messages not framed.
+    def _carry_sync(self, node_id: int) -> CarriedSample | None:
+        """A host's SYNC and the turn that answers it, the answer's counts not framed.
 
         What ``_handle`` of the SYNC frame and the next turn do, to the same clock,
-        bus times, draws and counts; the messages are returned instead of encoded.
+        bus times, draws and counts; the answer (its Forces and Moments messages, the
+        same counter) is returned as the six counts and the counter instead of encoded.
         None (nothing done: send the frame) unless the stream runs in sync mode for
         ``node_id`` with no fault, no frame hook and nothing waiting for a turn.
         """
@@ -308,7 +313,7 @@ class Jr3Firmware:
                 or self.faults is not NO_FAULTS or self.frame_hook is not None
                 or self._pending_since() is not None):
             return None
-        carried: list[codec.Message] = []
+        carried: list[CarriedSample] = []
         self._carried = carried
         try:
             # _flag_sync(_arrive(0)) then _run_turn(_turn_after(flag)) written out for this
@@ -322,7 +327,7 @@ class Jr3Firmware:
             self._emit_sample()
         finally:
             self._carried = None
-        return carried
+        return carried[0]  # no fault: exactly the one sample, no bootup
 
     def _handle(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
@@ -452,23 +457,25 @@ class Jr3Firmware:
         else:
             counter = (self._counter_base + frames) & 0xFFFF
         self._sent_counter += 1
-        self._send(codec.Forces((raw[0], raw[1], raw[2]), counter))
-        self._send(codec.Moments((raw[3], raw[4], raw[5]), counter))
+        carried = self._carried
+        if carried is not None:  # _send of the two messages below, carried: their bus time
+            frame_s = self._frame_times[_AXES_BYTES]
+            _, end = self.bus_wire.transmit(frame_s)
+            self.clock.advance_to(end)
+            _, end = self.bus_wire.transmit(frame_s)
+            self.clock.advance_to(end)
+            carried.append(((raw[0], raw[1], raw[2], raw[3], raw[4], raw[5]), counter))
+        else:
+            self._send(codec.Forces((raw[0], raw[1], raw[2]), counter))
+            self._send(codec.Moments((raw[3], raw[4], raw[5]), counter))
         self.stats.samples += 1
         limit = self.faults.bootup_after_samples
         if limit is not None and self.stats.samples % limit == 0:
             self._power_cycle()
 
     def _send(self, message: codec.Message) -> None:
-        carried = self._carried
-        if carried is not None:  # as below with no fault, no hook: the bus time, no frame
-            kind = message.kind
-            size = (_AXES_BYTES if kind == "forces" or kind == "moments"
-                    else len(codec.encode(message, self.node_id, self.opcodes).data))
-            _, end = self.bus_wire.transmit(self._frame_times[size])
-            self.clock.advance_to(end)
-            carried.append(message)
-            return
+        if self._carried is not None:  # pragma: no cover - a carried turn only emits a sample
+            raise AssertionError(f"{message.kind} sent during a carried SYNC")
         encoded = codec.encode(message, self.node_id, self.opcodes)
         frame: Frame | None = encoded
         if self.faults is not NO_FAULTS:  # the default: nothing to draw

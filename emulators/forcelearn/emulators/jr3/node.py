@@ -32,6 +32,7 @@ from forcelearn.emulators.jr3.firmware import (
     EEPROM_BYTES,
     NO_FAULTS,
     POWER_UP_S,
+    CarriedSample,
     Jr3Firmware,
     NodeStats,
 )
@@ -155,8 +156,8 @@ class Jr3EmulatorNode(Jr3Firmware, Emulator):
             self.clock.hold()
             return True
 
-    def carry_sync(self, node_id: int) -> list[codec.Message] | None:
-        """An in-process host's SYNC answered now: the messages of its answer, not framed.
+    def carry_sync(self, node_id: int) -> CarriedSample | None:
+        """An in-process host's SYNC answered now: its answer's counts and counter, not framed.
 
         What :meth:`receive` of the SYNC frame and :meth:`serve_pending` do, without
         the frames (``Jr3Firmware._carry_sync``); None when the frame must go instead
