@@ -280,43 +280,67 @@ class ArmMotion:
         pending = self._pending
         gain = self._gain
         accel = self.params.accel_mm_s2
+        speed = self.speed_mm_s
         sqrt, dist = math.sqrt, math.dist
-        while self.tick_index < last:
-            if not pending and self._v == 0.0 and self._s >= self._seg_end and (
-                self._tool == self._ref and self._tool_q == self._ref_q
-            ):
-                span = last - self.tick_index
-                self.tick_index = last
-                return keys, span
-            self.tick_index += 1
+        # the state in locals, written back at the end and around a segment's start
+        index, s, v, end = self.tick_index, self._s, self._v, self._seg_end
+        ref, ref_q, ref_s = self._ref, self._ref_q, self._ref_s
+        tool, tool_q = self._tool, self._tool_q
+        unit_q, unit_ref = self._unit_q, self._unit_ref
+        segment = self._segment_terms()
+        rest = 0
+        while index < last:
+            if not pending and v == 0.0 and s >= end and tool == ref and tool_q == ref_q:
+                rest, index = last - index, last
+                break
+            index += 1
             # _step(tick), written out
-            while pending and pending[0][0] <= self.tick_index:
-                self._start_segment(pending.popleft()[1])
-            s, end = self._s, self._seg_end
+            if pending and pending[0][0] <= index:
+                self.tick_index, self._s, self._v, self._ref_s = index, s, v, ref_s
+                self._ref, self._ref_q = ref, ref_q  # what a new segment starts from
+                while pending and pending[0][0] <= index:
+                    self._start_segment(pending.popleft()[1])
+                s, v, end, ref_s = self._s, self._v, self._seg_end, self._ref_s
+                segment = self._segment_terms()
             if s < end:
-                v = min(self._v + accel * tick, self.speed_mm_s, sqrt(2.0 * accel * (end - s)))
-                self._s = s = min(end, s + v * tick)
-                self._v = 0.0 if s >= end else v
+                v = min(v + accel * tick, speed, sqrt(2.0 * accel * (end - s)))
+                s = min(end, s + v * tick)
+                if s >= end:
+                    v = 0.0
             else:
-                self._v = 0.0
-            if s != self._ref_s:
-                self._ref, self._ref_q = self._reference_at(s)
-                self._ref_s = s
-            ref = self._ref
-            (tx, ty, tz), (rx, ry, rz) = self._tool, ref
+                v = 0.0
+            if s != ref_s:  # the reference stands still while the tool catches up
+                # _reference_at(s), written out
+                length, x0, y0, z0, gx, gy, gz, q0, gq = segment
+                f = 1.0 if length == 0.0 else s / length
+                ref = [x0 + f * (gx - x0), y0 + f * (gy - y0), z0 + f * (gz - z0)]
+                ref_q = gq if f >= 1.0 else _nlerp(q0, gq, f)
+                ref_s = s
+            (tx, ty, tz), (rx, ry, rz) = tool, ref
             tool = [tx + gain * (rx - tx), ty + gain * (ry - ty), tz + gain * (rz - tz)]
             if s >= end and dist(tool, ref) < _SNAP_MM:
-                tool, self._tool_q = list(ref), self._ref_q
-            elif self._tool_q is not self._unit_q or self._ref_q is not self._unit_ref:
-                q = self._tool_q
-                turned = _nlerp(q, self._ref_q, gain)
-                if turned == q and struct.pack("<4d", *turned) == struct.pack("<4d", *q):
-                    self._unit_q, self._unit_ref, turned = q, self._ref_q, q
-                self._tool_q = turned
-            self._tool = tool
-            key = self.tool_key = (tool[0], tool[1], tool[2], self._tool_q)
-            keys.append(key)
-        return keys, 0
+                tool, tool_q = list(ref), ref_q
+            elif tool_q is not unit_q or ref_q is not unit_ref:
+                turned = _nlerp(tool_q, ref_q, gain)
+                if turned == tool_q and (struct.pack("<4d", *turned)
+                                         == struct.pack("<4d", *tool_q)):
+                    unit_q, unit_ref, turned = tool_q, ref_q, tool_q
+                tool_q = turned
+            keys.append((tool[0], tool[1], tool[2], tool_q))
+        self.tick_index, self._s, self._v, self._ref_s = index, s, v, ref_s
+        self._ref, self._ref_q, self._tool, self._tool_q = ref, ref_q, tool, tool_q
+        self._unit_q, self._unit_ref = unit_q, unit_ref
+        if keys:
+            self.tool_key = keys[-1]
+        return keys, rest
+
+    def _segment_terms(self) -> tuple[float, float, float, float, float, float, float,
+                                      tuple[float, ...], tuple[float, ...]]:
+        """What :meth:`_reference_at` reads of the present segment: length, start, goal, turns."""
+        goal = self._seg_goal
+        x0, y0, z0 = self._seg_start
+        return (self._seg_length, x0, y0, z0, goal.x_mm, goal.y_mm, goal.z_mm,
+                self._seg_start_q, goal.quaternion)
 
     def _step(self, dt: float) -> None:
         pending = self._pending
