@@ -335,12 +335,12 @@ class ArmMotion:
         return keys, rest
 
     def _segment_terms(self) -> tuple[float, float, float, float, float, float, float,
-                                      tuple[float, ...], tuple[float, ...]]:
+                                      Quaternion, Quaternion]:
         """What :meth:`_reference_at` reads of the present segment: length, start, goal, turns."""
         goal = self._seg_goal
         x0, y0, z0 = self._seg_start
         return (self._seg_length, x0, y0, z0, goal.x_mm, goal.y_mm, goal.z_mm,
-                self._seg_start_q, goal.quaternion)
+                self._seg_start_q, cast(Quaternion, goal.quaternion))
 
     def _step(self, dt: float) -> None:
         pending = self._pending
