@@ -340,7 +340,7 @@ class ArmMotion:
         goal = self._seg_goal
         x0, y0, z0 = self._seg_start
         return (self._seg_length, x0, y0, z0, goal.x_mm, goal.y_mm, goal.z_mm,
-                self._seg_start_q, cast(Quaternion, goal.quaternion))
+                self._seg_start_q, goal.quaternion)
 
     def _step(self, dt: float) -> None:
         pending = self._pending
