@@ -107,3 +107,55 @@ def test_a_carried_sample_is_its_two_messages(route: str) -> None:
         two.on_carried_all([codec.Forces(raw[:3], counter), codec.Moments(raw[3:], counter)])
         assert state(one, seen_one) == state(two, seen_two)
     assert one.seq >= 2
+
+
+def _batch_session(batched: bool, drop_every: int, monkeypatch: pytest.MonkeyPatch
+                   ) -> list[Any]:
+    """read_many over the in-process bus, its SYNCs carried in one call or one by one.
+
+    Every ``drop_every``-th carried answer is lost before the listener (no sample: the
+    driver waits, counts the SYNC unanswered and sends another).
+    """
+    from forcelearn.drivers.jr3_can.listener import Jr3Listener
+
+    if not batched:
+        monkeypatch.setattr(Jr3EmulatorBus, "carry_syncs", None)
+    answers = itertools.count(1)
+    original = Jr3Listener.on_carried_sample
+
+    def lossy(self: Jr3Listener, raw: Any, counter: int) -> None:
+        if next(answers) % drop_every:
+            original(self, raw, counter)
+
+    monkeypatch.setattr(Jr3Listener, "on_carried_sample", lossy)
+    physics = CellPhysics(Sponge(), pose=Pose(0.0, 0.0, 30.0))
+    channel = f"jr3-batch-{os.getpid()}-{next(_numbers)}"
+    seen: list[Any] = []
+    with Jr3EmulatorNode(physics, channel=channel, in_process=True, seed=5) as node, \
+            can.Bus(interface="forcelearn-jr3", channel=channel) as bus, \
+            Jr3CanSensor(bus, Jr3Config(zero_settle_s=0.01, stale_timeout_s=0.02)) as sensor:
+        for z in (30.0, 12.5, 8.0):
+            physics.set_pose(Pose(0.0, 0.0, z))
+            seen += [(s.wrench.tobytes(), s.counter, s.sensor_dt_s)
+                     for s in sensor.read_many(9)]
+        seen += [physics.clock.now_s, _plain(node.state_dict()), node.stats, sensor.stats]
+    monkeypatch.undo()
+    return seen
+
+
+@pytest.mark.parametrize("drop_every", [4, 1000])
+def test_read_many_carried_in_one_call_reads_what_it_reads_one_by_one(
+        drop_every: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``Jr3EmulatorBus.carry_syncs``: samples, clock, node and driver counts equal."""
+    calls: list[int] = []
+    original = Jr3EmulatorBus.carry_syncs
+
+    def counting(self: Jr3EmulatorBus, node_id: int, count: int, take: Any) -> int | None:
+        calls.append(count)
+        return original(self, node_id, count, take)
+
+    monkeypatch.setattr(Jr3EmulatorBus, "carry_syncs", counting)
+    batched = _batch_session(True, drop_every, monkeypatch)
+    assert calls and max(calls) == 9  # the batch route was taken
+    single = _batch_session(False, drop_every, monkeypatch)
+    assert batched == single

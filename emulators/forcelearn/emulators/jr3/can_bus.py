@@ -23,6 +23,7 @@ import collections
 import threading
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import fields
 from typing import Any
 
@@ -142,6 +143,19 @@ class Jr3EmulatorBus(can.BusABC):
         if not self.carries or self.receive_own_messages or self._rx:
             return None
         return self._running_node().carry_sync(node_id)
+
+    def carry_syncs(self, node_id: int, count: int,
+                    take: Callable[[tuple[int, int, int, int, int, int], int], bool]) -> int | None:
+        """:meth:`carry_sync` up to ``count`` times, each answer handed to ``take`` at once.
+
+        ``Jr3EmulatorNode.carry_syncs``: stops after an answer ``take`` refuses; the SYNCs
+        carried, or None (nothing sent) when :meth:`carry_sync` would answer None.
+        """
+        if self._closed:
+            raise can.CanOperationError(f"{INTERFACE} bus on {self.channel!r} is shut down")
+        if not self.carries or self.receive_own_messages or self._rx:
+            return None
+        return self._running_node().carry_syncs(node_id, count, take)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         deadline = None if timeout is None else time.monotonic() + timeout

@@ -171,6 +171,29 @@ class Jr3EmulatorNode(Jr3Firmware, Emulator):
                 self.clock.hold()
             return carried
 
+    def carry_syncs(self, node_id: int, count: int,
+                    take: Callable[[tuple[int, int, int, int, int, int], int], bool]) -> int | None:
+        """Up to ``count`` SYNCs carried in turn, each answer handed to ``take`` at once.
+
+        :meth:`carry_sync` ``count`` times with ``take(counts, counter)`` after each (the
+        host's handling of the answer, before its next SYNC), under one hold of the node's
+        lock; stops after an answer ``take`` refuses (False). Returns the SYNCs carried,
+        None when :meth:`carry_sync` would answer None.
+        """
+        with self._lock:
+            if self._closed or not self.in_process or len(self._hosts) != 1:
+                return None
+            done = 0
+            while done < count:
+                carried = self._carry_sync(node_id)
+                if carried is None:
+                    break
+                self.clock.hold()
+                done += 1
+                if not take(*carried):
+                    break
+            return None if done == 0 else done
+
     def _release(self) -> None:
         """Stop the thread (joined) and shut down the bus if the node made it."""
         self._stop.set()
