@@ -27,10 +27,12 @@ from forcelearn.emulators.physics.sponge_law import (
     along_surface_mm,
     contact_force_n,
     depth_for_force_mm,
+    direction_terms,
     elastic_depth_mm,
     hysteresis_step,
     normal_force_n,
     penetration_mm,
+    point_contact_force_n,
     point_penetration_mm,
     relaxation_step,
     set_depth_mm,
@@ -67,6 +69,8 @@ class Sponge(FoamMemory):
         super().__init__(passes)
         self._memo_key: tuple[float, ...] | None = None
         self._memo_force = np.zeros(3)
+        self._direction_key: tuple[SpongeParams, float] | None = None
+        self._direction_terms = (np.zeros(3), np.ones(()))
         self._depth_key: tuple[float, ...] | None = None
         self._depth_mm = 0.0
         self._set_key: tuple[SpongeParams, int] | None = None
@@ -104,10 +108,15 @@ class Sponge(FoamMemory):
                *coords)  # tuples compare by value: 1 == 1.0, so no float() is needed
         if key != self._memo_key:  # the sensor asks thousands of times per pose
             self._memo_key = key
-            self._memo_force = contact_force_n(
-                self.params, self.passes, np.asarray(position_mm, dtype=float),
-                self.relaxing_mm, self.hysteresis_state, self.slide_direction,
-            )
+            # contact_force_n of the point: its depth as remembered, the surface's direction
+            # and length kept per height (the same functions, to the bit)
+            p, z = self.params, float(coords[2])
+            if (p, z) != self._direction_key:
+                self._direction_key = (p, z)
+                self._direction_terms = direction_terms(p, z)
+            self._memo_force = point_contact_force_n(
+                p, self.passes, self._penetration_mm(position_mm), z, self.relaxing_mm,
+                self.hysteresis_state, self.slide_direction, *self._direction_terms)
         return self._memo_force.copy()
 
     def evolve(self, position_mm: np.ndarray | tuple[float, float, float], dt_s: float) -> None:
