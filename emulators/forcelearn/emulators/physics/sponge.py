@@ -180,6 +180,9 @@ class Sponge(FoamMemory):
         foam_mm, relaxing = self._foam_mm, self.relaxing_mm
         touched = self._touched
         y, z = before[1], before[2]
+        # the surface's y at (pass count, z): kept while neither changes (a press moves in y)
+        surface_at: tuple[int, float] | None = None
+        surface, on_strip = 0.0, False
         for key in keys:
             moved = key != before
             if moved:
@@ -188,13 +191,13 @@ class Sponge(FoamMemory):
             # _penetration_mm((x, y, z))
             if (passes, y, z) != depth_key:
                 depth_key = (passes, y, z)
-                if not bottom <= z <= top:
-                    depth = 0.0
-                else:
-                    travelled = top - z
-                    wave = waviness * sin(two_pi * travelled / wavelength)
-                    surface = surface_y + slope * travelled + wave - set_mm
-                    depth = max(0.0, surface - y)
+                if surface_at is None or surface_at[1] != z or surface_at[0] != passes:
+                    surface_at, on_strip = (passes, z), bottom <= z <= top
+                    if on_strip:
+                        travelled = top - z
+                        wave = waviness * sin(two_pi * travelled / wavelength)
+                        surface = surface_y + slope * travelled + wave - set_mm
+                depth = max(0.0, surface - y) if on_strip else 0.0
             if moved:  # _observe_at
                 if depth > 0.0:
                     touched = True
@@ -204,13 +207,12 @@ class Sponge(FoamMemory):
                     self._set_key = (p, passes)
                     self._set_mm = set_mm = set_depth_mm(p, passes)
                     depth_key = (passes, y, z)
-                    if not bottom <= z <= top:
-                        depth = 0.0
-                    else:
+                    surface_at, on_strip = (passes, z), bottom <= z <= top
+                    if on_strip:
                         travelled = top - z
                         wave = waviness * sin(two_pi * travelled / wavelength)
                         surface = surface_y + slope * travelled + wave - set_mm
-                        depth = max(0.0, surface - y)
+                    depth = max(0.0, surface - y) if on_strip else 0.0
             # _evolve_at(depth, dt_s)
             foam = min(depth, thickness)
             change, foam_mm = foam - foam_mm, foam
