@@ -159,3 +159,25 @@ def test_read_many_carried_in_one_call_reads_what_it_reads_one_by_one(
     assert calls and max(calls) == 9  # the batch route was taken
     single = _batch_session(False, drop_every, monkeypatch)
     assert batched == single
+
+
+def test_a_sample_is_scaled_as_counts_to_wrench_to_the_bit() -> None:
+    """The listener's six products (floats) are ``scaling.counts_to_wrench`` (numpy) exactly."""
+    import random
+
+    from forcelearn.drivers.jr3_can.listener import Jr3Listener
+    from forcelearn.protocols.jr3_can.opcodes import DEFAULT_OPCODES
+    from forcelearn.protocols.jr3_can.scaling import counts_to_wrench
+
+    rng = random.Random(2)
+    for _ in range(50):
+        scales = np.array([rng.uniform(10.0, 2000.0) for _ in range(3)]
+                          + [rng.uniform(1.0, 200.0) for _ in range(3)])
+        lst = Jr3Listener(1, DEFAULT_OPCODES, 16000)
+        lst.set_full_scales(scales)
+        for counter in range(20):
+            raw = tuple(rng.choice((rng.randint(-32768, 32767), 0, 32767, -32768, 1))
+                        for _ in range(6))
+            lst.on_carried_sample(raw, counter)  # type: ignore[arg-type]
+            assert lst.latest is not None
+            assert lst.latest.wrench.tobytes() == counts_to_wrench(raw, scales).tobytes()

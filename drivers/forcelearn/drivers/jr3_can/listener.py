@@ -90,8 +90,9 @@ class Jr3Listener(can.Listener):
         self.seq = 0
         self.bootup_pending = False
         self.bus_error: Exception | None = None
-        self._per_count: np.ndarray | None = None
-        """N and N*m per count of the full scales in use (every sample is scaled by it)."""
+        self._per_count: list[float] | None = None
+        """N and N*m per count of the full scales in use (every sample is scaled by it), as
+        floats: six products in Python are numpy's elementwise product to the bit, cheaper."""
         self._pairer = Pairer(opcodes.counter)
         self._frame_period_s = (opcodes.sensor_frame_period_s
                                 if opcodes.counter is CounterMeaning.SENSOR_FRAMES else None)
@@ -105,7 +106,8 @@ class Jr3Listener(can.Listener):
     def set_full_scales(self, full_scales: np.ndarray | None) -> None:
         """Use these six full scales (N, N*m) from now on; None stops scaling."""
         with self.cond:
-            self._per_count = None if full_scales is None else units_per_count(full_scales)
+            self._per_count = (None if full_scales is None
+                               else units_per_count(full_scales).tolist())
 
     @property
     def dropped_samples(self) -> int:
@@ -252,8 +254,10 @@ class Jr3Listener(can.Listener):
         sensor_dt_s = None
         if pair.elapsed is not None and self._frame_period_s is not None:
             sensor_dt_s = pair.elapsed * self._frame_period_s
+        raw = pair.raw  # scaling.counts_to_wrench: counts (ints, exact as floats) x per count
         sample = WrenchSample(
-            wrench=np.array(pair.raw, dtype=float) * per_count,  # scaling.counts_to_wrench
+            wrench=np.array([raw[0] * per_count[0], raw[1] * per_count[1], raw[2] * per_count[2],
+                             raw[3] * per_count[3], raw[4] * per_count[4], raw[5] * per_count[5]]),
             timestamp_s=time.monotonic(),
             counter=pair.counter,
             saturated=saturated,
