@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -119,3 +120,26 @@ def test_every_pushed_frame_is_accounted_for(frames: list[tuple[bool, int]]) -> 
         pairs += pairer.push(_f(counter) if is_force else _m(counter)) is not None
     accounted = 2 * (pairs + pairer.duplicates) + pairer.unpaired + pairer.pending
     assert accounted == len(frames)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 0xFFFF), max_size=40), st.booleans())
+def test_push_both_is_a_forces_then_a_moments_push(counters: list[int], by_message: bool) -> None:
+    """The in-process route's pair (six counts, one counter) as the two pushes give it."""
+    meaning = CounterMeaning.TRANSMITTED_SAMPLES if by_message else CounterMeaning.SENSOR_FRAMES
+    two, both = Pairer(meaning), Pairer(meaning)
+    for n, counter in enumerate(counters):
+        raw = (n, -n, 2 * n, 3, -4, n % 7)
+        assert two.push(Forces(raw[:3], counter)) is None
+        expected = two.push(Moments(raw[3:], counter))
+        assert both.push_both(raw, counter) == expected
+        assert (both.dropped, both.duplicates, both.unpaired, both.pending) == (
+            two.dropped, two.duplicates, two.unpaired, two.pending)
+
+
+def test_push_both_refuses_a_pending_frame() -> None:
+    """With a frame waiting for its partner the two pushes must be made one by one."""
+    pairer = Pairer()
+    pairer.push(_f(3))
+    with pytest.raises(ValueError, match="pending"):
+        pairer.push_both((1, 2, 3, 4, 5, 6), 4)

@@ -101,3 +101,41 @@ def test_a_driver_over_carried_payloads_sees_what_it_sees_over_frames(
     carried = _session(carries=True)
     framed = _session(carries=False)
     assert carried == framed
+
+
+def test_a_carried_status_is_what_the_carried_reply_parses_to() -> None:
+    """Status polls through a move, a repeated poll and an ENQ: statuses, replies and state."""
+    char = serial_char_time_s(9600)
+    by_payload = ControllerEngine(ArmConfig(), CellPhysics(), char)
+    by_status = ControllerEngine(ArmConfig(), CellPhysics(), char)
+    home = by_payload.motion.target
+    move = m.encode_request(m.Command.MOVE_TO, 1, m.pose_body(
+        (home.x_mm, home.y_mm, home.z_mm - 3.0), home.quaternion))
+    assert by_status.carry_status(move) is None  # not a status request: nothing done
+    assert by_payload.carry(move) == by_status.carry(move)
+    polls = [m.encode_request(m.Command.READ_STATUS, 2 + i) for i in range(60)]
+    polls.insert(30, polls[29])  # a retransmitted poll: its reply repeated, not executed
+    statuses = []
+    for payload in polls:
+        reply = m.decode_reply(by_payload.carry(payload))
+        status = by_status.carry_status(payload)
+        assert status == m.parse_status(reply.body)
+        assert by_status._last_payload == by_payload._last_payload
+        assert _state(by_status) == _state(by_payload)
+        statuses.append(status)
+    assert {s.in_position for s in statuses} == {False, True}
+    assert [a.wire for a in by_status.handle(ENQ)] == [a.wire for a in by_payload.handle(ENQ)]
+
+
+def test_the_driver_takes_the_carried_status(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Status polls over ``forcelearn-robot://`` go by ``carry_status`` (the route tested above)."""
+    calls = []
+    original = ControllerEngine.carry_status
+
+    def counting(self: ControllerEngine, payload: bytes) -> m.Status | None:
+        calls.append(payload)
+        return original(self, payload)
+
+    monkeypatch.setattr(ControllerEngine, "carry_status", counting)
+    _session(carries=True)
+    assert len(calls) >= 6

@@ -22,7 +22,7 @@ MATERIALS = {
 }
 
 
-def _run(params: SpongeParams, fused: bool) -> list[tuple[object, ...]]:
+def _run(params: SpongeParams, fused: bool, batched: bool = False) -> list[tuple[object, ...]]:
     """Press, slide and lift off through several passes; the sponge's state after every move."""
     sponge = Sponge(params)
     surface = surface_y_mm(params, 0, -40.0)
@@ -32,6 +32,8 @@ def _run(params: SpongeParams, fused: bool) -> list[tuple[object, ...]]:
     cell.attach_motion(motion)
     if not fused:
         cell._ticked = None  # the route of an environment without tick(): two calls per tick
+    if not batched:
+        cell._batched = None  # the route of an environment without ticks(): a call per tick
     rng = random.Random(7)
     t, states = 0.0, []
     for move in range(40):
@@ -56,9 +58,48 @@ def test_fused_ticks_are_the_two_calls_to_the_bit(name: str) -> None:
     assert [repr(s) for s in fused] == [repr(s) for s in split]
 
 
+@pytest.mark.parametrize("name", sorted(MATERIALS))
+def test_batched_ticks_are_the_two_calls_to_the_bit(name: str) -> None:
+    """The arm's ticks then the sponge's in one call each (``advance_keys``, ``Sponge.ticks``)."""
+    batched, split = _run(MATERIALS[name], True, True), _run(MATERIALS[name], False)
+    assert max(state[0] for state in batched) >= 3
+    assert [repr(s) for s in batched] == [repr(s) for s in split]
+
+
+def test_batched_ticks_match_on_a_path_that_turns_and_crosses_the_strip() -> None:
+    """Turns, moves across the strip's ends and reads between ticks, to the bit."""
+    def run(batched: bool) -> list[str]:
+        params = SpongeParams()
+        sponge = Sponge(params)
+        surface = surface_y_mm(params, 0, params.z_top_mm - 5.0)
+        start = Pose(0.0, surface + 3.0, params.z_top_mm + 8.0, DOWN)
+        cell = CellPhysics(sponge, start)
+        motion = ArmMotion(MotionParams(), start)
+        cell.attach_motion(motion)
+        if not batched:
+            cell._batched = None
+        rng = random.Random(11)
+        t, states = 0.0, []
+        for _ in range(60):
+            z = rng.uniform(params.z_bottom_mm - 10.0, params.z_top_mm + 10.0)
+            angle = rng.choice((0.0, 0.0, 0.2, -0.3))
+            q = (math.cos(angle / 2), math.sin(angle / 2), 0.0, 0.0)
+            motion.command(Pose(0.0, surface - rng.uniform(-2.0, 5.0), z, q), t)
+            for _ in range(rng.randint(1, 30)):
+                t += rng.choice((0.0005, 0.004, 0.009, 0.2))
+                cell.advance_to(t)
+                states.append(repr((sponge.passes, sponge.relaxing_mm, sponge._foam_mm,
+                                    cell.pose, cell.true_wrench().tolist())))
+        assert sponge.passes >= 3
+        return states
+
+    assert run(True) == run(False)
+
+
 def test_the_fused_route_is_taken_for_the_sponge() -> None:
     """A sponge gets one call per tick (the route the test above compares)."""
     assert CellPhysics(Sponge())._ticked is not None
+    assert CellPhysics(Sponge())._batched is not None
 
 
 def test_the_kept_relaxation_terms_are_relaxation_step_to_the_bit() -> None:

@@ -136,7 +136,7 @@ class ComputerLinkRobot(Driver):
     def read_status(self) -> m.Status:
         """Return moving / in-position flags, last error, move count and controller time (s)."""
         with self._lock:
-            return m.parse_status(self._require_link().transact(m.Command.READ_STATUS).body)
+            return self._require_link().read_status()
 
     def _read_target_locked(self) -> Pose:
         xyz, quaternion = m.parse_pose(self._require_link().transact(m.Command.READ_TARGET).body)

@@ -30,7 +30,7 @@ import secrets
 import threading
 import time
 from collections.abc import Callable
-from typing import Protocol
+from typing import Protocol, TypeVar, overload
 
 import serial
 
@@ -47,6 +47,8 @@ try:  # pyserial on POSIX lets termios.error (not an OSError) out of a hung-up p
     PORT_ERRORS: tuple[type[BaseException], ...] = (serial.SerialException, OSError, termios.error)
 except ImportError:  # pragma: no cover - Windows
     PORT_ERRORS = (serial.SerialException, OSError)
+
+_T = TypeVar("_T")
 
 _ACK = framing.Control.ACK.wire
 _NAK = framing.Control.NAK.wire
@@ -85,6 +87,10 @@ class Link:
         self._port = port
         self._carry: Callable[[bytes], bytes | None] | None = getattr(port, "carry_payload", None)
         """The port's in-process short cut (``EmulatedRobotSerial.carry_payload``), if any."""
+        self._carry_status: Callable[[bytes], m.Status | None] | None = getattr(
+            port, "carry_status", None)
+        """The port's in-process short cut for READ_STATUS (``EmulatedRobotSerial.carry_status``):
+        the status the reply would carry, the payloads neither encoded nor decoded."""
         self._config = config
         self._reader = framing.FrameReader()
         self._pending: collections.deque[framing.Frame] = collections.deque()
@@ -97,23 +103,54 @@ class Link:
     def transact(self, command: m.Command, body: bytes = b"") -> m.Reply:
         """Send one request, return its OK reply; RobotFault if the controller refused it."""
         with self._lock:
-            if self._broken:
-                raise LinkError(f"link is down ({self._broken}); reconnect before commanding")
-            try:
-                reply = self._transact(command, body)
-            except LinkError:  # LinkTimeout is also an OSError (TimeoutError): keep it as is
-                raise
-            except PORT_ERRORS as exc:  # pyserial leaks raw OSError and termios.error
-                self._broken = str(exc)
-                raise LinkError(
-                    f"link to {self._config.url} lost ({exc}); the last command may or may "
-                    "not have executed: reconnect, then read the position"
-                ) from exc
+            reply = self._guarded(self._transact, command, body)
         if reply.error != m.ErrorCode.OK:
             raise RobotFault(reply.error, reply.reason)
         return reply
 
-    def _transact(self, command: m.Command, body: bytes) -> m.Reply:
+    def read_status(self) -> m.Status:
+        """``parse_status(transact(READ_STATUS).body)``; in process, the status carried as it is.
+
+        With a port that carries statuses (``carry_status``) the same transaction
+        (number, clock, wires) without the request and reply payloads parsed or the
+        reply built as a message; otherwise, or when that port says the frames must
+        go, :meth:`transact`.
+        """
+        if self._carry_status is not None:
+            with self._lock:
+                answer = self._guarded(self._transact, m.Command.READ_STATUS, b"", True)
+            if isinstance(answer, m.Status):
+                return answer
+        else:
+            answer = self.transact(m.Command.READ_STATUS)
+        if answer.error != m.ErrorCode.OK:
+            raise RobotFault(answer.error, answer.reason)
+        return m.parse_status(answer.body)
+
+    def _guarded(self, transact: Callable[..., _T], *args: object) -> _T:
+        """``transact(*args)`` on a link that is up; a port failure breaks the link (LinkError)."""
+        if self._broken:
+            raise LinkError(f"link is down ({self._broken}); reconnect before commanding")
+        try:
+            return transact(*args)
+        except LinkError:  # LinkTimeout is also an OSError (TimeoutError): keep it as is
+            raise
+        except PORT_ERRORS as exc:  # pyserial leaks raw OSError and termios.error
+            self._broken = str(exc)
+            raise LinkError(
+                f"link to {self._config.url} lost ({exc}); the last command may or may "
+                "not have executed: reconnect, then read the position"
+            ) from exc
+
+    @overload
+    def _transact(self, command: m.Command, body: bytes) -> m.Reply: ...
+
+    @overload
+    def _transact(self, command: m.Command, body: bytes, status: bool) -> m.Reply | m.Status: ...
+
+    def _transact(self, command: m.Command, body: bytes, status: bool = False
+                  ) -> m.Reply | m.Status:
+        """One transaction; ``status``: READ_STATUS's status carried as it is if the port can."""
         cfg = self._config
         self._transaction = (self._transaction + 1) & 0xFFFF
         tns = self._transaction
@@ -121,6 +158,9 @@ class Link:
         self._port.reset_input_buffer()
         self._reader.clear()
         self._pending.clear()
+        if status and self._carry_status is not None and (
+                carried_status := self._carry_status(payload)) is not None:
+            return carried_status  # what the carried reply's body parses to
         if self._carry is not None and (answer := self._carry(payload)) is not None:
             # an in-process controller answered the payload itself: what the reply
             # frame would carry, the frames' ACKs taken as sent and received

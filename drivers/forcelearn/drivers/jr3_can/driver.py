@@ -48,6 +48,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from typing import Literal
 
 import can
 import numpy as np
@@ -251,12 +252,58 @@ class Jr3CanSensor(Driver):
             return [self.read() for _ in range(count)]
         self._ensure_initialised()
         out: list[WrenchSample] = []
-        for _ in range(count):
-            sample = self._sync_sample()
+        while len(out) < count:
+            carried = self._carry_syncs(count - len(out), out)
+            if carried is None:  # one read as _sync_sample sends it
+                sample = self._sync_sample()
+            elif isinstance(carried, bool):  # True: every SYNC carried gave its sample
+                continue
+            else:  # the carried SYNC gave no sample: its attempt goes on as _sync_sample's
+                sample = self._sync_sample(carried)
             if sample is None:
                 raise self._on_bootup("read_many")
             out.append(sample)
         return out
+
+    def _carry_syncs(self, count: int, out: list[WrenchSample]
+                     ) -> tuple[int, int] | Literal[True] | None:
+        """Up to ``count`` SYNCs by an in-process bus's short cut, their samples put in ``out``.
+
+        What ``count`` calls of :meth:`_sync_sample` do when each carried SYNC gives a
+        sample, under one call to the bus (``Jr3EmulatorBus.carry_syncs``). Returns
+        True (each SYNC carried gave its sample), (sequence, data frames) before a
+        carried SYNC that gave none (its attempt then goes on in :meth:`_sync_sample`),
+        or None when nothing was carried (send the frames).
+        """
+        carry = getattr(self.bus, "carry_syncs", None)
+        lst = self._listener
+        if (carry is None or self._notifier is not None or lst.writer is not None
+                or lst.bootup_pending):  # as _carry_sync
+            return None
+        missed: list[tuple[int, int]] = []
+
+        def take(raw: tuple[int, int, int, int, int, int], counter: int) -> bool:
+            with lst.lock:
+                seq, frames = lst.seq, lst.data_frames
+            lst.on_carried_sample(raw, counter)
+            with lst.lock:
+                if lst.bootup_pending or lst.seq <= seq:
+                    missed.append((seq, frames))
+                    return False
+                self._last_seq = lst.seq
+                out.append(lst.latest)  # type: ignore[arg-type]  # a sample was just taken
+            return True
+
+        try:
+            carried = carry(self.config.node_id, count, take)
+        except can.CanError as exc:
+            raise SensorBusError(
+                f"could not send sync to JR3 node {self.config.node_id}: {exc}; "
+                "check the CAN interface is up (bitrate 1 Mbit/s) and the bus terminated"
+            ) from exc
+        if carried is None:
+            return None
+        return missed[0] if missed else True
 
     @property
     def sample_period_s(self) -> float:
@@ -270,19 +317,24 @@ class Jr3CanSensor(Driver):
             return max(self.config.period_us * 1e-6, self.config.opcodes.sensor_frame_period_s)
         return self.config.opcodes.loop_period_s
 
-    def _sync_sample(self) -> WrenchSample | None:
+    def _sync_sample(self, carried: tuple[int, int] | None = None) -> WrenchSample | None:
         """Send one SYNC and wait for its pair; None if a bootup interrupts.
 
         A SYNC with no pair within a quarter of the stale timeout is counted lost
         (with the frames of it that never came) and sent again; after
         ``SYNC_ATTEMPTS`` misses in a row (the whole stale timeout) SensorStale.
+        ``carried``: the first SYNC was carried already (:meth:`_carry_syncs`), the
+        listener's sequence and data frames before it.
         """
         lst = self._listener
         wait_s = self.config.stale_timeout_s / SYNC_ATTEMPTS
-        for _attempt in range(SYNC_ATTEMPTS):
-            with lst.lock:
-                seq, frames = lst.seq, lst.data_frames
-            if self._carry_sync():
+        for attempt in range(SYNC_ATTEMPTS):
+            if attempt == 0 and carried is not None:
+                seq, frames = carried
+            else:
+                with lst.lock:
+                    seq, frames = lst.seq, lst.data_frames
+            if (attempt == 0 and carried is not None) or self._carry_sync():
                 with lst.lock:  # the answer is taken: what the wait below finds at once
                     if lst.bootup_pending:
                         return None
@@ -378,9 +430,9 @@ class Jr3CanSensor(Driver):
     def _carry_sync(self) -> bool:
         """SYNC through an in-process bus's short cut, its answer taken; False: send the frame.
 
-        The bus (``Jr3EmulatorBus.carry_sync``) hands the answer's messages over
-        unframed, each taken as its frame would be after decoding
-        (``Jr3Listener.on_carried``); used in sync mode without a traffic log only.
+        The bus (``Jr3EmulatorBus.carry_sync``) hands the answer over unframed, as
+        its six counts and counter, taken as its two frames would be after decoding
+        (``Jr3Listener.on_carried_sample``); used in sync mode without a traffic log only.
         """
         carry = getattr(self.bus, "carry_sync", None)
         lst = self._listener
@@ -396,7 +448,7 @@ class Jr3CanSensor(Driver):
             ) from exc
         if carried is None:
             return False
-        lst.on_carried_all(carried)
+        lst.on_carried_sample(*carried)
         return True
 
     def _send(self, message: codec.Message) -> None:

@@ -20,7 +20,7 @@ import can
 import numpy as np
 
 from forcelearn.devices import WrenchSample
-from forcelearn.drivers.jr3_can.pairing import Pairer
+from forcelearn.drivers.jr3_can.pairing import Pair, Pairer
 from forcelearn.protocols.jr3_can import codec
 from forcelearn.protocols.jr3_can.opcodes import CounterMeaning, OpcodeMap
 from forcelearn.protocols.jr3_can.scaling import units_per_count
@@ -90,8 +90,9 @@ class Jr3Listener(can.Listener):
         self.seq = 0
         self.bootup_pending = False
         self.bus_error: Exception | None = None
-        self._per_count: np.ndarray | None = None
-        """N and N*m per count of the full scales in use (every sample is scaled by it)."""
+        self._per_count: list[float] | None = None
+        """N and N*m per count of the full scales in use (every sample is scaled by it), as
+        floats: six products in Python are numpy's elementwise product to the bit, cheaper."""
         self._pairer = Pairer(opcodes.counter)
         self._frame_period_s = (opcodes.sensor_frame_period_s
                                 if opcodes.counter is CounterMeaning.SENSOR_FRAMES else None)
@@ -105,7 +106,8 @@ class Jr3Listener(can.Listener):
     def set_full_scales(self, full_scales: np.ndarray | None) -> None:
         """Use these six full scales (N, N*m) from now on; None stops scaling."""
         with self.cond:
-            self._per_count = None if full_scales is None else units_per_count(full_scales)
+            self._per_count = (None if full_scales is None
+                               else units_per_count(full_scales).tolist())
 
     @property
     def dropped_samples(self) -> int:
@@ -197,6 +199,23 @@ class Jr3Listener(can.Listener):
                 self._stats.frames += 1
                 self._take(message)
 
+    def on_carried_sample(self, raw: tuple[int, int, int, int, int, int], counter: int) -> None:
+        """A sample an in-process bus handed over as its six counts and counter.
+
+        :meth:`on_carried_all` of its Forces and Moments messages (two frames counted),
+        without building them when no callback waits and no frame is pending.
+        """
+        if self.callbacks or self._pairer.pending:
+            self.on_carried_all([codec.Forces((raw[0], raw[1], raw[2]), counter),
+                                 codec.Moments((raw[3], raw[4], raw[5]), counter)])
+            return
+        with self.lock:
+            self._stats.frames += 2
+            self.data_frames += 2
+            pair = self._pairer.push_both(raw, counter)
+            if pair is not None:
+                self._sample(pair)
+
     def _take(self, message: codec.Message) -> WrenchSample | None:
         """Act on one decoded message of this node (under the lock); the sample it completes."""
         sample: WrenchSample | None = None
@@ -220,6 +239,10 @@ class Jr3Listener(can.Listener):
         pair = self._pairer.push(frame)
         if pair is None:
             return None
+        return self._sample(pair)
+
+    def _sample(self, pair: Pair) -> WrenchSample | None:
+        """The sample of a completed pair (None before the full scales are known)."""
         per_count = self._per_count
         if per_count is None:
             self._stats.samples_before_full_scales += 1
@@ -231,8 +254,10 @@ class Jr3Listener(can.Listener):
         sensor_dt_s = None
         if pair.elapsed is not None and self._frame_period_s is not None:
             sensor_dt_s = pair.elapsed * self._frame_period_s
+        raw = pair.raw  # scaling.counts_to_wrench: counts (ints, exact as floats) x per count
         sample = WrenchSample(
-            wrench=np.array(pair.raw, dtype=float) * per_count,  # scaling.counts_to_wrench
+            wrench=np.array([raw[0] * per_count[0], raw[1] * per_count[1], raw[2] * per_count[2],
+                             raw[3] * per_count[3], raw[4] * per_count[4], raw[5] * per_count[5]]),
             timestamp_s=time.monotonic(),
             counter=pair.counter,
             saturated=saturated,

@@ -122,16 +122,30 @@ class Pairer:
     def _is_older(counter: int, than: int) -> bool:
         return 0 < (than - counter) % COUNTER_MODULUS < COUNTER_MODULUS // 2
 
+    def push_both(self, raw: tuple[int, int, int, int, int, int], counter: int) -> Pair | None:
+        """:meth:`push` of a Forces then a Moments frame of ``counter``; needs nothing pending.
+
+        What the two pushes give when no frame waits (the in-process route's sample,
+        handed over as its six counts): the pair they complete, or None.
+        """
+        if self._forces is not None or self._moments is not None:
+            raise ValueError("push_both needs no frame pending: push each frame instead")
+        return self._complete_counts(raw, counter)
+
     def _complete(self, forces: Forces, moments: Moments) -> Pair | None:
+        return self._complete_counts((*forces.raw, *moments.raw), forces.counter)
+
+    def _complete_counts(self, raw: tuple[int, int, int, int, int, int], counter: int
+                         ) -> Pair | None:
         dropped = 0
         elapsed: int | None = None
         if self._last_counter is not None:
-            gap = counter_gap(self._last_counter, forces.counter)
+            gap = counter_gap(self._last_counter, counter)
             if gap < 0:
                 self.duplicates += 1
                 return None
             elapsed = gap + 1
             dropped = gap if self.gaps_are_losses else 0
-        self._last_counter = forces.counter
+        self._last_counter = counter
         self.dropped += dropped
-        return Pair((*forces.raw, *moments.raw), forces.counter, dropped, elapsed)
+        return Pair(raw, counter, dropped, elapsed)

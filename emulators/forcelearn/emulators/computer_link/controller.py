@@ -153,8 +153,47 @@ class ControllerEngine:
             ready = arrived + self.config.reply_latency_s
             _, end = self.tx_wire.transmit((len(reply) + _FRAME_OVERHEAD) * char, ready)
             self.clock.advance_to(end)
-            self.rx_wire.transmit(len(framing.Control.ACK.wire) * char, end)
+            self.rx_wire.transmit(_ACK_SIZE * char, end)
             return reply
+
+    def carry_status(self, payload: bytes) -> m.Status | None:
+        """:meth:`carry` of a READ_STATUS request payload; the status its reply carries.
+
+        The same clock, wires, execution and retransmission rule, and the same reply
+        payload kept for a repeat; the request is not decoded, the reply not built as a
+        message, and the status handed over as ``parse_status`` would read it from the
+        reply. None (nothing done) when the payload is not a well-formed READ_STATUS.
+        """
+        tns = m.status_request_transaction(payload)
+        if tns is None:
+            return None
+        with self._lock:
+            char = self.char_time_s
+            _, arrived = self.rx_wire.transmit((len(payload) + _FRAME_OVERHEAD) * char)
+            self.clock.advance_to(arrived)
+            if payload == self._last_request and self._last_payload is not None:
+                log.debug("duplicate request, reply repeated, not executed")
+                reply = self._last_payload
+                status = m.parse_status(m.decode_reply(reply).body)
+            else:
+                # _execute's READ_STATUS: the physics brought to now, then _read's status
+                now = self.clock.now_s
+                self.physics.advance_to(now)
+                motion = self.motion
+                status = m.Status(motion.moving, motion.in_position and not self.never_in_position,
+                                  self._last_error, self.move_count & 0xFFFFFFFF, now)
+                self._last_request = payload
+                reply = self._last_payload = m.encode_ok_reply(
+                    m.Command.READ_STATUS, tns, m.status_body(status))
+                self._last_reply = None
+            # as carry
+            _, end = self.tx_wire.transmit(2 * char, arrived)
+            self.clock.advance_to(end)
+            ready = arrived + self.config.reply_latency_s
+            _, end = self.tx_wire.transmit((len(reply) + _FRAME_OVERHEAD) * char, ready)
+            self.clock.advance_to(end)
+            self.rx_wire.transmit(_ACK_SIZE * char, end)
+            return status
 
     def _schedule(self, answers: list[Answer], arrived_s: float) -> None:
         """Put the answers on the controller-to-PC wire; move the clock to their end."""
@@ -267,6 +306,8 @@ class ControllerEngine:
 
 _FRAME_OVERHEAD = 7
 """DLE STX, the length byte, DLE ETX and the two check bytes around a payload."""
+_ACK_SIZE = len(framing.Control.ACK.wire)
+"""The PC's DLE ACK of a reply, bytes."""
 
 
 def _wire_size(frame: framing.Frame) -> int:

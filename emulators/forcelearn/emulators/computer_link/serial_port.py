@@ -31,6 +31,7 @@ from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 from forcelearn.emulators import registry
 from forcelearn.emulators.clock import serial_char_time_s
 from forcelearn.emulators.computer_link.url_scheme import REGISTRY_KIND, SCHEME
+from forcelearn.protocols.computer_link import messages as m
 
 
 class EmulatedRobotSerial(SerialBase):
@@ -180,6 +181,21 @@ class EmulatedRobotSerial(SerialBase):
         except ConnectionError as exc:
             raise SerialException(f"write failed: {exc}") from exc
         return reply
+
+    def carry_status(self, payload: bytes) -> m.Status | None:
+        """:meth:`carry_payload` of a READ_STATUS request: the status its reply carries.
+
+        None: carry or write it instead (``ComputerLinkEmulator.carry_status``).
+        """
+        if not self.is_open:
+            raise PortNotOpenError()
+        if self._hung_up:
+            raise SerialException("write failed: the emulated controller hung up; reopen the port")
+        try:
+            status: m.Status | None = self._emulator.carry_status(self, payload)
+        except ConnectionError as exc:
+            raise SerialException(f"write failed: {exc}") from exc
+        return status
 
     def flush(self) -> None:
         """Nothing is buffered on the way out."""

@@ -35,6 +35,7 @@ from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.pty_endpoint import PtyEndpoint
 from forcelearn.protocols.computer_link import framing
+from forcelearn.protocols.computer_link import messages as m
 
 log = logging.getLogger(__name__)
 
@@ -169,20 +170,38 @@ class ComputerLinkEmulator(Emulator):
         no fault is set, no real-time pace holds the clock and no partial frame waits.
         """
         with self._receive_lock:
-            endpoint = self._endpoint
-            if not isinstance(endpoint, InProcessEndpoint) or endpoint.client is not client:
-                raise ConnectionResetError(
-                    f"{self.address}: the connection was lost; reopen the port"
-                )
-            if not self.carries or self.engine.clock.time_scale > 0 or not self._quiet():
-                return None
-            if endpoint.generation != self._generation:  # as _take
-                self._generation = endpoint.generation
-                self._reader.clear()
-            if self._reader.pending:
+            if not self._may_carry(client):
                 return None
             self.bytes_received += framing.encoded_size(payload) + len(_ACK)
             return self.engine.carry(payload)
+
+    def carry_status(self, client: object, payload: bytes) -> m.Status | None:
+        """:meth:`carry` of a READ_STATUS request payload, the status its reply carries.
+
+        ``ControllerEngine.carry_status``; None (nothing done: carry or send the
+        payload instead) when :meth:`carry` would not carry it or it is not READ_STATUS.
+        """
+        with self._receive_lock:
+            if not self._may_carry(client):
+                return None
+            status = self.engine.carry_status(payload)
+            if status is not None:
+                self.bytes_received += framing.encoded_size(payload) + len(_ACK)
+            return status
+
+    def _may_carry(self, client: object) -> bool:
+        """Whether ``client``'s next payload may be carried (under the receive lock)."""
+        endpoint = self._endpoint
+        if not isinstance(endpoint, InProcessEndpoint) or endpoint.client is not client:
+            raise ConnectionResetError(
+                f"{self.address}: the connection was lost; reopen the port"
+            )
+        if not self.carries or self.engine.clock.time_scale > 0 or not self._quiet():
+            return False
+        if endpoint.generation != self._generation:  # as _take
+            self._generation = endpoint.generation
+            self._reader.clear()
+        return not self._reader.pending
 
     def _quiet(self) -> bool:
         """No fault of the link can fire (each has probability 0).

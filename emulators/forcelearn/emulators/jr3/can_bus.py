@@ -23,6 +23,7 @@ import collections
 import threading
 import time
 import weakref
+from collections.abc import Callable
 from dataclasses import fields
 from typing import Any
 
@@ -30,9 +31,9 @@ import can
 from can.typechecking import AutoDetectedConfig
 
 from forcelearn.emulators import registry
+from forcelearn.emulators.jr3.firmware import CarriedSample
 from forcelearn.emulators.jr3.node import REGISTRY_KIND, Jr3EmulatorNode
 from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
-from forcelearn.protocols.jr3_can import codec
 
 INTERFACE = "forcelearn-jr3"
 _MODEL_OPTIONS = {f.name for f in fields(Jr3ModelParams)}
@@ -129,8 +130,8 @@ class Jr3EmulatorBus(can.BusABC):
     """Carry a SYNC and its answer unframed when the driver asks (:meth:`carry_sync`); False:
     frames only (a test compares the two)."""
 
-    def carry_sync(self, node_id: int) -> list[codec.Message] | None:
-        """Send a SYNC and take node ``node_id``'s answer now, as messages, not frames.
+    def carry_sync(self, node_id: int) -> CarriedSample | None:
+        """Send a SYNC and take node ``node_id``'s answer now: its six counts and counter.
 
         What :meth:`send` of the SYNC frame and :meth:`recv` of the answer's frames
         give (``Jr3EmulatorNode.carry_sync``), with no frame encoded or decoded;
@@ -142,6 +143,19 @@ class Jr3EmulatorBus(can.BusABC):
         if not self.carries or self.receive_own_messages or self._rx:
             return None
         return self._running_node().carry_sync(node_id)
+
+    def carry_syncs(self, node_id: int, count: int,
+                    take: Callable[[tuple[int, int, int, int, int, int], int], bool]) -> int | None:
+        """:meth:`carry_sync` up to ``count`` times, each answer handed to ``take`` at once.
+
+        ``Jr3EmulatorNode.carry_syncs``: stops after an answer ``take`` refuses; the SYNCs
+        carried, or None (nothing sent) when :meth:`carry_sync` would answer None.
+        """
+        if self._closed:
+            raise can.CanOperationError(f"{INTERFACE} bus on {self.channel!r} is shut down")
+        if not self.carries or self.receive_own_messages or self._rx:
+            return None
+        return self._running_node().carry_syncs(node_id, count, take)
 
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
         deadline = None if timeout is None else time.monotonic() + timeout

@@ -69,6 +69,10 @@ from forcelearn.protocols.jr3_can.scaling import cutoff_from_wire, full_scales_t
 
 NO_FAULTS = Jr3FaultConfig()
 
+CarriedSample = tuple[tuple[int, int, int, int, int, int], int]
+"""A sample handed over unframed (``Jr3Firmware._carry_sync``): the six raw counts
+(Fx Fy Fz Mx My Mz, as the Forces and Moments messages carry them) and their counter."""
+
 _AXES_BYTES = len(codec.encode(codec.Forces((0, 0, 0), 0), 1).data)
 """Data bytes of a forces or moments frame."""
 
@@ -163,8 +167,6 @@ class Jr3Firmware:
         self._queue: collections.deque[tuple[float, codec.Message]] = collections.deque()
         self._lock = threading.RLock()
         self._next_emit = 0.0
-        self._carried: list[codec.Message] | None = None
-        """While a turn is carried (:meth:`_carry_sync`): the messages it sends, not framed."""
 
     @property
     def counter(self) -> int:
@@ -296,11 +298,12 @@ class Jr3Firmware:
         else:
             self.stats.syncs_merged += 1
 
-    def _carry_sync(self, node_id: int) -> list[codec.Message] | None:
-        """A host's SYNC and the turn that answers it, the answer's messages not framed.
+    def _carry_sync(self, node_id: int) -> CarriedSample | None:
+        """A host's SYNC and the turn that answers it, the answer's counts not framed.
 
         What ``_handle`` of the SYNC frame and the next turn do, to the same clock,
-        bus times, draws and counts; the messages are returned instead of encoded.
+        bus times, draws and counts; the answer (its Forces and Moments messages, the
+        same counter) is returned as the six counts and the counter instead of encoded.
         None (nothing done: send the frame) unless the stream runs in sync mode for
         ``node_id`` with no fault, no frame hook and nothing waiting for a turn.
         """
@@ -308,21 +311,25 @@ class Jr3Firmware:
                 or self.faults is not NO_FAULTS or self.frame_hook is not None
                 or self._pending_since() is not None):
             return None
-        carried: list[codec.Message] = []
-        self._carried = carried
-        try:
-            # _flag_sync(_arrive(0)) then _run_turn(_turn_after(flag)) written out for this
-            # case (nothing waits for a turn, no flag set, the stream in sync mode): the same
-            # bus time, clock moves and counts (tests/drivers/jr3_can/test_jr3_carried.py)
-            _, arrived = self.bus_wire.transmit(self._frame_times[0])  # a SYNC has no data
-            self.clock.advance_to(arrived)
-            self.stats.syncs += 1
-            self.stats.loop_turns += 1
-            self.clock.advance_to(self._turn_after(arrived))
-            self._emit_sample()
-        finally:
-            self._carried = None
-        return carried
+        # _flag_sync(_arrive(0)) then _run_turn(_turn_after(flag)) written out for this case
+        # (nothing waits for a turn, no flag set, the stream in sync mode), then
+        # _emit_sample's two _send without a fault or hook: the same bus times, clock moves
+        # and counts (tests/drivers/jr3_can/test_jr3_carried.py)
+        wire, clock, times = self.bus_wire, self.clock, self._frame_times
+        _, arrived = wire.transmit(times[0])  # a SYNC has no data
+        clock.advance_to(arrived)
+        stats = self.stats
+        stats.syncs += 1
+        stats.loop_turns += 1
+        clock.advance_to(self._turn_after(arrived))
+        sample = self._next_sample()
+        duration = times[_AXES_BYTES]
+        _, end = wire.transmit(duration)  # the Forces frame
+        clock.advance_to(end)
+        _, end = wire.transmit(duration)  # the Moments frame
+        clock.advance_to(end)
+        self._count_sample()  # no fault: no bootup after it
+        return sample
 
     def _handle(self, msg: can.Message) -> None:
         if msg.is_error_frame or msg.is_remote_frame:
@@ -436,6 +443,13 @@ class Jr3Firmware:
 
     def _emit_sample(self) -> None:
         """Send the latest complete sensor frame: its filtered reading and its counter."""
+        (f_x, f_y, f_z, m_x, m_y, m_z), counter = self._next_sample()
+        self._send(codec.Forces((f_x, f_y, f_z), counter))
+        self._send(codec.Moments((m_x, m_y, m_z), counter))
+        self._count_sample()
+
+    def _next_sample(self) -> CarriedSample:
+        """The latest complete sensor frame's six counts and its counter (one more sent)."""
         now = self.clock.now_s
         frames = self._frames_at(now)
         frame_s = self.stream_start_s + frames * self.frame_period_s
@@ -452,23 +466,16 @@ class Jr3Firmware:
         else:
             counter = (self._counter_base + frames) & 0xFFFF
         self._sent_counter += 1
-        self._send(codec.Forces((raw[0], raw[1], raw[2]), counter))
-        self._send(codec.Moments((raw[3], raw[4], raw[5]), counter))
+        return (raw[0], raw[1], raw[2], raw[3], raw[4], raw[5]), counter
+
+    def _count_sample(self) -> None:
+        """A sample sent: counted; the fault's bootup after every n-th."""
         self.stats.samples += 1
         limit = self.faults.bootup_after_samples
         if limit is not None and self.stats.samples % limit == 0:
             self._power_cycle()
 
     def _send(self, message: codec.Message) -> None:
-        carried = self._carried
-        if carried is not None:  # as below with no fault, no hook: the bus time, no frame
-            kind = message.kind
-            size = (_AXES_BYTES if kind == "forces" or kind == "moments"
-                    else len(codec.encode(message, self.node_id, self.opcodes).data))
-            _, end = self.bus_wire.transmit(self._frame_times[size])
-            self.clock.advance_to(end)
-            carried.append(message)
-            return
         encoded = codec.encode(message, self.node_id, self.opcodes)
         frame: Frame | None = encoded
         if self.faults is not NO_FAULTS:  # the default: nothing to draw

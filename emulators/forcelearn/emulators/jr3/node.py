@@ -32,6 +32,7 @@ from forcelearn.emulators.jr3.firmware import (
     EEPROM_BYTES,
     NO_FAULTS,
     POWER_UP_S,
+    CarriedSample,
     Jr3Firmware,
     NodeStats,
 )
@@ -155,8 +156,8 @@ class Jr3EmulatorNode(Jr3Firmware, Emulator):
             self.clock.hold()
             return True
 
-    def carry_sync(self, node_id: int) -> list[codec.Message] | None:
-        """An in-process host's SYNC answered now: the messages of its answer, not framed.
+    def carry_sync(self, node_id: int) -> CarriedSample | None:
+        """An in-process host's SYNC answered now: its answer's counts and counter, not framed.
 
         What :meth:`receive` of the SYNC frame and :meth:`serve_pending` do, without
         the frames (``Jr3Firmware._carry_sync``); None when the frame must go instead
@@ -169,6 +170,29 @@ class Jr3EmulatorNode(Jr3Firmware, Emulator):
             if carried is not None:
                 self.clock.hold()
             return carried
+
+    def carry_syncs(self, node_id: int, count: int,
+                    take: Callable[[tuple[int, int, int, int, int, int], int], bool]) -> int | None:
+        """Up to ``count`` SYNCs carried in turn, each answer handed to ``take`` at once.
+
+        :meth:`carry_sync` ``count`` times with ``take(counts, counter)`` after each (the
+        host's handling of the answer, before its next SYNC), under one hold of the node's
+        lock; stops after an answer ``take`` refuses (False). Returns the SYNCs carried,
+        None when :meth:`carry_sync` would answer None.
+        """
+        with self._lock:
+            if self._closed or not self.in_process or len(self._hosts) != 1:
+                return None
+            done = 0
+            while done < count:
+                carried = self._carry_sync(node_id)
+                if carried is None:
+                    break
+                self.clock.hold()
+                done += 1
+                if not take(*carried):
+                    break
+            return None if done == 0 else done
 
     def _release(self) -> None:
         """Stop the thread (joined) and shut down the bus if the node made it."""

@@ -310,6 +310,83 @@ class ArmMotion:
         self.tick_index = last
         return span
 
+    def advance_keys(self, t_s: float) -> tuple[list[PoseKey], int]:
+        """:meth:`advance_to` ``t_s`` without a callback, for a caller that takes the ticks at once.
+
+        Returns the tool key (:attr:`tool_key`) after each tick stepped, in order, and the
+        ticks jumped at rest at the end (0: none; :meth:`advance_to` would call
+        ``on_tick`` once with that span). The same motion to the bit: :meth:`_step`'s
+        operations in the same order, the call written out (the cell's hot path: about 200
+        ticks per Surface-v0 step).
+        """
+        keys: list[PoseKey] = []
+        tick = self.params.tick_s
+        last = self.tick_at(t_s)
+        pending = self._pending
+        gain = self._gain
+        accel = self.params.accel_mm_s2
+        speed = self.speed_mm_s
+        sqrt, dist = math.sqrt, math.dist
+        # the state in locals, written back at the end and around a segment's start
+        index, s, v, end = self.tick_index, self._s, self._v, self._seg_end
+        ref, ref_q, ref_s = self._ref, self._ref_q, self._ref_s
+        tool, tool_q = self._tool, self._tool_q
+        unit_q, unit_ref = self._unit_q, self._unit_ref
+        segment = self._segment_terms()
+        rest = 0
+        while index < last:
+            if not pending and v == 0.0 and s >= end and tool == ref and tool_q == ref_q:
+                rest, index = last - index, last
+                break
+            index += 1
+            # _step(tick), written out
+            if pending and pending[0][0] <= index:
+                self.tick_index, self._s, self._v, self._ref_s = index, s, v, ref_s
+                self._ref, self._ref_q = ref, ref_q  # what a new segment starts from
+                while pending and pending[0][0] <= index:
+                    self._start_segment(pending.popleft()[1])
+                s, v, end, ref_s = self._s, self._v, self._seg_end, self._ref_s
+                segment = self._segment_terms()
+            if s < end:
+                v = min(v + accel * tick, speed, sqrt(2.0 * accel * (end - s)))
+                s = min(end, s + v * tick)
+                if s >= end:
+                    v = 0.0
+            else:
+                v = 0.0
+            if s != ref_s:  # the reference stands still while the tool catches up
+                # _reference_at(s), written out
+                length, x0, y0, z0, gx, gy, gz, q0, gq = segment
+                f = 1.0 if length == 0.0 else s / length
+                ref = [x0 + f * (gx - x0), y0 + f * (gy - y0), z0 + f * (gz - z0)]
+                ref_q = gq if f >= 1.0 else _nlerp(q0, gq, f)
+                ref_s = s
+            (tx, ty, tz), (rx, ry, rz) = tool, ref
+            tool = [tx + gain * (rx - tx), ty + gain * (ry - ty), tz + gain * (rz - tz)]
+            if s >= end and dist(tool, ref) < _SNAP_MM:
+                tool, tool_q = list(ref), ref_q
+            elif tool_q is not unit_q or ref_q is not unit_ref:
+                turned = _nlerp(tool_q, ref_q, gain)
+                if turned == tool_q and (struct.pack("<4d", *turned)
+                                         == struct.pack("<4d", *tool_q)):
+                    unit_q, unit_ref, turned = tool_q, ref_q, tool_q
+                tool_q = turned
+            keys.append((tool[0], tool[1], tool[2], tool_q))
+        self.tick_index, self._s, self._v, self._ref_s = index, s, v, ref_s
+        self._ref, self._ref_q, self._tool, self._tool_q = ref, ref_q, tool, tool_q
+        self._unit_q, self._unit_ref = unit_q, unit_ref
+        if keys:
+            self.tool_key = keys[-1]
+        return keys, rest
+
+    def _segment_terms(self) -> tuple[float, float, float, float, float, float, float,
+                                      Quaternion, Quaternion]:
+        """What :meth:`_reference_at` reads of the present segment: length, start, goal, turns."""
+        goal = self._seg_goal
+        x0, y0, z0 = self._seg_start
+        return (self._seg_length, x0, y0, z0, goal.x_mm, goal.y_mm, goal.z_mm,
+                self._seg_start_q, goal.quaternion)
+
     def _step(self, dt: float) -> None:
         pending = self._pending
         while pending and pending[0][0] <= self.tick_index:

@@ -73,6 +73,19 @@ class TickedEnvironment(Protocol):
 
 
 @runtime_checkable
+class BatchTickedEnvironment(Protocol):
+    """A ticked environment that takes a run of motion ticks in one call."""
+
+    def ticks(self, keys: Sequence[PoseKey], dt_s: float, before: PoseKey) -> PoseKey:
+        """``tick`` for each tool key, ``dt_s`` each; returns the last key recorded.
+
+        A key is a tick the tool moved on when it differs from the last one recorded
+        (at first ``before``).
+        """
+        ...
+
+
+@runtime_checkable
 class OrientedEnvironment(Protocol):
     """An environment whose contact depends on the tool's orientation (a part, a tilted tool)."""
 
@@ -172,6 +185,8 @@ class CellPhysics:
         self._tuples = bool(getattr(environment, "accepts_point_tuple", False))
         self._ticked = (environment if self._tuples and isinstance(environment, TickedEnvironment)
                         and self._timed is not None and self._observer is not None else None)
+        self._batched = (environment if self._ticked is not None and self._oriented is None
+                         and isinstance(environment, BatchTickedEnvironment) else None)
         if self._oriented is not None and hasattr(self, "_pose_key"):
             self._oriented.observe_orientation(self._pose_key[3])
 
@@ -196,6 +211,24 @@ class CellPhysics:
             timed = self._timed
             tuples = self._tuples
             ticked = self._ticked
+            batched = self._batched
+            if batched is not None and ticked is not None and "_move_tool" not in self.__dict__:
+                # the ticks as on_tick_ticked below takes them, the arm's first, then the
+                # environment's in one call (the arm does not depend on it; nothing here is
+                # oriented, so the orientation terms are needed at the last key only)
+                keys, rest = motion.advance_keys(t)
+                recorded = self._pose_key
+                if keys:
+                    recorded = batched.ticks(keys, motion.params.tick_s, recorded)
+                if rest:
+                    recorded = batched.ticks((motion.tool_key,), rest * motion.params.tick_s,
+                                             recorded)
+                if recorded is not self._pose_key:
+                    self._record_tool(recorded)
+                key = motion.tool_key
+                if key != self._pose_key:  # an instant arm moves between ticks
+                    self._move_tool(key)
+                return
             if ticked is not None and "_move_tool" not in self.__dict__:
                 # what on_tick below does, in one call to the environment (a hook that wraps
                 # this object's _move_tool to see every tick takes the route below)

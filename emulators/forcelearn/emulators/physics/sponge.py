@@ -15,9 +15,11 @@ tests' one place for the sponge).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
+from forcelearn.emulators.physics.arm_motion import PoseKey
 from forcelearn.emulators.physics.foam_memory import FoamMemory, State
 from forcelearn.emulators.physics.sponge_law import (
     SLIDE_MIN_FRACTION,
@@ -25,10 +27,12 @@ from forcelearn.emulators.physics.sponge_law import (
     along_surface_mm,
     contact_force_n,
     depth_for_force_mm,
+    direction_terms,
     elastic_depth_mm,
     hysteresis_step,
     normal_force_n,
     penetration_mm,
+    point_contact_force_n,
     point_penetration_mm,
     relaxation_step,
     set_depth_mm,
@@ -65,6 +69,8 @@ class Sponge(FoamMemory):
         super().__init__(passes)
         self._memo_key: tuple[float, ...] | None = None
         self._memo_force = np.zeros(3)
+        self._direction_key: tuple[SpongeParams, float] | None = None
+        self._direction_terms = (np.zeros(3), np.ones(()))
         self._depth_key: tuple[float, ...] | None = None
         self._depth_mm = 0.0
         self._set_key: tuple[SpongeParams, int] | None = None
@@ -102,10 +108,15 @@ class Sponge(FoamMemory):
                *coords)  # tuples compare by value: 1 == 1.0, so no float() is needed
         if key != self._memo_key:  # the sensor asks thousands of times per pose
             self._memo_key = key
-            self._memo_force = contact_force_n(
-                self.params, self.passes, np.asarray(position_mm, dtype=float),
-                self.relaxing_mm, self.hysteresis_state, self.slide_direction,
-            )
+            # contact_force_n of the point: its depth as remembered, the surface's direction
+            # and length kept per height (the same functions, to the bit)
+            p, z = self.params, float(coords[2])
+            if (p, z) != self._direction_key:
+                self._direction_key = (p, z)
+                self._direction_terms = direction_terms(p, z)
+            self._memo_force = point_contact_force_n(
+                p, self.passes, self._penetration_mm(position_mm), z, self.relaxing_mm,
+                self.hysteresis_state, self.slide_direction, *self._direction_terms)
         return self._memo_force.copy()
 
     def evolve(self, position_mm: np.ndarray | tuple[float, float, float], dt_s: float) -> None:
@@ -126,6 +137,92 @@ class Sponge(FoamMemory):
         if moved and self._observe_at(position_mm, depth):
             depth = self._penetration_mm(position_mm)  # at the new pass count
         self._evolve_at(depth, dt_s)
+
+    def ticks(self, keys: Sequence[PoseKey], dt_s: float, before: PoseKey) -> PoseKey:
+        """:meth:`tick` for each tool key in turn, ``dt_s`` each; returns the last key recorded.
+
+        A key that differs from the last one recorded (at first ``before``) is a tick
+        the tool moved on (it is then recorded); an equal one evolves at the recorded
+        position, as :class:`~.cell.CellPhysics` hands positions to :meth:`tick`. For a
+        linear foam without hysteresis or friction (the default) the loop is written out
+        in one function: the same operations in the same order, to the bit
+        (tests/emulators/physics/test_cell_tick.py); otherwise :meth:`tick` per key.
+        """
+        p = self.params
+        if (type(self) is not Sponge or p.hysteresis_loss != 0.0 or p.friction_coefficient != 0.0
+                or p.stiffening_exponent != 1.0 or p.relaxation_ratio == 0.0 or dt_s <= 0.0):
+            tick = self.tick
+            for key in keys:
+                if key != before:
+                    before = key
+                    tick((key[0], key[1], key[2]), dt_s, True)
+                else:
+                    tick((before[0], before[1], before[2]), dt_s, False)
+            return before
+        # the terms of _evolve_at at this (relaxation time, dt)
+        terms = self._relax_terms
+        if terms[0] != p.relaxation_time_s or terms[1] != dt_s:
+            keep = math.exp(-dt_s / p.relaxation_time_s)
+            self._relax_terms = terms = (p.relaxation_time_s, dt_s, keep,
+                                         p.relaxation_time_s / dt_s, 1.0 - keep)
+        keep, ratio, gain = terms[2], terms[3], terms[4]
+        # point_penetration_mm's constants (params are frozen)
+        bottom, top, thickness = p.z_bottom_mm, p.z_top_mm, p.thickness_mm
+        waviness, wavelength = p.waviness_mm, p.waviness_wavelength_mm
+        surface_y, slope = p.surface_y_mm, p.surface_slope
+        sin, two_pi = math.sin, 2 * math.pi
+        passes = self.passes
+        if (p, passes) != self._set_key:
+            self._set_key = (p, passes)
+            self._set_mm = set_depth_mm(p, passes)
+        set_mm = self._set_mm
+        depth_key, depth = self._depth_key, self._depth_mm
+        foam_mm, relaxing = self._foam_mm, self.relaxing_mm
+        touched = self._touched
+        y, z = before[1], before[2]
+        # the surface's y at (pass count, z): kept while neither changes (a press moves in y)
+        surface_at: tuple[int, float] | None = None
+        surface, on_strip = 0.0, False
+        for key in keys:
+            moved = key != before
+            if moved:
+                before = key
+                y, z = key[1], key[2]
+            # _penetration_mm((x, y, z))
+            if (passes, y, z) != depth_key:
+                depth_key = (passes, y, z)
+                if surface_at is None or surface_at[1] != z or surface_at[0] != passes:
+                    surface_at, on_strip = (passes, z), bottom <= z <= top
+                    if on_strip:
+                        travelled = top - z
+                        wave = waviness * sin(two_pi * travelled / wavelength)
+                        surface = surface_y + slope * travelled + wave - set_mm
+                depth = max(0.0, surface - y) if on_strip else 0.0
+            if moved:  # _observe_at
+                if depth > 0.0:
+                    touched = True
+                elif touched:
+                    passes += 1  # finish_pass
+                    touched = False
+                    self._set_key = (p, passes)
+                    self._set_mm = set_mm = set_depth_mm(p, passes)
+                    depth_key = (passes, y, z)
+                    surface_at, on_strip = (passes, z), bottom <= z <= top
+                    if on_strip:
+                        travelled = top - z
+                        wave = waviness * sin(two_pi * travelled / wavelength)
+                        surface = surface_y + slope * travelled + wave - set_mm
+                    depth = max(0.0, surface - y) if on_strip else 0.0
+            # _evolve_at(depth, dt_s)
+            foam = min(depth, thickness)
+            change, foam_mm = foam - foam_mm, foam
+            relaxing = relaxing * keep + change * ratio * gain
+            if foam == 0.0 and relaxing > 0.0:
+                relaxing = 0.0
+        self.passes, self._touched = passes, touched
+        self._depth_key, self._depth_mm = depth_key, depth
+        self._foam_mm, self.relaxing_mm = foam_mm, relaxing
+        return before
 
     def _evolve_at(self, depth_mm: float, dt_s: float) -> None:
         """:meth:`evolve` with the tool ``depth_mm`` deep (mm, at the present pass count)."""

@@ -404,14 +404,50 @@ def contact_force_n(
     y: Any = float(position_mm[1]) if one else position_mm[..., 1]  # one: floats, faster
     z: Any = float(position_mm[2]) if one else position_mm[..., 2]
     depth = penetration_mm(params, passes, y, z)
-    if one and depth <= 0.0:
-        return np.zeros(3)
+    if one:
+        return point_contact_force_n(params, passes, depth, z, relaxing_mm, hysteresis_state,
+                                     slide_direction, *direction_terms(params, z))
     normal: Any = normal_force_n(params, passes, depth, z, relaxing_mm, hysteresis_state)
     normal_n = normal if one else normal[..., None]
     direction = surface_direction(params, z)
     force: np.ndarray = normal_n * direction / _norm(direction)
     if params.friction_coefficient != 0.0 and np.any(slide_direction):
         force = force - params.friction_coefficient * normal_n * np.asarray(slide_direction)
+    return force
+
+
+def direction_terms(params: SpongeParams, z_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """The outward normal at ``z_mm`` not normalised, and its length: what the force divides.
+
+    ``(surface_direction(params, z_mm), _norm(...))`` of one point; the same for every
+    depth and pass count at that height (a caller may keep them per height).
+    """
+    direction = surface_direction(params, z_mm)
+    return direction, _norm(direction)
+
+
+def point_contact_force_n(
+    params: SpongeParams,
+    passes: Any,
+    depth_mm: float,
+    z_mm: float,
+    relaxing_mm: Any,
+    hysteresis_state: Any,
+    slide_direction: tuple[float, float, float] | np.ndarray,
+    direction: np.ndarray,
+    norm: np.ndarray,
+) -> np.ndarray:
+    """:func:`contact_force_n` of one point ``depth_mm`` deep (``penetration_mm``) at ``z_mm``.
+
+    ``direction`` and ``norm`` are :func:`direction_terms` at ``z_mm``; ``passes``,
+    ``relaxing_mm`` and ``hysteresis_state`` are the point's (numbers); (3,) N, world frame.
+    """
+    if depth_mm <= 0.0:
+        return np.zeros(3)
+    normal = normal_force_n(params, passes, depth_mm, z_mm, relaxing_mm, hysteresis_state)
+    force: np.ndarray = normal * direction / norm
+    if params.friction_coefficient != 0.0 and np.any(slide_direction):
+        force = force - params.friction_coefficient * normal * np.asarray(slide_direction)
     return force
 
 

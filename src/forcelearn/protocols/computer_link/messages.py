@@ -61,6 +61,8 @@ _POSITION = struct.Struct("<13f")
 _INCREMENT = struct.Struct("<3f")
 _SPEED = struct.Struct("<f")
 _STATUS = struct.Struct("<BBId")
+_OK_BYTE = b"\x00"
+"""ErrorCode.OK as the reply's error byte."""
 
 
 class Command(enum.IntEnum):
@@ -184,6 +186,19 @@ def encode_reply(reply: Reply) -> bytes:
     if reply.error == ErrorCode.OK:
         return head + reply.body
     return head + reply.reason.encode("utf-8")[:MAX_REASON]
+
+
+def encode_ok_reply(command: Command, transaction: int, body: bytes = b"") -> bytes:
+    """``encode_reply(Reply(command, transaction, ErrorCode.OK, body))``, no Reply built."""
+    return _HEADER.pack(command | REPLY_BIT, transaction) + _OK_BYTE + body
+
+
+def status_request_transaction(payload: bytes) -> int | None:
+    """The transaction number of a well-formed READ_STATUS request payload; None otherwise."""
+    if len(payload) != _HEADER.size:
+        return None
+    code, transaction = _HEADER.unpack(payload)
+    return transaction if code == Command.READ_STATUS else None
 
 
 def decode_reply(payload: bytes) -> Reply:
