@@ -154,9 +154,10 @@ class Wire:
     def transmit(self, duration_s: float, ready_s: float | None = None) -> tuple[float, float]:
         """Occupy the wire for ``duration_s``; return (start, end) in simulated seconds."""
         ready = self.clock.now_s if ready_s is None else ready_s
-        start = max(self.free_at_s, ready)
-        self.free_at_s = start + duration_s
-        return start, self.free_at_s
+        free = self.free_at_s
+        start = ready if ready > free else free  # max(free, ready), without the call
+        self.free_at_s = end = start + duration_s
+        return start, end
 
     def state_dict(self) -> dict[str, Any]:
         """The wire's state for a resume."""

@@ -347,9 +347,15 @@ class ArmMotion:
                     self._start_segment(pending.popleft()[1])
                 s, v, end, ref_s = self._s, self._v, self._seg_end, self._ref_s
                 segment = self._segment_terms()
-            if s < end:
-                v = min(v + accel * tick, speed, sqrt(2.0 * accel * (end - s)))
-                s = min(end, s + v * tick)
+            if s < end:  # min(...) of three, then of two, written as comparisons
+                v = v + accel * tick
+                if speed < v:
+                    v = speed
+                brake = sqrt(2.0 * accel * (end - s))
+                if brake < v:
+                    v = brake
+                ahead = s + v * tick
+                s = ahead if ahead < end else end
                 if s >= end:
                     v = 0.0
             else:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -177,27 +178,35 @@ class Sponge(FoamMemory):
             self._set_mm = set_depth_mm(p, passes)
         set_mm = self._set_mm
         depth_key, depth = self._depth_key, self._depth_mm
+        # the memo's key in three locals (compared one by one: the same answer as the tuple)
+        key_passes: Any
+        key_y: Any
+        key_z: Any
+        key_passes, key_y, key_z = depth_key if depth_key is not None else (None, None, None)
         foam_mm, relaxing = self._foam_mm, self.relaxing_mm
         touched = self._touched
         y, z = before[1], before[2]
         # the surface's y at (pass count, z): kept while neither changes (a press moves in y)
-        surface_at: tuple[int, float] | None = None
-        surface, on_strip = 0.0, False
+        surface_passes: int | None = None
+        surface_z = surface = 0.0
+        on_strip = False
         for key in keys:
             moved = key != before
             if moved:
                 before = key
                 y, z = key[1], key[2]
-            # _penetration_mm((x, y, z))
-            if (passes, y, z) != depth_key:
-                depth_key = (passes, y, z)
-                if surface_at is None or surface_at[1] != z or surface_at[0] != passes:
-                    surface_at, on_strip = (passes, z), bottom <= z <= top
+            # _penetration_mm((x, y, z)); max(0.0, d) and min(a, b) written as comparisons
+            if y != key_y or z != key_z or passes != key_passes:
+                key_passes, key_y, key_z = passes, y, z
+                if z != surface_z or passes != surface_passes:
+                    surface_passes, surface_z, on_strip = passes, z, bottom <= z <= top
                     if on_strip:
                         travelled = top - z
                         wave = waviness * sin(two_pi * travelled / wavelength)
                         surface = surface_y + slope * travelled + wave - set_mm
-                depth = max(0.0, surface - y) if on_strip else 0.0
+                depth = 0.0
+                if on_strip and surface - y > 0.0:
+                    depth = surface - y
             if moved:  # _observe_at
                 if depth > 0.0:
                     touched = True
@@ -206,21 +215,24 @@ class Sponge(FoamMemory):
                     touched = False
                     self._set_key = (p, passes)
                     self._set_mm = set_mm = set_depth_mm(p, passes)
-                    depth_key = (passes, y, z)
-                    surface_at, on_strip = (passes, z), bottom <= z <= top
+                    key_passes, key_y, key_z = passes, y, z
+                    surface_passes, surface_z, on_strip = passes, z, bottom <= z <= top
                     if on_strip:
                         travelled = top - z
                         wave = waviness * sin(two_pi * travelled / wavelength)
                         surface = surface_y + slope * travelled + wave - set_mm
-                    depth = max(0.0, surface - y) if on_strip else 0.0
+                    depth = 0.0
+                    if on_strip and surface - y > 0.0:
+                        depth = surface - y
             # _evolve_at(depth, dt_s)
-            foam = min(depth, thickness)
+            foam = thickness if thickness < depth else depth
             change, foam_mm = foam - foam_mm, foam
             relaxing = relaxing * keep + change * ratio * gain
             if foam == 0.0 and relaxing > 0.0:
                 relaxing = 0.0
         self.passes, self._touched = passes, touched
-        self._depth_key, self._depth_mm = depth_key, depth
+        if key_passes is not None:
+            self._depth_key, self._depth_mm = (key_passes, key_y, key_z), depth
         self._foam_mm, self.relaxing_mm = foam_mm, relaxing
         return before
 
