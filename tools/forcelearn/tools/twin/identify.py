@@ -16,7 +16,9 @@ timed moves                  free-space moves of each length x speed, each     s
                              polled back to back (READ_STATUS / EGM feedback)  acceleration,
                              from the command to in position, after a random   speed, lag
                              dwell (so the polls meet the motion at every
-                             phase), ``repeats`` times
+                             phase), ``repeats`` times; on the computer link
+                             the tool's pose read after each poll
+                             (READ_POSITION): the path in time
 press                        steps down at the task's start until the force    stiffness,
                              passes ``press_force_ratio`` x the desired force  contact
 step-and-hold                ``hold_steps`` steps in, each raising the force   relaxation
