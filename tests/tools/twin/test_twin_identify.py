@@ -78,6 +78,19 @@ def test_pose_reads_determine_the_acceleration_and_a_small_lag() -> None:
         assert abs(fit.values[name] - truth) <= min(0.05 * truth, 3 * fit.sigmas[name]), name
 
 
+def test_the_robots_own_speed_is_loose_when_its_moves_never_reach_it() -> None:
+    """The default cell: 100 mm/s at 1000 mm/s^2 needs a 10 mm move; the longest is 9.5 mm.
+
+    Its two longest moves' pose reads put the speed at 87.6 +- 1.8 (determined, 7 sigma off).
+    """
+    config = load_cell_config(None)
+    plan = IdentifyPlan(lengths_mm=(1.0, 2.5, 5.0, 8.25, 9.5), speeds_mm_s=(20.0,),
+                        free_reads=1, free_hold_s=0.5, hold_steps=0, cycles=0)
+    fit = fit_timing(run_identification(config, plan, seed=0).moves)
+    assert fit is not None
+    assert fit.sigmas["default_speed_mm_s"] == math.inf
+
+
 def test_identify_on_the_emulated_cell_writes_what_twin_reads(tmp_path: Path) -> None:
     """A short plan: polled moves, the press stays under the desired force, the file reads back."""
     config = load_cell_config(None)

@@ -44,6 +44,11 @@ BAND_MM = ArmConfig().in_position_mm
 """The controller's interpolation tick, s: added to each window's scatter."""
 READ_OFFSET = "read_offset_s"
 """From a status poll to the pose read after it, s (fitted: the link's exchanges)."""
+CRUISE = 1.5
+"""The robot's own speed counts as measured only when a move at it is this many times as
+long as the ramps to it and back (``v^2 / a``): on the default cell (100 mm/s, 1000
+mm/s^2, moves of at most 9.5 mm, which never reach it) the pose reads of the two longest
+moves, at the same two phases of the tick, put it at 87.6 +- 1.8."""
 READ_FLOOR_MM = 0.002
 """A pose read's scatter besides the tick's, mm (the model's path between ticks)."""
 NAMES = ("start_delay_s", "accel_mm_s2", "default_speed_mm_s", "lag_s")
@@ -219,6 +224,9 @@ def fit_timing(moves: list[TimedMove], band_mm: float = BAND_MM) -> TimingFit | 
     rms = float(np.sqrt(np.mean((model(timing) - events.middle_s) ** 2)))
     if "default_speed_mm_s" not in values:
         values["default_speed_mm_s"], sigma["default_speed_mm_s"] = math.nan, math.inf
+    elif max(m.length_mm for m in moves if math.isnan(m.speed_mm_s)) < CRUISE * (
+            values["default_speed_mm_s"] ** 2 / values["accel_mm_s2"]):
+        sigma["default_speed_mm_s"] = math.inf  # the moves at it barely (or never) reach it
     return TimingFit(values, sigma, rms, len(moves))
 
 
