@@ -70,6 +70,9 @@ FAST_WAIT_S = 0.1
 """A hold's wait shorter than this (s) is one status poll, not a dwell (:func:`_hold`)."""
 UNSEEN_S = 1.0
 """A move whose motion no poll saw within this time (s) ends there (too short to see)."""
+READ_S = 0.2
+"""Cell time the pose reads add to a timed move, s (the computer link at 9600 baud: 94 s ->
+125 s over the 154 timed moves of hidden cell 1 of seed 1)."""
 MIN_REACH = 0.25
 """A step-and-hold step the press guard would cut to less than this share is not made."""
 
@@ -141,7 +144,8 @@ class IdentifyPlan:
 
     def cell_time_s(self) -> float:
         """A rough cell time of the plan (moves at their speeds, dwells, holds), s."""
-        moves = sum(2 * (length / speed + 0.3) for length in self.lengths_mm
+        per_move = 0.3 + (READ_S if self.read_positions else 0.0)
+        moves = sum(2 * (length / speed + per_move) for length in self.lengths_mm
                     for speed in self.speeds_mm_s) * self.repeats
         cycle_hold = max(self.cycle_hold_s, default=0.0)
         return (self.free_hold_s + moves + self.hold_steps * (max(self.hold_s) + 0.5) + 30.0
