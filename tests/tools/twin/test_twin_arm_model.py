@@ -49,3 +49,31 @@ def test_profile_groups_lengths_and_ends_at_the_target() -> None:
     assert found.share is not None
     assert found.share[:, -1] == pytest.approx(1.0, abs=0.1 / 2.0)
     assert found.ticks[0] == 0.0
+
+
+@pytest.mark.parametrize("lag, accel, speed", [(0.02, 1000.0, 100.0), (0.15, 600.0, 30.0)])
+def test_the_tools_progress_is_the_emulators_mean_over_phases(lag: float, accel: float,
+                                                              speed: float) -> None:
+    """Where the emulated tool is after its motion began: the model's progress, to 10 um.
+
+    (A pose read scatters by a tick of motion, 0.1-0.4 mm: the mean over 40 phases is the
+    model's interpolation to a few um.)
+    """
+    from forcelearn.tools.twin.arm_model import progress_mm
+
+    params = MotionParams(lag_s=lag, accel_mm_s2=accel, speed_mm_s=speed)
+    arm = {"accel_mm_s2": accel, "default_speed_mm_s": speed, "lag_s": lag}
+    times = np.array([0.0, 0.03, 0.08, 0.15, 0.3, 0.6, 1.2])  # from the motion's start
+    for distance in (0.8, 4.0, 9.5):
+        reads = []
+        for phase in np.linspace(0.0, 1.0, 40, endpoint=False):
+            motion = ArmMotion(params, Pose(900.0, 0.0, 0.0, DOWN))
+            begin = (10 + phase) * params.tick_s
+            motion.command(Pose(900.0, distance, 0.0, DOWN), begin)
+            row = []
+            for t in times:
+                motion.advance_to(begin + params.start_delay_s + t)
+                row.append(motion.pose.y_mm)
+            reads.append(row)
+        model = progress_mm(np.full(times.size, distance), arm, params.in_position_mm, times)
+        assert np.max(np.abs(np.mean(reads, axis=0) - model)) < 0.01, distance

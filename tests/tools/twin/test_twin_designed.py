@@ -70,3 +70,21 @@ def test_a_slow_step_expects_a_larger_sigma() -> None:
     late = relaxation_sigmas(0.3, 0.25, 6.0, 0.3, plan, delay_s=0.5)
     assert late["relaxation_ratio"] > 2 * soon["relaxation_ratio"]
 
+
+
+def test_pose_reads_expect_the_acceleration_determined_in_one_pass() -> None:
+    """The timed moves' pose reads: acceleration within 3 % from one pass over the grid.
+
+    Without them the 44 ms in-position windows leave it at 12 % (four passes still 6 %).
+    """
+    from forcelearn.tools.twin.designed import arm_sigmas
+
+    arm = {"start_delay_s": 0.12, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
+           "lag_s": 0.019}
+    plan = IdentifyPlan()
+    read = arm_sigmas(arm, plan)["accel_mm_s2"]
+    polled = arm_sigmas(arm, dataclasses.replace(plan, read_positions=False))["accel_mm_s2"]
+    assert read <= 0.03 * arm["accel_mm_s2"] < polled
+    designed = design(_twin({"accel_mm_s2"}), desired_force_n=7.0)
+    assert designed.plan.repeats == 1
+    assert designed.expected["accel_mm_s2"][1] <= TARGET_SHARE * 1000.0

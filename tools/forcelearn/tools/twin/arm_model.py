@@ -170,3 +170,32 @@ def share_at_in_position(distance_mm: np.ndarray, arm: dict[str, float],
     result: np.ndarray = share[found.inverse]
     return result
 
+
+
+def progress_mm(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
+                after_s: np.ndarray, speed_mm_s: np.ndarray | None = None) -> np.ndarray:
+    """How far the tool has gone along each move ``after_s`` after its motion began, mm.
+
+    ``after_s`` counts from the command plus the start delay (the origin of
+    :func:`in_position_s`'s ticks); the share of the path after each tick of :func:`profile`,
+    interpolated between ticks (the mean over the command's phase on the grid), and past the
+    slowest move's in position the lag's geometric decay onto the target. 0 before the
+    motion. Shapes: ``distance_mm``, ``after_s`` and ``speed_mm_s`` alike.
+    """
+    tick = float(arm.get("tick_s", TICK_S))
+    lag = arm["lag_s"]
+    found = profile(distance_mm, arm, band_mm, keep_path=True, speed_mm_s=speed_mm_s)
+    assert found.share is not None  # asked for
+    last = found.share.shape[1] - 1
+    row = found.inverse
+    x = np.asarray(after_s, dtype=float) / tick
+    inside = np.clip(x, 0.0, float(last))
+    low = np.floor(inside).astype(int)
+    high = np.minimum(low + 1, last)
+    part = inside - low
+    share = found.share[row, low] * (1.0 - part) + found.share[row, high] * part
+    keep = math.exp(-tick / lag) if lag > 0 else 0.0
+    tail = 1.0 - (1.0 - found.share[row, last]) * keep ** np.maximum(x - last, 0.0)
+    share = np.where(x > last, tail, np.where(x < 0, 0.0, share))
+    result: np.ndarray = share * found.lengths_mm[row]
+    return result

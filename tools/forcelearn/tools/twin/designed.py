@@ -22,7 +22,10 @@ noise, drift                   free-space hold                               its
 The expected 1-sigma is the Fisher information's (Gauss-Newton ``(J^T J)^-1``) at the
 twin's values: for the arm the twin's own in-position model
 (:func:`~forcelearn.tools.twin.forward.predict_in_position_s`) over the plan's moves, each
-event timed to a poll window's ``width / sqrt(12)``; for the relaxation a relaxing step
+event timed to a poll window's ``width / sqrt(12)``, and with the plan's pose reads the
+tool's progress read every ``READ_PERIOD_S`` of each move, to the controller's tick at the
+path's speed (:func:`arm_sigmas`: one pass then puts the acceleration within 1 %, where the
+windows alone left 12 %); for the relaxation a relaxing step
 ``F(t) = F_inf + A exp(-(delay + t) / tau)`` per hold, each burst's mean with the noise
 over its samples, the first burst ``delay`` after the step's middle (half the arm's motion
 and the settle: what relaxed during the move is not seen); for the noise ``1 / sqrt(2 n)``.
@@ -41,13 +44,17 @@ from typing import Any
 
 import numpy as np
 
+from forcelearn.tools.twin.arm_model import TICK_S, progress_mm
 from forcelearn.tools.twin.forward import predict_in_position_s
 from forcelearn.tools.twin.identify import IdentifyPlan
+from forcelearn.tools.twin.identify_fit import READ_FLOOR_MM
 
 TARGET_SHARE = 0.05
 """The designed 1-sigma, as a share of the value (a 15 % error is then 3 sigma)."""
 POLL_S = 0.044
 """The status poll's period on a 9600-baud computer link, s (EGM's 4 ms is finer)."""
+READ_PERIOD_S = 0.127
+"""A status poll and the pose read after it on that link, s (the in-position window)."""
 SAMPLE_S = 0.001
 """A force sample's period, s (the emulated JR3 adapter's 1 kHz)."""
 BAND_MM = 0.1
@@ -102,24 +109,48 @@ def _known(rows: dict[str, dict[str, Any]], name: str, otherwise: float) -> floa
 
 def arm_sigmas(arm: dict[str, float], plan: IdentifyPlan, poll_s: float = POLL_S
                ) -> dict[str, float]:
-    """Expected 1-sigma of ``ARM_NAMES`` from the plan's polled moves (Fisher information)."""
+    """Expected 1-sigma of ``ARM_NAMES`` from the plan's polled moves (Fisher information).
+
+    Each move's in-position event in a window of ``poll_s`` (``READ_PERIOD_S`` with the
+    plan's pose reads); with them, the tool's progress read every ``READ_PERIOD_S`` from
+    the command (at the middle of the period, the read's offset a fourth unknown) to one
+    period after in position, scattered by the tick at the path's speed.
+    """
     lengths = np.array([length for _ in range(plan.repeats) for _ in plan.speeds_mm_s
                         for length in plan.lengths_mm for _ in range(2)])
     speeds = np.array([speed for _ in range(plan.repeats) for speed in plan.speeds_mm_s
                        for _ in plan.lengths_mm for _ in range(2)])
-    base = np.array([arm[n] for n in ARM_NAMES])
+    names = 4 if plan.read_positions else 3  # the reads' offset after the timing
+    base = np.array([*(arm[n] for n in ARM_NAMES), READ_PERIOD_S / 3][:names])
+    window = READ_PERIOD_S if plan.read_positions else poll_s
+    done = predict_in_position_s(lengths, arm, BAND_MM, speeds)
+    per_move = np.ceil(done / READ_PERIOD_S).astype(int) + 1
+    read_move = np.repeat(np.arange(lengths.size), per_move)
+    read_at = (np.concatenate([np.arange(n) for n in per_move]) + 0.5) * READ_PERIOD_S
 
     def model(x: np.ndarray) -> np.ndarray:
-        p = {**arm, **dict(zip(ARM_NAMES, x.tolist(), strict=True))}
-        result: np.ndarray = predict_in_position_s(lengths, p, BAND_MM, speeds)
+        p = {**arm, **dict(zip(ARM_NAMES, x[:3].tolist(), strict=True))}
+        result: np.ndarray = predict_in_position_s(lengths, p, BAND_MM, speeds) / window
+        if plan.read_positions:
+            path = progress_mm(lengths[read_move], p, BAND_MM, read_at + x[3] - x[0],
+                               speeds[read_move])
+            result = np.concatenate([result, path / read_scatter])
         return result
 
+    read_scatter = 1.0
+    if plan.read_positions:
+        ahead = progress_mm(lengths[read_move], arm, BAND_MM,
+                            read_at + base[3] - base[0] + TICK_S, speeds[read_move])
+        read_scatter = np.hypot((ahead - progress_mm(lengths[read_move], arm, BAND_MM,
+                                                     read_at + base[3] - base[0],
+                                                     speeds[read_move])) / math.sqrt(12),
+                                READ_FLOOR_MM)
     steps = np.maximum(np.abs(base) * 1e-3, 1e-6)
-    jacobian = np.stack([(model(base + np.eye(3)[i] * steps[i])
-                          - model(base - np.eye(3)[i] * steps[i])) / (2 * steps[i])
-                         for i in range(3)], axis=1)
-    scatter = math.sqrt(poll_s**2 / 12 + 0.004**2 / 12)
-    return dict(zip(ARM_NAMES, _fisher_sigmas(jacobian, scatter).tolist(), strict=True))
+    jacobian = np.stack([(model(base + np.eye(names)[i] * steps[i])
+                          - model(base - np.eye(names)[i] * steps[i])) / (2 * steps[i])
+                         for i in range(names)], axis=1)
+    jacobian[:lengths.size] /= math.sqrt(1 / 12 + (TICK_S / window) ** 2 / 12)
+    return dict(zip(ARM_NAMES, _fisher_sigmas(jacobian, 1.0)[:3].tolist(), strict=True))
 
 
 def _read_times(after: tuple[float, ...], poll_s: float, burst_s: float) -> list[float]:

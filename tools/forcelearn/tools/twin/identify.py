@@ -16,7 +16,9 @@ timed moves                  free-space moves of each length x speed, each     s
                              polled back to back (READ_STATUS / EGM feedback)  acceleration,
                              from the command to in position, after a random   speed, lag
                              dwell (so the polls meet the motion at every
-                             phase), ``repeats`` times
+                             phase), ``repeats`` times; on the computer link
+                             the tool's pose read after each poll
+                             (READ_POSITION): the path in time
 press                        steps down at the task's start until the force    stiffness,
                              passes ``press_force_ratio`` x the desired force  contact
 step-and-hold                ``hold_steps`` steps in, each raising the force   relaxation
@@ -43,7 +45,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +70,9 @@ FAST_WAIT_S = 0.1
 """A hold's wait shorter than this (s) is one status poll, not a dwell (:func:`_hold`)."""
 UNSEEN_S = 1.0
 """A move whose motion no poll saw within this time (s) ends there (too short to see)."""
+READ_S = 0.2
+"""Cell time the pose reads add to a timed move, s (the computer link at 9600 baud: 94 s ->
+125 s over the 154 timed moves of hidden cell 1 of seed 1)."""
 MIN_REACH = 0.25
 """A step-and-hold step the press guard would cut to less than this share is not made."""
 
@@ -86,6 +91,10 @@ class IdentifyPlan:
     """Passes over the lengths x speeds. Many distinct (length, speed) pairs, rather than
     repeats of a few: the polls are timed from the command, so a repeated move meets them at
     the same phase; distinct durations spread the phases over the poll period."""
+    read_positions: bool = True
+    """Read the tool's pose after each status poll of a timed move (the computer link's
+    READ_POSITION; a robot whose polls carry no moving flag, EGM, reads none): the poses
+    during the motion time the acceleration and the lag to the interpolation tick."""
     dither_s: float = 0.05
     """Longest random dwell before a timed move (spreads the polls' phase)."""
     free_reads: int = 10
@@ -116,6 +125,10 @@ class IdentifyPlan:
     of 0.2-0.35 s has relaxed most of the way when the first burst comes: each step shows
     only the tail, and the six holds alone left the ratio of hidden cells 18, 25, 30 of
     seed 1 (0.08-0.22) 27-42 % off; the cycles' 20 steps are many more tails."""
+    hold_settle_s: float = 0.0
+    """The dwell in position before a step-and-hold or cycle step's first burst, s (the
+    cell's ``settle_s``, 0.05 s, elsewhere: two 44 ms polls): a 0.25 s foam relaxes by a
+    third during that dwell, and the move itself takes 0.2-0.6 s on the hidden cells."""
     step_samples: int = 16
     restore_speed_mm_s: float = 100.0
     """The speed the arm is left at when the robot config names none (the emulator's)."""
@@ -131,7 +144,8 @@ class IdentifyPlan:
 
     def cell_time_s(self) -> float:
         """A rough cell time of the plan (moves at their speeds, dwells, holds), s."""
-        moves = sum(2 * (length / speed + 0.3) for length in self.lengths_mm
+        per_move = 0.3 + (READ_S if self.read_positions else 0.0)
+        moves = sum(2 * (length / speed + per_move) for length in self.lengths_mm
                     for speed in self.speeds_mm_s) * self.repeats
         cycle_hold = max(self.cycle_hold_s, default=0.0)
         return (self.free_hold_s + moves + self.hold_steps * (max(self.hold_s) + 0.5) + 30.0
@@ -148,6 +162,11 @@ class TimedMove:
     """The speed set for the move; NaN: the robot's own (what a run's moves use)."""
     polls: list[tuple[float, bool | None, bool]]
     """(controller time s, moving (None: not reported), in position) of each poll."""
+    positions: list[tuple[float, float]] = field(default_factory=list)
+    """The tool's pose read after each status poll (READ_POSITION, the computer link):
+    (the status poll's controller time s, the tool's progress along the move from its start
+    target mm); the first is read before the command (its time the wait's end), the tool
+    still settling on the previous target. Empty: not read (EGM's 4 ms polls, an old file)."""
 
 
 @dataclass(frozen=True)
@@ -170,14 +189,35 @@ def _poll(robot: Any) -> tuple[float, bool | None, bool]:
     return float(status.controller_time_s), None, bool(status.in_position)
 
 
-def _timed_move(cell: Any, target: Pose, length: float, speed: float) -> TimedMove:
+def _progress_mm(pose: Pose, origin: Pose, target: Pose) -> float:
+    """How far ``pose`` is along the straight move from ``origin`` to ``target``, mm."""
+    axis = np.subtract(target.position_mm, origin.position_mm)
+    return float(np.dot(np.subtract(pose.position_mm, origin.position_mm), axis)
+                 / max(float(np.linalg.norm(axis)), 1e-12))
+
+
+def _timed_move(cell: Any, origin: Pose, target: Pose, length: float, speed: float,
+                read_positions: bool) -> TimedMove:
+    """A move from ``origin`` (the last target) to ``target``, polled until in position.
+
+    ``read_positions``: the tool's pose is read before the command and after every status
+    poll (:attr:`TimedMove.positions`): a pose read during the motion times it to the
+    controller's interpolation tick, where the in-position poll's window is a whole
+    exchange wide (44 ms of status polls at 9600 baud). The command goes right after the
+    status poll that times it, as without the reads.
+    """
     robot = cell.robot
+    positions = []
+    if read_positions:  # where the tool settles before the command, at the wait's end
+        positions.append((float(cell.time_s), _progress_mm(robot.read_pose(), origin, target)))
     command_s = _poll(robot)[0]
     robot.move_to(target)
     polls, seen = [], False
     for _ in range(POLL_LIMIT):
         poll = _poll(robot)
         polls.append(poll)
+        if read_positions:
+            positions.append((poll[0], _progress_mm(robot.read_pose(), origin, target)))
         seen = seen or poll[1] is True or not poll[2]
         if poll[2] and poll[1] is not True and (seen or poll[0] - command_s > UNSEEN_S):
             break  # in position after the motion (or a move too short to be seen)
@@ -186,7 +226,7 @@ def _timed_move(cell: Any, target: Pose, length: float, speed: float) -> TimedMo
         raise IdentificationError(f"a {length:g} mm move at {speed:g} mm/s did not report in "
                            f"position within {POLL_LIMIT} polls; the robot was stopped")
     cell.sync()  # the cell's pose and time follow the robot's
-    return TimedMove(command_s, length, speed, polls)
+    return TimedMove(command_s, length, speed, polls, positions)
 
 
 def _timing_part(cell: Any, config: CellConfig, plan: IdentifyPlan,
@@ -197,6 +237,7 @@ def _timing_part(cell: Any, config: CellConfig, plan: IdentifyPlan,
         return []  # a robot kind without status polls or speeds: the records' timing only
     home = cell.pose
     limit = getattr(getattr(config.robot, "limits", None), "max_speed_mm_s", math.inf)
+    reads = plan.read_positions and hasattr(robot, "read_pose") and _poll(robot)[1] is not None
     moves = []
     # the robot's own speed (NaN: what a run's moves use) first, then each set speed
     speeds = [math.nan] * plan.repeats + [v for _ in range(plan.repeats)
@@ -207,11 +248,13 @@ def _timing_part(cell: Any, config: CellConfig, plan: IdentifyPlan,
         for length in plan.lengths_mm:
             if length > config.safety.max_step_mm:
                 continue
+            origin = home
             for z in (home.z_mm - length, home.z_mm):
                 cell.time_s = robot.wait_in_position(cell.move_timeout_s,
                                                      float(rng.uniform(0, plan.dither_s)))
                 target = Pose(home.x_mm, home.y_mm, z, home.quaternion)
-                moves.append(_timed_move(cell, target, length, speed))
+                moves.append(_timed_move(cell, origin, target, length, speed, reads))
+                origin = target
     robot.set_speed(float(getattr(config.robot, "speed_mm_s", plan.restore_speed_mm_s)))
     return moves
 
@@ -313,35 +356,40 @@ def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
     assert contact is not None  # the press ended above target_n > contact_force_n
     rise = max((force - contact[1]) / max(contact[0] - y, 1e-3), 1e-3)  # N/mm, unrelaxed
     hold_mm = min(plan.hold_force_ratio * config.task.desired_force_n / rise, plan.cycle_mm)
-    if plan.hold_steps:  # the press's last burst is the hold's first
-        _hold(cell, plan, "identify-hold", 0, at_once=False)
-    depths = [y]  # where each hold was
-    for k in range(1, plan.hold_steps):
-        depth = y - hold_mm
-        if depth < bottom:
-            break
-        target = Pose(home.x_mm, depth, home.z_mm, home.quaternion)
-        reach = guard.reach(cell.pose.position_mm, target.position_mm)
-        if reach < MIN_REACH:
-            break  # the press guard allows too little of the step: the force limit is near
-        if reach < 1.0:  # as far as the guard allows: it takes the site's stiffness until
-            # two readings rise by 3 sigma (a soft, noisy part's 1 mm approach steps never
-            # do, and the whole step-and-hold was cut on hidden cells 2, 3, 18 of seed 1)
-            target = Pose(home.x_mm, y - reach * hold_mm, home.z_mm, home.quaternion)
-        cell.stage = ("identify-step", k)
-        _press_to(cell, config, target)
-        y = cell.pose.y_mm
-        depths.append(y)
-        _hold(cell, plan, "identify-hold", k)
-    # ease off through the holds' depths to the press's end and back in (hysteresis)
-    visits = [*depths[-2::-1], *depths[1:]] if len(depths) > 1 else []
-    for cycle in range(plan.cycles):
-        for j, depth in enumerate(visits):
-            cell.stage = (f"identify-cycle{cycle}", j)
-            _press_to(cell, config, Pose(home.x_mm, depth, home.z_mm, home.quaternion))
-            cell.measure_force_n(plan.step_samples)
-            _hold(cell, plan, f"identify-cycle{cycle}-hold", j, at_once=False,
-                  times=plan.cycle_hold_s)
+    # each step's first burst at once in position: a fast foam relaxes during a dwell
+    settle, cell.settle_s = cell.settle_s, plan.hold_settle_s
+    try:
+        if plan.hold_steps:  # the press's last burst is the hold's first
+            _hold(cell, plan, "identify-hold", 0, at_once=False)
+        depths = [y]  # where each hold was
+        for k in range(1, plan.hold_steps):
+            depth = y - hold_mm
+            if depth < bottom:
+                break
+            target = Pose(home.x_mm, depth, home.z_mm, home.quaternion)
+            reach = guard.reach(cell.pose.position_mm, target.position_mm)
+            if reach < MIN_REACH:
+                break  # the press guard allows too little of the step: the force limit is near
+            if reach < 1.0:  # as far as the guard allows: it takes the site's stiffness until
+                # two readings rise by 3 sigma (a soft, noisy part's 1 mm approach steps never
+                # do, and the whole step-and-hold was cut on hidden cells 2, 3, 18 of seed 1)
+                target = Pose(home.x_mm, y - reach * hold_mm, home.z_mm, home.quaternion)
+            cell.stage = ("identify-step", k)
+            _press_to(cell, config, target)
+            y = cell.pose.y_mm
+            depths.append(y)
+            _hold(cell, plan, "identify-hold", k)
+        # ease off through the holds' depths to the press's end and back in (hysteresis)
+        visits = [*depths[-2::-1], *depths[1:]] if len(depths) > 1 else []
+        for cycle in range(plan.cycles):
+            for j, depth in enumerate(visits):
+                cell.stage = (f"identify-cycle{cycle}", j)
+                _press_to(cell, config, Pose(home.x_mm, depth, home.z_mm, home.quaternion))
+                cell.measure_force_n(plan.step_samples)
+                _hold(cell, plan, f"identify-cycle{cycle}-hold", j, at_once=False,
+                      times=plan.cycle_hold_s)
+    finally:
+        cell.settle_s = settle
     cell.stage = ("retreat", 0)
     cell.move_in_steps(home, config.safety.max_step_mm, guard_force=True)
 
@@ -403,7 +451,9 @@ def read_identification(folder: Path) -> Identification:
     plan = IdentifyPlan(**fields)
     moves = [TimedMove(m["command_s"], m["length_mm"], m["speed_mm_s"],
                        [(float(t), None if mv is None else bool(mv), bool(ip))
-                        for t, mv, ip in m["polls"]]) for m in document["moves"]]
+                        for t, mv, ip in m["polls"]],
+                       [(float(t), float(p)) for t, p in m.get("positions", [])])
+             for m in document["moves"]]
     records = [TrialRecords(t["trial"], [step_from_json(s) for s in t["steps"]])
                for t in document["records"]]
     steps: list[StepRecord] = [s for t in records for s in t.steps]
