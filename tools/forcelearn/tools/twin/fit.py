@@ -40,6 +40,7 @@ from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, Member
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
+from forcelearn.tools.twin.timing_share import arm_spread
 
 HOLD_OUT = 0.2
 """Share of the trials (the last ones) the fit does not use."""
@@ -87,6 +88,9 @@ class MemberFit:
     held_sigmas: dict[str, float] = field(default_factory=dict)
     """The held parameters' share of each fitted 1-sigma (chosen member only;
     :func:`~forcelearn.tools.twin.held.held_spread`): added in quadrature."""
+    arm_sigmas: dict[str, float] = field(default_factory=dict)
+    """The arm's fitted values' share of each fitted 1-sigma (chosen member only;
+    :func:`~forcelearn.tools.twin.timing_share.arm_spread`): added in quadrature."""
 
 
 @dataclass
@@ -456,6 +460,10 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     chosen.held_sigmas = held_spread(chosen, train, arm.values, reading, first.noise_n, walk)
     for name, held_sigma in chosen.held_sigmas.items():
         chosen.sigmas[name] = math.hypot(chosen.sigmas[name], held_sigma)
+    chosen.arm_sigmas = arm_spread(chosen, train, arm.values, arm.sigmas, reading,
+                                   first.noise_n, walk)
+    for name, arm_sigma in chosen.arm_sigmas.items():
+        chosen.sigmas[name] = math.hypot(chosen.sigmas[name], arm_sigma)
     chosen.member_sigmas = member_spread(fits, choice.index)
     for name, member_sigma in chosen.member_sigmas.items():
         chosen.sigmas[name] = max(chosen.sigmas[name], member_sigma)
