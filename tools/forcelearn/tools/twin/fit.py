@@ -278,7 +278,7 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
         free, values, spread, cost = rest, tried, tried_spread, tried_cost
     spread.update(held_sigmas)
     sponge = SpongeParams.unchecked(values)
-    train_pred = predict_means(train, sponge, arm, reading, problem.shape, problem.path)
+    train_pred = problem.forward.predict(sponge, reading)
     held_pred = predict_means(heldout, sponge, arm, reading)
     if walk is not None:  # the sensor's bias (twin/bias.py)
         train_pred, held_pred = walk.debiased(train_pred, held_pred)

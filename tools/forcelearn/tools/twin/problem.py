@@ -17,8 +17,9 @@ from forcelearn.emulators.physics.sponge_law import SpongeParams
 from forcelearn.tools.experiments.records import PROBE_TRIAL
 from forcelearn.tools.twin.arrays import RecordArrays
 from forcelearn.tools.twin.bias import BiasWalk
-from forcelearn.tools.twin.forward import Reading, ToolPath, motion_shape, predict_means
+from forcelearn.tools.twin.forward import Reading
 from forcelearn.tools.twin.params import BY_NAME, Member
+from forcelearn.tools.twin.rowgroups import GroupedForward
 from forcelearn.tools.twin.uncertainty import largest_sigmas
 
 BURST_FLOOR_N = 0.02
@@ -56,14 +57,13 @@ class Problem:
         rows = self.use if walk is None else walk.train.segment >= 0
         places = np.nonzero(rows)[1]  # the burst's step in its trial: a place on the path
         self.places = np.concatenate([places, -1 - np.arange(self.groups.size - places.size)])
-        self.shape = motion_shape(train, arm)
-        self.path = ToolPath(train, arm)
+        self.forward = GroupedForward(train, arm)
 
     def predicted(self, names: list[str], frozen: dict[str, float], x: np.ndarray
                   ) -> np.ndarray:
         """The burst means (T, M) of the sponge ``frozen`` with ``names`` at ``x``, N."""
         sponge = SpongeParams.unchecked({**frozen, **dict(zip(names, x.tolist(), strict=True))})
-        return predict_means(self.train, sponge, self.arm, self.reading, self.shape, self.path)
+        return self.forward.predict(sponge, self.reading)
 
     def residuals(self, predicted: np.ndarray, keep: np.ndarray | None = None) -> np.ndarray:
         """The weighted residual vector of ``predicted`` (only ``keep``'s bursts count)."""
