@@ -66,6 +66,9 @@ least this many of its sigmas above 0: read noise alone, over a short run, can p
 random walk's rate at 2 sigma, and a false walk soaks up the wear the records show."""
 MIN_GAP_S = 1e-3
 """Floor of the walk's time between segments, s."""
+UNKNOWN_ZERO_VAR_N2 = 1e6
+"""The variance of a zero the records do not hold (N^2: known to +-1 kN, i.e. not at all):
+the segment's bias is read from its own bursts (:func:`build_chain`'s ``unanchored``)."""
 
 WeightsOf = Callable[[RecordArrays], np.ndarray]
 """The fit's weights (1 / expected scatter of each burst mean) of a data set, (T, M)."""
@@ -168,7 +171,8 @@ def _ranks(data: RecordArrays, settled: np.ndarray) -> np.ndarray:
     return ranks
 
 
-def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None) -> Chain:
+def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None,
+                unanchored: frozenset[int] = frozenset()) -> Chain:
     """Segments of ``data`` and their links.
 
     A zero (a tare) holds for the bursts read after the one it was taken on: of later
@@ -181,6 +185,10 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None) ->
     fitted segment, for held-out trials; without it and without a zero the first segment
     starts from 0 at the first move (the run's tare at its start). Cell time running
     backwards at a trial's start (the next run directory) restarts the walk from 0.
+    ``unanchored``: trials whose zero is not in the records (an identification's: it tares
+    before its records start, in a session of its own) starts from an unknown bias
+    (``UNKNOWN_ZERO_VAR_N2``), read from its own bursts; the row after it of another trial
+    starts from the run's tare.
     """
     burst_s = np.where(data.has_burst, data.burst_start_s + 0.5 * data.burst_span_s, np.nan)
     settled = np.where(np.isfinite(data.settled_s), data.settled_s, data.burst_start_s)
@@ -198,6 +206,7 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None) ->
     passed: dict[int, int] = {}  # trial -> how many of its zeros the chain has passed
     current = after.final_zero if after is not None else -1
     previous_end = after.time_s if after is not None else -math.inf
+    previous_trial: int | None = None
     for row in range(data.trials):
         trial = int(data.trial[row])
         ids = ids_of.get(trial, [])
@@ -218,12 +227,15 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None) ->
             if (k == 0 or moment - members[-1][0] > SEGMENT_S
                     or (members and current != zero_of[-1])):
                 var = 0.0
-                if not members and after is not None and current == after.zero:
+                if k == 0 and trial in unanchored and previous_trial != trial:
+                    zero, anchor, var = row_start, 0.0, UNKNOWN_ZERO_VAR_N2
+                elif not members and after is not None and current == after.zero:
                     zero, anchor = after.time_s, after.bias_n
                 elif current >= 0 and (not members or current != zero_of[-1]):
                     zero, anchor = float(zeros.time_s[current]), 0.0
                     var = float(zeros.var_n2[current])
-                elif not members or (k == 0 and row_start < previous_end):
+                elif not members or (k == 0 and (row_start < previous_end
+                                                  or previous_trial in unanchored)):
                     zero, anchor = row_start, 0.0  # the run's tare at its start
                 else:
                     zero, anchor = math.nan, 0.0
@@ -236,6 +248,7 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None) ->
             members[-1].append(moment)
             segment[row, col] = len(members) - 1
             previous_end = moment
+            previous_trial = trial
         last_of_trial = row + 1 == data.trials or int(data.trial[row + 1]) != trial
         if last_of_trial and passed.get(trial, 0) < len(ids):  # taken after its last burst
             current = ids[-1]
@@ -262,14 +275,22 @@ def solve_biases(chain: Chain, residual_n: np.ndarray, weights: np.ndarray,
         return np.zeros(0)
     base = np.where(chain.linked, 0.0, chain.anchor_n)
     if not rate > 0:
-        if chain.linked.any():
-            # a linked segment carries the last anchor forward
-            values = base.copy()
-            for s in range(1, s_count):
-                if chain.linked[s]:
-                    values[s] = values[s - 1]
-            return values
-        return base
+        # no walk: a linked segment keeps its head's bias (the last anchored segment's),
+        # which is its zero's value within that zero's own error (a tare on a burst's mean
+        # is off by that mean's error: the probe's zeros on one burst of a noisy sensor
+        # are off by a few tenths of a newton), read from the group's bursts
+        head = np.maximum.accumulate(np.where(chain.linked, 0, np.arange(s_count)))
+        use = (chain.segment >= 0) & (weights > 0) & np.isfinite(residual_n)
+        group = head[chain.segment[use]]
+        w2 = weights[use] ** 2
+        sum_w2 = np.bincount(group, w2, minlength=s_count)
+        sum_w2r = np.bincount(group, w2 * residual_n[use], minlength=s_count)
+        var = chain.anchor_var_n2
+        known = np.divide(1.0, var, out=np.zeros(s_count), where=var > 0)
+        values = np.where(var > 0, (sum_w2r + known * base) / (sum_w2 + known + (var <= 0)),
+                          base)
+        result_: np.ndarray = values[head]
+        return result_
     use = (chain.segment >= 0) & (weights > 0) & np.isfinite(residual_n)
     index = chain.segment[use]
     w2 = weights[use] ** 2
@@ -291,10 +312,17 @@ def solve_biases(chain: Chain, residual_n: np.ndarray, weights: np.ndarray,
 def walk_terms(chain: Chain, biases: np.ndarray, rate: float) -> np.ndarray:
     """The walk's residuals ``(b_s - b_(s-1)) / sqrt(q^2 dt_s (+ the zero's variance))`` (S,).
 
-    Empty at q = 0.
+    At q = 0 a linked segment's term is 0 (it keeps its head's bias), an anchored one's its
+    zero's prior, ``(b_s - anchor) / sqrt(var)`` (0 for an exact zero).
     """
-    if not rate > 0 or chain.size == 0:
+    if chain.size == 0:
         return np.zeros(0)
+    if not rate > 0:
+        var = chain.anchor_var_n2
+        scale = np.sqrt(np.where(var > 0, var, 1.0))
+        terms: np.ndarray = np.where(~chain.linked & (var > 0),
+                                     (biases - chain.anchor_n) / scale, 0.0)
+        return terms
     before = np.concatenate([[0.0], biases[:-1]])
     start = np.where(chain.linked, before, chain.anchor_n)
     result: np.ndarray = (biases - start) / np.sqrt(chain.variance(rate))
@@ -499,7 +527,7 @@ class BiasWalk:
 
     @property
     def rate(self) -> float:
-        """The q the profile uses (0: no walk, the biases stay at the tares' 0)."""
+        """The q the profile uses (0: no walk, each bias stays at its zero's, within its error)."""
         return self.drift.rate if self.drift.detected else 0.0
 
     def residuals(self, error_n: np.ndarray, keep: np.ndarray | None = None) -> np.ndarray:
@@ -517,8 +545,7 @@ class BiasWalk:
     def groups(self) -> np.ndarray:
         """One trial label per entry of :meth:`residuals` (the walk's term: its segment's)."""
         use = self.train.segment >= 0
-        walk = self.train.trial_of if self.rate > 0 else np.zeros(0, int)
-        return np.concatenate([self.trial_labels[use], walk])
+        return np.concatenate([self.trial_labels[use], self.train.trial_of])
 
     def debiased(self, train_pred: np.ndarray, heldout_pred: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
@@ -559,7 +586,9 @@ def bias_walk(records: list[TrialRecords], train: RecordArrays, heldout: RecordA
     :func:`free_reads`).
     """
     zeros = tare_zeros(records, sensor.noise_n, phi if phi is not None else 0.0)
-    chain = build_chain(train, zeros)
+    # trials fitted beside the run's (an identification's) whose tares are not in its records
+    unanchored = frozenset(int(t) for t in np.unique(train.trial)) - {t.trial for t in records}
+    chain = build_chain(train, zeros, unanchored=unanchored)
     if sensor.tares >= 3 and math.isfinite(sensor.drift_n_per_sqrt_s):
         drift = DriftEstimate(sensor.drift_n_per_sqrt_s, sensor.drift_sigma, "tares",
                               sensor.tares)
