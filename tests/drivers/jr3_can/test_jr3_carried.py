@@ -181,3 +181,34 @@ def test_a_sample_is_scaled_as_counts_to_wrench_to_the_bit() -> None:
             lst.on_carried_sample(raw, counter)  # type: ignore[arg-type]
             assert lst.latest is not None
             assert lst.latest.wrench.tobytes() == counts_to_wrench(raw, scales).tobytes()
+
+
+def _reads(wrap: bool) -> tuple[list[Any], int]:
+    """Reads pressed into a sponge, with or without a wrapper on the node's ``_emit_sample``."""
+    physics = CellPhysics(Sponge(), pose=Pose(0.0, 0.0, 12.5))
+    channel = f"jr3-wrapped-{os.getpid()}-{next(_numbers)}"
+    seen: list[Any] = []
+    emitted = 0
+    with Jr3EmulatorNode(physics, channel=channel, in_process=True, seed=6) as node, \
+            can.Bus(interface="forcelearn-jr3", channel=channel) as bus, \
+            Jr3CanSensor(bus, Jr3Config(zero_settle_s=0.01)) as sensor:
+        if wrap:
+            emit = node._emit_sample
+
+            def counted() -> None:
+                nonlocal emitted
+                emitted += 1
+                emit()
+
+            node._emit_sample = counted  # type: ignore[method-assign]
+        seen += [(s.wrench.tobytes(), s.counter) for s in sensor.read_many(6)]
+        seen += [sensor.read().wrench.tobytes(), physics.clock.now_s, node.stats.samples]
+    return seen, emitted
+
+
+def test_a_wrapped_emit_sample_sees_every_sample_and_reads_the_same() -> None:
+    """A tool that wraps ``_emit_sample`` (step_timeline) gets the frames' route: same reads."""
+    wrapped, emitted = _reads(True)
+    plain, none = _reads(False)
+    assert none == 0 and emitted == 7
+    assert wrapped == plain

@@ -305,11 +305,14 @@ class Jr3Firmware:
         bus times, draws and counts; the answer (its Forces and Moments messages, the
         same counter) is returned as the six counts and the counter instead of encoded.
         None (nothing done: send the frame) unless the stream runs in sync mode for
-        ``node_id`` with no fault, no frame hook and nothing waiting for a turn.
+        ``node_id`` with no fault, no frame hook, nothing waiting for a turn and
+        ``_emit_sample`` not wrapped on the object (a wrapper sees each sample on the
+        frames' route, which reads the same).
         """
         if (node_id != self.node_id or self.mode != "sync" or not self.initialised
                 or self.faults is not NO_FAULTS or self.frame_hook is not None
-                or self._pending_since() is not None):
+                or self._pending_since() is not None
+                or "_emit_sample" in self.__dict__):  # a hook on it (step_timeline) sees frames
             return None
         # _flag_sync(_arrive(0)) then _run_turn(_turn_after(flag)) written out for this case
         # (nothing waits for a turn, no flag set, the stream in sync mode), then
