@@ -265,6 +265,13 @@ class Jr3CanSensor(Driver):
             out.append(sample)
         return out
 
+    def _sync_not_sent(self, exc: can.CanError) -> SensorBusError:
+        """The error for a SYNC the CAN interface would not send (what to check)."""
+        return SensorBusError(
+            f"could not send sync to JR3 node {self.config.node_id}: {exc}; "
+            "check the CAN interface is up (bitrate 1 Mbit/s) and the bus terminated"
+        )
+
     def _carry_syncs(self, count: int, out: list[WrenchSample]
                      ) -> tuple[int, int] | Literal[True] | None:
         """Up to ``count`` SYNCs by an in-process bus's short cut, their samples put in ``out``.
@@ -297,10 +304,7 @@ class Jr3CanSensor(Driver):
         try:
             carried = carry(self.config.node_id, count, take)
         except can.CanError as exc:
-            raise SensorBusError(
-                f"could not send sync to JR3 node {self.config.node_id}: {exc}; "
-                "check the CAN interface is up (bitrate 1 Mbit/s) and the bus terminated"
-            ) from exc
+            raise self._sync_not_sent(exc) from exc
         if carried is None:
             return None
         return missed[0] if missed else True
@@ -442,10 +446,7 @@ class Jr3CanSensor(Driver):
         try:
             carried = carry(self.config.node_id)
         except can.CanError as exc:
-            raise SensorBusError(
-                f"could not send sync to JR3 node {self.config.node_id}: {exc}; "
-                "check the CAN interface is up (bitrate 1 Mbit/s) and the bus terminated"
-            ) from exc
+            raise self._sync_not_sent(exc) from exc
         if carried is None:
             return False
         lst.on_carried_sample(*carried)

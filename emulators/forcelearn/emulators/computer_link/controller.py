@@ -147,14 +147,22 @@ class ControllerEngine:
                 self._last_request = payload
                 reply = self._last_payload = m.encode_reply(answer)
                 self._last_reply = None  # built if a DLE ENQ or NAK asks for it again
-            # as _schedule for [ack, reply]
-            _, end = self.tx_wire.transmit(2 * char, arrived)
-            self.clock.advance_to(end)
-            ready = arrived + self.config.reply_latency_s
-            _, end = self.tx_wire.transmit((len(reply) + _FRAME_OVERHEAD) * char, ready)
-            self.clock.advance_to(end)
-            self.rx_wire.transmit(_ACK_SIZE * char, end)
+            self._carry_reply(reply, arrived, char)
             return reply
+
+    def _carry_reply(self, reply: bytes, arrived_s: float, char_s: float) -> None:
+        """A carried answer's wire time; the clock moved to the reply's end.
+
+        The DLE ACK and the reply as :meth:`_schedule` puts ``[ack, reply]``, then the
+        PC's DLE ACK of the reply. ``arrived_s``: when the request arrived (s);
+        ``char_s``: one character's time (s).
+        """
+        _, end = self.tx_wire.transmit(2 * char_s, arrived_s)
+        self.clock.advance_to(end)
+        ready = arrived_s + self.config.reply_latency_s
+        _, end = self.tx_wire.transmit((len(reply) + _FRAME_OVERHEAD) * char_s, ready)
+        self.clock.advance_to(end)
+        self.rx_wire.transmit(_ACK_SIZE * char_s, end)
 
     def carry_status(self, payload: bytes) -> m.Status | None:
         """:meth:`carry` of a READ_STATUS request payload; the status its reply carries.
@@ -186,13 +194,7 @@ class ControllerEngine:
                 reply = self._last_payload = m.encode_ok_reply(
                     m.Command.READ_STATUS, tns, m.status_body(status))
                 self._last_reply = None
-            # as carry
-            _, end = self.tx_wire.transmit(2 * char, arrived)
-            self.clock.advance_to(end)
-            ready = arrived + self.config.reply_latency_s
-            _, end = self.tx_wire.transmit((len(reply) + _FRAME_OVERHEAD) * char, ready)
-            self.clock.advance_to(end)
-            self.rx_wire.transmit(_ACK_SIZE * char, end)
+            self._carry_reply(reply, arrived, char)
             return status
 
     def _schedule(self, answers: list[Answer], arrived_s: float) -> None:
