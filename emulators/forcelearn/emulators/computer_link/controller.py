@@ -137,11 +137,9 @@ class ControllerEngine:
         """
         with self._lock:
             char = self.char_time_s
-            _, arrived = self.rx_wire.transmit((len(payload) + _FRAME_OVERHEAD) * char)
-            self.clock.advance_to(arrived)
-            if payload == self._last_request and self._last_payload is not None:
-                log.debug("duplicate request, reply repeated, not executed")
-                reply = self._last_payload
+            arrived, repeated = self._carry_request(payload, char)
+            if repeated is not None:
+                reply = repeated
             else:
                 answer, _ = self._execute(payload)
                 self._last_request = payload
@@ -149,6 +147,19 @@ class ControllerEngine:
                 self._last_reply = None  # built if a DLE ENQ or NAK asks for it again
             self._carry_reply(reply, arrived, char)
             return reply
+
+    def _carry_request(self, payload: bytes, char_s: float) -> tuple[float, bytes | None]:
+        """A carried request's wire time; when it arrived (s) and the kept reply if it repeats.
+
+        The clock is moved to the request's arrival; a repeat of the last request (the PC
+        sent it again) gets the kept reply payload, not another execution (None: execute).
+        """
+        _, arrived = self.rx_wire.transmit((len(payload) + _FRAME_OVERHEAD) * char_s)
+        self.clock.advance_to(arrived)
+        if payload == self._last_request and self._last_payload is not None:
+            log.debug("duplicate request, reply repeated, not executed")
+            return arrived, self._last_payload
+        return arrived, None
 
     def _carry_reply(self, reply: bytes, arrived_s: float, char_s: float) -> None:
         """A carried answer's wire time; the clock moved to the reply's end.
@@ -177,19 +188,15 @@ class ControllerEngine:
             return None
         with self._lock:
             char = self.char_time_s
-            _, arrived = self.rx_wire.transmit((len(payload) + _FRAME_OVERHEAD) * char)
-            self.clock.advance_to(arrived)
-            if payload == self._last_request and self._last_payload is not None:
-                log.debug("duplicate request, reply repeated, not executed")
-                reply = self._last_payload
+            arrived, repeated = self._carry_request(payload, char)
+            if repeated is not None:
+                reply = repeated
                 status = m.parse_status(m.decode_reply(reply).body)
             else:
                 # _execute's READ_STATUS: the physics brought to now, then _read's status
                 now = self.clock.now_s
                 self.physics.advance_to(now)
-                motion = self.motion
-                status = m.Status(motion.moving, motion.in_position and not self.never_in_position,
-                                  self._last_error, self.move_count & 0xFFFFFFFF, now)
+                status = self._status(now)
                 self._last_request = payload
                 reply = self._last_payload = m.encode_ok_reply(
                     m.Command.READ_STATUS, tns, m.status_body(status))
@@ -284,10 +291,14 @@ class ControllerEngine:
             joints = joint_angles_deg(self.config, pose) or (float("nan"),) * 6
             xyz = (pose.x_mm, pose.y_mm, pose.z_mm)
             return m.position_body(m.Position(xyz, pose.quaternion, joints))
+        return m.status_body(self._status(now_s))
+
+    def _status(self, now_s: float) -> m.Status:
+        """The controller's status at ``now_s`` (s), as READ_STATUS's reply carries it."""
+        motion = self.motion
         in_position = motion.in_position and not self.never_in_position
-        return m.status_body(
-            m.Status(motion.moving, in_position, self._last_error, self.move_count, now_s)
-        )
+        return m.Status(motion.moving, in_position, self._last_error,
+                        self.move_count & 0xFFFFFFFF, now_s)
 
     def state_dict(self) -> dict[str, Any]:
         """The link's wire timelines (the motion is the physics' to save)."""
