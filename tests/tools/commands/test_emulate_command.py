@@ -19,7 +19,11 @@ from forcelearn.site.config import load_cell_config
 from forcelearn.tools.cli import main
 
 STARTUP_S = 20.0
-STOP_S = 10.0
+STOP_S = 30.0
+"""Bound on a stopped emulator's exit: its cell closes in ~0.05 s, but the interpreter's
+tear-down of ~1,200 modules (scipy's ~490, through filterpy) took 0.2-0.8 s at idle and
+up to 5.6 s with 8 busy processes on 2 cores (measured 2026-12-04); 10 s failed in a
+loaded clean-clone CI."""
 
 
 class Emulator:
