@@ -20,7 +20,7 @@ from forcelearn.tools.twin import fit as fitting
 from forcelearn.tools.twin.arrays import to_arrays
 from forcelearn.tools.twin.fit import TwinFit, fit_twin
 from forcelearn.tools.twin.forward import Reading
-from forcelearn.tools.twin.params import BY_NAME, LINEAR_MEMBERS, Member
+from forcelearn.tools.twin.params import BY_NAME, LINEAR_MEMBERS, Member, family
 from forcelearn.tools.twin.problem import Problem, jackknife
 from forcelearn.tools.twin.report import amplitudes_need_their_scales
 from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
@@ -105,7 +105,7 @@ def test_a_richer_member_never_fits_worse_than_the_one_it_contains(
                                                       and fits.index(f) < fits.index(child)])
         if parent is not None and child.eligible:
             assert child.train_cost <= parent.train_cost * (1 + fitting.NESTED_TOLERANCE)
-    assert [f.member.name for f in fits] == [m.name for m in fitting.family_for(READING)]
+    assert [f.member.name for f in fits] == [m.name for m in family()]
 
     real = fitting.fit_member
 

@@ -40,8 +40,7 @@ from typing import Protocol
 
 import numpy as np
 
-from forcelearn.tools.twin.forward import Reading
-from forcelearn.tools.twin.params import BY_NAME, Member, family
+from forcelearn.tools.twin.params import BY_NAME, Member
 
 BIC_MARGIN = 10.0
 """ΔBIC (held-out trials) a richer member must win by to be considered at all."""
@@ -191,21 +190,6 @@ def choose(fits: Sequence[Fitted], resampled: Callable[[int], dict[str, float]] 
         current = i
         choice.index = i
     return choice
-
-
-FRICTION_READING_MIN = 0.2
-"""The friction members join only when the reading takes at least this share of a force
-along Z, the roller's travel: the §5 tool reads along the surface's normal, where friction
-shows only through the surface's slope (a few % of it), too little to tell mu apart from
-the other terms (on a hidden cell without friction it fitted mu 0.22 and a surface 13 mm off)."""
-
-
-def family_for(reading: Reading) -> tuple[Member, ...]:
-    """The family (:func:`~forcelearn.tools.twin.params.family`) the reading can tell apart."""
-    members = family()
-    if abs(reading.along_z) >= FRICTION_READING_MIN:
-        return members
-    return tuple(m for m in members if "friction_coefficient" not in m.free)
 
 
 def diagnose(mean_n: np.ndarray, predicted: np.ndarray, use: np.ndarray,

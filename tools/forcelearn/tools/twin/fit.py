@@ -32,12 +32,12 @@ from forcelearn.tools.twin.arm import (
 )
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
-from forcelearn.tools.twin.choice import BIC_MARGIN, choose, diagnose, family_for
+from forcelearn.tools.twin.choice import BIC_MARGIN, choose, diagnose
 from forcelearn.tools.twin.forward import Reading, predict_means
 from forcelearn.tools.twin.held import held_spread
 from forcelearn.tools.twin.identify import IDENTIFY_TRIAL, Identification
 from forcelearn.tools.twin.identify_fit import identified_arm
-from forcelearn.tools.twin.params import BY_NAME, Member
+from forcelearn.tools.twin.params import BY_NAME, Member, family
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.timing_share import arm_spread
@@ -496,7 +496,7 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     # fitted, never held at the base value (hidden cell 6 of seed 1: held at 0.4 s where
     # the cell's is 0.28 s, the ratio came out 0.17 +- 0.02 against 0.25)
     never_held = IDENTIFIED_SCALES if identification is not None else frozenset()
-    fits = fit_nested(members or family_for(reading), train, heldout, start, base_sponge,
+    fits = fit_nested(members or family(), train, heldout, start, base_sponge,
                       arm.values, reading, first.noise_n, walk, never_held)
     resampled: dict[int, dict[str, float]] = {}
 
