@@ -33,6 +33,7 @@ from forcelearn.tools.twin.arm import (
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
 from forcelearn.tools.twin.choice import BIC_MARGIN, choose, diagnose, family_for
+from forcelearn.tools.twin.experiments import experiment_spread
 from forcelearn.tools.twin.forward import Reading, predict_means
 from forcelearn.tools.twin.held import held_spread
 from forcelearn.tools.twin.identify import IDENTIFY_TRIAL, Identification
@@ -91,6 +92,9 @@ class MemberFit:
     arm_sigmas: dict[str, float] = field(default_factory=dict)
     """The arm's fitted values' share of each fitted 1-sigma (chosen member only;
     :func:`~forcelearn.tools.twin.timing_share.arm_spread`): added in quadrature."""
+    experiment_sigmas: dict[str, float] = field(default_factory=dict)
+    """The fitted experiments' disagreement's share of each fitted 1-sigma (chosen member
+    only; :func:`~forcelearn.tools.twin.experiments.experiment_spread`): added in quadrature."""
 
 
 @dataclass
@@ -519,6 +523,10 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
                                    first.noise_n, walk)
     for name, arm_sigma in chosen.arm_sigmas.items():
         chosen.sigmas[name] = math.hypot(chosen.sigmas[name], arm_sigma)
+    chosen.experiment_sigmas = experiment_spread(chosen, train, arm.values, reading,
+                                                 first.noise_n, walk)
+    for name, experiment_sigma in chosen.experiment_sigmas.items():
+        chosen.sigmas[name] = math.hypot(chosen.sigmas[name], experiment_sigma)
     chosen.member_sigmas = member_spread(fits, choice.index)
     for name, member_sigma in chosen.member_sigmas.items():
         chosen.sigmas[name] = max(chosen.sigmas[name], member_sigma)
