@@ -58,8 +58,8 @@ The pose reads of an emulated link meet the controller's tick at a few fixed pha
 fit takes them spread evenly over it; the lag it then finds is off by more than its own
 1-sigma (hidden cell 10 of seed 1: 93.411 +- 0.043 ms against 93.274, +3.2 sigma). Over the
 60 hidden cells of seeds 1 and 2 the lag's errors scatter 1.21 times their 1-sigma (mean
-+25 us); with this floor, 1.03 (none beyond 2.6 sigma). Measured on those cells, not derived:
-a floor, far below the lag's determination bound (3 ms)."""
++25 us); with this floor, 1.03 (the largest, cell 10, +2.6 sigma). Measured on those cells,
+not derived: a floor, far below the lag's determination bound (3 ms)."""
 NAMES = ("start_delay_s", "accel_mm_s2", "default_speed_mm_s", "lag_s")
 BOUNDS = {"start_delay_s": (0.0, 1.0), "accel_mm_s2": (10.0, 20000.0),
           "default_speed_mm_s": (1.0, 1000.0), "lag_s": (0.0005, 1.0), "speed_scale": (0.2, 5.0),
