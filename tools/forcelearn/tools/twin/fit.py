@@ -33,6 +33,7 @@ from forcelearn.tools.twin.arm import (
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
 from forcelearn.tools.twin.choice import BIC_MARGIN, choose, diagnose
+from forcelearn.tools.twin.experiments import experiment_spread
 from forcelearn.tools.twin.forward import Reading, predict_means
 from forcelearn.tools.twin.held import held_spread
 from forcelearn.tools.twin.identify import IDENTIFY_TRIAL, Identification
@@ -41,6 +42,7 @@ from forcelearn.tools.twin.params import BY_NAME, Member, family
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.timing_share import arm_spread
+from forcelearn.tools.twin.unfitted import unfitted_spread
 
 HOLD_OUT = 0.2
 """Share of the trials (the last ones) the fit does not use."""
@@ -91,6 +93,12 @@ class MemberFit:
     arm_sigmas: dict[str, float] = field(default_factory=dict)
     """The arm's fitted values' share of each fitted 1-sigma (chosen member only;
     :func:`~forcelearn.tools.twin.timing_share.arm_spread`): added in quadrature."""
+    experiment_sigmas: dict[str, float] = field(default_factory=dict)
+    """The fitted experiments' disagreement's share of each fitted 1-sigma (chosen member
+    only; :func:`~forcelearn.tools.twin.experiments.experiment_spread`): added in quadrature."""
+    unfitted_sigmas: dict[str, float] = field(default_factory=dict)
+    """How far a mechanism the family leaves out and the records want moves each value (chosen
+    member only; :func:`~forcelearn.tools.twin.unfitted.unfitted_spread`): in quadrature."""
 
 
 @dataclass
@@ -519,6 +527,14 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
                                    first.noise_n, walk)
     for name, arm_sigma in chosen.arm_sigmas.items():
         chosen.sigmas[name] = math.hypot(chosen.sigmas[name], arm_sigma)
+    chosen.experiment_sigmas = experiment_spread(chosen, train, arm.values, reading,
+                                                 first.noise_n, walk)
+    for name, experiment_sigma in chosen.experiment_sigmas.items():
+        chosen.sigmas[name] = math.hypot(chosen.sigmas[name], experiment_sigma)
+    chosen.unfitted_sigmas = unfitted_spread(chosen, tuple(f.member for f in fits), train,
+                                             arm.values, reading, first.noise_n, walk)
+    for name, unfitted_sigma in chosen.unfitted_sigmas.items():
+        chosen.sigmas[name] = math.hypot(chosen.sigmas[name], unfitted_sigma)
     chosen.member_sigmas = member_spread(fits, choice.index)
     for name, member_sigma in chosen.member_sigmas.items():
         chosen.sigmas[name] = max(chosen.sigmas[name], member_sigma)

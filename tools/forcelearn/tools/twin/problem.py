@@ -76,8 +76,10 @@ class Problem:
         """The weighted residual vector of ``predicted`` (only ``keep``'s bursts count)."""
         if self.walk is not None:  # the sensor's bias, profiled out (twin/bias.py)
             return self.walk.residuals(predicted - self.train.mean_n, keep)
-        use = self.use if keep is None else self.use & keep
-        error: np.ndarray = ((predicted - self.train.mean_n) * self.weights)[use]
+        # the others weigh 0 (as the walk's do): one entry per fitted burst, so the
+        # uncertainty's groups stay aligned
+        weights = self.weights if keep is None else np.where(keep, self.weights, 0.0)
+        error: np.ndarray = ((predicted - self.train.mean_n) * weights)[self.use]
         return error
 
     def sigmas(self, jacobian: np.ndarray, residuals: np.ndarray) -> np.ndarray:
