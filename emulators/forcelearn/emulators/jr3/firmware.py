@@ -459,9 +459,12 @@ class Jr3Firmware:
         if self._last_counts is None or frame_s > self.last_sample_s:
             dt = (frame_s - self.last_sample_s if math.isfinite(self.last_sample_s)
                   else self.frame_period_s)
-            self.physics.advance_to(now)
-            self._last_counts = self.model.measure(self.physics.true_wrench(), dt,
-                                                   self.cutoff_hz)
+            physics = self.physics
+            physics.advance_to(now)
+            # the wrench as floats; a hook on the object's true_wrench (fault_inject) is called
+            true = (physics.true_wrench() if "true_wrench" in physics.__dict__
+                    else physics.true_wrench_values())
+            self._last_counts = self.model.measure(true, dt, self.cutoff_hz)
             self.last_sample_s = frame_s
         raw = self._last_counts
         if self.opcodes.counter is CounterMeaning.TRANSMITTED_SAMPLES:
