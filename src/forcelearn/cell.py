@@ -351,10 +351,10 @@ class Cell:
         self.burst_frozen = len(batch) > 2 and all(
             np.array_equal(batch[0].wrench, sample.wrench) for sample in batch[1:])
         compensated = self._compensated_burst(batch)
-        self._last_mean_wrench = np.mean([s.wrench for s in compensated], axis=0)
+        wrenches = np.array([s.wrench for s in compensated])  # (n, 6): the mean's and the guard's
+        self._last_mean_wrench = np.mean(wrenches, axis=0)
         force = math.nan
         if self.press_guard is not None and self._pose is not None:
-            wrenches = np.array([s.wrench for s in compensated])
             normal = self.force_filter.config.normal_force(wrenches)
             # where the arm is, not where it was sent: an EGM arm ends its in-position zone
             # short of a press, and a reading booked deeper than it was taken buys depth

@@ -58,7 +58,7 @@ _UNKNOWN_VAR_N2 = 1.0e8
 
 
 def burst_mean(
-    values: Sequence[float], correlation: float | Sequence[float]
+    values: Sequence[float] | np.ndarray, correlation: float | Sequence[float] | np.ndarray
 ) -> tuple[float, float]:
     """GLS mean of a burst under first-order (Markov) noise of unit variance.
 
@@ -76,7 +76,9 @@ def burst_mean(
         raise ValueError("a burst needs at least one sample")
     if n == 1:
         return float(z[0]), 1.0
-    a = np.broadcast_to(np.asarray(correlation, dtype=float), (n - 1,))
+    a = np.asarray(correlation, dtype=float)
+    if a.shape != (n - 1,):  # one number for every gap (a burst's own array is used as is)
+        a = np.broadcast_to(a, (n - 1,))
     before = 1.0 / (1.0 + a)  # the gap before each of samples 2..N
     after = a / (1.0 + a)  # the gap after each of samples 1..N-1
     weights = np.zeros(n)

@@ -173,8 +173,7 @@ class ControllerEngine:
         The clock is moved to the request's arrival; a repeat of the last request (the PC
         sent it again) gets the kept reply payload, not another execution (None: execute).
         """
-        _, arrived = self.rx_wire.transmit((len(payload) + _FRAME_OVERHEAD) * char_s)
-        self.clock.advance_to(arrived)
+        arrived = self.rx_wire.send((len(payload) + _FRAME_OVERHEAD) * char_s)
         if payload == self._last_request and self._last_payload is not None:
             log.debug("duplicate request, reply repeated, not executed")
             return arrived, self._last_payload
@@ -187,11 +186,10 @@ class ControllerEngine:
         PC's DLE ACK of the reply. ``reply_size``: the reply payload's length (bytes);
         ``arrived_s``: when the request arrived (s); ``char_s``: one character's time (s).
         """
-        _, end = self.tx_wire.transmit(2 * char_s, arrived_s)
-        self.clock.advance_to(end)
-        ready = arrived_s + self.config.reply_latency_s
-        _, end = self.tx_wire.transmit((reply_size + _FRAME_OVERHEAD) * char_s, ready)
-        self.clock.advance_to(end)
+        tx = self.tx_wire
+        tx.send(2 * char_s, arrived_s)
+        end = tx.send((reply_size + _FRAME_OVERHEAD) * char_s,
+                      arrived_s + self.config.reply_latency_s)
         self.rx_wire.transmit(_ACK_SIZE * char_s, end)
 
     def carry_status(self, payload: bytes) -> m.Status | None:

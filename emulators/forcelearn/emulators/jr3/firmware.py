@@ -319,8 +319,7 @@ class Jr3Firmware:
         # _emit_sample's two _send without a fault or hook: the same bus times, clock moves
         # and counts (tests/drivers/jr3_can/test_jr3_carried.py)
         wire, clock, times = self.bus_wire, self.clock, self._frame_times
-        _, arrived = wire.transmit(times[0])  # a SYNC has no data
-        clock.advance_to(arrived)
+        arrived = wire.send(times[0])  # a SYNC has no data
         stats = self.stats
         stats.syncs += 1
         stats.loop_turns += 1
@@ -329,10 +328,8 @@ class Jr3Firmware:
         clock.advance_to(origin + (turns if turns > 1 else 1) * period)
         sample = self._next_sample()
         duration = times[_AXES_BYTES]
-        _, end = wire.transmit(duration)  # the Forces frame
-        clock.advance_to(end)
-        _, end = wire.transmit(duration)  # the Moments frame
-        clock.advance_to(end)
+        wire.send(duration)  # the Forces frame
+        wire.send(duration)  # the Moments frame
         stats.samples += 1  # _count_sample: no fault, no bootup after it
         return sample
 

@@ -116,6 +116,8 @@ class Jr3SensorModel:
         self._offset = [0.0] * 6
         self._lowpass: list[float] | None = None
         self._filtered_noise = [0.0] * 6
+        self._draws = np.empty(12)
+        """Where each sample's 12 normal draws go (noise, then bias steps)."""
         self._filter_terms = (-1.0, -1.0, 0.0, 0.0, 0.0)
         """(cut-off Hz, dt s, keep, 1 - keep, sqrt(1 - keep^2)) of the last filtered sample."""
 
@@ -147,7 +149,7 @@ class Jr3SensorModel:
         the adapter's low-pass cut-off (0: no filter). Each axis is computed in the
         order the module docstring writes it (the six axes written out: a hot path).
         """
-        d = self.rng.standard_normal(12).tolist()
+        d = self.rng.standard_normal(out=self._draws).tolist()  # the 12 draws, no new array
         true = true_wrench.tolist() if isinstance(true_wrench, np.ndarray) else true_wrench
         root_dt = dt_s**0.5
         b, w = self._bias, self._drift

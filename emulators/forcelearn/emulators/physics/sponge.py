@@ -125,13 +125,17 @@ class Sponge(FoamMemory):
             self._memo_key = key
             # contact_force_n of the point: its depth as remembered, the surface's direction
             # and length kept per height (the same functions, to the bit)
+            depth = self._penetration_mm(position_mm)
+            if depth <= 0.0:  # point_contact_force_n's answer out of contact, no direction
+                self._memo_force, self._memo_values = np.zeros(3), (0.0, 0.0, 0.0)
+                return
             p, z = self.params, float(coords[2])
             if (p, z) != self._direction_key:
                 self._direction_key = (p, z)
                 self._direction_terms = direction_terms(p, z)
             self._memo_force = point_contact_force_n(
-                p, self.passes, self._penetration_mm(position_mm), z, self.relaxing_mm,
-                self.hysteresis_state, self.slide_direction, *self._direction_terms)
+                p, self.passes, depth, z, self.relaxing_mm, self.hysteresis_state,
+                self.slide_direction, *self._direction_terms)
             self._memo_values = tuple(self._memo_force.tolist())  # type: ignore[assignment]
 
     def evolve(self, position_mm: np.ndarray | tuple[float, float, float], dt_s: float) -> None:
