@@ -23,3 +23,20 @@ def test_send_is_transmit_then_advance_to_its_end() -> None:
         _, expected = by_transmit.transmit(duration, ready)
         two.advance_to(expected)
         assert (end, one.now_s, by_send.free_at_s) == (expected, two.now_s, by_transmit.free_at_s)
+
+
+def test_a_transmit_wrapped_on_the_wire_sees_every_send() -> None:
+    """``step_timeline`` logs a wire by wrapping ``transmit`` on it: a send goes through it."""
+    clock = SimClock()
+    wire = Wire(clock)
+    log: list[tuple[float, float]] = []
+    transmit = wire.transmit
+
+    def logged(duration_s: float, ready_s: float | None = None) -> tuple[float, float]:
+        start, end = transmit(duration_s, ready_s)
+        log.append((start, end))
+        return start, end
+
+    wire.transmit = logged  # type: ignore[method-assign]
+    assert wire.send(0.002) == 0.002 and wire.send(0.001, 0.0005) == 0.003
+    assert log == [(0.0, 0.002), (0.002, 0.003)] and clock.now_s == 0.003

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import random
+from typing import Any
 
 import numpy as np
 import pytest
@@ -75,3 +76,39 @@ def test_sponge_values_are_its_force_array_as_floats() -> None:
         sponge.slide_direction = tuple(rng.uniform(-1.0, 1.0, 3).tolist())
         values = sponge.contact_force_world_values(point)
         assert values == tuple(sponge.contact_force_world_n(np.array(point)).tolist())
+
+
+class _OwnLaw(Sponge):
+    """A subclass with its own force law (as the twin's tests build foams outside the family)."""
+
+    def contact_force_world_n(self, position_mm: Any) -> np.ndarray:
+        return np.array([0.0, 7.5 + self._penetration_mm(position_mm), 0.0])
+
+
+def test_an_overridden_or_wrapped_force_law_is_what_the_values_read() -> None:
+    """A subclass's law and a recorder wrapped on the object are asked, as ``true_wrench`` asks."""
+    params = SpongeParams()
+    point = Pose(0.0, surface_y_mm(params, 0, -40.0) - 2.0, -40.0, DOWN)
+    own = CellPhysics(_OwnLaw(params), point, tool=TOOL)
+    assert own.true_wrench_values() == tuple(own.true_wrench().tolist())
+    assert own.environment.contact_force_world_values(own._position)[1] > 7.5
+
+    sponge = Sponge(params)
+    cell = CellPhysics(sponge, point, tool=TOOL)
+    asked: list[object] = []
+    original = sponge.contact_force_world_n
+
+    def recorded(position_mm: Any) -> np.ndarray:
+        asked.append(position_mm)
+        return original(position_mm)
+
+    sponge.contact_force_world_n = recorded  # type: ignore[method-assign]
+    assert cell.true_wrench_values() == tuple(cell.true_wrench().tolist())
+    assert len(asked) == 2
+
+
+def test_a_wrapped_true_wrench_is_what_the_values_read() -> None:
+    """fault_inject wraps ``true_wrench`` on the physics: the JR3 model's read goes through it."""
+    cell = CellPhysics(NoContact(), Pose(0.0, 0.0, 0.0, DOWN), tool=TOOL)
+    cell.true_wrench = lambda: np.arange(6.0)  # type: ignore[method-assign]
+    assert cell.true_wrench_values() == (0.0, 1.0, 2.0, 3.0, 4.0, 5.0)

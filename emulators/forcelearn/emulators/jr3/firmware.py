@@ -461,10 +461,9 @@ class Jr3Firmware:
                   else self.frame_period_s)
             physics = self.physics
             physics.advance_to(now)
-            # the wrench as floats; a hook on the object's true_wrench (fault_inject) is called
-            true = (physics.true_wrench() if "true_wrench" in physics.__dict__
-                    else physics.true_wrench_values())
-            self._last_counts = self.model.measure(true, dt, self.cutoff_hz)
+            # the wrench as floats (a hook on true_wrench, fault_inject's, is called by it)
+            self._last_counts = self.model.measure(physics.true_wrench_values(), dt,
+                                                   self.cutoff_hz)
             self.last_sample_s = frame_s
         raw = self._last_counts
         if self.opcodes.counter is CounterMeaning.TRANSMITTED_SAMPLES:

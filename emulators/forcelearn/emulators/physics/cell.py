@@ -352,8 +352,11 @@ class CellPhysics:
         """:meth:`true_wrench` as six floats (its ``tolist``): what a sensor model reads.
 
         The same wrench without an array copied per sample (the environment's force
-        taken as floats where it gives them, ``contact_force_world_values``).
+        taken as floats where it gives them, ``contact_force_world_values``); a
+        ``true_wrench`` wrapped on the object (fault_inject) or overridden is asked itself.
         """
+        if "true_wrench" in self.__dict__ or type(self).true_wrench is not CellPhysics.true_wrench:
+            return tuple(self.true_wrench().tolist())  # a wrapped or overridden wrench is asked
         with self._lock:
             values = getattr(self._environment, "contact_force_world_values", None)
             if values is None:
