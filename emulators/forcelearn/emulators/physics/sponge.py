@@ -119,7 +119,7 @@ class Sponge(FoamMemory):
         """
         if ("contact_force_world_n" in self.__dict__
                 or type(self).contact_force_world_n is not Sponge.contact_force_world_n):
-            return tuple(self.contact_force_world_n(position_mm).tolist())  # type: ignore[return-value]
+            return tuple(self.contact_force_world_n(position_mm).tolist())
         self._memo(position_mm)
         return self._memo_values
 
