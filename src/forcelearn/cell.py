@@ -350,11 +350,11 @@ class Cell:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
         self.burst_frozen = len(batch) > 2 and all(
             np.array_equal(batch[0].wrench, sample.wrench) for sample in batch[1:])
-        compensated = [self._compensated(raw) for raw in batch]
-        self._last_mean_wrench = np.mean([s.wrench for s in compensated], axis=0)
+        compensated = self._compensated_burst(batch)
+        wrenches = np.array([s.wrench for s in compensated])  # (n, 6): the mean's and the guard's
+        self._last_mean_wrench = np.mean(wrenches, axis=0)
         force = math.nan
         if self.press_guard is not None and self._pose is not None:
-            wrenches = np.array([s.wrench for s in compensated])
             normal = self.force_filter.config.normal_force(wrenches)
             # where the arm is, not where it was sent: an EGM arm ends its in-position zone
             # short of a press, and a reading booked deeper than it was taken buys depth
@@ -552,6 +552,16 @@ class Cell:
         elif self.compensation is None:
             return sample
         return sample.with_wrench(wrench)  # keeps its time, counter, flags
+
+    def _compensated_burst(self, batch: list[WrenchSample]) -> list[WrenchSample]:
+        """:meth:`_compensated` of each sample, the residual's test made once per burst."""
+        if self.compensation is not None:
+            return [self._compensated(sample) for sample in batch]
+        residual = self.zero_residual
+        if not any(residual.tolist()):
+            return list(batch)
+        return [sample.with_wrench(np.asarray(sample.wrench, dtype=float) - residual)
+                for sample in batch]
 
     def check_tool_fit(self, samples: int | None = None) -> bool:
         """In free space: raise ToolMismatch if the calibrated tool no longer fits here.

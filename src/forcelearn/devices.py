@@ -152,14 +152,34 @@ class WrenchSample:
     saturated: tuple[bool, ...] = field(default=(False,) * 6)
     sensor_dt_s: float | None = None
 
+    @staticmethod
+    def of(wrench: np.ndarray, timestamp_s: float, counter: int, saturated: tuple[bool, ...],
+           sensor_dt_s: float | None) -> WrenchSample:
+        """``WrenchSample(wrench, timestamp_s, counter, saturated, sensor_dt_s)``, faster.
+
+        The object ``__init__`` makes (the same attributes), its five frozen-field
+        ``object.__setattr__`` calls written as one ``__dict__`` fill: every sample of
+        every burst is built once by the driver and once by the compensation (a hot path;
+        a test holds it to the constructor).
+        """
+        sample = object.__new__(WrenchSample)
+        fields = sample.__dict__
+        fields["wrench"] = wrench
+        fields["timestamp_s"] = timestamp_s
+        fields["counter"] = counter
+        fields["saturated"] = saturated
+        fields["sensor_dt_s"] = sensor_dt_s
+        return sample
+
     def with_wrench(self, wrench: np.ndarray) -> WrenchSample:
         """This sample with another wrench (time, counter and flags kept).
 
         ``dataclasses.replace(self, wrench=wrench)`` without its field lookup (a hot
         path: every sample of a burst is compensated); a test holds it to ``replace``.
         """
-        return WrenchSample(wrench, self.timestamp_s, self.counter, self.saturated,
-                            self.sensor_dt_s)
+        fields = self.__dict__
+        return WrenchSample.of(wrench, fields["timestamp_s"], fields["counter"],
+                               fields["saturated"], fields["sensor_dt_s"])
 
     @property
     def force_n(self) -> np.ndarray:

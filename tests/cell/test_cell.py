@@ -358,3 +358,24 @@ def test_without_a_recorder_the_cell_reads_no_extra_state() -> None:
         cell.measure_force_n()
     finally:
         del type(robot).last_wait  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("residual", [np.zeros(6), np.array([0.0, 0.25, -0.0, 0.0, 1e-3, 0.0])])
+@pytest.mark.parametrize("compensated", [False, True])
+def test_a_burst_is_compensated_as_its_samples_one_by_one(residual: np.ndarray,
+                                                          compensated: bool) -> None:
+    """``_compensated_burst`` (the residual tested once a burst) is ``_compensated`` per sample."""
+    cell, _, _ = make_cell([])
+    cell.zero_residual = residual
+    if compensated:
+        cell.compensation = lambda wrench, pose: wrench * 0.5
+    rng = np.random.default_rng(4)
+    batch = [WrenchSample(rng.normal(0.0, 3.0, 6), 0.1 * i, i, sensor_dt_s=0.001 * i or None)
+             for i in range(7)]
+    burst = cell._compensated_burst(batch)
+    one_by_one = [cell._compensated(sample) for sample in batch]
+    assert len(burst) == len(one_by_one)
+    for a, b in zip(burst, one_by_one, strict=True):
+        assert a.wrench.tobytes() == b.wrench.tobytes()
+        assert (a.timestamp_s, a.counter, a.saturated, a.sensor_dt_s) == (
+            b.timestamp_s, b.counter, b.saturated, b.sensor_dt_s)

@@ -20,3 +20,17 @@ def test_with_wrench_keeps_every_other_field_as_replace_does() -> None:
         for f in dataclasses.fields(WrenchSample):
             assert getattr(fast, f.name) is getattr(slow, f.name), f.name
         assert fast.wrench is wrench
+
+
+def test_of_is_the_constructor() -> None:
+    """``WrenchSample.of`` (the driver's hot path) builds the object ``__init__`` builds."""
+    wrench = np.arange(6.0)
+    for args in ((wrench, 1.5, 7, (False,) * 6, None),
+                 (wrench, 2.5, 65535, (True,) + (False,) * 5, 0.001)):
+        fast, slow = WrenchSample.of(*args), WrenchSample(*args)
+        assert type(fast) is WrenchSample and vars(fast).keys() == vars(slow).keys()
+        for f in dataclasses.fields(WrenchSample):
+            assert getattr(fast, f.name) is getattr(slow, f.name), f.name
+        assert repr(fast) == repr(slow)
+        with np.testing.assert_raises(dataclasses.FrozenInstanceError):
+            fast.counter = 3  # type: ignore[misc]  # frozen as the constructor's

@@ -42,6 +42,7 @@ knows. Samples filtered one at a time (``on_sample``) are bursts of one.
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 from collections.abc import Sequence
@@ -57,7 +58,7 @@ _UNKNOWN_VAR_N2 = 1.0e8
 
 
 def burst_mean(
-    values: Sequence[float], correlation: float | Sequence[float]
+    values: Sequence[float] | np.ndarray, correlation: float | Sequence[float] | np.ndarray
 ) -> tuple[float, float]:
     """GLS mean of a burst under first-order (Markov) noise of unit variance.
 
@@ -75,7 +76,9 @@ def burst_mean(
         raise ValueError("a burst needs at least one sample")
     if n == 1:
         return float(z[0]), 1.0
-    a = np.broadcast_to(np.asarray(correlation, dtype=float), (n - 1,))
+    a = np.asarray(correlation, dtype=float)
+    if a.shape != (n - 1,):  # one number for every gap (a burst's own array is used as is)
+        a = np.broadcast_to(a, (n - 1,))
     before = 1.0 / (1.0 + a)  # the gap before each of samples 2..N
     after = a / (1.0 + a)  # the gap after each of samples 1..N-1
     weights = np.zeros(n)
@@ -84,6 +87,23 @@ def burst_mean(
     weights[1:-1] -= after[1:]
     total = float(weights.sum())
     return float(weights @ z / total), 1.0 / total
+
+
+def median(values: list[float]) -> float:
+    """``np.median(values)`` to the bit (numpy's own where a value is not finite or it is 0).
+
+    Sorted in Python: the middle value, or the mean of the middle two as numpy takes it
+    ((a + b) / 2); a burst's few dozen samples cost numpy's partition and mean more.
+    """
+    n = len(values)
+    if n == 0 or not math.isfinite(sum(values)):  # NaN and infinities: numpy's rules
+        return float(np.median(values))
+    ordered = sorted(values)
+    half = n // 2
+    middle = ordered[half] if n % 2 else (ordered[half - 1] + ordered[half]) / 2
+    if middle == 0.0:  # which of 0.0 and -0.0 is the middle one is numpy's partition's
+        return float(np.median(values))
+    return middle
 
 
 class MoveAwareForceFilter:
@@ -129,7 +149,8 @@ class MoveAwareForceFilter:
         """
         period = self.config.sample_period_s
         steps = [period if s.sensor_dt_s is None else s.sensor_dt_s for s in samples[1:]]
-        return np.concatenate(([0.0], np.cumsum(steps)))
+        # np.concatenate(([0.0], np.cumsum(steps))): cumsum adds in order, as accumulate does
+        return np.array([0.0, *itertools.accumulate(steps)], dtype=float)
 
     def set_measurement_variance(self, variance_n2: float) -> None:
         """Set R (N^2), the sensor's noise variance on the axis (e.g. from calibration)."""
@@ -178,7 +199,7 @@ class MoveAwareForceFilter:
         values = config.normal_force(np.array([s.wrench for s in samples], dtype=float))
         with self._lock:
             gate = config.jump_gate_sigma * math.sqrt(self._variance_n2)
-            distance = np.abs(values - np.median(values))
+            distance = np.abs(values - median(values.tolist()))
             keep = distance <= gate
             if not keep.any():  # a gate narrower than the samples' spacing: the middle one
                 keep[int(np.argmin(distance))] = True

@@ -137,6 +137,22 @@ def test_push_both_is_a_forces_then_a_moments_push(counters: list[int], by_messa
             two.dropped, two.duplicates, two.unpaired, two.pending)
 
 
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 0xFFFF), max_size=40), st.booleans())
+def test_step_to_is_push_both_without_the_pair(counters: list[int], by_message: bool) -> None:
+    """``step_to`` (the listener's carried sample) counts as ``push_both``; its elapsed."""
+    meaning = CounterMeaning.TRANSMITTED_SAMPLES if by_message else CounterMeaning.SENSOR_FRAMES
+    both, stepped = Pairer(meaning), Pairer(meaning)
+    for n, counter in enumerate(counters):
+        pair = both.push_both((n, 0, 0, 0, 0, 0), counter)
+        elapsed = stepped.step_to(counter)
+        assert elapsed == (-1 if pair is None else pair.elapsed or 0)
+        assert (stepped.dropped, stepped.duplicates) == (both.dropped, both.duplicates)
+        if n == 20:
+            both.restart()
+            stepped.restart()
+
+
 def test_push_both_refuses_a_pending_frame() -> None:
     """With a frame waiting for its partner the two pushes must be made one by one."""
     pairer = Pairer()

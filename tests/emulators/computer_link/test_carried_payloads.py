@@ -127,6 +127,25 @@ def test_a_carried_status_is_what_the_carried_reply_parses_to() -> None:
     assert [a.wire for a in by_status.handle(ENQ)] == [a.wire for a in by_payload.handle(ENQ)]
 
 
+@pytest.mark.parametrize("asked_again", ["repeat", "enq"])
+def test_a_carried_status_reply_is_encoded_only_when_asked_again(asked_again: str) -> None:
+    """A poll's reply payload is kept as its status until a repeat or a DLE ENQ asks for it."""
+    char = serial_char_time_s(9600)
+    by_payload = ControllerEngine(ArmConfig(), CellPhysics(), char)
+    by_status = ControllerEngine(ArmConfig(), CellPhysics(), char)
+    poll = m.encode_request(m.Command.READ_STATUS, 7)
+    reply = by_payload.carry(poll)
+    status = by_status.carry_status(poll)
+    assert by_status._payload is None and by_status._status_reply == (7, status)
+    assert _state(by_status) == _state(by_payload)  # the wires charged the reply's length
+    if asked_again == "repeat":
+        assert by_status.carry(poll) == by_payload.carry(poll) == reply
+    else:
+        assert [a.wire for a in by_status.handle(ENQ)] == [a.wire for a in by_payload.handle(ENQ)]
+    assert by_status._payload == reply and by_status._status_reply is None
+    assert _state(by_status) == _state(by_payload)
+
+
 def test_the_driver_takes_the_carried_status(monkeypatch: pytest.MonkeyPatch) -> None:
     """Status polls over ``forcelearn-robot://`` go by ``carry_status`` (the route tested above)."""
     calls = []

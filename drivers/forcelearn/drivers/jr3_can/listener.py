@@ -212,9 +212,9 @@ class Jr3Listener(can.Listener):
         with self.lock:
             self._stats.frames += 2
             self.data_frames += 2
-            pair = self._pairer.push_both(raw, counter)
-            if pair is not None:
-                self._sample(pair)
+            elapsed = self._pairer.step_to(counter)  # push_both without the Pair built
+            if elapsed >= 0:
+                self._sample_of(raw, counter, elapsed or None)
 
     def _take(self, message: codec.Message) -> WrenchSample | None:
         """Act on one decoded message of this node (under the lock); the sample it completes."""
@@ -243,26 +243,30 @@ class Jr3Listener(can.Listener):
 
     def _sample(self, pair: Pair) -> WrenchSample | None:
         """The sample of a completed pair (None before the full scales are known)."""
+        return self._sample_of(pair.raw, pair.counter, pair.elapsed)
+
+    def _sample_of(self, raw: tuple[int, int, int, int, int, int], counter: int,
+                   elapsed: int | None) -> WrenchSample | None:
+        """:meth:`_sample` of the pair ``(raw, counter)`` (no Pair built).
+
+        ``elapsed``: counter steps since the last pair (None: the first after a start).
+        """
         per_count = self._per_count
         if per_count is None:
             self._stats.samples_before_full_scales += 1
             return None
         limit = self.near_saturation_counts
         saturated: tuple[bool, ...] = _NOT_SATURATED
-        if max(pair.raw) >= limit or min(pair.raw) <= -limit:
-            saturated = tuple(abs(v) >= limit for v in pair.raw)
+        if max(raw) >= limit or min(raw) <= -limit:
+            saturated = tuple(abs(v) >= limit for v in raw)
         sensor_dt_s = None
-        if pair.elapsed is not None and self._frame_period_s is not None:
-            sensor_dt_s = pair.elapsed * self._frame_period_s
-        raw = pair.raw  # scaling.counts_to_wrench: counts (ints, exact as floats) x per count
-        sample = WrenchSample(
-            wrench=np.array([raw[0] * per_count[0], raw[1] * per_count[1], raw[2] * per_count[2],
-                             raw[3] * per_count[3], raw[4] * per_count[4], raw[5] * per_count[5]]),
-            timestamp_s=time.monotonic(),
-            counter=pair.counter,
-            saturated=saturated,
-            sensor_dt_s=sensor_dt_s,
-        )
+        if elapsed is not None and self._frame_period_s is not None:
+            sensor_dt_s = elapsed * self._frame_period_s
+        # scaling.counts_to_wrench: counts (ints, exact as floats) x per count
+        sample = WrenchSample.of(
+            np.array([raw[0] * per_count[0], raw[1] * per_count[1], raw[2] * per_count[2],
+                      raw[3] * per_count[3], raw[4] * per_count[4], raw[5] * per_count[5]]),
+            time.monotonic(), counter, saturated, sensor_dt_s)
         self._stats.samples += 1
         self.latest = sample
         self.seq += 1

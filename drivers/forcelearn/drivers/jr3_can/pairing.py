@@ -137,15 +137,29 @@ class Pairer:
 
     def _complete_counts(self, raw: tuple[int, int, int, int, int, int], counter: int
                          ) -> Pair | None:
-        dropped = 0
-        elapsed: int | None = None
-        if self._last_counter is not None:
-            gap = counter_gap(self._last_counter, counter)
-            if gap < 0:
-                self.duplicates += 1
-                return None
-            elapsed = gap + 1
-            dropped = gap if self.gaps_are_losses else 0
+        elapsed = self.step_to(counter)
+        if elapsed < 0:
+            return None
+        if elapsed == 0:
+            return Pair(raw, counter, 0, None)
+        return Pair(raw, counter, elapsed - 1 if self.gaps_are_losses else 0, elapsed)
+
+    def step_to(self, counter: int) -> int:
+        """The counter of a completed pair: counted as :meth:`push` counts it; its elapsed steps.
+
+        Returns ``Pair.elapsed`` (0 for the first pair after a start, whose ``elapsed`` is
+        None), or -1 for a duplicate (no pair). What :meth:`push_both` does without the
+        Pair built (the in-process route's sample, nothing pending).
+        """
+        last = self._last_counter
+        if last is None:
+            self._last_counter = counter
+            return 0
+        gap = (counter - last) % COUNTER_MODULUS - 1  # counter_gap(last, counter)
+        if gap < 0:
+            self.duplicates += 1
+            return -1
         self._last_counter = counter
-        self.dropped += dropped
-        return Pair(raw, counter, dropped, elapsed)
+        if self.gaps_are_losses:
+            self.dropped += gap
+        return gap + 1

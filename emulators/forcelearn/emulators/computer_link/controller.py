@@ -96,13 +96,32 @@ class ControllerEngine:
         self._last_request: bytes | None = None
         self._last_reply: bytes | None = None
         """The last reply's frame (None: not built yet, or no reply yet: see ``_last_payload``)."""
-        self._last_payload: bytes | None = None
-        """The last reply's payload (None: no reply yet)."""
+        self._payload: bytes | None = None
+        """The last reply's payload once encoded (see :attr:`_last_payload`)."""
+        self._status_reply: tuple[int, m.Status] | None = None
+        """A carried READ_STATUS reply not encoded yet: (transaction, status); None: none."""
         self._last_error = 0
         self.never_in_position = False
         """Fault: READ_STATUS never reports in position (a robot that cannot settle)."""
         self.move_count = 0
         """Moves executed (accepted MOVE_TO / MOVE_BY); retransmissions never count."""
+
+    @property
+    def _last_payload(self) -> bytes | None:
+        """The last reply's payload (None: no reply yet).
+
+        A carried status's is encoded when asked (a repeat of its request or a DLE ENQ:
+        polls are rarely asked again).
+        """
+        if self._status_reply is not None:
+            tns, status = self._status_reply
+            self._payload = m.encode_ok_reply(m.Command.READ_STATUS, tns, m.status_body(status))
+            self._status_reply = None
+        return self._payload
+
+    @_last_payload.setter
+    def _last_payload(self, payload: bytes | None) -> None:
+        self._payload, self._status_reply = payload, None
 
     @property
     def pose(self) -> Pose:
@@ -145,7 +164,7 @@ class ControllerEngine:
                 self._last_request = payload
                 reply = self._last_payload = m.encode_reply(answer)
                 self._last_reply = None  # built if a DLE ENQ or NAK asks for it again
-            self._carry_reply(reply, arrived, char)
+            self._carry_reply(len(reply), arrived, char)
             return reply
 
     def _carry_request(self, payload: bytes, char_s: float) -> tuple[float, bytes | None]:
@@ -154,25 +173,23 @@ class ControllerEngine:
         The clock is moved to the request's arrival; a repeat of the last request (the PC
         sent it again) gets the kept reply payload, not another execution (None: execute).
         """
-        _, arrived = self.rx_wire.transmit((len(payload) + _FRAME_OVERHEAD) * char_s)
-        self.clock.advance_to(arrived)
+        arrived = self.rx_wire.send((len(payload) + _FRAME_OVERHEAD) * char_s)
         if payload == self._last_request and self._last_payload is not None:
             log.debug("duplicate request, reply repeated, not executed")
             return arrived, self._last_payload
         return arrived, None
 
-    def _carry_reply(self, reply: bytes, arrived_s: float, char_s: float) -> None:
+    def _carry_reply(self, reply_size: int, arrived_s: float, char_s: float) -> None:
         """A carried answer's wire time; the clock moved to the reply's end.
 
         The DLE ACK and the reply as :meth:`_schedule` puts ``[ack, reply]``, then the
-        PC's DLE ACK of the reply. ``arrived_s``: when the request arrived (s);
-        ``char_s``: one character's time (s).
+        PC's DLE ACK of the reply. ``reply_size``: the reply payload's length (bytes);
+        ``arrived_s``: when the request arrived (s); ``char_s``: one character's time (s).
         """
-        _, end = self.tx_wire.transmit(2 * char_s, arrived_s)
-        self.clock.advance_to(end)
-        ready = arrived_s + self.config.reply_latency_s
-        _, end = self.tx_wire.transmit((len(reply) + _FRAME_OVERHEAD) * char_s, ready)
-        self.clock.advance_to(end)
+        tx = self.tx_wire
+        tx.send(2 * char_s, arrived_s)
+        end = tx.send((reply_size + _FRAME_OVERHEAD) * char_s,
+                      arrived_s + self.config.reply_latency_s)
         self.rx_wire.transmit(_ACK_SIZE * char_s, end)
 
     def carry_status(self, payload: bytes) -> m.Status | None:
@@ -190,18 +207,18 @@ class ControllerEngine:
             char = self.char_time_s
             arrived, repeated = self._carry_request(payload, char)
             if repeated is not None:
-                reply = repeated
-                status = m.parse_status(m.decode_reply(reply).body)
+                status = m.parse_status(m.decode_reply(repeated).body)
+                reply_size = len(repeated)
             else:
                 # _execute's READ_STATUS: the physics brought to now, then _read's status
                 now = self.clock.now_s
                 self.physics.advance_to(now)
                 status = self._status(now)
                 self._last_request = payload
-                reply = self._last_payload = m.encode_ok_reply(
-                    m.Command.READ_STATUS, tns, m.status_body(status))
+                self._payload, self._status_reply = None, (tns, status)  # encoded if asked
                 self._last_reply = None
-            self._carry_reply(reply, arrived, char)
+                reply_size = _STATUS_REPLY_SIZE
+            self._carry_reply(reply_size, arrived, char)
             return status
 
     def _schedule(self, answers: list[Answer], arrived_s: float) -> None:
@@ -319,6 +336,9 @@ class ControllerEngine:
 
 _FRAME_OVERHEAD = 7
 """DLE STX, the length byte, DLE ETX and the two check bytes around a payload."""
+_STATUS_REPLY_SIZE = len(m.encode_ok_reply(m.Command.READ_STATUS, 0,
+                                           m.status_body(m.Status(False, False, 0, 0))))
+"""READ_STATUS's OK reply payload, bytes (fixed: its body is one struct)."""
 _ACK_SIZE = len(framing.Control.ACK.wire)
 """The PC's DLE ACK of a reply, bytes."""
 

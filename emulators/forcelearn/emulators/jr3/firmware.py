@@ -319,19 +319,18 @@ class Jr3Firmware:
         # _emit_sample's two _send without a fault or hook: the same bus times, clock moves
         # and counts (tests/drivers/jr3_can/test_jr3_carried.py)
         wire, clock, times = self.bus_wire, self.clock, self._frame_times
-        _, arrived = wire.transmit(times[0])  # a SYNC has no data
-        clock.advance_to(arrived)
+        arrived = wire.send(times[0])  # a SYNC has no data
         stats = self.stats
         stats.syncs += 1
         stats.loop_turns += 1
-        clock.advance_to(self._turn_after(arrived))
+        period, origin = self.loop_period_s, self._loop_origin_s  # _turn_after(arrived)
+        turns = math.floor((arrived - origin) / period + 1e-9) + 1
+        clock.advance_to(origin + (turns if turns > 1 else 1) * period)
         sample = self._next_sample()
         duration = times[_AXES_BYTES]
-        _, end = wire.transmit(duration)  # the Forces frame
-        clock.advance_to(end)
-        _, end = wire.transmit(duration)  # the Moments frame
-        clock.advance_to(end)
-        self._count_sample()  # no fault: no bootup after it
+        wire.send(duration)  # the Forces frame
+        wire.send(duration)  # the Moments frame
+        stats.samples += 1  # _count_sample: no fault, no bootup after it
         return sample
 
     def _handle(self, msg: can.Message) -> None:
@@ -454,13 +453,16 @@ class Jr3Firmware:
     def _next_sample(self) -> CarriedSample:
         """The latest complete sensor frame's six counts and its counter (one more sent)."""
         now = self.clock.now_s
-        frames = self._frames_at(now)
+        frames = math.floor((now - self.stream_start_s) / self.frame_period_s + 1e-9)
+        frames = frames if frames > 0 else 0  # _frames_at(now)
         frame_s = self.stream_start_s + frames * self.frame_period_s
         if self._last_counts is None or frame_s > self.last_sample_s:
             dt = (frame_s - self.last_sample_s if math.isfinite(self.last_sample_s)
                   else self.frame_period_s)
-            self.physics.advance_to(now)
-            self._last_counts = self.model.measure(self.physics.true_wrench(), dt,
+            physics = self.physics
+            physics.advance_to(now)
+            # the wrench as floats (a hook on true_wrench, fault_inject's, is called by it)
+            self._last_counts = self.model.measure(physics.true_wrench_values(), dt,
                                                    self.cutoff_hz)
             self.last_sample_s = frame_s
         raw = self._last_counts

@@ -51,6 +51,7 @@ resumed run is bit-identical.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -115,6 +116,8 @@ class Jr3SensorModel:
         self._offset = [0.0] * 6
         self._lowpass: list[float] | None = None
         self._filtered_noise = [0.0] * 6
+        self._draws = np.empty(12)
+        """Where each sample's 12 normal draws go (noise, then bias steps)."""
         self._filter_terms = (-1.0, -1.0, 0.0, 0.0, 0.0)
         """(cut-off Hz, dt s, keep, 1 - keep, sqrt(1 - keep^2)) of the last filtered sample."""
 
@@ -138,44 +141,51 @@ class Jr3SensorModel:
         """The filtered noise at the adapter's output (6,)."""
         return np.array(self._filtered_noise)
 
-    def measure(self, true_wrench: np.ndarray, dt_s: float, cutoff_hz: float = 0.0) -> list[int]:
+    def measure(self, true_wrench: np.ndarray | Sequence[float], dt_s: float,
+                cutoff_hz: float = 0.0) -> list[int]:
         """Return six int16 counts for one sample, ``dt_s`` after the previous one.
 
-        ``cutoff_hz`` is the adapter's low-pass cut-off (0: no filter). Each
-        axis is computed in the order the module docstring writes it.
+        ``true_wrench``: six numbers, N and N*m (an array or floats). ``cutoff_hz`` is
+        the adapter's low-pass cut-off (0: no filter). Each axis is computed in the
+        order the module docstring writes it (the six axes written out: a hot path).
         """
-        draws = self.rng.standard_normal(12).tolist()
-        true = true_wrench.tolist() if isinstance(true_wrench, np.ndarray) else list(true_wrench)
+        d = self.rng.standard_normal(out=self._draws).tolist()  # the 12 draws, no new array
+        true = true_wrench.tolist() if isinstance(true_wrench, np.ndarray) else true_wrench
         root_dt = dt_s**0.5
-        filtering = self._filter and cutoff_hz > 0 and self._lowpass is not None
-        if filtering:
+        b, w = self._bias, self._drift
+        bias = [b[0] + w[0] * root_dt * d[6], b[1] + w[1] * root_dt * d[7],
+                b[2] + w[2] * root_dt * d[8], b[3] + w[3] * root_dt * d[9],
+                b[4] + w[4] * root_dt * d[10], b[5] + w[5] * root_dt * d[11]]
+        s, low = self._noise, self._lowpass
+        if self._filter and cutoff_hz > 0 and low is not None:
             terms = self._filter_terms
             if terms[0] != cutoff_hz or terms[1] != dt_s:  # the same dt nearly every sample
                 keep = math.exp(-2.0 * math.pi * cutoff_hz * dt_s)
                 self._filter_terms = terms = (cutoff_hz, dt_s, keep, 1.0 - keep,
                                               math.sqrt(1.0 - keep * keep))
             _, _, keep, rest, spread = terms
-        lowpass = self._lowpass if filtering and self._lowpass is not None else true
-        bias, noise, counts = [], [], []
-        biases, drifts, noises = self._bias, self._drift, self._noise
-        filtered = self._filtered_noise
-        offsets, per_unit = self._offset, self._counts_per_unit
-        for axis in range(6):
-            b = biases[axis] + drifts[axis] * root_dt * draws[6 + axis]
-            if filtering:
-                low = keep * lowpass[axis] + rest * true[axis]
-                n = keep * filtered[axis] + noises[axis] * spread * draws[axis]
-                lowpass[axis] = low
-            else:
-                low = float(lowpass[axis])
-                lowpass[axis] = low
-                n = noises[axis] * draws[axis]
-            bias.append(b)
-            noise.append(n)
-            value = (low + b - offsets[axis] + n) * per_unit[axis]  # to_count(value) written out
+            f = self._filtered_noise
+            low = [keep * low[0] + rest * true[0], keep * low[1] + rest * true[1],
+                   keep * low[2] + rest * true[2], keep * low[3] + rest * true[3],
+                   keep * low[4] + rest * true[4], keep * low[5] + rest * true[5]]
+            noise = [keep * f[0] + s[0] * spread * d[0], keep * f[1] + s[1] * spread * d[1],
+                     keep * f[2] + s[2] * spread * d[2], keep * f[3] + s[3] * spread * d[3],
+                     keep * f[4] + s[4] * spread * d[4], keep * f[5] + s[5] * spread * d[5]]
+        else:
+            low = [float(v) for v in true]
+            noise = [s[0] * d[0], s[1] * d[1], s[2] * d[2], s[3] * d[3], s[4] * d[4],
+                     s[5] * d[5]]
+        self._bias, self._filtered_noise, self._lowpass = bias, noise, low
+        o, u = self._offset, self._counts_per_unit
+        counts = []
+        for value in ((low[0] + bias[0] - o[0] + noise[0]) * u[0],  # to_count written out
+                      (low[1] + bias[1] - o[1] + noise[1]) * u[1],
+                      (low[2] + bias[2] - o[2] + noise[2]) * u[2],
+                      (low[3] + bias[3] - o[3] + noise[3]) * u[3],
+                      (low[4] + bias[4] - o[4] + noise[4]) * u[4],
+                      (low[5] + bias[5] - o[5] + noise[5]) * u[5]):
             counts.append(INT16_MAX if value >= INT16_MAX else
                           INT16_MIN if value <= INT16_MIN else round(value))
-        self._bias, self._filtered_noise, self._lowpass = bias, noise, lowpass
         return counts
 
     def zero(self, true_wrench: np.ndarray) -> None:

@@ -140,6 +140,8 @@ class CellPhysics:
         self._wrench_key: tuple[float, ...] | None = None
         """The contact force the cached wrench was computed for (None: recompute)."""
         self._wrench = np.zeros(6)
+        self._wrench_values: tuple[float, ...] = (0.0,) * 6
+        """``_wrench`` as floats (:meth:`true_wrench_values`)."""
 
     def _move_tool(self, key: PoseKey) -> None:
         """Record the tool at (x, y, z, quaternion); the Pose is built when :attr:`pose` is read."""
@@ -342,14 +344,36 @@ class CellPhysics:
         Contact force and moment about the sensor origin plus the tool's weight.
         """
         with self._lock:
-            rotation, gravity = self._rotation, self._gravity
             force_world = self.environment.contact_force_world_n(self._point())
-            # The force changes once per motion tick, the sensor samples many times per tick.
-            key = tuple(force_world.tolist())
-            if key != self._wrench_key:
-                self._wrench_key = key
-                if any(key):
-                    self._wrench = contact_wrench(self._tool, rotation, force_world) + gravity
-                else:
-                    self._wrench = gravity.copy()
+            self._wrench_at(tuple(force_world.tolist()))
             return self._wrench.copy()
+
+    def true_wrench_values(self) -> tuple[float, ...]:
+        """:meth:`true_wrench` as six floats (its ``tolist``): what a sensor model reads.
+
+        The same wrench without an array copied per sample (the environment's force
+        taken as floats where it gives them, ``contact_force_world_values``); a
+        ``true_wrench`` wrapped on the object (fault_inject) or overridden is asked itself.
+        """
+        if "true_wrench" in self.__dict__ or type(self).true_wrench is not CellPhysics.true_wrench:
+            return tuple(self.true_wrench().tolist())  # a wrapped or overridden wrench is asked
+        with self._lock:
+            values = getattr(self._environment, "contact_force_world_values", None)
+            if values is None:
+                key = tuple(self._environment.contact_force_world_n(self._point()).tolist())
+            else:
+                key = values(self._point())
+            self._wrench_at(key)
+            return self._wrench_values
+
+    def _wrench_at(self, force_world: tuple[float, ...]) -> None:
+        """Bring the cached wrench to the contact force ``force_world`` (N, world frame)."""
+        # The force changes once per motion tick, the sensor samples many times per tick.
+        if force_world != self._wrench_key:
+            self._wrench_key = force_world
+            if any(force_world):
+                self._wrench = (contact_wrench(self._tool, self._rotation, np.array(force_world))
+                                + self._gravity)
+            else:
+                self._wrench = self._gravity.copy()
+            self._wrench_values = tuple(self._wrench.tolist())

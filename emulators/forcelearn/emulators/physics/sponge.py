@@ -70,6 +70,8 @@ class Sponge(FoamMemory):
         super().__init__(passes)
         self._memo_key: tuple[float, ...] | None = None
         self._memo_force = np.zeros(3)
+        self._memo_values = (0.0, 0.0, 0.0)
+        """``_memo_force`` as floats (:meth:`contact_force_world_values`)."""
         self._direction_key: tuple[SpongeParams, float] | None = None
         self._direction_terms = (np.zeros(3), np.ones(()))
         self._depth_key: tuple[float, ...] | None = None
@@ -104,6 +106,25 @@ class Sponge(FoamMemory):
         self, position_mm: np.ndarray | tuple[float, float, float]
     ) -> np.ndarray:
         """Return the reaction force (3,) in N, world frame, at the present pass count."""
+        self._memo(position_mm)
+        return self._memo_force.copy()
+
+    def contact_force_world_values(
+        self, position_mm: np.ndarray | tuple[float, float, float]
+    ) -> tuple[float, float, float]:
+        """:meth:`contact_force_world_n` as three floats (its ``tolist``), no array copied.
+
+        A force law overridden by a subclass or wrapped on the object (a test's recorder)
+        is asked itself.
+        """
+        if ("contact_force_world_n" in self.__dict__
+                or type(self).contact_force_world_n is not Sponge.contact_force_world_n):
+            return tuple(self.contact_force_world_n(position_mm).tolist())
+        self._memo(position_mm)
+        return self._memo_values
+
+    def _memo(self, position_mm: np.ndarray | tuple[float, float, float]) -> None:
+        """Bring the remembered force to ``position_mm`` and the present state."""
         coords = position_mm.tolist() if isinstance(position_mm, np.ndarray) else position_mm
         key = (self.passes, self.relaxing_mm, self.hysteresis_state, *self.slide_direction,
                *coords)  # tuples compare by value: 1 == 1.0, so no float() is needed
@@ -111,14 +132,18 @@ class Sponge(FoamMemory):
             self._memo_key = key
             # contact_force_n of the point: its depth as remembered, the surface's direction
             # and length kept per height (the same functions, to the bit)
+            depth = self._penetration_mm(position_mm)
+            if depth <= 0.0:  # point_contact_force_n's answer out of contact, no direction
+                self._memo_force, self._memo_values = np.zeros(3), (0.0, 0.0, 0.0)
+                return
             p, z = self.params, float(coords[2])
             if (p, z) != self._direction_key:
                 self._direction_key = (p, z)
                 self._direction_terms = direction_terms(p, z)
             self._memo_force = point_contact_force_n(
-                p, self.passes, self._penetration_mm(position_mm), z, self.relaxing_mm,
-                self.hysteresis_state, self.slide_direction, *self._direction_terms)
-        return self._memo_force.copy()
+                p, self.passes, depth, z, self.relaxing_mm, self.hysteresis_state,
+                self.slide_direction, *self._direction_terms)
+            self._memo_values = tuple(self._memo_force.tolist())  # type: ignore[assignment]
 
     def evolve(self, position_mm: np.ndarray | tuple[float, float, float], dt_s: float) -> None:
         """Advance the relaxation over ``dt_s`` during which the tool moved to ``position_mm``.
