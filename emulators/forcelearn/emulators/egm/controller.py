@@ -367,7 +367,7 @@ class EgmControllerModel:
         """The rest of :meth:`_move_to` once the arm reached ``pose`` at ``t_s``."""
         self.pose = pose
         published = self._published
-        if (pose is not published and pose != published) or self.physics.pose is not published:
+        if (pose is not published and pose != published) or not self.physics.holds(published):
             self.physics.set_pose(pose)  # else at rest where it was published (and observed)
             self._published = pose
         t0, p0 = self._last_pose_s
@@ -514,7 +514,7 @@ class EgmControllerModel:
             return None
         pose = resting(target)
         if (pose is None or pose is not self.pose or pose is not self._published
-                or pose is not self._feedback_joints_pose or self.physics.pose is not pose):
+                or pose is not self._feedback_joints_pose or not self.physics.holds(pose)):
             return None
         return pose
 

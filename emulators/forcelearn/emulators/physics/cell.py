@@ -330,6 +330,10 @@ class CellPhysics:
                 self._pose = Pose(x, y, z, quaternion)
             return self._pose
 
+    def holds(self, pose: Pose) -> bool:
+        """Whether :attr:`pose` is ``pose`` (the object), without building the pose if moved."""
+        return self._pose is pose
+
     def set_pose(self, pose: Pose) -> None:
         """Record the pose the tool has reached (by the motion model, or directly in tests)."""
         with self._lock:
