@@ -78,3 +78,44 @@ def test_the_arm_pose_is_one_object_while_the_tool_stays() -> None:
     moved = motion.pose
     x, y, z = motion._tool
     assert moved is not first and moved == Pose(x, y, z, motion._tool_q) != first
+
+
+def _pressed_at_rest(batched: bool) -> tuple[CellPhysics, Sponge, ArmMotion]:
+    """A cell whose arm pressed 4 mm into the default foam and now rests (relaxing)."""
+    params = SpongeParams()
+    sponge = Sponge(params)
+    surface = surface_y_mm(params, 0, -40.0)
+    cell = CellPhysics(sponge, Pose(0.0, surface + 5.0, -40.0, DOWN))
+    motion = ArmMotion(MotionParams(), cell.pose)
+    cell.attach_motion(motion)
+    if not batched:
+        cell._batched = None  # the per-tick route
+    motion.command(Pose(0.0, surface - 4.0, -40.0, DOWN), 0.0)
+    cell.advance_to(1.5)
+    assert cell.at_rest() and sponge.relaxing_mm > 0.0
+    return cell, sponge, motion
+
+
+def test_rest_through_takes_the_ticks_as_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``rest_through`` on a batched foam: its ticks in runs (no ``tick`` each), the same state."""
+    rng = random.Random(5)
+    times, t = [], 1.5
+    for _ in range(400):  # EGM cycles, some two ticks long, some within the tick
+        t += rng.choice((0.004, 0.004, 0.004, 0.008, 0.0))
+        times.append(t)
+
+    def state(cell: CellPhysics, sponge: Sponge, motion: ArmMotion) -> str:
+        return repr((motion.tick_index, sponge.relaxing_mm, sponge._foam_mm, sponge.passes,
+                     tuple(cell.true_wrench().tolist())))
+
+    plain = _pressed_at_rest(batched=False)
+    for chunk in (times[:150], times[150:151], times[151:]):
+        plain[0].rest_through(chunk)
+    runs = _pressed_at_rest(batched=True)
+    calls = []
+    monkeypatch.setattr(Sponge, "tick", lambda *a: calls.append(a))  # not asked on this route
+    for chunk in (times[:150], times[150:151], times[151:]):
+        runs[0].rest_through(chunk)
+    assert not calls
+    assert state(*runs) == state(*plain)
+    assert runs[2].tick_index == 375 + round((times[-1] - 1.5) / 0.004)

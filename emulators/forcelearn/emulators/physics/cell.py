@@ -296,13 +296,31 @@ class CellPhysics:
         with self._lock:
             if not self.at_rest():
                 raise RuntimeError("rest_through needs the arm at rest (at_rest())")
-            motion, ticked = self.motion, self._ticked
+            motion, ticked, batched = self.motion, self._ticked, self._batched
             assert motion is not None and ticked is not None
             rest_span, tick, position = motion.rest_span, motion.params.tick_s, self._position
+            if batched is None:
+                for t_s in times_s:
+                    span = rest_span(t_s)  # >= 0: at rest it stays (only the tick index moves)
+                    if span:
+                        ticked.tick(position, span * tick, False)
+                return
+            # the same ticks as runs of one span each through ``ticks``: a key equal to the one
+            # recorded evolves at the recorded position, the tool not moved (as ``tick`` above)
+            key = self._pose_key
+            keys: list[PoseKey] = []
+            dt = 0.0
             for t_s in times_s:
-                span = rest_span(t_s)  # >= 0: at rest it stays (only the tick index moves)
+                span = rest_span(t_s)
                 if span:
-                    ticked.tick(position, span * tick, False)
+                    step = span * tick
+                    if step != dt and keys:
+                        batched.ticks(keys, dt, key)
+                        keys = []
+                    dt = step
+                    keys.append(key)
+            if keys:
+                batched.ticks(keys, dt, key)
 
     @property
     def tool(self) -> ToolParams:
