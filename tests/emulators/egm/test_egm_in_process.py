@@ -10,6 +10,7 @@ import pytest
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm import EgmConfig, EgmRobot
+from forcelearn.drivers.egm.guidance import Guidance
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
@@ -230,12 +231,22 @@ def test_the_cycles_at_rest_in_one_jump_are_the_cycles_one_by_one(
         rest_through(model, times)
 
     monkeypatch.setattr(EgmControllerModel, "rest_through", counted)
+    answered: list[Pose | None] = []
+    next_planned = Guidance.next_planned
+
+    def counted_answer(guidance: Guidance) -> Pose | None:
+        answered.append(next_planned(guidance))
+        return answered[-1]
+
+    monkeypatch.setattr(Guidance, "next_planned", counted_answer)
     jumped, rested, cycles = session(True)
     in_batches = sum(batched)
     one_by_one, none, _ = session(False)
     assert none == 0
     assert cycles - rested < 0.1 * cycles  # the ramps' cycles are jumped too, not only the rests
     assert in_batches > 100  # the cycles at rest (the dwells' ends) run in batches (_rest_batch)
+    # the PC's answers at rest were taken in runs (at_rest), not one next_planned each
+    assert len(answered) < rested - in_batches // 2
     assert jumped == one_by_one
     forces = jumped[0::3][:5]
     assert max(forces) > 5.0 and forces[-1] < forces[-2]  # pressed in, then unloading

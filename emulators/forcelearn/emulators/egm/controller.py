@@ -435,6 +435,11 @@ class EgmControllerModel:
         """The EgmRobot's header.tm (ms) and feedBack.time (µs since 1970) of a cycle at ``t_s``."""
         return round(t_s * 1000), self.config.clock_epoch_us + round(t_s * 1e6)
 
+    def stamps_at(self, times_s: Sequence[float]) -> list[tuple[int, int]]:
+        """:meth:`stamps` of each of ``times_s``, in order."""
+        epoch = self.config.clock_epoch_us
+        return [(round(t_s * 1000), epoch + round(t_s * 1e6)) for t_s in times_s]
+
     # -- cycles that only follow (the in-process route's jump: CycleLoop.rest) --------------
 
     def readable(self, datagram: carried.Datagram) -> Pose | None:

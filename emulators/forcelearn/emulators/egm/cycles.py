@@ -35,7 +35,16 @@ from forcelearn.protocols.egm.carried import Datagram
 Answer = Callable[[int, int, Pose, Pose], Pose | None]
 """The planned pose of the PC's answer to an EgmRobot, from its header.tm (ms), feedBack.time
 (µs), feedBack.cartesian and planned.cartesian; None: the PC reads that EgmRobot itself
-(:meth:`CycleLoop.rest` stops its jump there)."""
+(:meth:`CycleLoop.rest` stops its jump there).
+
+It may also have ``at_rest(feedback, planned, stamps) -> int``: for cycles of these
+(header.tm, feedBack.time) in order, all with this feedback and planned pose, how many
+leading ones it answers with ``planned`` itself, found as it would answer them one by one
+(its own state changes included); the cycle at that index (if any) it answers None. -1:
+not known (each cycle is asked). :meth:`CycleLoop.rest` asks it for runs of cycles at rest."""
+
+REST_RUN = 128
+"""Cycles at rest whose answers one ``at_rest`` call gives (:meth:`CycleLoop._rest_batch`)."""
 
 
 class CycleLoop:
@@ -222,9 +231,27 @@ class CycleLoop:
         step: Pose | None = planned
         last_at = stamps
         at = stamps
+        at_rest = getattr(answer, "at_rest", None)
         while True:
             if restart.is_set():  # the next cycle (at t) runs as rest() runs it
                 break
+            if at_rest is not None and len(times) < left:  # a run of answers in one call
+                run_t: list[float] = []
+                for _ in range(min(REST_RUN, left - len(times))):
+                    run_t.append(t)
+                    t = t + period
+                run_at = model.stamps_at(run_t)
+                answered = at_rest(pose, planned, run_at)
+                if answered >= 0:
+                    times += run_t[:answered]
+                    if answered:
+                        last_at = at = run_at[answered - 1]
+                    if answered == len(run_t):
+                        continue  # all answered with planned: t is the next cycle's
+                    at, step, t = run_at[answered], None, run_t[answered]  # the PC reads it
+                    times.append(t)
+                    break
+                at_rest, t = None, run_t[0]  # not known: each cycle is asked
             at = model.stamps(t)
             step = answer(*at, pose, planned) if len(times) < left else None
             times.append(t)
