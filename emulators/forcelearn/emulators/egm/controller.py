@@ -190,6 +190,12 @@ class EgmControllerModel:
         """The motion model's ``resting`` and ``rest_through`` (:meth:`rest_pose`), if any."""
         self._rest_through: Callable[[Sequence[float]], None] | None = getattr(
             self.motion, "rest_through", None)
+        self._follow_keys: Callable[..., Any] | None = getattr(self.motion, "follow_keys", None)
+        self._can_run: Callable[[], bool] | None = getattr(self.motion, "can_run", None)
+        self._take_run: Callable[[list[Any]], None] | None = getattr(self.motion, "take_run", None)
+        """The motion model's ``follow_keys``, ``can_run`` and ``take_run`` (:meth:`run_start`)."""
+        self._run: list[tuple[Any, ...]] = []
+        self._run_holds = True
         """The motion model's ``follow(target, t_s)`` (:meth:`follow_cycle`), if it has one."""
 
     @property
@@ -538,6 +544,57 @@ class EgmControllerModel:
         t0, p0 = self._last_pose_s if len(times_s) == 1 else (times_s[-2], pose)
         self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)  # as _moved: the last cycle's
         self._last_pose_s = (t_s, pose)
+
+    def run_start(self, target: Pose) -> bool:
+        """Whether the cycles that read ``target`` from now may run as a run (:meth:`run_cycle`).
+
+        So when :meth:`follow_cycle` of ``target`` takes its short route, the pose
+        published is the one the cell holds, and the motion model can take the arm's
+        ticks alone and the cell's side at the end (``can_run``). Each cycle is then
+        :meth:`run_cycle`, and :meth:`run_end` (which must follow) gives the cell its side.
+        """
+        last = self._checks.last
+        return (self._follow_keys is not None and self._can_run is not None
+                and target is self.planned and last is not None and last[0] is target
+                and last[1] is None and self.mci is codec.MciState.RUNNING
+                and self._published is not None and self.physics.holds(self._published)
+                and self._can_run())
+
+    def run_cycle(self, t_s: float) -> tuple[Pose, bool]:
+        """:meth:`follow_cycle` of the planned pose at ``t_s`` in a run; the pose and if it rests.
+
+        The arm's ticks run now; the cell's side of them, and of publishing the pose
+        (:meth:`_moved`'s ``set_pose``), waits for :meth:`run_end`: nothing reads the cell
+        meanwhile. The model's own state is :meth:`_moved`'s.
+        """
+        assert self._follow_keys is not None
+        keys, rest, key, pose, moved = self._follow_keys(self.planned, t_s)
+        if moved:
+            self._run_holds = False  # a tick moved the tool: the cell's pose is read anew
+        published, seen = self._published, None
+        if (pose is not published and pose != published) or not self._run_holds:
+            seen = self._published = pose
+            self._run_holds = True
+        self._run.append((keys, rest, key, seen))
+        self._last_read_s = t_s
+        self.targets_read += 1
+        self.pose = pose
+        t0, p0 = self._last_pose_s
+        self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
+        self._last_pose_s = (t_s, pose)
+        joints_pose = self._feedback_joints_pose
+        if pose is not joints_pose and pose != joints_pose:
+            self._joints_to_find.append(pose)
+            self._feedback_joints_pose = pose
+        return pose, rest != 0 or not keys
+
+    def run_end(self) -> None:
+        """The cell's side of the run's cycles (idempotent: a run with no cycle does nothing)."""
+        run, self._run = self._run, []
+        self._run_holds = True
+        if run:
+            assert self._take_run is not None
+            self._take_run(run)
 
     def cycles_to_wrap(self) -> int:
         """How many EgmRobots may be built before :meth:`wraps_next` holds (0: it holds now)."""

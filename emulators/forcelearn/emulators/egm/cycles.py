@@ -191,6 +191,13 @@ class CycleLoop:
                 if robot is not None:
                     return skipped, *stamps, robot
                 continue
+            if self.clock.now_s == t and model.run_start(planned):  # cycles of a moving arm
+                ran, skipped, stamps, planned, robot = self._follow_run(
+                    planned, answer, skipped, stamps)
+                if robot is not None:
+                    return skipped, *stamps, robot
+                if ran:
+                    continue
             feedback = model.follow_cycle(planned, t)  # read_planned, then move_to
             self.cycles += 1
             self._inbox = []  # read
@@ -205,6 +212,47 @@ class CycleLoop:
             model.skip()
             skipped, stamps, planned = skipped + 1, at, step
             self._next_cycle()  # end([the answer]): read at the next cycle
+
+    def _follow_run(
+        self, planned: Pose, answer: Answer, skipped: int, stamps: tuple[int, int]
+    ) -> tuple[int, int, tuple[int, int], Pose, Datagram | None]:
+        """:meth:`rest`'s cycles one by one while they read ``planned`` and the arm moves.
+
+        The same cycles, answers and state as :meth:`rest`'s loop
+        (:meth:`EgmControllerModel.run_cycle` for ``follow_cycle``), the cell's side of
+        the arm's ticks taken at the end (:meth:`EgmControllerModel.run_end`). Ends
+        after an answer that plans another pose, once the arm rests, before a restart
+        or the cycle whose seqno wraps next, or at the cycle the PC reads (its EgmRobot
+        returned). Returns (cycles run, cycles skipped, their last stamps, the planned
+        pose of the next cycle, the EgmRobot to send or None).
+        """
+        model, restart, period = self.model, self.restart_requested, self.period_s
+        t = self.t_s
+        left = model.cycles_to_wrap()  # the cycle after which the seqno wraps is read by rest()
+        ran = 0
+        try:
+            while ran < left and not restart.is_set():
+                feedback, resting = model.run_cycle(t)
+                self.cycles += 1
+                self._inbox = []  # read
+                ran += 1
+                at = model.stamps(t)
+                step = answer(*at, feedback, planned)
+                if step is None:  # the PC reads this cycle's EgmRobot
+                    model.run_end()
+                    self.t_s = self.clock.advance_to(t)
+                    robot = model.robot_carried(t, defer_force=True, moved=True)
+                    return ran, skipped, stamps, planned, robot
+                model.skip()
+                skipped, stamps = skipped + 1, at
+                t = t + period  # end([the answer]): read at the next cycle
+                if step is not planned or resting:
+                    planned = step
+                    break
+        finally:
+            model.run_end()
+        self.t_s = self.clock.advance_to(t)
+        return ran, skipped, stamps, planned, None
 
     def _rest_batch(
         self, planned: Pose, pose: Pose, answer: Answer, skipped: int, stamps: tuple[int, int]
