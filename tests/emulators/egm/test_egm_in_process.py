@@ -287,3 +287,44 @@ def test_a_batch_at_rest_stops_where_the_seqno_wraps(monkeypatch: pytest.MonkeyP
     one_by_one, none = session(False)
     assert none == [] and len(batched) >= 2 and max(batched) > 40
     assert jumped == one_by_one
+
+
+def test_the_moving_cycles_in_runs_are_the_cycles_one_by_one(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The default foam, pressed, slid and left (a pass ends): all as every cycle in full.
+
+    The cycles of the moving arm run in runs (``run_cycle``, the cell's side at the
+    end); every force, status, checkpoint and emulator state equals the cycles one by one.
+    """
+    config = load_cell_config(EXAMPLES / "egm-cell.toml")
+
+    def session(jump: bool) -> tuple[list[object], int]:
+        monkeypatch.setattr(InProcessEgmController, "rests", jump)
+        with CellSession(config, seed=4) as s:
+            assert s.cell is not None
+            robot, seen = s.cell.robot, []
+            s.cell.move_in_steps(Pose(900.0, 15.0, 0.0, s.cell.sync().quaternion), 9.5)
+            for dy, dz in ((-9.0, 0.0), (-9.0, 0.0), (0.0, -2.0), (9.0, 0.0), (9.0, 0.0),
+                           (9.0, 0.0), (9.0, 0.0), (-9.0, 0.0)):
+                s.cell.move_to(s.cell.sync().moved(0.0, dy, dz))
+                seen += [s.cell.measure_force_n(), robot.dwell(0.1), s.cell.measure_force_n()]
+            sponge = s.robot_emulator.loop.model.physics.environment
+            seen += [robot.read_status(), robot.state_dict(), s.emulator_state(),
+                     getattr(sponge, "passes", None)]
+            return seen, s.robot_emulator.rested
+
+    runs: list[float] = []
+    run_cycle = EgmControllerModel.run_cycle
+
+    def counted(model: EgmControllerModel, t_s: float) -> tuple[Pose, bool]:
+        runs.append(t_s)
+        return run_cycle(model, t_s)
+
+    monkeypatch.setattr(EgmControllerModel, "run_cycle", counted)
+    jumped, rested = session(True)
+    one_by_one, none = session(False)
+    assert none == 0 and rested > 0
+    assert len(runs) > 200  # the moving arm's cycles ran in runs
+    assert jumped == one_by_one
+    assert jumped[-1] is not None and jumped[-1] >= 1  # the tool left the foam: a pass ended

@@ -7,7 +7,7 @@ import random
 import pytest
 
 from forcelearn.devices import Pose
-from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams
+from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams, PoseKey
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams, surface_y_mm
 
@@ -119,3 +119,45 @@ def test_rest_through_takes_the_ticks_as_runs(monkeypatch: pytest.MonkeyPatch) -
     assert not calls
     assert state(*runs) == state(*plain)
     assert runs[2].tick_index == 375 + round((times[-1] - 1.5) / 0.004)
+
+
+def test_ticks_seen_is_ticks_then_observe_pose_run_by_run() -> None:
+    """``Sponge.ticks_seen``: each run's ticks, then the pose seen again, as one by one.
+
+    Presses in and out of the default foam (passes end: the merged route restores
+    and replays) and within it (no pass ends: one ``ticks`` call), rest ticks of
+    other spans between; every state equal to ``tick`` per key and ``observe_pose``.
+    """
+    params = SpongeParams()
+    surface = surface_y_mm(params, 0, -40.0)
+    rng = random.Random(3)
+    down = (1.0, 0.0, 0.0, 0.0)
+
+    def path(lift: bool) -> list[tuple[list[PoseKey], float, tuple[float, float, float] | None]]:
+        runs: list[tuple[list[PoseKey], float, tuple[float, float, float] | None]] = []
+        y, z = surface + 2.0, -40.0
+        for step in range(300):
+            target = surface - 4.0 if (step // 40) % 2 == 0 or not lift else surface + 3.0
+            y += 0.25 * (target - y)
+            z -= 0.05
+            keys: list[PoseKey] = [(0.0, y, z, down)] * rng.choice((1, 1, 2))
+            runs.append((keys, 0.004, (0.0, y, z) if rng.random() < 0.8 else None))
+            if rng.random() < 0.1:
+                runs.append(([keys[-1]], 0.004 * rng.choice((2, 3)), None))
+        return runs
+
+    for lift in (False, True):
+        runs = path(lift)
+        merged, plain = Sponge(params), Sponge(params)
+        start: PoseKey = (0.0, surface + 2.0, -40.0, down)
+        last = merged.ticks_seen(runs, start)
+        before = start
+        for keys, dt, seen in runs:
+            for key in keys:
+                moved = key != before
+                before = key if moved else before
+                plain.tick((before[0], before[1], before[2]), dt, moved)
+            if seen is not None:
+                plain.observe_pose(seen)
+        assert merged.passes == plain.passes and (merged.passes > 0) == lift
+        assert merged.state_dict() == plain.state_dict() and last == before
