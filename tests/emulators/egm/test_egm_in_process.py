@@ -317,9 +317,9 @@ def test_the_moving_cycles_in_runs_are_the_cycles_one_by_one(
     runs: list[float] = []
     run_cycle = EgmControllerModel.run_cycle
 
-    def counted(model: EgmControllerModel, t_s: float) -> tuple[Pose, bool]:
+    def counted(model: EgmControllerModel, t_s: float, target: Pose) -> tuple[Pose, bool] | None:
         runs.append(t_s)
-        return run_cycle(model, t_s)
+        return run_cycle(model, t_s, target)
 
     monkeypatch.setattr(EgmControllerModel, "run_cycle", counted)
     jumped, rested = session(True)

@@ -191,9 +191,11 @@ class EgmControllerModel:
         self._rest_through: Callable[[Sequence[float]], None] | None = getattr(
             self.motion, "rest_through", None)
         self._follow_keys: Callable[..., Any] | None = getattr(self.motion, "follow_keys", None)
+        self._command_keys: Callable[..., Any] | None = getattr(self.motion, "command_keys", None)
         self._can_run: Callable[[], bool] | None = getattr(self.motion, "can_run", None)
         self._take_run: Callable[[list[Any]], None] | None = getattr(self.motion, "take_run", None)
-        """The motion model's ``follow_keys``, ``can_run`` and ``take_run`` (:meth:`run_start`)."""
+        """The motion model's ``follow_keys``, ``command_keys``, ``can_run`` and ``take_run``
+        (:meth:`run_start`)."""
         self._run: list[tuple[Any, ...]] = []
         self._run_holds = True
         """The motion model's ``follow(target, t_s)`` (:meth:`follow_cycle`), if it has one."""
@@ -545,30 +547,49 @@ class EgmControllerModel:
         self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)  # as _moved: the last cycle's
         self._last_pose_s = (t_s, pose)
 
-    def run_start(self, target: Pose) -> bool:
-        """Whether the cycles that read ``target`` from now may run as a run (:meth:`run_cycle`).
+    def run_start(self) -> bool:
+        """Whether the cycles from now may run as a run (:meth:`run_cycle`, then :meth:`run_end`).
 
-        So when :meth:`follow_cycle` of ``target`` takes its short route, the pose
-        published is the one the cell holds, and the motion model can take the arm's
-        ticks alone and the cell's side at the end (``can_run``). Each cycle is then
-        :meth:`run_cycle`, and :meth:`run_end` (which must follow) gives the cell its side.
+        So when guidance runs, the pose published is the one the cell holds, and the
+        motion model can take the arm's ticks alone and the cell's side at the end
+        (``can_run``). :meth:`run_end` must follow the run's cycles.
         """
-        last = self._checks.last
-        return (self._follow_keys is not None and self._can_run is not None
-                and target is self.planned and last is not None and last[0] is target
-                and last[1] is None and self.mci is codec.MciState.RUNNING
+        return (self._follow_keys is not None and self._command_keys is not None
+                and self._can_run is not None and self.mci is codec.MciState.RUNNING
                 and self._published is not None and self.physics.holds(self._published)
                 and self._can_run())
 
-    def run_cycle(self, t_s: float) -> tuple[Pose, bool]:
-        """:meth:`follow_cycle` of the planned pose at ``t_s`` in a run; the pose and if it rests.
+    def run_cycle(self, t_s: float, target: Pose) -> tuple[Pose, bool] | None:
+        """:meth:`follow_cycle` of ``target`` at ``t_s`` in a run; the pose and if the arm rests.
 
         The arm's ticks run now; the cell's side of them, and of publishing the pose
         (:meth:`_moved`'s ``set_pose``), waits for :meth:`run_end`: nothing reads the cell
-        meanwhile. The model's own state is :meth:`_moved`'s.
+        meanwhile. The model's own state is :meth:`follow_cycle`'s. ``target`` is the
+        pose in effect (its short route) or a new planned pose its check passes (read,
+        checked and commanded as :meth:`_plan` does). None, nothing done, for any other
+        cycle (a refusal, a pose equal to the one in effect but another object): it runs
+        one by one.
         """
-        assert self._follow_keys is not None
-        keys, rest, key, pose, moved = self._follow_keys(self.planned, t_s)
+        last = self._checks.last
+        if target is self.planned:
+            if last is None or last[0] is not target or last[1] is not None:
+                return None
+            assert self._follow_keys is not None
+            ticked = self._follow_keys(target, t_s)
+            if ticked is None:
+                return None
+        else:
+            if target == self.planned:
+                return None
+            refusal, joints = self._checks.checked(target)
+            if refusal:
+                return None
+            self.planned = target
+            if joints is not None:
+                self.planned_joints = joints
+            assert self._command_keys is not None  # feed_forward_pose without speedRef: target
+            ticked = self._command_keys(target, t_s)
+        keys, rest, key, pose, moved = ticked
         if moved:
             self._run_holds = False  # a tick moved the tool: the cell's pose is read anew
         published, seen = self._published, None

@@ -191,7 +191,7 @@ class CycleLoop:
                 if robot is not None:
                     return skipped, *stamps, robot
                 continue
-            if self.clock.now_s == t and model.run_start(planned):  # cycles of a moving arm
+            if self.clock.now_s == t and model.run_start():  # the moving arm's cycles, a run
                 ran, skipped, stamps, planned, robot = self._follow_run(
                     planned, answer, skipped, stamps)
                 if robot is not None:
@@ -216,15 +216,16 @@ class CycleLoop:
     def _follow_run(
         self, planned: Pose, answer: Answer, skipped: int, stamps: tuple[int, int]
     ) -> tuple[int, int, tuple[int, int], Pose, Datagram | None]:
-        """:meth:`rest`'s cycles one by one while they read ``planned`` and the arm moves.
+        """:meth:`rest`'s cycles one by one while the arm moves: ramps and the arm's lag.
 
         The same cycles, answers and state as :meth:`rest`'s loop
         (:meth:`EgmControllerModel.run_cycle` for ``follow_cycle``), the cell's side of
         the arm's ticks taken at the end (:meth:`EgmControllerModel.run_end`). Ends
-        after an answer that plans another pose, once the arm rests, before a restart
-        or the cycle whose seqno wraps next, or at the cycle the PC reads (its EgmRobot
-        returned). Returns (cycles run, cycles skipped, their last stamps, the planned
-        pose of the next cycle, the EgmRobot to send or None).
+        once the arm rests while the answer repeats the pose, before a restart, the
+        cycle whose seqno wraps next or a cycle ``run_cycle`` leaves (a refusal), or
+        at the cycle the PC reads (its EgmRobot returned). Returns (cycles run, cycles
+        skipped, their last stamps, the planned pose of the next cycle, the EgmRobot
+        to send or None).
         """
         model, restart, period = self.model, self.restart_requested, self.period_s
         t = self.t_s
@@ -232,7 +233,10 @@ class CycleLoop:
         ran = 0
         try:
             while ran < left and not restart.is_set():
-                feedback, resting = model.run_cycle(t)
+                cycle = model.run_cycle(t, planned)
+                if cycle is None:  # this cycle runs one by one (nothing done)
+                    break
+                feedback, resting = cycle
                 self.cycles += 1
                 self._inbox = []  # read
                 ran += 1
@@ -246,9 +250,9 @@ class CycleLoop:
                 model.skip()
                 skipped, stamps = skipped + 1, at
                 t = t + period  # end([the answer]): read at the next cycle
-                if step is not planned or resting:
-                    planned = step
+                if step is planned and resting:
                     break
+                planned = step
         finally:
             model.run_end()
         self.t_s = self.clock.advance_to(t)

@@ -135,6 +135,27 @@ class PhysicsMotion:
                 break
         return keys, rest, motion.tool_key, motion.pose, moved
 
+    def command_keys(
+        self, target: Pose, t_s: float
+    ) -> tuple[list[PoseKey], int, PoseKey, Pose, bool]:
+        """:meth:`command` of ``target`` read at ``t_s``, then the arm to ``t_s``, ticks alone.
+
+        As :meth:`follow_keys` (the same return); the arm's ticks to ``t_s`` run before
+        the command is taken, as :meth:`command` then :meth:`advance_to` run them.
+        """
+        motion = self.motion
+        before = motion.tool_key
+        keys, rest = motion.advance_keys(t_s)
+        if target != self._last:  # as command(): a repeated pose is not commanded again
+            self._last = target
+            motion.command(target, t_s)
+        moved = False
+        for key in keys:
+            if key != before:
+                moved = True
+                break
+        return keys, rest, motion.tool_key, motion.pose, moved
+
     def can_run(self) -> bool:
         """Whether :meth:`follow_keys` and :meth:`take_run` may stand for :meth:`follow` now."""
         return self.physics.can_run()

@@ -330,7 +330,7 @@ class CellPhysics:
         """
         with self._lock:
             motion = self.motion
-            return (motion is not None and self._batched is not None
+            return (motion is not None and not motion.params.instant and self._batched is not None
                     and hasattr(self._batched, "ticks_seen")
                     and "_move_tool" not in self.__dict__ and motion.tool_key == self._pose_key
                     and self._pose is not None)
