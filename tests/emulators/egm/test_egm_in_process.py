@@ -322,9 +322,19 @@ def test_the_moving_cycles_in_runs_are_the_cycles_one_by_one(
         return run_cycle(model, t_s, target)
 
     monkeypatch.setattr(EgmControllerModel, "run_cycle", counted)
+    alone: list[float] = []
+    follow_cycle = EgmControllerModel.follow_cycle
+
+    def counted_alone(model: EgmControllerModel, target: Pose, t_s: float) -> Pose:
+        alone.append(t_s)
+        return follow_cycle(model, target, t_s)
+
+    monkeypatch.setattr(EgmControllerModel, "follow_cycle", counted_alone)
     jumped, rested = session(True)
+    in_runs, one_at_a_time = len(runs), len(alone)
     one_by_one, none = session(False)
     assert none == 0 and rested > 0
-    assert len(runs) > 200  # the moving arm's cycles ran in runs
+    assert in_runs > 200  # the moving arm's cycles ran in runs, the ramps' too
+    assert one_at_a_time < in_runs / 20
     assert jumped == one_by_one
     assert jumped[-1] is not None and jumped[-1] >= 1  # the tool left the foam: a pass ended
