@@ -10,6 +10,7 @@ import pytest
 
 from forcelearn.devices import Pose
 from forcelearn.drivers.egm import EgmConfig, EgmRobot
+from forcelearn.drivers.egm.guidance import Guidance
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.egm import (
     EgmControllerConfig,
@@ -230,12 +231,22 @@ def test_the_cycles_at_rest_in_one_jump_are_the_cycles_one_by_one(
         rest_through(model, times)
 
     monkeypatch.setattr(EgmControllerModel, "rest_through", counted)
+    answered: list[Pose | None] = []
+    next_planned = Guidance.next_planned
+
+    def counted_answer(guidance: Guidance) -> Pose | None:
+        answered.append(next_planned(guidance))
+        return answered[-1]
+
+    monkeypatch.setattr(Guidance, "next_planned", counted_answer)
     jumped, rested, cycles = session(True)
     in_batches = sum(batched)
     one_by_one, none, _ = session(False)
     assert none == 0
     assert cycles - rested < 0.1 * cycles  # the ramps' cycles are jumped too, not only the rests
     assert in_batches > 100  # the cycles at rest (the dwells' ends) run in batches (_rest_batch)
+    # the PC's answers at rest were taken in runs (at_rest), not one next_planned each
+    assert len(answered) < rested - in_batches // 2
     assert jumped == one_by_one
     forces = jumped[0::3][:5]
     assert max(forces) > 5.0 and forces[-1] < forces[-2]  # pressed in, then unloading
@@ -276,3 +287,54 @@ def test_a_batch_at_rest_stops_where_the_seqno_wraps(monkeypatch: pytest.MonkeyP
     one_by_one, none = session(False)
     assert none == [] and len(batched) >= 2 and max(batched) > 40
     assert jumped == one_by_one
+
+
+def test_the_moving_cycles_in_runs_are_the_cycles_one_by_one(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The default foam, pressed, slid and left (a pass ends): all as every cycle in full.
+
+    The cycles of the moving arm run in runs (``run_cycle``, the cell's side at the
+    end); every force, status, checkpoint and emulator state equals the cycles one by one.
+    """
+    config = load_cell_config(EXAMPLES / "egm-cell.toml")
+
+    def session(jump: bool) -> tuple[list[object], int]:
+        monkeypatch.setattr(InProcessEgmController, "rests", jump)
+        with CellSession(config, seed=4) as s:
+            assert s.cell is not None
+            robot, seen = s.cell.robot, []
+            s.cell.move_in_steps(Pose(900.0, 15.0, 0.0, s.cell.sync().quaternion), 9.5)
+            for dy, dz in ((-9.0, 0.0), (-9.0, 0.0), (0.0, -2.0), (9.0, 0.0), (9.0, 0.0),
+                           (9.0, 0.0), (9.0, 0.0), (-9.0, 0.0)):
+                s.cell.move_to(s.cell.sync().moved(0.0, dy, dz))
+                seen += [s.cell.measure_force_n(), robot.dwell(0.1), s.cell.measure_force_n()]
+            sponge = s.robot_emulator.loop.model.physics.environment
+            seen += [robot.read_status(), robot.state_dict(), s.emulator_state(),
+                     getattr(sponge, "passes", None)]
+            return seen, s.robot_emulator.rested
+
+    runs: list[float] = []
+    run_cycle = EgmControllerModel.run_cycle
+
+    def counted(model: EgmControllerModel, t_s: float, target: Pose) -> tuple[Pose, bool] | None:
+        runs.append(t_s)
+        return run_cycle(model, t_s, target)
+
+    monkeypatch.setattr(EgmControllerModel, "run_cycle", counted)
+    alone: list[float] = []
+    follow_cycle = EgmControllerModel.follow_cycle
+
+    def counted_alone(model: EgmControllerModel, target: Pose, t_s: float) -> Pose:
+        alone.append(t_s)
+        return follow_cycle(model, target, t_s)
+
+    monkeypatch.setattr(EgmControllerModel, "follow_cycle", counted_alone)
+    jumped, rested = session(True)
+    in_runs, one_at_a_time = len(runs), len(alone)
+    one_by_one, none = session(False)
+    assert none == 0 and rested > 0
+    assert in_runs > 200  # the moving arm's cycles ran in runs, the ramps' too
+    assert one_at_a_time < in_runs / 20
+    assert jumped == one_by_one
+    assert jumped[-1] is not None and jumped[-1] >= 1  # the tool left the foam: a pass ended

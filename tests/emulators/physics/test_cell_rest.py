@@ -7,7 +7,7 @@ import random
 import pytest
 
 from forcelearn.devices import Pose
-from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams
+from forcelearn.emulators.physics.arm_motion import ArmMotion, MotionParams, PoseKey
 from forcelearn.emulators.physics.cell import CellPhysics
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams, surface_y_mm
 
@@ -78,3 +78,86 @@ def test_the_arm_pose_is_one_object_while_the_tool_stays() -> None:
     moved = motion.pose
     x, y, z = motion._tool
     assert moved is not first and moved == Pose(x, y, z, motion._tool_q) != first
+
+
+def _pressed_at_rest(batched: bool) -> tuple[CellPhysics, Sponge, ArmMotion]:
+    """A cell whose arm pressed 4 mm into the default foam and now rests (relaxing)."""
+    params = SpongeParams()
+    sponge = Sponge(params)
+    surface = surface_y_mm(params, 0, -40.0)
+    cell = CellPhysics(sponge, Pose(0.0, surface + 5.0, -40.0, DOWN))
+    motion = ArmMotion(MotionParams(), cell.pose)
+    cell.attach_motion(motion)
+    if not batched:
+        cell._batched = None  # the per-tick route
+    motion.command(Pose(0.0, surface - 4.0, -40.0, DOWN), 0.0)
+    cell.advance_to(1.5)
+    assert cell.at_rest() and sponge.relaxing_mm > 0.0
+    return cell, sponge, motion
+
+
+def test_rest_through_takes_the_ticks_as_runs(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``rest_through`` on a batched foam: its ticks in runs (no ``tick`` each), the same state."""
+    rng = random.Random(5)
+    times, t = [], 1.5
+    for _ in range(400):  # EGM cycles, some two ticks long, some within the tick
+        t += rng.choice((0.004, 0.004, 0.004, 0.008, 0.0))
+        times.append(t)
+
+    def state(cell: CellPhysics, sponge: Sponge, motion: ArmMotion) -> str:
+        return repr((motion.tick_index, sponge.relaxing_mm, sponge._foam_mm, sponge.passes,
+                     tuple(cell.true_wrench().tolist())))
+
+    plain = _pressed_at_rest(batched=False)
+    for chunk in (times[:150], times[150:151], times[151:]):
+        plain[0].rest_through(chunk)
+    runs = _pressed_at_rest(batched=True)
+    calls = []
+    monkeypatch.setattr(Sponge, "tick", lambda *a: calls.append(a))  # not asked on this route
+    for chunk in (times[:150], times[150:151], times[151:]):
+        runs[0].rest_through(chunk)
+    assert not calls
+    assert state(*runs) == state(*plain)
+    assert runs[2].tick_index == 375 + round((times[-1] - 1.5) / 0.004)
+
+
+def test_ticks_seen_is_ticks_then_observe_pose_run_by_run() -> None:
+    """``Sponge.ticks_seen``: each run's ticks, then the pose seen again, as one by one.
+
+    Presses in and out of the default foam (passes end: the merged route restores
+    and replays) and within it (no pass ends: one ``ticks`` call), rest ticks of
+    other spans between; every state equal to ``tick`` per key and ``observe_pose``.
+    """
+    params = SpongeParams()
+    surface = surface_y_mm(params, 0, -40.0)
+    rng = random.Random(3)
+    down = (1.0, 0.0, 0.0, 0.0)
+
+    def path(lift: bool) -> list[tuple[list[PoseKey], float, tuple[float, float, float] | None]]:
+        runs: list[tuple[list[PoseKey], float, tuple[float, float, float] | None]] = []
+        y, z = surface + 2.0, -40.0
+        for step in range(300):
+            target = surface - 4.0 if (step // 40) % 2 == 0 or not lift else surface + 3.0
+            y += 0.25 * (target - y)
+            z -= 0.05
+            keys: list[PoseKey] = [(0.0, y, z, down)] * rng.choice((1, 1, 2))
+            runs.append((keys, 0.004, (0.0, y, z) if rng.random() < 0.8 else None))
+            if rng.random() < 0.1:
+                runs.append(([keys[-1]], 0.004 * rng.choice((2, 3)), None))
+        return runs
+
+    for lift in (False, True):
+        runs = path(lift)
+        merged, plain = Sponge(params), Sponge(params)
+        start: PoseKey = (0.0, surface + 2.0, -40.0, down)
+        last = merged.ticks_seen(runs, start)
+        before = start
+        for keys, dt, seen in runs:
+            for key in keys:
+                moved = key != before
+                before = key if moved else before
+                plain.tick((before[0], before[1], before[2]), dt, moved)
+            if seen is not None:
+                plain.observe_pose(seen)
+        assert merged.passes == plain.passes and (merged.passes > 0) == lift
+        assert merged.state_dict() == plain.state_dict() and last == before

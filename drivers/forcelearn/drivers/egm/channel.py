@@ -247,7 +247,8 @@ class EgmChannel(Driver):
                 self._pending = address
                 return
 
-    def _rest(self, ends: Callable[[float, Pose, Pose], bool]) -> None:
+    def _rest(self, ends: Callable[[float, Pose, Pose], bool],
+              ends_run: Callable[[list[float], Pose, Pose], int] | None = None) -> None:
         """Lockstep in process: answer the held message, jump the cycles answered unseen.
 
         The controller runs the cycles whose EgmRobot a wait would only
@@ -255,7 +256,11 @@ class EgmChannel(Driver):
         feedback and planned pose ``ends`` is false, each answered with the
         ramp's next planned pose (:meth:`.guidance.Guidance.next_planned`), up
         to the first at which ``ends`` is true or the answer would be withheld,
-        which :meth:`_next_message` then reads as usual.
+        which :meth:`_next_message` then reads as usual. ``ends_run(times, feedback,
+        planned)``, if given, is the index of the first of ``times`` at which ``ends``
+        holds for that feedback and planned pose (``len(times)``: none), found as
+        ``ends`` would one by one: the cycles at rest are then asked in runs
+        (:class:`_Answers`).
         """
         rester, address, guidance = self._rester, self._pending, self._guidance
         if rester is None or address is None:
@@ -267,11 +272,7 @@ class EgmChannel(Driver):
             self._pending = None
             return
         self._pending = None
-        time_at, next_planned = guidance.time_at, guidance.next_planned
-
-        def answer(tm_ms: int, time_us: int, feedback: Pose, planned: Pose) -> Pose | None:
-            return None if ends(time_at(tm_ms, time_us), feedback, planned) else next_planned()
-
+        answer = _Answers(guidance, ends, ends_run)
         try:
             jumped, tm_ms, time_us = rester.rest_carried(reply, address, answer)
         except OSError as exc:
@@ -407,6 +408,39 @@ class EgmChannel(Driver):
 
     def _label(self) -> str:
         return f"EgmRobot on port {self.port}"
+
+class _Answers:
+    """The PC's answers to the cycles a lockstep wait jumps (``rest_carried``'s ``answer``).
+
+    Called with an EgmRobot's header.tm, feedBack.time, feedback and planned
+    pose: None if ``ends`` holds at its controller time (the wait reads it),
+    else the ramp's next planned pose (:meth:`.guidance.Guidance.next_planned`).
+    """
+
+    def __init__(self, guidance: Guidance, ends: Callable[[float, Pose, Pose], bool],
+                 ends_run: Callable[[list[float], Pose, Pose], int] | None) -> None:
+        self._guidance = guidance
+        self._ends, self._ends_run = ends, ends_run
+        self._time_at, self._next_planned = guidance.time_at, guidance.next_planned
+
+    def __call__(self, tm_ms: int, time_us: int, feedback: Pose, planned: Pose) -> Pose | None:
+        """The answer to one EgmRobot (None: the wait reads it)."""
+        return (None if self._ends(self._time_at(tm_ms, time_us), feedback, planned)
+                else self._next_planned())
+
+    def at_rest(self, feedback: Pose, planned: Pose, stamps: list[tuple[int, int]]) -> int:
+        """How many of the EgmRobots of ``stamps`` (in order) are answered with ``planned``.
+
+        So while the ramp rests on ``planned`` (every answer repeats it: nothing
+        of the guidance changes), up to the first at which ``ends`` holds, which
+        is answered None; -1 when the ramp does not rest there (each is asked).
+        """
+        guidance, ends_run = self._guidance, self._ends_run
+        if ends_run is None or not guidance.resting() or guidance.planned is not planned:
+            return -1
+        time_at = self._time_at
+        return ends_run([time_at(tm_ms, time_us) for tm_ms, time_us in stamps], feedback, planned)
+
 
 def _serve(driver_ref: weakref.ref[EgmChannel]) -> None:
     """The real-mode receive thread: answer every fresh message until the driver closes.

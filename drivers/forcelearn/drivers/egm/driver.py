@@ -349,7 +349,15 @@ class EgmRobot(EgmChannel):
                 return True
             return spent(now)
 
-        self._rest(ends)
+        def ends_run(times: list[float], feedback: Pose, planned: Pose) -> int:
+            # ends at each of times in turn: in position is the same for the same poses
+            in_position = until_in_position and in_position_at(feedback, planned)
+            for index, now in enumerate(times):
+                if (until_in_position and settled(now, in_position)) or spent(now):
+                    return index
+            return len(times)
+
+        self._rest(ends, ends_run)
 
     # -- checkpoint (emulated cell only) ----------------------------------------------------
 

@@ -33,7 +33,29 @@ def clean_target(pose: object) -> Pose:
 
 
 def unsafe_reason(pose: Pose | None, limits: Limits, tolerance: float) -> str | None:
-    """Why ``pose`` may not be adopted or sent, or None when it is finite, unit and inside."""
+    """Why ``pose`` may not be adopted or sent, or None when it is finite, unit and inside.
+
+    A pose that passes is found so by the same comparisons written out (every
+    ramp step is checked: one each 4 ms cycle); a refusal is worded by
+    :func:`_unsafe_reason`.
+    """
+    if pose is not None and len(q := pose.quaternion) == 4:
+        x, y, z = pose.x_mm, pose.y_mm, pose.z_mm
+        q0, q1, q2, q3 = q
+        finite = math.isfinite
+        if (finite(x) and finite(y) and finite(z) and finite(q0) and finite(q1) and finite(q2)
+                and finite(q3)):
+            # sum()'s additions, from 0.0 (a square is never -0.0: the same float)
+            norm = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+            low, high = limits.workspace_min_mm, limits.workspace_max_mm
+            if (abs(norm - 1.0) <= tolerance and low[0] <= x <= high[0]
+                    and low[1] <= y <= high[1] and low[2] <= z <= high[2]):
+                return None
+    return _unsafe_reason(pose, limits, tolerance)
+
+
+def _unsafe_reason(pose: Pose | None, limits: Limits, tolerance: float) -> str | None:
+    """:func:`unsafe_reason` step by step, each refusal worded."""
     if pose is None:
         return "no Cartesian pose"
     values = (pose.x_mm, pose.y_mm, pose.z_mm, *pose.quaternion)

@@ -190,6 +190,14 @@ class EgmControllerModel:
         """The motion model's ``resting`` and ``rest_through`` (:meth:`rest_pose`), if any."""
         self._rest_through: Callable[[Sequence[float]], None] | None = getattr(
             self.motion, "rest_through", None)
+        self._follow_keys: Callable[..., Any] | None = getattr(self.motion, "follow_keys", None)
+        self._command_keys: Callable[..., Any] | None = getattr(self.motion, "command_keys", None)
+        self._can_run: Callable[[], bool] | None = getattr(self.motion, "can_run", None)
+        self._take_run: Callable[[list[Any]], None] | None = getattr(self.motion, "take_run", None)
+        """The motion model's ``follow_keys``, ``command_keys``, ``can_run`` and ``take_run``
+        (:meth:`run_start`)."""
+        self._run: list[tuple[Any, ...]] = []
+        self._run_holds = True
         """The motion model's ``follow(target, t_s)`` (:meth:`follow_cycle`), if it has one."""
 
     @property
@@ -367,7 +375,7 @@ class EgmControllerModel:
         """The rest of :meth:`_move_to` once the arm reached ``pose`` at ``t_s``."""
         self.pose = pose
         published = self._published
-        if (pose is not published and pose != published) or self.physics.pose is not published:
+        if (pose is not published and pose != published) or not self.physics.holds(published):
             self.physics.set_pose(pose)  # else at rest where it was published (and observed)
             self._published = pose
         t0, p0 = self._last_pose_s
@@ -434,6 +442,11 @@ class EgmControllerModel:
     def stamps(self, t_s: float) -> tuple[int, int]:
         """The EgmRobot's header.tm (ms) and feedBack.time (µs since 1970) of a cycle at ``t_s``."""
         return round(t_s * 1000), self.config.clock_epoch_us + round(t_s * 1e6)
+
+    def stamps_at(self, times_s: Sequence[float]) -> list[tuple[int, int]]:
+        """:meth:`stamps` of each of ``times_s``, in order."""
+        epoch = self.config.clock_epoch_us
+        return [(round(t_s * 1000), epoch + round(t_s * 1e6)) for t_s in times_s]
 
     # -- cycles that only follow (the in-process route's jump: CycleLoop.rest) --------------
 
@@ -514,7 +527,7 @@ class EgmControllerModel:
             return None
         pose = resting(target)
         if (pose is None or pose is not self.pose or pose is not self._published
-                or pose is not self._feedback_joints_pose or self.physics.pose is not pose):
+                or pose is not self._feedback_joints_pose or not self.physics.holds(pose)):
             return None
         return pose
 
@@ -533,6 +546,76 @@ class EgmControllerModel:
         t0, p0 = self._last_pose_s if len(times_s) == 1 else (times_s[-2], pose)
         self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)  # as _moved: the last cycle's
         self._last_pose_s = (t_s, pose)
+
+    def run_start(self) -> bool:
+        """Whether the cycles from now may run as a run (:meth:`run_cycle`, then :meth:`run_end`).
+
+        So when guidance runs, the pose published is the one the cell holds, and the
+        motion model can take the arm's ticks alone and the cell's side at the end
+        (``can_run``). :meth:`run_end` must follow the run's cycles.
+        """
+        return (self._follow_keys is not None and self._command_keys is not None
+                and self._can_run is not None and self.mci is codec.MciState.RUNNING
+                and self._published is not None and self.physics.holds(self._published)
+                and self._can_run())
+
+    def run_cycle(self, t_s: float, target: Pose) -> tuple[Pose, bool] | None:
+        """:meth:`follow_cycle` of ``target`` at ``t_s`` in a run; the pose and if the arm rests.
+
+        The arm's ticks run now; the cell's side of them, and of publishing the pose
+        (:meth:`_moved`'s ``set_pose``), waits for :meth:`run_end`: nothing reads the cell
+        meanwhile. The model's own state is :meth:`follow_cycle`'s. ``target`` is the
+        pose in effect (its short route) or a new planned pose its check passes (read,
+        checked and commanded as :meth:`_plan` does). None, nothing done, for any other
+        cycle (a refusal, a pose equal to the one in effect but another object): it runs
+        one by one.
+        """
+        last = self._checks.last
+        if target is self.planned:
+            if last is None or last[0] is not target or last[1] is not None:
+                return None
+            assert self._follow_keys is not None
+            ticked = self._follow_keys(target, t_s)
+            if ticked is None:
+                return None
+        else:
+            if target == self.planned:
+                return None
+            refusal, joints = self._checks.checked(target)
+            if refusal:
+                return None
+            self.planned = target
+            if joints is not None:
+                self.planned_joints = joints
+            assert self._command_keys is not None  # feed_forward_pose without speedRef: target
+            ticked = self._command_keys(target, t_s)
+        keys, rest, key, pose, moved = ticked
+        if moved:
+            self._run_holds = False  # a tick moved the tool: the cell's pose is read anew
+        published, seen = self._published, None
+        if (pose is not published and pose != published) or not self._run_holds:
+            seen = self._published = pose
+            self._run_holds = True
+        self._run.append((keys, rest, key, seen))
+        self._last_read_s = t_s
+        self.targets_read += 1
+        self.pose = pose
+        t0, p0 = self._last_pose_s
+        self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
+        self._last_pose_s = (t_s, pose)
+        joints_pose = self._feedback_joints_pose
+        if pose is not joints_pose and pose != joints_pose:
+            self._joints_to_find.append(pose)
+            self._feedback_joints_pose = pose
+        return pose, rest != 0 or not keys
+
+    def run_end(self) -> None:
+        """The cell's side of the run's cycles (idempotent: a run with no cycle does nothing)."""
+        run, self._run = self._run, []
+        self._run_holds = True
+        if run:
+            assert self._take_run is not None
+            self._take_run(run)
 
     def cycles_to_wrap(self) -> int:
         """How many EgmRobots may be built before :meth:`wraps_next` holds (0: it holds now)."""

@@ -35,7 +35,16 @@ from forcelearn.protocols.egm.carried import Datagram
 Answer = Callable[[int, int, Pose, Pose], Pose | None]
 """The planned pose of the PC's answer to an EgmRobot, from its header.tm (ms), feedBack.time
 (µs), feedBack.cartesian and planned.cartesian; None: the PC reads that EgmRobot itself
-(:meth:`CycleLoop.rest` stops its jump there)."""
+(:meth:`CycleLoop.rest` stops its jump there).
+
+It may also have ``at_rest(feedback, planned, stamps) -> int``: for cycles of these
+(header.tm, feedBack.time) in order, all with this feedback and planned pose, how many
+leading ones it answers with ``planned`` itself, found as it would answer them one by one
+(its own state changes included); the cycle at that index (if any) it answers None. -1:
+not known (each cycle is asked). :meth:`CycleLoop.rest` asks it for runs of cycles at rest."""
+
+REST_RUN = 128
+"""Cycles at rest whose answers one ``at_rest`` call gives (:meth:`CycleLoop._rest_batch`)."""
 
 
 class CycleLoop:
@@ -182,6 +191,13 @@ class CycleLoop:
                 if robot is not None:
                     return skipped, *stamps, robot
                 continue
+            if self.clock.now_s == t and model.run_start():  # the moving arm's cycles, a run
+                ran, skipped, stamps, planned, robot = self._follow_run(
+                    planned, answer, skipped, stamps)
+                if robot is not None:
+                    return skipped, *stamps, robot
+                if ran:
+                    continue
             feedback = model.follow_cycle(planned, t)  # read_planned, then move_to
             self.cycles += 1
             self._inbox = []  # read
@@ -196,6 +212,51 @@ class CycleLoop:
             model.skip()
             skipped, stamps, planned = skipped + 1, at, step
             self._next_cycle()  # end([the answer]): read at the next cycle
+
+    def _follow_run(
+        self, planned: Pose, answer: Answer, skipped: int, stamps: tuple[int, int]
+    ) -> tuple[int, int, tuple[int, int], Pose, Datagram | None]:
+        """:meth:`rest`'s cycles one by one while the arm moves: ramps and the arm's lag.
+
+        The same cycles, answers and state as :meth:`rest`'s loop
+        (:meth:`EgmControllerModel.run_cycle` for ``follow_cycle``), the cell's side of
+        the arm's ticks taken at the end (:meth:`EgmControllerModel.run_end`). Ends
+        once the arm rests while the answer repeats the pose, before a restart, the
+        cycle whose seqno wraps next or a cycle ``run_cycle`` leaves (a refusal), or
+        at the cycle the PC reads (its EgmRobot returned). Returns (cycles run, cycles
+        skipped, their last stamps, the planned pose of the next cycle, the EgmRobot
+        to send or None).
+        """
+        model, restart, period = self.model, self.restart_requested, self.period_s
+        t = self.t_s
+        left = model.cycles_to_wrap()  # the cycle after which the seqno wraps is read by rest()
+        ran = 0
+        try:
+            while ran < left and not restart.is_set():
+                cycle = model.run_cycle(t, planned)
+                if cycle is None:  # this cycle runs one by one (nothing done)
+                    break
+                feedback, resting = cycle
+                self.cycles += 1
+                self._inbox = []  # read
+                ran += 1
+                at = model.stamps(t)
+                step = answer(*at, feedback, planned)
+                if step is None:  # the PC reads this cycle's EgmRobot
+                    model.run_end()
+                    self.t_s = self.clock.advance_to(t)
+                    robot = model.robot_carried(t, defer_force=True, moved=True)
+                    return ran, skipped, stamps, planned, robot
+                model.skip()
+                skipped, stamps = skipped + 1, at
+                t = t + period  # end([the answer]): read at the next cycle
+                if step is planned and resting:
+                    break
+                planned = step
+        finally:
+            model.run_end()
+        self.t_s = self.clock.advance_to(t)
+        return ran, skipped, stamps, planned, None
 
     def _rest_batch(
         self, planned: Pose, pose: Pose, answer: Answer, skipped: int, stamps: tuple[int, int]
@@ -222,9 +283,27 @@ class CycleLoop:
         step: Pose | None = planned
         last_at = stamps
         at = stamps
+        at_rest = getattr(answer, "at_rest", None)
         while True:
             if restart.is_set():  # the next cycle (at t) runs as rest() runs it
                 break
+            if at_rest is not None and len(times) < left:  # a run of answers in one call
+                run_t: list[float] = []
+                for _ in range(min(REST_RUN, left - len(times))):
+                    run_t.append(t)
+                    t = t + period
+                run_at = model.stamps_at(run_t)
+                answered = at_rest(pose, planned, run_at)
+                if answered >= 0:
+                    times += run_t[:answered]
+                    if answered:
+                        last_at = at = run_at[answered - 1]
+                    if answered == len(run_t):
+                        continue  # all answered with planned: t is the next cycle's
+                    at, step, t = run_at[answered], None, run_t[answered]  # the PC reads it
+                    times.append(t)
+                    break
+                at_rest, t = None, run_t[0]  # not known: each cycle is asked
             at = model.stamps(t)
             step = answer(*at, pose, planned) if len(times) < left else None
             times.append(t)

@@ -41,7 +41,7 @@ from dataclasses import replace
 
 from forcelearn.devices import Pose
 from forcelearn.emulators.egm.servo import ServoParams
-from forcelearn.emulators.physics.arm_motion import MotionParams
+from forcelearn.emulators.physics.arm_motion import MotionParams, PoseKey
 from forcelearn.emulators.physics.cell import CellPhysics
 
 
@@ -113,6 +113,56 @@ class PhysicsMotion:
     def rest_through(self, times_s: Sequence[float]) -> None:
         """:meth:`follow` of the pose last commanded at each of ``times_s`` (``resting``)."""
         self.physics.rest_through(times_s)
+
+    def follow_keys(
+        self, target: Pose, t_s: float
+    ) -> tuple[list[PoseKey], int, PoseKey, Pose, bool] | None:
+        """:meth:`follow` of ``target`` with the arm's ticks alone (``ArmMotion.advance_keys``).
+
+        Returns the tool keys of the ticks, the ticks jumped at rest, the tool key and
+        pose then, and whether a tick moved the tool (a key unlike the one before); the
+        cell's side of them is :meth:`take_run`'s. None, nothing done, for another target.
+        """
+        if target is not self._last:
+            return None
+        motion = self.motion
+        before = motion.tool_key
+        keys, rest = motion.advance_keys(t_s)
+        moved = False
+        for key in keys:
+            if key != before:
+                moved = True
+                break
+        return keys, rest, motion.tool_key, motion.pose, moved
+
+    def command_keys(
+        self, target: Pose, t_s: float
+    ) -> tuple[list[PoseKey], int, PoseKey, Pose, bool]:
+        """:meth:`command` of ``target`` read at ``t_s``, then the arm to ``t_s``, ticks alone.
+
+        As :meth:`follow_keys` (the same return); the arm's ticks to ``t_s`` run before
+        the command is taken, as :meth:`command` then :meth:`advance_to` run them.
+        """
+        motion = self.motion
+        before = motion.tool_key
+        keys, rest = motion.advance_keys(t_s)
+        if target != self._last:  # as command(): a repeated pose is not commanded again
+            self._last = target
+            motion.command(target, t_s)
+        moved = False
+        for key in keys:
+            if key != before:
+                moved = True
+                break
+        return keys, rest, motion.tool_key, motion.pose, moved
+
+    def can_run(self) -> bool:
+        """Whether :meth:`follow_keys` and :meth:`take_run` may stand for :meth:`follow` now."""
+        return self.physics.can_run()
+
+    def take_run(self, cycles: Sequence[tuple[list[PoseKey], int, PoseKey, Pose | None]]) -> None:
+        """The cell's side of the :meth:`follow_keys` cycles (``CellPhysics.take_run``)."""
+        self.physics.take_run(cycles)
 
     def hold(self, t_s: float) -> None:
         """Stop where the arm is at ``t_s`` (brake along the present path, drop planned poses)."""

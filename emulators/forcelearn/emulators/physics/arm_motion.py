@@ -172,6 +172,11 @@ class ArmMotion:
             None, None, (0.0, 0.0, 0.0))
         """(segment start, goal, :meth:`_direction`) of the latest segment started: the next
         segment's old direction while that segment runs (its start and goal the same objects)."""
+        self._turn: tuple[Any, Any, float] = (None, None, 0.0)
+        """The latest (start orientation, goal orientation, :func:`_angle_deg`) of a segment."""
+        self._terms: tuple[float, float, float, float, float, float, float,
+                           Quaternion, Quaternion]
+        """The present segment's length, start, goal and turns (:meth:`advance_keys` reads them)."""
         self._set_rest(pose)
 
     def _set_rest(self, pose: Pose) -> None:
@@ -186,6 +191,7 @@ class ArmMotion:
         self._seg_start_q = self._tool_q
         self._seg_goal = pose
         self._seg_length = 0.0
+        self._find_terms()
         self._seg_end = 0.0
         self._s = 0.0
         self._v = 0.0
@@ -332,7 +338,7 @@ class ArmMotion:
         ref, ref_q, ref_s = self._ref, self._ref_q, self._ref_s
         tool, tool_q = self._tool, self._tool_q
         unit_q, unit_ref = self._unit_q, self._unit_ref
-        segment = self._segment_terms()
+        segment = self._terms
         rest = 0
         while index < last:
             if not pending and v == 0.0 and s >= end and tool == ref and tool_q == ref_q:
@@ -346,7 +352,7 @@ class ArmMotion:
                 while pending and pending[0][0] <= index:
                     self._start_segment(pending.popleft()[1])
                 s, v, end, ref_s = self._s, self._v, self._seg_end, self._ref_s
-                segment = self._segment_terms()
+                segment = self._terms
             if s < end:  # min(...) of three, then of two, written as comparisons
                 v = v + accel * tick
                 if speed < v:
@@ -385,13 +391,12 @@ class ArmMotion:
             self.tool_key = keys[-1]
         return keys, rest
 
-    def _segment_terms(self) -> tuple[float, float, float, float, float, float, float,
-                                      Quaternion, Quaternion]:
-        """What :meth:`_reference_at` reads of the present segment: length, start, goal, turns."""
+    def _find_terms(self) -> None:
+        """Keep what :meth:`_reference_at` reads of the segment just set (:attr:`_terms`)."""
         goal = self._seg_goal
         x0, y0, z0 = self._seg_start
-        return (self._seg_length, x0, y0, z0, goal.x_mm, goal.y_mm, goal.z_mm,
-                self._seg_start_q, goal.quaternion)
+        self._terms = (self._seg_length, x0, y0, z0, goal.x_mm, goal.y_mm, goal.z_mm,
+                       self._seg_start_q, goal.quaternion)
 
     def _step(self, dt: float) -> None:
         pending = self._pending
@@ -425,23 +430,39 @@ class ArmMotion:
         self.tool_key = (tool[0], tool[1], tool[2], self._tool_q)
 
     def _start_segment(self, goal: Pose) -> None:
+        """A new segment from the present reference to ``goal``, keeping the speed along it.
+
+        Written out (a ramp starts one every 4 ms cycle): the operations of
+        :meth:`_direction` and of the speed carry-over's ``sum`` in the same order
+        (``sum`` adds from 0.0: the same floats but a zero's sign, which only
+        ``carry > 0`` reads).
+        """
         start, start_q = list(self._ref), self._ref_q
         known = self._segment_direction  # the present segment's, if found at its start
         if known[0] is self._seg_start and known[1] is self._seg_goal:
             old_dir = known[2]
         else:
             old_dir = self._direction()
-        distance = math.dist(start, (goal.x_mm, goal.y_mm, goal.z_mm))
-        turn = _angle_deg(start_q, goal.quaternion)
+        gx, gy, gz, goal_q = goal.x_mm, goal.y_mm, goal.z_mm, goal.quaternion
+        distance = math.dist(start, (gx, gy, gz))
+        turned = self._turn
+        if start_q == turned[0] and goal_q == turned[1]:  # (equal values: the same angle)
+            turn = turned[2]
+        else:
+            turn = _angle_deg(start_q, goal_q)
+            self._turn = (start_q, goal_q, turn)
         length = max(distance, turn * self.speed_mm_s / self.params.rotation_speed_deg_s)
         self._seg_start, self._seg_start_q, self._seg_goal = start, start_q, goal
         self._seg_length = length
+        self._terms = (length, start[0], start[1], start[2], gx, gy, gz, start_q, goal_q)
         self._ref_s = None
         self._s = 0.0
         self._seg_end = length if self.stall_fraction is None else length * self.stall_fraction
-        new_dir = self._direction()
+        dx, dy, dz = gx - start[0], gy - start[1], gz - start[2]  # _direction(), written out
+        norm = math.sqrt(dx * dx + dy * dy + dz * dz)
+        new_dir = (0.0, 0.0, 0.0) if norm == 0.0 else (dx / norm, dy / norm, dz / norm)
         self._segment_direction = (start, goal, new_dir)
-        carry = sum(a * b for a, b in zip(old_dir, new_dir, strict=True))
+        carry = old_dir[0] * new_dir[0] + old_dir[1] * new_dir[1] + old_dir[2] * new_dir[2]
         self._v = self._v * carry if carry > 0 else 0.0
 
     def _direction(self) -> tuple[float, float, float]:
@@ -500,4 +521,5 @@ class ArmMotion:
         self._seg_start, self._seg_start_q = list(start[:3]), tuple(start[3:7])
         self._seg_goal = pose(state["seg_goal"])
         self._seg_length, self._seg_end, self._s, self._v = (float(x) for x in state["seg"])
+        self._find_terms()
         self._ref_s = None

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Sequence
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, cast, runtime_checkable
 
 import numpy as np
 
@@ -298,13 +298,78 @@ class CellPhysics:
         with self._lock:
             if not self.at_rest():
                 raise RuntimeError("rest_through needs the arm at rest (at_rest())")
-            motion, ticked = self.motion, self._ticked
+            motion, ticked, batched = self.motion, self._ticked, self._batched
             assert motion is not None and ticked is not None
             rest_span, tick, position = motion.rest_span, motion.params.tick_s, self._position
+            if batched is None:
+                for t_s in times_s:
+                    span = rest_span(t_s)  # >= 0: at rest it stays (only the tick index moves)
+                    if span:
+                        ticked.tick(position, span * tick, False)
+                return
+            # the same ticks as runs of one span each through ``ticks``: a key equal to the one
+            # recorded evolves at the recorded position, the tool not moved (as ``tick`` above)
+            key = self._pose_key
+            keys: list[PoseKey] = []
+            dt = 0.0
             for t_s in times_s:
-                span = rest_span(t_s)  # >= 0: at rest it stays (only the tick index moves)
+                span = rest_span(t_s)
                 if span:
-                    ticked.tick(position, span * tick, False)
+                    step = span * tick
+                    if step != dt and keys:
+                        batched.ticks(keys, dt, key)
+                        keys = []
+                    dt = step
+                    keys.append(key)
+            if keys:
+                batched.ticks(keys, dt, key)
+
+    def can_run(self) -> bool:
+        """Whether :meth:`take_run` may take the arm's ticks from now (the fused tick route).
+
+        So when the environment is a batched foam with ``ticks_seen``, no hook wraps
+        ``_move_tool``, the tool is where the arm is and the pose read is the one set.
+        """
+        with self._lock:
+            motion = self.motion
+            return (motion is not None and not motion.params.instant and self._batched is not None
+                    and hasattr(self._batched, "ticks_seen")
+                    and "_move_tool" not in self.__dict__ and motion.tool_key == self._pose_key
+                    and self._pose is not None)
+
+    def take_run(self, cycles: Sequence[tuple[list[PoseKey], int, PoseKey, Pose | None]]) -> None:
+        """The environment's side of cycles whose arm ticks ran already (:meth:`can_run` held).
+
+        Each cycle is (the tool keys of its ticks, the ticks jumped at rest after them, the
+        tool key then, the pose :meth:`set_pose` was given after it or None), as
+        :meth:`ArmMotion.advance_keys` gave them: the same state as :meth:`advance_to`
+        then :meth:`set_pose` cycle by cycle, the environment's ticks taken at once
+        (``ticks_seen``).
+        """
+        with self._lock:
+            motion, batched = self.motion, self._batched
+            assert motion is not None and batched is not None
+            tick = motion.params.tick_s
+            runs: list[tuple[Sequence[PoseKey], float, tuple[float, float, float] | None]] = []
+            last = None
+            for keys, rest, key, pose in cycles:
+                if keys:
+                    runs.append((keys, tick, None))
+                if rest:
+                    runs.append(((key,), rest * tick, None))
+                if pose is not None:
+                    last = pose
+                    seen = (pose.x_mm, pose.y_mm, pose.z_mm)
+                    if runs and runs[-1][2] is None:
+                        runs[-1] = (runs[-1][0], runs[-1][1], seen)
+                    else:
+                        runs.append(((), tick, seen))
+            recorded = cast(Any, batched).ticks_seen(runs, self._pose_key)
+            if recorded is not self._pose_key:
+                self._record_tool(recorded)
+            if last is not None:  # set_pose without its observation (ticks_seen made it)
+                self._record_tool((last.x_mm, last.y_mm, last.z_mm, last.quaternion))
+                self._pose = last
 
     @property
     def tool(self) -> ToolParams:
@@ -331,6 +396,10 @@ class CellPhysics:
                 x, y, z, quaternion = self._pose_key
                 self._pose = Pose(x, y, z, quaternion)
             return self._pose
+
+    def holds(self, pose: Pose) -> bool:
+        """Whether :attr:`pose` is ``pose`` (the object), without building the pose if moved."""
+        return self._pose is pose
 
     def set_pose(self, pose: Pose) -> None:
         """Record the pose the tool has reached (by the motion model, or directly in tests)."""
