@@ -593,7 +593,7 @@ class EgmControllerModel:
         if moved:
             self._run_holds = False  # a tick moved the tool: the cell's pose is read anew
         published, seen = self._published, None
-        if (pose is not published and pose != published) or not self._run_holds:
+        if not self._run_holds or (pose is not published and pose != published):
             seen = self._published = pose
             self._run_holds = True
         self._run.append((keys, rest, key, seen))

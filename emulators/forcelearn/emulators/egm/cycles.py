@@ -230,7 +230,7 @@ class CycleLoop:
         model, restart, period = self.model, self.restart_requested, self.period_s
         t = self.t_s
         left = model.cycles_to_wrap()  # the cycle after which the seqno wraps is read by rest()
-        ran = 0
+        ran = answered = 0  # (the answered cycles' EgmRobots counted as built at the end)
         try:
             while ran < left and not restart.is_set():
                 cycle = model.run_cycle(t, planned)
@@ -243,17 +243,21 @@ class CycleLoop:
                 at = model.stamps(t)
                 step = answer(*at, feedback, planned)
                 if step is None:  # the PC reads this cycle's EgmRobot
+                    model.skip(answered)
+                    answered = 0
                     model.run_end()
                     self.t_s = self.clock.advance_to(t)
                     robot = model.robot_carried(t, defer_force=True, moved=True)
                     return ran, skipped, stamps, planned, robot
-                model.skip()
+                answered += 1
                 skipped, stamps = skipped + 1, at
                 t = t + period  # end([the answer]): read at the next cycle
                 if step is planned and resting:
                     break
                 planned = step
         finally:
+            if answered:
+                model.skip(answered)
             model.run_end()
         self.t_s = self.clock.advance_to(t)
         return ran, skipped, stamps, planned, None
