@@ -350,8 +350,7 @@ class Cell:
             batch = [self._guarded(self.sensor.read) for _ in range(count)]
         self.burst_frozen = len(batch) > 2 and all(
             np.array_equal(batch[0].wrench, sample.wrench) for sample in batch[1:])
-        compensated = self._compensated_burst(batch)
-        wrenches = np.array([s.wrench for s in compensated])  # (n, 6): the mean's and the guard's
+        compensated, wrenches = self._compensated_burst(batch)  # (n, 6): the mean's, the guard's
         self._last_mean_wrench = np.mean(wrenches, axis=0)
         force = math.nan
         if self.press_guard is not None and self._pose is not None:
@@ -553,15 +552,25 @@ class Cell:
             return sample
         return sample.with_wrench(wrench)  # keeps its time, counter, flags
 
-    def _compensated_burst(self, batch: list[WrenchSample]) -> list[WrenchSample]:
-        """:meth:`_compensated` of each sample, the residual's test made once per burst."""
+    def _compensated_burst(
+        self, batch: list[WrenchSample]
+    ) -> tuple[list[WrenchSample], np.ndarray]:
+        """:meth:`_compensated` of each sample, and their wrenches as one (n, 6) array.
+
+        The residual's test is made once per burst, and a residual is taken off the
+        burst's array at once (the same subtraction per element); each compensated
+        sample's wrench is then its row.
+        """
         if self.compensation is not None:
-            return [self._compensated(sample) for sample in batch]
+            compensated = [self._compensated(sample) for sample in batch]
+            return compensated, np.array([s.wrench for s in compensated])
         residual = self.zero_residual
         if not any(residual.tolist()):
-            return list(batch)
-        return [sample.with_wrench(np.asarray(sample.wrench, dtype=float) - residual)
-                for sample in batch]
+            return list(batch), np.array([s.wrench for s in batch])
+        wrenches = np.array([s.wrench for s in batch], dtype=float) - residual
+        samples = [sample.with_wrench(wrench)
+                   for sample, wrench in zip(batch, wrenches, strict=True)]
+        return samples, wrenches
 
     def check_tool_fit(self, samples: int | None = None) -> bool:
         """In free space: raise ToolMismatch if the calibrated tool no longer fits here.

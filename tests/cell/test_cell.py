@@ -364,7 +364,10 @@ def test_without_a_recorder_the_cell_reads_no_extra_state() -> None:
 @pytest.mark.parametrize("compensated", [False, True])
 def test_a_burst_is_compensated_as_its_samples_one_by_one(residual: np.ndarray,
                                                           compensated: bool) -> None:
-    """``_compensated_burst`` (the residual tested once a burst) is ``_compensated`` per sample."""
+    """``_compensated_burst`` (the residual tested once a burst) is ``_compensated`` per sample.
+
+    Its (n, 6) array holds those samples' wrenches, to the bit.
+    """
     cell, _, _ = make_cell([])
     cell.zero_residual = residual
     if compensated:
@@ -372,9 +375,10 @@ def test_a_burst_is_compensated_as_its_samples_one_by_one(residual: np.ndarray,
     rng = np.random.default_rng(4)
     batch = [WrenchSample(rng.normal(0.0, 3.0, 6), 0.1 * i, i, sensor_dt_s=0.001 * i or None)
              for i in range(7)]
-    burst = cell._compensated_burst(batch)
+    burst, wrenches = cell._compensated_burst(batch)
     one_by_one = [cell._compensated(sample) for sample in batch]
     assert len(burst) == len(one_by_one)
+    assert wrenches.tobytes() == np.array([s.wrench for s in one_by_one]).tobytes()
     for a, b in zip(burst, one_by_one, strict=True):
         assert a.wrench.tobytes() == b.wrench.tobytes()
         assert (a.timestamp_s, a.counter, a.saturated, a.sensor_dt_s) == (

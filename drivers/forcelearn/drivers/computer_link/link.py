@@ -30,7 +30,7 @@ import secrets
 import threading
 import time
 from collections.abc import Callable
-from typing import Protocol, TypeVar, overload
+from typing import Protocol, TypeVar
 
 import serial
 
@@ -116,11 +116,25 @@ class Link:
         reply built as a message; otherwise, or when that port says the frames must
         go, :meth:`transact`.
         """
-        if self._carry_status is not None:
+        carry = self._carry_status
+        if carry is not None:
             with self._lock:
-                answer = self._guarded(self._transact, m.Command.READ_STATUS, b"", True)
-            if isinstance(answer, m.Status):
-                return answer
+                if self._broken:
+                    raise self._down()
+                try:  # _guarded(_transact, READ_STATUS), the status carried if the port can
+                    tns = self._transaction = (self._transaction + 1) & 0xFFFF
+                    payload = m.encode_request(m.Command.READ_STATUS, tns)
+                    self._port.reset_input_buffer()
+                    self._reader.clear()
+                    self._pending.clear()
+                    carried = carry(payload)
+                    if carried is not None:
+                        return carried  # what the carried reply's body parses to
+                    answer = self._exchange(m.Command.READ_STATUS, tns, payload)
+                except LinkError:
+                    raise
+                except PORT_ERRORS as exc:
+                    raise self._lost(exc) from exc
         else:
             answer = self.transact(m.Command.READ_STATUS)
         if answer.error != m.ErrorCode.OK:
@@ -130,37 +144,39 @@ class Link:
     def _guarded(self, transact: Callable[..., _T], *args: object) -> _T:
         """``transact(*args)`` on a link that is up; a port failure breaks the link (LinkError)."""
         if self._broken:
-            raise LinkError(f"link is down ({self._broken}); reconnect before commanding")
+            raise self._down()
         try:
             return transact(*args)
         except LinkError:  # LinkTimeout is also an OSError (TimeoutError): keep it as is
             raise
         except PORT_ERRORS as exc:  # pyserial leaks raw OSError and termios.error
-            self._broken = str(exc)
-            raise LinkError(
-                f"link to {self._config.url} lost ({exc}); the last command may or may "
-                "not have executed: reconnect, then read the position"
-            ) from exc
+            raise self._lost(exc) from exc
 
-    @overload
-    def _transact(self, command: m.Command, body: bytes) -> m.Reply: ...
+    def _down(self) -> LinkError:
+        """The error of a call on a broken link."""
+        return LinkError(f"link is down ({self._broken}); reconnect before commanding")
 
-    @overload
-    def _transact(self, command: m.Command, body: bytes, status: bool) -> m.Reply | m.Status: ...
+    def _lost(self, exc: BaseException) -> LinkError:
+        """Mark the link broken by the port failure ``exc``; the error to raise."""
+        self._broken = str(exc)
+        return LinkError(
+            f"link to {self._config.url} lost ({exc}); the last command may or may "
+            "not have executed: reconnect, then read the position"
+        )
 
-    def _transact(self, command: m.Command, body: bytes, status: bool = False
-                  ) -> m.Reply | m.Status:
-        """One transaction; ``status``: READ_STATUS's status carried as it is if the port can."""
-        cfg = self._config
+    def _transact(self, command: m.Command, body: bytes) -> m.Reply:
+        """One transaction: a new number, the input discarded, the request carried or framed."""
         self._transaction = (self._transaction + 1) & 0xFFFF
         tns = self._transaction
         payload = m.encode_request(command, tns, body)
         self._port.reset_input_buffer()
         self._reader.clear()
         self._pending.clear()
-        if status and self._carry_status is not None and (
-                carried_status := self._carry_status(payload)) is not None:
-            return carried_status  # what the carried reply's body parses to
+        return self._exchange(command, tns, payload)
+
+    def _exchange(self, command: m.Command, tns: int, payload: bytes) -> m.Reply:
+        """:meth:`_transact` once the request is made, the input discarded: carried or framed."""
+        cfg = self._config
         if self._carry is not None and (answer := self._carry(payload)) is not None:
             # an in-process controller answered the payload itself: what the reply
             # frame would carry, the frames' ACKs taken as sent and received

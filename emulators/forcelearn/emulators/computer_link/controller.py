@@ -208,17 +208,20 @@ class ControllerEngine:
             arrived, repeated = self._carry_request(payload, char)
             if repeated is not None:
                 status = m.parse_status(m.decode_reply(repeated).body)
-                reply_size = len(repeated)
-            else:
-                # _execute's READ_STATUS: the physics brought to now, then _read's status
-                now = self.clock.now_s
-                self.physics.advance_to(now)
-                status = self._status(now)
-                self._last_request = payload
-                self._payload, self._status_reply = None, (tns, status)  # encoded if asked
-                self._last_reply = None
-                reply_size = _STATUS_REPLY_SIZE
-            self._carry_reply(reply_size, arrived, char)
+                self._carry_reply(len(repeated), arrived, char)
+                return status
+            # _execute's READ_STATUS: the physics brought to now, then _read's status
+            # (_status's, inline: a poll's calls are the in-process loop's cost)
+            now = self.clock.now_s
+            self.physics.advance_to(now)
+            motion = self.motion
+            in_position = motion.in_position and not self.never_in_position
+            status = m.Status(motion.moving, in_position, self._last_error,
+                              self.move_count & 0xFFFFFFFF, now)
+            self._last_request = payload
+            self._payload, self._status_reply = None, (tns, status)  # encoded if asked
+            self._last_reply = None
+            self._carry_reply(_STATUS_REPLY_SIZE, arrived, char)
             return status
 
     def _schedule(self, answers: list[Answer], arrived_s: float) -> None:
