@@ -60,13 +60,13 @@ def _fitted(probed: SpongeParams) -> tuple[SimpleNamespace, Problem, np.ndarray]
 def test_a_probe_that_disagrees_with_the_steps_widens_the_shape() -> None:
     """The probe meets a waviness of 84 mm, the steps one of 80: the pull is in the 1-sigma.
 
-    Leaving the probe out moves the wavelength and the contact by more than the jackknife's
-    1-sigma (what the fit said before); the experiments' share is at least half the move.
+    Leaving the probe out moves both wavelengths by more than the jackknife's 1-sigma (what
+    the fit said before); the experiments' share is at least half the move.
     """
     fitted, problem, moved = _fitted(dataclasses.replace(CELL, waviness_wavelength_mm=84.0))
     resampled = jackknife(fitted, problem.train, ARM, READING, 0.05)
     spread = experiment_spread(fitted, problem.train, ARM, READING, 0.05)
-    for name in ("waviness_wavelength_mm", "surface_y_mm"):
+    for name in ("waviness_wavelength_mm", "stiffness_wavelength_mm"):
         pull = abs(moved[NAMES.index(name)])
         assert resampled[name] < pull
         assert spread[name] >= 0.5 * pull

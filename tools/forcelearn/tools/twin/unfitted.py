@@ -12,7 +12,7 @@ Each left-out mechanism's amplitude is freed beside the chosen member's values, 
 from its solution; when the records want it (the cost falls by more than the BIC's penalty
 for one parameter, ``log(n) / 2`` in units of the fit's own residual variance, and the
 amplitude is ``SHOWN_SIGMAS`` of its 1-sigma from 0), the shift
-of each checked value (the surface's shape and the static force law,
+of each checked value (the shapes along the path and the static force law,
 :data:`~forcelearn.tools.twin.experiments.CHECKED`) is its share of the 1-sigma: the
 records do not rule that mechanism out, and the values move with it. Nothing when they do
 not want it (a cell without friction: its fitted amplitude stays near 0).
