@@ -42,7 +42,6 @@ from forcelearn.tools.twin.params import BY_NAME, Member, family
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.timing_share import arm_spread
-from forcelearn.tools.twin.unfitted import unfitted_spread
 
 HOLD_OUT = 0.2
 """Share of the trials (the last ones) the fit does not use."""
@@ -96,9 +95,6 @@ class MemberFit:
     experiment_sigmas: dict[str, float] = field(default_factory=dict)
     """The fitted experiments' disagreement's share of each fitted 1-sigma (chosen member
     only; :func:`~forcelearn.tools.twin.experiments.experiment_spread`): added in quadrature."""
-    unfitted_sigmas: dict[str, float] = field(default_factory=dict)
-    """How far a mechanism the family leaves out and the records want moves each value (chosen
-    member only; :func:`~forcelearn.tools.twin.unfitted.unfitted_spread`): in quadrature."""
 
 
 @dataclass
@@ -531,10 +527,6 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
                                                  first.noise_n, walk)
     for name, experiment_sigma in chosen.experiment_sigmas.items():
         chosen.sigmas[name] = math.hypot(chosen.sigmas[name], experiment_sigma)
-    chosen.unfitted_sigmas = unfitted_spread(chosen, tuple(f.member for f in fits), train,
-                                             arm.values, reading, first.noise_n, walk)
-    for name, unfitted_sigma in chosen.unfitted_sigmas.items():
-        chosen.sigmas[name] = math.hypot(chosen.sigmas[name], unfitted_sigma)
     chosen.member_sigmas = member_spread(fits, choice.index)
     for name, member_sigma in chosen.member_sigmas.items():
         chosen.sigmas[name] = max(chosen.sigmas[name], member_sigma)

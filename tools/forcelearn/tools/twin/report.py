@@ -73,8 +73,6 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
                 row["sigma_arm"] = fit.chosen.arm_sigmas[name]
             if name in fit.chosen.experiment_sigmas:
                 row["sigma_experiments"] = fit.chosen.experiment_sigmas[name]
-            if name in fit.chosen.unfitted_sigmas:
-                row["sigma_unfitted"] = fit.chosen.unfitted_sigmas[name]
             if (not row["determined"] and BY_NAME[name].determined(row["value"], jacobian)):
                 row["note"] = ("the Jacobian's sigma is within the bound, but refits without a "
                                "block of trials or on the low and high forces apart move it by "
