@@ -128,12 +128,7 @@ class PhysicsMotion:
         motion = self.motion
         before = motion.tool_key
         keys, rest = motion.advance_keys(t_s)
-        moved = False
-        for key in keys:
-            if key != before:
-                moved = True
-                break
-        return keys, rest, motion.tool_key, motion.pose, moved
+        return keys, rest, motion.tool_key, motion.pose, _moved(keys, before)
 
     def command_keys(
         self, target: Pose, t_s: float
@@ -149,12 +144,7 @@ class PhysicsMotion:
         if target != self._last:  # as command(): a repeated pose is not commanded again
             self._last = target
             motion.command(target, t_s)
-        moved = False
-        for key in keys:
-            if key != before:
-                moved = True
-                break
-        return keys, rest, motion.tool_key, motion.pose, moved
+        return keys, rest, motion.tool_key, motion.pose, _moved(keys, before)
 
     def can_run(self) -> bool:
         """Whether :meth:`follow_keys` and :meth:`take_run` may stand for :meth:`follow` now."""
@@ -169,3 +159,8 @@ class PhysicsMotion:
         self.physics.advance_to(t_s)
         self.motion.stop(t_s)
         self._last = None
+
+
+def _moved(keys: list[PoseKey], before: PoseKey) -> bool:
+    """Whether a tick's tool key differs from the key before the ticks (the tool moved)."""
+    return any(key != before for key in keys)
