@@ -166,18 +166,8 @@ class Wire:
         in-process routes' frames: a JR3 read puts three on the bus, a status poll four).
         A ``transmit`` wrapped on the object (``step_timeline``'s log) is called.
         """
-        clock = self.clock
-        if "transmit" in self.__dict__:
-            end = self.transmit(duration_s, ready_s)[1]
-            clock.advance_to(end)
-            return end
-        ready = clock._now_s if ready_s is None else ready_s
-        free = self.free_at_s
-        start = ready if ready > free else free  # max(free, ready), without the call
-        self.free_at_s = end = start + duration_s
-        with clock._lock:  # SimClock.advance_to(end)
-            if end > clock._now_s:
-                clock._now_s = end
+        end = self.transmit(duration_s, ready_s)[1]
+        self.clock.advance_to(end)
         return end
 
     def state_dict(self) -> dict[str, Any]:

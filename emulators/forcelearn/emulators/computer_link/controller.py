@@ -211,13 +211,9 @@ class ControllerEngine:
                 self._carry_reply(len(repeated), arrived, char)
                 return status
             # _execute's READ_STATUS: the physics brought to now, then _read's status
-            # (_status's, inline: a poll's calls are the in-process loop's cost)
             now = self.clock.now_s
             self.physics.advance_to(now)
-            motion = self.motion
-            in_position = motion.in_position and not self.never_in_position
-            status = m.Status(motion.moving, in_position, self._last_error,
-                              self.move_count & 0xFFFFFFFF, now)
+            status = self._status(now)
             self._last_request = payload
             self._payload, self._status_reply = None, (tns, status)  # encoded if asked
             self._last_reply = None

@@ -323,14 +323,12 @@ class Jr3Firmware:
         stats = self.stats
         stats.syncs += 1
         stats.loop_turns += 1
-        period, origin = self.loop_period_s, self._loop_origin_s  # _turn_after(arrived)
-        turns = math.floor((arrived - origin) / period + 1e-9) + 1
-        clock.advance_to(origin + (turns if turns > 1 else 1) * period)
+        clock.advance_to(self._turn_after(arrived))
         sample = self._next_sample()
         duration = times[_AXES_BYTES]
         wire.send(duration)  # the Forces frame
         wire.send(duration)  # the Moments frame
-        stats.samples += 1  # _count_sample: no fault, no bootup after it
+        self._count_sample()  # no fault: no bootup after it
         return sample
 
     def _handle(self, msg: can.Message) -> None:
@@ -453,8 +451,7 @@ class Jr3Firmware:
     def _next_sample(self) -> CarriedSample:
         """The latest complete sensor frame's six counts and its counter (one more sent)."""
         now = self.clock.now_s
-        frames = math.floor((now - self.stream_start_s) / self.frame_period_s + 1e-9)
-        frames = frames if frames > 0 else 0  # _frames_at(now)
+        frames = self._frames_at(now)
         frame_s = self.stream_start_s + frames * self.frame_period_s
         if self._last_counts is None or frame_s > self.last_sample_s:
             dt = (frame_s - self.last_sample_s if math.isfinite(self.last_sample_s)
