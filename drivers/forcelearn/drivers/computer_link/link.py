@@ -116,25 +116,11 @@ class Link:
         reply built as a message; otherwise, or when that port says the frames must
         go, :meth:`transact`.
         """
-        carry = self._carry_status
-        if carry is not None:
+        if self._carry_status is not None:
             with self._lock:
-                if self._broken:
-                    raise self._down()
-                try:  # _guarded(_transact, READ_STATUS), the status carried if the port can
-                    tns = self._transaction = (self._transaction + 1) & 0xFFFF
-                    payload = m.encode_request(m.Command.READ_STATUS, tns)
-                    self._port.reset_input_buffer()
-                    self._reader.clear()
-                    self._pending.clear()
-                    carried = carry(payload)
-                    if carried is not None:
-                        return carried  # what the carried reply's body parses to
-                    answer = self._exchange(m.Command.READ_STATUS, tns, payload)
-                except LinkError:
-                    raise
-                except PORT_ERRORS as exc:
-                    raise self._lost(exc) from exc
+                answer = self._guarded(self._poll_status)
+            if isinstance(answer, m.Status):
+                return answer  # what the carried reply's body parses to
         else:
             answer = self.transact(m.Command.READ_STATUS)
         if answer.error != m.ErrorCode.OK:
@@ -166,13 +152,27 @@ class Link:
 
     def _transact(self, command: m.Command, body: bytes) -> m.Reply:
         """One transaction: a new number, the input discarded, the request carried or framed."""
+        tns, payload = self._new_request(command, body)
+        return self._exchange(command, tns, payload)
+
+    def _poll_status(self) -> m.Reply | m.Status:
+        """:meth:`_transact` of READ_STATUS, its status carried as it is if the port can."""
+        tns, payload = self._new_request(m.Command.READ_STATUS, b"")
+        assert self._carry_status is not None
+        carried = self._carry_status(payload)
+        if carried is not None:
+            return carried
+        return self._exchange(m.Command.READ_STATUS, tns, payload)
+
+    def _new_request(self, command: m.Command, body: bytes) -> tuple[int, bytes]:
+        """The next transaction number and its request payload; pending input discarded."""
         self._transaction = (self._transaction + 1) & 0xFFFF
         tns = self._transaction
         payload = m.encode_request(command, tns, body)
         self._port.reset_input_buffer()
         self._reader.clear()
         self._pending.clear()
-        return self._exchange(command, tns, payload)
+        return tns, payload
 
     def _exchange(self, command: m.Command, tns: int, payload: bytes) -> m.Reply:
         """:meth:`_transact` once the request is made, the input discarded: carried or framed."""

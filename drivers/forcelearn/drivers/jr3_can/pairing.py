@@ -155,7 +155,7 @@ class Pairer:
         if last is None:
             self._last_counter = counter
             return 0
-        gap = (counter - last) % COUNTER_MODULUS - 1  # counter_gap(last, counter)
+        gap = counter_gap(last, counter)
         if gap < 0:
             self.duplicates += 1
             return -1
