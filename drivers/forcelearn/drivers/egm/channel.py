@@ -247,20 +247,18 @@ class EgmChannel(Driver):
                 self._pending = address
                 return
 
-    def _rest(self, ends: Callable[[float, Pose, Pose], bool],
-              ends_run: Callable[[list[float], Pose, Pose], int] | None = None) -> None:
+    def _rest(self, ends: Callable[[list[float], Pose, Pose], int]) -> None:
         """Lockstep in process: answer the held message, jump the cycles answered unseen.
 
         The controller runs the cycles whose EgmRobot a wait would only
-        answer: at whose controller time (:meth:`.guidance.Guidance.time_at`),
-        feedback and planned pose ``ends`` is false, each answered with the
-        ramp's next planned pose (:meth:`.guidance.Guidance.next_planned`), up
-        to the first at which ``ends`` is true or the answer would be withheld,
-        which :meth:`_next_message` then reads as usual. ``ends_run(times, feedback,
-        planned)``, if given, is the index of the first of ``times`` at which ``ends``
-        holds for that feedback and planned pose (``len(times)``: none), found as
-        ``ends`` would one by one: the cycles at rest are then asked in runs
-        (:class:`_Answers`).
+        answer, each answered with the ramp's next planned pose
+        (:meth:`.guidance.Guidance.next_planned`), up to the first at which the
+        wait ends or the answer would be withheld, which :meth:`_next_message`
+        then reads as usual. ``ends(times, feedback, planned)`` is the index of the
+        first of the controller ``times`` (:meth:`.guidance.Guidance.time_at`) at
+        which the wait ends for that feedback and planned pose (``len(times)``:
+        none), in order as one by one: the cycles at rest are asked in runs
+        (:class:`_Answers`), the others one at a time.
         """
         rester, address, guidance = self._rester, self._pending, self._guidance
         if rester is None or address is None:
@@ -272,7 +270,7 @@ class EgmChannel(Driver):
             self._pending = None
             return
         self._pending = None
-        answer = _Answers(guidance, ends, ends_run)
+        answer = _Answers(guidance, ends)
         try:
             jumped, tm_ms, time_us = rester.rest_carried(reply, address, answer)
         except OSError as exc:
@@ -413,19 +411,20 @@ class _Answers:
     """The PC's answers to the cycles a lockstep wait jumps (``rest_carried``'s ``answer``).
 
     Called with an EgmRobot's header.tm, feedBack.time, feedback and planned
-    pose: None if ``ends`` holds at its controller time (the wait reads it),
-    else the ramp's next planned pose (:meth:`.guidance.Guidance.next_planned`).
+    pose: None if the wait ends at its controller time (``ends``, see
+    :meth:`EgmChannel._rest`: the wait reads it), else the ramp's next planned
+    pose (:meth:`.guidance.Guidance.next_planned`).
     """
 
-    def __init__(self, guidance: Guidance, ends: Callable[[float, Pose, Pose], bool],
-                 ends_run: Callable[[list[float], Pose, Pose], int] | None) -> None:
+    def __init__(self, guidance: Guidance, ends: Callable[[list[float], Pose, Pose], int]
+                 ) -> None:
         self._guidance = guidance
-        self._ends, self._ends_run = ends, ends_run
+        self._ends = ends
         self._time_at, self._next_planned = guidance.time_at, guidance.next_planned
 
     def __call__(self, tm_ms: int, time_us: int, feedback: Pose, planned: Pose) -> Pose | None:
         """The answer to one EgmRobot (None: the wait reads it)."""
-        return (None if self._ends(self._time_at(tm_ms, time_us), feedback, planned)
+        return (None if self._ends([self._time_at(tm_ms, time_us)], feedback, planned) == 0
                 else self._next_planned())
 
     def at_rest(self, feedback: Pose, planned: Pose, stamps: list[tuple[int, int]]) -> int:
@@ -435,11 +434,12 @@ class _Answers:
         of the guidance changes), up to the first at which ``ends`` holds, which
         is answered None; -1 when the ramp does not rest there (each is asked).
         """
-        guidance, ends_run = self._guidance, self._ends_run
-        if ends_run is None or not guidance.resting() or guidance.planned is not planned:
+        guidance = self._guidance
+        if not guidance.resting() or guidance.planned is not planned:
             return -1
         time_at = self._time_at
-        return ends_run([time_at(tm_ms, time_us) for tm_ms, time_us in stamps], feedback, planned)
+        return self._ends([time_at(tm_ms, time_us) for tm_ms, time_us in stamps], feedback,
+                          planned)
 
 
 def _serve(driver_ref: weakref.ref[EgmChannel]) -> None:

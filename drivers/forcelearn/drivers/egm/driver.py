@@ -344,20 +344,15 @@ class EgmRobot(EgmChannel):
         guidance = self._guidance
         in_position_at, settled, spent = guidance.in_position_at, wait.settled, wait.spent
 
-        def ends(now: float, feedback: Pose, planned: Pose) -> bool:
-            if until_in_position and settled(now, in_position_at(feedback, planned)):
-                return True
-            return spent(now)
-
-        def ends_run(times: list[float], feedback: Pose, planned: Pose) -> int:
-            # ends at each of times in turn: in position is the same for the same poses
+        def ends(times: list[float], feedback: Pose, planned: Pose) -> int:
+            # the wait's end test at each of times in turn (in position: the same poses)
             in_position = until_in_position and in_position_at(feedback, planned)
             for index, now in enumerate(times):
                 if (until_in_position and settled(now, in_position)) or spent(now):
                     return index
             return len(times)
 
-        self._rest(ends, ends_run)
+        self._rest(ends)
 
     # -- checkpoint (emulated cell only) ----------------------------------------------------
 

@@ -35,38 +35,24 @@ def clean_target(pose: object) -> Pose:
 def unsafe_reason(pose: Pose | None, limits: Limits, tolerance: float) -> str | None:
     """Why ``pose`` may not be adopted or sent, or None when it is finite, unit and inside.
 
-    A pose that passes is found so by the same comparisons written out (every
-    ramp step is checked: one each 4 ms cycle); a refusal is worded by
-    :func:`_unsafe_reason`.
+    Each test is written out (every ramp step is checked: one each 4 ms cycle); a
+    refusal is worded when it is found.
     """
-    if pose is not None and len(q := pose.quaternion) == 4:
-        x, y, z = pose.x_mm, pose.y_mm, pose.z_mm
-        q0, q1, q2, q3 = q
-        finite = math.isfinite
-        if (finite(x) and finite(y) and finite(z) and finite(q0) and finite(q1) and finite(q2)
-                and finite(q3)):
-            # sum()'s additions, from 0.0 (a square is never -0.0: the same float)
-            norm = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-            low, high = limits.workspace_min_mm, limits.workspace_max_mm
-            if (abs(norm - 1.0) <= tolerance and low[0] <= x <= high[0]
-                    and low[1] <= y <= high[1] and low[2] <= z <= high[2]):
-                return None
-    return _unsafe_reason(pose, limits, tolerance)
-
-
-def _unsafe_reason(pose: Pose | None, limits: Limits, tolerance: float) -> str | None:
-    """:func:`unsafe_reason` step by step, each refusal worded."""
     if pose is None:
         return "no Cartesian pose"
-    values = (pose.x_mm, pose.y_mm, pose.z_mm, *pose.quaternion)
-    if len(pose.quaternion) != 4 or not all(math.isfinite(v) for v in values):
-        return f"a pose that is not 4 + 3 finite numbers: {values}"
-    norm = math.sqrt(sum(c * c for c in pose.quaternion))
+    q = pose.quaternion
+    x, y, z = pose.x_mm, pose.y_mm, pose.z_mm
+    finite = math.isfinite
+    if len(q) != 4 or not (finite(x) and finite(y) and finite(z) and finite(q[0])
+                           and finite(q[1]) and finite(q[2]) and finite(q[3])):
+        return f"a pose that is not 4 + 3 finite numbers: {(x, y, z, *q)}"
+    # sum(c * c for c in q)'s additions, from 0.0 (a square is never -0.0: the same float)
+    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     if not abs(norm - 1.0) <= tolerance:
         return f"a quaternion of norm {norm:.6f}, not unit length"
     low, high = limits.workspace_min_mm, limits.workspace_max_mm
-    position = (pose.x_mm, pose.y_mm, pose.z_mm)
-    if any(not low[i] <= position[i] <= high[i] for i in range(3)):
+    if not (low[0] <= x <= high[0] and low[1] <= y <= high[1] and low[2] <= z <= high[2]):
+        position = (x, y, z)
         return (
             f"position {[round(c, 3) for c in position]} mm outside the workspace box "
             f"{list(low)}..{list(high)} (limits.workspace_*_mm)"
