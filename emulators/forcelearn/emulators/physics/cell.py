@@ -34,6 +34,7 @@ import numpy as np
 from forcelearn.devices import Pose, quaternion_to_matrix
 from forcelearn.emulators.clock import SimClock
 from forcelearn.emulators.physics.arm_motion import ArmMotion, PoseKey, Quaternion
+from forcelearn.emulators.physics.tick_runs import ticks_by_length
 from forcelearn.emulators.physics.tool import POINT_TOOL, ToolParams, contact_wrench, gravity_wrench
 
 
@@ -310,19 +311,8 @@ class CellPhysics:
             # the same ticks as runs of one span each through ``ticks``: a key equal to the one
             # recorded evolves at the recorded position, the tool not moved (as ``tick`` above)
             key = self._pose_key
-            keys: list[PoseKey] = []
-            dt = 0.0
-            for t_s in times_s:
-                span = rest_span(t_s)
-                if span:
-                    step = span * tick
-                    if step != dt and keys:
-                        batched.ticks(keys, dt, key)
-                        keys = []
-                    dt = step
-                    keys.append(key)
-            if keys:
-                batched.ticks(keys, dt, key)
+            ticks_by_length(batched, (((key,), span * tick) for t_s in times_s
+                                      if (span := rest_span(t_s))), key)
 
     def can_run(self) -> bool:
         """Whether :meth:`take_run` may take the arm's ticks from now (the fused tick route).

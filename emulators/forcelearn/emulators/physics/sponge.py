@@ -44,6 +44,7 @@ from forcelearn.emulators.physics.sponge_law import (
     surface_normal,
     surface_y_mm,
 )
+from forcelearn.emulators.physics.tick_runs import ticks_by_length
 
 __all__ = [
     "SLIDE_MIN_FRACTION", "Sponge", "SpongeParams", "contact_force_n", "depth_for_force_mm",
@@ -279,15 +280,7 @@ class Sponge(FoamMemory):
         p = self.params
         if type(self) is Sponge and p.hysteresis_loss == 0.0 and p.friction_coefficient == 0.0:
             saved, passes = self.state_dict(), self.passes
-            recorded, keys, dt = before, list[PoseKey](), 0.0
-            for run_keys, run_dt, _ in runs:
-                if run_dt != dt and keys:
-                    recorded = self.ticks(keys, dt, recorded)
-                    keys = []
-                dt = run_dt
-                keys += run_keys
-            if keys:
-                recorded = self.ticks(keys, dt, recorded)
+            recorded = ticks_by_length(self, ((keys, dt) for keys, dt, _ in runs), before)
             if self.passes == passes:
                 return recorded
             self.load_state_dict(saved)
