@@ -373,11 +373,15 @@ class EgmControllerModel:
 
     def _moved(self, t_s: float, pose: Pose) -> None:
         """The rest of :meth:`_move_to` once the arm reached ``pose`` at ``t_s``."""
-        self.pose = pose
         published = self._published
         if (pose is not published and pose != published) or not self.physics.holds(published):
             self.physics.set_pose(pose)  # else at rest where it was published (and observed)
             self._published = pose
+        self._reached(t_s, pose)
+
+    def _reached(self, t_s: float, pose: Pose) -> None:
+        """The model's own record of ``pose`` reached at ``t_s``: the speed, the axes to find."""
+        self.pose = pose
         t0, p0 = self._last_pose_s
         self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
         self._last_pose_s = (t_s, pose)
@@ -445,8 +449,7 @@ class EgmControllerModel:
 
     def stamps_at(self, times_s: Sequence[float]) -> list[tuple[int, int]]:
         """:meth:`stamps` of each of ``times_s``, in order."""
-        epoch = self.config.clock_epoch_us
-        return [(round(t_s * 1000), epoch + round(t_s * 1e6)) for t_s in times_s]
+        return [self.stamps(t_s) for t_s in times_s]
 
     # -- cycles that only follow (the in-process route's jump: CycleLoop.rest) --------------
 
@@ -599,14 +602,7 @@ class EgmControllerModel:
         self._run.append((keys, rest, key, seen))
         self._last_read_s = t_s
         self.targets_read += 1
-        self.pose = pose
-        t0, p0 = self._last_pose_s
-        self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
-        self._last_pose_s = (t_s, pose)
-        joints_pose = self._feedback_joints_pose
-        if pose is not joints_pose and pose != joints_pose:
-            self._joints_to_find.append(pose)
-            self._feedback_joints_pose = pose
+        self._reached(t_s, pose)
         return pose, rest != 0 or not keys
 
     def run_end(self) -> None:
