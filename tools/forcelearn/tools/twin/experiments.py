@@ -77,15 +77,13 @@ def experiment_spread(fit: Fitted, train: RecordArrays, arm: dict[str, float],
     x0 = np.array([fit.values[n] for n in names])
     low = np.array([BY_NAME[n].low for n in names])
     high = np.array([BY_NAME[n].high for n in names])
-    h = 1e-6 * np.maximum(np.abs(x0), 1e-3 * (high - low))
-    h = np.where(x0 + h > high, -h, h)
+
+    def predicted(x: np.ndarray) -> np.ndarray:
+        return problem.predicted(names, fit.values, x)
 
     def sigmas(x: np.ndarray, keep: np.ndarray | None) -> np.ndarray:
         # the sandwich at ``x``, the fit's solution on ``keep``'s bursts (its scores sum to 0)
-        r0 = problem.residuals(problem.predicted(names, fit.values, x), keep)
-        jac = np.column_stack([
-            (problem.residuals(problem.predicted(names, fit.values, x + h[i] * np.eye(x.size)[i]),
-                               keep) - r0) / h[i] for i in range(x.size)])
+        r0, jac = problem.jacobian(predicted, x, keep, low, high)
         return problem.sigmas(jac, r0)
 
     s_all = sigmas(x0, None)

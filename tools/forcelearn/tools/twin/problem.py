@@ -8,6 +8,7 @@ resampled 1-sigma of a fitted member (docs/twin-fit.md, "Determined or not").
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
@@ -140,15 +141,27 @@ class Problem:
                 if steps[k] <= step:
                     continue
                 x = points[k]
-                h = 1e-6 * np.maximum(np.abs(x), 1e-3 * (high - low))
-                h = np.where(x + h > high, -h, h)
-                r0 = self.residuals(predicted(x), keep)
-                jac = np.column_stack([
-                    (self.residuals(predicted(x + h[i] * np.eye(x.size)[i]), keep) - r0) / h[i]
-                    for i in range(x.size)])
+                r0, jac = self.jacobian(predicted, x, keep, low, high)
                 delta, *_ = np.linalg.lstsq(jac, -r0, rcond=None)
                 points[k] = np.clip(x + delta, low, high)
         return points
+
+    def jacobian(self, predicted: Callable[[np.ndarray], np.ndarray], x: np.ndarray,
+                 keep: np.ndarray | None, low: np.ndarray, high: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals at ``x`` and their forward-difference Jacobian, (m,) and (m, n).
+
+        ``predicted(x)``: the burst means at the values ``x`` (bounded by ``low`` and
+        ``high``; a step that would pass ``high`` goes the other way); only ``keep``'s
+        bursts count (None: all).
+        """
+        h = 1e-6 * np.maximum(np.abs(x), 1e-3 * (high - low))
+        h = np.where(x + h > high, -h, h)
+        r0 = self.residuals(predicted(x), keep)
+        jac = np.column_stack([
+            (self.residuals(predicted(x + h[i] * np.eye(x.size)[i]), keep) - r0) / h[i]
+            for i in range(x.size)])
+        return r0, jac
 
 
 def _bounds(names: list[str]) -> tuple[np.ndarray, np.ndarray]:

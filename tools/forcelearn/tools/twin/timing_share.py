@@ -44,12 +44,8 @@ def arm_spread(fit: Fitted, train: RecordArrays, arm: dict[str, float],
     x0 = np.array([fit.values[n] for n in names])
     low = np.array([BY_NAME[n].low for n in names])
     high = np.array([BY_NAME[n].high for n in names])
-    h = 1e-6 * np.maximum(np.abs(x0), 1e-3 * (high - low))
-    h = np.where(x0 + h > high, -h, h)
-    r0 = problem.residuals(problem.predicted(names, fit.values, x0))
-    jac = np.column_stack([
-        (problem.residuals(problem.predicted(names, fit.values, x0 + h[i] * np.eye(x0.size)[i]))
-         - r0) / h[i] for i in range(x0.size)])
+    r0, jac = problem.jacobian(lambda x: problem.predicted(names, fit.values, x), x0, None,
+                               low, high)
     total = np.zeros(len(names))
     for name in moved:
         steps = []
