@@ -61,6 +61,19 @@ def test_within_the_margin_the_records_cannot_tell_and_the_simpler_stays() -> No
     assert "cannot tell" in choice.notes[-1]
 
 
+def test_a_richer_member_that_predicts_worse_is_not_called_within_the_margin() -> None:
+    """Held-out ΔBIC far below -margin: the note says the richer fit predicts worse.
+
+    (Hidden cell 16 of seed 2 read "held-out ΔBIC -149.9, within 10".)
+    """
+    fits = _fits(1.3, _determined_sigma("stiffening_exponent", 1.3), -15 * BIC_MARGIN)
+    choice = choose(fits)
+    assert fits[choice.index].member is LINEAR
+    note = choice.notes[-1]
+    assert "predicts the held-out trials worse" in note and "within" not in note
+    assert "cannot tell" in note and NONLINEAR_MEMBER.name in note  # the study's verdict
+
+
 @pytest.mark.parametrize("case", ["loose", "near-off", "held", "resampled"])
 def test_a_winner_whose_mechanism_is_not_determined_is_not_chosen(case: str) -> None:
     """The held-out trials favour nonlinear, yet linear is kept.

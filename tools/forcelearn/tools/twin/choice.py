@@ -165,9 +165,7 @@ def choose(fits: Sequence[Fitted], resampled: Callable[[int], dict[str, float]] 
         names = added(richer.member, simpler.member)
         delta = simpler.bic - richer.bic
         if not delta > margin:
-            choice.notes.append(
-                f"the records cannot tell {simpler.member.name} from {richer.member.name} "
-                f"(held-out ΔBIC {delta:+.1f}, within {margin:g}): {simpler.member.name} kept")
+            choice.notes.append(_not_favoured(richer, simpler, names, delta, margin))
             continue
         sigmas = dict(richer.sigmas)
         if resampled is not None:
@@ -190,6 +188,17 @@ def choose(fits: Sequence[Fitted], resampled: Callable[[int], dict[str, float]] 
         current = i
         choice.index = i
     return choice
+
+
+def _not_favoured(richer: Fitted, simpler: Fitted, names: list[str],
+                  delta: float, margin: float) -> str:
+    """The note for a richer member that does not win the held-out check by ``margin``."""
+    if delta < -margin:  # its fit predicts them worse: what it adds was not found
+        return (f"{richer.member.name} predicts the held-out trials worse than "
+                f"{simpler.member.name} (held-out ΔBIC {delta:+.1f}): the records cannot tell "
+                f"that its {', '.join(names)} is present; {simpler.member.name} kept")
+    return (f"the records cannot tell {simpler.member.name} from {richer.member.name} "
+            f"(held-out ΔBIC {delta:+.1f}, within ±{margin:g}): {simpler.member.name} kept")
 
 
 def diagnose(mean_n: np.ndarray, predicted: np.ndarray, use: np.ndarray,
