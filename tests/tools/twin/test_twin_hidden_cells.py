@@ -47,6 +47,7 @@ def test_every_drawn_parameter_lies_in_its_stated_range() -> None:
         assert s.set_mm == pytest.approx(base.set_mm * cell.wear_amplitude, 1e-5)
         assert _inside(s.relaxation_ratio, RANGES.relaxation_ratio)
         assert _inside(cell.lag_s, RANGES.lag_s) and _inside(cell.noise_n, RANGES.noise_n)
+        assert _inside(cell.accel_mm_s2, RANGES.accel_mm_s2)
         assert s.stiffening_exponent == 1.0 or _inside(s.stiffening_exponent,
                                                        RANGES.stiffening_exponent)
         assert s.hysteresis_loss == 0.0 or _inside(s.hysteresis_loss, RANGES.hysteresis_loss)
@@ -61,6 +62,8 @@ def test_draws_span_the_ranges_and_every_model_member() -> None:
     assert min(k) < 0.8 and max(k) > 6.0
     assert min(force) < 0.8 and max(force) > 2.7
     assert min(c.wear_rate for c in DRAWS) < 0.5 and max(c.wear_rate for c in DRAWS) > 3.5
+    accel = [c.accel_mm_s2 for c in DRAWS]  # an acceleration left at the default checks nothing
+    assert min(accel) < 500 and max(accel) > 2000
     for share, flags in [
         (RANGES.nonlinear_share, [c.sponge.stiffening_exponent != 1.0 for c in DRAWS]),
         (RANGES.hysteresis_share, [c.sponge.hysteresis_loss != 0.0 for c in DRAWS]),
@@ -101,6 +104,7 @@ def test_written_cells_load_as_run_configs_and_match_their_truth(tmp_path: Path)
         truth = json.loads(path.with_suffix(".truth.json").read_text())
         assert asdict(config.emulator.sponge) == truth["sponge"]
         assert config.emulator.arm.lag_s == truth["arm"]["lag_s"]
+        assert config.emulator.arm.accel_mm_s2 == truth["arm"]["accel_mm_s2"]
         assert sensor_model(config).noise_std[:3] == (truth["sensor"]["noise_n"],) * 3
         assert config.task.desired_force_n == truth["task"]["desired_force_n"]
         assert config.safety.max_force_n > config.task.desired_force_n

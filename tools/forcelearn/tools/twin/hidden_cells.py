@@ -23,6 +23,8 @@ relaxation ratio           0-1                 ``relaxation_ratio``
 relaxation time            0.2-1 s             ``relaxation_time_s``
 contact position           -3..3 mm            ``surface_y_mm`` (surface Y at the strip's top)
 arm lag                    0.01-0.2 s (log)    ``[emulator.arm] lag_s``
+arm acceleration           300-3000 mm/s^2     ``[emulator.arm] accel_mm_s2`` (drawn from its own
+                           (log)               stream: the other draws are those of before)
 sensor noise               0.05-1 N (log)      ``[emulator.sensor] noise_std`` (forces; moments
                                                a tenth of it in N*m, as today's 0.2 / 0.02)
 nonlinear foam (1 in 2)    n = 1.1-1.6         ``stiffening_exponent`` (else 1: linear)
@@ -70,6 +72,7 @@ from typing import Any
 import numpy as np
 import tomli_w
 
+from forcelearn.emulators.physics.arm import ArmConfig
 from forcelearn.emulators.physics.sponge_law import (
     SpongeParams,
     depth_for_force_mm,
@@ -118,6 +121,10 @@ class HiddenCellRanges:
     relaxation_time_s: Range = (0.2, 1.0)
     surface_y_mm: Range = (-3.0, 3.0)
     lag_s: Range = (0.01, 0.2)
+    accel_mm_s2: Range = (300.0, 3000.0)
+    """The arm's path acceleration (the emulator's default 1000 mm/s^2 inside): studies
+    generated before session 13 drew none and ran every cell at 1000, where a fit that never
+    moved its acceleration from the default would have been right."""
     noise_n: Range = (0.05, 1.0)
     stiffening_exponent: Range = (1.1, 1.6)
     hysteresis_loss: Range = (0.05, 0.3)
@@ -138,7 +145,7 @@ class HiddenCellRanges:
             low, high = value
             if not (math.isfinite(low) and math.isfinite(high) and low <= high):
                 raise ValueError(f"hidden-cell range {name} = {value!r}: need low <= high")
-        for name in ("stiffness_n_per_mm", "wear_rate", "lag_s", "noise_n"):
+        for name in ("stiffness_n_per_mm", "wear_rate", "lag_s", "accel_mm_s2", "noise_n"):
             if getattr(self, name)[0] <= 0:
                 raise ValueError(f"hidden-cell range {name}: drawn log-uniform, so it must be > 0")
 
@@ -160,6 +167,8 @@ class HiddenCell:
     """Softening and set over today's."""
     derived: dict[str, float] = field(default_factory=dict)
     """Settings that make the cell runnable (see the module), mm, N, s."""
+    accel_mm_s2: float = ArmConfig().accel_mm_s2
+    """The arm's path acceleration, mm/s^2."""
 
 
 def _tidy(value: float) -> float:
@@ -255,6 +264,8 @@ def draw_hidden_cell(
     desired_force_n = _tidy(_uniform(rng, r.desired_force_kgf) * KGF_N)
     sponge, derived = _derive(sponge, desired_force_n)
     derived.update(_probe_noise_settings(noise_n))
+    # its own stream, so that adding it left every other draw of a seed as it was
+    accel_mm_s2 = _log_uniform(np.random.default_rng([seed, index, 1]), r.accel_mm_s2)
     return HiddenCell(
         name=f"cell-{index:02d}",
         sponge=sponge,
@@ -264,6 +275,7 @@ def draw_hidden_cell(
         wear_rate=wear_rate,
         wear_amplitude=wear_amplitude,
         derived=derived,
+        accel_mm_s2=accel_mm_s2,
     )
 
 
@@ -294,7 +306,7 @@ def cell_config(cell: HiddenCell) -> dict[str, Any]:
         "filter": {"measurement_variance_n2": _tidy(noise * noise)},
         "emulator": {
             "sponge": asdict(cell.sponge),
-            "arm": {"lag_s": cell.lag_s},
+            "arm": {"lag_s": cell.lag_s, "accel_mm_s2": cell.accel_mm_s2},
             "sensor": {"noise_std": [noise, noise, noise] + [_tidy(noise / 10)] * 3},
         },
     }
@@ -311,7 +323,7 @@ def truth(cell: HiddenCell, seed: int, ranges: HiddenCellRanges) -> dict[str, An
             "hysteresis": cell.sponge.hysteresis_loss != 0.0,
             "friction": cell.sponge.friction_coefficient != 0.0,
         },
-        "arm": {"lag_s": cell.lag_s},
+        "arm": {"lag_s": cell.lag_s, "accel_mm_s2": cell.accel_mm_s2},
         "sensor": {"noise_n": cell.noise_n},
         "task": {"desired_force_n": cell.desired_force_n,
                  "desired_force_kgf": cell.desired_force_n / KGF_N},
