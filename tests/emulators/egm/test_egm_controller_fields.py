@@ -147,3 +147,33 @@ def test_checkpoint_keeps_joints_and_wrong_mode() -> None:
     restored = model_of()
     restored.load_state_dict(model.state_dict())
     assert restored.planned_joints == model.planned_joints and restored.wrong_mode == 1
+
+
+def test_utilization_is_the_speed_over_the_latest_cycle_and_survives_a_restore() -> None:
+    """utilizationRate: the feedback's distance over the cycle before / the period, of 1000 mm/s.
+
+    Found only when an EgmRobot reports it; a restore (which keeps no speed) reports the
+    speed found before it, as a controller that never computed it lazily would.
+    """
+    model = model_of(max_speed_mm_s=1000.0)
+    target = HOME.moved(dx_mm=20.0)
+    seen = [cycle(model, k, codec.SensorMessage(k, 0, target)) for k in range(1, 40)]
+    moving = [m for m in seen[1:] if m.utilization_pct]
+    assert len(moving) > 10
+    for before, now in zip(seen, seen[1:], strict=False):
+        assert before.feedback is not None and now.feedback is not None
+        step = ((now.feedback.x_mm - before.feedback.x_mm) ** 2
+                + (now.feedback.y_mm - before.feedback.y_mm) ** 2
+                + (now.feedback.z_mm - before.feedback.z_mm) ** 2) ** 0.5
+        assert now.utilization_pct == pytest.approx(min(100.0, 100.0 * step / PERIOD / 1000.0))
+    state = model.state_dict()
+    moved = model.move_to(40 * PERIOD)  # a cycle whose EgmRobot is not built, then the restore
+    model.load_state_dict(state)
+    again = codec.decode_robot(codec.encode_robot(model._message(39 * PERIOD), "rw7"), "rw7")
+    assert again.utilization_pct == pytest.approx(
+        min(100.0, 100.0 * _dist(moved, seen[-1].feedback) / PERIOD / 1000.0))
+
+
+def _dist(a: Pose, b: Pose | None) -> float:
+    assert b is not None
+    return float(((a.x_mm - b.x_mm) ** 2 + (a.y_mm - b.y_mm) ** 2 + (a.z_mm - b.z_mm) ** 2) ** 0.5)

@@ -102,5 +102,5 @@ def blend(a: Pose, b: Pose, fraction: float) -> Pose:
         unit = np.asarray(q)
         unit = unit / np.linalg.norm(unit)
         last = _last_unit = (q, tuple(float(c) for c in unit))
-    return Pose(a.x_mm + fraction * (b.x_mm - a.x_mm), a.y_mm + fraction * (b.y_mm - a.y_mm),
-                a.z_mm + fraction * (b.z_mm - a.z_mm), last[1])
+    return Pose.of(a.x_mm + fraction * (b.x_mm - a.x_mm), a.y_mm + fraction * (b.y_mm - a.y_mm),
+                   a.z_mm + fraction * (b.z_mm - a.z_mm), last[1])  # (Pose(...)'s object)

@@ -181,7 +181,9 @@ class EgmControllerModel:
         self._timed_out_s: float | None = None
         """When the last CommTimeout ended guidance, s (None: guided, or restarted since)."""
         self._last_pose_s = (t_s, physics.pose)
-        self._speed = 0.0  # the TCP speed over the latest cycle, mm/s (utilizationRate)
+        self._speed_from: tuple[float, Pose] | None = None
+        """(time s, pose) the latest cycle started from, its speed not found yet (``_speed``)."""
+        self._speed_found = 0.0
         self._checks = TargetChecks(config.arm, config.workspace_min_mm, config.workspace_max_mm)
         self._follow: Callable[[Pose, float], Pose | None] | None = getattr(
             self.motion, "follow", None)
@@ -382,13 +384,26 @@ class EgmControllerModel:
     def _reached(self, t_s: float, pose: Pose) -> None:
         """The model's own record of ``pose`` reached at ``t_s``: the speed, the axes to find."""
         self.pose = pose
-        t0, p0 = self._last_pose_s
-        self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
+        self._speed_from = self._last_pose_s  # the speed is found when an EgmRobot reports it
         self._last_pose_s = (t_s, pose)
         joints_pose = self._feedback_joints_pose
         if pose is not joints_pose and pose != joints_pose:  # at rest the axes stay
             self._joints_to_find.append(pose)  # found when an EgmRobot reports them
             self._feedback_joints_pose = pose
+
+    @property
+    def _speed(self) -> float:
+        """The TCP speed over the latest cycle, mm/s (utilizationRate): found when asked.
+
+        The distance from the pose the cycle started from to the one it reached over
+        the cycle's time, as each cycle found it before (only the latest is read).
+        """
+        start = self._speed_from
+        if start is not None:
+            (t0, p0), (t_s, pose) = start, self._last_pose_s
+            self._speed_found = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)
+            self._speed_from = None
+        return self._speed_found
 
     @property
     def _feedback_joints(self) -> tuple[float, ...]:
@@ -546,8 +561,8 @@ class EgmControllerModel:
         pose, t_s = self.pose, times_s[-1]
         self._last_read_s = t_s
         self.targets_read += len(times_s)
-        t0, p0 = self._last_pose_s if len(times_s) == 1 else (times_s[-2], pose)
-        self._speed = _distance_mm(pose, p0) / max(t_s - t0, 1e-9)  # as _moved: the last cycle's
+        # as _reached: the last cycle's speed
+        self._speed_from = self._last_pose_s if len(times_s) == 1 else (times_s[-2], pose)
         self._last_pose_s = (t_s, pose)
 
     def run_start(self) -> bool:
@@ -703,6 +718,7 @@ class EgmControllerModel:
         self._last_read_s = float(state["last_read_s"])
         self._published = None  # the physics is restored on its own
         last = state["last_pose"]
+        self._speed_found = self._speed  # (not saved: the speed found before stays, as it did)
         self._last_pose_s = (float(last[0]), _list_pose(last[1:]))
 
 

@@ -217,7 +217,7 @@ class ArmMotion:
         if known[0] is key:
             return known[1]
         x, y, z = self._tool
-        pose = Pose(x, y, z, self._tool_q)
+        pose = Pose.of(x, y, z, self._tool_q)  # (the constructor's object, faster)
         self._pose_of = (key, pose)
         return pose
 
