@@ -31,3 +31,27 @@ def test_a_free_reading_no_higher_than_the_last_contact_ends_no_pass() -> None:
     assert passes[0] == [0] * 6
     assert passes[1] == [1, 1, 1, 2]  # left at the free-space burst above the touch
     assert passes[2] == [2]
+
+
+def test_a_probe_easing_off_in_weak_contact_ends_no_pass() -> None:
+    """Easing off at a shallow depth the foam still pushes 0.2-0.5 N: the same pass.
+
+    The probe's re-reads as it eases off (16 samples, noise 0.11 N), as the emulated sponge
+    read them on hidden cell 15 of seed 3 while the tool stayed in the foam (0.4-0.6 N true):
+    under the 0.5 N contact floor, but many sigmas above the zero. The pass ends when the
+    next point starts from the retract plane (its first burst reads free space).
+    """
+    point = TrialRecords(-1, [
+        _step(-1, "probe", 16.0, 0.0),  # the point's zero, in free space
+        _step(-1, "probe", 0.0, 2.85),  # contact
+        _step(-1, "probe", -1.3, 7.5),  # pressed
+        _step(-1, "probe", 0.2, 0.46),  # eased off: weak contact
+        _step(-1, "probe", 0.2, 1.11),  # the same pose after the dwell: the foam recovered
+        _step(-1, "probe", 0.45, 0.21),  # eased off further, still in the foam
+        _step(-1, "probe", 0.45, 0.36),
+        _step(-1, "probe", 16.0, None),  # back to the retract plane
+    ])
+    following = TrialRecords(-1, [_step(-1, "probe", 16.0, 0.0), _step(-1, "probe", 16.0, 0.0)])
+    passes = passes_before([point, following], noise_n=0.11)
+    assert passes[0] == [0] * 8
+    assert passes[1] == [0, 1]  # the pass ends at the next point's free-space zero
