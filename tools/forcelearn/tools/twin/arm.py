@@ -339,8 +339,8 @@ def reached_in_position_mm(data: RecordArrays, arm: dict[str, float], band_mm: f
     commanded one) was not there: the lagging tool enters the in-position band short of
     the target and goes on toward it with the servo lag (:func:`arm_model.share_at_in_position`
     along the straight move from the previous target; the forward model closes the rest
-    with the lag, :func:`~.forward.predict_means`). A move of no length (a hold) finds the
-    tool where the last move's lag has brought it by then. Taken as at the target, the
+    with the lag, :func:`~.forward.predict_means`), and the last move's own error is still
+    decaying (:func:`_carried_lag_mm`). Taken as at the target, the
     foam model ended every step up to the band (0.1 mm) deeper at in position: on the
     step-and-hold of hidden cell 10 of seed 1, without noise, the first burst after each
     3 mm step read 0.04 N under the model at the truth, and the relaxation ratio that fitted
@@ -356,14 +356,30 @@ def reached_in_position_mm(data: RecordArrays, arm: dict[str, float], band_mm: f
                                            band_mm)
     modelled = previous + share[..., None] * (commanded - previous)
     result: np.ndarray = np.where(unreported[..., None], modelled, data.reached)
-    still = unreported & (np.nan_to_num(data.move_mm) == 0.0)
-    for j in np.flatnonzero(still.any(axis=0)):
+    return _carried_lag_mm(result, commanded, data.in_position_s, unreported, lag)
+
+
+def _carried_lag_mm(reached: np.ndarray, commanded: np.ndarray, in_position_s: np.ndarray,
+                    unreported: np.ndarray, lag_s: float) -> np.ndarray:
+    """``reached`` (T, M, 3, mm) with each unreported move's share of the last move's error.
+
+    The servo lag is linear: the error the tool had at the last move's in position
+    (``reached - commanded``) decays as ``exp(-t / lag)`` whatever the reference does
+    next, so at this move's in position it is still there, decayed over the time between
+    the two. On a still move (a hold) that is all the move is. With a long lag it sets the
+    direction the tool creeps in during a burst after a press: on hidden cell 02 of seed 3
+    (lag 0.18 s) the previous move's ~1e-3 of the band along Z turned the creep of three
+    presses per trial from a slide up the tilted surface to none, as the emulated sponge
+    has it (the roller's friction of 0.2 N on the reading).
+    """
+    result = reached.copy()
+    for j in np.flatnonzero(unreported.any(axis=0)):
         if j == 0:
             continue
-        since = np.nan_to_num(data.in_position_s[:, j] - data.in_position_s[:, j - 1])
-        shrink = np.exp(-np.maximum(since, 0.0) / lag)[:, None]
-        lagged = commanded[:, j] + (result[:, j - 1] - commanded[:, j]) * shrink
-        result[:, j] = np.where(still[:, j, None], lagged, result[:, j])
+        since = np.nan_to_num(in_position_s[:, j] - in_position_s[:, j - 1])
+        shrink = np.exp(-np.maximum(since, 0.0) / lag_s)[:, None]
+        carried = result[:, j] + (result[:, j - 1] - commanded[:, j - 1]) * shrink
+        result[:, j] = np.where(unreported[:, j, None], carried, result[:, j])
     return result
 
 
