@@ -109,3 +109,14 @@ def test_a_member_the_records_do_not_rule_out_widens_the_chosen_ones_values() ->
     assert spread["surface_y_mm"] == pytest.approx(0.36)
     assert spread["stiffness_n_per_mm"] == 0.0
     assert member_spread([chosen, fit(NONLINEAR_MEMBER, -3.0, 100.0 + 2 * BIC_MARGIN)], 0) == {}
+
+
+def test_the_force_the_model_moves_within_the_bursts_is_not_noise() -> None:
+    """Long bursts ramping by 0.3 N: given the model's own variance there, the noise is 0.2 N."""
+    rng = np.random.default_rng(8)
+    data = _bursts(0.0, 0.2, [(8, 3000), (200, 300)], rng, trend_n=0.3)
+    n = data.count
+    ramp = np.where(n > 50, 0.3**2 * (n + 1) / (12 * (n - 1)), 0.0)  # a line's, about its mean
+    fit = fit_sensor([], data, None, None, 0.0, ramp)
+    assert abs(fit.noise_n - 0.2) < 3 * fit.noise_sigma_n
+    assert fit.noise_sigma_n < 0.01  # the two kinds of bursts agree again
