@@ -354,7 +354,7 @@ def _phase_coefficients(problem: _Problem, x: np.ndarray,
     harmonics = np.arange(1, PHASE_HARMONICS + 1)[:, None]
     parts = []
     for share, start, read in zip(rate, u, v, strict=True):
-        terms = -np.exp(2j * np.pi * harmonics * start)  # 1/2 - frac(u)
+        terms = np.exp(2j * np.pi * harmonics * start)  # 1/2 - frac(u)
         if read is not None:
             terms = np.exp(2j * np.pi * harmonics * read) - np.exp(2j * np.pi * harmonics * start)
         parts.append(terms * share)
