@@ -84,24 +84,8 @@ def test_the_identification_keeps_its_timing_fit(monkeypatch: pytest.MonkeyPatch
     document = identify_fit.timing_document(kept, identify_fit.BAND_MM)
     found = Identification(IdentifyPlan(), [], [], document)
     monkeypatch.setattr(identify_fit, "fit_timing", lambda moves, band: None)
-    assert identify_fit.timing_of(found) == identify_fit.with_lag_floor(kept)
+    assert identify_fit.timing_of(found) == kept  # no moves: nothing to add
     assert identify_fit.timing_of(found, 2 * identify_fit.BAND_MM) is None
-
-
-def test_the_lag_the_twin_takes_is_never_known_better_than_the_tick_phases_allow() -> None:
-    """A lag fitted to +- 40 us (hidden cell 10 of seed 1: 3.2 sigma off) keeps the floor."""
-    from forcelearn.tools.twin import identify_fit
-    from forcelearn.tools.twin.identify import Identification, IdentifyPlan
-
-    kept = identify_fit.TimingFit({"lag_s": 0.0934, "accel_mm_s2": 1000.0},
-                                  {"lag_s": 40e-6, "accel_mm_s2": 7.0}, 0.002, 0)
-    document = identify_fit.timing_document(kept, identify_fit.BAND_MM)
-    taken = identify_fit.timing_of(Identification(IdentifyPlan(), [], [], document))
-    assert taken is not None
-    assert taken.sigmas["lag_s"] > 1.2 * 40e-6  # the reads' tick phases: a floor of its own
-    assert taken.sigmas["lag_s"] < 0.003  # still determined (its absolute bound)
-    assert taken.sigmas["accel_mm_s2"] == 7.0
-
 
 
 def test_a_member_the_records_do_not_rule_out_widens_the_chosen_ones_values() -> None:
@@ -125,3 +109,14 @@ def test_a_member_the_records_do_not_rule_out_widens_the_chosen_ones_values() ->
     assert spread["surface_y_mm"] == pytest.approx(0.36)
     assert spread["stiffness_n_per_mm"] == 0.0
     assert member_spread([chosen, fit(NONLINEAR_MEMBER, -3.0, 100.0 + 2 * BIC_MARGIN)], 0) == {}
+
+
+def test_the_force_the_model_moves_within_the_bursts_is_not_noise() -> None:
+    """Long bursts ramping by 0.3 N: given the model's own variance there, the noise is 0.2 N."""
+    rng = np.random.default_rng(8)
+    data = _bursts(0.0, 0.2, [(8, 3000), (200, 300)], rng, trend_n=0.3)
+    n = data.count
+    ramp = np.where(n > 50, 0.3**2 * (n + 1) / (12 * (n - 1)), 0.0)  # a line's, about its mean
+    fit = fit_sensor([], data, None, None, 0.0, ramp)
+    assert abs(fit.noise_n - 0.2) < 3 * fit.noise_sigma_n
+    assert fit.noise_sigma_n < 0.01  # the two kinds of bursts agree again

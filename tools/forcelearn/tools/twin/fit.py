@@ -34,7 +34,7 @@ from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_a
 from forcelearn.tools.twin.bias import BiasWalk, bias_walk
 from forcelearn.tools.twin.choice import BIC_MARGIN, choose, diagnose
 from forcelearn.tools.twin.experiments import experiment_spread
-from forcelearn.tools.twin.forward import Reading, predict_means
+from forcelearn.tools.twin.forward import Reading, predict_means, within_burst_variance
 from forcelearn.tools.twin.held import held_spread
 from forcelearn.tools.twin.identify import IDENTIFY_TRIAL, Identification
 from forcelearn.tools.twin.identify_fit import identified_arm
@@ -535,7 +535,8 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
     held_pred = predict_means(heldout, sponge, arm.values, reading)
     train_pred, held_pred = walk.debiased(train_pred, held_pred)
     sensor = walk.sensor(fit_sensor(records, train, train_pred - train.mean_n,
-                                    calibration_noise_n, configured_phi))
+                                    calibration_noise_n, configured_phi,
+                                    within_burst_variance(train, sponge, arm.values, reading)))
     noise = sensor.noise_n if math.isfinite(sensor.noise_n) else 0.0
     threshold = max(REPRESENTED_FACTOR * noise, REPRESENTED_FLOOR_N)
     represented = chosen.heldout_rms_n <= threshold

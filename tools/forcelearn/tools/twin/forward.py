@@ -447,6 +447,34 @@ def predict_means(data: RecordArrays, p: SpongeParams, arm: dict[str, float],
     return np.where(burst, force, np.nan)
 
 
+def within_burst_variance(data: RecordArrays, p: SpongeParams, arm: dict[str, float],
+                          reading: Reading) -> np.ndarray:
+    """The modelled force's own variance about each burst's mean, (T, M), N^2.
+
+    0 where no burst was read or the model does not predict one. A burst read while the
+    force still moves (the foam relaxing after a step, the lag's last approach after in
+    position) spreads its samples beyond the sensor's noise. The force at the burst's
+    first, middle and last sample (:func:`predict_means` at each, span 0), the parabola
+    through them sampled at the burst's ``count`` even times.
+    """
+    zero = np.zeros_like(data.burst_span_s)
+    points = [predict_means(dataclasses.replace(data, burst_start_s=data.burst_start_s
+                                                + share * data.burst_span_s, burst_span_s=zero),
+                            p, arm, reading) for share in (0.0, 0.5, 1.0)]
+    stacked = np.stack(points, axis=-1)  # (T, M, 3)
+    ends = np.nan_to_num(stacked)
+    result = np.zeros_like(data.burst_span_s)
+    counts = np.where(data.has_burst & np.isfinite(stacked).all(axis=-1), data.count, 0)
+    for n in np.unique(counts[counts > 1]):
+        t = np.linspace(0.0, 1.0, int(n))
+        basis = np.stack([2 * (t - 0.5) * (t - 1), -4 * t * (t - 1), 2 * t * (t - 0.5)], axis=1)
+        centred = basis - basis.mean(axis=0)  # the samples about their mean, per end value
+        at = counts == n
+        samples = ends[at] @ centred.T  # (bursts, n)
+        result[at] = np.mean(samples**2, axis=1)
+    return result
+
+
 def predict_in_position_s(distance: np.ndarray, arm: dict[str, float],
                           band_mm: float, speed_mm_s: np.ndarray | None = None) -> np.ndarray:
     """Predicted time from command to in position (s) for moves of ``distance`` mm.

@@ -1,6 +1,9 @@
 """The sensor's part of the twin: noise, its colour, and bias drift, from bursts and tares.
 
-* noise: the pooled variance of the bursts' samples about their means, each burst's
+* noise: the pooled variance of the bursts' samples about their means, less the fitted
+  model's own force variance within each burst (a foam still relaxing after a step, the
+  lag's last approach: :func:`~forcelearn.tools.twin.forward.within_burst_variance`;
+  counted as noise it put relaxing hidden cells' noise 2-10 % high), each burst's
   share corrected for its own length (``n`` samples of an AR(1) noise ``phi`` keep
   ``1 - mean_share(phi, n)`` of the variance about their mean, about ``1 - g / n`` with
   ``g = (1 + phi) / (1 - phi)``; corrected at the bursts' mean length instead, the short
@@ -60,28 +63,36 @@ SPLIT_MIN_BURSTS = 10
 """Bursts each side needs for the control steps' and the other bursts' noise to be compared."""
 
 
-def _pooled_noise(data: RecordArrays, mask: np.ndarray, phi: float) -> float:
+def _pooled_noise(data: RecordArrays, mask: np.ndarray, phi: float,
+                  signal: np.ndarray | None = None) -> float:
     """The noise (N per sample) from the bursts ``mask`` picks (NaN: none).
 
     Each burst's ``n`` samples about their mean keep ``n (1 - mean_share(phi, n))`` of the
-    variance (``std_n`` is ddof 0): the summed squares over their expectation.
+    variance (``std_n`` is ddof 0): the summed squares over their expectation, less the
+    modelled force's own variance within each burst (``signal``, (T, M) N^2; None: none).
     """
     if not mask.any():
         return math.nan
     counts = data.count[mask].astype(float)
     lengths, inverse = np.unique(np.round(counts), return_inverse=True)
     kept = np.array([max(0.05, 1 - mean_share(phi, float(n))) for n in lengths])[inverse]
-    return math.sqrt(float(np.sum(counts * data.std_n[mask] ** 2) / np.sum(counts * kept)))
+    squares = data.std_n[mask] ** 2
+    if signal is not None:
+        squares = squares - np.nan_to_num(signal[mask])
+    return math.sqrt(max(0.0, float(np.sum(counts * squares) / np.sum(counts * kept))))
 
 
 def fit_sensor(records: list[TrialRecords], data: RecordArrays,
                residuals: np.ndarray | None, calibration_noise_n: float | None,
-               configured_phi: float | None = None) -> SensorFit:
+               configured_phi: float | None = None,
+               signal: np.ndarray | None = None) -> SensorFit:
     """Estimate the sensor's noise, colour and drift; ``residuals`` are the fit's (T, M).
 
     The within-burst correction uses ``configured_phi`` (the colour the run's sensor
     settings give) when known, else none (white noise: the noise then reads low by
-    the share of its variance the burst mean holds).
+    the share of its variance the burst mean holds). ``signal`` (T, M), N^2: the fitted
+    model's force's own variance within each burst
+    (:func:`~forcelearn.tools.twin.forward.within_burst_variance`), not the sensor's.
     """
     many = data.has_burst & (data.count > 1)
     counts = data.count[many]
@@ -96,14 +107,15 @@ def fit_sensor(records: list[TrialRecords], data: RecordArrays,
     n_mean = float(np.mean(counts)) if counts.size else 1.0
     colour = configured_phi if configured_phi is not None else 0.0
     gain = _colour_gain(colour)
-    noise = _pooled_noise(data, many, colour)
+    noise = _pooled_noise(data, many, colour, signal)
     effective = float(np.sum(counts - 1)) / max(gain, 1.0) if counts.size else 0.0
     noise_sigma = noise / math.sqrt(2 * effective) if effective > 0 else math.inf
     touching = many & (data.mean_n > max(0.5, 3.0 * noise))
     for part in (many & data.is_step, many & ~touching):  # vs the rest: steps, free space
         rest = many & ~part
         if part.sum() >= SPLIT_MIN_BURSTS and rest.sum() >= SPLIT_MIN_BURSTS:
-            gap = abs(_pooled_noise(data, part, colour) - _pooled_noise(data, rest, colour))
+            gap = abs(_pooled_noise(data, part, colour, signal)
+                      - _pooled_noise(data, rest, colour, signal))
             noise_sigma = max(noise_sigma, 0.5 * gap)
     if calibration_noise_n is not None:
         noise, noise_sigma = calibration_noise_n, 0.0
