@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from forcelearn.devices import Pose
@@ -160,7 +162,7 @@ def test_utilization_is_the_speed_over_the_latest_cycle_and_survives_a_restore()
     seen = [cycle(model, k, codec.SensorMessage(k, 0, target)) for k in range(1, 40)]
     moving = [m for m in seen[1:] if m.utilization_pct]
     assert len(moving) > 10
-    for before, now in zip(seen, seen[1:], strict=False):
+    for before, now in itertools.pairwise(seen):
         assert before.feedback is not None and now.feedback is not None
         step = ((now.feedback.x_mm - before.feedback.x_mm) ** 2
                 + (now.feedback.y_mm - before.feedback.y_mm) ** 2
