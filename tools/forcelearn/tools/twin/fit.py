@@ -39,6 +39,7 @@ from forcelearn.tools.twin.held import held_spread
 from forcelearn.tools.twin.identify import IDENTIFY_TRIAL, Identification
 from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, Member, family
+from forcelearn.tools.twin.pass_count import surface_passes
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.timing_share import arm_spread
@@ -494,6 +495,9 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
         delay = emulator_delay_s(arm.values, distances, band_mm, tick_s)
     first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
     start = initial_sponge(train, base_sponge, reading, first.noise_n)
+    # the passes as the sponge counts them (the tool out of the foam), not from the force
+    train, heldout = surface_passes([train, heldout], SpongeParams.unchecked(start),
+                                    IDENTIFY_TRIAL)
     walk = bias_walk(records, train, heldout, base_sponge, reading, first,
                      lambda d: burst_weights(d, first.noise_n), configured_phi)
     # an identification's step-and-hold is made to measure the relaxation's time: it is
