@@ -7,8 +7,7 @@ without this module the bias's wander over a run (~0.5 N over 60 trials)
 lands in the residuals and leaks into the contact position and the wear.
 
 Model: the bias is constant over a *segment* (a trial, or a slice of at most
-``SEGMENT_S`` of a longer one such as the surface probe; an identification's burst:
-``UNANCHORED_SEGMENT_S``) and walks between
+``SEGMENT_S`` of a longer one such as the surface probe) and walks between
 segments: ``b_s - b_(s-1) ~ N(0, q^2 dt_s)``; it is 0 at every tare (the
 run's own at its start, and each recorded accepted tare). For given model
 predictions the biases minimise::
@@ -57,15 +56,6 @@ from forcelearn.tools.twin.sensor import SensorFit, mean_share, tare_reads, zero
 SEGMENT_S = 20.0
 """Longest stretch of cell time (s) over which the bias is taken as constant: a trial is
 one segment; the surface probe (minutes) is sliced."""
-UNANCHORED_SEGMENT_S = 0.0
-"""The same for a trial fitted beside the run's whose zero is not in its records (an
-identification, held at one place for minutes): each burst its own segment, the walk
-between them. Its holds are what measure the relaxation, and a bias held for 20 s while
-the sensor walks ``q sqrt(20 s)`` (0.1 N at 0.02 N/sqrt(s)) bent their curves: hidden cell
-26 of seed 3 (noise 0.054 N, a 48-sample burst's mean +- 0.008 N) at the truth cost 1,075
-on the identification's bursts against 556 at the fit (relaxation ratio -4.4 sigma); per
-burst, 135 against 151. Not the run's trials: along the path a bias free per burst takes
-the surface's shape (cell 26 with every row so: waviness 0.16 +- 0.02 mm against 1.0)."""
 FREE_MARGIN_MM = 1.5
 """A read is taken as free space for the drift's estimate when a plain spring fitted to
 the reads (:func:`free_reads`), its surface raised by this much, has no contact there (mm):
@@ -234,8 +224,7 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None,
                 current, done = ids[done], done + 1
             passed[trial] = done
             moment = float(burst_s[row, col])
-            longest = UNANCHORED_SEGMENT_S if trial in unanchored else SEGMENT_S
-            if (k == 0 or moment - members[-1][0] > longest
+            if (k == 0 or moment - members[-1][0] > SEGMENT_S
                     or (members and current != zero_of[-1])):
                 var = 0.0
                 if k == 0 and trial in unanchored and previous_trial != trial:
