@@ -416,16 +416,18 @@ def recounted_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordAr
                    noise_n: float, walk: BiasWalk | None = None,
                    never_held: frozenset[str] = frozenset()
                    ) -> tuple[RecordArrays, RecordArrays, list[MemberFit]]:
-    """The passes counted again from the best fit's surface, and the members refitted if any moved.
+    """The passes counted where the tool is, from the best fit's surface; members refitted.
 
-    The first count (:func:`~forcelearn.tools.twin.pass_count.surface_passes`) uses the
-    fit's start, a straight line through the probe's contacts: on a relaxing, stiffening
-    foam its surface is millimetres off (hidden cell 04 of seed 3: 1.45 mm against -1.93),
-    and the identification's press, eased out 1.5 mm above the true surface, was still
-    "in" there: its whole step-and-hold one pass short, 0.07 mm of set and 0.2 N at 30 N,
-    the fit's cost at the truth 8,128 against 6,333 with the true count, and the
-    hysteresis depth 5 sigma off. Counted from the lowest-cost member's surface, each
-    member is refitted from its own solution (a few steps).
+    The members are first fitted with the records' count (:func:`~.arrays.passes_before`,
+    from the forces); then the passes are counted as the sponge counts them
+    (:func:`~forcelearn.tools.twin.pass_count.surface_passes`) from the lowest-cost
+    member's surface and, when a count moved, each member is refitted from its own
+    solution. Counted from the fit's start instead (a straight line through the probe's
+    contacts), the surface was millimetres off: hidden cell 04 of seed 3 (1.45 mm against
+    -1.93) left the identification's step-and-hold one pass short (its cost at the truth
+    2,720 against 936, the hysteresis depth +5.1 sigma), and on cell 10 the start sat at
+    its bound (25 mm, 0.28 N/mm against 2.6 mm, 6.2 N/mm): 16 passes short by the end,
+    every member's cost doubled (hysteretic 7,722 -> 17,661) and the linear spring kept.
     """
     best = min((f for f in fits if f.eligible), key=lambda f: f.train_cost, default=None)
     if best is None:
@@ -528,9 +530,6 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
         delay = emulator_delay_s(arm.values, distances, band_mm, tick_s)
     first = fit_sensor(records, train, None, calibration_noise_n, configured_phi)
     start = initial_sponge(train, base_sponge, reading, first.noise_n)
-    # the passes as the sponge counts them (the tool out of the foam), not from the force
-    train, heldout = surface_passes([train, heldout], SpongeParams.unchecked(start),
-                                    IDENTIFY_TRIAL)
     walk = bias_walk(records, train, heldout, base_sponge, reading, first,
                      lambda d: burst_weights(d, first.noise_n), configured_phi)
     # an identification's step-and-hold is made to measure the relaxation's time: it is
