@@ -10,10 +10,11 @@ at the true values the probe's bursts then fitted at 53 times their expected chi
 and the control steps' at 19 (softening and set taken 1.5 x slower, the relaxation ratio
 -3.6 sigma). Counted here from the surface, at the truth both fit at 2.3 and 1.9.
 
-The count needs the surface only to tell in from out at poses mostly well clear of it:
-from the fit's start (a straight line through the probe's contacts, its surface up to
-4.5 mm off on the hidden cells) it differs from the truth's count by at most one pass at
-any move on cells 04, 11, 26 of seed 3 and 09 of seed 1, and not at all at their fits.
+The count needs a surface: the fit counts from its best member's
+(:func:`~forcelearn.tools.twin.fit.recounted_fits`), which gives the truth's count on cells
+04, 11, 26 of seed 3 and 09 of seed 1. From the fit's start (a straight line through the
+probe's contacts) it was one pass short over cell 04's identification and 16 short by the
+end of cell 10 (its start at the 25 mm bound).
 
 Units: mm, passes.
 """
