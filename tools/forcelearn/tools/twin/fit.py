@@ -411,6 +411,11 @@ def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: Record
     return unstick(fits, train, heldout, start, base, arm, reading, noise_n, walk, never_held)
 
 
+RECOUNT_COST = 1.0
+"""The members are refitted with the passes counted where the tool is only when that count
+moves the best member's cost (half its chi-square) by more than this."""
+
+
 def recounted_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordArrays,
                    base: dict[str, float], arm: dict[str, float], reading: Reading,
                    noise_n: float, walk: BiasWalk | None = None,
@@ -436,6 +441,13 @@ def recounted_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordAr
                                   IDENTIFY_TRIAL)
     if (np.array_equal(again.passes, train.passes)
             and np.array_equal(later.passes, heldout.passes)):
+        return train, heldout, fits
+    # a count that moves the best member's cost by less than one unit of log-likelihood
+    # moves no value (the default run: 281 of 9,274 moves, values within 4e-7)
+    problem = Problem(again, arm, reading, noise_n, walk)
+    error = problem.residuals(problem.forward.predict(SpongeParams.unchecked(best.values),
+                                                      reading))
+    if abs(0.5 * float(error @ error) - best.train_cost) <= RECOUNT_COST:
         return train, heldout, fits
     refitted = []
     for fit in fits:
