@@ -14,7 +14,7 @@ newton-metres, times in seconds (``time.monotonic`` clock).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
@@ -60,6 +60,20 @@ def check_full_scales(full_scales: object) -> np.ndarray:
 
 
 
+_Frozen = TypeVar("_Frozen")
+
+
+def _filled(cls: type[_Frozen], **values: object) -> _Frozen:
+    """``cls(**values)`` for a frozen dataclass without slots: its ``__dict__`` filled at once.
+
+    The same attributes ``__init__`` sets, without a frozen ``object.__setattr__`` per field
+    (for objects built on a hot path; tests hold each user to its constructor).
+    """
+    made = object.__new__(cls)
+    made.__dict__.update(values)
+    return made
+
+
 @dataclass(frozen=True)
 class Pose:
     """A Cartesian tool pose: position in mm, orientation as quaternion (w, x, y, z)."""
@@ -80,17 +94,11 @@ class Pose:
         """``Pose(x_mm, y_mm, z_mm, quaternion)``, faster.
 
         The object ``__init__`` makes (the same attributes), its four frozen-field
-        ``object.__setattr__`` calls written as one ``__dict__`` fill: the emulated arm's
+        ``object.__setattr__`` calls as one ``__dict__`` fill (:func:`_filled`): the emulated arm's
         pose of every moving 4 ms tick and the EGM ramp's planned pose of every cycle are
         built so (a hot path; a test holds it to the constructor).
         """
-        pose = object.__new__(Pose)
-        fields = pose.__dict__
-        fields["x_mm"] = x_mm
-        fields["y_mm"] = y_mm
-        fields["z_mm"] = z_mm
-        fields["quaternion"] = quaternion
-        return pose
+        return _filled(Pose, x_mm=x_mm, y_mm=y_mm, z_mm=z_mm, quaternion=quaternion)
 
     def moved(self, dx_mm: float = 0.0, dy_mm: float = 0.0, dz_mm: float = 0.0) -> Pose:
         """Return this pose translated by (dx, dy, dz) mm, orientation kept."""
@@ -176,18 +184,12 @@ class WrenchSample:
         """``WrenchSample(wrench, timestamp_s, counter, saturated, sensor_dt_s)``, faster.
 
         The object ``__init__`` makes (the same attributes), its five frozen-field
-        ``object.__setattr__`` calls written as one ``__dict__`` fill: every sample of
+        ``object.__setattr__`` calls as one ``__dict__`` fill (:func:`_filled`): every sample of
         every burst is built once by the driver and once by the compensation (a hot path;
         a test holds it to the constructor).
         """
-        sample = object.__new__(WrenchSample)
-        fields = sample.__dict__
-        fields["wrench"] = wrench
-        fields["timestamp_s"] = timestamp_s
-        fields["counter"] = counter
-        fields["saturated"] = saturated
-        fields["sensor_dt_s"] = sensor_dt_s
-        return sample
+        return _filled(WrenchSample, wrench=wrench, timestamp_s=timestamp_s, counter=counter,
+                       saturated=saturated, sensor_dt_s=sensor_dt_s)
 
     def with_wrench(self, wrench: np.ndarray) -> WrenchSample:
         """This sample with another wrench (time, counter and flags kept).
