@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.records import TrialRecords
 from forcelearn.site.config import load_cell_config
@@ -18,10 +17,9 @@ from forcelearn.site.jr3_kind import sensor_model
 from forcelearn.tools import cli
 from forcelearn.tools.twin import source
 from forcelearn.tools.twin.arrays import RecordsError
-from forcelearn.tools.twin.simulate import SimulatedRun, simulate_run
+from forcelearn.tools.twin.simulate import SimulatedRun, noise_only_sensor, simulate_run
 
-NOISY = Jr3ModelParams(noise_std=(0.1,) * 6, initial_bias=(0.0,) * 6,
-                          bias_drift_per_sqrt_s=(0.0,) * 6)
+NOISY = noise_only_sensor(0.1)
 TRUTH = SpongeParams(stiffness_n_per_mm=2.6, surface_y_mm=0.5, relaxation_ratio=0.3)
 
 

@@ -14,7 +14,6 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.tools.experiments.records import PROBE_TRIAL
 from forcelearn.tools.twin.arrays import to_arrays
@@ -22,13 +21,12 @@ from forcelearn.tools.twin.experiments import experiment_spread
 from forcelearn.tools.twin.forward import Reading
 from forcelearn.tools.twin.params import Member
 from forcelearn.tools.twin.problem import Problem, jackknife
-from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
+from forcelearn.tools.twin.setup import base_arm
+from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, noise_only_sensor, simulate_run
 
-ARM = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
-       "lag_s": 0.03}
+ARM = base_arm()  # the emulator's defaults
 READING = Reading.of(DOWN, 1, -1.0)
-QUIET = Jr3ModelParams(noise_std=(0.05,) * 6, initial_bias=(0.0,) * 6,
-                       bias_drift_per_sqrt_s=(0.0,) * 6)
+QUIET = noise_only_sensor(0.05)
 CELL = SpongeParams(surface_y_mm=0.5, surface_slope=0.03, stiffness_n_per_mm=1.3,
                     relaxation_ratio=0.0, softening=0.0, set_mm=0.0)
 MEMBER = Member("shape", ("surface_y_mm", "surface_slope", "waviness_mm",

@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.arm_motion import MotionParams
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.records import BurstRecord, MoveRecord, StepRecord, TrialRecords
@@ -17,11 +16,11 @@ from forcelearn.tools.twin import forward
 from forcelearn.tools.twin.arrays import RecordsError, to_arrays
 from forcelearn.tools.twin.fit import TwinFit, fit_twin
 from forcelearn.tools.twin.params import BY_NAME, family
-from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
+from forcelearn.tools.twin.setup import base_arm
+from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, noise_only_sensor, simulate_run
 
 READING = forward.Reading.of(DOWN, 1, -1.0)
-BASE_ARM = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
-            "lag_s": 0.03}
+BASE_ARM = base_arm()  # the emulator's defaults
 TRUTH = SpongeParams(
     surface_y_mm=0.6, surface_slope=0.02, waviness_mm=0.7, stiffness_n_per_mm=3.2,
     stiffness_variation=0.1, softening=0.3, softening_passes=25.0, set_mm=1.5, set_passes=20.0,
@@ -198,8 +197,7 @@ class _SaturatingFoam(Sponge):
 @pytest.mark.long
 def test_records_the_family_cannot_explain_are_not_represented() -> None:
     """A saturating force law: the verdict says so and the bar is missed."""
-    noisy = Jr3ModelParams(noise_std=(0.05,) * 6, initial_bias=(0.0,) * 6,
-                              bias_drift_per_sqrt_s=(0.0,) * 6)
+    noisy = noise_only_sensor(0.05)
     run = SimulatedRun(trials=20, sensor=noisy, exploration_mm=2.0)
     fit = _fit(simulate_run(run, seed=1, sponge=_SaturatingFoam(run.sponge)))
     assert not fit.represented
@@ -209,8 +207,7 @@ def test_records_the_family_cannot_explain_are_not_represented() -> None:
 
 def test_the_noise_is_measured_from_the_bursts() -> None:
     """0.3 N of coloured adapter noise is measured within 10 %."""
-    noisy = Jr3ModelParams(noise_std=(0.3,) * 6, initial_bias=(0.0,) * 6,
-                              bias_drift_per_sqrt_s=(0.0,) * 6)
+    noisy = noise_only_sensor(0.3)
     fit = _fit(simulate_run(SimulatedRun(trials=10, sponge=TRUTH, sensor=noisy), seed=2))
     assert fit.sensor.noise_n == pytest.approx(0.3, rel=0.1)
     assert fit.represented

@@ -13,7 +13,6 @@ import math
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.sponge import Sponge, SpongeParams
 from forcelearn.records import TrialRecords
 from forcelearn.tools.twin import fit as fitting
@@ -23,15 +22,14 @@ from forcelearn.tools.twin.forward import Reading
 from forcelearn.tools.twin.params import BY_NAME, LINEAR_MEMBERS, Member, family
 from forcelearn.tools.twin.problem import Problem, jackknife
 from forcelearn.tools.twin.report import amplitudes_need_their_scales
-from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
+from forcelearn.tools.twin.setup import base_arm
+from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, noise_only_sensor, simulate_run
 
 READING = Reading.of(DOWN, 1, -1.0)
-BASE_ARM = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
-            "lag_s": 0.03}
+BASE_ARM = base_arm()  # the emulator's defaults
 RUN = SimulatedRun()
 COLOUR = math.exp(-2 * math.pi * RUN.cutoff_hz * RUN.sample_period_s)
-NOISY = Jr3ModelParams(noise_std=(0.3,) * 6, initial_bias=(0.0,) * 6,
-                          bias_drift_per_sqrt_s=(0.0,) * 6)
+NOISY = noise_only_sensor(0.3)
 WEARING = SpongeParams(
     surface_y_mm=0.6, surface_slope=0.02, waviness_mm=0.7, stiffness_n_per_mm=3.2,
     stiffness_variation=0.1, softening=0.3, softening_passes=25.0, set_mm=1.5, set_passes=20.0,

@@ -11,11 +11,11 @@ from forcelearn.tools.twin import forward
 from forcelearn.tools.twin.arrays import to_arrays
 from forcelearn.tools.twin.held import HELD_FACTOR, held_range, held_spread
 from forcelearn.tools.twin.params import LINEAR_MEMBERS, Member
+from forcelearn.tools.twin.setup import base_arm
 from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
 
 READING = forward.Reading.of(DOWN, 1, -1.0)
-ARM = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
-       "lag_s": 0.03}
+ARM = base_arm()  # the emulator's defaults
 TRUTH = SpongeParams(set_mm=1.5, set_passes=4.0, relaxation_ratio=0.0)
 
 

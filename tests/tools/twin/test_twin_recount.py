@@ -13,7 +13,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.tools.twin import fit as fit_module
 from forcelearn.tools.twin.arrays import RecordArrays, to_arrays
@@ -21,13 +20,12 @@ from forcelearn.tools.twin.fit import MemberFit, recounted_fits, split
 from forcelearn.tools.twin.forward import Reading
 from forcelearn.tools.twin.params import Member
 from forcelearn.tools.twin.problem import Problem
-from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
+from forcelearn.tools.twin.setup import base_arm
+from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, noise_only_sensor, simulate_run
 
-ARM = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
-       "lag_s": 0.03}
+ARM = base_arm()  # the emulator's defaults
 READING = Reading.of(DOWN, 1, -1.0)
-QUIET = Jr3ModelParams(noise_std=(0.05,) * 6, initial_bias=(0.0,) * 6,
-                       bias_drift_per_sqrt_s=(0.0,) * 6)
+QUIET = noise_only_sensor(0.05)
 MEMBER = Member("linear", ("surface_y_mm", "stiffness_n_per_mm"))
 
 

@@ -13,11 +13,11 @@ from forcelearn.records import TrialRecords
 from forcelearn.tools.twin import forward
 from forcelearn.tools.twin.arrays import stack, to_arrays
 from forcelearn.tools.twin.rowgroups import GroupedForward, row_groups
+from forcelearn.tools.twin.setup import base_arm
 from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
 
 READING = forward.Reading.of(DOWN, 1, -1.0)
-ARM = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
-       "lag_s": 0.03}
+ARM = base_arm()  # the emulator's defaults
 
 
 def test_grouped_predictions_equal_the_padded_ones() -> None:

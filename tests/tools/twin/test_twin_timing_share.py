@@ -12,18 +12,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from forcelearn.emulators.jr3.sensor_model import Jr3ModelParams
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.tools.twin import forward
 from forcelearn.tools.twin.arrays import to_arrays
 from forcelearn.tools.twin.params import Member
 from forcelearn.tools.twin.problem import Problem
-from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
+from forcelearn.tools.twin.setup import base_arm
+from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, noise_only_sensor, simulate_run
 from forcelearn.tools.twin.timing_share import arm_spread
 
 READING = forward.Reading.of(DOWN, 1, -1.0)
-ARM = {"start_delay_s": 0.05, "accel_mm_s2": 1000.0, "default_speed_mm_s": 100.0,
-       "lag_s": 0.03}
+ARM = base_arm()  # the emulator's defaults
 TRUTH = SpongeParams(relaxation_ratio=0.5, relaxation_time_s=0.3, softening=0.0, set_mm=0.0)
 NAMES = ("surface_y_mm", "stiffness_n_per_mm", "relaxation_ratio", "relaxation_time_s")
 NOISE = 0.05
@@ -42,8 +41,7 @@ def test_a_lag_off_by_its_sigma_is_covered_by_the_relaxations_sigma() -> None:
     The Jacobian's 1-sigma alone (the arm taken as exact) puts the ratio far more than 3
     sigma from the truth; with the lag's share added, within 3. No arm sigma: no share.
     """
-    sensor = Jr3ModelParams(noise_std=(NOISE,) * 6, initial_bias=(0.0,) * 6,
-                            bias_drift_per_sqrt_s=(0.0,) * 6)
+    sensor = noise_only_sensor(NOISE)
     records = simulate_run(SimulatedRun(trials=8, steps=10, sponge=TRUTH, sensor=sensor), seed=5)
     data = to_arrays(records)
     lag_sigma = 0.005

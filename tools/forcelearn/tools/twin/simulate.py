@@ -43,6 +43,12 @@ DOWN = (0.0, 1.0, 0.0, 0.0)
 """The §5 tool orientation (w, x, y, z): pointing down; the normal force is world +Y."""
 
 
+def noise_only_sensor(noise_n: float = 0.0) -> Jr3ModelParams:
+    """A JR3 model with ``noise_n`` (N, or N*m on the moments) on every axis, no bias, no drift."""
+    return Jr3ModelParams(noise_std=(noise_n,) * 6, initial_bias=(0.0,) * 6,
+                          bias_drift_per_sqrt_s=(0.0,) * 6)
+
+
 @dataclass(frozen=True)
 class SimulatedRun:
     """A §5-like run's settings (mm, s, N); defaults are the emulated cell's."""
@@ -75,11 +81,7 @@ class SimulatedRun:
     probe_force_ratio: float = 1.25
     sponge: SpongeParams = field(default_factory=SpongeParams)
     motion: MotionParams = field(default_factory=MotionParams)
-    sensor: Jr3ModelParams = field(
-        default_factory=lambda: Jr3ModelParams(
-            noise_std=(0.0,) * 6, initial_bias=(0.0,) * 6, bias_drift_per_sqrt_s=(0.0,) * 6
-        )
-    )
+    sensor: Jr3ModelParams = field(default_factory=noise_only_sensor)
     """The sensor model (default: noiseless, no bias)."""
 
 
