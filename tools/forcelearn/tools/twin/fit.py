@@ -437,16 +437,15 @@ def recounted_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordAr
     best = min((f for f in fits if f.eligible), key=lambda f: f.train_cost, default=None)
     if best is None:
         return train, heldout, fits
-    again, later = surface_passes([train, heldout], SpongeParams.unchecked(best.values),
-                                  IDENTIFY_TRIAL)
+    surface = SpongeParams.unchecked(best.values)
+    again, later = surface_passes([train, heldout], surface, IDENTIFY_TRIAL)
     if (np.array_equal(again.passes, train.passes)
             and np.array_equal(later.passes, heldout.passes)):
         return train, heldout, fits
     # a count that moves the best member's cost by less than one unit of log-likelihood
     # moves no value (the default run: 281 of 9,274 moves, values within 4e-7)
     problem = Problem(again, arm, reading, noise_n, walk)
-    error = problem.residuals(problem.forward.predict(SpongeParams.unchecked(best.values),
-                                                      reading))
+    error = problem.residuals(problem.forward.predict(surface, reading))
     if abs(0.5 * float(error @ error) - best.train_cost) <= RECOUNT_COST:
         return train, heldout, fits
     refitted = []

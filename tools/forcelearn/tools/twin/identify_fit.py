@@ -266,7 +266,7 @@ def fit_timing(moves: list[TimedMove], band_mm: float = BAND_MM) -> TimingFit | 
         result = least_squares(problem.both, result.x, bounds=(low, high), x_scale="jac",
                                args=(spread,))
     one_sigma = sigmas(result.jac, result.fun, problem.groups())
-    phase = np.sqrt(np.maximum(np.diag(phase_covariance(problem, result.x, result.jac)), 0.0))
+    phase = phase_sigmas(problem, result.x, result.jac)
     one_sigma = np.hypot(one_sigma, phase)
     scale = np.maximum(np.abs(result.x), 1e-6)
     lower = events.middle_s - 0.5 * events.width_s
@@ -355,8 +355,8 @@ def _phase_coefficients(problem: _Problem, x: np.ndarray,
     parts = []
     for share, start, read in zip(rate, u, v, strict=True):
         terms = np.exp(2j * np.pi * harmonics * start)  # 1/2 - frac(u)
-        if read is not None:
-            terms = np.exp(2j * np.pi * harmonics * read) - np.exp(2j * np.pi * harmonics * start)
+        if read is not None:  # frac(u) - frac(v)
+            terms = np.exp(2j * np.pi * harmonics * read) - terms
         parts.append(terms * share)
     damp = np.exp(-2 * (np.pi * harmonics * min(jitter, 1.0) / TICK_S) ** 2)
     per_residual = np.concatenate(parts, axis=1) * damp  # (K, residuals)
@@ -386,6 +386,14 @@ def phase_covariance(problem: _Problem, x: np.ndarray, jacobian: np.ndarray) -> 
     result: np.ndarray = TICK_S**2 / (2 * np.pi**2) * np.einsum(
         "kpq,k->pq", outer.real, 1.0 / harmonics**2)
     return result
+
+
+def phase_sigmas(problem: _Problem, x: np.ndarray, jacobian: np.ndarray) -> np.ndarray:
+    """The tick phases' share of each value's 1-sigma, s or its unit.
+
+    :func:`phase_covariance`'s diagonal; a negative one (phases that cancel) counts 0.
+    """
+    return np.sqrt(np.maximum(np.diag(phase_covariance(problem, x, jacobian)), 0.0))
 
 
 def timing_document(timing: TimingFit, band_mm: float) -> dict[str, object]:
@@ -422,7 +430,7 @@ def with_phase(timing: TimingFit, moves: list[TimedMove], band_mm: float) -> Tim
     if problem is None or not set(problem.names) <= set(timing.values):
         return timing
     x = np.array([timing.values[n] for n in problem.names])
-    phase = np.sqrt(np.maximum(np.diag(phase_covariance(problem, x, problem.jacobian(x))), 0.0))
+    phase = phase_sigmas(problem, x, problem.jacobian(x))
     share = dict(zip(problem.names, phase.tolist(), strict=True))
     spread = {n: math.hypot(v, share.get(n, 0.0)) for n, v in timing.sigmas.items()}
     return dataclasses.replace(timing, sigmas=spread, phase_sigmas=share)

@@ -35,8 +35,7 @@ def _count_row(p: SpongeParams, y: np.ndarray, z: np.ndarray, passes: int, touch
     """Passes before each of a row's moves (reached poses ``y``, ``z``), and the state after."""
     before = np.empty(y.size)
     depth: np.ndarray = np.asarray(law.penetration_mm(p, np.full(y.size, float(passes)), y, z))
-    j = 0
-    while j < y.size:
+    for j in range(y.size):
         before[j] = passes
         if depth[j] > 0.0:
             touched = True
@@ -45,7 +44,6 @@ def _count_row(p: SpongeParams, y: np.ndarray, z: np.ndarray, passes: int, touch
             if j + 1 < y.size:  # the set after the new count
                 rest = np.full(y.size - j - 1, float(passes))
                 depth[j + 1:] = law.penetration_mm(p, rest, y[j + 1:], z[j + 1:])
-        j += 1
     return before, passes, touched
 
 
