@@ -31,13 +31,14 @@ def test_the_second_start_is_inside_the_range_a_site_could_measure() -> None:
     assert start == pytest.approx(math.sqrt(FRICTION.absolute * FRICTION.high))
 
 
+@pytest.mark.parametrize("gain", [2.0, 0.5 * fitting.START_COST])
 def test_the_friction_member_keeps_the_lower_of_its_two_starts(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+        monkeypatch: pytest.MonkeyPatch, gain: float) -> None:
     """Fitted from mu off and from mu inside its range; the lower train cost is kept.
 
-    Each fit here ends where it started (a trap at every start): the one started inside has
-    the lower cost and is kept, with a note; the hysteretic member (no friction added) has
-    one start.
+    Each fit here ends where it started (a trap at every start): the one started inside,
+    ``gain`` lower in cost, is kept with a note when that is more than ``START_COST``;
+    the hysteretic member (no friction added) has one start.
     """
     records = simulate_run(SimulatedRun(trials=3, steps=4, burst_samples=5), seed=1)
     data = to_arrays(records)
@@ -51,7 +52,7 @@ def test_the_friction_member_keeps_the_lower_of_its_two_starts(
         mu = start.get(FRICTION.name, 0.0)
         starts.append((member.name, mu))
         fit.values = {**fit.values, FRICTION.name: mu}
-        fit.train_cost = 100.0 - mu  # lower when started inside
+        fit.train_cost = 100.0 - gain * mu / fitting.second_start(FRICTION)
         return fit
 
     monkeypatch.setattr(fitting, "fit_member", trapped)
@@ -60,5 +61,6 @@ def test_the_friction_member_keeps_the_lower_of_its_two_starts(
     # (the fake costs make ``unstick`` refit the hysteretic member after: not looked at)
     assert starts[:3] == [(HYSTERETIC_MEMBER.name, 0.0), (FRICTION_MEMBER.name, 0.0),
                           (FRICTION_MEMBER.name, fitting.second_start(FRICTION))]
-    assert fits[-1].values[FRICTION.name] == fitting.second_start(FRICTION)
-    assert "started inside its range" in fits[-1].note
+    inside = gain > fitting.START_COST
+    assert fits[-1].values[FRICTION.name] == (fitting.second_start(FRICTION) if inside else 0.0)
+    assert ("started inside its range" in fits[-1].note) == inside
