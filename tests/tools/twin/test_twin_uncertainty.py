@@ -152,3 +152,21 @@ def test_a_richer_member_the_fitted_trials_favour_widens_the_chosen_ones_values(
     penalty = extra * math.log(fitted) / 2  # in cost: half the chi-square's
     barely = fit(FRICTION_MEMBER, 79.88, worse_held_out, 6590.0 - penalty - BIC_MARGIN / 4)
     assert member_spread([chosen, barely], 0) == {}
+
+
+def test_a_parameter_a_favoured_member_leaves_loose_is_not_determined_by_the_chosen_one() -> None:
+    """Hidden cell 02 of seed 3: the favoured friction member held the stiffness wavelength.
+
+    The records left it loose there (+- 40 mm when last fitted); the chosen member's
+    +- 0.27 mm is widened to that.
+    """
+    from forcelearn.tools.twin.fit import MemberFit, member_spread
+    from forcelearn.tools.twin.params import FRICTION_MEMBER, HYSTERETIC_MEMBER
+
+    name = "stiffness_wavelength_mm"
+    chosen = MemberFit(HYSTERETIC_MEMBER, {name: 120.94}, {name: 0.27}, 0.1, 0.1, 900.0,
+                       len(HYSTERETIC_MEMBER.free), 400, train_cost=2338.0, train_bursts=2000)
+    favoured = MemberFit(FRICTION_MEMBER, {name: 120.0}, {name: 40.0}, 0.1, 0.1, 1000.0,
+                         len(FRICTION_MEMBER.free), 400, (name,), train_cost=2164.0,
+                         train_bursts=2000)
+    assert member_spread([chosen, favoured], 0)[name] == 40.0
