@@ -170,3 +170,18 @@ def test_a_parameter_a_favoured_member_leaves_loose_is_not_determined_by_the_cho
                          len(FRICTION_MEMBER.free), 400, (name,), train_cost=2164.0,
                          train_bursts=2000)
     assert member_spread([chosen, favoured], 0)[name] == 40.0
+
+
+def test_a_value_the_member_spread_leaves_undetermined_says_so() -> None:
+    """Seed 3 cell 02's stiffness wavelength: the Jacobian's +- 0.24 mm, the member's inf.
+
+    twin.md said the refits without a block of trials moved it; it is the richer member the
+    records favour that leaves it loose.
+    """
+    from forcelearn.tools.twin.params import BY_NAME
+    from forcelearn.tools.twin.report import undetermined_why
+
+    wavelength = BY_NAME["stiffness_wavelength_mm"]
+    assert "richer member" in undetermined_why(wavelength, 120.94, 0.24, math.inf)
+    assert "refits without a block" in undetermined_why(wavelength, 120.94, 0.24, 0.0)
+    assert undetermined_why(wavelength, 120.94, 10.0, 0.0) == ""
