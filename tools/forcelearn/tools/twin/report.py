@@ -50,6 +50,24 @@ def _row(param: Parameter, value: float, sigma: float, trials: int,
     return row
 
 
+def undetermined_why(param: Parameter, value: float, jacobian: float, member: float) -> str:
+    """Why a fitted parameter the verdict leaves undetermined is so ("" when no one reason).
+
+    ``jacobian``: its Jacobian's 1-sigma; ``member``: the model-selection spread
+    (``fit.member_spread``; 0 when none). The spread is named first: it alone leaves it
+    undetermined when a member the records do not rule out puts it elsewhere or holds it.
+    """
+    if not param.determined(value, member):
+        return ("a richer member the records do not rule out (it predicts the held-out trials "
+                "as well, or fits the fitted trials better) puts it elsewhere or leaves it "
+                "loose: the records do not say which member's value is right")
+    if param.determined(value, jacobian):
+        return ("the Jacobian's sigma is within the bound, but refits without a block of "
+                "trials or on the low and high forces apart move it by more: the records do "
+                "not pin it (the model may miss something)")
+    return ""
+
+
 def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
     """Every parameter of the twin, fitted or held, with its verdict."""
     trials = fit.train_trials
@@ -73,11 +91,12 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
                 row["sigma_arm"] = fit.chosen.arm_sigmas[name]
             if name in fit.chosen.experiment_sigmas:
                 row["sigma_experiments"] = fit.chosen.experiment_sigmas[name]
-            if (not row["determined"] and BY_NAME[name].determined(row["value"], jacobian)):
-                row["note"] = ("the Jacobian's sigma is within the bound, but refits without a "
-                               "block of trials or on the low and high forces apart move it by "
-                               "more: the records do not pin it (the model may miss something)"
-                               + ("; " + row["note"] if "note" in row else ""))
+            member = fit.chosen.member_sigmas.get(name, 0.0)
+            if name in fit.chosen.member_sigmas:
+                row["sigma_member"] = member if math.isfinite(member) else None
+            why = undetermined_why(BY_NAME[name], row["value"], jacobian, member)
+            if not row["determined"] and why:
+                row["note"] = why + ("; " + row["note"] if "note" in row else "")
         rows.append(row)
     for param in ARM:
         value = fit.arm.values[param.name]
