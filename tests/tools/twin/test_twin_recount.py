@@ -47,8 +47,8 @@ def _recount(monkeypatch: pytest.MonkeyPatch, cell: SpongeParams, extra_passes: 
     train, heldout, fits = _fits(cell)
     refits: list[dict[str, Any]] = []
 
-    def counted(runs: list[RecordArrays], p: SpongeParams, apart: int | None = None
-                ) -> list[RecordArrays]:
+    def counted(runs: list[RecordArrays], p: SpongeParams, arm: dict[str, float],
+                apart: int | None = None) -> list[RecordArrays]:
         return [dataclasses.replace(r, passes=r.passes + extra_passes) for r in runs]
 
     def refit(member: Member, again: RecordArrays, *args: Any, **kwargs: Any) -> MemberFit:

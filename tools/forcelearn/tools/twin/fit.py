@@ -438,7 +438,7 @@ def recounted_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordAr
     if best is None:
         return train, heldout, fits
     surface = SpongeParams.unchecked(best.values)
-    again, later = surface_passes([train, heldout], surface, IDENTIFY_TRIAL)
+    again, later = surface_passes([train, heldout], surface, arm, IDENTIFY_TRIAL)
     if (np.array_equal(again.passes, train.passes)
             and np.array_equal(later.passes, heldout.passes)):
         return train, heldout, fits
