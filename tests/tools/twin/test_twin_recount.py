@@ -47,8 +47,8 @@ def _recount(monkeypatch: pytest.MonkeyPatch, cell: SpongeParams, extra_passes: 
     train, heldout, fits = _fits(cell)
     refits: list[dict[str, Any]] = []
 
-    def counted(runs: list[RecordArrays], p: SpongeParams, apart: int | None = None
-                ) -> list[RecordArrays]:
+    def counted(runs: list[RecordArrays], p: SpongeParams, arm: dict[str, float],
+                apart: int | None = None) -> list[RecordArrays]:
         return [dataclasses.replace(r, passes=r.passes + extra_passes) for r in runs]
 
     def refit(member: Member, again: RecordArrays, *args: Any, **kwargs: Any) -> MemberFit:
@@ -80,3 +80,31 @@ def test_a_count_that_moves_no_cost_leaves_the_fits(monkeypatch: pytest.MonkeyPa
     again, fits, result, refits = _recount(monkeypatch, cell, 40)
     assert refits == [] and result is fits
     assert np.array_equal(again.passes, train.passes)
+
+
+def test_a_member_whose_cost_the_count_does_not_move_is_kept_not_refitted(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Forty passes more: the wearing member is refitted, one without wear only rescored."""
+    cell = SpongeParams(relaxation_ratio=0.0, softening=0.3, softening_passes=30.0,
+                        set_mm=2.0, set_passes=20.0)
+    train, heldout, (wearing,) = _fits(cell)
+    unworn = {**wearing.values, "softening": 0.0, "set_mm": 0.0}
+    problem = Problem(train, ARM, READING, 0.05)
+    error = problem.residuals(problem.forward.predict(SpongeParams.unchecked(unworn), READING))
+    steady = dataclasses.replace(wearing, values=unworn, train_cost=0.5 * float(error @ error))
+    refits: list[Member] = []
+
+    def counted(runs: list[RecordArrays], p: SpongeParams, arm: dict[str, float],
+                apart: int | None = None) -> list[RecordArrays]:
+        return [dataclasses.replace(r, passes=r.passes + 40) for r in runs]
+
+    def refit(member: Member, again: RecordArrays, *args: Any, **kwargs: Any) -> MemberFit:
+        refits.append(member)
+        return dataclasses.replace(wearing, train_cost=-1.0)  # marks a refit
+
+    monkeypatch.setattr(fit_module, "surface_passes", counted)
+    monkeypatch.setattr(fit_module, "fit_member", refit)
+    _, _, result = recounted_fits([wearing, steady], train, heldout, {}, ARM, READING, 0.05)
+    assert len(refits) == 1 and result[0].train_cost == -1.0  # the wearing member, refitted
+    assert result[1].values == unworn  # kept where it was
+    assert result[1].train_cost == pytest.approx(steady.train_cost, abs=1.0)

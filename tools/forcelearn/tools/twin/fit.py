@@ -301,6 +301,20 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
             held_sigmas[n] = spread[n]  # its uncertainty when it was last fitted
         free, values, spread, cost = rest, tried, tried_spread, tried_cost
     spread.update(held_sigmas)
+    return scored(member, values, {n: float(spread[n]) for n in member.free if n not in fixed},
+                  len(free), tuple(held), cost, problem, heldout, arm, reading, noise_n, walk)
+
+
+def scored(member: Member, values: dict[str, float], spread: dict[str, float], free: int,
+           held: tuple[str, ...], cost: float, problem: Problem, heldout: RecordArrays,
+           arm: dict[str, float], reading: Reading, noise_n: float,
+           walk: BiasWalk | None = None) -> MemberFit:
+    """A member's solution ``values`` scored (its fit, :class:`MemberFit`).
+
+    Residuals on ``problem``'s train trials and on ``heldout``, the held-out and
+    identification BIC with ``free`` fitted parameters; ``cost`` its train objective.
+    """
+    train = problem.train
     sponge = SpongeParams.unchecked(values)
     train_pred = problem.forward.predict(sponge, reading)
     held_pred = predict_means(heldout, sponge, arm, reading)
@@ -310,13 +324,13 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     held_res = ((held_pred - heldout.mean_n) * burst_weights(heldout, noise_n))[heldout.has_burst]
     n_held = max(1, held_res.size)
     mse = max(float(np.mean(held_res**2)), BIC_RESOLUTION**2)
-    bic = n_held * math.log(mse) + len(free) * math.log(n_held)
-    evidence, n_evidence = evidence_bic(train, train_pred, noise_n, len(free))
+    bic = n_held * math.log(mse) + free * math.log(n_held)
+    evidence, n_evidence = evidence_bic(train, train_pred, noise_n, free)
     return MemberFit(
-        member, values, {n: float(spread[n]) for n in member.free if n not in fixed},
-        train_rms, _rms(held_pred - heldout.mean_n, heldout.is_step & heldout.has_burst),
-        bic + evidence, len(free), n_held, tuple(held), train_cost=cost,
-        evidence_bursts=n_evidence, train_bursts=int(train.has_burst.sum()),
+        member, values, spread, train_rms,
+        _rms(held_pred - heldout.mean_n, heldout.is_step & heldout.has_burst),
+        bic + evidence, free, n_held, held, train_cost=cost, evidence_bursts=n_evidence,
+        train_bursts=int(train.has_burst.sum()),
     )
 
 
@@ -517,7 +531,7 @@ def recounted_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordAr
     if best is None:
         return train, heldout, fits
     surface = SpongeParams.unchecked(best.values)
-    again, later = surface_passes([train, heldout], surface, IDENTIFY_TRIAL)
+    again, later = surface_passes([train, heldout], surface, arm, IDENTIFY_TRIAL)
     if (np.array_equal(again.passes, train.passes)
             and np.array_equal(later.passes, heldout.passes)):
         return train, heldout, fits
@@ -529,8 +543,17 @@ def recounted_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordAr
         return train, heldout, fits
     refitted = []
     for fit in fits:
-        new = fit_member(fit.member, again, later, fit.values, base, arm, reading, noise_n,
-                         walk, never_held)
+        # the same rule per member: a solution whose cost the new count moves by less than
+        # RECOUNT_COST is kept, scored on the new count (a refit is a whole member's fit)
+        moved = problem.residuals(problem.forward.predict(SpongeParams.unchecked(fit.values),
+                                                          reading))
+        cost = 0.5 * float(moved @ moved)
+        if abs(cost - fit.train_cost) <= RECOUNT_COST:
+            new = scored(fit.member, fit.values, fit.sigmas, fit.free, fit.held, cost, problem,
+                         later, arm, reading, noise_n, walk)
+        else:
+            new = fit_member(fit.member, again, later, fit.values, base, arm, reading, noise_n,
+                             walk, never_held)
         new.eligible, new.note = fit.eligible, fit.note
         refitted.append(new)
     return again, later, refitted
