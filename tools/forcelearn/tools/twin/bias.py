@@ -172,7 +172,8 @@ def _ranks(data: RecordArrays, settled: np.ndarray) -> np.ndarray:
 
 
 def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None,
-                unanchored: frozenset[int] = frozenset()) -> Chain:
+                unanchored: frozenset[int] = frozenset(),
+                per_burst: frozenset[int] = frozenset()) -> Chain:
     """Segments of ``data`` and their links.
 
     A zero (a tare) holds for the bursts read after the one it was taken on: of later
@@ -188,7 +189,8 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None,
     ``unanchored``: trials whose zero is not in the records (an identification's: it tares
     before its records start, in a session of its own) starts from an unknown bias
     (``UNKNOWN_ZERO_VAR_N2``), read from its own bursts; the row after it of another trial
-    starts from the run's tare.
+    starts from the run's tare. ``per_burst``: trials whose bursts are each a segment of
+    their own (the walk followed from burst to burst, :meth:`BiasWalk.at_bursts`).
     """
     burst_s = np.where(data.has_burst, data.burst_start_s + 0.5 * data.burst_span_s, np.nan)
     settled = np.where(np.isfinite(data.settled_s), data.settled_s, data.burst_start_s)
@@ -224,7 +226,8 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None,
                 current, done = ids[done], done + 1
             passed[trial] = done
             moment = float(burst_s[row, col])
-            if (k == 0 or moment - members[-1][0] > SEGMENT_S
+            longest = 0.0 if trial in per_burst else SEGMENT_S
+            if (k == 0 or moment - members[-1][0] > longest
                     or (members and current != zero_of[-1])):
                 var = 0.0
                 if k == 0 and trial in unanchored and previous_trial != trial:
@@ -524,6 +527,8 @@ class BiasWalk:
     """(T, M) trial number of each fitted burst (the uncertainty's groups)."""
     train_mean_n: np.ndarray
     """(T, M) recorded burst means of the fitted trials, N."""
+    unanchored: frozenset[int] = frozenset()
+    """Fitted trials whose zero is not in the records (an identification's)."""
 
     @property
     def rate(self) -> float:
@@ -568,6 +573,17 @@ class BiasWalk:
         held = heldout_pred + offsets(chain, held_b)
         return train_pred + offsets(self.train, train_b), held
 
+    def at_bursts(self, data: RecordArrays) -> BiasWalk:
+        """The same walk with each burst of the unanchored trials its own segment.
+
+        ``data``: the fitted trials this walk was built on.
+        """
+        if not self.unanchored:
+            return self
+        chain = build_chain(data, self.zeros, unanchored=self.unanchored,
+                            per_burst=self.unanchored)
+        return dataclasses.replace(self, train=chain)
+
     def sensor(self, fit: SensorFit) -> SensorFit:
         """``fit`` with the drift the walk measured when the tares did not."""
         if fit.tares >= 3 and math.isfinite(fit.drift_n_per_sqrt_s):
@@ -598,4 +614,4 @@ def bias_walk(records: list[TrialRecords], train: RecordArrays, heldout: RecordA
                                  phi if phi is not None else 0.0)
     labels = np.broadcast_to(train.trial[:, None], train.has_burst.shape)
     return BiasWalk(chain, heldout, zeros, weights_of(train), weights_of(heldout), drift,
-                    labels, train.mean_n)
+                    labels, train.mean_n, unanchored)
