@@ -573,6 +573,17 @@ class BiasWalk:
         held = heldout_pred + offsets(chain, held_b)
         return train_pred + offsets(self.train, train_b), held
 
+    @property
+    def profiled(self) -> int:
+        """Biases profiled out of :meth:`residuals` (each with its walk or prior term there).
+
+        With a walk, one per segment; without, one per segment the walk restarts at with a
+        zero known only to its error (a linked segment shares its head's, an exact zero none).
+        """
+        if self.rate > 0:
+            return self.train.size
+        return int(np.sum(~self.train.linked & (self.train.anchor_var_n2 > 0)))
+
     def at_bursts(self, data: RecordArrays) -> BiasWalk:
         """The same walk with each burst of the unanchored trials its own segment.
 
