@@ -68,22 +68,25 @@ def _identification(seed: int, walk_seed: int) -> tuple[RecordArrays, BiasWalk]:
 
 def test_the_members_are_refitted_from_their_own_solutions_with_a_bias_per_burst(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """Each identification burst its own bias segment, every member refitted from its fit."""
+    """Each identification burst its own bias segment, every member refitted from its fit.
+
+    What the fit held stays held (:func:`fit_member`'s ``kept``).
+    """
     data, sliced = _identification(3, 0)
     fits = [MemberFit(MEMBER, dict(TRUTH), {}, 0.0, 0.0, 0.0, 4, train_cost=1.0,
                       eligible=False, note="dropped")]
     refits: list[dict[str, Any]] = []
 
     def refit(member: Member, train: RecordArrays, heldout: RecordArrays,
-              start: dict[str, float], *args: Any) -> MemberFit:
-        refits.append({"member": member, "start": start, "walk": args[-2]})
+              start: dict[str, float], *args: Any, **kwargs: Any) -> MemberFit:
+        refits.append({"member": member, "start": start, "walk": args[-2], **kwargs})
         return dataclasses.replace(fits[0], train_cost=-1.0, eligible=True, note="")
 
     monkeypatch.setattr(fit_module, "fit_member", refit)
     walk, result = walked_fits(fits, data, data, TRUTH, ARM, READING, NOISE, sliced)
     assert sliced.train.size < 5 and walk.train.size == int(data.has_burst.sum())
     assert [r["member"] for r in refits] == [MEMBER] and refits[0]["start"] == TRUTH
-    assert refits[0]["walk"] is walk
+    assert refits[0]["walk"] is walk and refits[0]["kept"] is fits[0]  # its holds kept
     assert result[0].train_cost == -1.0
     assert (result[0].eligible, result[0].note) == (False, "dropped")  # the verdict kept
     anchored = dataclasses.replace(sliced, unanchored=frozenset())
@@ -109,3 +112,15 @@ def test_with_a_bias_per_burst_the_ratios_sigma_is_its_scatter() -> None:
         sigma = problem.sigmas(result.jac, result.fun)
         squares.append(((x[ratio] - TRUTH["relaxation_ratio"]) / sigma[ratio]) ** 2)
     assert 0.5 < np.mean(squares) < 1.5
+
+
+def test_a_continued_fit_keeps_what_it_held() -> None:
+    """``fit_member(kept=...)``: the values the fit it continues held stay at theirs."""
+    data, sliced = _identification(3, 0)
+    values = {**TRUTH, "relaxation_time_s": 0.4}  # held away from the cell's 0.5
+    kept = MemberFit(MEMBER, values, {n: 0.01 for n in MEMBER.free}, 0.0, 0.0, 0.0, 3,
+                     held=("relaxation_time_s",))
+    fit = fit_module.fit_member(MEMBER, data, data, values, TRUTH, ARM, READING, NOISE,
+                                sliced.at_bursts(data), kept=kept)
+    assert fit.held == ("relaxation_time_s",) and fit.values["relaxation_time_s"] == 0.4
+    assert fit.sigmas["relaxation_time_s"] == 0.01 and fit.free == 3

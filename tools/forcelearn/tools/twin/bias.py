@@ -7,7 +7,8 @@ without this module the bias's wander over a run (~0.5 N over 60 trials)
 lands in the residuals and leaks into the contact position and the wear.
 
 Model: the bias is constant over a *segment* (a trial, or a slice of at most
-``SEGMENT_S`` of a longer one such as the surface probe) and walks between
+``SEGMENT_S`` of a longer one such as the surface probe; each burst of an identification
+once the members are fitted, :meth:`BiasWalk.at_bursts`) and walks between
 segments: ``b_s - b_(s-1) ~ N(0, q^2 dt_s)``; it is 0 at every tare (the
 run's own at its start, and each recorded accepted tare). For given model
 predictions the biases minimise::

@@ -242,8 +242,12 @@ def loose_holdable(free: list[str], values: dict[str, float], spread: dict[str, 
 def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
                start: dict[str, float], base: dict[str, float], arm: dict[str, float],
                reading: Reading, noise_n: float, walk: BiasWalk | None = None,
-               never_held: frozenset[str] = frozenset()) -> MemberFit:
+               never_held: frozenset[str] = frozenset(),
+               kept: MemberFit | None = None) -> MemberFit:
     """Fit one member's free parameters on ``train``; score it on ``heldout``.
+
+    ``kept``: a fit of this member to continue from (a changed problem, the same records):
+    what it held stays held at its value, with its sigma, and the rest starts at its values.
 
     A scale the records do not determine (its 1-sigma above its bound), such as a wear's
     time constant, is held at the base config's value and the rest refitted, so the
@@ -257,9 +261,10 @@ def fit_member(member: Member, train: RecordArrays, heldout: RecordArrays,
     """
     fixed = dict(member.fixed)
     values = {**start, **fixed}
-    held: list[str] = []
-    free = [n for n in member.free if n not in fixed]
-    held_sigmas: dict[str, float] = {}
+    held: list[str] = list(kept.held) if kept is not None else []
+    free = [n for n in member.free if n not in fixed and n not in held]
+    held_sigmas: dict[str, float] = ({n: kept.sigmas[n] for n in held if n in kept.sigmas}
+                                     if kept is not None else {})
     problem = Problem(train, arm, reading, noise_n, walk)
 
     def solve(names: list[str], start: dict[str, float]
@@ -479,7 +484,7 @@ def walked_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordArray
     refitted = []
     for fit in fits:
         new = fit_member(fit.member, train, heldout, fit.values, base, arm, reading, noise_n,
-                         fine, never_held)
+                         fine, never_held, kept=fit)
         new.eligible, new.note = fit.eligible, fit.note
         refitted.append(new)
     return fine, refitted
