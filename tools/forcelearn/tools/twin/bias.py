@@ -7,7 +7,8 @@ without this module the bias's wander over a run (~0.5 N over 60 trials)
 lands in the residuals and leaks into the contact position and the wear.
 
 Model: the bias is constant over a *segment* (a trial, or a slice of at most
-``SEGMENT_S`` of a longer one such as the surface probe) and walks between
+``SEGMENT_S`` of a longer one such as the surface probe; each burst of an identification
+once the members are fitted, :meth:`BiasWalk.at_bursts`) and walks between
 segments: ``b_s - b_(s-1) ~ N(0, q^2 dt_s)``; it is 0 at every tare (the
 run's own at its start, and each recorded accepted tare). For given model
 predictions the biases minimise::
@@ -172,7 +173,8 @@ def _ranks(data: RecordArrays, settled: np.ndarray) -> np.ndarray:
 
 
 def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None,
-                unanchored: frozenset[int] = frozenset()) -> Chain:
+                unanchored: frozenset[int] = frozenset(),
+                per_burst: frozenset[int] = frozenset()) -> Chain:
     """Segments of ``data`` and their links.
 
     A zero (a tare) holds for the bursts read after the one it was taken on: of later
@@ -188,7 +190,8 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None,
     ``unanchored``: trials whose zero is not in the records (an identification's: it tares
     before its records start, in a session of its own) starts from an unknown bias
     (``UNKNOWN_ZERO_VAR_N2``), read from its own bursts; the row after it of another trial
-    starts from the run's tare.
+    starts from the run's tare. ``per_burst``: trials whose bursts are each a segment of
+    their own (the walk followed from burst to burst, :meth:`BiasWalk.at_bursts`).
     """
     burst_s = np.where(data.has_burst, data.burst_start_s + 0.5 * data.burst_span_s, np.nan)
     settled = np.where(np.isfinite(data.settled_s), data.settled_s, data.burst_start_s)
@@ -224,7 +227,8 @@ def build_chain(data: RecordArrays, zeros: Zeros, after: After | None = None,
                 current, done = ids[done], done + 1
             passed[trial] = done
             moment = float(burst_s[row, col])
-            if (k == 0 or moment - members[-1][0] > SEGMENT_S
+            longest = 0.0 if trial in per_burst else SEGMENT_S
+            if (k == 0 or moment - members[-1][0] > longest
                     or (members and current != zero_of[-1])):
                 var = 0.0
                 if k == 0 and trial in unanchored and previous_trial != trial:
@@ -524,6 +528,8 @@ class BiasWalk:
     """(T, M) trial number of each fitted burst (the uncertainty's groups)."""
     train_mean_n: np.ndarray
     """(T, M) recorded burst means of the fitted trials, N."""
+    unanchored: frozenset[int] = frozenset()
+    """Fitted trials whose zero is not in the records (an identification's)."""
 
     @property
     def rate(self) -> float:
@@ -568,6 +574,28 @@ class BiasWalk:
         held = heldout_pred + offsets(chain, held_b)
         return train_pred + offsets(self.train, train_b), held
 
+    @property
+    def profiled(self) -> int:
+        """Biases profiled out of :meth:`residuals` (each with its walk or prior term there).
+
+        With a walk, one per segment; without, one per segment the walk restarts at with a
+        zero known only to its error (a linked segment shares its head's, an exact zero none).
+        """
+        if self.rate > 0:
+            return self.train.size
+        return int(np.sum(~self.train.linked & (self.train.anchor_var_n2 > 0)))
+
+    def at_bursts(self, data: RecordArrays) -> BiasWalk:
+        """The same walk with each burst of the unanchored trials its own segment.
+
+        ``data``: the fitted trials this walk was built on.
+        """
+        if not self.unanchored:
+            return self
+        chain = build_chain(data, self.zeros, unanchored=self.unanchored,
+                            per_burst=self.unanchored)
+        return dataclasses.replace(self, train=chain)
+
     def sensor(self, fit: SensorFit) -> SensorFit:
         """``fit`` with the drift the walk measured when the tares did not."""
         if fit.tares >= 3 and math.isfinite(fit.drift_n_per_sqrt_s):
@@ -598,4 +626,4 @@ def bias_walk(records: list[TrialRecords], train: RecordArrays, heldout: RecordA
                                  phi if phi is not None else 0.0)
     labels = np.broadcast_to(train.trial[:, None], train.has_burst.shape)
     return BiasWalk(chain, heldout, zeros, weights_of(train), weights_of(heldout), drift,
-                    labels, train.mean_n)
+                    labels, train.mean_n, unanchored)

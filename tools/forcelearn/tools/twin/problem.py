@@ -95,9 +95,12 @@ class Problem:
         five seeds scatter by 0.0018. The probe as one group (its few points carry half of
         what fixes the surface's height and shape, and one group's score the fit all but
         zeroes) put seed 4's waviness at 0.9879 +- 0.0039 (-3.1 sigma); by point, +- 0.0044;
-        the five seeds' waviness scatters by 0.0071.
+        the five seeds' waviness scatters by 0.0071. The biases profiled out count against
+        the residuals' degrees of freedom (:attr:`~.bias.BiasWalk.profiled`).
         """
-        return largest_sigmas(jacobian, residuals, [self.groups, self.rows, self.places, None])
+        nuisance = self.walk.profiled if self.walk is not None else 0
+        return largest_sigmas(jacobian, residuals, [self.groups, self.rows, self.places, None],
+                              nuisance)
 
     def solve(self, names: list[str], values: dict[str, float], keep: np.ndarray | None = None,
               max_nfev: int | None = None) -> tuple[np.ndarray, OptimizeResult]:

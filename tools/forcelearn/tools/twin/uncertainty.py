@@ -18,10 +18,17 @@ SINGULAR = 1e-9
 
 
 def sigmas(jacobian: np.ndarray, residuals: np.ndarray,
-           groups: np.ndarray | None = None) -> np.ndarray:
+           groups: np.ndarray | None = None, nuisance: int = 0) -> np.ndarray:
     """One-sigma uncertainty of each parameter (inf where the data do not constrain it).
 
     ``groups`` (one label per residual) marks residuals that may be correlated.
+    ``nuisance``: parameters profiled out of the residuals (the sensor's bias segments,
+    each with its walk term among them): the residuals' degrees of freedom are
+    ``m - p - nuisance``, and the meat is scaled by ``m`` over that. The profiled biases
+    take up part of each residual: with a bias per burst of an identification (its walk
+    term beside it) the residuals left are smaller than the noise, and on a simulated
+    step-and-hold with a walking zero the sandwich put the relaxation ratio at +- 0.0017
+    where 40 draws scattered by 0.0023 (with the count: +- 0.0024).
     """
     m, p = jacobian.shape
     _, values, vt = np.linalg.svd(jacobian, full_matrices=False)
@@ -35,7 +42,7 @@ def sigmas(jacobian: np.ndarray, residuals: np.ndarray,
     _, inverse = np.unique(labels, return_inverse=True)
     summed = np.zeros((int(inverse.max()) + 1 if m else 0, p))
     np.add.at(summed, inverse, scores)
-    meat = summed.T @ summed * (m / max(1, m - p))
+    meat = summed.T @ summed * (m / max(1, m - p - nuisance))
     basis = vt[seen]  # (r, p)
     bread = basis.T / values[seen] ** 2 @ basis  # (J^T J)^-1 on the seen directions
     cov = bread @ meat @ bread
@@ -44,7 +51,7 @@ def sigmas(jacobian: np.ndarray, residuals: np.ndarray,
 
 
 def largest_sigmas(jacobian: np.ndarray, residuals: np.ndarray,
-                   groupings: list[np.ndarray | None]) -> np.ndarray:
+                   groupings: list[np.ndarray | None], nuisance: int = 0) -> np.ndarray:
     """The largest 1-sigma of each parameter over several correlation structures.
 
     Each grouping is one guess at which residuals are correlated (:func:`sigmas`; None: each
@@ -52,8 +59,8 @@ def largest_sigmas(jacobian: np.ndarray, residuals: np.ndarray,
     that cancel within a trial along the fitted direction) shrinks the sandwich below the
     independent-residual one; residuals correlated along another level (a model error at one
     place of the path, met again on every pass) are seen by clustering at that level only.
-    Not knowing which holds, the fit states the largest.
+    Not knowing which holds, the fit states the largest. ``nuisance``: :func:`sigmas`'.
     """
-    result: np.ndarray = np.max(np.stack([sigmas(jacobian, residuals, g) for g in groupings]),
-                                axis=0)
+    result: np.ndarray = np.max(np.stack([sigmas(jacobian, residuals, g, nuisance)
+                                          for g in groupings]), axis=0)
     return result
