@@ -15,7 +15,12 @@ from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.tools.twin import fit as fitting
 from forcelearn.tools.twin.arrays import to_arrays
 from forcelearn.tools.twin.forward import Reading
-from forcelearn.tools.twin.params import FRICTION, FRICTION_MEMBER, HYSTERETIC_MEMBER
+from forcelearn.tools.twin.params import (
+    FRICTION,
+    FRICTION_MEMBER,
+    HYSTERESIS,
+    HYSTERETIC_MEMBER,
+)
 from forcelearn.tools.twin.simulate import DOWN, SimulatedRun, simulate_run
 
 READING = Reading.of(DOWN, 1, -1.0)
@@ -44,13 +49,13 @@ def test_the_friction_member_keeps_the_lower_of_its_two_starts(
     data = to_arrays(records)
     train, heldout = data.rows([0, 1]), data.rows([2])
     base = {k: float(v) for k, v in SpongeParams().__dict__.items()}
-    starts: list[tuple[str, float]] = []
+    starts: list[tuple[str, float, float]] = []
     real = fitting.fit_member
 
     def trapped(member, train, heldout, start, *args, **kwargs):  # type: ignore[no-untyped-def]
         fit = real(member, train, heldout, start, *args, **kwargs)
         mu = start.get(FRICTION.name, 0.0)
-        starts.append((member.name, mu))
+        starts.append((member.name, mu, start.get(HYSTERESIS.name, 0.0)))
         fit.values = {**fit.values, FRICTION.name: mu}
         fit.train_cost = 100.0 - gain * mu / fitting.second_start(FRICTION)
         return fit
@@ -59,8 +64,14 @@ def test_the_friction_member_keeps_the_lower_of_its_two_starts(
     fits = fitting.fit_nested((HYSTERETIC_MEMBER, FRICTION_MEMBER), train, heldout, base, base,
                               ARM, READING, 0.05)
     # (the fake costs make ``unstick`` refit the hysteretic member after: not looked at)
-    assert starts[:3] == [(HYSTERETIC_MEMBER.name, 0.0), (FRICTION_MEMBER.name, 0.0),
-                          (FRICTION_MEMBER.name, fitting.second_start(FRICTION))]
+    mu, h = fitting.second_start(FRICTION), fitting.second_start(HYSTERESIS)
+    parent_h = starts[0][2]
+    hysteretic = [s for s in starts if s[0] == HYSTERETIC_MEMBER.name]
+    friction = [s for s in starts if s[0] == FRICTION_MEMBER.name]
+    assert hysteretic[0] == (HYSTERETIC_MEMBER.name, 0.0, parent_h)
+    # from the parent's solution (mu off, then on), then from the common start, h and mu on
+    assert [s[1] for s in friction[:3]] == [0.0, mu, mu]
+    assert friction[2][2] == h
     inside = gain > fitting.START_COST
     assert fits[-1].values[FRICTION.name] == (fitting.second_start(FRICTION) if inside else 0.0)
-    assert ("started inside its range" in fits[-1].note) == inside
+    assert ("inside their ranges" in fits[-1].note) == inside
