@@ -509,11 +509,12 @@ def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: Record
             # solution may have bent the foam too far to stand in for the friction)
             on = [p for p in ON_STARTS if p.name in member.free]
             first = fit.train_cost
-            for label, turned in (("its parent's solution", added), ("the common start", on)):
-                if turned is on and represents(fit, noise_n):
+            for label, turned, origin, always in (
+                    ("its parent's solution", added, begin, True),
+                    ("the common start", on, start, False)):
+                if not always and represents(fit, noise_n):
                     continue
-                inside = {**(begin if turned is added else start),
-                          **{p.name: second_start(p) for p in turned}}
+                inside = {**origin, **{p.name: second_start(p) for p in turned}}
                 other = fit_member(member, train, heldout, inside, base, arm, reading, noise_n,
                                    walk, never_held)
                 if other.train_cost < min(fit.train_cost, first - START_COST):
@@ -573,16 +574,20 @@ def recounted_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordAr
     # a count that moves the best member's cost by less than one unit of log-likelihood
     # moves no value (the default run: 281 of 9,274 moves, values within 4e-7)
     problem = Problem(again, arm, reading, noise_n, walk)
-    error = problem.residuals(problem.forward.predict(surface, reading))
-    if abs(0.5 * float(error @ error) - best.train_cost) <= RECOUNT_COST:
+
+    def recounted_cost(values: SpongeParams) -> float:
+        error = problem.residuals(problem.forward.predict(values, reading))
+        return 0.5 * float(error @ error)
+
+    best_cost = recounted_cost(surface)
+    if abs(best_cost - best.train_cost) <= RECOUNT_COST:
         return train, heldout, fits
     refitted = []
     for fit in fits:
         # the same rule per member: a solution whose cost the new count moves by less than
         # RECOUNT_COST is kept, scored on the new count (a refit is a whole member's fit)
-        moved = problem.residuals(problem.forward.predict(SpongeParams.unchecked(fit.values),
-                                                          reading))
-        cost = 0.5 * float(moved @ moved)
+        cost = (best_cost if fit is best
+                else recounted_cost(SpongeParams.unchecked(fit.values)))
         if abs(cost - fit.train_cost) <= RECOUNT_COST:
             new = scored(fit.member, fit.values, fit.sigmas, fit.free, fit.held, cost, problem,
                          later, arm, reading, noise_n, walk)
