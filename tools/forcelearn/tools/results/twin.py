@@ -31,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from forcelearn.errors import StudyError
+from forcelearn.tools.results import twin_calibration
 from forcelearn.tools.results.twin_compare import (
     LearningSide,
     RunOutcome,
@@ -241,7 +242,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     write_page(results, page, figure, generator_seed=args.seed, seeds=args.seeds,
                trials=TRIALS, workers=args.workers, identify=args.identify)
     try:
-        checks = page_lines(out, cells)
+        checks = page_lines(out, cells) + twin_calibration.page_lines(out, cells)
     except StudyError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

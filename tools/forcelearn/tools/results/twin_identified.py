@@ -130,20 +130,38 @@ def identified(truth: dict[str, Any], twin: dict[str, Any]) -> list[Identified]:
     return out
 
 
-def three_sigma_offs(truth: dict[str, Any], twin: dict[str, Any]) -> list[str]:
-    """Parameters reported determined but more than ``OFF_SIGMAS`` sigma from the truth."""
+@dataclass(frozen=True)
+class Deviation:
+    """A value the twin reports determined, against the truth, in its reported sigmas."""
+
+    name: str
+    value: float
+    sigma: float
+    truth: float
+
+    @property
+    def z(self) -> float:
+        """(value - truth) / sigma."""
+        return (self.value - self.truth) / self.sigma
+
+
+def deviations(truth: dict[str, Any], twin: dict[str, Any]) -> list[Deviation]:
+    """Every value ``twin`` reports determined with a sigma whose truth the cell knows."""
     values = truth_values(truth)
-    offs = []
+    out = []
     for row in twin["parameters"]:
         name, sigma = row["name"], row.get("sigma")
         if (not row["determined"] or name in NOT_COMPARED or name not in values
                 or sigma is None or not sigma > 0):
             continue
-        gap = (float(row["value"]) - values[name]) / float(sigma)
-        if abs(gap) > OFF_SIGMAS:
-            offs.append(f"{name} {float(row['value']):.4g} ± {float(sigma):.2g} vs "
-                        f"{values[name]:.4g} ({gap:+.1f} sigma)")
-    return offs
+        out.append(Deviation(name, float(row["value"]), float(sigma), values[name]))
+    return out
+
+
+def three_sigma_offs(truth: dict[str, Any], twin: dict[str, Any]) -> list[str]:
+    """Parameters reported determined but more than ``OFF_SIGMAS`` sigma from the truth."""
+    return [f"{d.name} {d.value:.4g} ± {d.sigma:.2g} vs {d.truth:.4g} ({d.z:+.1f} sigma)"
+            for d in deviations(truth, twin) if abs(d.z) > OFF_SIGMAS]
 
 
 def identification_arm(truth: dict[str, Any], folder: Path) -> list[Identified]:
