@@ -62,6 +62,11 @@ class FineApproach:
             would take, mm).
         floor_advice: what to set when even :data:`~forcelearn.press_guard.MIN_STEP_MM` met
             it (no step reads the press twice): a wider span.
+        widest_span_n: a press free to end deeper (``forcelearn identify``'s: it only needs
+            readings in contact) widens :attr:`span_n` up to this, N, where no finer step is
+            left, to the span that gives :data:`READINGS` readings in contact at the step in
+            use;
+            0 (a probe whose deepest force is the task's): never widened.
     """
 
     configured_mm: float
@@ -69,6 +74,7 @@ class FineApproach:
     span_n: float
     advice: str
     floor_advice: str = PROBE_FLOOR_ADVICE
+    widest_span_n: float = 0.0
     step_mm: float = 0.0
     """The step in use, mm (:meth:`start` sets the configured one)."""
     refines: int = 0
@@ -108,12 +114,14 @@ class FineApproach:
         True: back out to that free reading and approach again in :attr:`step_mm` (now finer).
         False: go on pressing from here: it passed the contact's force by at most a third of the
         span, or no finer step is left to take and it is still under the deepest press's force
-        (the press then steps from the stiffness seen).
+        (the press then steps from the stiffness seen), or the span was widened (within
+        :attr:`widest_span_n`) so that it is.
 
         Raises:
             ApproachTooCoarse: it reached the deepest press's force in one step and no finer
                 step is left (:data:`REFINES` fresh approaches taken, or the step is at
-                :data:`~forcelearn.press_guard.MIN_STEP_MM`).
+                :data:`~forcelearn.press_guard.MIN_STEP_MM`), and no span within
+                :attr:`widest_span_n` reads the press :data:`READINGS` times.
         """
         over_n = force_n - self.contact_n
         if pressed_mm <= 0.0 or self.span_n <= 0.0 or READINGS * over_n <= self.span_n:
@@ -128,6 +136,12 @@ class FineApproach:
             return True
         if over_n < self.span_n:
             return False
+        # this reading and READINGS - 1 more steps of seen x step_mm, the last ending the press
+        # half a step early (noise may not cut it short of its READINGS readings)
+        wider = over_n + (READINGS - 1.5) * seen * self.step_mm
+        if wider <= self.widest_span_n:
+            self.span_n = wider
+            return False
         at_floor = self.step_mm <= MIN_STEP_MM
         what = (f"even the finest step, {MIN_STEP_MM:g} mm, passes it: " + self.floor_advice
                 if at_floor else self.advice.format(step=f"{step:.3g}"))
@@ -135,4 +149,7 @@ class FineApproach:
             f"the approach{where} met {force_n:.2f} N {pressed_mm:.3g} mm past a free reading "
             f"({seen:.3g} N/mm) after {self.refines} finer approaches: its press from the "
             f"contact ({self.contact_n:g} N) to {self.contact_n + self.span_n:.2f} N has one "
-            f"reading (a stiff part with a small force); {what}")
+            f"reading (a stiff part with a small force); {what}"
+            + (f" (a press widened to read it {READINGS} times would end {wider:.2f} N over the "
+               f"contact, past the {self.widest_span_n:.2f} N allowed)"
+               if self.widest_span_n > 0 else ""))

@@ -207,3 +207,50 @@ def test_the_step_and_hold_steps_in_on_a_soft_noisy_part(tmp_path: Path) -> None
     assert len({s.index for s in steps}) == plan.hold_steps - 1
     bursts = [s.burst for t in result.records for s in t.steps if s.burst is not None]
     assert max(b.mean_n for b in bursts) < config.safety.max_force_n
+
+
+def test_identify_widens_a_press_no_step_can_read_up_to_the_desired_force() -> None:
+    """18.6 N/mm, contact at 2.2 N, press to 0.5 x 5.05 N: 0.33 N, a third of the finest step.
+
+    Hidden cell 24 of seed 4: the press was refused (even a 0.05 mm step passes it). The press
+    now ends deeper, under the task's desired force, read several times in contact; the
+    holds and cycles run; every reading stays under the force limit.
+    """
+    from dataclasses import replace
+
+    from forcelearn.tasks.approach import READINGS
+
+    config = load_cell_config(None)
+    sponge = replace(config.emulator.sponge, stiffness_n_per_mm=18.6)
+    config = replace(config, emulator=replace(config.emulator, sponge=sponge),
+                     task=replace(config.task, desired_force_n=5.05),
+                     probe=replace(config.probe, contact_force_n=2.2),
+                     safety=replace(config.safety, max_force_n=15.15))
+    plan = IdentifyPlan(lengths_mm=(1.0,), speeds_mm_s=(20.0,), free_reads=2, free_hold_s=1.0,
+                        hold_s=(0.1, 0.4))
+    result = run_identification(config, plan, seed=0)
+    steps = [s for t in result.records for s in t.steps if s.burst is not None]
+    press = [s.burst.mean_n for s in steps if s.stage == "identify-press"]
+    assert press[-1] > plan.press_force_ratio * config.task.desired_force_n
+    assert sum(f > config.probe.contact_force_n for f in press[-READINGS:]) >= READINGS - 1
+    assert press[-1] < config.task.desired_force_n + 1.0  # the widened press's end, noise
+    assert {"identify-step", "identify-cycle1"} <= {s.stage for s in steps}
+    assert max(s.burst.mean_n for s in steps) < config.safety.max_force_n
+
+
+def test_a_press_too_narrow_even_widened_is_refused_with_what_to_set() -> None:
+    """The widest press allowed (the desired force) still under READINGS readings: the error."""
+    from forcelearn.press_guard import MIN_STEP_MM
+    from forcelearn.tasks.approach import (
+        PROBE_APPROACH_ADVICE,
+        READINGS,
+        ApproachTooCoarse,
+        FineApproach,
+    )
+
+    approach = FineApproach(MIN_STEP_MM, 2.2, 0.33, PROBE_APPROACH_ADVICE, widest_span_n=1.0)
+    with pytest.raises(ApproachTooCoarse, match=r"widened .* past the 1.00 N allowed"):
+        approach.again(3.1, 0.0, MIN_STEP_MM)
+    wide = FineApproach(MIN_STEP_MM, 2.2, 0.33, PROBE_APPROACH_ADVICE, widest_span_n=3.0)
+    assert not wide.again(3.1, 2.0, MIN_STEP_MM)  # 22 N/mm: widened, it presses on
+    assert wide.span_n == pytest.approx(0.9 + (READINGS - 1.5) * 22.0 * MIN_STEP_MM)
