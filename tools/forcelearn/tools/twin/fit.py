@@ -40,6 +40,7 @@ from forcelearn.tools.twin.identify import IDENTIFY_TRIAL, Identification
 from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, FRICTION, HYSTERESIS, Member, Parameter, family
 from forcelearn.tools.twin.pass_count import surface_passes
+from forcelearn.tools.twin.phase_share import phase_spread
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.timing_share import arm_spread
@@ -95,6 +96,10 @@ class MemberFit:
     arm_sigmas: dict[str, float] = field(default_factory=dict)
     """The arm's fitted values' share of each fitted 1-sigma (chosen member only;
     :func:`~forcelearn.tools.twin.timing_share.arm_spread`): added in quadrature."""
+    phase_sigmas: dict[str, float] = field(default_factory=dict)
+    """The controller's tick phase's share of each fitted 1-sigma through the
+    identification's in-position times (chosen member only;
+    :func:`~forcelearn.tools.twin.phase_share.phase_spread`): added in quadrature."""
     experiment_sigmas: dict[str, float] = field(default_factory=dict)
     """The fitted experiments' disagreement's share of each fitted 1-sigma (chosen member
     only; :func:`~forcelearn.tools.twin.experiments.experiment_spread`): added in quadrature."""
@@ -744,6 +749,9 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
                                    first.noise_n, walk)
     for name, arm_sigma in chosen.arm_sigmas.items():
         chosen.sigmas[name] = math.hypot(chosen.sigmas[name], arm_sigma)
+    chosen.phase_sigmas = phase_spread(chosen, train, arm.values, reading, first.noise_n, walk)
+    for name, phase_sigma in chosen.phase_sigmas.items():
+        chosen.sigmas[name] = math.hypot(chosen.sigmas[name], phase_sigma)
     chosen.experiment_sigmas = experiment_spread(chosen, train, arm.values, reading,
                                                  first.noise_n, walk)
     for name, experiment_sigma in chosen.experiment_sigmas.items():
