@@ -16,6 +16,7 @@ import pytest
 
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.records import TrialRecords
+from forcelearn.tools.experiments.records import PROBE_TRIAL
 from forcelearn.tools.twin import fit as fit_module
 from forcelearn.tools.twin.arrays import RecordArrays, to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, DriftEstimate, build_chain, tare_zeros
@@ -124,3 +125,31 @@ def test_a_continued_fit_keeps_what_it_held() -> None:
                                 sliced.at_bursts(data), kept=kept)
     assert fit.held == ("relaxation_time_s",) and fit.values["relaxation_time_s"] == 0.4
     assert fit.sigmas["relaxation_time_s"] == 0.01 and fit.free == 3
+
+
+def test_the_probes_bias_is_followed_per_burst_beside_an_identification() -> None:
+    """The surface probe's points hold a minute at one place too: its bursts get a bias each.
+
+    Sliced, its zero walking within 20 s pulled the slope, the contact and the relaxation
+    (hidden cell 13 of seed 2). Without an identification the walk stays as it is.
+    """
+    run = SimulatedRun(trials=0, probe_points=(0.1, 0.5, 0.9), probe_dwell_s=1.0,
+                       sponge=CELL, sensor=noise_only_sensor(NOISE))
+    probe = [r for r in simulate_run(run, seed=3) if r.steps]
+    assert {r.trial for r in probe} == {PROBE_TRIAL}
+    data = to_arrays([*probe, *(TrialRecords(IDENT, r.steps, []) for r in probe)])
+    weights = burst_weights(data, NOISE)
+    labels = np.broadcast_to(data.trial[:, None], data.has_burst.shape)
+
+    def walk(unanchored: frozenset[int]) -> BiasWalk:
+        return BiasWalk(build_chain(data, tare_zeros([]), unanchored=unanchored), data,
+                        tare_zeros([]), weights, weights,
+                        DriftEstimate(RATE, 0.1 * RATE, "tares", 10), labels, data.mean_n,
+                        unanchored)
+
+    fine = walk(frozenset({IDENT})).at_bursts(data)
+    for trial in (PROBE_TRIAL, IDENT):
+        bursts = data.has_burst & (data.trial == trial)[:, None]
+        assert np.unique(fine.train.segment[bursts]).size == int(bursts.sum())
+    anchored = walk(frozenset())
+    assert anchored.at_bursts(data) is anchored

@@ -40,6 +40,7 @@ from forcelearn.tools.twin.identify import IDENTIFY_TRIAL, Identification
 from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, FRICTION, HYSTERESIS, Member, Parameter, family
 from forcelearn.tools.twin.pass_count import surface_passes
+from forcelearn.tools.twin.phase_share import phase_spread
 from forcelearn.tools.twin.problem import Problem, burst_weights, jackknife
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.timing_share import arm_spread
@@ -95,6 +96,10 @@ class MemberFit:
     arm_sigmas: dict[str, float] = field(default_factory=dict)
     """The arm's fitted values' share of each fitted 1-sigma (chosen member only;
     :func:`~forcelearn.tools.twin.timing_share.arm_spread`): added in quadrature."""
+    phase_sigmas: dict[str, float] = field(default_factory=dict)
+    """The controller's tick phase's share of each fitted 1-sigma through the
+    identification's in-position times (chosen member only;
+    :func:`~forcelearn.tools.twin.phase_share.phase_spread`): added in quadrature."""
     experiment_sigmas: dict[str, float] = field(default_factory=dict)
     """The fitted experiments' disagreement's share of each fitted 1-sigma (chosen member
     only; :func:`~forcelearn.tools.twin.experiments.experiment_spread`): added in quadrature."""
@@ -603,12 +608,13 @@ def walked_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordArray
                 base: dict[str, float], arm: dict[str, float], reading: Reading,
                 noise_n: float, walk: BiasWalk, never_held: frozenset[str] = frozenset()
                 ) -> tuple[BiasWalk, list[MemberFit]]:
-    """The identification's sensor bias followed from burst to burst; members refitted.
+    """The identification's and the probe's sensor bias followed burst to burst; members refitted.
 
     The members are fitted with the bias held over slices of up to ``bias.SEGMENT_S``
     (an identification's holds last minutes at one place, while the sensor walks
     ``q sqrt(20 s)``, 0.1 N at 0.02 N/sqrt(s), against a burst mean known to 0.01 N);
-    then each burst of the identification gets its own bias, the steps between them
+    then each burst of the identification (and of the surface probe, whose points hold a
+    minute at one place too) gets its own bias, the steps between them
     weighted by the walk's own rate (:meth:`~.bias.BiasWalk.at_bursts`), and each member
     is refitted from its own solution: the per-burst problem is solved as a continuation
     of the sliced one. Fitted from the members' common start with the per-burst walk, a
@@ -744,6 +750,9 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
                                    first.noise_n, walk)
     for name, arm_sigma in chosen.arm_sigmas.items():
         chosen.sigmas[name] = math.hypot(chosen.sigmas[name], arm_sigma)
+    chosen.phase_sigmas = phase_spread(chosen, train, arm.values, reading, first.noise_n, walk)
+    for name, phase_sigma in chosen.phase_sigmas.items():
+        chosen.sigmas[name] = math.hypot(chosen.sigmas[name], phase_sigma)
     chosen.experiment_sigmas = experiment_spread(chosen, train, arm.values, reading,
                                                  first.noise_n, walk)
     for name, experiment_sigma in chosen.experiment_sigmas.items():

@@ -89,6 +89,8 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
                 row["sigma_held"] = fit.chosen.held_sigmas[name]
             if name in fit.chosen.arm_sigmas:
                 row["sigma_arm"] = fit.chosen.arm_sigmas[name]
+            if name in fit.chosen.phase_sigmas:
+                row["sigma_phase"] = fit.chosen.phase_sigmas[name]
             if name in fit.chosen.experiment_sigmas:
                 row["sigma_experiments"] = fit.chosen.experiment_sigmas[name]
             member = fit.chosen.member_sigmas.get(name, 0.0)
