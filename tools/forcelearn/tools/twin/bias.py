@@ -572,10 +572,10 @@ class BiasWalk:
         identification's: minutes at one place, read against a zero nobody recorded) walk at
         the largest rate the tares allow (:attr:`DriftEstimate.allowed`). Held still there,
         its one bias took the zero's walk over the identification into the contact: the
-        identifications of hidden cells 07, 08 and 16 of seed 1 read 0.10 N more in their
-        first contacts than in the free space before them (the emulated sensors of every
-        hidden cell walk alike: each runs with seed 0), which raised the fitted surface by
-        0.7-1.2 of its sigma; at the true rate, by 0.0-0.3.
+        identifications of the hidden cells read 0.10 N more in their first contacts than
+        in the free space before them (their emulated sensors walk alike: each runs with
+        seed 0), and at the truth the identification's bursts of seed 1's cells 03, 07, 08
+        and 16 pulled the surface up by 0.7-1.3 of its sigma; walking, by -0.01 to +0.10.
         """
         allowed = self.drift.allowed
         if self.rate > 0 or not self.unanchored or not allowed > 0:
