@@ -17,6 +17,7 @@ import numpy as np
 
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.records import TrialRecords
+from forcelearn.tools.experiments.records import PROBE_TRIAL
 from forcelearn.tools.twin.arrays import to_arrays
 from forcelearn.tools.twin.bias import BiasWalk, DriftEstimate, build_chain, tare_zeros
 from forcelearn.tools.twin.forward import Reading
@@ -97,3 +98,28 @@ def test_the_tares_allow_a_walk_where_they_put_its_rate_at_0() -> None:
     assert sensor.tares >= 3
     assert math.isfinite(sensor.drift_allowed)
     assert sensor.drift_allowed > 0 and sensor.drift_allowed >= sensor.drift_n_per_sqrt_s
+
+
+def test_the_probes_bias_follows_its_walk_burst_by_burst_where_the_walk_is_on() -> None:
+    """With a detected drift each probe burst is a segment of its own; without, as before."""
+    run = SimulatedRun(trials=2, probe_points=(0.2, 0.5), probe_dwell_s=1.0, sponge=CELL,
+                       sensor=noise_only_sensor(NOISE))
+    records = simulate_run(run, seed=3)
+    data = to_arrays(records)
+    probe = data.trial == PROBE_TRIAL
+    weights = burst_weights(data, NOISE)
+    labels = np.broadcast_to(data.trial[:, None], data.has_burst.shape)
+
+    def walk(drift: DriftEstimate) -> BiasWalk:
+        return BiasWalk(build_chain(data, tare_zeros(records)), data, tare_zeros(records),
+                        weights, weights, drift, labels, data.mean_n)
+
+    on = walk(DriftEstimate(RATE, 0.1 * RATE, "tares", 10))
+    fine = on.at_bursts(data)
+    bursts = int(data.has_burst[probe].sum())
+    assert on.train.size < bursts
+    assert int(np.sum(fine.train.trial_of == PROBE_TRIAL)) == bursts
+    assert np.array_equal(fine.train.trial_of[fine.train.trial_of != PROBE_TRIAL],
+                          on.train.trial_of[on.train.trial_of != PROBE_TRIAL])
+    off = walk(DriftEstimate(0.0, math.inf, "tares", 10))
+    assert off.at_bursts(data) is off
