@@ -131,7 +131,8 @@ def test_the_probes_bias_is_followed_per_burst_beside_an_identification() -> Non
     """The surface probe's points hold a minute at one place too: its bursts get a bias each.
 
     Sliced, its zero walking within 20 s pulled the slope, the contact and the relaxation
-    (hidden cell 13 of seed 2). Without an identification the walk stays as it is.
+    (hidden cell 13 of seed 2). Without an identification too, where the walk is on; a walk
+    that is off stays as it is.
     """
     run = SimulatedRun(trials=0, probe_points=(0.1, 0.5, 0.9), probe_dwell_s=1.0,
                        sponge=CELL, sensor=noise_only_sensor(NOISE))
@@ -141,15 +142,18 @@ def test_the_probes_bias_is_followed_per_burst_beside_an_identification() -> Non
     weights = burst_weights(data, NOISE)
     labels = np.broadcast_to(data.trial[:, None], data.has_burst.shape)
 
-    def walk(unanchored: frozenset[int]) -> BiasWalk:
+    def walk(unanchored: frozenset[int], rate: float = RATE) -> BiasWalk:
         return BiasWalk(build_chain(data, tare_zeros([]), unanchored=unanchored), data,
                         tare_zeros([]), weights, weights,
-                        DriftEstimate(RATE, 0.1 * RATE, "tares", 10), labels, data.mean_n,
+                        DriftEstimate(rate, 0.1 * rate, "tares", 10), labels, data.mean_n,
                         unanchored)
 
     fine = walk(frozenset({IDENT})).at_bursts(data)
     for trial in (PROBE_TRIAL, IDENT):
         bursts = data.has_burst & (data.trial == trial)[:, None]
         assert np.unique(fine.train.segment[bursts]).size == int(bursts.sum())
-    anchored = walk(frozenset())
-    assert anchored.at_bursts(data) is anchored
+    probe_bursts = data.has_burst & (data.trial == PROBE_TRIAL)[:, None]
+    anchored = walk(frozenset()).at_bursts(data)
+    assert np.unique(anchored.train.segment[probe_bursts]).size == int(probe_bursts.sum())
+    still = walk(frozenset(), rate=0.0)
+    assert still.at_bursts(data) is still

@@ -25,6 +25,7 @@ from forcelearn.site.config import EmulatorConfig
 from forcelearn.site.kinds import robot_kind, sensor_kind
 from forcelearn.tools.twin.bias import DETECT_SIGMAS, drift_detected
 from forcelearn.tools.twin.fit import HOLD_OUT, SCALE_OF, TwinFit
+from forcelearn.tools.twin.identify import IDENTIFY_TRIAL
 from forcelearn.tools.twin.params import ARM, BY_NAME, SENSOR, Parameter
 from forcelearn.tools.twin.source import RunSource
 
@@ -120,10 +121,14 @@ def parameter_rows(fit: TwinFit) -> list[dict[str, Any]]:
     drift = _row(SENSOR[1], sensor.drift_n_per_sqrt_s, sensor.drift_sigma, trials, passes)
     if not drift_detected(sensor.drift_n_per_sqrt_s, sensor.drift_sigma):
         drift["determined"] = False
+        walked = ""
+        if (fit.train.trial == IDENTIFY_TRIAL).any() and sensor.drift_allowed > 0:
+            walked = (f" (the identification's zero walks at the {sensor.drift_allowed:.4g} "
+                      "N/sqrt(s) the tares allow at 1 sigma: minutes at one place)")
         drift["note"] = (f"{sensor.tares} tares recorded; not told from no drift (under "
-                         f"{DETECT_SIGMAS:g} sigma): the fit's bias walk is off and twin.toml "
-                         "keeps the base config's value (task.tare_each_trial = true or more "
-                         "trials measure it)")
+                         f"{DETECT_SIGMAS:g} sigma): the fit's bias walk is off{walked} and "
+                         "twin.toml keeps the base config's value (task.tare_each_trial = true "
+                         "or more trials measure it)")
     elif sensor.drift_source == "free-space reads":
         drift["note"] = (f"{sensor.tares} tares recorded: measured from the free-space reads "
                          "of successive trials (task.tare_each_trial = true measures it "

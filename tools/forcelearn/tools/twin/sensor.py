@@ -46,6 +46,9 @@ class SensorFit:
     samples: int
     drift_source: str = "tares"
     """What measured the drift: "tares", "free-space reads" (:mod:`.bias`) or "none"."""
+    drift_allowed: float = math.nan
+    """The largest rate the tares allow at 1 sigma, N/sqrt(s) (NaN: not measured): the
+    walk an identification's bias follows when the drift is not told from 0 (:mod:`.bias`)."""
 
 
 def _colour_gain(phi: float) -> float:
@@ -119,9 +122,9 @@ def fit_sensor(records: list[TrialRecords], data: RecordArrays,
             noise_sigma = max(noise_sigma, 0.5 * gap)
     if calibration_noise_n is not None:
         noise, noise_sigma = calibration_noise_n, 0.0
-    drift, drift_sigma, tares = _drift(records, noise, n_mean, colour)
+    drift, drift_sigma, tares, allowed = _drift(records, noise, n_mean, colour)
     return SensorFit(noise, noise_sigma, phi, drift, drift_sigma, tares,
-                     int(np.sum(counts)) if counts.size else 0)
+                     int(np.sum(counts)) if counts.size else 0, drift_allowed=allowed)
 
 
 DRIFT_OUTLIER_SIGMAS = 5.0
@@ -183,8 +186,12 @@ def zero_variance(noise_n: float, phi: float, count: float) -> float:
 
 
 def _drift(records: list[TrialRecords], noise_n: float, n_mean: float,
-           phi: float) -> tuple[float, float, int]:
+           phi: float) -> tuple[float, float, int, float]:
     """The bias's random-walk rate from successive accepted tares (NaN, inf: none).
+
+    Returns the rate, its 1-sigma, the tares, and the largest rate they allow at 1 sigma
+    (``sqrt(D^2 + sd(D^2))``, also where the estimate of ``D^2`` is 0 and its 1-sigma
+    on ``D`` is infinite).
 
     Each tare zeroes on the burst it read, so the next one reads the walk since then plus
     both bursts' errors: ``r_k = w_k + e_k - e_(k-1)``, ``var(r_k) = D^2 dt_k + s_k^2 +
@@ -196,7 +203,7 @@ def _drift(records: list[TrialRecords], noise_n: float, n_mean: float,
     """
     reads = tare_reads(records)
     if len(reads) < 3:
-        return math.nan, math.inf, len(reads)
+        return math.nan, math.inf, len(reads), math.nan
     times = np.array([r.time_s for r in reads])
     values = np.array([r.mean_n for r in reads[1:]])
     zero_var = np.array([zero_variance(noise_n, phi, r.count if r.count > 0 else n_mean)
@@ -207,15 +214,16 @@ def _drift(records: list[TrialRecords], noise_n: float, n_mean: float,
     rate_sq = 0.0
     for _ in range(2):  # once, then without the readings beyond the walk's spread
         if not keep.any():
-            return math.nan, math.inf, len(reads)
+            return math.nan, math.inf, len(reads), math.nan
         rate_sq = max(0.0, float(np.sum(values[keep] ** 2 - read_var[keep]) / np.sum(gaps[keep])))
         spread = np.sqrt(rate_sq * gaps + read_var)
         keep = (gaps > 0) & (np.abs(values) <= DRIFT_OUTLIER_SIGMAS * np.maximum(spread, 1e-12))
     rate = math.sqrt(rate_sq)
-    if not rate > 0:
-        return rate, math.inf, len(reads)
     variance = rate_sq * gaps + read_var
     shared = np.where(keep[1:] & keep[:-1], zero_var[1:-1], 0.0)  # cov(r_k, r_k+1) = -s_k^2
     var_sum = float(np.sum(2 * variance[keep] ** 2) + np.sum(4 * shared**2))
-    sigma = math.sqrt(var_sum) / float(np.sum(gaps[keep])) / (2 * rate)
-    return rate, sigma, len(reads)
+    sd_rate_sq = math.sqrt(var_sum) / float(np.sum(gaps[keep]))
+    allowed = math.sqrt(rate_sq + sd_rate_sq)
+    if not rate > 0:
+        return rate, math.inf, len(reads), allowed
+    return rate, sd_rate_sq / (2 * rate), len(reads), allowed
