@@ -3,8 +3,13 @@
 ``python -m forcelearn.tools.results.twin --cells 30 --seed 1 --out DIR [--workers 2]``
 
 1. draws the hidden cells (``forcelearn.tools.twin.hidden_cells``, generator ``--seed``);
-2. per cell, as on site: ``forcelearn run --config cell-XX.toml --trials 60 --seed 0``
-   (probe + 60 trials), then ``forcelearn twin`` on that run directory alone;
+2. per cell, as on site: ``forcelearn run --config cell-XX.toml --trials 60 --seed R``
+   (probe + 60 trials), then ``forcelearn twin`` on that run directory alone; with
+   ``--identify`` first ``forcelearn identify --seed R + IDENTIFY_SEED_OFFSET``. ``R`` is
+   the cell's own (:func:`run_seed`), so each cell's sensor noise and zero walk are its own
+   draws; ``--run-seed zero`` gives every cell seed 0 (and identify seed 0), as studies
+   drawn before 2026-12-05 did: there every cell's sensor walked alike, scaled by its drift,
+   and the study's pooled mean deviations measured that one walk;
 3. per cell with a twin (``--learning-cells`` first cells; all by default): the learner over
    ``--seeds`` seeds on the twin.toml and on the hidden cell (seed 0 of the hidden cell is
    the site run itself); with ``--self-check EVERY``, every EVERY-th cell also runs the
@@ -70,13 +75,24 @@ def _forcelearn(*args: str) -> list[str]:
     return [sys.executable, "-m", "forcelearn.tools.cli", *args]
 
 
+IDENTIFY_SEED_OFFSET = 100_000
+"""A cell's identification seed over its run seed (run seeds stay under it for generator
+seeds under 100)."""
+
+
+def run_seed(generator_seed: int, cell: str) -> int:
+    """The site run's seed of ``cell`` (``cell-XX``) in the study of ``generator_seed``."""
+    return 1000 * generator_seed + int(cell.removeprefix("cell-"))
+
+
 def site_and_twin(out: Path, cell: str, identify: bool = False, fit: bool = True,
-                  refit: bool = False) -> None:
-    """The site run (seed 0), with ``identify`` an identification run, then the twin.
+                  refit: bool = False, seed: int = 0) -> None:
+    """The site run (``seed``), with ``identify`` an identification run, then the twin.
 
     The twin is fitted on that run alone (and the identification's records); skips
     finished steps. ``fit`` False: the cell's runs only. ``refit``: fit the twin again
-    even when a fit finished (the fit's code changed, the runs did not).
+    even when a fit finished (the fit's code changed, the runs did not). The
+    identification's seed is ``seed + IDENTIFY_SEED_OFFSET`` (0 with ``seed`` 0).
     """
     folder = out / cell
     folder.mkdir(parents=True, exist_ok=True)
@@ -85,11 +101,12 @@ def site_and_twin(out: Path, cell: str, identify: bool = False, fit: bool = True
     if not (folder / "site.done").exists() and site.exists():
         _remove(site)
     _step(folder / "site.done",
-          _forcelearn("run", "--config", config, "--trials", str(TRIALS), "--seed", "0",
+          _forcelearn("run", "--config", config, "--trials", str(TRIALS), "--seed", str(seed),
                       "--out", str(site), "--no-progress"),
           folder / "site.log")
     extra: list[str] = []
-    if identify and identification(out, cell) == 0:  # a failed one: the run's records alone
+    identify_seed = seed + IDENTIFY_SEED_OFFSET if seed else 0
+    if identify and identification(out, cell, identify_seed) == 0:  # failed: the run alone
         extra = ["--identification", str(folder / "identify")]
     if not fit:
         return
@@ -103,13 +120,13 @@ def site_and_twin(out: Path, cell: str, identify: bool = False, fit: bool = True
     print(f"{cell}: twin {(folder / 'twin.done').read_text().strip()}", flush=True)
 
 
-def identification(out: Path, cell: str) -> int:
-    """The cell's ``forcelearn identify`` run (skipped when done); its exit code."""
+def identification(out: Path, cell: str, seed: int = 0) -> int:
+    """The cell's ``forcelearn identify`` run with ``seed`` (skipped when done); its exit code."""
     folder = out / cell
     folder.mkdir(parents=True, exist_ok=True)
     rc = _step(folder / "identify.done",
-               _forcelearn("identify", "--config", str(out / "cells" / f"{cell}.toml"), "--out",
-                           str(folder / "identify")),
+               _forcelearn("identify", "--config", str(out / "cells" / f"{cell}.toml"),
+                           "--seed", str(seed), "--out", str(folder / "identify")),
                folder / "identify.log")
     print(f"{cell}: identification {rc}", flush=True)
     return rc
@@ -191,6 +208,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="with --identify: every cell's identification before any site run")
     parser.add_argument("--runs-only", action="store_true",
                         help="run the cells' site (and identification) runs, fit nothing")
+    parser.add_argument("--run-seed", choices=("cell", "zero"), default="cell",
+                        help="the cells' site and identification run seeds: each cell its own "
+                             "(default), or 0 for every cell (studies drawn before 2026-12-05)")
     parser.add_argument("--refit", action="store_true",
                         help="fit every twin again (the fit changed, the runs did not)")
     parser.add_argument("--learning-cells", type=int, default=None,
@@ -213,12 +233,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             subprocess.run([sys.executable, "-m", "forcelearn.tools.twin.hidden_cells",
                             "--count", str(args.cells), "--seed", str(args.seed),
                             "--out", str(out / "cells")], check=True)
+        seeds = {c: run_seed(args.seed, c) if args.run_seed == "cell" else 0 for c in cells}
         if args.identify and args.identify_first:  # the arm of every cell before site runs
             with ThreadPoolExecutor(args.workers) as pool:
-                list(pool.map(lambda c: identification(out, c), cells))
+                list(pool.map(lambda c: identification(
+                    out, c, seeds[c] + IDENTIFY_SEED_OFFSET if seeds[c] else 0), cells))
         with ThreadPoolExecutor(args.workers) as pool:
             list(pool.map(lambda c: site_and_twin(out, c, args.identify, not args.runs_only,
-                                                  args.refit), cells))
+                                                  args.refit, seeds[c]), cells))
         if args.runs_only:
             print(f"ran the cells' runs in {out}; fit them without --runs-only")
             return 0
@@ -240,7 +262,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     write_figure(results, figure)
     page = args.page or out / "twin.md"
     write_page(results, page, figure, generator_seed=args.seed, seeds=args.seeds,
-               trials=TRIALS, workers=args.workers, identify=args.identify)
+               trials=TRIALS, workers=args.workers, identify=args.identify,
+               run_seed=args.run_seed)
     try:
         checks = page_lines(out, cells) + twin_calibration.page_lines(out, cells)
     except StudyError as exc:

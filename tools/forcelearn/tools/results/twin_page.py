@@ -195,14 +195,19 @@ def unrepresented_lines(results: Sequence[CellResult]) -> list[str]:
 
 def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
                generator_seed: int, seeds: int, trials: int, workers: int = 2,
-               identify: bool = False) -> None:
-    """Write the Markdown page of the study."""
+               identify: bool = False, run_seed: str = "cell") -> None:
+    """Write the Markdown page of the study.
+
+    ``run_seed``: the study's ``--run-seed`` (``cell`` or ``zero``).
+    """
+    site_seed = "R" if run_seed == "cell" else "0"
     twin_line = ("#           forcelearn twin DIR/cell-XX/site --out DIR/cell-XX/twin/twin.toml "
                  "--no-figure")
     identify_lines = []
     if identify:
-        identify_lines = ["#           forcelearn identify --config cell-XX.toml --out "
-                          "DIR/cell-XX/identify   (every cell's first)"]
+        identify_seed = "R+100000" if run_seed == "cell" else "0"
+        identify_lines = [f"#           forcelearn identify --config cell-XX.toml --seed "
+                          f"{identify_seed} --out DIR/cell-XX/identify   (every cell's first)"]
         twin_line = twin_line.replace("site --out", "site --identification DIR/cell-XX/identify "
                                                     "--out")
     lines = [
@@ -213,10 +218,12 @@ def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
         "```",
         f"python -m forcelearn.tools.results.twin --cells {len(results)} "
         f"--seed {generator_seed} --out DIR --workers {workers} --seeds {seeds}"
-        + (" --identify" if identify else ""),
+        + (" --identify" if identify else "") + f" --run-seed {run_seed}",
         *identify_lines,
         "# per cell: forcelearn run --config cell-XX.toml --trials "
-        f"{trials} --seed 0 --out DIR/cell-XX/site",
+        f"{trials} --seed {site_seed} --out DIR/cell-XX/site"
+        + ("   (R = 1000 x generator seed + cell number)" if run_seed == "cell" else
+           "   (every cell's sensor walks alike)"),
         twin_line,
         f"#           forcelearn run --config {{cell-XX.toml, twin.toml}} --trials {trials} "
         "--seed S   (S = 0..seeds-1)",
