@@ -54,6 +54,15 @@ def test_a_fit_takes_no_step_worth_less_than_the_cost_resolution() -> None:
             best = cost
     assert small <= 1, (small, result.nfev)
     assert result.cost <= best + 1e-9
-    assert fitting_problem.resolution_ftol(math.inf) == fitting_problem.FTOL
+    assert fitting_problem.resolution_ftol(math.inf, 10) == fitting_problem.FTOL
     # the values the records determine are where the full convergence puts them
     assert abs(solution[1] - SLOW_WEAR.stiffness_n_per_mm) < 0.05
+
+
+def test_a_misfitting_fit_is_resolved_in_its_own_likelihood_units() -> None:
+    """Half a chi-square of 100 x its residuals: a unit of log-likelihood is 200 of the cost."""
+    residuals = 1000
+    for cost in (0.1 * residuals, 100.0 * residuals):
+        unit = max(1.0, 2.0 * cost / residuals)
+        stop = fitting_problem.resolution_ftol(cost, residuals) * cost
+        assert math.isclose(stop, COST_RESOLUTION * unit), (cost, stop)
