@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -10,7 +11,7 @@ import numpy as np
 from forcelearn.emulators.physics.sponge import SpongeParams
 from forcelearn.tools.twin import forward
 from forcelearn.tools.twin.arrays import to_arrays
-from forcelearn.tools.twin.held import Profile, allowed_move, held_spread
+from forcelearn.tools.twin.held import HELD_FACTOR, Profile, allowed_move, held_range, held_spread
 from forcelearn.tools.twin.params import LINEAR_MEMBERS, Member
 from forcelearn.tools.twin.problem import Problem
 from forcelearn.tools.twin.setup import base_arm
@@ -76,6 +77,13 @@ def test_the_allowed_move_reaches_past_the_profile_minimum() -> None:
     assert np.allclose(allowed_move(curve, np.array([2.0]), 1.0), [1.1])
     flat = dataclasses.replace(curve, cost=np.full(4, 10.0))
     assert np.allclose(allowed_move(flat, np.array([2.0]), 1.0), [2.0])
+
+
+def test_the_held_range_is_the_last_fit_sigma_or_a_factor() -> None:
+    """A loose value spans a factor either way; one known better, its 1-sigma."""
+    assert held_range("set_passes", 100.0, math.inf) == (100.0 / HELD_FACTOR,
+                                                         100.0 * HELD_FACTOR)
+    assert held_range("set_passes", 100.0, 10.0) == (90.0, 110.0)
 
 
 def test_with_an_identification_the_relaxation_time_is_never_held() -> None:
