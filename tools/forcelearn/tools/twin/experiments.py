@@ -38,7 +38,7 @@ from forcelearn.tools.twin.bias import BiasWalk
 from forcelearn.tools.twin.forward import Reading
 from forcelearn.tools.twin.identify import IDENTIFY_TRIAL
 from forcelearn.tools.twin.params import BY_NAME
-from forcelearn.tools.twin.problem import Fitted, Problem
+from forcelearn.tools.twin.problem import Fitted, Problem, fitted_names
 
 EXPERIMENTS = {"surface probe": PROBE_TRIAL, "identification": IDENTIFY_TRIAL}
 """The experiments besides the control steps, by the trial number their rows carry."""
@@ -64,7 +64,7 @@ def experiment_spread(fit: Fitted, train: RecordArrays, arm: dict[str, float],
     Summed in quadrature over the experiments the records hold besides the control steps;
     empty when they hold none, or no other records to refit on.
     """
-    names = [n for n in fit.member.free if n not in dict(fit.member.fixed) and n not in fit.held]
+    names = fitted_names(fit)
     checked = [i for i, n in enumerate(names) if n in CHECKED]
     present = {label: trial for label, trial in EXPERIMENTS.items()
                if (train.trial == trial).any()}

@@ -43,7 +43,7 @@ from forcelearn.tools.twin.arrays import RecordArrays
 from forcelearn.tools.twin.bias import BiasWalk
 from forcelearn.tools.twin.forward import Reading
 from forcelearn.tools.twin.params import BY_NAME
-from forcelearn.tools.twin.problem import Fitted, Problem
+from forcelearn.tools.twin.problem import Fitted, Problem, fitted_names
 
 
 class HeldFit(Fitted, Protocol):
@@ -93,7 +93,7 @@ def held_range(name: str, value: float, sigma: float) -> tuple[float, float]:
 def held_spread(fit: HeldFit, train: RecordArrays, arm: dict[str, float], reading: Reading,
                 noise_n: float, walk: BiasWalk | None = None) -> dict[str, float]:
     """The held parameters' share of each fitted parameter's 1-sigma (module docstring)."""
-    names = [n for n in fit.member.free if n not in dict(fit.member.fixed) and n not in fit.held]
+    names = fitted_names(fit)
     held = [n for n in fit.held if n in fit.values and fit.values[n] > 0]
     if not names or not held:
         return {}

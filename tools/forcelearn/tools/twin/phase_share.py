@@ -34,8 +34,7 @@ from forcelearn.tools.twin.arrays import RecordArrays
 from forcelearn.tools.twin.bias import BiasWalk
 from forcelearn.tools.twin.forward import Reading
 from forcelearn.tools.twin.identify import IDENTIFY_TRIAL
-from forcelearn.tools.twin.params import BY_NAME
-from forcelearn.tools.twin.problem import Fitted, Problem
+from forcelearn.tools.twin.problem import FirstOrder, Fitted, Problem, fitted_names
 
 PHASES = 8
 """Grid phases the share is averaged over (its mean square within 1.3 % of the sawtooth's)."""
@@ -67,21 +66,13 @@ def phase_spread(fit: Fitted, train: RecordArrays, arm: dict[str, float], readin
 
     Empty when the records hold no identification move or no fitted sponge parameter.
     """
-    names = [n for n in fit.member.free if n not in dict(fit.member.fixed) and n not in fit.held]
-    if not names or not phased_moves(train).any():
+    if not fitted_names(fit) or not phased_moves(train).any():
         return {}
-    problem = Problem(train, arm, reading, noise_n, walk)
-    x0 = np.array([fit.values[n] for n in names])
-    low = np.array([BY_NAME[n].low for n in names])
-    high = np.array([BY_NAME[n].high for n in names])
-    r0, jac = problem.jacobian(lambda x: problem.predicted(names, fit.values, x), x0, None,
-                               low, high)
-    square = np.zeros(len(names))
+    base = FirstOrder.at(fit, Problem(train, arm, reading, noise_n, walk))
+    square = np.zeros(len(base.names))
     for k in range(PHASES):
         late = phase_lateness_s(train, arm, (k + 0.5) / PHASES)
         shifted = Problem(dataclasses.replace(train, in_position_s=train.in_position_s + late),
                           arm, reading, noise_n, walk)
-        change = shifted.residuals(shifted.predicted(names, fit.values, x0)) - r0
-        step, *_ = np.linalg.lstsq(jac, -change, rcond=None)
-        square += step**2 / PHASES
-    return dict(zip(names, np.sqrt(square).tolist(), strict=True))
+        square += base.step(shifted) ** 2 / PHASES
+    return dict(zip(base.names, np.sqrt(square).tolist(), strict=True))

@@ -7,6 +7,7 @@ resampled 1-sigma of a fitted member (docs/twin-fit.md, "Determined or not").
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from typing import Protocol
@@ -213,6 +214,44 @@ class Fitted(Protocol):
     held: tuple[str, ...]
 
 
+def fitted_names(fit: Fitted) -> list[str]:
+    """The member's parameters its fit moved: free, not fixed by the member, not held."""
+    fixed = dict(fit.member.fixed)
+    return [n for n in fit.member.free if n not in fixed and n not in fit.held]
+
+
+@dataclasses.dataclass(frozen=True)
+class FirstOrder:
+    """A member's fitted values linearised at their solution, the base of a propagated share.
+
+    :meth:`step` is their first-order answer to changed records or a changed arm (a
+    :class:`Problem` on them): one Gauss-Newton step from the solution,
+    ``-(J^T J)^-1 J^T dr``, ``dr`` the residuals' change at the solution.
+    """
+
+    names: list[str]
+    values: dict[str, float]
+    x0: np.ndarray
+    r0: np.ndarray
+    jac: np.ndarray
+
+    @classmethod
+    def at(cls, fit: Fitted, problem: Problem) -> FirstOrder:
+        """Linearised on ``problem`` (the records and arm the member was fitted on)."""
+        names = fitted_names(fit)
+        x0 = np.array([fit.values[n] for n in names])
+        low, high = _bounds(names)
+        r0, jac = problem.jacobian(lambda x: problem.predicted(names, fit.values, x), x0, None,
+                                   low, high)
+        return cls(names, fit.values, x0, r0, jac)
+
+    def step(self, changed: Problem) -> np.ndarray:
+        """The fitted values' first-order move on ``changed``, in their units."""
+        change = changed.residuals(changed.predicted(self.names, self.values, self.x0)) - self.r0
+        result: np.ndarray = np.linalg.lstsq(self.jac, -change, rcond=None)[0]
+        return result
+
+
 def jackknife(fit: Fitted, train: RecordArrays, arm: dict[str, float], reading: Reading,
               noise_n: float, blocks: int = JACKKNIFE_BLOCKS,
               walk: BiasWalk | None = None) -> dict[str, float]:
@@ -240,7 +279,7 @@ def jackknife(fit: Fitted, train: RecordArrays, arm: dict[str, float], reading: 
     per refit, 59 % of a 300-trial fit's time).
     Infinite when there are fewer trials with control steps than blocks.
     """
-    names = [n for n in fit.member.free if n not in dict(fit.member.fixed) and n not in fit.held]
+    names = fitted_names(fit)
     control = np.flatnonzero((train.is_step & train.has_burst).any(axis=1))
     if control.size < blocks or not names:
         return {n: math.inf for n in names}

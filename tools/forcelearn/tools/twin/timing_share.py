@@ -23,8 +23,7 @@ import numpy as np
 from forcelearn.tools.twin.arrays import RecordArrays
 from forcelearn.tools.twin.bias import BiasWalk
 from forcelearn.tools.twin.forward import Reading
-from forcelearn.tools.twin.params import BY_NAME
-from forcelearn.tools.twin.problem import Fitted, Problem
+from forcelearn.tools.twin.problem import FirstOrder, Fitted, Problem, fitted_names
 
 
 def arm_spread(fit: Fitted, train: RecordArrays, arm: dict[str, float],
@@ -35,24 +34,14 @@ def arm_spread(fit: Fitted, train: RecordArrays, arm: dict[str, float],
     ``arm_sigmas``: the arm fit's 1-sigma by name; only finite, positive ones (fitted
     values, not held ones) count. Empty when none or no fitted sponge parameter.
     """
-    names = [n for n in fit.member.free if n not in dict(fit.member.fixed) and n not in fit.held]
     moved = [a for a in arm if math.isfinite(arm_sigmas.get(a, math.inf))
              and arm_sigmas[a] > 0]
-    if not names or not moved:
+    if not fitted_names(fit) or not moved:
         return {}
-    problem = Problem(train, arm, reading, noise_n, walk)
-    x0 = np.array([fit.values[n] for n in names])
-    low = np.array([BY_NAME[n].low for n in names])
-    high = np.array([BY_NAME[n].high for n in names])
-    r0, jac = problem.jacobian(lambda x: problem.predicted(names, fit.values, x), x0, None,
-                               low, high)
-    total = np.zeros(len(names))
+    base = FirstOrder.at(fit, Problem(train, arm, reading, noise_n, walk))
+    total = np.zeros(len(base.names))
     for name in moved:
-        steps = []
-        for end in (arm[name] - arm_sigmas[name], arm[name] + arm_sigmas[name]):
-            shifted = Problem(train, {**arm, name: end}, reading, noise_n, walk)
-            change = shifted.residuals(shifted.predicted(names, fit.values, x0)) - r0
-            step, *_ = np.linalg.lstsq(jac, -change, rcond=None)
-            steps.append(np.abs(step))
+        steps = [np.abs(base.step(Problem(train, {**arm, name: end}, reading, noise_n, walk)))
+                 for end in (arm[name] - arm_sigmas[name], arm[name] + arm_sigmas[name])]
         total += np.max(steps, axis=0) ** 2
-    return dict(zip(names, np.sqrt(total).tolist(), strict=True))
+    return dict(zip(base.names, np.sqrt(total).tolist(), strict=True))
