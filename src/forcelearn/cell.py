@@ -251,7 +251,8 @@ class Cell:
                 reached = _xyz(wait.reached)
         return MoveRecord(_xyz(pose), reached, start_s, in_position_s, self.time_s)
 
-    def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False) -> int:
+    def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False,
+                      stop_at_n: float | None = None) -> int:
         """Move to ``target`` in straight steps of at most ``max_step_mm``; returns the count.
 
         Steps are planned 1 % under the limit, so rounding never asks the driver
@@ -260,7 +261,12 @@ class Cell:
         is read after every intermediate step, so the force limit stops the
         robot on the way, not only at the target, and with a :attr:`press_guard`
         a step whose predicted force passes the limit is cut where the prediction
-        allows, and the force read there (:mod:`forcelearn.press_guard`).
+        allows, and the force read there (:mod:`forcelearn.press_guard`); where it allows no
+        further step the move is refused (:class:`ForceLimitExceeded`, the robot stopped).
+        ``stop_at_n`` (N, under the limit; with the guard): a press that aims as deep as this
+        force lets it, the surface probe's. Where the guard cuts a step and its last reading
+        has passed ``stop_at_n``, or it allows no further step, the move ends there, at rest
+        (:attr:`pose` says where), instead.
         """
         start = self.pose
         distance = float(np.linalg.norm(target.position_mm - start.position_mm))
@@ -285,6 +291,13 @@ class Cell:
                     refreshed = True  # once per move: the drift since is then bounded
                     self._refresh()
                     continue
+                if stop_at_n is not None and _pressed_enough(guard, stop_at_n, share * float(
+                        np.linalg.norm(step.position_mm - self.pose.position_mm))):
+                    log.info("the press ends %.2f mm short of its target at %.3g N (it aimed at "
+                             "most %.3g N)", float(np.linalg.norm(
+                                 target.position_mm - self.pose.position_mm)),
+                             guard.last[1] if guard.last else math.nan, stop_at_n)
+                    return moves
                 self._guarded_part(guard, step, share)
                 moves += 1
                 if moves > MAX_STEPS_PER_MOVE:
@@ -601,6 +614,11 @@ class Cell:
         except ForcelearnError:
             self.stop()
             raise
+
+
+def _pressed_enough(guard: PressGuard, stop_at_n: float, allowed_mm: float) -> bool:
+    """Whether a press cut by ``guard`` (``allowed_mm`` further allowed) ends where it is."""
+    return allowed_mm < MIN_STEP_MM or (guard.last is not None and guard.last[1] > stop_at_n)
 
 
 def _towards(start: Pose, target: Pose, f: float) -> Pose:

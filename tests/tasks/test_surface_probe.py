@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from forcelearn.emulators.physics.sponge import stiffness_n_per_mm, surface_y_mm
 from forcelearn.errors import ForceLimitExceeded, NotInPosition
+from forcelearn.press_guard import PressGuard
 from forcelearn.site.config import SafetyLimits, load_cell_config
 from forcelearn.site.session import CellSession
 from forcelearn.tasks.surface import WEAR_GAIN, SurfaceTaskSpec, SurfaceYOutput
@@ -313,3 +315,42 @@ def test_a_failing_retract_never_hides_why_the_probe_stopped() -> None:
     assert any("the retract after it failed too" in note for note in caught.value.__notes__)
     with pytest.raises(KeyboardInterrupt):  # was replaced by the retract's NotInPosition
         _failing_probe(KeyboardInterrupt()).run()
+
+
+@pytest.mark.parametrize("surface_mm", [3.08, 3.1])
+@pytest.mark.parametrize("seed", range(3))
+def test_a_stiff_relaxing_foam_met_at_an_approach_steps_edge_is_pressed_to_the_limit_not_stopped(
+        seed: int, surface_mm: float, tmp_path: Path, true_force_peak: TruePeak) -> None:
+    """Hidden cell 14 of seed 6: 8 N/mm relaxing 71 %, the surface just past an approach step.
+
+    The first press step is sized from a lower bound of the stiffness (the surface lies
+    somewhere within the last approach step: about 1 N over 1 mm) and aimed 3.5 mm in; the
+    press guard cut it ever shorter as single reads rose towards the 71.4 N limit, then
+    refused the rest, and the refusal ended the run in its probe (three of these six). The
+    press now ends where a cut's reading has passed the probe's own limit (70 % of the
+    cell's), every point is fitted, and no force reaches the limit.
+    """
+    import tomli_w
+
+    from forcelearn.tools.twin.hidden_cells import HiddenCellRanges, cell_config, draw_hidden_cell
+
+    path = tmp_path / "cell.toml"
+    path.write_text(tomli_w.dumps(cell_config(draw_hidden_cell(6, 14, HiddenCellRanges()))),
+                    encoding="utf-8")
+    config = load_cell_config(path)
+    sponge = config.emulator.sponge
+    # the first point (z = 0) is approached from the retract plane (18 mm) in 1 mm steps
+    lift = surface_mm - float(surface_y_mm(sponge, 0, 0.0))
+    sponge = replace(sponge, surface_y_mm=sponge.surface_y_mm + lift)
+    config = replace(config, emulator=replace(config.emulator, sponge=sponge))
+    with CellSession(config, seed=seed) as session:
+        assert session.cell is not None
+        session.cell.press_guard = PressGuard(  # as the run's (surface_run.execute)
+            config.safety.max_force_n, config.task.press_stiffness_n_per_mm,
+            session.cell.force_filter.measurement_variance_n2 ** 0.5)
+        peak = true_force_peak(session)
+        probe = SurfaceProbe(session.cell, config.task, config.probe, config.safety.max_step_mm,
+                             config.safety.workspace_min_mm[1])
+        result = probe.run()
+    assert len(result.fits) == len(config.probe.points)
+    assert peak[0] < config.safety.max_force_n
