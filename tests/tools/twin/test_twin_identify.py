@@ -254,3 +254,34 @@ def test_a_press_too_narrow_even_widened_is_refused_with_what_to_set() -> None:
     wide = FineApproach(MIN_STEP_MM, 2.2, 0.33, PROBE_APPROACH_ADVICE, widest_span_n=3.0)
     assert not wide.again(3.1, 2.0, MIN_STEP_MM)  # 22 N/mm: widened, it presses on
     assert wide.span_n == pytest.approx(0.9 + (READINGS - 1.5) * 22.0 * MIN_STEP_MM)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_step_and_hold_ends_at_the_probes_limit_on_a_stiffening_foam(seed: int,
+                                                                          tmp_path: Path) -> None:
+    """Hidden cell 30 of seed 8 (2 N/mm, stiffening): the steps rise faster than the press.
+
+    Each step was sized from the press's slope near contact; deeper, the foam stiffens, the
+    fifth step's guarded cut read 56.8 N of the 63.4 N limit, the guard refused the rest and
+    the refusal ended the identification (the twin fell back on the run's records). The steps
+    now end once a cut reads past the probe's own limit (70 % of the cell's): at most the
+    last step reads past it, none reaches the limit, and the identification completes.
+    """
+    import tomli_w
+
+    from forcelearn.tools.twin.hidden_cells import HiddenCellRanges, cell_config, draw_hidden_cell
+
+    path = tmp_path / "cell.toml"
+    path.write_text(tomli_w.dumps(cell_config(draw_hidden_cell(8, 30, HiddenCellRanges()))),
+                    encoding="utf-8")
+    config = load_cell_config(path)
+    plan = IdentifyPlan(lengths_mm=(1.0,), speeds_mm_s=(20.0,), free_reads=2, free_hold_s=1.0,
+                        hold_s=(0.1, 0.4), cycles=0)
+    result = run_identification(config, plan, seed=seed)
+    steps = [s for t in result.records for s in t.steps if s.burst is not None]
+    limit_n = config.probe.max_force_ratio * config.safety.max_force_n
+    firsts = {s.index: s.burst.mean_n for s in reversed(steps) if s.stage == "identify-step"}
+    assert len(firsts) >= 2
+    assert sum(f > limit_n for f in firsts.values()) <= 1
+    assert max(firsts, key=lambda k: firsts[k]) == max(firsts)  # only the last one
+    assert max(s.burst.mean_n for s in steps) < config.safety.max_force_n
