@@ -8,11 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcelearn.site.config import load_cell_config
+from forcelearn.records import StepRecord
+from forcelearn.site.config import CellConfig, load_cell_config
 from forcelearn.tools import cli
 from forcelearn.tools.twin.forward import predict_in_position_s
 from forcelearn.tools.twin.identify import (
     IDENTIFY_TRIAL,
+    Identification,
     IdentifyPlan,
     TimedMove,
     read_identification,
@@ -20,6 +22,28 @@ from forcelearn.tools.twin.identify import (
     write_identification,
 )
 from forcelearn.tools.twin.identify_fit import fit_timing
+
+SHORT = {"lengths_mm": (1.0,), "speeds_mm_s": (20.0,), "free_reads": 2, "free_hold_s": 1.0}
+"""A short plan's timed moves and free reads (the force part is what these tests look at)."""
+
+
+def _hidden_cell(folder: Path, generator_seed: int, cell: int) -> CellConfig:
+    """Hidden cell ``cell`` of ``generator_seed`` as the study writes it, loaded."""
+    import tomli_w
+
+    from forcelearn.tools.twin.hidden_cells import HiddenCellRanges, cell_config, draw_hidden_cell
+
+    path = folder / "cell.toml"
+    path.write_text(tomli_w.dumps(cell_config(draw_hidden_cell(generator_seed, cell,
+                                                               HiddenCellRanges()))),
+                    encoding="utf-8")
+    return load_cell_config(path)
+
+
+def _read(result: Identification) -> list[StepRecord]:
+    """The identification's moves that read a burst, in order."""
+    return [s for t in result.records for s in t.steps if s.burst is not None]
+
 
 TRUTH = {"start_delay_s": 0.08, "accel_mm_s2": 800.0, "default_speed_mm_s": 60.0,
          "lag_s": 0.04}
@@ -143,15 +167,8 @@ def test_identify_stays_under_the_force_limit_on_a_stiff_part(tmp_path: Path) ->
 
     Unguarded, the press-in cycles read 22.4 N and the force limit stopped the robot.
     """
-    import tomli_w
-
-    from forcelearn.tools.twin.hidden_cells import HiddenCellRanges, cell_config, draw_hidden_cell
-
-    path = tmp_path / "cell.toml"
-    path.write_text(tomli_w.dumps(cell_config(draw_hidden_cell(1, 17, HiddenCellRanges()))),
-                    encoding="utf-8")
-    config = load_cell_config(path)
-    plan = IdentifyPlan(lengths_mm=(1.0,), speeds_mm_s=(20.0,), free_reads=2, free_hold_s=1.0)
+    config = _hidden_cell(tmp_path, 1, 17)
+    plan = IdentifyPlan(**SHORT)
     result = run_identification(config, plan, seed=0)
     bursts = [s.burst for t in result.records for s in t.steps if s.burst is not None]
     assert max(b.mean_n for b in bursts) < config.safety.max_force_n
@@ -173,10 +190,9 @@ def test_identify_reads_a_stiff_part_with_a_small_force_more_than_once() -> None
     sponge = replace(config.emulator.sponge, stiffness_n_per_mm=8.0)
     config = replace(config, emulator=replace(config.emulator, sponge=sponge),
                      task=replace(config.task, desired_force_n=5.0))
-    plan = IdentifyPlan(lengths_mm=(1.0,), speeds_mm_s=(20.0,), free_reads=2, free_hold_s=1.0,
-                        hold_s=(0.1, 0.4))
+    plan = IdentifyPlan(**SHORT, hold_s=(0.1, 0.4))
     result = run_identification(config, plan, seed=0)
-    steps = [s for t in result.records for s in t.steps if s.burst is not None]
+    steps = _read(result)
     press = [s.burst.mean_n for s in steps if s.stage == "identify-press"]
     assert sum(f > config.probe.contact_force_n for f in press) >= READINGS - 1
     stages = {s.stage for s in steps}
@@ -192,16 +208,8 @@ def test_the_step_and_hold_steps_in_on_a_soft_noisy_part(tmp_path: Path) -> None
     and the step-and-hold, which stopped at the first step the guard would cut, made none.
     Each step now goes as far as the guard allows; every reading stays under the limit.
     """
-    import tomli_w
-
-    from forcelearn.tools.twin.hidden_cells import HiddenCellRanges, cell_config, draw_hidden_cell
-
-    path = tmp_path / "cell.toml"
-    path.write_text(tomli_w.dumps(cell_config(draw_hidden_cell(1, 2, HiddenCellRanges()))),
-                    encoding="utf-8")
-    config = load_cell_config(path)
-    plan = IdentifyPlan(lengths_mm=(1.0,), speeds_mm_s=(20.0,), free_reads=2, free_hold_s=1.0,
-                        hold_s=(0.1, 0.4), cycles=0)
+    config = _hidden_cell(tmp_path, 1, 2)
+    plan = IdentifyPlan(**SHORT, hold_s=(0.1, 0.4), cycles=0)
     result = run_identification(config, plan, seed=0)
     steps = [s for t in result.records for s in t.steps if s.stage == "identify-step"]
     assert len({s.index for s in steps}) == plan.hold_steps - 1
@@ -226,10 +234,9 @@ def test_identify_widens_a_press_no_step_can_read_up_to_the_desired_force() -> N
                      task=replace(config.task, desired_force_n=5.05),
                      probe=replace(config.probe, contact_force_n=2.2),
                      safety=replace(config.safety, max_force_n=15.15))
-    plan = IdentifyPlan(lengths_mm=(1.0,), speeds_mm_s=(20.0,), free_reads=2, free_hold_s=1.0,
-                        hold_s=(0.1, 0.4))
+    plan = IdentifyPlan(**SHORT, hold_s=(0.1, 0.4))
     result = run_identification(config, plan, seed=0)
-    steps = [s for t in result.records for s in t.steps if s.burst is not None]
+    steps = _read(result)
     press = [s.burst.mean_n for s in steps if s.stage == "identify-press"]
     assert press[-1] > plan.press_force_ratio * config.task.desired_force_n
     assert sum(f > config.probe.contact_force_n for f in press[-READINGS:]) >= READINGS - 1
@@ -267,18 +274,10 @@ def test_the_step_and_hold_ends_at_the_probes_limit_on_a_stiffening_foam(seed: i
     now end once a cut reads past the probe's own limit (70 % of the cell's): at most the
     last step reads past it, none reaches the limit, and the identification completes.
     """
-    import tomli_w
-
-    from forcelearn.tools.twin.hidden_cells import HiddenCellRanges, cell_config, draw_hidden_cell
-
-    path = tmp_path / "cell.toml"
-    path.write_text(tomli_w.dumps(cell_config(draw_hidden_cell(8, 30, HiddenCellRanges()))),
-                    encoding="utf-8")
-    config = load_cell_config(path)
-    plan = IdentifyPlan(lengths_mm=(1.0,), speeds_mm_s=(20.0,), free_reads=2, free_hold_s=1.0,
-                        hold_s=(0.1, 0.4), cycles=0)
+    config = _hidden_cell(tmp_path, 8, 30)
+    plan = IdentifyPlan(**SHORT, hold_s=(0.1, 0.4), cycles=0)
     result = run_identification(config, plan, seed=seed)
-    steps = [s for t in result.records for s in t.steps if s.burst is not None]
+    steps = _read(result)
     limit_n = config.probe.max_force_ratio * config.safety.max_force_n
     firsts = {s.index: s.burst.mean_n for s in reversed(steps) if s.stage == "identify-step"}
     assert len(firsts) >= 2
