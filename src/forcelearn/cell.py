@@ -251,8 +251,7 @@ class Cell:
                 reached = _xyz(wait.reached)
         return MoveRecord(_xyz(pose), reached, start_s, in_position_s, self.time_s)
 
-    def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False,
-                      stop_at_n: float | None = None) -> int:
+    def move_in_steps(self, target: Pose, max_step_mm: float, guard_force: bool = False) -> int:
         """Move to ``target`` in straight steps of at most ``max_step_mm``; returns the count.
 
         Steps are planned 1 % under the limit, so rounding never asks the driver
@@ -263,15 +262,29 @@ class Cell:
         a step whose predicted force passes the limit is cut where the prediction
         allows, and the force read there (:mod:`forcelearn.press_guard`); where it allows no
         further step the move is refused (:class:`ForceLimitExceeded`, the robot stopped).
-        ``stop_at_n`` (N, under the limit; with the guard): a press that aims as deep as this
-        force lets it, the surface probe's. Where the guard cuts a step and its last reading
-        has passed ``stop_at_n``, or it allows no further step, the move ends there, at rest
-        (:attr:`pose` says where), instead.
+        """
+        return self._stepped(target, max_step_mm, guard_force, None)[0]
+
+    def press_in_steps(self, target: Pose, max_step_mm: float, stop_at_n: float) -> bool:
+        """A guarded :meth:`move_in_steps` that aims as deep as ``stop_at_n`` (N) lets it.
+
+        ``stop_at_n`` is under the safety limit (the surface probe's own limit). Where the
+        press guard cuts a step and its last reading has passed ``stop_at_n``, or it allows no
+        further step, the move ends there, at rest, instead of being refused. Returns True
+        when it ended short of ``target`` (:attr:`pose` says where).
+        """
+        return self._stepped(target, max_step_mm, True, stop_at_n)[1]
+
+    def _stepped(self, target: Pose, max_step_mm: float, guard_force: bool,
+                 stop_at_n: float | None) -> tuple[int, bool]:
+        """The moves made and whether the press ended short of ``target``.
+
+        :meth:`move_in_steps` (``stop_at_n`` None) or :meth:`press_in_steps`.
         """
         start = self.pose
         distance = float(np.linalg.norm(target.position_mm - start.position_mm))
         if distance == 0.0 and target.quaternion == start.quaternion:
-            return 0  # already there: send nothing
+            return 0, False  # already there: send nothing
         count = max(1, math.ceil(distance / (0.99 * max_step_mm)))
         if count > MAX_STEPS_PER_MOVE:
             raise InvalidTarget(
@@ -297,7 +310,7 @@ class Cell:
                              "most %.3g N)", float(np.linalg.norm(
                                  target.position_mm - self.pose.position_mm)),
                              guard.last[1] if guard.last else math.nan, stop_at_n)
-                    return moves
+                    return moves, True
                 self._guarded_part(guard, step, share)
                 moves += 1
                 if moves > MAX_STEPS_PER_MOVE:
@@ -308,7 +321,7 @@ class Cell:
             if guard_force and i < count:
                 self.measure_force_n(1)
             i += 1
-        return moves
+        return moves, False
 
     def _refresh_pays(self, guard: PressGuard) -> bool:
         """A cut from contact whose unseen-drift headroom is worth a fresh zero."""

@@ -246,11 +246,10 @@ class SurfaceProbe:
             # (hidden cell 14 of seed 6: 8 N/mm relaxing 71 %, contact read at 0.97 N, the step
             # aimed 3.5 mm in; single reads after the cuts rose to 68 N of 71.4 N, the guard
             # refused the rest, and that ended the run in its probe)
-            target = self._pose(x, y - step, z)
-            cell.move_in_steps(target, self.max_step_mm, guard_force=True, stop_at_n=limit_n)
-            ended = cell.pose
-            # where the tool stopped short; else the target (its last step's rounding aside)
-            y = ended.y_mm if abs(ended.y_mm - target.y_mm) > 1e-6 else target.y_mm
+            if cell.press_in_steps(self._pose(x, y - step, z), self.max_step_mm, limit_n):
+                y = cell.pose.y_mm  # where the press ended short
+            else:
+                y -= step
         self._ease_off(index, x, z, y, contact_guess - y, baseline)
         contact = [(yy, ff) for yy, ff in zip(ys, forces, strict=True) if ff > spec.contact_force_n]
         if len(contact) < 2:

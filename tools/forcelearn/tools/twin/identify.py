@@ -389,10 +389,9 @@ def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
             # allows no more (hidden cell 30 of seed 8, 2 N/mm stiffening: the fifth step's
             # cut read 56.8 N of the 63.4 N limit, the guard refused the rest, and the refusal
             # ended the identification); the hold is made there and the steps end
-            cell.move_in_steps(target, config.safety.max_step_mm, guard_force=True,
-                               stop_at_n=probe.max_force_ratio * config.safety.max_force_n)
+            stopped = cell.press_in_steps(target, config.safety.max_step_mm,
+                                          probe.max_force_ratio * config.safety.max_force_n)
             y = cell.pose.y_mm
-            stopped = abs(y - target.y_mm) > 1e-6
             depths.append(y)
             _hold(cell, plan, "identify-hold", k)
             if stopped:
