@@ -32,6 +32,7 @@ from forcelearn.tools.twin.arm import (
     emulator_delay_s,
     fit_arm,
     timed_moves,
+    with_grid,
     with_true_in_position,
 )
 from forcelearn.tools.twin.arrays import RecordArrays, RecordsError, stack, to_arrays
@@ -742,7 +743,9 @@ def fit_twin(records: list[TrialRecords], base_sponge: dict[str, float],
         extra = [t for t in identification.records if t.steps]
         if extra:
             train = stack(to_arrays(extra), train)
-    # the sponge sees the moves end when the robot was in position, not when a poll saw it
+    # the sponge sees the moves end when the robot was in position, not when a poll saw it:
+    # on the controller's tick, where the windows place the moves on its grid
+    arm = with_grid(arm, train, band_mm, tick_s)
     train = with_true_in_position(train, arm, band_mm)
     heldout = with_true_in_position(heldout, arm, band_mm)
     distances, _ = timed_moves(train)

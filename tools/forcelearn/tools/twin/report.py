@@ -217,7 +217,9 @@ def twin_document(fit: TwinFit, source: RunSource) -> dict[str, Any]:
         "residuals": {"train_rms_n": fit.chosen.train_rms_n,
                       "heldout_rms_n": fit.chosen.heldout_rms_n,
                       "heldout_per_trial": per_trial,
-                      "arm_rms_s": fit.arm.rms_s, "arm_moves": fit.arm.moves},
+                      "arm_rms_s": fit.arm.rms_s, "arm_moves": fit.arm.moves,
+                      "tick_grid": (None if fit.arm.grid is None
+                                    else dataclasses.asdict(fit.arm.grid))},
         "sensor": {"colour_phi_upper_bound": fit.sensor.colour_phi,
                    "tares": fit.sensor.tares, "samples": fit.sensor.samples,
                    "drift_source": fit.sensor.drift_source},
@@ -296,6 +298,7 @@ def twin_markdown(document: dict[str, Any]) -> str:
               f"(bar: {_fmt(document['threshold_n'])} N)",
               f"- arm, command to in position: RMS {_fmt(res['arm_rms_s'])} s over "
               f"{res['arm_moves']} moves",
+              _grid_line(res.get("tick_grid")),
               f"- sensor noise colour: AR(1) per sample at most "
               f"{_fmt(document['sensor']['colour_phi_upper_bound'])}", "",
               BIAS_NOTE, ""]
@@ -305,6 +308,18 @@ def twin_markdown(document: dict[str, Any]) -> str:
         lines.append(f"- {note}")
     lines += ["", "![recorded vs predicted force, held-out trials](twin_heldout.png)", ""]
     return "\n".join(lines)
+
+
+def _grid_line(grid: dict[str, float] | None) -> str:
+    """Where the moves' in-position times came from (:mod:`~forcelearn.tools.twin.tick_grid`)."""
+    if grid is None:
+        return ("- moves' in-position: the timing model's mean over the controller's tick "
+                "(the records do not place them on its grid)")
+    return (f"- moves' in-position: each on the controller's {grid['tick_s'] * 1000:.0f} ms "
+            f"tick (grid phase {grid['phase_s'] * 1000:.2f} ms, command to counted "
+            f"{grid['delay_s'] * 1000:.2f} ms, {grid['after_burst_s'] * 1000:+.2f} ms after "
+            f"a burst read; inside the detection window on {grid['share']:.1%} of "
+            f"{grid['moves']} moves)")
 
 
 def twin_config(fit: TwinFit, source: RunSource) -> dict[str, Any]:
