@@ -122,6 +122,10 @@ class ProbeSpec:
         if not (_finite(self.max_force_ratio) and 0 < self.max_force_ratio < 1):
             raise ConfigError(f"probe.max_force_ratio = {self.max_force_ratio!r}: in (0, 1)")
 
+    def limit_n(self, max_force_n: float) -> float:
+        """The probe's own force limit under the cell's ``max_force_n``, N."""
+        return self.max_force_ratio * max_force_n
+
 
 @dataclass(frozen=True)
 class ContactFit:

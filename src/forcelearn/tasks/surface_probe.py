@@ -167,7 +167,7 @@ class SurfaceProbe:
     def _probe_point(self, index: int, x: float, z: float) -> None:
         spec, task, cell = self.spec, self.task, self.cell
         cell.stage = ("probe", index)
-        limit_n = spec.max_force_ratio * cell.max_force_n
+        limit_n = spec.limit_n(cell.max_force_n)
         aim_n = min(spec.press_force_ratio * task.desired_force_n, limit_n / 1.4)
         top = task.retract_y_mm
         floor = max(self.floor_y_mm, top - spec.max_depth_mm - 60.0)

@@ -46,7 +46,13 @@ from forcelearn.tools.twin.identify_fit import identified_arm
 from forcelearn.tools.twin.params import BY_NAME, FRICTION, HYSTERESIS, Member, Parameter, family
 from forcelearn.tools.twin.pass_count import surface_passes
 from forcelearn.tools.twin.phase_share import phase_spread
-from forcelearn.tools.twin.problem import COST_RESOLUTION, Problem, burst_weights, jackknife
+from forcelearn.tools.twin.problem import (
+    COST_RESOLUTION,
+    Problem,
+    burst_weights,
+    half_square,
+    jackknife,
+)
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.timing_share import arm_spread
 
@@ -599,7 +605,7 @@ def recounted_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordAr
 
     def recounted_cost(values: SpongeParams) -> float:
         error = problem.residuals(problem.forward.predict(values, reading))
-        return 0.5 * float(error @ error)
+        return half_square(error)
 
     best_cost = recounted_cost(surface)
     if abs(best_cost - best.train_cost) <= RECOUNT_COST:
@@ -672,7 +678,7 @@ def unstick(fits: list[MemberFit], train: RecordArrays, heldout: RecordArrays,
             point = {**start, **{n: richer.values[n] for n in fit.member.free},
                      **dict(fit.member.fixed)}
             residual = problem.residuals(problem.predicted([], point, np.zeros(0)))
-            cost = 0.5 * float(residual @ residual)
+            cost = half_square(residual)
             if not cost < fit.train_cost * (1 - NESTED_TOLERANCE):
                 continue
             again = fit_member(fit.member, train, heldout, point, base, arm, reading, noise_n,

@@ -43,7 +43,7 @@ from forcelearn.tools.twin.arrays import RecordArrays
 from forcelearn.tools.twin.bias import BiasWalk
 from forcelearn.tools.twin.forward import Reading
 from forcelearn.tools.twin.params import BY_NAME
-from forcelearn.tools.twin.problem import Fitted, Problem, fitted_names
+from forcelearn.tools.twin.problem import Fitted, Problem, fitted_names, half_square
 
 
 class HeldFit(Fitted, Protocol):
@@ -100,7 +100,7 @@ def held_spread(fit: HeldFit, train: RecordArrays, arm: dict[str, float], readin
     problem = Problem(train, arm, reading, noise_n, walk)
     x0 = np.array([fit.values[n] for n in names])
     residuals = problem.residuals(problem.predicted(names, fit.values, x0))
-    cost = 0.5 * float(residuals @ residuals)
+    cost = half_square(residuals)
     dof = residuals.size - len(names) - (walk.profiled if walk is not None else 0)
     rise = 0.5 * PROFILE_CHI2 * max(1.0, 2.0 * cost / max(1, dof))
     keep = np.ones(problem.use.shape, bool)
@@ -136,7 +136,7 @@ def profile(problem: Problem, names: list[str], values: dict[str, float], name: 
             x = problem.refits(names, at, [keep], [PROFILE_STEPS])[0]
             at.update(zip(names, x.tolist(), strict=True))
             r = problem.residuals(problem.predicted(names, at, x))
-            c = 0.5 * float(r @ r)
+            c = half_square(r)
             points.append((value, c, x))
             if c > lowest + rise and c > last:
                 break

@@ -390,7 +390,7 @@ def _force_part(cell: Any, config: CellConfig, plan: IdentifyPlan) -> None:
             # cut read 56.8 N of the 63.4 N limit, the guard refused the rest, and the refusal
             # ended the identification); the hold is made there and the steps end
             stopped = cell.press_in_steps(target, config.safety.max_step_mm,
-                                          probe.max_force_ratio * config.safety.max_force_n)
+                                          probe.limit_n(config.safety.max_force_n))
             y = cell.pose.y_mm
             depths.append(y)
             _hold(cell, plan, "identify-hold", k)

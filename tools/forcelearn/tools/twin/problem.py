@@ -137,7 +137,7 @@ class Problem:
 
         start = residuals(x0)
         result = least_squares(residuals, x0, bounds=(low, high), x_scale="jac", method="trf",
-                               ftol=resolution_ftol(0.5 * float(start @ start), start.size),
+                               ftol=resolution_ftol(half_square(start), start.size),
                                max_nfev=max_nfev or 100 * len(names))
         return np.asarray(result.x), result
 
@@ -186,6 +186,11 @@ class Problem:
             (self.residuals(predicted(x + h[i] * np.eye(x.size)[i]), keep) - r0) / h[i]
             for i in range(x.size)])
         return r0, jac
+
+
+def half_square(residuals: np.ndarray) -> float:
+    """The least-squares cost of ``residuals``: half their sum of squares (unitless)."""
+    return 0.5 * float(residuals @ residuals)
 
 
 def resolution_ftol(cost: float, residuals: int) -> float:
