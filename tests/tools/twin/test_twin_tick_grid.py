@@ -84,6 +84,13 @@ def test_no_grid_where_the_windows_do_not_follow_one() -> None:
     assert MIN_SHARE > 0.5
 
 
+def test_no_grid_where_every_phase_explains_the_windows() -> None:
+    """Windows many ticks wide at every phase (moves ending before their first poll): None."""
+    command, burst, ticks, _, recorded = _moves(7, 0.0013, -0.0017)
+    wide = 0.4
+    assert fit_grid(command, burst, ticks, recorded + 0.5 * wide, wide, TICK_S, 0.125) is None
+
+
 def test_no_grid_without_a_polling_period_or_with_too_few_moves() -> None:
     """Exact recorded times (no polling) or a handful of moves: no grid."""
     command, burst, ticks, _, recorded = _moves(6, 0.0, -0.0017, count=40)

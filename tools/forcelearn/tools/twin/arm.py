@@ -349,10 +349,12 @@ def with_grid(arm: ArmFit, data: RecordArrays, band_mm: float, tick_s: float) ->
 
     :func:`~forcelearn.tools.twin.tick_grid.fit_grid` over the moves :func:`timed_moves`
     takes, with the arm's timing (:attr:`ArmFit.timing`) for each move's ticks of motion;
-    ``arm`` as it is when it has no polling period or no timing, or the grid does not
-    explain the windows, or the moves leave the arm's acceleration or lag undetermined
-    (``GRID_NEEDS``): a move's own tick needs its own ticks of motion. On the default
-    cell's 300-trial run (44 ms windows, no identification) the timing that explains the
+    ``arm`` as it is when it has no polling period or no timing, or the windows do not
+    determine the grid (:func:`~forcelearn.tools.twin.tick_grid.fit_grid`: it must explain
+    97 % of them, and most of those the mean model's times miss), or the moves leave the
+    arm's acceleration or lag undetermined (``GRID_NEEDS``): a move's own tick needs its
+    own ticks of motion. On the default cell's 300-trial run (44 ms windows, no
+    identification) the timing that explains the
     windows has 28 % more acceleration and 13 % more lag than the arm; a grid on it
     explained 96 % of the windows by an offset after a burst read of +2.2 ms where the
     emulator's is -1.7 ms.
@@ -364,9 +366,10 @@ def with_grid(arm: ArmFit, data: RecordArrays, band_mm: float, tick_s: float) ->
     use = (data.valid & np.isfinite(data.move_mm) & (data.move_mm > 0)
            & np.isfinite(data.in_position_s) & (data.in_position_s - command > 0))
     ticks = _motion_ticks(data, arm.timing, band_mm)
+    mean = command + predict_in_position_s(np.nan_to_num(data.move_mm), arm.timing, band_mm)
     grid = fit_grid(command[use], after_burst_read(data)[use], ticks[use],
                     data.in_position_s[use], arm.period_s, tick_s,
-                    arm.timing["start_delay_s"])
+                    arm.timing["start_delay_s"], mean[use])
     return dataclasses.replace(arm, grid=grid)
 
 
