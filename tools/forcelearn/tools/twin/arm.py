@@ -354,10 +354,9 @@ def with_grid(arm: ArmFit, data: RecordArrays, band_mm: float, tick_s: float) ->
     97 % of them, and most of those the mean model's times miss), or the moves leave the
     arm's acceleration or lag undetermined (``GRID_NEEDS``): a move's own tick needs its
     own ticks of motion. On the default cell's 300-trial run (44 ms windows, no
-    identification) the timing that explains the
-    windows has 28 % more acceleration and 13 % more lag than the arm; a grid on it
-    explained 96 % of the windows by an offset after a burst read of +2.2 ms where the
-    emulator's is -1.7 ms.
+    identification) the timing that explains the windows has 28 % more acceleration and
+    13 % more lag than the arm; a grid on it explained 96 % of the windows by an offset
+    after a burst read of +2.2 ms where the emulator's is -1.7 ms.
     """
     if arm.period_s <= 0 or arm.timing is None or not all(
             math.isfinite(arm.sigmas.get(n, math.inf)) for n in GRID_NEEDS):
