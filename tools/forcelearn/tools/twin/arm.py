@@ -148,8 +148,13 @@ def command_s(data: RecordArrays) -> np.ndarray:
     between (:func:`chained_offsets_s`).
     """
     span = np.nan_to_num(data.burst_span_s) + chained_offsets_s(data)
-    before = np.concatenate([np.zeros((data.trials, 1)), span[:, :-1]], axis=1)
-    result: np.ndarray = data.start_s + before
+    result: np.ndarray = data.start_s + _slot_before(span)
+    return result
+
+
+def _slot_before(values: np.ndarray) -> np.ndarray:
+    """(T, M) each slot's value of the slot before it in its trial (0 or False for the first)."""
+    result: np.ndarray = np.concatenate([np.zeros_like(values[:, :1]), values[:, :-1]], axis=1)
     return result
 
 
@@ -332,9 +337,14 @@ GRID_NEEDS = ("accel_mm_s2", "lag_s")
 
 def after_burst_read(data: RecordArrays) -> np.ndarray:
     """(T, M) bool: each move's command waited for a burst of more than one sample."""
-    read = data.has_burst & (data.count > 1)
-    result: np.ndarray = np.concatenate([np.zeros((data.trials, 1), dtype=bool), read[:, :-1]],
-                                        axis=1)
+    return _slot_before(data.has_burst & (data.count > 1))
+
+
+def _mean_in_position_s(data: RecordArrays, command: np.ndarray, timing: dict[str, float],
+                        band_mm: float) -> np.ndarray:
+    """(T, M) each move's in-position by ``timing``'s mean over the grid's phase, s."""
+    result: np.ndarray = command + predict_in_position_s(np.nan_to_num(data.move_mm), timing,
+                                                         band_mm)
     return result
 
 
@@ -365,7 +375,7 @@ def with_grid(arm: ArmFit, data: RecordArrays, band_mm: float, tick_s: float) ->
     use = (data.valid & np.isfinite(data.move_mm) & (data.move_mm > 0)
            & np.isfinite(data.in_position_s) & (data.in_position_s - command > 0))
     ticks = _motion_ticks(data, arm.timing, band_mm)
-    mean = command + predict_in_position_s(np.nan_to_num(data.move_mm), arm.timing, band_mm)
+    mean = _mean_in_position_s(data, command, arm.timing, band_mm)
     grid = fit_grid(command[use], after_burst_read(data)[use], ticks[use],
                     data.in_position_s[use], arm.period_s, tick_s,
                     arm.timing["start_delay_s"], mean[use])
@@ -385,13 +395,11 @@ def true_in_position_s(data: RecordArrays, arm: ArmFit, band_mm: float) -> np.nd
     recorded = data.in_position_s
     if period <= 0:
         return recorded
-    if arm.timing is not None and arm.grid is not None:
-        model = arm.grid.in_position_s(command_s(data), after_burst_read(data),
-                                       _motion_ticks(data, arm.timing, band_mm))
-        estimate = np.clip(model, recorded - period, recorded)
-    elif arm.timing is not None:
-        model = command_s(data) + predict_in_position_s(np.nan_to_num(data.move_mm),
-                                                        arm.timing, band_mm)
+    if arm.timing is not None:
+        command = command_s(data)
+        model = (_mean_in_position_s(data, command, arm.timing, band_mm) if arm.grid is None
+                 else arm.grid.in_position_s(command, after_burst_read(data),
+                                             _motion_ticks(data, arm.timing, band_mm)))
         estimate = np.clip(model, recorded - period, recorded)
     else:
         estimate = recorded - 0.5 * period
