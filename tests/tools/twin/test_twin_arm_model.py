@@ -77,3 +77,36 @@ def test_the_tools_progress_is_the_emulators_mean_over_phases(lag: float, accel:
             reads.append(row)
         model = progress_mm(np.full(times.size, distance), arm, params.in_position_mm, times)
         assert np.max(np.abs(np.mean(reads, axis=0) - model)) < 0.01, distance
+
+
+@pytest.mark.parametrize("lag, accel, speed", [
+    (0.0128, 316.0, 100.0),  # a slow arm: the tool inside the band before the reference stops
+    (0.01, 1000.0, 100.0), (0.03, 1000.0, 100.0), (0.15, 3000.0, 100.0), (0.005, 600.0, 30.0),
+])
+def test_the_tick_of_in_position_is_the_emulators_own(lag: float, accel: float,
+                                                      speed: float) -> None:
+    """Every move, shorter than the band too, comes in position on the emulator's own tick.
+
+    The emulated controller reports in position at the first tick where its reference has
+    stopped on the target and the tool is inside the band; the profile's whole ticks count
+    the same tick from the first tick of motion.
+    """
+    from forcelearn.tools.twin.tick_grid import whole_ticks
+
+    params = MotionParams(lag_s=lag, accel_mm_s2=accel, speed_mm_s=speed)
+    arm = {"accel_mm_s2": accel, "default_speed_mm_s": speed, "lag_s": lag}
+    rng = np.random.default_rng(2)
+    # lengths on the model's 1 um grouping, so each is run at its own length
+    lengths = np.round(np.concatenate([rng.uniform(0.001, 0.12, 12),
+                                       rng.uniform(0.12, 12.0, 24)]), 3)
+    found = profile(lengths, arm, params.in_position_mm)
+    model = whole_ticks(found.ticks[found.inverse])
+    first = math.ceil(params.start_delay_s / params.tick_s - 1e-9)  # commanded at 0
+    for distance, ticks in zip(lengths, model, strict=True):
+        motion = ArmMotion(params, Pose(900.0, 0.0, 0.0, DOWN))
+        motion.command(Pose(900.0, float(distance), 0.0, DOWN), 0.0)
+        index = first - 1
+        while not motion.in_position:
+            index += 1
+            motion.advance_to(index * params.tick_s)
+        assert index - first + 1 == ticks, distance

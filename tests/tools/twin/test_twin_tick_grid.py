@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
@@ -108,7 +107,7 @@ def test_whole_ticks_count_the_tick_the_band_crossing_falls_in() -> None:
 def test_a_short_emulated_run_is_placed_on_the_emulated_arms_own_ticks(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, seed: int,
 ) -> None:
-    """With the arm's timing known, the grid finds the tick the emulated arm entered its band.
+    """With the arm's timing known, the grid finds the tick the emulated arm came in position.
 
     The mean over the grid's phase (the timing model without the grid) is on that tick
     only by chance.
@@ -117,15 +116,17 @@ def test_a_short_emulated_run_is_placed_on_the_emulated_arms_own_ticks(
     advance_keys, command = ArmMotion.advance_keys, ArmMotion.command
 
     def logged_keys(self: ArmMotion, t_s: float) -> tuple[list[Any], int]:
-        first = self.tick_index
-        keys, rest = advance_keys(self, t_s)
-        goal = getattr(self, "_logged_goal", None)
-        for k, key in enumerate(keys if goal is not None else []):
-            assert goal is not None
-            if math.dist(key[:3], goal) <= self.params.in_position_mm:
-                entries.append((first + k + 1) * self.params.tick_s)
+        # one tick at a time (the same motion), to see the tick the controller first
+        # reports in position: the reference stopped on the target, the tool in the band
+        keys: list[Any] = []
+        rest = 0
+        for index in range(self.tick_index + 1, self.tick_at(t_s) + 1):
+            more, jumped = advance_keys(self, index * self.params.tick_s)
+            keys += more
+            rest += jumped
+            if getattr(self, "_logged_goal", None) is not None and self.in_position:
+                entries.append(self.tick_index * self.params.tick_s)
                 self._logged_goal = None  # type: ignore[attr-defined]
-                break
         return keys, rest
 
     def logged_command(self: ArmMotion, target: Pose, t_s: float) -> None:

@@ -14,8 +14,11 @@ A move's motion begins at the first tick after its command plus the start delay;
 command's phase on the grid is unknown (uniform), so the time from command to in
 position is taken as ``start_delay + tick / 2 + (N - 1/2) tick``, with ``N`` the ticks
 of motion, counted with its fraction (the tool's error crosses the band between two
-ticks, geometrically once the reference has stopped): smooth in the parameters, which a
-least-squares fit needs, and equal to the emulator's mean over phases and lengths.
+ticks, geometrically once the reference has stopped; where the tool is inside the band
+before the reference stops, the share of the tick the reference's last step took): smooth
+in the parameters, which a least-squares fit needs, and equal to the emulator's mean over
+phases and lengths. A move shorter than the band is in position when its reference stops
+(a slow arm's 0.1 mm step takes 7 ticks), not at its first tick of motion.
 
 Units: mm, s.
 """
@@ -79,12 +82,14 @@ def profile(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
     keep = math.exp(-tick / lag) if lag > 0 else 0.0
     gain = 1.0 - keep
     s, v, tool = np.zeros_like(d), np.zeros_like(d), np.zeros_like(d)
-    # within the band at once: in position at the first tick of motion (half a tick, mean)
-    ticks = np.where(d <= band_mm, np.where(d > 0, 0.5, 0.0), np.nan)
+    # a move of no length is in position at once; any other when its reference has stopped
+    # on the target with the tool inside the band (a move shorter than the band too)
+    ticks = np.where(d > 0, np.nan, 0.0)
     error = d.copy()
     shares = [np.where(d > 0, 0.0, 1.0)] if keep_path else []
     for i in range(1, MAX_TICKS + 1):
         moving = s < d
+        before = s
         step = np.minimum(np.minimum(v + accel * tick, speed),
                           np.sqrt(2.0 * accel * np.maximum(d - s, 0.0)))
         s = np.where(moving, np.minimum(d, s + step * tick), s)
@@ -95,14 +100,8 @@ def profile(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
         new_error = d - tool
         reached = stopped & (new_error <= band_mm) & np.isnan(ticks)
         if reached.any():
-            # the error decays geometrically once the reference has stopped: the crossing's
-            # fraction of this tick (the whole tick when the reference stopped in it)
-            was_stopped = error > new_error
-            with np.errstate(divide="ignore", invalid="ignore"):
-                fraction = np.log(error / band_mm) / np.log(error / np.maximum(new_error, 1e-300))
-            fraction = np.where(was_stopped & np.isfinite(fraction),
-                                np.clip(fraction, 0.0, 1.0), 1.0)
-            ticks = np.where(reached, i - 1 + fraction, ticks)
+            ticks = np.where(reached, i - 1 + _crossing_fraction(
+                moving, before, step * tick, d, error, new_error, band_mm), ticks)
         error = new_error
         if keep_path:
             shares.append(np.where(d > 0, tool / np.maximum(d, 1e-12), 1.0))
@@ -115,6 +114,28 @@ def profile(distance_mm: np.ndarray, arm: dict[str, float], band_mm: float,
     ticks = np.where(np.isnan(ticks), float(MAX_TICKS), ticks)
     share = np.stack(shares, axis=1) if keep_path else None
     return Profile(d, inverse.reshape(flat.shape), ticks, share)
+
+
+def _crossing_fraction(moved: np.ndarray, before_mm: np.ndarray, step_mm: np.ndarray,
+                       d: np.ndarray, error: np.ndarray, new_error: np.ndarray,
+                       band_mm: float) -> np.ndarray:
+    """The share (0, 1] of the tick in which a move comes in position that it took.
+
+    The controller sees it at the tick's end either way (:func:`~.tick_grid.whole_ticks`);
+    the share keeps the mean time smooth in the arm's parameters. A reference that stopped
+    in this tick (``moved``; the tool then inside the band, or entering it): the share of
+    the tick its last step used. One stopped before: the tool's error decays geometrically,
+    and the share is where it crosses the band. (Taking every crossing as geometric put a
+    slow arm's moves whose tool was inside the band before the reference stopped, 316
+    mm/s^2 and a 13 ms lag, a whole tick early.)
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        last_step = np.clip((d - before_mm) / step_mm, 0.0, 1.0)
+        decay = np.log(error / band_mm) / np.log(error / np.maximum(new_error, 1e-300))
+    stopped_share = np.where(np.isfinite(decay), np.clip(decay, 0.0, 1.0), 1.0)
+    share = np.where(moved, np.where(np.isfinite(last_step), last_step, 1.0), stopped_share)
+    result: np.ndarray = np.where(share > 0.0, share, 1.0)
+    return result
 
 
 def _decay_ticks(i: int, error: np.ndarray, band_mm: float, keep: float) -> np.ndarray:
