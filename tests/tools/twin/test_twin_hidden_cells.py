@@ -131,3 +131,23 @@ def test_bad_count_and_ranges_are_refused(tmp_path: Path) -> None:
         HiddenCellRanges(lag_s=(0.2, 0.01))
     with pytest.raises(SystemExit):
         main(["--count", "0", "--out", str(tmp_path)])
+
+
+def test_shaped_cells_draw_their_own_periodic_shapes_and_leave_every_other_draw() -> None:
+    """``shaped_share`` gives a strip its own waviness and stiffness variation, in range;
+    the other draws of the seed stay those of an unshaped study (its cells run as before)."""
+    shaped = HiddenCellRanges(shaped_share=1.0)
+    base = SpongeParams()
+    shapes = ("waviness_mm", "waviness_wavelength_mm", "stiffness_variation",
+              "stiffness_wavelength_mm")
+    for seed, i in [(0, 1), (1, 7), (2, 30), (3, 12)]:
+        plain, own = draw_hidden_cell(seed, i), draw_hidden_cell(seed, i, shaped)
+        assert all(getattr(plain.sponge, n) == getattr(base, n) for n in shapes)
+        for n in shapes:
+            assert _inside(getattr(own.sponge, n), getattr(shaped, n))
+        assert own.sponge.waviness_wavelength_mm != base.waviness_wavelength_mm
+        for n in ("stiffness_n_per_mm", "surface_y_mm", "relaxation_ratio", "softening",
+                  "stiffening_exponent", "hysteresis_loss", "friction_coefficient"):
+            assert getattr(own.sponge, n) == getattr(plain.sponge, n)
+        assert (own.lag_s, own.noise_n, own.accel_mm_s2, own.desired_force_n) == (
+            plain.lag_s, plain.noise_n, plain.accel_mm_s2, plain.desired_force_n)

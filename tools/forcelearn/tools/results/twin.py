@@ -218,6 +218,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--self-check", type=int, default=0, metavar="EVERY",
                         help="also run the hidden cell with the next --seeds seeds on every "
                              "EVERY-th cell: how well a perfect twin could agree (0: off)")
+    parser.add_argument("--shaped", type=float, default=0.0, metavar="SHARE",
+                        help="share of the drawn cells whose strip has periodic shapes of its "
+                             "own (hidden_cells --shaped; default 0)")
     parser.add_argument("--report-only", action="store_true",
                         help="run nothing; write the page from what has finished")
     parser.add_argument("--page", type=Path, default=None, help="page (default OUT/twin.md)")
@@ -232,7 +235,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not all((out / "cells" / f"{c}.toml").exists() for c in cells):
             subprocess.run([sys.executable, "-m", "forcelearn.tools.twin.hidden_cells",
                             "--count", str(args.cells), "--seed", str(args.seed),
-                            "--out", str(out / "cells")], check=True)
+                            "--out", str(out / "cells"), "--shaped", str(args.shaped)],
+                           check=True)
         seeds = {c: run_seed(args.seed, c) if args.run_seed == "cell" else 0 for c in cells}
         if args.identify and args.identify_first:  # the arm of every cell before site runs
             with ThreadPoolExecutor(args.workers) as pool:

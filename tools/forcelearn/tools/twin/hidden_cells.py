@@ -30,9 +30,16 @@ sensor noise               0.05-1 N (log)      ``[emulator.sensor] noise_std`` (
 nonlinear foam (1 in 2)    n = 1.1-1.6         ``stiffening_exponent`` (else 1: linear)
 hysteresis (1 in 3)        h = 0.05-0.3        ``hysteresis_loss`` (else 0; docs/materials.md)
 friction (1 in 3)          mu = 0.05-0.4       ``friction_coefficient`` (else 0)
+periodic shapes            waviness 0.3-2 mm   ``waviness_mm``, ``waviness_wavelength_mm``,
+(``--shaped``, share;      over 50-160 mm,     ``stiffness_variation``,
+default none)              stiffness variation ``stiffness_wavelength_mm`` (else the
+                           0-0.3 over 60-240   defaults, 1 mm over 80 mm and 0.15 over
+                           mm                  120 mm; drawn from their own stream)
 =========================  ==================  =====================================
 
-Every other sponge, arm and sensor parameter keeps its default.
+Every other sponge, arm and sensor parameter keeps its default. The twin starts its fit
+from the defaults, so a study without ``--shaped`` cells starts every cell's periodic
+shapes at their truth: ``--shaped`` checks what a site's own strip would.
 
 Settings derived so that every drawn cell is runnable (as a site would set them)
 -------------------------------------------------------------------------------
@@ -105,6 +112,9 @@ PROBE_SAMPLES = 16
 """The probe's samples per reading at today's noise."""
 MAX_PROBE_SAMPLES = 400
 """Most samples per probe reading a hidden cell gets (0.4 s of the 1 kHz sensor)."""
+SHAPES = ("waviness_mm", "waviness_wavelength_mm", "stiffness_variation",
+          "stiffness_wavelength_mm")
+"""The strip's periodic shapes along Z (drawn only for ``shaped_share`` of the cells)."""
 CONTACT_NOISE_RATIO = 3.0
 """The probe's contact threshold over the noise std (never under today's 1 N)."""
 
@@ -131,10 +141,17 @@ class HiddenCellRanges:
     """Flexible PU foams lose 20-46 % of a compression cycle's work, h = L / (2 - L)
     (docs/materials.md)."""
     friction_coefficient: Range = (0.05, 0.4)
+    waviness_mm: Range = (0.3, 2.0)
+    waviness_wavelength_mm: Range = (50.0, 160.0)
+    stiffness_variation: Range = (0.0, 0.3)
+    stiffness_wavelength_mm: Range = (60.0, 240.0)
     nonlinear_share: float = 0.5
     """Share of the cells whose foam stiffens (the rest are linear)."""
     hysteresis_share: float = 1 / 3
     friction_share: float = 1 / 3
+    shaped_share: float = 0.0
+    """Share of the cells whose strip has periodic shapes of its own (the rest keep the
+    defaults, where the twin's fit starts). Studies before session 18 drew none."""
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
@@ -262,9 +279,19 @@ def draw_hidden_cell(
     lag_s = _log_uniform(rng, r.lag_s)
     noise_n = _log_uniform(rng, r.noise_n)
     desired_force_n = _tidy(_uniform(rng, r.desired_force_kgf) * KGF_N)
+    # the periodic shapes and the acceleration from streams of their own, so that adding
+    # them left every other draw of a seed as it was
+    shapes = np.random.default_rng([seed, index, 2])
+    if shapes.random() < r.shaped_share:
+        sponge = replace(
+            sponge,
+            waviness_mm=_uniform(shapes, r.waviness_mm),
+            waviness_wavelength_mm=_uniform(shapes, r.waviness_wavelength_mm),
+            stiffness_variation=_uniform(shapes, r.stiffness_variation),
+            stiffness_wavelength_mm=_uniform(shapes, r.stiffness_wavelength_mm),
+        )
     sponge, derived = _derive(sponge, desired_force_n)
     derived.update(_probe_noise_settings(noise_n))
-    # its own stream, so that adding it left every other draw of a seed as it was
     accel_mm_s2 = _log_uniform(np.random.default_rng([seed, index, 1]), r.accel_mm_s2)
     return HiddenCell(
         name=f"cell-{index:02d}",
@@ -322,6 +349,7 @@ def truth(cell: HiddenCell, seed: int, ranges: HiddenCellRanges) -> dict[str, An
             "nonlinear": cell.sponge.stiffening_exponent != 1.0,
             "hysteresis": cell.sponge.hysteresis_loss != 0.0,
             "friction": cell.sponge.friction_coefficient != 0.0,
+            "shaped": any(getattr(cell.sponge, n) != getattr(SpongeParams(), n) for n in SHAPES),
         },
         "arm": {"lag_s": cell.lag_s, "accel_mm_s2": cell.accel_mm_s2},
         "sensor": {"noise_n": cell.noise_n},
@@ -372,10 +400,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--count", type=int, default=30, help="cells to draw (default 30)")
     parser.add_argument("--seed", type=int, default=1, help="generator seed (default 1)")
     parser.add_argument("--out", type=Path, required=True, help="folder to write them to")
+    parser.add_argument("--shaped", type=float, default=0.0, metavar="SHARE",
+                        help="share of the cells whose strip gets periodic shapes of its own "
+                             "(waviness, stiffness variation; default 0: the defaults)")
     args = parser.parse_args(argv)
     if args.count < 1:
         parser.error(f"--count {args.count}: at least 1")
-    paths = write_hidden_cells(args.count, args.seed, args.out)
+    if not 0.0 <= args.shaped <= 1.0:
+        parser.error(f"--shaped {args.shaped}: a share in [0, 1]")
+    paths = write_hidden_cells(args.count, args.seed, args.out,
+                               HiddenCellRanges(shaped_share=args.shaped))
     print(f"{len(paths)} hidden cells in {args.out} (seed {args.seed})")
     return 0
 
