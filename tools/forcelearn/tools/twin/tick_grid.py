@@ -23,9 +23,10 @@ grid to a fraction of a tick.
 Why not the mean over the command's phase (:func:`~forcelearn.tools.twin.arm_model.in_position_s`):
 each move meets the grid at its own phase, so the mean is up to a tick off on any one
 move. On a low-noise copy of hidden cell 25 of seed 7 the mean model put the moves'
-in-position 1.1 ms late (median; 5-95 % from -1.6 to +3.7 ms) against the emulator's own
-band entry, and the relaxation ratio fitted 0.0045 low (about 3 sigma); this grid puts
-96 % of its 1,834 site moves and all 50 identification moves on the emulator's own tick.
+in-position 0.9 ms late (median; 5-95 % from -1.5 to +3.6 ms) against the tick the emulated
+controller reports it, and the relaxation ratio fitted 0.0045 low (about 3 sigma); this grid
+puts 92 % of its 1,796 site moves on that tick (the rest one tick early: commands whose
+arrival falls within the JR3 adapter's +-0.5 ms loop phase of a tick's edge).
 
 Units: s.
 """
@@ -48,7 +49,8 @@ MIN_SHARE = 0.97
 windows (else the controller, or the arm's ticks of motion, are not the modelled ones: the
 mean model is kept). The Net F/T example cell's 40-trial run with its identification's arm
 (1.4 % more acceleration than the emulated arm's): 93 %, and its grid put the moves 3.9 ms
-RMS off the emulated tool's band entry where the mean model was 2.0 ms off."""
+RMS off the emulated tool's first tick inside the band where the mean model was 2.0 ms off
+(session 17's measure)."""
 MAX_PHASE_RUN = PHASES // 4
 """The phases that explain the most windows must lie within this many steps (a quarter of the
 tick, 1 ms of 4): where moves end before their first poll, every window is wide and every
