@@ -134,8 +134,10 @@ def test_bad_count_and_ranges_are_refused(tmp_path: Path) -> None:
 
 
 def test_shaped_cells_draw_their_own_periodic_shapes_and_leave_every_other_draw() -> None:
-    """``shaped_share`` gives a strip its own waviness and stiffness variation, in range;
-    the other draws of the seed stay those of an unshaped study (its cells run as before)."""
+    """``shaped_share`` gives a strip its own waviness and stiffness variation, in range.
+
+    The other draws of the seed stay those of an unshaped study (its cells run as before).
+    """
     shaped = HiddenCellRanges(shaped_share=1.0)
     base = SpongeParams()
     shapes = ("waviness_mm", "waviness_wavelength_mm", "stiffness_variation",

@@ -68,8 +68,10 @@ def test_the_friction_member_keeps_the_lower_of_its_starts(
         return fit
 
     monkeypatch.setattr(fitting, "fit_member", trapped)
-    # the periodic shapes' restart (test_twin_shape_restart.py) is another start: not this test's
+    # the periodic shapes' restart and wavelength search (test_twin_shape_restart.py) are other
+    # starts: not this test's
     monkeypatch.setattr(fitting, "shape_restarted", lambda fit, *args, **kwargs: fit)
+    monkeypatch.setattr(fitting, "wavelength_searched", lambda fit, *args, **kwargs: fit)
     fits = fitting.fit_nested((HYSTERETIC_MEMBER, FRICTION_MEMBER), train, heldout, base, base,
                               ARM, READING, NOISE_N)
     # (the fake costs make ``unstick`` refit the hysteretic member after: not looked at)

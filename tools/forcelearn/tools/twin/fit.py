@@ -55,6 +55,7 @@ from forcelearn.tools.twin.problem import (
 )
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.timing_share import arm_spread
+from forcelearn.tools.twin.wavelength_search import best_wavelength_start
 
 HOLD_OUT = 0.2
 """Share of the trials (the last ones) the fit does not use."""
@@ -558,6 +559,9 @@ def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: Record
                     fit = other
         fit = shape_restarted(fit, train, heldout, start, base, arm, reading, noise_n, walk,
                               never_held)
+        if not represents(fit, noise_n):
+            fit = wavelength_searched(fit, train, heldout, start, base, arm, reading, noise_n,
+                                      walk, never_held)
         if parent is not None and fit.train_cost > parent.train_cost * (1 + NESTED_TOLERANCE):
             again = fit_member(member, train, heldout, start, base, arm, reading, noise_n,
                                walk, never_held)
@@ -616,6 +620,35 @@ def shape_restarted(fit: MemberFit, train: RecordArrays, heldout: RecordArrays,
         fit.note, f"its fit ended at a cost of {fit.train_cost:.4g} with "
         f"{', '.join(moved)} away from the start's; from its solution with the shapes at "
         f"the start's, held for a first solve, {again.train_cost:.4g}"]))
+    return again
+
+
+def wavelength_searched(fit: MemberFit, train: RecordArrays, heldout: RecordArrays,
+                        start: dict[str, float], base: dict[str, float],
+                        arm: dict[str, float], reading: Reading, noise_n: float,
+                        walk: BiasWalk | None = None,
+                        never_held: frozenset[str] = frozenset()) -> MemberFit:
+    """``fit``, or its member refitted from the best start of a search over the wavelengths.
+
+    :func:`~forcelearn.tools.twin.wavelength_search.best_wavelength_start` from the common
+    ``start``; the member is refitted from that start (with its holds) when the search's
+    solve costs ``START_COST`` less than ``fit``, and kept when the refit does too.
+    """
+    names = [n for n in fit.member.free if n not in dict(fit.member.fixed)]
+    problem = Problem(train, arm, reading, noise_n, walk)
+    found = best_wavelength_start(problem, names, {**start, **dict(fit.member.fixed)})
+    if found is None or not found[0] < fit.train_cost - START_COST:
+        return fit
+    again = fit_member(fit.member, train, heldout, found[1], base, arm, reading, noise_n, walk,
+                       never_held)
+    if not again.train_cost < fit.train_cost - START_COST:
+        return fit
+    shapes = ", ".join(f"{n} {fit.values[n]:.4g} -> {again.values[n]:.4g}"
+                       for n in SHAPES if n in again.values)
+    again.note = "; ".join(filter(None, [
+        fit.note, f"its fit did not represent its train trials (cost {fit.train_cost:.4g}); "
+        f"from the best start of a search over the shapes' wavelengths, {again.train_cost:.4g} "
+        f"({shapes})"]))
     return again
 
 
