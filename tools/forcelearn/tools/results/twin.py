@@ -267,7 +267,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     page = args.page or out / "twin.md"
     write_page(results, page, figure, generator_seed=args.seed, seeds=args.seeds,
                trials=TRIALS, workers=args.workers, identify=args.identify,
-               run_seed=args.run_seed)
+               run_seed=args.run_seed, shaped=args.shaped)
     try:
         checks = page_lines(out, cells) + twin_calibration.page_lines(out, cells)
     except StudyError as exc:

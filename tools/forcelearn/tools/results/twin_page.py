@@ -195,10 +195,11 @@ def unrepresented_lines(results: Sequence[CellResult]) -> list[str]:
 
 def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
                generator_seed: int, seeds: int, trials: int, workers: int = 2,
-               identify: bool = False, run_seed: str = "cell") -> None:
+               identify: bool = False, run_seed: str = "cell", shaped: float = 0.0) -> None:
     """Write the Markdown page of the study.
 
-    ``run_seed``: the study's ``--run-seed`` (``cell`` or ``zero``).
+    ``run_seed``: the study's ``--run-seed`` (``cell`` or ``zero``); ``shaped``: its
+    ``--shaped`` share (cells whose strip has periodic shapes of its own).
     """
     site_seed = "R" if run_seed == "cell" else "0"
     twin_line = ("#           forcelearn twin DIR/cell-XX/site --out DIR/cell-XX/twin/twin.toml "
@@ -218,7 +219,8 @@ def write_page(results: Sequence[CellResult], page: Path, figure: Path, *,
         "```",
         f"python -m forcelearn.tools.results.twin --cells {len(results)} "
         f"--seed {generator_seed} --out DIR --workers {workers} --seeds {seeds}"
-        + (" --identify" if identify else "") + f" --run-seed {run_seed}",
+        + (" --identify" if identify else "") + f" --run-seed {run_seed}"
+        + (f" --shaped {shaped:g}" if shaped > 0 else ""),
         *identify_lines,
         "# per cell: forcelearn run --config cell-XX.toml --trials "
         f"{trials} --seed {site_seed} --out DIR/cell-XX/site"
