@@ -81,10 +81,12 @@ def test_the_friction_member_keeps_the_lower_of_its_starts(
     friction = [s for s in starts if s[0] == FRICTION_MEMBER.name]
     assert hysteretic[0] == (HYSTERETIC_MEMBER.name, 0.0, parent_h)
     # from the parent's solution (mu off, then on), then from the common start, h and mu on,
-    # when those fits do not represent the train trials
+    # when those fits do not represent the train trials, and from there with the shapes held
+    # first, always
     lost = train_rms_n > fitting.REPRESENTED_FACTOR * NOISE_N
-    assert [s[1] for s in friction] == ([0.0, mu, mu] if lost else [0.0, mu])
-    assert [s[2] == h for s in friction] == ([False, False, True] if lost else [False, False])
+    assert [s[1] for s in friction] == ([0.0, mu, mu, mu] if lost else [0.0, mu, mu])
+    assert [s[2] == h for s in friction] == ([False, False, True, True] if lost
+                                            else [False, False, True])
     inside = gain > fitting.START_COST
     assert fits[-1].values[FRICTION.name] == (fitting.second_start(FRICTION) if inside else 0.0)
     assert ("inside their ranges" in fits[-1].note) == inside

@@ -62,3 +62,31 @@ def test_the_shapes_are_restarted_from_the_start_where_they_moved(
         assert point["surface_y_mm"] == first.values["surface_y_mm"]  # the rest: its solution
     assert (result is not first) == kept
     assert ("shapes at the start's" in result.note) == kept
+
+
+def test_first_held_parameters_wait_for_a_first_solve_of_the_rest(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``first_held``: a first solve without them (they stay at the start's), then all."""
+    from forcelearn.tools.twin.problem import Problem
+
+    records = simulate_run(SimulatedRun(trials=3, steps=4, burst_samples=5), seed=1)
+    data = to_arrays(records)
+    train, heldout = data.rows(np.array([0, 1])), data.rows(np.array([2]))
+    start = {k: float(v) for k, v in SpongeParams().__dict__.items()}
+    solves: list[tuple[list[str], dict[str, float]]] = []
+    real = Problem.solve
+
+    def logged(self: Problem, names: list[str], values: dict[str, float], *args: Any,
+               **kwargs: Any) -> Any:
+        solves.append((list(names), dict(values)))
+        return real(self, names, values, *args, **kwargs)
+
+    monkeypatch.setattr(Problem, "solve", logged)
+    shapes = tuple(fitting.SHAPES)
+    fitting.fit_member(HYSTERETIC_MEMBER, train, heldout, start, start, ARM, READING, 0.05,
+                       first_held=shapes)
+    (first_names, first_values), (second_names, second_values) = solves[:2]
+    assert not set(shapes) & set(first_names)
+    assert set(shapes) <= set(second_names)
+    assert all(second_values[n] == start[n] for n in shapes)  # still the start's
+    assert second_values["surface_y_mm"] != first_values["surface_y_mm"]  # the rest moved
