@@ -284,3 +284,33 @@ def test_the_step_and_hold_ends_at_the_probes_limit_on_a_stiffening_foam(seed: i
     assert sum(f > limit_n for f in firsts.values()) <= 1
     assert max(firsts, key=lambda k: firsts[k]) == max(firsts)  # only the last one
     assert max(s.burst.mean_n for s in steps) < config.safety.max_force_n
+
+
+def test_a_zero_that_walked_during_the_presses_does_not_lose_the_identification() -> None:
+    """A retreat that reads a pull (the zero walked) goes on and zeroes in free space.
+
+    The guarded move is tried first; then away from the part, unguarded by that zero.
+    """
+    from forcelearn.devices import Pose
+    from forcelearn.errors import SensorSuspect
+    from forcelearn.tools.twin.identify import _retreat
+
+    class Cell:
+        def __init__(self) -> None:
+            self.calls: list[tuple[str, bool | float]] = []
+
+        def move_in_steps(self, target: Pose, max_step_mm: float,
+                          guard_force: bool = False) -> int:
+            self.calls.append(("move", guard_force))
+            if guard_force:
+                raise SensorSuspect("the force read -0.82 N: a part never pulls the tool")
+            return 1
+
+        def tare(self, max_reading_n: float) -> None:
+            self.calls.append(("tare", max_reading_n))
+
+    config = load_cell_config(None)
+    cell = Cell()
+    _retreat(cell, config, Pose(900.0, 15.0, 0.0))
+    assert cell.calls == [("move", True), ("move", False),
+                          ("tare", config.task.tare_max_reading_n)]

@@ -62,12 +62,15 @@ def test_no_search_without_a_wavelength_to_move(problem: Problem) -> None:
     assert best_wavelength_start(problem, ["surface_y_mm", "stiffness_n_per_mm"], start) is None
 
 
-@pytest.mark.parametrize(("represented", "searched"), [(False, True), (True, False)])
-def test_only_a_member_that_misses_its_train_trials_is_searched(
-        monkeypatch: pytest.MonkeyPatch, represented: bool, searched: bool) -> None:
-    """A member's wavelengths are searched only when its fit misses its train trials.
+@pytest.mark.parametrize(("represented", "moved", "searched"),
+                         [(False, False, True), (True, True, True), (True, False, False)])
+def test_a_member_that_misses_its_train_trials_or_left_the_shapes_is_searched(
+        monkeypatch: pytest.MonkeyPatch, represented: bool, moved: bool, searched: bool) -> None:
+    """A member's wavelengths are searched when its fit misses its train trials or moved the shapes.
 
-    (The train RMS above twice the noise: :func:`~forcelearn.tools.twin.fit.represents`.)
+    (The train RMS above twice the noise: :func:`~forcelearn.tools.twin.fit.represents`;
+    a shape more than ``SHAPE_KEPT`` from the start's: :func:`~.fit.shapes_moved`.) A member
+    that represents them with the shapes where they started (the default run's) is not.
     """
     calls: list[int] = []
 
@@ -77,6 +80,8 @@ def test_only_a_member_that_misses_its_train_trials_is_searched(
 
     monkeypatch.setattr(fitting, "wavelength_searched", searched_fit)
     monkeypatch.setattr(fitting, "represents", lambda fit, noise_n: represented)
+    monkeypatch.setattr(fitting, "shapes_moved",
+                        lambda fit, start: ["waviness_mm"] if moved else [])
     records = simulate_run(SimulatedRun(trials=3, steps=4, burst_samples=5), seed=1)
     data = to_arrays(records)
     base = {k: float(v) for k, v in SpongeParams().__dict__.items()}
