@@ -565,7 +565,7 @@ def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: Record
                     fit = other
         fit = shape_restarted(fit, train, heldout, start, base, arm, reading, noise_n, walk,
                               never_held)
-        if not represents(fit, noise_n) or shapes_moved(fit, start):
+        if not represents(fit, noise_n) or shapes_moved(fit, begin):
             fit = wavelength_searched(fit, train, heldout, start, base, arm, reading, noise_n,
                                       walk, never_held)
         if parent is not None and fit.train_cost > parent.train_cost * (1 + NESTED_TOLERANCE):
@@ -644,8 +644,8 @@ def wavelength_searched(fit: MemberFit, train: RecordArrays, heldout: RecordArra
     :func:`~forcelearn.tools.twin.wavelength_search.best_wavelength_start` from the common
     ``start``; the member is refitted from that start (with its holds) when the search's
     solve costs ``START_COST`` less than ``fit``, and kept when the refit does too. Tried for
-    a member that misses its train trials or whose shapes left the start's
-    (:func:`shapes_moved`): hidden cell 23 of seed 11 (a soft linear foam, waviness 0.86 mm
+    a member that misses its train trials or whose shapes left where its fit began (the common
+    start, or its nested parent's solution: :func:`shapes_moved`): hidden cell 23 of seed 11 (a soft linear foam, waviness 0.86 mm
     over 122 mm) represented its train trials at waviness 0.12 mm over 58 mm, its contact
     reported +10.5 sigma and its slope -8.0 off, cost 5,790 where the search finds the
     truth's own minimum, 2,264.
