@@ -66,11 +66,12 @@ def test_no_search_without_a_wavelength_to_move(problem: Problem) -> None:
                          [(False, False, True), (True, True, True), (True, False, False)])
 def test_a_member_that_misses_its_train_trials_or_left_the_shapes_is_searched(
         monkeypatch: pytest.MonkeyPatch, represented: bool, moved: bool, searched: bool) -> None:
-    """A member's wavelengths are searched when its fit misses its train trials or moved the shapes.
+    """A member's wavelengths are searched when its fit misses or moved them.
 
     (The train RMS above twice the noise: :func:`~forcelearn.tools.twin.fit.represents`;
-    a shape more than ``SHAPE_KEPT`` from the start's: :func:`~.fit.shapes_moved`.) A member
-    that represents them with the shapes where they started (the default run's) is not.
+    a wavelength more than ``SHAPE_KEPT`` from where it began: :func:`~.fit.wavelengths_moved`.)
+    A member that represents them with the wavelengths where they began (the default run's) is
+    not.
     """
     calls: list[int] = []
 
@@ -80,7 +81,7 @@ def test_a_member_that_misses_its_train_trials_or_left_the_shapes_is_searched(
 
     monkeypatch.setattr(fitting, "wavelength_searched", searched_fit)
     monkeypatch.setattr(fitting, "represents", lambda fit, noise_n: represented)
-    monkeypatch.setattr(fitting, "shapes_moved",
+    monkeypatch.setattr(fitting, "wavelengths_moved",
                         lambda fit, start: ["waviness_mm"] if moved else [])
     records = simulate_run(SimulatedRun(trials=3, steps=4, burst_samples=5), seed=1)
     data = to_arrays(records)
