@@ -11,9 +11,10 @@ its own train trials at 5x the noise; from the defaults with the waviness's wave
 100 mm, or the variation's at 67 or 100, the same least squares ends at the truth's own minimum,
 2,288.
 
-So a member that does not represent its train trials, or whose shapes left the start's, is
-solved again from the common start with each wavelength in turn started at each of
-``WAVELENGTHS_MM`` (the other at the start's):
+So a member that does not represent its train trials, or whose wavelengths left where its fit
+began (hidden cell 23 of seed 11 represented its train trials from a 58 mm waviness where the
+strip's is 122 mm), is solved again from the common start with each wavelength in turn started
+at each of ``WAVELENGTHS_MM`` (the other at the start's):
 14 plain solves (no holds, no scoring), and the member is refitted from the best of them when
 it lowers the cost (:func:`~forcelearn.tools.twin.fit.fit_nested`). One wavelength at a time,
 not the grid of pairs: once one shape is near its period the other follows in the same solve.
