@@ -55,7 +55,11 @@ from forcelearn.tools.twin.problem import (
 )
 from forcelearn.tools.twin.sensor import SensorFit, fit_sensor
 from forcelearn.tools.twin.timing_share import arm_spread
-from forcelearn.tools.twin.wavelength_search import WAVELENGTHS, best_wavelength_start
+from forcelearn.tools.twin.wavelength_search import (
+    SHAPES,
+    WAVELENGTHS,
+    best_wavelength_start,
+)
 
 HOLD_OUT = 0.2
 """Share of the trials (the last ones) the fit does not use."""
@@ -547,7 +551,7 @@ def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: Record
             # solution may have bent the foam too far to stand in for the friction)
             on = [p for p in ON_STARTS if p.name in member.free]
             first = fit.train_cost
-            shapes = tuple(n for n in SHAPES if n in member.free)
+            shapes = tuple(fitted_names(member, SHAPES))
             for label, turned, origin, always, held in (
                     ("its parent's solution", added, begin, True, ()),
                     ("the common start", on, start, False, ()),
@@ -585,18 +589,22 @@ def fit_nested(members: tuple[Member, ...], train: RecordArrays, heldout: Record
     return unstick(fits, train, heldout, start, base, arm, reading, noise_n, walk, never_held)
 
 
-SHAPES = ("waviness_mm", "waviness_wavelength_mm", "stiffness_variation",
-          "stiffness_wavelength_mm")
-"""The strip's two periodic shapes along Z (the surface's waviness, the stiffness's variation)."""
 SHAPE_KEPT = 0.05
 """A fit whose shapes all lie within this share of the common start's is not restarted."""
+
+
+def fitted_names(member: Member, names: tuple[str, ...] | None = None) -> list[str]:
+    """The parameters ``member`` fits (free, not fixed), of ``names`` when given, in order."""
+    fixed = dict(member.fixed)
+    return [n for n in (member.free if names is None else names)
+            if n in member.free and n not in fixed]
 
 
 def shapes_moved(fit: MemberFit, start: dict[str, float],
                  names: tuple[str, ...] = SHAPES) -> list[str]:
     """The periodic shapes (of ``names``) ``fit`` left more than ``SHAPE_KEPT`` from ``start``'s."""
-    return [n for n in names if n in fit.member.free and n not in dict(fit.member.fixed)
-            and abs(fit.values[n] - start[n]) > SHAPE_KEPT * max(abs(start[n]), 1e-9)]
+    return [n for n in fitted_names(fit.member, names)
+            if abs(fit.values[n] - start[n]) > SHAPE_KEPT * max(abs(start[n]), 1e-9)]
 
 
 def wavelengths_moved(fit: MemberFit, begin: dict[str, float]) -> list[str]:
@@ -629,7 +637,7 @@ def shape_restarted(fit: MemberFit, train: RecordArrays, heldout: RecordArrays,
     truth's own minimum. Kept when it lowers the cost by more than ``START_COST``; not tried
     when every shape is within ``SHAPE_KEPT`` of the start's.
     """
-    shapes = [n for n in SHAPES if n in fit.member.free and n not in dict(fit.member.fixed)]
+    shapes = fitted_names(fit.member, SHAPES)
     moved = shapes_moved(fit, start)
     if not moved:
         return fit
@@ -661,9 +669,9 @@ def wavelength_searched(fit: MemberFit, train: RecordArrays, heldout: RecordArra
     trials at waviness 0.12 mm over 58 mm, its contact reported +10.5 sigma and its slope
     -8.0 off, cost 5,790 where the search finds the truth's own minimum, 2,264.
     """
-    names = [n for n in fit.member.free if n not in dict(fit.member.fixed)]
     problem = Problem(train, arm, reading, noise_n, walk)
-    found = best_wavelength_start(problem, names, {**start, **dict(fit.member.fixed)})
+    found = best_wavelength_start(problem, fitted_names(fit.member),
+                                  {**start, **dict(fit.member.fixed)})
     if found is None or not found[0] < fit.train_cost - START_COST:
         return fit
     again = fit_member(fit.member, train, heldout, found[1], base, arm, reading, noise_n, walk,
@@ -673,9 +681,8 @@ def wavelength_searched(fit: MemberFit, train: RecordArrays, heldout: RecordArra
     shapes = ", ".join(f"{n} {fit.values[n]:.4g} -> {again.values[n]:.4g}"
                        for n in SHAPES if n in again.values)
     again.note = "; ".join(filter(None, [
-        fit.note, f"its fit did not represent its train trials (cost {fit.train_cost:.4g}); "
-        f"from the best start of a search over the shapes' wavelengths, {again.train_cost:.4g} "
-        f"({shapes})"]))
+        fit.note, f"its fit ended at a cost of {fit.train_cost:.4g}; from the best start of a "
+        f"search over the shapes' wavelengths, {again.train_cost:.4g} ({shapes})"]))
     return again
 
 

@@ -88,6 +88,7 @@ from forcelearn.emulators.physics.sponge_law import (
 )
 from forcelearn.site.config import SafetyLimits, load_cell_config
 from forcelearn.tasks.surface import KGF_N, SurfaceTaskSpec
+from forcelearn.tools.twin.wavelength_search import SHAPES
 
 Range = tuple[float, float]
 
@@ -112,9 +113,6 @@ PROBE_SAMPLES = 16
 """The probe's samples per reading at today's noise."""
 MAX_PROBE_SAMPLES = 400
 """Most samples per probe reading a hidden cell gets (0.4 s of the 1 kHz sensor)."""
-SHAPES = ("waviness_mm", "waviness_wavelength_mm", "stiffness_variation",
-          "stiffness_wavelength_mm")
-"""The strip's periodic shapes along Z (drawn only for ``shaped_share`` of the cells)."""
 CONTACT_NOISE_RATIO = 3.0
 """The probe's contact threshold over the noise std (never under today's 1 N)."""
 

@@ -26,6 +26,10 @@ from __future__ import annotations
 
 from forcelearn.tools.twin.problem import Problem
 
+SHAPES = ("waviness_mm", "waviness_wavelength_mm", "stiffness_variation",
+          "stiffness_wavelength_mm")
+"""The strip's two periodic shapes along Z (the surface's waviness, the stiffness's variation),
+amplitude and wavelength each."""
 WAVELENGTHS = ("waviness_wavelength_mm", "stiffness_wavelength_mm")
 """The periodic shapes' wavelengths along Z."""
 WAVELENGTHS_MM = (30.0, 45.0, 67.0, 100.0, 150.0, 225.0, 340.0)
