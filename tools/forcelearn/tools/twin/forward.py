@@ -10,7 +10,9 @@ linear solid's relaxing part ``q``, hysteresis and friction, the rigid backing
 beyond the foam. What is the forward model's own is the state at each burst,
 from the recorded moves. The depth follows the tool from one reached pose to the
 next along the emulated arm's own path in time, ending at the (true) in-position
-time, linear within each of ``PATH_POINTS`` slices, for which ``q`` is exact;
+time: the tool's Y and Z go along a straight line, the depth is the surface's
+under the tool at each point (a short waviness bends it within a move), linear
+within each of ``PATH_POINTS`` slices, for which ``q`` is exact;
 ``q`` then decays until the burst, and the burst reads its mean over the
 burst's span. The tool's remaining lag error at the burst decays from the
 reached pose toward the command with the servo lag. The reading is the
@@ -136,26 +138,37 @@ def motion_shape(data: RecordArrays, arm: dict[str, float]) -> MotionShape:
     return MotionShape(np.clip(shares, 0.0, 1.0), total[..., None] - middles)
 
 
-def relaxing_at_bursts(data: RecordArrays, depth_signed: np.ndarray, p: SpongeParams,
-                       shape: MotionShape, start_signed: np.ndarray | None = None,
+def relaxing_at_bursts(data: RecordArrays, reached_yz: tuple[np.ndarray, np.ndarray],
+                       p: SpongeParams, shape: MotionShape,
+                       start_yz: tuple[np.ndarray, np.ndarray] | None = None,
                        carried: np.ndarray | None = None) -> np.ndarray:
     """The relaxing part q (mm) averaged over each burst, (T, M).
 
-    Over each move the signed depth (surface minus tool Y) goes from the previous
-    reached pose's to this one's along the tool's path in time
-    (:func:`motion_shape`); the standard linear solid's q integrates the foam
-    depth's changes, decaying with ``tau``, as the emulated sponge does tick by
-    tick. Between moves q decays; it is 0 once the tool is out of the foam; trials
-    start relaxed (the tool comes from free space). ``start_signed``: the signed depth
-    where each move's motion began (the last move's lag still closing in on its target;
-    default: the last reached pose's), ``carried``: q that closing added by this move's
-    in position (:func:`predict_means`).
+    Over each move the tool goes from where its motion began to the reached pose
+    (``reached_yz``: its Y and Z, mm) along the arm's path in time
+    (:func:`motion_shape`), and the signed depth is the surface's under it minus its Y
+    at every point; the standard linear solid's q integrates the foam depth's
+    changes, decaying with ``tau``, as the emulated sponge does tick by tick. Between
+    moves q decays; it is 0 once the tool is out of the foam; trials start relaxed
+    (the tool comes from free space). ``start_yz``: where each move's motion began
+    (the last move's lag still closing in on its target; default: the last reached
+    pose), ``carried``: q that closing added by this move's in position
+    (:func:`predict_means`).
     """
     thick, tau = p.thickness_mm, p.relaxation_time_s
-    previous = np.concatenate([depth_signed[:, :1], depth_signed[:, :-1]], axis=1)
-    if start_signed is not None:
-        previous[:, 1:] = start_signed[:, 1:]
-    path = previous[..., None] + shape.share * (depth_signed - previous)[..., None]
+    y, z = reached_yz
+
+    def before(a: np.ndarray) -> np.ndarray:
+        return np.concatenate([a[:, :1], a[:, :-1]], axis=1)
+
+    y0, z0 = before(y), before(z)
+    if start_yz is not None:
+        y0[:, 1:], z0[:, 1:] = start_yz[0][:, 1:], start_yz[1][:, 1:]
+    share = shape.share
+    path = _signed_depth_mm(p, data.passes[..., None], y0[..., None]
+                            + share * (y - y0)[..., None],
+                            z0[..., None] + share * (z - z0)[..., None])
+    previous = _signed_depth_mm(p, data.passes, y0, z0)
     foam_path = law.elastic_depth_mm(p, np.clip(path, 0.0, thick))
     start = law.elastic_depth_mm(p, np.clip(previous, 0.0, thick))[..., None]
     changes = np.diff(np.concatenate([start, foam_path], axis=2), axis=2)
@@ -215,8 +228,8 @@ def _signed_depth_mm(p: SpongeParams, passes: np.ndarray, y: np.ndarray, z: np.n
 
 def _closing(data: RecordArrays, p: SpongeParams, shape: MotionShape, y: np.ndarray,
              z: np.ndarray, yc: np.ndarray, zc: np.ndarray, lag_s: float
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """Each move's start depth and the q the last move's closing lag added, (T, M) each.
+             ) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
+    """Where each move's motion began (Y, Z, mm), and the q the last move's closing added.
 
     After in position the tool goes on from the reached pose toward the target with the
     servo lag, until the next move's motion begins (its in-position time less its
@@ -236,13 +249,12 @@ def _closing(data: RecordArrays, p: SpongeParams, shape: MotionShape, y: np.ndar
     y0, z0, yc0, zc0 = before(y), before(z), before(yc), before(zc)
     ys = yc0 + (y0 - yc0) * shrink
     zs = zc0 + (z0 - zc0) * shrink
-    start = _signed_depth_mm(p, data.passes, ys, zs)
     if lag_s <= 0:
-        return start, np.zeros_like(start)
+        return (ys, zs), np.zeros_like(ys)
     push = _settling_push_mm(p, data.passes, y0, z0, yc0, zc0, np.maximum(since, 1e-12), lag_s)
     push = push * np.exp(-np.nan_to_num(total) / p.relaxation_time_s)
     push[:, 0] = 0.0
-    return start, np.where(np.isfinite(push), push, 0.0)
+    return (ys, zs), np.where(np.isfinite(push), push, 0.0)
 
 
 HYSTERESIS_POINTS = 4
@@ -426,9 +438,8 @@ def predict_means(data: RecordArrays, p: SpongeParams, arm: dict[str, float],
     zc = np.where(data.valid, commanded[..., 2], 0.0)
     if p.relaxation_ratio > 0.0:
         shape = shape if shape is not None else motion_shape(data, arm)
-        start_signed, carried = _closing(data, p, shape, y, z, yc, zc, lag_s)
-        relaxing = relaxing_at_bursts(data, _signed_depth_mm(p, passes, y, z), p, shape,
-                                      start_signed, carried)
+        start_yz, carried = _closing(data, p, shape, y, z, yc, zc, lag_s)
+        relaxing = relaxing_at_bursts(data, (y, z), p, shape, start_yz, carried)
     else:
         relaxing = np.zeros_like(y)
     burst = data.has_burst
