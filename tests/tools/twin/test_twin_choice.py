@@ -123,6 +123,30 @@ def test_an_inherited_amplitude_need_not_be_present() -> None:
     assert fits[choose(fits).index].member is HYSTERETIC_MEMBER
 
 
+@pytest.mark.parametrize(("exponent_sigma", "chosen"), [(None, True), (0.3, False)])
+def test_a_dropped_members_mechanism_is_judged_by_the_next_that_carries_it(
+        exponent_sigma: float | None, chosen: bool) -> None:
+    """Nonlinear dropped (its fit worse than linear's): hysteretic judged over linear.
+
+    Hidden cell 13 of seed 11 (a linear foam with hysteresis): the hysteretic member's
+    exponent 0.998 +- 0.002 (measured: the foam is linear) vetoed it as "within 3 sigma of
+    1", as if stiffening were its own mechanism, and the cell was declared not
+    represented. Its own mechanism is h; the dropped member's exponent must be measured,
+    present or not: a loose one still vetoes it.
+    """
+    fits = _fits(1.0, 1.0, 3 * BIC_MARGIN)
+    fits[1].eligible = False
+    added = {"stiffening_exponent": 0.998, "hysteresis_loss": 0.2, "hysteresis_depth_mm": 0.6}
+    sigmas = {n: _determined_sigma(n, v) for n, v in added.items()}
+    if exponent_sigma is not None:
+        sigmas["stiffening_exponent"] = exponent_sigma
+    fits.append(_Fit(HYSTERETIC_MEMBER, 100.0 - 6 * BIC_MARGIN, added, sigmas))
+    choice = choose(fits)
+    assert (fits[choice.index].member is HYSTERETIC_MEMBER) is chosen
+    if not chosen:
+        assert "stiffening_exponent" in choice.notes[-1] and "not determined" in choice.notes[-1]
+
+
 def test_a_departure_below_the_resolution_is_no_mechanism() -> None:
     """An exponent many sigma from 1 but within its determination bound of 1: linear kept."""
     resolution = BY_NAME["stiffening_exponent"].absolute

@@ -111,26 +111,46 @@ def measured(name: str, value: float, sigma: float) -> bool:
                 and sigma <= MEASURED_SHARE * abs(value - OFF_VALUE.get(name, 0.0)))
 
 
+def _unjudged(fits: Sequence[Fitted], before: list[int], names: list[str]) -> list[str]:
+    """The amplitudes among ``names`` whose own member (of ``before``) was dropped.
+
+    A member dropped as ineligible (its fit worse than the member it contains) never had
+    its mechanism judged; the next member that carries it judges it.
+    """
+    result = []
+    for k, j in enumerate(before):
+        if fits[j].eligible:
+            continue
+        parent = fits[before[k - 1]].member if k > 0 else None
+        mechanism = added(fits[j].member, parent) if parent else list(fits[j].member.free)
+        result += [n for n in mechanism if n in OFF_VALUE and n in names]
+    return result
+
+
 def mechanism_gap(fit: Fitted, names: list[str], sigmas: dict[str, float] | None = None,
-                  own: list[str] | None = None) -> str:
+                  own: list[str] | None = None, unjudged: Sequence[str] = ()) -> str:
     """Why the added parameters ``names`` are not determined in ``fit`` ('' when they are).
 
     ``sigmas``: their 1-sigma (default: the fit's). ``own``: the member's own mechanism
     (what it adds over the member just before it in the family; default ``names``): only
     amplitude must be determined and present; one inherited from a member the walk did
     not take (an exponent at 1, a relaxation ratio under a hysteretic foam) is judged
-    with that member, not again here.
+    with that member, not again here. ``unjudged``: inherited amplitudes whose member was
+    dropped (:func:`_unjudged`): measured here, present or not (hidden cell 13 of seed 11,
+    a linear foam with hysteresis, its nonlinear member dropped: the hysteretic member's
+    exponent 0.998 +- 0.002 says the foam is linear, and h is its own).
     """
     own = names if own is None else own
     sigmas = fit.sigmas if sigmas is None else sigmas
     amplitudes = [n for n in names if n in OFF_VALUE]
+    judged = [*own, *unjudged]
     for name in names:
         value, sigma = fit.values[name], sigmas.get(name, math.inf)
-        if name in amplitudes and name in own and name in fit.held:
+        if name in amplitudes and name in judged and name in fit.held:
             return f"{name} is held at the base value (the records do not determine it)"
         if _at_bound(name, value):
             return f"{name} sits at an end of its range ({value:.4g})"
-        if name in amplitudes and name in own and not measured(name, value, sigma):
+        if name in amplitudes and name in judged and not measured(name, value, sigma):
             return f"{name} = {value:.4g} ± {sigma:.2g} is not determined"
     for name in [n for n in amplitudes if n in own]:
         value, sigma = fit.values[name], sigmas.get(name, math.inf)
@@ -171,10 +191,9 @@ def choose(fits: Sequence[Fitted], resampled: Callable[[int], dict[str, float]] 
         if resampled is not None:
             for name, spread in resampled(i).items():
                 sigmas[name] = max(sigmas.get(name, math.inf), spread)
-        before = [j for j in eligible if j < i
-                  and set(fits[j].member.free) <= set(richer.member.free)]
+        before = [j for j in range(i) if set(fits[j].member.free) <= set(richer.member.free)]
         own = added(richer.member, fits[before[-1]].member) if before else names
-        gap = mechanism_gap(richer, names, sigmas, own)
+        gap = mechanism_gap(richer, names, sigmas, own, _unjudged(fits, before, names))
         if gap:
             choice.undetermined.append(richer.member.name)
             choice.notes.append(
