@@ -90,7 +90,9 @@ def experiment_spread(fit: Fitted, train: RecordArrays, arm: dict[str, float],
     moved = problem.refits(names, fit.values, masks, [LEAVE_OUT_STEPS] * len(masks))
     total = np.zeros(len(names))
     for keep, x in zip(masks, moved, strict=True):
-        explained = np.maximum(0.0, np.nan_to_num(sigmas(x, keep) ** 2 - s_all**2, nan=np.inf))
+        with np.errstate(invalid="ignore"):  # inf - inf: a parameter loose either way
+            explained = np.maximum(0.0, np.nan_to_num(sigmas(x, keep) ** 2 - s_all**2,
+                                                      nan=np.inf))
         excess = np.sqrt(np.maximum(0.0, (x - x0) ** 2 - explained))
         total += excess**2
     return {names[i]: float(math.sqrt(total[i])) for i in checked
