@@ -22,7 +22,9 @@ eligible member, a richer one is taken over the present choice only when both
   model error, not a mechanism.) A
   scale the records leave loose (a relaxation time held at the base value) does
   not veto it: the amplitude is then the initial rate at that scale, which the
-  report says.
+  report says. A mechanism whose own member was dropped (its fit worse than the member it
+  contains) is judged with the next member that carries it: measured there, present or
+  absent (an exponent at 1.00 +- 0.002 says the foam is linear).
 
 Otherwise the present choice stays, and the report says why: the records cannot
 tell the two apart (within the margin), or they favour the richer member but do
