@@ -75,12 +75,14 @@ def _fitted(data: RecordArrays) -> tuple[_Fit, dict[str, float], dict[str, float
 
 
 def test_steps_commanded_at_one_phase_widen_the_relaxations_sigma_to_cover_it() -> None:
-    """All steps at one phase, 1.6 ms off the model: the ratio's error is within 3 sigma.
+    """All steps at one phase, 2 ms off the model: the ratio's error is within 3 sigma.
 
-    The Jacobian's 1-sigma alone puts the ratio more than 3 sigma from the truth; with the
-    phase's share added, within 3.
+    The Jacobian's 1-sigma alone puts the ratio more than 3 sigma from the truth (5.2); with
+    the phase's share added, within 3 (2.3). (At 1.6 ms the other way the error was 3.4
+    Jacobian sigmas while the model started every trial relaxed; with the relaxing part the
+    last trial's retreat left, 0.8: the steps' phase is then tested where it matters.)
     """
-    data = _as_modelled(_identification(0.3))
+    data = _as_modelled(_identification(0.41))
     fit, jacobian, share = _fitted(data)
     error = abs(fit.values["relaxation_ratio"] - TRUTH.relaxation_ratio)
     assert error > 3 * jacobian["relaxation_ratio"]
