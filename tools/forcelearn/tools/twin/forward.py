@@ -186,7 +186,7 @@ def relaxing_at_bursts(data: RecordArrays, reached_yz: tuple[np.ndarray, np.ndar
 
     def scan(start: np.ndarray) -> np.ndarray:
         q = start
-        after = np.zeros_like(foam)
+        after: np.ndarray = np.zeros_like(foam)
         for j in range(foam.shape[1]):
             q = q * keep[:, j] + pushed[:, j]
             q = np.where(released[:, j] & (q > 0.0), 0.0, q)
