@@ -138,6 +138,12 @@ def motion_shape(data: RecordArrays, arm: dict[str, float]) -> MotionShape:
     return MotionShape(np.clip(shares, 0.0, 1.0), total[..., None] - middles)
 
 
+def _previous_move(a: np.ndarray) -> np.ndarray:
+    """``a`` (T, M), each move's column holding the move before it's (a row's first: its own)."""
+    result: np.ndarray = np.concatenate([a[:, :1], a[:, :-1]], axis=1)
+    return result
+
+
 def relaxing_at_bursts(data: RecordArrays, reached_yz: tuple[np.ndarray, np.ndarray],
                        p: SpongeParams, shape: MotionShape,
                        start_yz: tuple[np.ndarray, np.ndarray] | None = None,
@@ -157,11 +163,7 @@ def relaxing_at_bursts(data: RecordArrays, reached_yz: tuple[np.ndarray, np.ndar
     """
     thick, tau = p.thickness_mm, p.relaxation_time_s
     y, z = reached_yz
-
-    def before(a: np.ndarray) -> np.ndarray:
-        return np.concatenate([a[:, :1], a[:, :-1]], axis=1)
-
-    y0, z0 = before(y), before(z)
+    y0, z0 = _previous_move(y), _previous_move(z)
     if start_yz is not None:
         y0[:, 1:], z0[:, 1:] = start_yz[0][:, 1:], start_yz[1][:, 1:]
     share = shape.share
@@ -278,13 +280,10 @@ def _closing(data: RecordArrays, p: SpongeParams, shape: MotionShape, y: np.ndar
     end = data.in_position_s
     begin = end - total
 
-    def before(a: np.ndarray) -> np.ndarray:
-        return np.concatenate([a[:, :1], a[:, :-1]], axis=1)
-
-    since = np.nan_to_num(np.maximum(0.0, begin - before(end)))
+    since = np.nan_to_num(np.maximum(0.0, begin - _previous_move(end)))
     since[:, 0] = 0.0
     shrink = np.exp(-since / lag_s) if lag_s > 0 else np.zeros_like(since)
-    y0, z0, yc0, zc0 = before(y), before(z), before(yc), before(zc)
+    y0, z0, yc0, zc0 = (_previous_move(a) for a in (y, z, yc, zc))
     ys = yc0 + (y0 - yc0) * shrink
     zs = zc0 + (z0 - zc0) * shrink
     if lag_s <= 0:
