@@ -749,13 +749,14 @@ def walked_fits(fits: list[MemberFit], train: RecordArrays, heldout: RecordArray
                 base: dict[str, float], arm: dict[str, float], reading: Reading,
                 noise_n: float, walk: BiasWalk, never_held: frozenset[str] = frozenset()
                 ) -> tuple[BiasWalk, list[MemberFit]]:
-    """The identification's and the probe's sensor bias followed burst to burst; members refitted.
+    """The sensor's bias followed burst to burst; members refitted.
 
     The members are fitted with the bias held over slices of up to ``bias.SEGMENT_S``
     (an identification's holds last minutes at one place, while the sensor walks
     ``q sqrt(20 s)``, 0.1 N at 0.02 N/sqrt(s), against a burst mean known to 0.01 N);
-    then each burst of the identification (and of the surface probe, whose points hold a
-    minute at one place too) gets its own bias, the steps between them
+    then each burst of the identification (and, where the walk is on, of the surface
+    probe, whose points hold a minute at one place too, and of every trial) gets its own
+    bias, the steps between them
     weighted by the walk's own rate (:meth:`~.bias.BiasWalk.at_bursts`), and each member
     is refitted from its own solution: the per-burst problem is solved as a continuation
     of the sliced one. Fitted from the members' common start with the per-burst walk, a
