@@ -100,9 +100,9 @@ def test_the_members_are_refitted_from_their_own_solutions_with_a_bias_per_burst
 def test_where_the_zero_walks_every_trials_bursts_follow_it() -> None:
     """The walk on, a run's own trials (tared, anchored) get a bias per burst too.
 
-    Their zero walks between the trial's tare and each burst as it does in a hold, and a
-    force controller closes its loop on the read force, so a zero held over a trial leaves
-    a walk the commands followed (hidden cell 02 of seed 6: softening -3.7 sigma).
+    Their zero walks from the trial's tare to each burst as it does in a hold (0.07 N over a
+    12 s trial at 0.02 N/sqrt(s)); held over the trial, that walk leaned hidden cell 02 of
+    seed 6's softening to -3.7 sigma (per burst: -2.4).
     """
     data, sliced = _identification(3, 0)
     anchored = dataclasses.replace(sliced, unanchored=frozenset())
